@@ -1,0 +1,628 @@
+//! The scenario as the engine receives it: one plain struct, deserialised once from the
+//! JSON the Python layer sends, then validated here so that every entry point of the engine
+//! guards itself. Field names mirror the TOML keys, so an error names the user's key.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    pub key: String,
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+impl ConfigError {
+    fn new(key: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub vehicle: Vehicle,
+    pub payload: Payload,
+    pub environment: Environment,
+    pub initial: Initial,
+    pub controller: ControllerConfig,
+    pub trajectory: Trajectory,
+    pub phases: Vec<Phase>,
+    pub gust: Gust,
+    pub integrator: Integrator,
+    pub metrics: Metrics,
+    pub divergence: Divergence,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Vehicle {
+    /// kg, the quadrotor alone.
+    pub mass: f64,
+    /// kg m^2, nominal (what the controller believes): Ixx, Iyy, Izz.
+    pub inertia: [f64; 3],
+    /// kg m^2, plant inertia minus nominal (the paper's Delta I).
+    pub inertia_error: [f64; 3],
+    /// m, arm length (Table 1; the model applies torques directly, so it is informational).
+    pub arm_length: f64,
+    /// m^2, Cd times projected area for vertical drag.
+    pub drag_area: f64,
+    /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
+    pub lateral_drag_area: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Payload {
+    /// kg.
+    pub mass: f64,
+    /// Hz, fn with kc = mc (2 pi fn)^2. Exactly one of this and `stiffness`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub natural_frequency: Option<f64>,
+    /// N/m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// N s/m.
+    pub damping: f64,
+    /// m^2, Cd times projected area for vertical drag.
+    pub drag_area: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Environment {
+    /// m/s^2.
+    pub gravity: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Initial {
+    /// m, quadrotor x, y, z; the payload starts at its hover equilibrium below it.
+    pub position: [f64; 3],
+    /// rad, roll, pitch, yaw.
+    pub attitude: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerConfig {
+    /// Use m + mc in the control laws (the paper's proposal) instead of m.
+    pub mass_compensation: bool,
+    /// rad, bound on the commanded roll and pitch.
+    pub tilt_limit: f64,
+    /// N, the thrust is never divided by less than this (guards Ux, Uy).
+    pub thrust_floor: f64,
+    /// N, optional saturation of the total thrust.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thrust_min: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thrust_max: Option<f64>,
+    pub pd: PdGains,
+    pub smc: SmcGains,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PdGains {
+    /// x, y, z position gains.
+    pub kp: [f64; 3],
+    pub kd: [f64; 3],
+    /// roll, pitch, yaw gains (torque per rad, per rad/s).
+    pub kp_attitude: [f64; 3],
+    pub kd_attitude: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SmcGains {
+    pub epsilon: [f64; 3],
+    pub lambda: [f64; 3],
+    pub eta: [f64; 3],
+    pub epsilon_attitude: [f64; 3],
+    pub lambda_attitude: [f64; 3],
+    pub eta_attitude: [f64; 3],
+    /// Boundary-layer width of sat(s) = s / (|s| + gamma).
+    pub gamma: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Interpolation {
+    Step,
+    MinJerk,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Trajectory {
+    pub interpolation: Interpolation,
+    /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing.
+    pub waypoints: Vec<[f64; 5]>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Phase {
+    pub name: String,
+    /// s, inclusive.
+    pub start: f64,
+    /// s, inclusive.
+    pub end: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GustModel {
+    Dryden,
+    VonKarman,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GustComponent {
+    Longitudinal,
+    Lateral,
+    Vertical,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Gust {
+    pub enabled: bool,
+    pub model: GustModel,
+    pub components: Vec<GustComponent>,
+    /// s, the gust window [start, end).
+    pub start: f64,
+    pub end: f64,
+    /// m above ground (converted to feet for the MIL-F-8785C scale formulas).
+    pub altitude: f64,
+    /// m/s, wind speed at 20 ft.
+    pub w20: f64,
+    /// m/s, the speed at which the frozen turbulence is convected past the vehicle.
+    pub airspeed: f64,
+    /// kg/m^3.
+    pub air_density: f64,
+    /// m/s, inertial x, y, z, added to the gust inside the window.
+    pub mean_wind: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Integrator {
+    /// s.
+    pub dt: f64,
+    /// s.
+    pub duration: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metrics {
+    /// Hz, rate at which e_o is block-averaged for the amplitude spectra.
+    pub spectrum_rate: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Divergence {
+    /// m, a realisation whose quadrotor or payload strays further than this from the origin diverged.
+    pub max_distance: f64,
+    /// rad, a realisation whose roll or pitch exceeds this diverged.
+    pub max_tilt: f64,
+}
+
+/// Most integration steps one flight may take (guards against hangs from a tiny dt).
+pub const MAX_STEPS: f64 = 2.0e9;
+
+impl Config {
+    /// Parse and validate the engine's JSON form of a scenario.
+    pub fn from_json(text: &str) -> Result<Self, ConfigError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let cfg: Config = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.inner().to_string();
+            // serde_json appends " at line L column C": meaningless to a TOML user.
+            let inner = inner.split(" at line ").next().unwrap_or(&inner).to_string();
+            if key == "." || key.is_empty() {
+                ConfigError::new("", format!("scenario: {inner}"))
+            } else {
+                ConfigError::new(key.clone(), format!("{key}: {inner}"))
+            }
+        })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a Config always serialises")
+    }
+
+    /// kc in N/m, from whichever of stiffness / natural frequency was given.
+    pub fn stiffness(&self) -> f64 {
+        match (self.payload.stiffness, self.payload.natural_frequency) {
+            (Some(k), _) => k,
+            (None, Some(fn_hz)) => self.payload.mass * (2.0 * std::f64::consts::PI * fn_hz).powi(2),
+            (None, None) => f64::NAN, // rejected by validate()
+        }
+    }
+
+    /// Number of RK4 steps of a flight: the duration rounded to the nearest whole step.
+    pub fn steps(&self) -> usize {
+        (self.integrator.duration / self.integrator.dt).round() as usize
+    }
+
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let v = &self.vehicle;
+        positive("vehicle.mass", v.mass)?;
+        for (i, x) in v.inertia.iter().enumerate() {
+            positive(&format!("vehicle.inertia[{i}]"), *x)?;
+        }
+        for (i, x) in v.inertia_error.iter().enumerate() {
+            let key = format!("vehicle.inertia_error[{i}]");
+            finite(&key, *x)?;
+            if v.inertia[i] + x <= 0.0 {
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} must leave a positive plant inertia (vehicle.inertia[{i}] + error > 0), got {x:?}"
+                    ),
+                ));
+            }
+        }
+        non_negative("vehicle.arm_length", v.arm_length)?;
+        non_negative("vehicle.drag_area", v.drag_area)?;
+        non_negative("vehicle.lateral_drag_area", v.lateral_drag_area)?;
+
+        let p = &self.payload;
+        positive("payload.mass", p.mass)?;
+        match (p.stiffness, p.natural_frequency) {
+            (Some(_), Some(_)) => {
+                return Err(ConfigError::new(
+                    "payload.stiffness",
+                    "give exactly one of payload.stiffness and payload.natural_frequency, got both",
+                ))
+            }
+            (None, None) => {
+                return Err(ConfigError::new(
+                    "payload.natural_frequency",
+                    "give exactly one of payload.stiffness and payload.natural_frequency, got neither",
+                ))
+            }
+            (Some(k), None) => positive("payload.stiffness", k)?,
+            (None, Some(f)) => positive("payload.natural_frequency", f)?,
+        }
+        non_negative("payload.damping", p.damping)?;
+        non_negative("payload.drag_area", p.drag_area)?;
+
+        positive("environment.gravity", self.environment.gravity)?;
+
+        for (i, x) in self.initial.position.iter().enumerate() {
+            finite(&format!("initial.position[{i}]"), *x)?;
+        }
+        for (i, x) in self.initial.attitude.iter().enumerate() {
+            finite(&format!("initial.attitude[{i}]"), *x)?;
+        }
+        for i in 0..2 {
+            let a = self.initial.attitude[i];
+            if a.abs() >= std::f64::consts::FRAC_PI_2 {
+                let key = format!("initial.attitude[{i}]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} (roll/pitch) must be within (-pi/2, pi/2) rad, got {a:?}"),
+                ));
+            }
+        }
+
+        self.validate_controller()?;
+        self.validate_trajectory()?;
+        self.validate_gust()?;
+
+        let it = &self.integrator;
+        positive("integrator.dt", it.dt)?;
+        positive("integrator.duration", it.duration)?;
+        if it.dt > it.duration {
+            return Err(ConfigError::new(
+                "integrator.dt",
+                format!(
+                    "integrator.dt must not exceed integrator.duration ({:?} s), got {:?}",
+                    it.duration, it.dt
+                ),
+            ));
+        }
+        if it.duration / it.dt > MAX_STEPS {
+            return Err(ConfigError::new(
+                "integrator.dt",
+                format!(
+                    "integrator.dt is too small: duration / dt must be at most {MAX_STEPS:e} steps, got {:?}",
+                    it.dt
+                ),
+            ));
+        }
+        self.validate_phases()?;
+
+        positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
+        positive("divergence.max_distance", self.divergence.max_distance)?;
+        positive("divergence.max_tilt", self.divergence.max_tilt)?;
+        Ok(())
+    }
+
+    fn validate_controller(&self) -> Result<(), ConfigError> {
+        let c = &self.controller;
+        let tl = c.tilt_limit;
+        positive("controller.tilt_limit", tl)?;
+        if tl > std::f64::consts::FRAC_PI_2 {
+            return Err(ConfigError::new(
+                "controller.tilt_limit",
+                format!("controller.tilt_limit must be at most pi/2 rad, got {tl:?}"),
+            ));
+        }
+        positive("controller.thrust_floor", c.thrust_floor)?;
+        if let Some(x) = c.thrust_min {
+            non_negative("controller.thrust_min", x)?;
+        }
+        if let Some(x) = c.thrust_max {
+            positive("controller.thrust_max", x)?;
+            if x <= c.thrust_min.unwrap_or(0.0) {
+                return Err(ConfigError::new(
+                    "controller.thrust_max",
+                    format!("controller.thrust_max must exceed controller.thrust_min, got {x:?}"),
+                ));
+            }
+        }
+        let pd = &c.pd;
+        for (name, arr) in [
+            ("kp", pd.kp),
+            ("kd", pd.kd),
+            ("kp_attitude", pd.kp_attitude),
+            ("kd_attitude", pd.kd_attitude),
+        ] {
+            for (i, x) in arr.iter().enumerate() {
+                non_negative(&format!("controller.pd.{name}[{i}]"), *x)?;
+            }
+        }
+        let smc = &c.smc;
+        for (name, arr) in [
+            ("epsilon", smc.epsilon),
+            ("lambda", smc.lambda),
+            ("eta", smc.eta),
+            ("epsilon_attitude", smc.epsilon_attitude),
+            ("lambda_attitude", smc.lambda_attitude),
+            ("eta_attitude", smc.eta_attitude),
+        ] {
+            for (i, x) in arr.iter().enumerate() {
+                non_negative(&format!("controller.smc.{name}[{i}]"), *x)?;
+            }
+        }
+        positive("controller.smc.gamma", smc.gamma)
+    }
+
+    fn validate_trajectory(&self) -> Result<(), ConfigError> {
+        let w = &self.trajectory.waypoints;
+        if w.len() < 2 {
+            return Err(ConfigError::new(
+                "trajectory.waypoints",
+                format!(
+                    "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got {}",
+                    w.len()
+                ),
+            ));
+        }
+        for (i, row) in w.iter().enumerate() {
+            for (j, x) in row.iter().enumerate() {
+                finite(&format!("trajectory.waypoints[{i}][{j}]"), *x)?;
+            }
+            if i > 0 && row[0] <= w[i - 1][0] {
+                let key = format!("trajectory.waypoints[{i}][0]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} (time) must be later than the previous waypoint's ({:?} s), got {:?}",
+                        w[i - 1][0], row[0]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_phases(&self) -> Result<(), ConfigError> {
+        let dur = self.integrator.duration;
+        if self.phases.is_empty() {
+            return Err(ConfigError::new(
+                "phases",
+                "phases must name at least one time window, got none",
+            ));
+        }
+        for (i, ph) in self.phases.iter().enumerate() {
+            if ph.name.trim().is_empty() {
+                return Err(ConfigError::new(
+                    format!("phases[{i}].name"),
+                    format!("phases[{i}].name must not be empty, got {:?}", ph.name),
+                ));
+            }
+            if self.phases[..i].iter().any(|p| p.name == ph.name) {
+                return Err(ConfigError::new(
+                    format!("phases[{i}].name"),
+                    format!("phases[{i}].name must be unique, got {:?} twice", ph.name),
+                ));
+            }
+            let k_start = format!("phases[{i}].start");
+            let k_end = format!("phases[{i}].end");
+            non_negative(&k_start, ph.start)?;
+            finite(&k_end, ph.end)?;
+            if ph.end > dur * (1.0 + 1e-12) {
+                return Err(ConfigError::new(
+                    &k_end,
+                    format!(
+                        "{k_end} must be within the flight (<= integrator.duration = {dur:?} s), got {:?}",
+                        ph.end
+                    ),
+                ));
+            }
+            if ph.end - ph.start < 2.0 * self.integrator.dt {
+                return Err(ConfigError::new(
+                    &k_end,
+                    format!(
+                        "{k_end} must be later than {k_start} by at least two steps (2 dt), got {:?} (start {:?})",
+                        ph.end, ph.start
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_gust(&self) -> Result<(), ConfigError> {
+        let g = &self.gust;
+        non_negative("gust.start", g.start)?;
+        finite("gust.end", g.end)?;
+        if g.end < g.start {
+            return Err(ConfigError::new(
+                "gust.end",
+                format!(
+                    "gust.end must not be before gust.start ({:?} s), got {:?}",
+                    g.start, g.end
+                ),
+            ));
+        }
+        positive("gust.altitude", g.altitude)?;
+        non_negative("gust.w20", g.w20)?;
+        if !(g.airspeed.is_finite() && g.airspeed > 0.0) {
+            return Err(ConfigError::new(
+                "gust.airspeed",
+                format!(
+                    "gust.airspeed must be > 0 (the Dryden filters are singular at zero airspeed), got {:?}",
+                    g.airspeed
+                ),
+            ));
+        }
+        non_negative("gust.air_density", g.air_density)?;
+        for (i, x) in g.mean_wind.iter().enumerate() {
+            finite(&format!("gust.mean_wind[{i}]"), *x)?;
+        }
+        for (i, c) in g.components.iter().enumerate() {
+            if g.components[..i].contains(c) {
+                return Err(ConfigError::new(
+                    "gust.components",
+                    format!("gust.components lists {c:?} twice"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn finite(key: &str, x: f64) -> Result<(), ConfigError> {
+    if x.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::new(
+            key,
+            format!("{key} must be a finite number, got {x:?}"),
+        ))
+    }
+}
+
+fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(key, format!("{key} must be > 0, got {x:?}")))
+    }
+}
+
+fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
+    if x.is_finite() && x >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(key, format!("{key} must be >= 0, got {x:?}")))
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// The paper preset, as the Python layer ships it (python/quadrs/presets/paper.toml).
+    pub(crate) fn paper() -> Config {
+        Config::from_json(PAPER_JSON).expect("paper preset is valid")
+    }
+
+    pub(crate) const PAPER_JSON: &str = r#"{
+      "vehicle": {"mass": 2.2, "inertia": [0.0167, 0.0167, 0.0231], "inertia_error": [0, 0, 0],
+                  "arm_length": 0.1725, "drag_area": 0.101, "lateral_drag_area": 0.101},
+      "payload": {"mass": 0.22, "natural_frequency": 2.0, "damping": 0.0, "drag_area": 0.101},
+      "environment": {"gravity": 9.81},
+      "initial": {"position": [0, 0, 0], "attitude": [0, 0, 0.5]},
+      "controller": {"mass_compensation": true, "tilt_limit": 1.5707963267948966, "thrust_floor": 0.1,
+        "pd": {"kp": [1.5, 1.6, 1.5], "kd": [1.8, 1.8, 2.0], "kp_attitude": [0.4, 0.7, 1.0], "kd_attitude": [0.1, 0.05, 0.05]},
+        "smc": {"epsilon": [2.2, 1.8, 1.8], "lambda": [3.0, 3.2, 3.2], "eta": [0.4, 0.4, 0.4],
+                "epsilon_attitude": [1.5, 1.1, 1.1], "lambda_attitude": [1.5, 1.5, 1.5], "eta_attitude": [0.04, 0.04, 0.04], "gamma": 0.2}},
+      "trajectory": {"interpolation": "step", "waypoints": [[0, 0, 0, 2, 0], [60, 0, 0, 0, 0]]},
+      "phases": [{"name": "P1", "start": 0, "end": 20}, {"name": "P2", "start": 20, "end": 50}, {"name": "P3", "start": 50, "end": 70}],
+      "gust": {"enabled": true, "model": "dryden", "components": ["vertical"], "start": 25, "end": 40,
+               "altitude": 2.0, "w20": 10.0, "airspeed": 10.0, "air_density": 1.225, "mean_wind": [0, 0, 0]},
+      "integrator": {"dt": 0.0002, "duration": 70},
+      "metrics": {"spectrum_rate": 100},
+      "divergence": {"max_distance": 1000, "max_tilt": 1.5707963267948966}
+    }"#;
+
+    #[test]
+    fn paper_preset_parses_and_round_trips() {
+        let c = paper();
+        let again = Config::from_json(&c.to_json()).unwrap();
+        assert_eq!(c.to_json(), again.to_json());
+        assert_eq!(c.steps(), 350_000);
+        let kc = c.stiffness();
+        assert!((kc - 0.22 * (4.0 * std::f64::consts::PI).powi(2)).abs() < 1e-12);
+    }
+
+    fn with(edit: impl Fn(&mut serde_json::Value)) -> Result<Config, ConfigError> {
+        let mut v: serde_json::Value = serde_json::from_str(PAPER_JSON).unwrap();
+        edit(&mut v);
+        Config::from_json(&v.to_string())
+    }
+
+    #[test]
+    fn bad_values_name_their_key() {
+        let e = with(|v| v["payload"]["mass"] = (-1.0).into()).unwrap_err();
+        assert_eq!(e.key, "payload.mass");
+        assert_eq!(e.message, "payload.mass must be > 0, got -1.0");
+        let e = with(|v| v["integrator"]["dt"] = 0.0.into()).unwrap_err();
+        assert_eq!(e.key, "integrator.dt");
+        let e = with(|v| v["integrator"]["dt"] = 100.0.into()).unwrap_err();
+        assert!(e.message.contains("must not exceed integrator.duration"), "{e}");
+        let e = with(|v| v["phases"][2]["end"] = 80.0.into()).unwrap_err();
+        assert_eq!(e.key, "phases[2].end");
+        let e = with(|v| {
+            v["trajectory"]["waypoints"] = serde_json::json!([[0, 0, 0, 2, 0]]);
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "trajectory.waypoints");
+        let e = with(|v| v["gust"]["airspeed"] = 0.0.into()).unwrap_err();
+        assert!(e.message.contains("singular"), "{e}");
+    }
+
+    #[test]
+    fn unknown_and_mistyped_keys_are_named() {
+        let e = with(|v| v["payload"]["colour"] = "red".into()).unwrap_err();
+        assert!(e.message.contains("payload") && e.message.contains("colour"), "{e}");
+        let e = with(|v| v["vehicle"]["mass"] = "heavy".into()).unwrap_err();
+        assert_eq!(e.key, "vehicle.mass");
+        let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();
+        assert!(e.message.contains("exactly one"), "{e}");
+    }
+}

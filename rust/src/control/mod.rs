@@ -1,0 +1,177 @@
+//! Cascade controllers (MODEL.md section 2): an outer loop gives the thrust U1 and virtual
+//! inputs Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop.
+
+mod pd;
+mod smc;
+
+pub use pd::Pd;
+pub use smc::Smc;
+
+use crate::config::Config;
+use crate::lane::Lane;
+use crate::model::{ix, Inputs, State};
+use crate::trajectory::Reference;
+
+/// A control law: inputs for the state `s` and reference `r`, computed once per step.
+pub trait Control: Sync {
+    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L>;
+}
+
+/// Which law to fly; the names are the public ones ("pd", "smc").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ControllerKind {
+    Pd,
+    Smc,
+}
+
+impl ControllerKind {
+    pub fn parse(name: &str) -> Result<Self, String> {
+        match name {
+            "pd" => Ok(Self::Pd),
+            "smc" => Ok(Self::Smc),
+            other => Err(format!("controller must be 'pd' or 'smc', got {other:?}")),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Pd => "pd",
+            Self::Smc => "smc",
+        }
+    }
+}
+
+/// What both laws share: the mass they compensate, the thrust guards and the attitude inversion.
+#[derive(Clone, Debug)]
+pub struct Shared {
+    /// m~: m + mc with mass compensation, m without.
+    pub mt: f64,
+    pub g: f64,
+    /// Nominal inertia (the controller's belief).
+    pub inertia: [f64; 3],
+    thrust_min: f64,
+    thrust_max: f64,
+    thrust_floor: f64,
+    /// sin of the tilt limit: asin is monotone, so clamping its argument clamps the angle.
+    sin_tilt: f64,
+}
+
+/// Smallest cos(phi) cos(theta) the laws divide by. Only reached by a vehicle tipped on its
+/// side, which the divergence check flags anyway; it keeps the arithmetic finite until then.
+const MIN_TILT_COS: f64 = 1e-6;
+
+impl Shared {
+    pub fn new(cfg: &Config) -> Self {
+        let c = &cfg.controller;
+        let mt = if c.mass_compensation {
+            cfg.vehicle.mass + cfg.payload.mass
+        } else {
+            cfg.vehicle.mass
+        };
+        Self {
+            mt,
+            g: cfg.environment.gravity,
+            inertia: cfg.vehicle.inertia,
+            thrust_min: c.thrust_min.unwrap_or(f64::NEG_INFINITY),
+            thrust_max: c.thrust_max.unwrap_or(f64::INFINITY),
+            thrust_floor: c.thrust_floor,
+            sin_tilt: c.tilt_limit.sin(),
+        }
+    }
+
+    /// 1 / (cos(phi) cos(theta)), guarded.
+    #[inline(always)]
+    fn inv_tilt<L: Lane>(&self, cphi: L, cth: L) -> L {
+        L::splat(1.0) / (cphi * cth).max(L::splat(MIN_TILT_COS))
+    }
+
+    /// Thrust after the optional limits.
+    #[inline(always)]
+    fn limit_thrust<L: Lane>(&self, u1: L) -> L {
+        u1.clamp(L::splat(self.thrust_min), L::splat(self.thrust_max))
+    }
+
+    /// mt / U1 with U1 kept away from zero (the virtual inputs divide by it).
+    #[inline(always)]
+    fn mass_over_thrust<L: Lane>(&self, u1: L) -> L {
+        L::splat(self.mt) / u1.max(L::splat(self.thrust_floor))
+    }
+
+    /// Exact inversion of the x/y equations: commanded (phi, theta) for virtual inputs Ux, Uy
+    /// at the current yaw.
+    #[inline(always)]
+    fn desired_attitude<L: Lane>(&self, ux: L, uy: L, spsi: L, cpsi: L) -> (L, L) {
+        let lim = L::splat(self.sin_tilt);
+        let sphi = (spsi * ux - cpsi * uy).clamp(-lim, lim);
+        let cphi = (L::splat(1.0) - sphi * sphi).sqrt().max(L::splat(MIN_TILT_COS));
+        let sth = ((cpsi * ux + spsi * uy) / cphi).clamp(-lim, lim);
+        (sphi.asin(), sth.asin())
+    }
+}
+
+/// Position errors e = desired - actual and their rates, as the laws use them.
+#[inline(always)]
+fn position_errors<L: Lane>(s: &State<L>, r: &Reference) -> ([L; 3], [L; 3]) {
+    let e = [
+        L::splat(r.pos[0]) - s[ix::X],
+        L::splat(r.pos[1]) - s[ix::Y],
+        L::splat(r.pos[2]) - s[ix::Z],
+    ];
+    let ed = [
+        L::splat(r.vel[0]) - s[ix::VX],
+        L::splat(r.vel[1]) - s[ix::VY],
+        L::splat(r.vel[2]) - s[ix::VZ],
+    ];
+    (e, ed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+    use crate::model::Plant;
+
+    fn hover_inputs<C: Control>(c: &C) -> Inputs<f64> {
+        let cfg = paper();
+        let plant = Plant::new(&cfg);
+        let s = plant.rest_state([0.0, 0.0, 2.0], [0.0, 0.0, 0.3]);
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            psi: 0.3,
+            ..Reference::default()
+        };
+        c.control(&s, &r)
+    }
+
+    #[test]
+    fn both_laws_hold_hover_with_total_weight() {
+        let cfg = paper();
+        let w = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
+        for u in [hover_inputs(&Pd::new(&cfg)), hover_inputs(&Smc::new(&cfg))] {
+            assert!((u.u1 - w).abs() < 1e-12, "U1 = {} vs weight {w}", u.u1);
+            assert_eq!(u.tau, [0.0; 3]);
+        }
+    }
+
+    #[test]
+    fn attitude_inversion_reproduces_the_virtual_inputs() {
+        let sh = Shared::new(&paper());
+        for &(ux, uy, psi) in &[(0.1, -0.2, 0.5), (-0.3, 0.05, -2.0), (0.0, 0.4, 3.0)] {
+            let (spsi, cpsi) = f64::sin_cos(psi);
+            let (phi, th): (f64, f64) = sh.desired_attitude(ux, uy, spsi, cpsi);
+            let (sphi, cphi) = phi.sin_cos();
+            let sth = th.sin();
+            assert!((cphi * sth * cpsi + spsi * sphi - ux).abs() < 1e-12);
+            assert!((cphi * sth * spsi - sphi * cpsi - uy).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn tilt_limit_bounds_the_commanded_angles() {
+        let mut cfg = paper();
+        cfg.controller.tilt_limit = 0.2;
+        let sh = Shared::new(&cfg);
+        let (phi, th): (f64, f64) = sh.desired_attitude(5.0, -5.0, 0.0, 1.0);
+        assert!((phi.abs() - 0.2).abs() < 1e-12 && (th.abs() - 0.2).abs() < 1e-12);
+    }
+}

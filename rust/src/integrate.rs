@@ -1,0 +1,411 @@
+//! The flight loop: classical RK4 with controls and wind sampled at the start of each step and
+//! held over its four stages (a digital controller at 1/dt Hz), metrics taken online.
+
+use crate::config::{Config, ConfigError};
+use crate::control::{Control, ControllerKind, Pd, Smc};
+use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
+use crate::lane::Lane;
+use crate::metrics::{PhaseAccumulator, N_METRICS};
+use crate::model::{ix, Inputs, Plant, State, NX};
+use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory};
+use rustfft::FftPlanner;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// One RK4 step of the plant with inputs and wind held.
+#[inline(always)]
+pub fn rk4_step<L: Lane>(plant: &Plant, s: &State<L>, u: &Inputs<L>, w: &[L; 3], dt: f64) -> State<L> {
+    let stage = |base: &State<L>, k: &State<L>, h: f64| -> State<L> {
+        let mut out = *base;
+        for i in 0..NX {
+            out[i] = base[i] + k[i] * h;
+        }
+        out
+    };
+    let k1 = plant.derivative(s, u, w);
+    let k2 = plant.derivative(&stage(s, &k1, 0.5 * dt), u, w);
+    let k3 = plant.derivative(&stage(s, &k2, 0.5 * dt), u, w);
+    let k4 = plant.derivative(&stage(s, &k3, dt), u, w);
+    let mut out = *s;
+    let h6 = dt / 6.0;
+    for i in 0..NX {
+        out[i] = s[i] + (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]) * h6;
+    }
+    out
+}
+
+/// Trace columns after `t`, in order.
+pub const TRACE_COLUMNS: [&str; 26] = [
+    "x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc", "x_ref",
+    "y_ref", "z_ref", "psi_ref", "U1", "tau_phi", "tau_theta", "tau_psi", "wind_x", "wind_y",
+    "wind_z", "e_o",
+];
+
+/// Rows of (t, TRACE_COLUMNS...) every `every` steps, for lane 0 of a flight.
+pub struct Trace {
+    pub every: usize,
+    pub data: Vec<f64>,
+}
+
+impl Trace {
+    pub const WIDTH: usize = TRACE_COLUMNS.len() + 1;
+
+    pub fn new(every: usize, steps: usize) -> Self {
+        let every = every.max(1);
+        Self {
+            every,
+            data: Vec::with_capacity((steps / every + 1) * Self::WIDTH),
+        }
+    }
+
+    fn push<L: Lane>(&mut self, t: f64, s: &State<L>, r: &Reference, u: &Inputs<L>, w: &[L; 3], e_o: L) {
+        self.data.push(t);
+        self.data.extend(s.iter().map(|x| x.lane(0)));
+        self.data
+            .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, u.u1.lane(0)]);
+        self.data.extend(u.tau.iter().chain(w.iter()).map(|x| x.lane(0)));
+        self.data.push(e_o.lane(0));
+    }
+}
+
+/// What one realisation of one controller produced.
+#[derive(Clone, Debug)]
+pub struct LaneResult {
+    /// One row per phase, columns as `metrics::METRIC_NAMES`; NaN when diverged.
+    pub metrics: Vec<[f64; N_METRICS]>,
+    /// Time (s) at which the state went non-finite or ran away; NaN if it never did.
+    pub diverged_at: f64,
+    /// Amplitude spectrum of e_o per phase (empty unless asked for).
+    pub spectra: Vec<Vec<f64>>,
+}
+
+/// A validated scenario turned into everything the loop needs, built once and shared read-only.
+pub struct Engine {
+    pub cfg: Config,
+    pub plant: Plant,
+    trajectory: Trajectory,
+    phases: Vec<PhaseSteps>,
+    wind: WindField,
+    pub steps: usize,
+    pub dt: f64,
+    decimation: usize,
+    x0: State<f64>,
+    pd: Pd,
+    smc: Smc,
+}
+
+/// How often (in steps) a flight looks at the cancel flag.
+const CANCEL_CHECK_STEPS: usize = 4096;
+
+impl Engine {
+    pub fn new(cfg: Config) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let plant = Plant::new(&cfg);
+        let dt = cfg.integrator.dt;
+        let wind = WindField::new(&gust_spec(&cfg), dt).map_err(|message| ConfigError {
+            key: "gust".into(),
+            message,
+        })?;
+        let steps = cfg.steps();
+        let decimation = ((1.0 / (cfg.metrics.spectrum_rate * dt)).round() as usize).max(1);
+        let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
+        Ok(Self {
+            plant,
+            trajectory: Trajectory::new(&cfg),
+            phases: phase_steps(&cfg),
+            wind,
+            steps,
+            dt,
+            decimation,
+            x0,
+            pd: Pd::new(&cfg),
+            smc: Smc::new(&cfg),
+            cfg,
+        })
+    }
+
+    pub fn phase_count(&self) -> usize {
+        self.phases.len()
+    }
+
+    /// Frequencies (Hz) of each phase's spectrum bins.
+    pub fn spectrum_grid(&self) -> Vec<Vec<f64>> {
+        crate::metrics::spectrum_grid(&self.phases, self.dt, self.decimation, self.steps)
+    }
+
+    /// Fly realisations `indices` (one per lane) under `kind`. Returns None if cancelled.
+    #[allow(clippy::too_many_arguments)]
+    pub fn fly<L: Lane>(
+        &self,
+        kind: ControllerKind,
+        seed: u64,
+        indices: &[u64],
+        want_spectra: bool,
+        trace: Option<&mut Trace>,
+        cancel: Option<&AtomicBool>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        match kind {
+            ControllerKind::Pd => {
+                self.fly_with::<L, _>(&self.pd, seed, indices, want_spectra, trace, cancel, planner)
+            }
+            ControllerKind::Smc => {
+                self.fly_with::<L, _>(&self.smc, seed, indices, want_spectra, trace, cancel, planner)
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn fly_with<L: Lane, C: Control>(
+        &self,
+        ctrl: &C,
+        seed: u64,
+        indices: &[u64],
+        want_spectra: bool,
+        mut trace: Option<&mut Trace>,
+        cancel: Option<&AtomicBool>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert_eq!(indices.len(), L::LANES, "one realisation index per lane");
+        let plant = &self.plant;
+        let x0: State<L> = self.x0.map(L::splat);
+        let mut s = x0;
+        let mut winds: Vec<WindState> = indices
+            .iter()
+            .map(|&i| self.wind.realisation(seed, i))
+            .collect();
+        let mut acc = PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
+        let mut diverged_at = [f64::NAN; 4];
+        let mut alive = L::LANES;
+        let div = &self.cfg.divergence;
+        let (max_dist, max_tilt) = (L::splat(div.max_distance), L::splat(div.max_tilt));
+        let mut segment = 0;
+        let d0 = plant.hover_offset();
+
+        for k in 0..=self.steps {
+            let t = k as f64 * self.dt;
+            let r = self.trajectory.at(t, &mut segment);
+            let u = ctrl.control(&s, &r);
+            let mut w = [L::splat(0.0); 3];
+            for (lane, ws) in winds.iter_mut().enumerate() {
+                let v = self.wind.sample(ws, k as u64);
+                for c in 0..3 {
+                    w[c].set_lane(lane, v[c]);
+                }
+            }
+            let e_o = s[ix::ZC] - s[ix::Z] + d0;
+            acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2]);
+            if let Some(tr) = trace.as_deref_mut() {
+                if k % tr.every == 0 {
+                    tr.push(t, &s, &r, &u, &w, e_o);
+                }
+            }
+            if k == self.steps {
+                break;
+            }
+            s = rk4_step(plant, &s, &u, &w, self.dt);
+
+            // Divergence: NaN compares false, so `within` also catches non-finite states.
+            let checks = [
+                s[ix::X].abs().within(max_dist),
+                s[ix::Y].abs().within(max_dist),
+                s[ix::Z].abs().within(max_dist),
+                s[ix::ZC].abs().within(max_dist),
+                s[ix::PHI].abs().within(max_tilt),
+                s[ix::THETA].abs().within(max_tilt),
+            ];
+            for lane in 0..L::LANES {
+                if diverged_at[lane].is_nan() && !checks.iter().all(|c| c[lane]) {
+                    diverged_at[lane] = t + self.dt;
+                    alive -= 1;
+                    // Park the lane on a benign state so its neighbours' arithmetic stays clean.
+                    for (x, x0) in s.iter_mut().zip(self.x0.iter()) {
+                        x.set_lane(lane, *x0);
+                    }
+                }
+            }
+            if alive == 0 && trace.is_none() {
+                break;
+            }
+            if k % CANCEL_CHECK_STEPS == 0 && cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return None;
+            }
+        }
+
+        let n_phase = self.phases.len();
+        Some(
+            (0..L::LANES)
+                .map(|lane| {
+                    let mut spectra = vec![Vec::new(); if want_spectra { n_phase } else { 0 }];
+                    let mut metrics =
+                        acc.finish(lane, planner, want_spectra.then_some(spectra.as_mut_slice()));
+                    if !diverged_at[lane].is_nan() {
+                        metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
+                        spectra.clear();
+                    }
+                    LaneResult {
+                        metrics,
+                        diverged_at: diverged_at[lane],
+                        spectra,
+                    }
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The gust module's view of the scenario.
+pub fn gust_spec(cfg: &Config) -> GustSpec {
+    use crate::config::{GustComponent, GustModel};
+    let g = &cfg.gust;
+    let has = |c: GustComponent| g.components.contains(&c);
+    GustSpec {
+        enabled: g.enabled,
+        model: match g.model {
+            GustModel::Dryden => TurbulenceModel::Dryden,
+            GustModel::VonKarman => TurbulenceModel::VonKarman,
+        },
+        components: [
+            has(GustComponent::Longitudinal),
+            has(GustComponent::Lateral),
+            has(GustComponent::Vertical),
+        ],
+        altitude: g.altitude,
+        w20: g.w20,
+        airspeed: g.airspeed,
+        mean_wind: g.mean_wind,
+        start: g.start,
+        end: g.end,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+
+    /// Free two-body oscillation: thrust = total weight, no control, payload displaced by a.
+    fn free_oscillation_error(dt: f64, t_end: f64) -> f64 {
+        let mut cfg = paper();
+        cfg.gust.air_density = 0.0; // no drag: the analytic solution is undamped
+        let plant = Plant::new(&cfg);
+        let a = 0.05;
+        let mut s = plant.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
+        s[ix::ZC] -= a;
+        let u = Inputs {
+            u1: (plant.m + plant.mc) * plant.g,
+            tau: [0.0; 3],
+        };
+        let omega = (plant.kc * (plant.m + plant.mc) / (plant.m * plant.mc)).sqrt();
+        let n = (t_end / dt).round() as usize;
+        for _ in 0..n {
+            s = rk4_step(&plant, &s, &u, &[0.0; 3], dt);
+        }
+        // Relative coordinate r = z - zc oscillates about d0 with amplitude a.
+        let exact = plant.hover_offset() + a * (omega * n as f64 * dt).cos();
+        (s[ix::Z] - s[ix::ZC] - exact).abs()
+    }
+
+    #[test]
+    fn rk4_converges_at_fourth_order() {
+        let (e1, e2, e3) = (
+            free_oscillation_error(0.02, 2.0),
+            free_oscillation_error(0.01, 2.0),
+            free_oscillation_error(0.005, 2.0),
+        );
+        for (coarse, fine) in [(e1, e2), (e2, e3)] {
+            let ratio = coarse / fine;
+            assert!((14.0..18.0).contains(&ratio), "error ratio {ratio} (errors {e1} {e2} {e3})");
+        }
+    }
+
+    #[test]
+    fn free_oscillation_frequency_is_the_two_body_one() {
+        // Count zero crossings of r - d0 over 10 s at fine dt, drag off.
+        let mut cfg = paper();
+        cfg.gust.air_density = 0.0;
+        let plant = Plant::new(&cfg);
+        let mut s = plant.rest_state([0.0; 3], [0.0; 3]);
+        s[ix::ZC] -= 0.01;
+        let u = Inputs {
+            u1: (plant.m + plant.mc) * plant.g,
+            tau: [0.0; 3],
+        };
+        let dt = 1e-4;
+        let d0 = plant.hover_offset();
+        let (mut crossings, mut first, mut last) = (0usize, f64::NAN, f64::NAN);
+        let mut prev = s[ix::Z] - s[ix::ZC] - d0;
+        for k in 1..=100_000 {
+            s = rk4_step(&plant, &s, &u, &[0.0; 3], dt);
+            let cur = s[ix::Z] - s[ix::ZC] - d0;
+            if prev.signum() != cur.signum() {
+                let tc = (k as f64 - cur / (cur - prev)) * dt;
+                if first.is_nan() {
+                    first = tc;
+                }
+                last = tc;
+                crossings += 1;
+            }
+            prev = cur;
+        }
+        let measured = 0.5 * (crossings - 1) as f64 / (last - first);
+        let fn_payload = 2.0;
+        let expected = fn_payload * ((cfg.vehicle.mass + 0.22) / cfg.vehicle.mass).sqrt();
+        assert!((measured - expected).abs() < 1e-4, "{measured} Hz vs {expected} Hz");
+    }
+
+    fn hover_cfg() -> Config {
+        let mut cfg = paper();
+        cfg.gust.enabled = false;
+        cfg.initial.position = [0.0, 0.0, 2.0];
+        cfg.initial.attitude = [0.0, 0.0, 0.0];
+        cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 2.0, 0.0], [5.0, 0.0, 0.0, 2.0, 0.0]];
+        cfg.integrator.duration = 10.0;
+        cfg.phases.truncate(1);
+        cfg.phases[0].end = 10.0;
+        cfg
+    }
+
+    #[test]
+    fn hover_equilibrium_holds_for_both_laws() {
+        let engine = Engine::new(hover_cfg()).unwrap();
+        for kind in [ControllerKind::Pd, ControllerKind::Smc] {
+            let mut tr = Trace::new(1000, engine.steps);
+            engine
+                .fly::<f64>(kind, 0, &[0], false, Some(&mut tr), None, &mut FftPlanner::new())
+                .unwrap();
+            let x0 = engine.x0;
+            for row in tr.data.chunks(Trace::WIDTH) {
+                for i in 0..NX {
+                    assert!((row[1 + i] - x0[i]).abs() < 1e-9, "{kind:?} state {i} drifted: {row:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn simd_lanes_match_scalar_flights() {
+        let mut cfg = paper();
+        cfg.integrator.duration = 30.0;
+        cfg.integrator.dt = 1e-3;
+        cfg.gust.end = 29.0;
+        cfg.phases.truncate(2);
+        cfg.phases[1].end = 30.0;
+        let engine = Engine::new(cfg).unwrap();
+        let mut planner = FftPlanner::new();
+        for kind in [ControllerKind::Pd, ControllerKind::Smc] {
+            let simd = engine
+                .fly::<wide::f64x4>(kind, 7, &[3, 4, 5, 6], false, None, None, &mut planner)
+                .unwrap();
+            for (lane, idx) in [3u64, 4, 5, 6].iter().enumerate() {
+                let scalar = engine
+                    .fly::<f64>(kind, 7, &[*idx], false, None, None, &mut planner)
+                    .unwrap();
+                for (a, b) in simd[lane].metrics.iter().zip(&scalar[0].metrics) {
+                    for (x, y) in a.iter().zip(b) {
+                        assert!((x - y).abs() <= 1e-9 * y.abs().max(1e-12), "{kind:?} {x} vs {y}");
+                    }
+                }
+            }
+        }
+    }
+}

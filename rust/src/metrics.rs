@@ -1,0 +1,215 @@
+//! Per-phase indices of the relative oscillation e_o, accumulated online (MODEL.md section 5).
+//!
+//! Integrals use the trapezoidal rule on the step grid. The amplitude spectrum needs the signal,
+//! so e_o is also kept block-averaged at `metrics.spectrum_rate` (a few thousand numbers per
+//! flight, allocated once per flight, never per step).
+
+use crate::lane::Lane;
+use crate::trajectory::PhaseSteps;
+use rustfft::{num_complex::Complex, FftPlanner};
+
+/// Column order of every metrics array the engine returns.
+pub const METRIC_NAMES: [&str; 7] = [
+    "iae",
+    "itae",
+    "max_abs",
+    "rms",
+    "tracking_rms",
+    "peak_frequency",
+    "peak_amplitude",
+];
+pub const N_METRICS: usize = METRIC_NAMES.len();
+
+#[derive(Clone, Copy)]
+struct Sums<L> {
+    iae: L,
+    itae: L,
+    sq: L,
+    tracking_sq: L,
+    max_abs: L,
+}
+
+/// Online accumulator for one lane-set over all phases.
+pub struct PhaseAccumulator<L: Lane> {
+    phases: Vec<PhaseSteps>,
+    sums: Vec<Sums<L>>,
+    dt: f64,
+    decimation: usize,
+    block_sum: L,
+    blocks: Vec<L>,
+}
+
+impl<L: Lane> PhaseAccumulator<L> {
+    /// `decimation`: steps per spectrum sample; `steps`: steps of the flight.
+    pub fn new(phases: &[PhaseSteps], dt: f64, decimation: usize, steps: usize) -> Self {
+        let zero = L::splat(0.0);
+        Self {
+            phases: phases.to_vec(),
+            sums: vec![
+                Sums {
+                    iae: zero,
+                    itae: zero,
+                    sq: zero,
+                    tracking_sq: zero,
+                    max_abs: zero,
+                };
+                phases.len()
+            ],
+            dt,
+            decimation: decimation.max(1),
+            block_sum: zero,
+            blocks: Vec::with_capacity(steps / decimation.max(1) + 1),
+        }
+    }
+
+    /// Take sample k (time t) of e_o and of the altitude tracking error.
+    #[inline(always)]
+    pub fn sample(&mut self, k: usize, t: f64, e_o: L, tracking: L) {
+        let a = e_o.abs();
+        for (ph, sums) in self.phases.iter().zip(self.sums.iter_mut()) {
+            if ph.contains(k) {
+                let w = if k == ph.first || k == ph.last {
+                    0.5 * self.dt
+                } else {
+                    self.dt
+                };
+                sums.iae += a * w;
+                sums.itae += a * (w * t);
+                sums.sq += e_o * e_o * w;
+                sums.tracking_sq += tracking * tracking * w;
+                sums.max_abs = sums.max_abs.max(a);
+            }
+        }
+        self.block_sum += e_o;
+        if (k + 1) % self.decimation == 0 {
+            self.blocks.push(self.block_sum * (1.0 / self.decimation as f64));
+            self.block_sum = L::splat(0.0);
+        }
+    }
+
+    /// The indices of lane `lane`, one row per phase, columns as METRIC_NAMES.
+    /// `spectra` receives each phase's amplitude spectrum when given (see `spectrum_grid`).
+    pub fn finish(
+        &self,
+        lane: usize,
+        planner: &mut FftPlanner<f64>,
+        mut spectra: Option<&mut [Vec<f64>]>,
+    ) -> Vec<[f64; N_METRICS]> {
+        let mut rows = Vec::with_capacity(self.phases.len());
+        for (p, (ph, s)) in self.phases.iter().zip(&self.sums).enumerate() {
+            let span = (ph.last - ph.first) as f64 * self.dt;
+            let (lo, hi) = block_range(ph, self.decimation, self.blocks.len());
+            let signal: Vec<f64> = self.blocks[lo..hi].iter().map(|b| b.lane(lane)).collect();
+            let amp = amplitude_spectrum(&signal, planner);
+            let df = 1.0 / (signal.len().max(1) as f64 * self.decimation as f64 * self.dt);
+            let (peak_f, peak_a) = amp
+                .iter()
+                .enumerate()
+                .skip(1)
+                .fold((f64::NAN, f64::NAN), |best, (i, &a)| {
+                    if best.1.is_nan() || a > best.1 {
+                        (i as f64 * df, a)
+                    } else {
+                        best
+                    }
+                });
+            if let Some(out) = spectra.as_deref_mut() {
+                out[p] = amp;
+            }
+            rows.push([
+                s.iae.lane(lane),
+                s.itae.lane(lane),
+                s.max_abs.lane(lane),
+                (s.sq.lane(lane) / span).sqrt(),
+                (s.tracking_sq.lane(lane) / span).sqrt(),
+                peak_f,
+                peak_a,
+            ]);
+        }
+        rows
+    }
+
+}
+
+/// Blocks lying wholly inside a phase: block j covers samples [j d, (j + 1) d).
+fn block_range(ph: &PhaseSteps, d: usize, n_blocks: usize) -> (usize, usize) {
+    let hi = ((ph.last + 1) / d).min(n_blocks);
+    (ph.first.div_ceil(d).min(hi), hi)
+}
+
+/// Frequencies (Hz) of each phase's spectrum bins for a flight of `steps` steps.
+pub fn spectrum_grid(phases: &[PhaseSteps], dt: f64, decimation: usize, steps: usize) -> Vec<Vec<f64>> {
+    let n_blocks = (steps + 1) / decimation;
+    phases
+        .iter()
+        .map(|ph| {
+            let (lo, hi) = block_range(ph, decimation, n_blocks);
+            let n = hi - lo;
+            let df = 1.0 / (n.max(1) as f64 * decimation as f64 * dt);
+            (0..n / 2 + 1).map(|i| i as f64 * df).collect()
+        })
+        .collect()
+}
+
+/// Single-sided amplitude spectrum of a real signal with its mean removed: a sinusoid of
+/// amplitude A shows as a bin of height A (rectangular window, bins 0..=n/2).
+pub fn amplitude_spectrum(signal: &[f64], planner: &mut FftPlanner<f64>) -> Vec<f64> {
+    let n = signal.len();
+    if n < 2 {
+        return vec![0.0; n / 2 + 1];
+    }
+    let mean = signal.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<Complex<f64>> = signal.iter().map(|&x| Complex::new(x - mean, 0.0)).collect();
+    planner.plan_fft_forward(n).process(&mut buf);
+    buf.iter()
+        .take(n / 2 + 1)
+        .enumerate()
+        .map(|(i, c)| {
+            let one_sided = if i == 0 || (n % 2 == 0 && i == n / 2) {
+                1.0
+            } else {
+                2.0
+            };
+            one_sided * c.norm() / n as f64
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn amplitude_spectrum_finds_a_sinusoid() {
+        let (n, fs) = (2000, 100.0);
+        let sig: Vec<f64> = (0..n)
+            .map(|i| 0.3 + 0.7 * (2.0 * std::f64::consts::PI * 2.5 * i as f64 / fs).sin())
+            .collect();
+        let amp = amplitude_spectrum(&sig, &mut FftPlanner::new());
+        let (k, a) = amp
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |b, (i, &a)| if a > b.1 { (i, a) } else { b });
+        assert_eq!(k as f64 * fs / n as f64, 2.5);
+        assert!((a - 0.7).abs() < 1e-9);
+        assert!(amp[0].abs() < 1e-12, "mean removed");
+    }
+
+    #[test]
+    fn trapezoid_integrals_of_a_known_signal() {
+        // e(t) = t on [0, 1] with dt = 0.01: IAE = 1/2, ITAE = 1/3 (+dt^2/6 trapezoid error),
+        // RMS = sqrt(1/3), max 1.
+        let dt = 0.01;
+        let ph = [PhaseSteps { first: 0, last: 100 }];
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100);
+        for k in 0..=100 {
+            let t = k as f64 * dt;
+            acc.sample(k, t, t, 0.0);
+        }
+        let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
+        assert!((row[0] - 0.5).abs() < 1e-12);
+        assert!((row[1] - (1.0 / 3.0 + dt * dt / 6.0)).abs() < 1e-12);
+        assert!((row[2] - 1.0).abs() < 1e-12);
+        assert!((row[3] - (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,172 @@
+//! The plant: quadrotor plus a payload on a vertical spring (MODEL.md section 1).
+//!
+//! State `s = [x, y, z, phi, theta, psi, zc, vx, vy, vz, p, q, r, vzc]`, z up; `p, q, r` are
+//! the Euler-angle rates (the paper's near-hover form).
+
+use crate::config::Config;
+use crate::lane::Lane;
+
+pub const NX: usize = 14;
+pub type State<L> = [L; NX];
+
+/// Indices into the state, so the physics reads like the equations.
+pub mod ix {
+    pub const X: usize = 0;
+    pub const Y: usize = 1;
+    pub const Z: usize = 2;
+    pub const PHI: usize = 3;
+    pub const THETA: usize = 4;
+    pub const PSI: usize = 5;
+    pub const ZC: usize = 6;
+    pub const VX: usize = 7;
+    pub const VY: usize = 8;
+    pub const VZ: usize = 9;
+    pub const P: usize = 10;
+    pub const Q: usize = 11;
+    pub const R: usize = 12;
+    pub const VZC: usize = 13;
+}
+
+pub const STATE_NAMES: [&str; NX] = [
+    "x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc",
+];
+
+/// Total thrust and body torques, held over one step.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs<L> {
+    pub u1: L,
+    pub tau: [L; 3],
+}
+
+/// Plant parameters, resolved once from the scenario (plant inertia = nominal + error).
+#[derive(Clone, Debug)]
+pub struct Plant {
+    pub m: f64,
+    pub mc: f64,
+    pub g: f64,
+    pub kc: f64,
+    pub cc: f64,
+    /// Plant inertia I + dI.
+    pub inertia: [f64; 3],
+    /// 1/2 rho CdA for the quadrotor (vertical), payload (vertical) and the pair (horizontal).
+    pub drag_quad: f64,
+    pub drag_payload: f64,
+    pub drag_lateral: f64,
+}
+
+impl Plant {
+    pub fn new(cfg: &Config) -> Self {
+        let half_rho = 0.5 * cfg.gust.air_density;
+        let v = &cfg.vehicle;
+        Self {
+            m: v.mass,
+            mc: cfg.payload.mass,
+            g: cfg.environment.gravity,
+            kc: cfg.stiffness(),
+            cc: cfg.payload.damping,
+            inertia: [
+                v.inertia[0] + v.inertia_error[0],
+                v.inertia[1] + v.inertia_error[1],
+                v.inertia[2] + v.inertia_error[2],
+            ],
+            drag_quad: half_rho * v.drag_area,
+            drag_payload: half_rho * cfg.payload.drag_area,
+            drag_lateral: half_rho * v.lateral_drag_area,
+        }
+    }
+
+    /// Static stretch of the spring at hover: the payload hangs d0 = mc g / kc below.
+    pub fn hover_offset(&self) -> f64 {
+        self.mc * self.g / self.kc
+    }
+
+    /// Relative oscillation e_o = (zc - z) + d0: the payload's displacement from its hover
+    /// equilibrium relative to the quadrotor.
+    #[inline(always)]
+    pub fn relative_oscillation<L: Lane>(&self, s: &State<L>) -> L {
+        s[ix::ZC] - s[ix::Z] + self.hover_offset()
+    }
+
+    /// A state at rest at `position` and `attitude`, payload at its hover equilibrium.
+    pub fn rest_state(&self, position: [f64; 3], attitude: [f64; 3]) -> State<f64> {
+        let mut s = [0.0; NX];
+        s[ix::X] = position[0];
+        s[ix::Y] = position[1];
+        s[ix::Z] = position[2];
+        s[ix::PHI] = attitude[0];
+        s[ix::THETA] = attitude[1];
+        s[ix::PSI] = attitude[2];
+        s[ix::ZC] = position[2] - self.hover_offset();
+        s
+    }
+
+    /// ds/dt for inputs `u` and wind `w` (m/s, inertial), both held over the step.
+    #[inline(always)]
+    pub fn derivative<L: Lane>(&self, s: &State<L>, u: &Inputs<L>, w: &[L; 3]) -> State<L> {
+        use ix::*;
+        let (sphi, cphi) = s[PHI].sin_cos();
+        let (sth, cth) = s[THETA].sin_cos();
+        let (spsi, cpsi) = s[PSI].sin_cos();
+        let m_lat = self.m + self.mc;
+
+        let drag = |k: f64, v: L, wind: L| {
+            let rel = v - wind;
+            rel * rel.abs() * (-k)
+        };
+        let fdx = drag(self.drag_lateral, s[VX], w[0]);
+        let fdy = drag(self.drag_lateral, s[VY], w[1]);
+        let fdz = drag(self.drag_quad, s[VZ], w[2]);
+        let fdzc = drag(self.drag_payload, s[VZC], w[2]);
+        let spring = (s[Z] - s[ZC]) * self.kc + (s[VZ] - s[VZC]) * self.cc;
+
+        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * (1.0 / m_lat);
+        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * (1.0 / m_lat);
+        let az = (cphi * cth * u.u1 - spring + fdz) * (1.0 / self.m) - self.g;
+        let azc = (spring + fdzc) * (1.0 / self.mc) - self.g;
+
+        let [ixx, iyy, izz] = self.inertia;
+        let pdot = (s[Q] * s[R] * (iyy - izz) + u.tau[0]) * (1.0 / ixx);
+        let qdot = (s[P] * s[R] * (izz - ixx) + u.tau[1]) * (1.0 / iyy);
+        let rdot = (s[P] * s[Q] * (ixx - iyy) + u.tau[2]) * (1.0 / izz);
+
+        [
+            s[VX], s[VY], s[VZ], s[P], s[Q], s[R], s[VZC], ax, ay, az, pdot, qdot, rdot, azc,
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+
+    #[test]
+    fn hover_is_an_equilibrium_of_the_plant() {
+        let plant = Plant::new(&paper());
+        let s = plant.rest_state([1.0, -2.0, 2.0], [0.0, 0.0, 0.5]);
+        let u = Inputs {
+            u1: (plant.m + plant.mc) * plant.g,
+            tau: [0.0; 3],
+        };
+        let ds = plant.derivative(&s, &u, &[0.0; 3]);
+        for (i, d) in ds.iter().enumerate() {
+            assert!(d.abs() < 1e-12, "d{}/dt = {d}", STATE_NAMES[i]);
+        }
+    }
+
+    #[test]
+    fn drag_opposes_relative_velocity() {
+        let plant = Plant::new(&paper());
+        let s = plant.rest_state([0.0; 3], [0.0; 3]);
+        let u = Inputs {
+            u1: (plant.m + plant.mc) * plant.g,
+            tau: [0.0; 3],
+        };
+        // An updraft of 1 m/s pushes both bodies up by 1/2 rho CdA (1 m/s)^2.
+        let ds = plant.derivative(&s, &u, &[0.0, 0.0, 1.0]);
+        assert!((ds[ix::VZ] - plant.drag_quad / plant.m).abs() < 1e-12);
+        assert!((ds[ix::VZC] - plant.drag_payload / plant.mc).abs() < 1e-12);
+        let ds = plant.derivative(&s, &u, &[2.0, 0.0, 0.0]);
+        assert!((ds[ix::VX] - 4.0 * plant.drag_lateral / (plant.m + plant.mc)).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,162 @@
+//! Reference trajectory from waypoints, and the flight's named phases (MODEL.md section 3).
+
+use crate::config::{Config, Interpolation};
+
+/// Desired position (x, y, z), yaw and their first two derivatives at one instant.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Reference {
+    pub pos: [f64; 3],
+    pub vel: [f64; 3],
+    pub acc: [f64; 3],
+    pub psi: f64,
+    pub psi_dot: f64,
+    pub psi_ddot: f64,
+}
+
+/// Times are compared with this slack so that a waypoint at t = 60 s is reached at the step
+/// whose nominal time k dt rounds to 60 s, whatever the floating-point noise in k dt.
+const TIME_SLACK: f64 = 1e-9;
+
+#[derive(Clone, Debug)]
+pub struct Trajectory {
+    waypoints: Vec<[f64; 5]>,
+    interpolation: Interpolation,
+}
+
+impl Trajectory {
+    pub fn new(cfg: &Config) -> Self {
+        Self {
+            waypoints: cfg.trajectory.waypoints.clone(),
+            interpolation: cfg.trajectory.interpolation,
+        }
+    }
+
+    /// The reference at time `t`. `segment` caches the waypoint index reached so far: times are
+    /// asked for in increasing order, so the lookup is O(1) per step.
+    #[inline]
+    pub fn at(&self, t: f64, segment: &mut usize) -> Reference {
+        let w = &self.waypoints;
+        while *segment + 1 < w.len() && t + TIME_SLACK >= w[*segment + 1][0] {
+            *segment += 1;
+        }
+        let i = *segment;
+        let hold = |row: &[f64; 5]| Reference {
+            pos: [row[1], row[2], row[3]],
+            psi: row[4],
+            ..Reference::default()
+        };
+        match self.interpolation {
+            Interpolation::Step => hold(&w[i]),
+            Interpolation::MinJerk => {
+                if i + 1 >= w.len() || t < w[0][0] {
+                    return hold(&w[i]);
+                }
+                min_jerk(&w[i], &w[i + 1], t)
+            }
+        }
+    }
+}
+
+/// Quintic from `a` to `b` with zero velocity and acceleration at both ends.
+fn min_jerk(a: &[f64; 5], b: &[f64; 5], t: f64) -> Reference {
+    let span = b[0] - a[0];
+    let tau = ((t - a[0]) / span).clamp(0.0, 1.0);
+    let (t2, t3) = (tau * tau, tau * tau * tau);
+    let shape = t3 * (10.0 - 15.0 * tau + 6.0 * t2);
+    let dshape = 30.0 * t2 * (1.0 - 2.0 * tau + t2) / span;
+    let ddshape = 60.0 * tau * (1.0 - 3.0 * tau + 2.0 * t2) / (span * span);
+    let mut r = Reference::default();
+    for k in 0..3 {
+        let d = b[k + 1] - a[k + 1];
+        r.pos[k] = a[k + 1] + d * shape;
+        r.vel[k] = d * dshape;
+        r.acc[k] = d * ddshape;
+    }
+    let d = b[4] - a[4];
+    r.psi = a[4] + d * shape;
+    r.psi_dot = d * dshape;
+    r.psi_ddot = d * ddshape;
+    r
+}
+
+/// A phase as a closed range of sample indices k (time k dt) on the step grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PhaseSteps {
+    pub first: usize,
+    pub last: usize,
+}
+
+impl PhaseSteps {
+    #[inline(always)]
+    pub fn contains(&self, k: usize) -> bool {
+        k >= self.first && k <= self.last
+    }
+}
+
+/// Each phase of the scenario on the step grid: the samples whose time lies in [start, end].
+pub fn phase_steps(cfg: &Config) -> Vec<PhaseSteps> {
+    let dt = cfg.integrator.dt;
+    let steps = cfg.steps();
+    cfg.phases
+        .iter()
+        .map(|p| {
+            let first = ((p.start / dt) - TIME_SLACK).ceil().max(0.0) as usize;
+            let last = (((p.end / dt) + TIME_SLACK).floor() as usize).min(steps);
+            PhaseSteps {
+                first: first.min(last),
+                last,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+
+    #[test]
+    fn step_reference_jumps_at_waypoints() {
+        let cfg = paper();
+        let tr = Trajectory::new(&cfg);
+        let mut seg = 0;
+        assert_eq!(tr.at(0.0, &mut seg).pos, [0.0, 0.0, 2.0]);
+        assert_eq!(tr.at(59.9998, &mut seg).pos[2], 2.0);
+        let r = tr.at(300_000.0 * 2e-4, &mut seg);
+        assert_eq!(r.pos[2], 0.0);
+        assert_eq!(r.vel, [0.0; 3]);
+    }
+
+    #[test]
+    fn min_jerk_is_smooth_and_consistent() {
+        let mut cfg = paper();
+        cfg.trajectory.interpolation = Interpolation::MinJerk;
+        cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 0.0, 0.0], [4.0, 1.0, -2.0, 3.0, 0.4]];
+        let tr = Trajectory::new(&cfg);
+        let mut seg = 0;
+        let mid = tr.at(2.0, &mut seg);
+        assert!((mid.pos[2] - 1.5).abs() < 1e-12, "symmetric halfway");
+        assert!((mid.vel[2] - 3.0 * 1.875 / 4.0).abs() < 1e-12, "peak speed 1.875 d/T");
+        // derivatives agree with finite differences of position
+        let h = 1e-5;
+        let (mut s1, mut s2) = (0, 0);
+        let (a, b) = (tr.at(1.3 - h, &mut s1), tr.at(1.3 + h, &mut s2));
+        let c = tr.at(1.3, &mut 0);
+        for k in 0..3 {
+            assert!(((b.pos[k] - a.pos[k]) / (2.0 * h) - c.vel[k]).abs() < 1e-7);
+            assert!(((b.vel[k] - a.vel[k]) / (2.0 * h) - c.acc[k]).abs() < 1e-6);
+        }
+        let end = tr.at(5.0, &mut seg);
+        assert_eq!(end.pos, [1.0, -2.0, 3.0]);
+        assert_eq!(end.vel, [0.0; 3]);
+    }
+
+    #[test]
+    fn paper_phases_on_the_grid() {
+        let cfg = paper();
+        let ph = phase_steps(&cfg);
+        assert_eq!(ph[0], PhaseSteps { first: 0, last: 100_000 });
+        assert_eq!(ph[1], PhaseSteps { first: 100_000, last: 250_000 });
+        assert_eq!(ph[2], PhaseSteps { first: 250_000, last: 350_000 });
+    }
+}
