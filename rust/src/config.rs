@@ -556,29 +556,16 @@ fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
 pub(crate) mod tests {
     use super::*;
 
-    /// The paper preset, as the Python layer ships it (python/quadrs/presets/paper.toml).
-    pub(crate) fn paper() -> Config {
-        Config::from_json(PAPER_JSON).expect("paper preset is valid")
+    /// The paper preset exactly as the Python package ships it.
+    pub(crate) const PAPER_TOML: &str = include_str!("../../python/quadrs/presets/paper.toml");
+
+    pub(crate) fn paper_value() -> serde_json::Value {
+        toml::from_str(PAPER_TOML).expect("paper.toml parses")
     }
 
-    pub(crate) const PAPER_JSON: &str = r#"{
-      "vehicle": {"mass": 2.2, "inertia": [0.0167, 0.0167, 0.0231], "inertia_error": [0, 0, 0],
-                  "arm_length": 0.1725, "drag_area": 0.101, "lateral_drag_area": 0.101},
-      "payload": {"mass": 0.22, "natural_frequency": 2.0, "damping": 0.0, "drag_area": 0.101},
-      "environment": {"gravity": 9.81},
-      "initial": {"position": [0, 0, 0], "attitude": [0, 0, 0.5]},
-      "controller": {"mass_compensation": true, "tilt_limit": 1.5707963267948966, "thrust_floor": 0.1,
-        "pd": {"kp": [1.5, 1.6, 1.5], "kd": [1.8, 1.8, 2.0], "kp_attitude": [0.4, 0.7, 1.0], "kd_attitude": [0.1, 0.05, 0.05]},
-        "smc": {"epsilon": [2.2, 1.8, 1.8], "lambda": [3.0, 3.2, 3.2], "eta": [0.4, 0.4, 0.4],
-                "epsilon_attitude": [1.5, 1.1, 1.1], "lambda_attitude": [1.5, 1.5, 1.5], "eta_attitude": [0.04, 0.04, 0.04], "gamma": 0.2}},
-      "trajectory": {"interpolation": "step", "waypoints": [[0, 0, 0, 2, 0], [60, 0, 0, 0, 0]]},
-      "phases": [{"name": "P1", "start": 0, "end": 20}, {"name": "P2", "start": 20, "end": 50}, {"name": "P3", "start": 50, "end": 70}],
-      "gust": {"enabled": true, "model": "dryden", "components": ["vertical"], "start": 25, "end": 40,
-               "altitude": 2.0, "w20": 10.0, "airspeed": 10.0, "air_density": 1.225, "mean_wind": [0, 0, 0]},
-      "integrator": {"dt": 0.0002, "duration": 70},
-      "metrics": {"spectrum_rate": 100},
-      "divergence": {"max_distance": 1000, "max_tilt": 1.5707963267948966}
-    }"#;
+    pub(crate) fn paper() -> Config {
+        Config::from_json(&paper_value().to_string()).expect("paper preset is valid")
+    }
 
     #[test]
     fn paper_preset_parses_and_round_trips() {
@@ -591,7 +578,7 @@ pub(crate) mod tests {
     }
 
     fn with(edit: impl Fn(&mut serde_json::Value)) -> Result<Config, ConfigError> {
-        let mut v: serde_json::Value = serde_json::from_str(PAPER_JSON).unwrap();
+        let mut v = paper_value();
         edit(&mut v);
         Config::from_json(&v.to_string())
     }

@@ -240,7 +240,7 @@ impl Engine {
                         acc.finish(lane, planner, want_spectra.then_some(spectra.as_mut_slice()));
                     if !diverged_at[lane].is_nan() {
                         metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
-                        spectra.clear();
+                        spectra.iter_mut().for_each(|amp| amp.fill(f64::NAN));
                     }
                     LaneResult {
                         metrics,

@@ -1,4 +1,7 @@
 //! quadrs engine. This file holds the Python bindings only; the physics lives in the modules.
+//!
+//! Every entry point takes the scenario as JSON (validated here again, so the engine guards
+//! itself), runs with the GIL released, and hands results to numpy without copying.
 
 pub mod config;
 pub mod control;
@@ -8,4 +11,222 @@ pub mod integrate;
 pub mod lane;
 pub mod metrics;
 pub mod model;
+pub mod montecarlo;
 pub mod trajectory;
+
+use pyo3::prelude::*;
+
+pyo3::create_exception!(
+    _core,
+    ScenarioError,
+    pyo3::exceptions::PyValueError,
+    "A scenario value is invalid; the message names the key and the value."
+);
+pyo3::create_exception!(
+    _core,
+    EngineError,
+    pyo3::exceptions::PyRuntimeError,
+    "The engine failed internally (a bug): the message says where."
+);
+
+#[pymodule]
+mod _core {
+    use super::{EngineError, ScenarioError};
+    use crate::config::{Config, ConfigError};
+    use crate::control::ControllerKind;
+    use crate::integrate::{Engine, Trace, TRACE_COLUMNS};
+    use crate::metrics::{METRIC_NAMES, N_METRICS};
+    use crate::model::STATE_NAMES;
+    use crate::montecarlo::{pool, run_batch as batch};
+    use numpy::ndarray::{Array1, Array2, Array4};
+    use numpy::{IntoPyArray, PyArray1};
+    use pyo3::exceptions::PyValueError;
+    use pyo3::prelude::*;
+    use pyo3::types::PyDict;
+    use rustfft::FftPlanner;
+    use std::panic::{catch_unwind, AssertUnwindSafe};
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    use std::sync::Arc;
+
+    #[pymodule_init]
+    fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
+        m.add("ScenarioError", m.py().get_type::<ScenarioError>())?;
+        m.add("EngineError", m.py().get_type::<EngineError>())?;
+        m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        m.add("TRACE_COLUMNS", TRACE_COLUMNS.to_vec())?;
+        m.add("STATE_NAMES", STATE_NAMES.to_vec())?;
+        m.add("__version__", env!("CARGO_PKG_VERSION"))
+    }
+
+    fn scenario_error(e: ConfigError) -> PyErr {
+        ScenarioError::new_err(e.message)
+    }
+
+    fn engine(config_json: &str) -> PyResult<Engine> {
+        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
+        Engine::new(cfg).map_err(scenario_error)
+    }
+
+    fn controllers(names: &[String]) -> PyResult<Vec<ControllerKind>> {
+        if names.is_empty() {
+            return Err(PyValueError::new_err("controllers must name at least one of 'pd', 'smc'"));
+        }
+        names
+            .iter()
+            .map(|n| ControllerKind::parse(n).map_err(PyValueError::new_err))
+            .collect()
+    }
+
+    /// Run `f`, turning a Rust panic into EngineError with its message (the process survives).
+    fn guarded<T>(what: &str, f: impl FnOnce() -> T) -> PyResult<T> {
+        catch_unwind(AssertUnwindSafe(f)).map_err(|p| {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            EngineError::new_err(format!("{what} failed inside the engine: {msg}"))
+        })
+    }
+
+    /// Validate a scenario; return the quantities derived from it.
+    #[pyfunction]
+    fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
+        let e = engine(config_json)?;
+        let d = PyDict::new(py);
+        d.set_item("stiffness", e.plant.kc)?;
+        d.set_item("hover_offset", e.plant.hover_offset())?;
+        d.set_item("steps", e.steps)?;
+        d.set_item("phases", e.cfg.phases.iter().map(|p| p.name.clone()).collect::<Vec<_>>())?;
+        let grids: Vec<Bound<'py, PyArray1<f64>>> =
+            e.spectrum_grid().into_iter().map(|g| g.into_pyarray(py)).collect();
+        d.set_item("spectrum_frequencies", grids)?;
+        Ok(d)
+    }
+
+    /// One flight: trace every `record_every` steps, per-phase metrics, divergence time.
+    #[pyfunction]
+    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1))]
+    fn simulate<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controller: &str,
+        seed: u64,
+        realisation: u64,
+        record_every: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        if record_every == 0 {
+            return Err(PyValueError::new_err("record_every must be >= 1, got 0"));
+        }
+        let e = engine(config_json)?;
+        let (trace, res) = py.detach(|| {
+            guarded("simulate", || {
+                let mut trace = Trace::new(record_every, e.steps);
+                let res = e
+                    .fly::<f64>(kind, seed, &[realisation], true, Some(&mut trace), None, &mut FftPlanner::new())
+                    .expect("a flight without a cancel flag always finishes");
+                (trace, res.into_iter().next().expect("one lane"))
+            })
+        })?;
+        let rows = trace.data.len() / Trace::WIDTH;
+        let trace = Array2::from_shape_vec((rows, Trace::WIDTH), trace.data).expect("trace shape");
+        let n_phase = res.metrics.len();
+        let metrics = Array2::from_shape_vec((n_phase, N_METRICS), res.metrics.concat()).expect("shape");
+        let d = PyDict::new(py);
+        d.set_item("trace", trace.into_pyarray(py))?;
+        d.set_item("metrics", metrics.into_pyarray(py))?;
+        d.set_item("diverged_at", res.diverged_at)?;
+        let spectra: Vec<_> = res.spectra.into_iter().map(|s| s.into_pyarray(py)).collect();
+        d.set_item("spectra", spectra)?;
+        Ok(d)
+    }
+
+    /// Progress of a batch, shared between the polling Python thread and the workers.
+    #[pyclass(frozen)]
+    struct Progress {
+        done: Arc<AtomicU64>,
+        cancel: Arc<AtomicBool>,
+    }
+
+    #[pymethods]
+    impl Progress {
+        #[new]
+        fn new() -> Self {
+            Self {
+                done: Arc::new(AtomicU64::new(0)),
+                cancel: Arc::new(AtomicBool::new(false)),
+            }
+        }
+        /// Realisations finished so far.
+        fn done(&self) -> u64 {
+            self.done.load(Ordering::Relaxed)
+        }
+        /// Ask the workers to stop; finished realisations are kept.
+        fn cancel(&self) {
+            self.cancel.store(true, Ordering::Relaxed)
+        }
+        fn cancelled(&self) -> bool {
+            self.cancel.load(Ordering::Relaxed)
+        }
+    }
+
+    /// Realisations first..first+count of every controller, on `workers` threads.
+    #[pyfunction]
+    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn run_batch<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controllers: Vec<String>,
+        seed: u64,
+        first: u64,
+        count: usize,
+        workers: usize,
+        spectra: bool,
+        progress: Option<&Bound<'py, Progress>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let kinds = self::controllers(&controllers)?;
+        if count == 0 {
+            return Err(PyValueError::new_err("runs must be >= 1, got 0"));
+        }
+        if workers == 0 {
+            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
+        }
+        let e = engine(config_json)?;
+        let (done, cancel) = match progress {
+            Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
+            None => (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false))),
+        };
+        let out = py.detach(|| {
+            guarded("run_batch", || {
+                pool(workers).install(|| batch(&e, &kinds, seed, first, count, spectra, &done, &cancel))
+            })
+        })?;
+        let n_ctrl = kinds.len();
+        let n_phase = e.phase_count();
+        let d = PyDict::new(py);
+        let metrics = Array4::from_shape_vec((count, n_ctrl, n_phase, N_METRICS), out.metrics)
+            .expect("metrics shape");
+        d.set_item("metrics", metrics.into_pyarray(py))?;
+        let diverged = Array2::from_shape_vec((count, n_ctrl), out.diverged_at).expect("shape");
+        d.set_item("diverged_at", diverged.into_pyarray(py))?;
+        d.set_item("done", Array1::from_vec(out.done).into_pyarray(py))?;
+        if spectra {
+            // Per phase: (n_ctrl, bins) arrays of the ensemble sum and sum of squares.
+            let per_phase = |src: &Vec<Vec<Vec<f64>>>| -> Vec<Bound<'py, numpy::PyArray2<f64>>> {
+                (0..n_phase)
+                    .map(|p| {
+                        let bins = src.first().map_or(0, |c| c[p].len());
+                        let flat: Vec<f64> = src.iter().flat_map(|c| c[p].iter().copied()).collect();
+                        Array2::from_shape_vec((n_ctrl, bins), flat).expect("shape").into_pyarray(py)
+                    })
+                    .collect()
+            };
+            d.set_item("spectrum_sum", per_phase(&out.spectra.sum))?;
+            d.set_item("spectrum_sum_sq", per_phase(&out.spectra.sum_sq))?;
+            d.set_item("spectrum_count", out.spectra.count)?;
+        }
+        Ok(d)
+    }
+}

@@ -1,0 +1,20 @@
+"""quadrs: Monte Carlo of a quadrotor carrying a spring-attached payload through Dryden gusts.
+
+The public API; see the README for a tour.
+"""
+
+from quadrs._core import EngineError, ScenarioError, __version__
+from quadrs.flight import Flight, simulate
+from quadrs.montecarlo import MonteCarloResult, monte_carlo
+from quadrs.scenario import Scenario
+
+__all__ = [
+    "EngineError",
+    "Flight",
+    "MonteCarloResult",
+    "Scenario",
+    "ScenarioError",
+    "__version__",
+    "monte_carlo",
+    "simulate",
+]

@@ -1,0 +1,108 @@
+"""Summaries of Monte Carlo runs: the paper's Table 3 with confidence intervals."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+#: The paper's Table 3 (one gust realisation, MATLAB): P = 100 * SMC / PD, per phase.
+PAPER_TABLE3 = pd.DataFrame(
+    {"P_iae": [35.40, 11.38, 48.25], "P_itae": [26.73, 13.76, 49.51]},
+    index=pd.Index(["P1", "P2", "P3"], name="phase"),
+)
+
+_METRICS = ("iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude")
+
+
+def mean_ci(values: np.ndarray, confidence: float) -> tuple[int, float, float, float]:
+    """n, mean and the Student-t confidence interval of the mean (NaN below two values)."""
+    values = values[np.isfinite(values)]
+    n = len(values)
+    if n == 0:
+        return 0, np.nan, np.nan, np.nan
+    mean = float(values.mean())
+    if n < 2:
+        return n, mean, np.nan, np.nan
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * values.std(ddof=1) / np.sqrt(n)
+    return n, mean, mean - half, mean + half
+
+
+def ratio_ci(num: np.ndarray, den: np.ndarray, confidence: float) -> tuple[float, float, float]:
+    """P = 100 mean(num) / mean(den) over paired samples, with the delta-method interval:
+    SE(R) = sd(num_i - R den_i) / (sqrt(n) |mean(den)|). Pairing (the same gust for both)
+    cancels the gust-to-gust spread that both controllers share."""
+    ok = np.isfinite(num) & np.isfinite(den)
+    num, den = num[ok], den[ok]
+    n = len(num)
+    if n == 0 or den.mean() == 0:
+        return np.nan, np.nan, np.nan
+    r = num.mean() / den.mean()
+    if n < 2:
+        return 100 * r, np.nan, np.nan
+    se = (num - r * den).std(ddof=1) / (np.sqrt(n) * abs(den.mean()))
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * se
+    return 100 * r, 100 * (r - half), 100 * (r + half)
+
+
+def summarise(
+    runs: pd.DataFrame,
+    controllers: Sequence[str],
+    phases: Sequence[str],
+    confidence: float = 0.95,
+) -> pd.DataFrame:
+    """Rows (metric, phase); per controller ``{c}_mean, {c}_ci_low, {c}_ci_high, {c}_n``;
+    with both PD and SMC, ``P, P_ci_low, P_ci_high`` (P = 100 SMC / PD, paired);
+    ``diverged``: realisations in which any controller diverged."""
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+    rows = []
+    for metric in _METRICS:
+        for phase in phases:
+            sel = runs[runs["phase"] == phase]
+            wide = sel.pivot(index="realisation", columns="controller", values=metric)
+            row: dict[str, object] = {"metric": metric, "phase": phase}
+            for c in controllers:
+                n, mean, lo, hi = mean_ci(wide[c].to_numpy(float), confidence)
+                row.update({f"{c}_mean": mean, f"{c}_ci_low": lo, f"{c}_ci_high": hi, f"{c}_n": n})
+            if "pd" in controllers and "smc" in controllers:
+                p, lo, hi = ratio_ci(wide["smc"].to_numpy(float), wide["pd"].to_numpy(float), confidence)
+                row.update({"P": p, "P_ci_low": lo, "P_ci_high": hi})
+            row["diverged"] = int(sel.groupby("realisation")["diverged"].any().sum())
+            rows.append(row)
+    return pd.DataFrame(rows).set_index(["metric", "phase"])
+
+
+def table3(summary: pd.DataFrame) -> pd.DataFrame:
+    """The paper's Table 3 layout: per phase, IAE and ITAE of PD and SMC and P, as text
+    ``mean [low, high]``, beside the paper's own P."""
+
+    def fmt(mean: float, lo: float, hi: float, digits: int) -> str:
+        if np.isnan(lo):
+            return f"{mean:.{digits}f}"
+        return f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+    out = {}
+    for metric in ("iae", "itae"):
+        part = summary.xs(metric, level="metric")
+        for c in ("pd", "smc"):
+            if f"{c}_mean" in part:
+                out[f"{metric.upper()} {c.upper()}"] = [
+                    fmt(r[f"{c}_mean"], r[f"{c}_ci_low"], r[f"{c}_ci_high"], 4)
+                    for _, r in part.iterrows()
+                ]
+        if "P" in part:
+            out[f"P_{metric.upper()} %"] = [
+                fmt(r["P"], r["P_ci_low"], r["P_ci_high"], 1) for _, r in part.iterrows()
+            ]
+            paper = PAPER_TABLE3[f"P_{metric}"].reindex(part.index)
+            out[f"paper P_{metric.upper()} %"] = [
+                "" if np.isnan(v) else f"{v:.2f}" for v in paper.to_numpy(float)
+            ]
+    any_part = summary.xs("iae", level="metric")
+    frame = pd.DataFrame(out, index=any_part.index)
+    frame["n"] = [int(r[[c for c in r.index if c.endswith("_n")]].min()) for _, r in any_part.iterrows()]
+    frame["diverged"] = any_part["diverged"].to_numpy()
+    return frame

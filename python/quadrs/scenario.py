@@ -1,0 +1,272 @@
+"""The validated scenario: presets, TOML in and out, dotted-key overrides.
+
+A Scenario is an immutable nested mapping shaped exactly like its TOML file. Values are
+checked by the engine itself (one set of rules, in Rust), so a Scenario that exists is one
+the engine accepts; every error names the dotted key and the offending value.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import re
+import tomllib
+from collections.abc import Iterator, Mapping
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from quadrs import _core
+
+ScenarioError = _core.ScenarioError
+
+_PRESET_DIR = "presets"
+_BASE_KEY = "base"
+# The two ways of giving the attachment: setting one replaces the other.
+_EXCLUSIVE = {
+    "payload.stiffness": "payload.natural_frequency",
+    "payload.natural_frequency": "payload.stiffness",
+}
+_SEGMENT = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?P<index>(\[\d+\])*)$")
+
+
+def presets() -> list[str]:
+    """Names of the presets shipped with quadrs."""
+    files = resources.files("quadrs").joinpath(_PRESET_DIR).iterdir()
+    return sorted(f.name.removesuffix(".toml") for f in files if f.name.endswith(".toml"))
+
+
+def _preset_text(name: str) -> str:
+    if name not in presets():
+        raise ScenarioError(f"preset must be one of {presets()}, got {name!r}")
+    return resources.files("quadrs").joinpath(_PRESET_DIR, f"{name}.toml").read_text()
+
+
+def parse_value(text: str) -> Any:
+    """A command-line value: TOML syntax (numbers, booleans, arrays, quoted strings), else a
+    bare string. ``"2"`` -> 2, ``"[1, 2]"`` -> [1, 2], ``"min_jerk"`` -> "min_jerk"."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _split_key(key: str) -> list[str | int]:
+    """``"phases[1].end"`` -> ["phases", 1, "end"]."""
+    if not isinstance(key, str) or not key:
+        raise ScenarioError(f"scenario keys are dotted strings, got {key!r}")
+    parts: list[str | int] = []
+    for segment in key.split("."):
+        m = _SEGMENT.match(segment)
+        if m is None:
+            raise ScenarioError(f"{key}: not a valid dotted key (segment {segment!r})")
+        parts.append(m["name"])
+        parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", m["index"]))
+    return parts
+
+
+def _check_finite(value: Any, key: str) -> None:
+    """JSON has no NaN or infinity; every scenario number must be finite anyway."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ScenarioError(f"{key} must be a finite number, got {value!r}")
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _check_finite(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            _check_finite(v, f"{key}[{i}]")
+
+
+def _plain(value: Any) -> Any:
+    """Tuples and numpy scalars -> plain TOML-able Python values."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # numpy scalar
+        return value.item()
+    return value
+
+
+def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """Tables merge key by key; anything else (arrays, values) replaces."""
+    out = copy.deepcopy(base)
+    for k, v in extra.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+class Scenario:
+    """A complete, validated scenario. Build one from a preset, a TOML file or a mapping;
+    derive variants with :meth:`override`. Instances are immutable and compare by value."""
+
+    def __init__(self, data: Mapping[str, Any]) -> None:
+        data = _plain(data)
+        if not isinstance(data, dict):
+            raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        _check_finite(data, "")
+        self._data: dict[str, Any] = data
+        self._derived  # validate now: a Scenario that exists is one the engine accepts
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def paper(cls) -> Scenario:
+        """The paper preset of MODEL.md (vertical flight, vertical Dryden gust, Table 2 gains)."""
+        return cls.preset("paper")
+
+    @classmethod
+    def preset(cls, name: str) -> Scenario:
+        """A shipped preset by name (see :func:`quadrs.scenario.presets`)."""
+        return cls.from_toml_string(_preset_text(name))
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        """Read a scenario file. A file may start from a preset with ``base = "paper"`` and
+        give only what differs; otherwise it must be complete. Unknown keys are rejected."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as e:
+            raise ScenarioError(f"scenario file {str(path)!r} cannot be read: {e.strerror}") from e
+        return cls.from_toml_string(text, source=str(path))
+
+    @classmethod
+    def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise ScenarioError(f"{source} is not valid TOML: {e}") from e
+        return cls.from_dict(data)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """From a nested mapping shaped like the TOML file (``base`` allowed)."""
+        data = dict(data)
+        base = data.pop(_BASE_KEY, None)
+        if base is not None:
+            if not isinstance(base, str):
+                raise ScenarioError(f"base must name a preset, got {base!r}")
+            data = _merge(tomllib.loads(_preset_text(base)), data)
+        return cls(data)
+
+    # -- output -------------------------------------------------------------------------
+    def to_toml(self) -> str:
+        """The complete scenario as TOML; ``Scenario.from_toml_string(s.to_toml()) == s``."""
+        return tomli_w.dumps(self._data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A deep copy of the nested mapping."""
+        return copy.deepcopy(self._data)
+
+    def to_json(self) -> str:
+        """The engine's form (what is handed to Rust)."""
+        return json.dumps(self._data, allow_nan=False)
+
+    # -- variants -----------------------------------------------------------------------
+    def override(self, changes: Mapping[str, Any]) -> Scenario:
+        """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
+        "payload.mass": 0.44, "phases[2].end": 65.0}``. Setting ``payload.stiffness``
+        drops ``payload.natural_frequency`` and vice versa; a value of None removes an
+        optional key (``controller.thrust_max``)."""
+        data = copy.deepcopy(self._data)
+        for key, value in changes.items():
+            parts = _split_key(key)
+            other = _EXCLUSIVE.get(key)
+            if other is not None and other not in changes:
+                data.get("payload", {}).pop(other.split(".")[1], None)
+            parent: Any = data
+            for i, part in enumerate(parts[:-1]):
+                try:
+                    parent = parent[part]
+                except (KeyError, IndexError, TypeError):
+                    where = key if i == len(parts) - 2 else ".".join(map(str, parts[: i + 1]))
+                    raise ScenarioError(f"{key}: unknown scenario key ({where})") from None
+            last = parts[-1]
+            if isinstance(parent, dict) and isinstance(last, str):
+                if value is None:
+                    parent.pop(last, None)
+                else:
+                    parent[last] = _plain(value)
+            elif isinstance(parent, list) and isinstance(last, int) and last < len(parent):
+                parent[last] = _plain(value)
+            else:
+                raise ScenarioError(f"{key}: unknown scenario key")
+        return Scenario(data)
+
+    # -- reading ------------------------------------------------------------------------
+    def __getitem__(self, key: str) -> Any:
+        """A value by dotted key: ``s["gust.w20"]``, ``s["phases[0].name"]``."""
+        node: Any = self._data
+        for part in _split_key(key):
+            try:
+                node = node[part]
+            except (KeyError, IndexError, TypeError):
+                raise KeyError(key) from None
+        return copy.deepcopy(node)
+
+    def get(self, key: str, default: Any = None) -> Any:
+        try:
+            return self[key]
+        except KeyError:
+            return default
+
+    def keys(self) -> Iterator[str]:
+        """Every leaf as a dotted key (arrays of tables indexed: ``phases[0].end``)."""
+
+        def walk(node: Any, prefix: str) -> Iterator[str]:
+            if isinstance(node, dict):
+                for k, v in node.items():
+                    yield from walk(v, f"{prefix}.{k}" if prefix else k)
+            elif isinstance(node, list) and node and all(isinstance(v, dict) for v in node):
+                for i, v in enumerate(node):
+                    yield from walk(v, f"{prefix}[{i}]")
+            else:
+                yield prefix
+
+        return walk(self._data, "")
+
+    @cached_property
+    def _derived(self) -> dict[str, Any]:
+        return _core.describe(self.to_json())
+
+    @property
+    def stiffness(self) -> float:
+        """Attachment stiffness kc (N/m), whichever way it was given."""
+        return float(self._derived["stiffness"])
+
+    @property
+    def hover_offset(self) -> float:
+        """Static stretch d0 = mc g / kc (m): the payload hangs this far below at hover."""
+        return float(self._derived["hover_offset"])
+
+    @property
+    def steps(self) -> int:
+        """RK4 steps of one flight."""
+        return int(self._derived["steps"])
+
+    @property
+    def phase_names(self) -> list[str]:
+        return list(self._derived["phases"])
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Scenario) and self._data == other._data
+
+    def __hash__(self) -> int:
+        return hash(self.to_json())
+
+    def __repr__(self) -> str:
+        p, g = self._data["payload"], self._data["gust"]
+        attach = (
+            f"fn={p['natural_frequency']} Hz"
+            if "natural_frequency" in p
+            else f"kc={p['stiffness']} N/m"
+        )
+        gust = f"{g['model']} w20={g['w20']} m/s" if g["enabled"] else "off"
+        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={self['integrator.dt']}>"

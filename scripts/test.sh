@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Install everything the tests need into .venv, then run every check: Rust format, lints and
+# unit tests; the Python package built with maturin; ruff, the stub check and pytest.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+python3 -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip
+.venv/bin/python -m pip install -q -e '.[test,dask]'
+
+cargo fmt --check
+cargo clippy --all-targets -q -- -D warnings
+cargo test --release -q
+
+.venv/bin/ruff check python tests benches
+.venv/bin/ruff format --check python tests benches
+.venv/bin/python -m mypy.stubtest quadrs._core --allowlist tests/stubtest-allowlist.txt
+.venv/bin/python -m pytest -q "$@"
