@@ -821,7 +821,13 @@ fn fill_row<const N: usize>(filter: &GustFilter, rng: &mut ChaCha8Rng, row: &mut
 ///
 /// # Panics
 /// If `steps > 0` and `out.len()` is not a multiple of `steps`.
-pub fn fill_series(filter: &GustFilter, seed: u64, first_index: u64, steps: usize, out: &mut [f64]) {
+pub fn fill_series(
+    filter: &GustFilter,
+    seed: u64,
+    first_index: u64,
+    steps: usize,
+    out: &mut [f64],
+) {
     if steps == 0 || out.is_empty() {
         return;
     }
@@ -831,16 +837,14 @@ pub fn fill_series(filter: &GustFilter, seed: u64, first_index: u64, steps: usiz
         out.len(),
         steps
     );
-    out.par_chunks_mut(steps)
-        .enumerate()
-        .for_each(|(r, row)| {
-            let mut rng = realisation_rng(seed, first_index.wrapping_add(r as u64));
-            match filter.order {
-                1 => fill_row::<1>(filter, &mut rng, row),
-                2 => fill_row::<2>(filter, &mut rng, row),
-                _ => fill_row::<3>(filter, &mut rng, row),
-            }
-        });
+    out.par_chunks_mut(steps).enumerate().for_each(|(r, row)| {
+        let mut rng = realisation_rng(seed, first_index.wrapping_add(r as u64));
+        match filter.order {
+            1 => fill_row::<1>(filter, &mut rng, row),
+            2 => fill_row::<2>(filter, &mut rng, row),
+            _ => fill_row::<3>(filter, &mut rng, row),
+        }
+    });
 }
 
 /// Everything the flight needs to know about the gust.
@@ -1123,7 +1127,11 @@ mod tests {
         for k in KS {
             for c in Component::ALL {
                 let f = filt(TurbulenceModel::Dryden, c, 1.0, k);
-                let a = if c == Component::Longitudinal { a_l } else { a_v };
+                let a = if c == Component::Longitudinal {
+                    a_l
+                } else {
+                    a_v
+                };
                 let mut expm = (a * k).exp();
                 // Padding: the unused diagonal of expm is 1, of Phi 0.
                 for i in f.order()..3 {
@@ -1322,7 +1330,10 @@ mod tests {
             for model in MODELS {
                 let f = filt(model, c, sigma, 0.3);
                 let v = psd_integral(&f, false);
-                assert!((v / (sigma * sigma) - 1.0).abs() < 1e-9, "{model:?} {c:?}: {v}");
+                assert!(
+                    (v / (sigma * sigma) - 1.0).abs() < 1e-9,
+                    "{model:?} {c:?}: {v}"
+                );
             }
         }
         // Exact von Karman integrates to sigma^2 too, up to the rounding of
@@ -1360,7 +1371,12 @@ mod tests {
     #[test]
     fn von_karman_approximant_accuracy() {
         // The numbers quoted in docs/gust.md.
-        let lon = filt(TurbulenceModel::VonKarman, Component::Longitudinal, 1.0, 0.1);
+        let lon = filt(
+            TurbulenceModel::VonKarman,
+            Component::Longitudinal,
+            1.0,
+            0.1,
+        );
         let ver = filt(TurbulenceModel::VonKarman, Component::Vertical, 1.0, 0.1);
         let (rl, rv) = (
             lon.approximant_variance_ratio(),
@@ -1471,7 +1487,10 @@ mod tests {
             };
             let one = run(1, 0, rows);
             let two = run(2, 0, rows);
-            assert!(one.iter().zip(&two).all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert!(one
+                .iter()
+                .zip(&two)
+                .all(|(x, y)| x.to_bits() == y.to_bits()));
             // Rows 5.. computed as a separate call.
             let tail = run(2, 5, rows - 5);
             assert!(one[5 * steps..]

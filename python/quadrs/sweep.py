@@ -1,0 +1,234 @@
+"""Parameter sweeps: a Monte Carlo batch at every point of a grid over one or two scenario keys.
+
+Every grid point flies the same gust realisations (the same master seed): common random
+numbers, so what differs between points is the parameter, not the luck of the draw.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from quadrs import _core
+from quadrs.montecarlo import monte_carlo
+from quadrs.report import summarise
+from quadrs.scenario import Scenario
+
+_META_KEY = b"quadrs_sweep"
+#: Columns of ``mc.runs`` that a swept key may not shadow.
+_RESERVED = frozenset({"realisation", "controller", "phase", "diverged", "diverged_at"})
+
+
+def column_value(value: Any) -> Any:
+    """How a swept value appears in the tidy table: scalars as they are, arrays and tables as
+    their JSON text (so the column stays groupable and Parquet-friendly)."""
+    if isinstance(value, bool | int | float | str):
+        return value
+    return json.dumps(value)
+
+
+def grid_points(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
+    """The Cartesian product of the grid, first key outermost: ``{"a": [1, 2], "b": [3]}`` ->
+    ``[{"a": 1, "b": 3}, {"a": 2, "b": 3}]``."""
+    keys = list(grid)
+    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
+
+
+def check_grid(grid: Mapping[str, Sequence[Any]]) -> dict[str, list[Any]]:
+    """A validated copy of the grid: one or two keys, each with at least one value, no key
+    that would shadow a column of the runs table."""
+    if not 1 <= len(grid) <= 2:
+        raise ValueError(f"a sweep takes one or two keys, got {list(grid)}")
+    out: dict[str, list[Any]] = {}
+    for key, values in grid.items():
+        if key in _RESERVED:
+            raise ValueError(f"{key}: cannot sweep a key named like a column of the runs")
+        if isinstance(values, str | bytes) or not isinstance(values, Sequence):
+            raise ValueError(f"{key}: sweep values must be a list, got {values!r}")
+        if len(values) == 0:
+            raise ValueError(f"{key}: sweep needs at least one value")
+        out[key] = list(values)
+    return out
+
+
+@dataclass
+class SweepResult:
+    """What a sweep produced.
+
+    ``runs``: the tidy table of every grid point's Monte Carlo runs (one row per point,
+    realisation, controller and phase) with one extra column per swept key, named by the
+    key (e.g. ``payload.natural_frequency``). ``interrupted``: the sweep was stopped
+    (Ctrl-C); ``runs`` holds every realisation that finished.
+    """
+
+    scenario: Scenario
+    grid: dict[str, list[Any]]
+    seed: int
+    controllers: tuple[str, ...]
+    runs: pd.DataFrame
+    interrupted: bool = False
+
+    @property
+    def keys(self) -> list[str]:
+        """The swept keys, outermost first."""
+        return list(self.grid)
+
+    @property
+    def points(self) -> pd.DataFrame:
+        """The grid, one row per point (values as they appear in ``runs``)."""
+        rows = [{k: column_value(v) for k, v in p.items()} for p in grid_points(self.grid)]
+        return pd.DataFrame(rows, columns=self.keys)
+
+    def summary(self, confidence: float = 0.95) -> pd.DataFrame:
+        """Per grid point, :func:`quadrs.report.summarise` of its runs: rows indexed by the
+        swept keys then (metric, phase); per controller mean and CI, and P = 100 SMC/PD."""
+        parts = []
+        for _, point in self.points.iterrows():
+            mask = np.ones(len(self.runs), dtype=bool)
+            for k in self.keys:
+                mask &= (self.runs[k] == point[k]).to_numpy()
+            sub = self.runs[mask]
+            if sub.empty:
+                continue
+            phases = list(pd.unique(sub["phase"]))
+            part = summarise(sub, self.controllers, phases, confidence).reset_index()
+            for k in reversed(self.keys):
+                part.insert(0, k, point[k])
+            parts.append(part)
+        if not parts:
+            raise ValueError("the sweep holds no finished runs")
+        return pd.concat(parts, ignore_index=True).set_index([*self.keys, "metric", "phase"])
+
+    def compact(self, metrics: Sequence[str] = ("iae", "itae")) -> pd.DataFrame:
+        """The summary in one screen: per point and phase, the mean of each metric per
+        controller and P = 100 SMC/PD (percent)."""
+        summ = self.summary()
+        out = {}
+        for metric in metrics:
+            part = summ.xs(metric, level="metric")
+            for c in self.controllers:
+                out[f"{metric.upper()} {c.upper()}"] = part[f"{c}_mean"]
+            if "P" in part:
+                out[f"P_{metric.upper()} %"] = part["P"]
+        part = summ.xs(metrics[0], level="metric")
+        frame = pd.DataFrame(out)
+        frame["n"] = part[[f"{c}_n" for c in self.controllers]].min(axis=1).astype(int)
+        frame["diverged"] = part["diverged"]
+        return frame
+
+    # -- persistence ----------------------------------------------------------------------
+    def metadata(self) -> dict[str, Any]:
+        return {
+            "version": _core.__version__,
+            "seed": self.seed,
+            "controllers": list(self.controllers),
+            "grid": self.grid,
+            "scenario": self.scenario.to_toml(),
+            "interrupted": self.interrupted,
+        }
+
+    def to_parquet(self, path: str | Path) -> None:
+        """Write ``runs`` with the base scenario, grid, seed and quadrs version in the file's
+        metadata (through a temporary file and a rename: never half-written)."""
+        path = Path(path)
+        table = pa.Table.from_pandas(self.runs, preserve_index=False)
+        meta = dict(table.schema.metadata or {})
+        meta[_META_KEY] = json.dumps(self.metadata()).encode()
+        tmp = path.with_name(f".{path.name}.partial")
+        pq.write_table(table.replace_schema_metadata(meta), tmp)
+        os.replace(tmp, path)
+
+    @classmethod
+    def read_parquet(cls, path: str | Path) -> SweepResult:
+        """Read a file written by :meth:`to_parquet`."""
+        table = pq.read_table(path)
+        raw = (table.schema.metadata or {}).get(_META_KEY)
+        if raw is None:
+            raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+        meta = json.loads(raw)
+        return cls(
+            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
+            grid={k: list(v) for k, v in meta["grid"].items()},
+            seed=int(meta["seed"]),
+            controllers=tuple(meta["controllers"]),
+            runs=table.to_pandas(),
+            interrupted=bool(meta.get("interrupted", False)),
+        )
+
+
+def is_sweep_file(path: str | Path) -> bool:
+    """True if ``path`` is a Parquet file written by :meth:`SweepResult.to_parquet`."""
+    meta = pq.read_schema(path).metadata or {}
+    return _META_KEY in meta
+
+
+def sweep(
+    scenario: Scenario,
+    grid: Mapping[str, Sequence[Any]],
+    runs: int = 100,
+    seed: int = 0,
+    controllers: Sequence[str] = ("pd", "smc"),
+    workers: int | None = None,
+    progress: bool = True,
+) -> SweepResult:
+    """A Monte Carlo batch of ``runs`` realisations at every point of ``grid``.
+
+    ``grid`` maps one or two dotted scenario keys to their values, e.g.
+    ``{"payload.natural_frequency": [1, 2, 4, 8]}``; with two keys every combination is flown
+    (first key outermost). Every point is checked before anything runs, so a bad value fails
+    fast with a :class:`quadrs.ScenarioError` naming the key.
+
+    Common random numbers: every grid point uses the same master ``seed``, so realisation
+    ``i`` meets the very same gust noise at every point. Differences between points are then
+    due to the parameter, not to gust-to-gust scatter, and far fewer runs resolve them.
+
+    Ctrl-C stops the sweep and returns what finished (``result.interrupted`` is then True).
+    """
+    grid = check_grid(grid)
+    points = grid_points(grid)
+    scenarios = [scenario.override(p) for p in points]  # validate all before running any
+    if runs < 1:
+        raise ValueError(f"runs must be >= 1, got {runs}")
+    parts: list[pd.DataFrame] = []
+    interrupted = False
+    bar = _points_bar(len(points), progress)
+    try:
+        for point, sc in zip(points, scenarios, strict=True):
+            mc = monte_carlo(sc, runs, seed, controllers, workers, progress, spectra=False)
+            frame = mc.runs
+            for k in reversed(list(grid)):
+                frame.insert(0, k, column_value(point[k]))
+            parts.append(frame)
+            bar.update(1)
+            if mc.interrupted:
+                interrupted = True
+                break
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+    table = pd.concat(parts, ignore_index=True) if parts else _empty_runs(grid, controllers)
+    return SweepResult(scenario, grid, seed, tuple(controllers), table, interrupted)
+
+
+def _points_bar(total: int, progress: bool) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="point", desc="quadrs sweep", disable=not progress or total < 2)
+
+
+def _empty_runs(grid: Mapping[str, Any], controllers: Sequence[str]) -> pd.DataFrame:
+    from quadrs.flight import METRIC_COLUMNS
+
+    cols = [*grid, "realisation", "controller", "phase", *METRIC_COLUMNS, "diverged"]
+    return pd.DataFrame(columns=[*cols, "diverged_at"])

@@ -1,0 +1,29 @@
+"""Shared fixtures: the paper preset and short, coarse variants of it that run in milliseconds."""
+
+import pytest
+
+import quadrs
+
+SHORT = {
+    "integrator.duration": 6.0,
+    "integrator.dt": 0.002,
+    "trajectory.waypoints": [[0, 0, 0, 2, 0], [4, 0, 0, 0, 0]],
+    "phases": [
+        {"name": "P1", "start": 0, "end": 2},
+        {"name": "P2", "start": 2, "end": 4},
+        {"name": "P3", "start": 4, "end": 6},
+    ],
+    "gust.start": 2.5,
+    "gust.end": 3.5,
+}
+
+
+@pytest.fixture(scope="session")
+def paper() -> quadrs.Scenario:
+    return quadrs.Scenario.paper()
+
+
+@pytest.fixture(scope="session")
+def short(paper: quadrs.Scenario) -> quadrs.Scenario:
+    """Take-off, gust, landing in 6 s at dt = 2 ms."""
+    return paper.override(SHORT)
