@@ -43,6 +43,9 @@ def run_batch(
     spectra: bool = True,
     progress: Progress | None = None,
 ) -> dict[str, Any]: ...
+def low_altitude_scales(
+    altitude: float, w20: float
+) -> tuple[list[float], list[float]]: ...
 def gust_series(
     model: str,
     component: str,

@@ -5,13 +5,13 @@
 
 pub mod config;
 pub mod control;
-#[path = "gust_stub.rs"]
 pub mod gust;
 pub mod integrate;
 pub mod lane;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
+pub mod stability;
 pub mod trajectory;
 
 use pyo3::prelude::*;
@@ -39,7 +39,8 @@ mod _core {
     use crate::model::STATE_NAMES;
     use crate::montecarlo::{pool, run_batch as batch};
     use numpy::ndarray::{Array1, Array2, Array4};
-    use numpy::{IntoPyArray, PyArray1};
+    use crate::gust;
+    use numpy::{IntoPyArray, PyArray1, PyArray2};
     use pyo3::exceptions::PyValueError;
     use pyo3::prelude::*;
     use pyo3::types::PyDict;
@@ -104,6 +105,40 @@ mod _core {
         Ok(d)
     }
 
+    /// Closed-loop poles at hover (rust/src/stability.rs), least stable first: per pole its
+    /// mode, dominant state, status and whether the scenario excites it; and the verdict.
+    #[pyfunction]
+    fn stability<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controller: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use crate::stability::{analyse, Pole, Verdict, TOLERANCE};
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
+        let a = guarded("stability", || analyse(&cfg, kind))?;
+        let numbers = |f: fn(&Pole) -> f64| Array1::from_iter(a.poles.iter().map(f));
+        let names = |f: fn(&Pole) -> &'static str| a.poles.iter().map(f).collect::<Vec<_>>();
+        let excited = Array1::from_iter(a.poles.iter().map(|p| p.excited));
+        let n = a.jacobian.nrows();
+        let jac = Array2::from_shape_fn((n, n), |(i, j)| a.jacobian[(i, j)]);
+        let d = PyDict::new(py);
+        d.set_item("real", numbers(|p| p.re).into_pyarray(py))?;
+        d.set_item("imag", numbers(|p| p.im).into_pyarray(py))?;
+        d.set_item("mode", names(|p| p.mode))?;
+        d.set_item("dominant", names(|p| p.dominant))?;
+        d.set_item("status", names(|p| p.verdict.name()))?;
+        d.set_item("excited", excited.into_pyarray(py))?;
+        d.set_item("verdict", a.verdict.name())?;
+        d.set_item("stable", a.verdict == Verdict::Stable)?;
+        d.set_item("lateral_sources", a.lateral_sources)?;
+        d.set_item("equilibrium", a.equilibrium.to_vec().into_pyarray(py))?;
+        d.set_item("residual", a.residual)?;
+        d.set_item("jacobian", jac.into_pyarray(py))?;
+        d.set_item("tolerance", TOLERANCE)?;
+        Ok(d)
+    }
+
     /// One flight: trace every `record_every` steps, per-phase metrics, divergence time.
     #[pyfunction]
     #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1))]
@@ -140,6 +175,71 @@ mod _core {
         let spectra: Vec<_> = res.spectra.into_iter().map(|s| s.into_pyarray(py)).collect();
         d.set_item("spectra", spectra)?;
         Ok(d)
+    }
+
+    /// Low-altitude MIL-F-8785C intensities (m/s) and scale lengths (m) for
+    /// [longitudinal, lateral, vertical], from altitude (m) and the wind at 20 ft (m/s).
+    #[pyfunction]
+    fn low_altitude_scales(altitude: f64, w20: f64) -> PyResult<([f64; 3], [f64; 3])> {
+        if !(altitude.is_finite() && altitude > 0.0) {
+            return Err(PyValueError::new_err(format!("altitude must be > 0, got {altitude:?}")));
+        }
+        if !(w20.is_finite() && w20 >= 0.0) {
+            return Err(PyValueError::new_err(format!("w20 must be >= 0, got {w20:?}")));
+        }
+        Ok(gust::low_altitude_scales(altitude, w20))
+    }
+
+    /// `realisations` stationary series of one gust component, `steps` samples each, row r from
+    /// the random stream (seed, first + r).
+    #[pyfunction]
+    #[allow(clippy::too_many_arguments)]
+    fn gust_series<'py>(
+        py: Python<'py>,
+        model: &str,
+        component: &str,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+        dt: f64,
+        steps: usize,
+        realisations: usize,
+        seed: u64,
+        first: u64,
+        workers: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let model = match model {
+            "dryden" => gust::TurbulenceModel::Dryden,
+            "von_karman" => gust::TurbulenceModel::VonKarman,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "model must be 'dryden' or 'von_karman', got {other:?}"
+                )))
+            }
+        };
+        let component = match component {
+            "longitudinal" => gust::Component::Longitudinal,
+            "lateral" => gust::Component::Lateral,
+            "vertical" => gust::Component::Vertical,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "component must be 'longitudinal', 'lateral' or 'vertical', got {other:?}"
+                )))
+            }
+        };
+        if workers == 0 {
+            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
+        }
+        let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
+            .map_err(PyValueError::new_err)?;
+        let mut out = Array2::<f64>::zeros((realisations, steps));
+        let buf = out.as_slice_mut().expect("a fresh array is contiguous");
+        py.detach(|| {
+            guarded("gust_series", || {
+                pool(workers).install(|| gust::fill_series(&filter, seed, first, steps, buf))
+            })
+        })?;
+        Ok(out.into_pyarray(py))
     }
 
     /// Progress of a batch, shared between the polling Python thread and the workers.

@@ -1,0 +1,55 @@
+"""Turbulence alone: many seeded realisations of one Dryden (or von Karman) component."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from quadrs import _core
+from quadrs.montecarlo import default_workers
+
+COMPONENTS = ("longitudinal", "lateral", "vertical")
+MODELS = ("dryden", "von_karman")
+
+
+def gust_scales(altitude: float, w20: float) -> dict[str, tuple[float, float]]:
+    """MIL-F-8785C low-altitude (sigma m/s, scale length m) per component, from the altitude
+    (m; converted to feet for the standard's formulas) and the wind at 20 ft (m/s)."""
+    sigma, length = _core.low_altitude_scales(altitude, w20)
+    return {c: (sigma[i], length[i]) for i, c in enumerate(COMPONENTS)}
+
+
+def gust_series(
+    component: str = "vertical",
+    sigma: float = 1.0,
+    length_scale: float = 2.0,
+    airspeed: float = 10.0,
+    dt: float = 0.01,
+    steps: int = 10_000,
+    realisations: int = 1,
+    seed: int = 0,
+    *,
+    model: str = "dryden",
+    first: int = 0,
+    workers: int | None = None,
+) -> npt.NDArray[np.float64]:
+    """Stationary gust velocity (m/s), shape (realisations, steps), sampled every ``dt`` s.
+
+    Exact discretisation: variance sigma^2 and the analytic autocorrelation at any ``dt``.
+    Row r is realisation ``first + r`` of ``seed`` and does not depend on ``workers``; it
+    equals the gust a flight with a single ``component`` sees from the gust onset.
+    """
+    if component not in COMPONENTS:
+        raise ValueError(f"component must be one of {COMPONENTS}, got {component!r}")
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    for name, value in (("steps", steps), ("realisations", realisations)):
+        if int(value) != value or value < 0:
+            raise ValueError(f"{name} must be a whole number >= 0, got {value!r}")
+    if seed < 0 or first < 0:
+        raise ValueError(f"seed and first must be >= 0, got {seed}, {first}")
+    workers = default_workers() if workers is None else int(workers)
+    return _core.gust_series(
+        model, component, sigma, length_scale, airspeed, dt, int(steps), int(realisations),
+        seed, first, workers,
+    )  # fmt: skip
