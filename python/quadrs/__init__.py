@@ -5,6 +5,7 @@ The public API; see the README for a tour.
 
 from quadrs._core import EngineError, ScenarioError, __version__
 from quadrs.flight import Flight, simulate
+from quadrs.gust import gust_scales, gust_series
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.scenario import Scenario
 
@@ -15,6 +16,8 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "__version__",
+    "gust_scales",
+    "gust_series",
     "monte_carlo",
     "simulate",
 ]

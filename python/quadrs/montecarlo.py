@@ -222,6 +222,7 @@ def run_range(
     arrays and whether it was interrupted."""
     progress = _core.Progress()
     box: dict[str, Any] = {}
+    finished = threading.Event()
 
     def work() -> None:
         try:
@@ -230,19 +231,21 @@ def run_range(
             )
         except BaseException as e:  # re-raised on the calling thread
             box["error"] = e
+        finally:
+            finished.set()
 
-    thread = threading.Thread(target=work, name="quadrs-batch", daemon=True)
-    thread.start()
+    # Poll an Event, not Thread.join: an interrupted join can mark a live thread as finished.
+    threading.Thread(target=work, name="quadrs-batch", daemon=True).start()
     interrupted = False
     try:
-        while thread.is_alive():
-            thread.join(POLL_SECONDS)
+        while not finished.wait(POLL_SECONDS):
             if on_progress is not None:
                 on_progress(progress.done())
     except KeyboardInterrupt:
         progress.cancel()
         interrupted = True
-        thread.join()
+        while not finished.wait(POLL_SECONDS):
+            pass
     if "error" in box:
         raise box["error"]
     if on_progress is not None:
