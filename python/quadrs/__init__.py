@@ -8,6 +8,8 @@ from quadrs.flight import Flight, simulate
 from quadrs.gust import gust_scales, gust_series
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.scenario import Scenario
+from quadrs.stability import StabilityReport, StabilityWarning, stability
+from quadrs.sweep import sweep
 
 __all__ = [
     "EngineError",
@@ -15,9 +17,13 @@ __all__ = [
     "MonteCarloResult",
     "Scenario",
     "ScenarioError",
+    "StabilityReport",
+    "StabilityWarning",
     "__version__",
     "gust_scales",
     "gust_series",
     "monte_carlo",
     "simulate",
+    "stability",
+    "sweep",
 ]

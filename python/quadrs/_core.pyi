@@ -33,6 +33,7 @@ def simulate(
     realisation: int = 0,
     record_every: int = 1,
 ) -> dict[str, Any]: ...
+def stability(config_json: str, controller: str) -> dict[str, Any]: ...
 def run_batch(
     config_json: str,
     controllers: list[str],

@@ -284,6 +284,13 @@ def monte_carlo(
     workers = default_workers() if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    from quadrs.stability import StabilityWarning, stability
+
+    # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6).
+    for name in controllers:
+        report = stability(scenario, name)
+        if not report.stable:
+            warnings.warn(report.warning(), StabilityWarning, stacklevel=2)
 
     bar = tqdm(total=runs, unit="run", desc="quadrs mc", delay=1.0, disable=not progress)
     try:

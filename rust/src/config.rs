@@ -234,7 +234,11 @@ impl Config {
             let key = e.path().to_string();
             let inner = e.inner().to_string();
             // serde_json appends " at line L column C": meaningless to a TOML user.
-            let inner = inner.split(" at line ").next().unwrap_or(&inner).to_string();
+            let inner = inner
+                .split(" at line ")
+                .next()
+                .unwrap_or(&inner)
+                .to_string();
             if key == "." || key.is_empty() {
                 ConfigError::new("", format!("scenario: {inner}"))
             } else {
@@ -295,12 +299,10 @@ impl Config {
                     "give exactly one of payload.stiffness and payload.natural_frequency, got both",
                 ))
             }
-            (None, None) => {
-                return Err(ConfigError::new(
-                    "payload.natural_frequency",
-                    "give exactly one of payload.stiffness and payload.natural_frequency, got neither",
-                ))
-            }
+            (None, None) => return Err(ConfigError::new(
+                "payload.natural_frequency",
+                "give exactly one of payload.stiffness and payload.natural_frequency, got neither",
+            )),
             (Some(k), None) => positive("payload.stiffness", k)?,
             (None, Some(f)) => positive("payload.natural_frequency", f)?,
         }
@@ -540,7 +542,10 @@ fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x > 0.0 {
         Ok(())
     } else {
-        Err(ConfigError::new(key, format!("{key} must be > 0, got {x:?}")))
+        Err(ConfigError::new(
+            key,
+            format!("{key} must be > 0, got {x:?}"),
+        ))
     }
 }
 
@@ -548,7 +553,10 @@ fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x >= 0.0 {
         Ok(())
     } else {
-        Err(ConfigError::new(key, format!("{key} must be >= 0, got {x:?}")))
+        Err(ConfigError::new(
+            key,
+            format!("{key} must be >= 0, got {x:?}"),
+        ))
     }
 }
 
@@ -591,7 +599,10 @@ pub(crate) mod tests {
         let e = with(|v| v["integrator"]["dt"] = 0.0.into()).unwrap_err();
         assert_eq!(e.key, "integrator.dt");
         let e = with(|v| v["integrator"]["dt"] = 100.0.into()).unwrap_err();
-        assert!(e.message.contains("must not exceed integrator.duration"), "{e}");
+        assert!(
+            e.message.contains("must not exceed integrator.duration"),
+            "{e}"
+        );
         let e = with(|v| v["phases"][2]["end"] = 80.0.into()).unwrap_err();
         assert_eq!(e.key, "phases[2].end");
         let e = with(|v| {
@@ -606,7 +617,10 @@ pub(crate) mod tests {
     #[test]
     fn unknown_and_mistyped_keys_are_named() {
         let e = with(|v| v["payload"]["colour"] = "red".into()).unwrap_err();
-        assert!(e.message.contains("payload") && e.message.contains("colour"), "{e}");
+        assert!(
+            e.message.contains("payload") && e.message.contains("colour"),
+            "{e}"
+        );
         let e = with(|v| v["vehicle"]["mass"] = "heavy".into()).unwrap_err();
         assert_eq!(e.key, "vehicle.mass");
         let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();

@@ -34,12 +34,12 @@ mod _core {
     use super::{EngineError, ScenarioError};
     use crate::config::{Config, ConfigError};
     use crate::control::ControllerKind;
+    use crate::gust;
     use crate::integrate::{Engine, Trace, TRACE_COLUMNS};
     use crate::metrics::{METRIC_NAMES, N_METRICS};
     use crate::model::STATE_NAMES;
     use crate::montecarlo::{pool, run_batch as batch};
     use numpy::ndarray::{Array1, Array2, Array4};
-    use crate::gust;
     use numpy::{IntoPyArray, PyArray1, PyArray2};
     use pyo3::exceptions::PyValueError;
     use pyo3::prelude::*;
@@ -70,7 +70,9 @@ mod _core {
 
     fn controllers(names: &[String]) -> PyResult<Vec<ControllerKind>> {
         if names.is_empty() {
-            return Err(PyValueError::new_err("controllers must name at least one of 'pd', 'smc'"));
+            return Err(PyValueError::new_err(
+                "controllers must name at least one of 'pd', 'smc'",
+            ));
         }
         names
             .iter()
@@ -98,9 +100,19 @@ mod _core {
         d.set_item("stiffness", e.plant.kc)?;
         d.set_item("hover_offset", e.plant.hover_offset())?;
         d.set_item("steps", e.steps)?;
-        d.set_item("phases", e.cfg.phases.iter().map(|p| p.name.clone()).collect::<Vec<_>>())?;
-        let grids: Vec<Bound<'py, PyArray1<f64>>> =
-            e.spectrum_grid().into_iter().map(|g| g.into_pyarray(py)).collect();
+        d.set_item(
+            "phases",
+            e.cfg
+                .phases
+                .iter()
+                .map(|p| p.name.clone())
+                .collect::<Vec<_>>(),
+        )?;
+        let grids: Vec<Bound<'py, PyArray1<f64>>> = e
+            .spectrum_grid()
+            .into_iter()
+            .map(|g| g.into_pyarray(py))
+            .collect();
         d.set_item("spectrum_frequencies", grids)?;
         Ok(d)
     }
@@ -159,7 +171,15 @@ mod _core {
             guarded("simulate", || {
                 let mut trace = Trace::new(record_every, e.steps);
                 let res = e
-                    .fly::<f64>(kind, seed, &[realisation], true, Some(&mut trace), None, &mut FftPlanner::new())
+                    .fly::<f64>(
+                        kind,
+                        seed,
+                        &[realisation],
+                        true,
+                        Some(&mut trace),
+                        None,
+                        &mut FftPlanner::new(),
+                    )
                     .expect("a flight without a cancel flag always finishes");
                 (trace, res.into_iter().next().expect("one lane"))
             })
@@ -167,12 +187,17 @@ mod _core {
         let rows = trace.data.len() / Trace::WIDTH;
         let trace = Array2::from_shape_vec((rows, Trace::WIDTH), trace.data).expect("trace shape");
         let n_phase = res.metrics.len();
-        let metrics = Array2::from_shape_vec((n_phase, N_METRICS), res.metrics.concat()).expect("shape");
+        let metrics =
+            Array2::from_shape_vec((n_phase, N_METRICS), res.metrics.concat()).expect("shape");
         let d = PyDict::new(py);
         d.set_item("trace", trace.into_pyarray(py))?;
         d.set_item("metrics", metrics.into_pyarray(py))?;
         d.set_item("diverged_at", res.diverged_at)?;
-        let spectra: Vec<_> = res.spectra.into_iter().map(|s| s.into_pyarray(py)).collect();
+        let spectra: Vec<_> = res
+            .spectra
+            .into_iter()
+            .map(|s| s.into_pyarray(py))
+            .collect();
         d.set_item("spectra", spectra)?;
         Ok(d)
     }
@@ -182,10 +207,14 @@ mod _core {
     #[pyfunction]
     fn low_altitude_scales(altitude: f64, w20: f64) -> PyResult<([f64; 3], [f64; 3])> {
         if !(altitude.is_finite() && altitude > 0.0) {
-            return Err(PyValueError::new_err(format!("altitude must be > 0, got {altitude:?}")));
+            return Err(PyValueError::new_err(format!(
+                "altitude must be > 0, got {altitude:?}"
+            )));
         }
         if !(w20.is_finite() && w20 >= 0.0) {
-            return Err(PyValueError::new_err(format!("w20 must be >= 0, got {w20:?}")));
+            return Err(PyValueError::new_err(format!(
+                "w20 must be >= 0, got {w20:?}"
+            )));
         }
         Ok(gust::low_altitude_scales(altitude, w20))
     }
@@ -296,11 +325,15 @@ mod _core {
         let e = engine(config_json)?;
         let (done, cancel) = match progress {
             Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
-            None => (Arc::new(AtomicU64::new(0)), Arc::new(AtomicBool::new(false))),
+            None => (
+                Arc::new(AtomicU64::new(0)),
+                Arc::new(AtomicBool::new(false)),
+            ),
         };
         let out = py.detach(|| {
             guarded("run_batch", || {
-                pool(workers).install(|| batch(&e, &kinds, seed, first, count, spectra, &done, &cancel))
+                pool(workers)
+                    .install(|| batch(&e, &kinds, seed, first, count, spectra, &done, &cancel))
             })
         })?;
         let n_ctrl = kinds.len();
@@ -318,8 +351,11 @@ mod _core {
                 (0..n_phase)
                     .map(|p| {
                         let bins = src.first().map_or(0, |c| c[p].len());
-                        let flat: Vec<f64> = src.iter().flat_map(|c| c[p].iter().copied()).collect();
-                        Array2::from_shape_vec((n_ctrl, bins), flat).expect("shape").into_pyarray(py)
+                        let flat: Vec<f64> =
+                            src.iter().flat_map(|c| c[p].iter().copied()).collect();
+                        Array2::from_shape_vec((n_ctrl, bins), flat)
+                            .expect("shape")
+                            .into_pyarray(py)
                     })
                     .collect()
             };

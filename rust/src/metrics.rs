@@ -81,8 +81,9 @@ impl<L: Lane> PhaseAccumulator<L> {
             }
         }
         self.block_sum += e_o;
-        if (k + 1) % self.decimation == 0 {
-            self.blocks.push(self.block_sum * (1.0 / self.decimation as f64));
+        if (k + 1).is_multiple_of(self.decimation) {
+            self.blocks
+                .push(self.block_sum * (1.0 / self.decimation as f64));
             self.block_sum = L::splat(0.0);
         }
     }
@@ -102,17 +103,17 @@ impl<L: Lane> PhaseAccumulator<L> {
             let signal: Vec<f64> = self.blocks[lo..hi].iter().map(|b| b.lane(lane)).collect();
             let amp = amplitude_spectrum(&signal, planner);
             let df = 1.0 / (signal.len().max(1) as f64 * self.decimation as f64 * self.dt);
-            let (peak_f, peak_a) = amp
-                .iter()
-                .enumerate()
-                .skip(1)
-                .fold((f64::NAN, f64::NAN), |best, (i, &a)| {
-                    if best.1.is_nan() || a > best.1 {
-                        (i as f64 * df, a)
-                    } else {
-                        best
-                    }
-                });
+            let (peak_f, peak_a) =
+                amp.iter()
+                    .enumerate()
+                    .skip(1)
+                    .fold((f64::NAN, f64::NAN), |best, (i, &a)| {
+                        if best.1.is_nan() || a > best.1 {
+                            (i as f64 * df, a)
+                        } else {
+                            best
+                        }
+                    });
             if let Some(out) = spectra.as_deref_mut() {
                 out[p] = amp;
             }
@@ -128,7 +129,6 @@ impl<L: Lane> PhaseAccumulator<L> {
         }
         rows
     }
-
 }
 
 /// Blocks lying wholly inside a phase: block j covers samples [j d, (j + 1) d).
@@ -138,7 +138,12 @@ fn block_range(ph: &PhaseSteps, d: usize, n_blocks: usize) -> (usize, usize) {
 }
 
 /// Frequencies (Hz) of each phase's spectrum bins for a flight of `steps` steps.
-pub fn spectrum_grid(phases: &[PhaseSteps], dt: f64, decimation: usize, steps: usize) -> Vec<Vec<f64>> {
+pub fn spectrum_grid(
+    phases: &[PhaseSteps],
+    dt: f64,
+    decimation: usize,
+    steps: usize,
+) -> Vec<Vec<f64>> {
     let n_blocks = (steps + 1) / decimation;
     phases
         .iter()
@@ -159,13 +164,16 @@ pub fn amplitude_spectrum(signal: &[f64], planner: &mut FftPlanner<f64>) -> Vec<
         return vec![0.0; n / 2 + 1];
     }
     let mean = signal.iter().sum::<f64>() / n as f64;
-    let mut buf: Vec<Complex<f64>> = signal.iter().map(|&x| Complex::new(x - mean, 0.0)).collect();
+    let mut buf: Vec<Complex<f64>> = signal
+        .iter()
+        .map(|&x| Complex::new(x - mean, 0.0))
+        .collect();
     planner.plan_fft_forward(n).process(&mut buf);
     buf.iter()
         .take(n / 2 + 1)
         .enumerate()
         .map(|(i, c)| {
-            let one_sided = if i == 0 || (n % 2 == 0 && i == n / 2) {
+            let one_sided = if i == 0 || (n.is_multiple_of(2) && i == n / 2) {
                 1.0
             } else {
                 2.0
@@ -200,7 +208,10 @@ mod tests {
         // e(t) = t on [0, 1] with dt = 0.01: IAE = 1/2, ITAE = 1/3 (+dt^2/6 trapezoid error),
         // RMS = sqrt(1/3), max 1.
         let dt = 0.01;
-        let ph = [PhaseSteps { first: 0, last: 100 }];
+        let ph = [PhaseSteps {
+            first: 0,
+            last: 100,
+        }];
         let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100);
         for k in 0..=100 {
             let t = k as f64 * dt;

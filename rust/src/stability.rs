@@ -1,0 +1,806 @@
+//! "Is this gain set stable?" (MODEL.md section 6): closed-loop poles at hover.
+//!
+//! The closed loop ds/dt = f(s, u(s, r)) is linearised at a hover equilibrium: reference at the
+//! first waypoint's position with psi_ref = 0 and zero velocity and acceleration, state at rest
+//! there with psi = 0, zero wind. What is neglected, and why it does not matter:
+//! - The zero-order hold of the digital controller: it adds a delay of dt/2 (1e-4 s in the paper
+//!   preset), far faster than any pole, so the analysis is continuous-time.
+//! - Drag: it is quadratic in the relative velocity, so its slope at zero relative velocity is
+//!   zero; it leaves the linearisation unchanged (the model's drag is kept in f anyway).
+//! - Yaw: at psi = 0 the x channel is driven by pitch alone and y by roll alone. With equal
+//!   roll and pitch gains the lateral poles are the same at any yaw; with unequal ones, other
+//!   yaws mix the two channels and shift the poles somewhat.
+//!
+//! The Jacobian is exact (to rounding): `Plant::derivative` composed with `Control::control` is
+//! evaluated on forward-mode dual numbers, the same code the flights run (both are generic over
+//! `Lane`), one column per seeded state. Unlike finite differences this needs no step size,
+//! which matters at the kinks of sat(s) and v|v| (smooth at the origin, but their second
+//! derivatives jump there, so central differences lose an order).
+//!
+//! At this point the plant decouples into lateral x/pitch, lateral y/roll, vertical + payload
+//! and yaw. The blocks are found from the Jacobian's sparsity (not assumed), and each is
+//! decomposed on its own: the eigenvalues of identical x and y loops then never mix their
+//! eigenvectors, and each pole keeps an unambiguous mode label.
+
+use crate::config::{Config, GustComponent};
+use crate::control::{Control, ControllerKind, Pd, Smc};
+use crate::lane::Lane;
+use crate::model::{ix, Inputs, Plant, State, NX, STATE_NAMES};
+use crate::trajectory::Reference;
+use nalgebra::{Complex, DMatrix, SMatrix, SVector};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
+
+/// Real parts within this (1/s) of zero are "marginal", e.g. a position with no feedback. Not
+/// smaller: a position with neither gain is a double integrator, a defective zero eigenvalue
+/// that any eigensolver returns only to ~sqrt(machine eps) (about +/-3e-8 here). An e-folding
+/// time of 1e6 s is no instability for a flight.
+pub const TOLERANCE: f64 = 1e-6;
+
+pub type Jacobian = SMatrix<f64, NX, NX>;
+
+/// Mode labels, by the group of states that carries most of a pole's eigenvector.
+pub const MODE_LATERAL_X: &str = "lateral x/pitch";
+pub const MODE_LATERAL_Y: &str = "lateral y/roll";
+pub const MODE_VERTICAL: &str = "vertical";
+pub const MODE_PAYLOAD: &str = "payload";
+pub const MODE_YAW: &str = "yaw";
+
+/// The states whose motion a lateral disturbance drives.
+const LATERAL_STATES: [usize; 8] = [
+    ix::X,
+    ix::Y,
+    ix::PHI,
+    ix::THETA,
+    ix::VX,
+    ix::VY,
+    ix::P,
+    ix::Q,
+];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    Stable,
+    Marginal,
+    Unstable,
+}
+
+impl Verdict {
+    pub fn of(re: f64) -> Self {
+        if re > TOLERANCE {
+            Self::Unstable
+        } else if re >= -TOLERANCE {
+            Self::Marginal
+        } else {
+            Self::Stable
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Stable => "stable",
+            Self::Marginal => "marginal",
+            Self::Unstable => "unstable",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Pole {
+    pub re: f64,
+    pub im: f64,
+    /// One of the `MODE_*` labels.
+    pub mode: &'static str,
+    /// The state with the largest eigenvector component.
+    pub dominant: &'static str,
+    /// Fraction of the eigenvector's squared norm in lateral states (x, y, phi, theta, rates).
+    pub lateral_share: f64,
+    /// Whether the scenario drives this mode at all (see [`lateral_sources`]).
+    pub excited: bool,
+    pub verdict: Verdict,
+}
+
+#[derive(Clone, Debug)]
+pub struct Analysis {
+    pub controller: ControllerKind,
+    /// The closed-loop hover equilibrium the model was linearised at.
+    pub equilibrium: State<f64>,
+    /// |f(equilibrium)|: zero unless the closed loop has no hover equilibrium (e.g. no
+    /// altitude gain without mass compensation), in which case the reference point is used.
+    pub residual: f64,
+    pub jacobian: Jacobian,
+    /// Least stable first.
+    pub poles: Vec<Pole>,
+    pub verdict: Verdict,
+    /// Why lateral modes are excited; empty if x and y stay exactly zero in this scenario.
+    pub lateral_sources: Vec<&'static str>,
+}
+
+/// Closed-loop poles of `kind` at hover for the scenario `cfg`.
+pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
+    match kind {
+        ControllerKind::Pd => analyse_with(cfg, kind, &Pd::new(cfg)),
+        ControllerKind::Smc => analyse_with(cfg, kind, &Smc::new(cfg)),
+    }
+}
+
+fn analyse_with<C: Control>(cfg: &Config, kind: ControllerKind, ctrl: &C) -> Analysis {
+    let plant = Plant::new(cfg);
+    let wp = cfg.trajectory.waypoints[0];
+    let r = Reference {
+        pos: [wp[1], wp[2], wp[3]],
+        ..Reference::default()
+    };
+    let (equilibrium, residual) = equilibrium(&plant, ctrl, &r);
+    let jacobian = closed_loop_jacobian(&plant, ctrl, &r, &equilibrium);
+    let sources = lateral_sources(cfg);
+    let mut poles = Vec::with_capacity(NX);
+    for block in blocks(&jacobian) {
+        for (lambda, v) in eigen(&jacobian, &block) {
+            poles.push(describe(lambda, &block, &v, !sources.is_empty()));
+        }
+    }
+    poles.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
+    let verdict = poles.first().map_or(Verdict::Stable, |p| p.verdict);
+    Analysis {
+        controller: kind,
+        equilibrium,
+        residual,
+        jacobian,
+        poles,
+        verdict,
+        lateral_sources: sources,
+    }
+}
+
+/// The closed-loop vector field at state `s` (controls recomputed from `s`, zero wind).
+fn closed_loop<L: Lane, C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    s: &State<L>,
+) -> State<L> {
+    let u: Inputs<L> = ctrl.control(s, r);
+    plant.derivative(s, &u, &[L::splat(0.0); 3])
+}
+
+/// d f / d s at `s`, exact: column j carries the derivative seeded on state j.
+pub fn closed_loop_jacobian<C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    s: &State<f64>,
+) -> Jacobian {
+    let mut jac = Jacobian::zeros();
+    for j in 0..NX {
+        let mut sd: State<Dual> = s.map(Dual::constant);
+        sd[j].d = 1.0;
+        let f = closed_loop(plant, ctrl, r, &sd);
+        for i in 0..NX {
+            jac[(i, j)] = f[i].d;
+        }
+    }
+    jac
+}
+
+/// Newton's method from rest at the reference: exact there with mass compensation, a few
+/// millimetres of altitude droop without. The pseudo-inverse lets it step past the directions
+/// with no feedback (a position with zero gains), where any point is an equilibrium.
+fn equilibrium<C: Control>(plant: &Plant, ctrl: &C, r: &Reference) -> (State<f64>, f64) {
+    let start = plant.rest_state(r.pos, [0.0; 3]);
+    let norm = |f: &State<f64>| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let mut s = start;
+    let mut res = norm(&closed_loop(plant, ctrl, r, &s));
+    for _ in 0..50 {
+        if res < 1e-13 {
+            break;
+        }
+        let f = SVector::<f64, NX>::from(closed_loop(plant, ctrl, r, &s));
+        let jac = closed_loop_jacobian(plant, ctrl, r, &s);
+        let Ok(step) = jac.svd(true, true).solve(&f, 1e-12) else {
+            break;
+        };
+        let mut next = s;
+        for (x, d) in next.iter_mut().zip(step.iter()) {
+            *x -= d;
+        }
+        let next_res = norm(&closed_loop(plant, ctrl, r, &next));
+        // Stop when Newton no longer helps (or produced NaN).
+        if next_res.is_nan() || next_res >= res {
+            break;
+        }
+        (s, res) = (next, next_res);
+    }
+    if res < 1e-9 {
+        (s, res)
+    } else {
+        // No hover equilibrium (e.g. a steady climb or sink): report at the reference point.
+        (start, norm(&closed_loop(plant, ctrl, r, &start)))
+    }
+}
+
+/// Groups of states that the Jacobian couples (connected components of its sparsity graph).
+fn blocks(jac: &Jacobian) -> Vec<Vec<usize>> {
+    let scale = jac.amax().max(1.0);
+    let mut group: [usize; NX] = std::array::from_fn(|i| i);
+    // Label propagation: each state takes the smallest label it is coupled to, until stable.
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for i in 0..NX {
+            for j in 0..NX {
+                let coupled =
+                    jac[(i, j)].abs() > 1e-12 * scale || jac[(j, i)].abs() > 1e-12 * scale;
+                if coupled && group[j] < group[i] {
+                    group[i] = group[j];
+                    changed = true;
+                }
+            }
+        }
+    }
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for label in 0..NX {
+        let members: Vec<usize> = (0..NX).filter(|&i| group[i] == label).collect();
+        if !members.is_empty() {
+            out.push(members);
+        }
+    }
+    out
+}
+
+/// Eigenvalues of the block's sub-matrix, each with a unit eigenvector over the block's states.
+fn eigen(jac: &Jacobian, block: &[usize]) -> Vec<(Complex<f64>, Vec<Complex<f64>>)> {
+    let n = block.len();
+    let sub = DMatrix::from_fn(n, n, |i, j| jac[(block[i], block[j])]);
+    let values: Vec<Complex<f64>> = if n == 1 {
+        vec![Complex::new(sub[(0, 0)], 0.0)]
+    } else {
+        sub.complex_eigenvalues().iter().copied().collect()
+    };
+    let csub = sub.map(|x| Complex::new(x, 0.0));
+    values
+        .into_iter()
+        .map(|lambda| {
+            // Eigenvector: the right singular vector of (A - lambda I) with the least singular value.
+            let shifted = &csub - DMatrix::from_diagonal_element(n, n, lambda);
+            let svd = shifted.svd(false, true);
+            let k = svd.singular_values.argmin().0;
+            let v_t = svd.v_t.expect("asked for V");
+            let v: Vec<Complex<f64>> = v_t.row(k).iter().map(|c| c.conj()).collect();
+            (lambda, v)
+        })
+        .collect()
+}
+
+fn describe(
+    lambda: Complex<f64>,
+    block: &[usize],
+    v: &[Complex<f64>],
+    lateral_source: bool,
+) -> Pole {
+    let mut full = [Complex::new(0.0, 0.0); NX];
+    for (&i, c) in block.iter().zip(v) {
+        full[i] = *c;
+    }
+    let mag = full.map(|c| c.norm());
+    let total = mag
+        .iter()
+        .map(|a| a * a)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    let share = |states: &[usize]| states.iter().map(|&i| mag[i] * mag[i]).sum::<f64>() / total;
+    let lateral_share = share(&LATERAL_STATES);
+    let groups = [
+        (MODE_LATERAL_X, share(&[ix::X, ix::THETA, ix::VX, ix::Q])),
+        (MODE_LATERAL_Y, share(&[ix::Y, ix::PHI, ix::VY, ix::P])),
+        (MODE_VERTICAL, share(&[ix::Z, ix::ZC, ix::VZ, ix::VZC])),
+        (MODE_YAW, share(&[ix::PSI, ix::R])),
+    ];
+    let mut mode = groups
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("four groups")
+        .0;
+    // The payload mode moves the payload against the quadrotor; the vertical modes carry both
+    // together (the spring barely stretches).
+    if mode == MODE_VERTICAL && (full[ix::ZC] - full[ix::Z]).norm() > full[ix::Z].norm() {
+        mode = MODE_PAYLOAD;
+    }
+    let dominant = (0..NX)
+        .max_by(|&a, &b| mag[a].total_cmp(&mag[b]))
+        .map_or("", |i| STATE_NAMES[i]);
+    Pole {
+        re: lambda.re,
+        im: lambda.im,
+        mode,
+        dominant,
+        lateral_share,
+        // Vertical and yaw modes are driven by every flight (take-off, gravity, initial yaw).
+        excited: lateral_share < 1e-3 || lateral_source,
+        verdict: Verdict::of(lambda.re),
+    }
+}
+
+/// What moves a flight sideways. The lateral states start at zero and, with no lateral force,
+/// stay exactly zero (the paper flies vertically: x = y = 0 throughout), so an unstable lateral
+/// mode is harmless unless one of these sets it off. Yaw alone does not: it rotates a zero
+/// lateral command.
+pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
+    let mut out = Vec::new();
+    let w = &cfg.trajectory.waypoints;
+    let [x0, y0, _] = cfg.initial.position;
+    if w.iter().any(|p| p[1] != w[0][1] || p[2] != w[0][2]) {
+        out.push("waypoints move in x/y");
+    }
+    if x0 != w[0][1] || y0 != w[0][2] {
+        out.push("initial x/y off the first waypoint");
+    }
+    if cfg.initial.attitude[0] != 0.0 || cfg.initial.attitude[1] != 0.0 {
+        out.push("initial roll/pitch");
+    }
+    let g = &cfg.gust;
+    let blowing = g.enabled && g.end > g.start;
+    let horizontal = [GustComponent::Longitudinal, GustComponent::Lateral];
+    if blowing && g.w20 > 0.0 && g.components.iter().any(|c| horizontal.contains(c)) {
+        out.push("horizontal gust components");
+    }
+    if blowing && (g.mean_wind[0] != 0.0 || g.mean_wind[1] != 0.0) {
+        out.push("horizontal mean wind");
+    }
+    out
+}
+
+/// A number with a derivative along one direction (forward-mode automatic differentiation).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Dual {
+    pub v: f64,
+    pub d: f64,
+}
+
+impl Dual {
+    pub fn constant(v: f64) -> Self {
+        Self { v, d: 0.0 }
+    }
+}
+
+impl Add for Dual {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            v: self.v + o.v,
+            d: self.d + o.d,
+        }
+    }
+}
+
+impl Sub for Dual {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Self {
+            v: self.v - o.v,
+            d: self.d - o.d,
+        }
+    }
+}
+
+impl Mul for Dual {
+    type Output = Self;
+    fn mul(self, o: Self) -> Self {
+        Self {
+            v: self.v * o.v,
+            d: self.d * o.v + self.v * o.d,
+        }
+    }
+}
+
+impl Div for Dual {
+    type Output = Self;
+    fn div(self, o: Self) -> Self {
+        Self {
+            v: self.v / o.v,
+            d: (self.d * o.v - self.v * o.d) / (o.v * o.v),
+        }
+    }
+}
+
+impl Neg for Dual {
+    type Output = Self;
+    fn neg(self) -> Self {
+        Self {
+            v: -self.v,
+            d: -self.d,
+        }
+    }
+}
+
+impl AddAssign for Dual {
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+
+impl Add<f64> for Dual {
+    type Output = Self;
+    fn add(self, o: f64) -> Self {
+        Self {
+            v: self.v + o,
+            d: self.d,
+        }
+    }
+}
+
+impl Sub<f64> for Dual {
+    type Output = Self;
+    fn sub(self, o: f64) -> Self {
+        Self {
+            v: self.v - o,
+            d: self.d,
+        }
+    }
+}
+
+impl Mul<f64> for Dual {
+    type Output = Self;
+    fn mul(self, o: f64) -> Self {
+        Self {
+            v: self.v * o,
+            d: self.d * o,
+        }
+    }
+}
+
+impl Lane for Dual {
+    const LANES: usize = 1;
+    fn splat(x: f64) -> Self {
+        Self::constant(x)
+    }
+    fn lane(self, _i: usize) -> f64 {
+        self.v
+    }
+    fn set_lane(&mut self, _i: usize, x: f64) {
+        *self = Self::constant(x);
+    }
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = self.v.sin_cos();
+        (
+            Self {
+                v: s,
+                d: c * self.d,
+            },
+            Self {
+                v: c,
+                d: -s * self.d,
+            },
+        )
+    }
+    fn asin(self) -> Self {
+        Self {
+            v: self.v.asin(),
+            d: self.d / (1.0 - self.v * self.v).sqrt(),
+        }
+    }
+    /// The slope at 0 is taken as 0; the model only uses |x| multiplied by x (drag) or inside
+    /// s / (|s| + gamma), where that choice drops out at x = 0.
+    fn abs(self) -> Self {
+        if self.v < 0.0 {
+            -self
+        } else if self.v > 0.0 {
+            self
+        } else {
+            Self::constant(0.0)
+        }
+    }
+    fn sqrt(self) -> Self {
+        let r = self.v.sqrt();
+        Self {
+            v: r,
+            d: self.d / (2.0 * r),
+        }
+    }
+    fn max(self, other: Self) -> Self {
+        if other.v > self.v {
+            other
+        } else {
+            self
+        }
+    }
+    fn min(self, other: Self) -> Self {
+        if other.v < self.v {
+            other
+        } else {
+            self
+        }
+    }
+    fn within(self, bound: Self) -> [bool; 4] {
+        [self.v <= bound.v, true, true, true]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+
+    fn poles_of(a: &Analysis, mode: &str) -> Vec<Complex<f64>> {
+        a.poles
+            .iter()
+            .filter(|p| p.mode == mode)
+            .map(|p| Complex::new(p.re, p.im))
+            .collect()
+    }
+
+    /// Coefficients (highest power first, monic) of prod (s - r).
+    fn poly_from_roots(roots: &[Complex<f64>]) -> Vec<Complex<f64>> {
+        let mut c = vec![Complex::new(1.0, 0.0)];
+        for r in roots {
+            let mut next = vec![Complex::new(0.0, 0.0); c.len() + 1];
+            for (k, ck) in c.iter().enumerate() {
+                next[k] += ck;
+                next[k + 1] -= ck * r;
+            }
+            c = next;
+        }
+        c
+    }
+
+    /// The poles of `mode` are exactly the roots of `coeffs` (highest power first).
+    fn assert_roots(a: &Analysis, mode: &str, coeffs: &[f64]) {
+        let roots = poles_of(a, mode);
+        assert_eq!(roots.len(), coeffs.len() - 1, "{mode}: {roots:?}");
+        let got = poly_from_roots(&roots);
+        for (k, (g, want)) in got.iter().zip(coeffs).enumerate() {
+            let want = want / coeffs[0];
+            assert!(
+                (g.re - want).abs() <= 1e-8 * want.abs().max(1.0) && g.im.abs() < 1e-8,
+                "{mode}: coefficient {k}: {g} vs {want} (poles {roots:?})"
+            );
+        }
+    }
+
+    #[test]
+    fn paper_pd_is_stable() {
+        let a = analyse(&paper(), ControllerKind::Pd);
+        assert_eq!(a.verdict, Verdict::Stable, "{:?}", a.poles);
+        assert_eq!(a.poles.len(), NX);
+        assert!(a.residual < 1e-12);
+    }
+
+    #[test]
+    fn paper_smc_is_laterally_unstable_near_1_3_pm_3_9j() {
+        let a = analyse(&paper(), ControllerKind::Smc);
+        assert_eq!(a.verdict, Verdict::Unstable);
+        let top = &a.poles[0];
+        assert!(top.mode.starts_with("lateral"), "{top:?}");
+        assert!(
+            (top.re - 1.3).abs() < 0.2 && (top.im.abs() - 3.9).abs() < 0.2,
+            "{top:?}"
+        );
+        for p in &a.poles {
+            if p.verdict != Verdict::Stable {
+                assert!(
+                    p.mode.starts_with("lateral") && p.lateral_share > 0.999,
+                    "{p:?}"
+                );
+                // The paper flies vertically: nothing pushes it sideways.
+                assert!(!p.excited, "{p:?}");
+            }
+        }
+        let mut cfg = paper();
+        cfg.gust.components.push(GustComponent::Lateral);
+        let a = analyse(&cfg, ControllerKind::Smc);
+        assert!(a
+            .poles
+            .iter()
+            .filter(|p| p.verdict == Verdict::Unstable)
+            .all(|p| p.excited));
+        assert_eq!(a.lateral_sources, ["horizontal gust components"]);
+    }
+
+    /// Linearised SMC channel: v = K lambda e + (lambda + K) edot with K = eta + eps / gamma
+    /// (sat'(0) = 1 / gamma).
+    fn smc_k(eta: f64, eps: f64, gamma: f64) -> f64 {
+        eta + eps / gamma
+    }
+
+    #[test]
+    fn yaw_poles_match_the_hand_derived_loops() {
+        let cfg = paper();
+        // PD: Izz psi'' = kp (0 - psi) + kd (0 - r).
+        let pd = analyse(&cfg, ControllerKind::Pd);
+        let k = &cfg.controller.pd;
+        assert_roots(
+            &pd,
+            MODE_YAW,
+            &[cfg.vehicle.inertia[2], k.kd_attitude[2], k.kp_attitude[2]],
+        );
+        // SMC (feedback-linearised with the nominal Izz = plant Izz): psi'' = v_psi, so
+        // s^2 + (lambda + K) s + K lambda = (s + lambda)(s + K).
+        let smc = analyse(&cfg, ControllerKind::Smc);
+        let g = &cfg.controller.smc;
+        let (l, kk) = (
+            g.lambda_attitude[2],
+            smc_k(g.eta_attitude[2], g.epsilon_attitude[2], g.gamma),
+        );
+        assert_roots(&smc, MODE_YAW, &[1.0, l + kk, kk * l]);
+        let mut re: Vec<f64> = poles_of(&smc, MODE_YAW).iter().map(|p| p.re).collect();
+        re.sort_by(f64::total_cmp);
+        assert!(
+            (re[0] + 5.54).abs() < 1e-9 && (re[1] + 1.5).abs() < 1e-9,
+            "{re:?}"
+        );
+    }
+
+    /// Vertical with payload: with k(s) = kc + cc s and the altitude law's linear part
+    /// mt (a + b s), (m s^2 + mt (b s + a) + k)(mc s^2 + k) - k^2 = 0.
+    fn vertical_poly(cfg: &Config, a: f64, b: f64) -> Vec<f64> {
+        let (m, mc, kc, cc) = (
+            cfg.vehicle.mass,
+            cfg.payload.mass,
+            cfg.stiffness(),
+            cfg.payload.damping,
+        );
+        let mt = m + mc;
+        // (m s^2 + (mt b + cc) s + (mt a + kc)) (mc s^2 + cc s + kc) - (cc s + kc)^2
+        let p = [m, mt * b + cc, mt * a + kc];
+        let q = [mc, cc, kc];
+        let mut c = vec![0.0; 5];
+        for (i, pi) in p.iter().enumerate() {
+            for (j, qj) in q.iter().enumerate() {
+                c[i + j] += pi * qj;
+            }
+        }
+        c[2] -= cc * cc;
+        c[3] -= 2.0 * cc * kc;
+        c[4] -= kc * kc;
+        c
+    }
+
+    #[test]
+    fn vertical_and_payload_poles_match_the_fourth_order_loop() {
+        let mut cfg = paper();
+        cfg.payload.damping = 0.3; // exercise the damper term too
+        let pd = analyse(&cfg, ControllerKind::Pd);
+        let k = &cfg.controller.pd;
+        let mut both = poles_of(&pd, MODE_VERTICAL);
+        both.extend(poles_of(&pd, MODE_PAYLOAD));
+        let want = vertical_poly(&cfg, k.kp[2], k.kd[2]);
+        let got = poly_from_roots(&both);
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (g.re - w / want[0]).abs() < 1e-8 * (w / want[0]).abs().max(1.0),
+                "{got:?} {want:?}"
+            );
+        }
+        // SMC: a = K lambda, b = lambda + K.
+        let smc = analyse(&cfg, ControllerKind::Smc);
+        let g = &cfg.controller.smc;
+        let (l, kk) = (g.lambda[2], smc_k(g.eta[2], g.epsilon[2], g.gamma));
+        let mut both = poles_of(&smc, MODE_VERTICAL);
+        both.extend(poles_of(&smc, MODE_PAYLOAD));
+        let want = vertical_poly(&cfg, kk * l, l + kk);
+        let got = poly_from_roots(&both);
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (g.re - w / want[0]).abs() < 1e-8 * (w / want[0]).abs().max(1.0),
+                "{got:?} {want:?}"
+            );
+        }
+        // The payload pair sits near the two-body spring frequency fn sqrt((m + mc) / m).
+        let payload = poles_of(&smc, MODE_PAYLOAD);
+        assert_eq!(payload.len(), 2, "{:?}", smc.poles);
+        let f = payload[0].norm() / (2.0 * std::f64::consts::PI);
+        assert!((f - 2.0 * (2.42f64 / 2.2).sqrt()).abs() < 0.2, "{f} Hz");
+    }
+
+    #[test]
+    fn lateral_poles_match_the_cascade_polynomial() {
+        // x'' = g theta, theta_des = Ux = v_x / g (mt = m + mc, U1 = (m + mc) g): the inner loop
+        // s^2 + (la + Ka) s + la Ka closed around the outer lambda_x, K_x gives
+        // s^2 (s^2 + (la + Ka) s + la Ka) + la Ka ((lx + Kx) s + lx Kx).
+        let cfg = paper();
+        let smc = analyse(&cfg, ControllerKind::Smc);
+        let g = &cfg.controller.smc;
+        let (lx, kx) = (g.lambda[0], smc_k(g.eta[0], g.epsilon[0], g.gamma));
+        let (la, ka) = (
+            g.lambda_attitude[1],
+            smc_k(g.eta_attitude[1], g.epsilon_attitude[1], g.gamma),
+        );
+        assert_roots(
+            &smc,
+            MODE_LATERAL_X,
+            &[
+                1.0,
+                la + ka,
+                la * ka,
+                la * ka * (lx + kx),
+                la * ka * lx * kx,
+            ],
+        );
+        // PD: s^2 (Iyy s^2 + kd s + kp) + kp (kdx s + kpx).
+        let pd = analyse(&cfg, ControllerKind::Pd);
+        let k = &cfg.controller.pd;
+        let (kp, kd) = (k.kp_attitude[1], k.kd_attitude[1]);
+        assert_roots(
+            &pd,
+            MODE_LATERAL_X,
+            &[cfg.vehicle.inertia[1], kd, kp, kp * k.kd[0], kp * k.kp[0]],
+        );
+    }
+
+    #[test]
+    fn jacobian_matches_analytic_entries_and_finite_differences() {
+        let cfg = paper();
+        let plant = Plant::new(&cfg);
+        let smc = Smc::new(&cfg);
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        let s0 = plant.rest_state(r.pos, [0.0; 3]);
+        let jac = closed_loop_jacobian(&plant, &smc, &r, &s0);
+        // d(ax)/d(theta) = U1 / (m + mc) = g at hover; d(ay)/d(phi) = -g.
+        assert!((jac[(ix::VX, ix::THETA)] - 9.81).abs() < 1e-12);
+        assert!((jac[(ix::VY, ix::PHI)] + 9.81).abs() < 1e-12);
+        // d(azc)/d(z) = kc / mc; d(az)/d(zc) = kc / m.
+        assert!((jac[(ix::VZC, ix::Z)] - plant.kc / plant.mc).abs() < 1e-9);
+        assert!((jac[(ix::VZ, ix::ZC)] - plant.kc / plant.m).abs() < 1e-9);
+        // Off hover (every channel away from its kinks), central differences agree.
+        let mut s = s0;
+        for (i, x) in s.iter_mut().enumerate() {
+            *x += 0.01 * (i as f64 + 1.0).sin();
+        }
+        let jac = closed_loop_jacobian(&plant, &smc, &r, &s);
+        let h = 1e-6;
+        for j in 0..NX {
+            let (mut up, mut down) = (s, s);
+            up[j] += h;
+            down[j] -= h;
+            let (fu, fd) = (
+                closed_loop(&plant, &smc, &r, &up),
+                closed_loop(&plant, &smc, &r, &down),
+            );
+            for i in 0..NX {
+                let fdiff = (fu[i] - fd[i]) / (2.0 * h);
+                assert!(
+                    (fdiff - jac[(i, j)]).abs() < 1e-5 * fdiff.abs().max(1.0),
+                    "({i}, {j}): {fdiff} vs {}",
+                    jac[(i, j)]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn no_mass_compensation_linearises_at_the_drooped_equilibrium() {
+        let mut cfg = paper();
+        cfg.controller.mass_compensation = false;
+        let a = analyse(&cfg, ControllerKind::Pd);
+        // PD without compensation holds kp ez = mc g / m below the reference (test_flight too).
+        let droop = 2.0 - a.equilibrium[ix::Z];
+        assert!((droop - 0.22 * 9.81 / (2.2 * 1.5)).abs() < 1e-9, "{droop}");
+        assert!(a.residual < 1e-9);
+        assert_eq!(a.verdict, Verdict::Stable);
+    }
+
+    #[test]
+    fn a_position_without_feedback_is_marginal() {
+        let mut cfg = paper();
+        cfg.controller.pd.kp[0] = 0.0;
+        let a = analyse(&cfg, ControllerKind::Pd);
+        assert_eq!(a.verdict, Verdict::Marginal, "{:?}", a.poles);
+        let top = &a.poles[0];
+        assert_eq!((top.re, top.mode), (0.0, MODE_LATERAL_X));
+        // Neither altitude gain: a double integrator (defective zero eigenvalue, computed only
+        // to ~1e-8) and the undamped spring: marginal, not unstable.
+        let mut cfg = paper();
+        cfg.controller.pd.kp[2] = 0.0;
+        cfg.controller.pd.kd[2] = 0.0;
+        let a = analyse(&cfg, ControllerKind::Pd);
+        assert_eq!(a.verdict, Verdict::Marginal, "{:?}", a.poles);
+        let marginal: Vec<_> = a
+            .poles
+            .iter()
+            .filter(|p| p.verdict == Verdict::Marginal)
+            .collect();
+        assert_eq!(marginal.len(), 4, "{marginal:?}");
+    }
+}
