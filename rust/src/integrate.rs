@@ -13,7 +13,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// One RK4 step of the plant with inputs and wind held.
 #[inline(always)]
-pub fn rk4_step<L: Lane>(plant: &Plant, s: &State<L>, u: &Inputs<L>, w: &[L; 3], dt: f64) -> State<L> {
+pub fn rk4_step<L: Lane>(
+    plant: &Plant,
+    s: &State<L>,
+    u: &Inputs<L>,
+    w: &[L; 3],
+    dt: f64,
+) -> State<L> {
     let stage = |base: &State<L>, k: &State<L>, h: f64| -> State<L> {
         let mut out = *base;
         for i in 0..NX {
@@ -35,9 +41,32 @@ pub fn rk4_step<L: Lane>(plant: &Plant, s: &State<L>, u: &Inputs<L>, w: &[L; 3],
 
 /// Trace columns after `t`, in order.
 pub const TRACE_COLUMNS: [&str; 26] = [
-    "x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc", "x_ref",
-    "y_ref", "z_ref", "psi_ref", "U1", "tau_phi", "tau_theta", "tau_psi", "wind_x", "wind_y",
-    "wind_z", "e_o",
+    "x",
+    "y",
+    "z",
+    "phi",
+    "theta",
+    "psi",
+    "zc",
+    "vx",
+    "vy",
+    "vz",
+    "p",
+    "q",
+    "r",
+    "vzc",
+    "x_ref",
+    "y_ref",
+    "z_ref",
+    "psi_ref",
+    "U1",
+    "tau_phi",
+    "tau_theta",
+    "tau_psi",
+    "wind_x",
+    "wind_y",
+    "wind_z",
+    "e_o",
 ];
 
 /// Rows of (t, TRACE_COLUMNS...) every `every` steps, for lane 0 of a flight.
@@ -57,12 +86,21 @@ impl Trace {
         }
     }
 
-    fn push<L: Lane>(&mut self, t: f64, s: &State<L>, r: &Reference, u: &Inputs<L>, w: &[L; 3], e_o: L) {
+    fn push<L: Lane>(
+        &mut self,
+        t: f64,
+        s: &State<L>,
+        r: &Reference,
+        u: &Inputs<L>,
+        w: &[L; 3],
+        e_o: L,
+    ) {
         self.data.push(t);
         self.data.extend(s.iter().map(|x| x.lane(0)));
         self.data
             .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, u.u1.lane(0)]);
-        self.data.extend(u.tau.iter().chain(w.iter()).map(|x| x.lane(0)));
+        self.data
+            .extend(u.tau.iter().chain(w.iter()).map(|x| x.lane(0)));
         self.data.push(e_o.lane(0));
     }
 }
@@ -145,12 +183,24 @@ impl Engine {
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>> {
         match kind {
-            ControllerKind::Pd => {
-                self.fly_with::<L, _>(&self.pd, seed, indices, want_spectra, trace, cancel, planner)
-            }
-            ControllerKind::Smc => {
-                self.fly_with::<L, _>(&self.smc, seed, indices, want_spectra, trace, cancel, planner)
-            }
+            ControllerKind::Pd => self.fly_with::<L, _>(
+                &self.pd,
+                seed,
+                indices,
+                want_spectra,
+                trace,
+                cancel,
+                planner,
+            ),
+            ControllerKind::Smc => self.fly_with::<L, _>(
+                &self.smc,
+                seed,
+                indices,
+                want_spectra,
+                trace,
+                cancel,
+                planner,
+            ),
         }
     }
 
@@ -173,7 +223,8 @@ impl Engine {
             .iter()
             .map(|&i| self.wind.realisation(seed, i))
             .collect();
-        let mut acc = PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
+        let mut acc =
+            PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; 4];
         let mut alive = L::LANES;
         let div = &self.cfg.divergence;
@@ -236,8 +287,11 @@ impl Engine {
             (0..L::LANES)
                 .map(|lane| {
                     let mut spectra = vec![Vec::new(); if want_spectra { n_phase } else { 0 }];
-                    let mut metrics =
-                        acc.finish(lane, planner, want_spectra.then_some(spectra.as_mut_slice()));
+                    let mut metrics = acc.finish(
+                        lane,
+                        planner,
+                        want_spectra.then_some(spectra.as_mut_slice()),
+                    );
                     if !diverged_at[lane].is_nan() {
                         metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
                         spectra.iter_mut().for_each(|amp| amp.fill(f64::NAN));
@@ -314,7 +368,10 @@ mod tests {
         );
         for (coarse, fine) in [(e1, e2), (e2, e3)] {
             let ratio = coarse / fine;
-            assert!((14.0..18.0).contains(&ratio), "error ratio {ratio} (errors {e1} {e2} {e3})");
+            assert!(
+                (14.0..18.0).contains(&ratio),
+                "error ratio {ratio} (errors {e1} {e2} {e3})"
+            );
         }
     }
 
@@ -350,7 +407,10 @@ mod tests {
         let measured = 0.5 * (crossings - 1) as f64 / (last - first);
         let fn_payload = 2.0;
         let expected = fn_payload * ((cfg.vehicle.mass + 0.22) / cfg.vehicle.mass).sqrt();
-        assert!((measured - expected).abs() < 1e-4, "{measured} Hz vs {expected} Hz");
+        assert!(
+            (measured - expected).abs() < 1e-4,
+            "{measured} Hz vs {expected} Hz"
+        );
     }
 
     fn hover_cfg() -> Config {
@@ -371,12 +431,23 @@ mod tests {
         for kind in [ControllerKind::Pd, ControllerKind::Smc] {
             let mut tr = Trace::new(1000, engine.steps);
             engine
-                .fly::<f64>(kind, 0, &[0], false, Some(&mut tr), None, &mut FftPlanner::new())
+                .fly::<f64>(
+                    kind,
+                    0,
+                    &[0],
+                    false,
+                    Some(&mut tr),
+                    None,
+                    &mut FftPlanner::new(),
+                )
                 .unwrap();
             let x0 = engine.x0;
             for row in tr.data.chunks(Trace::WIDTH) {
                 for i in 0..NX {
-                    assert!((row[1 + i] - x0[i]).abs() < 1e-9, "{kind:?} state {i} drifted: {row:?}");
+                    assert!(
+                        (row[1 + i] - x0[i]).abs() < 1e-9,
+                        "{kind:?} state {i} drifted: {row:?}"
+                    );
                 }
             }
         }
@@ -402,7 +473,10 @@ mod tests {
                     .unwrap();
                 for (a, b) in simd[lane].metrics.iter().zip(&scalar[0].metrics) {
                     for (x, y) in a.iter().zip(b) {
-                        assert!((x - y).abs() <= 1e-9 * y.abs().max(1e-12), "{kind:?} {x} vs {y}");
+                        assert!(
+                            (x - y).abs() <= 1e-9 * y.abs().max(1e-12),
+                            "{kind:?} {x} vs {y}"
+                        );
                     }
                 }
             }

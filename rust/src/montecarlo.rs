@@ -117,7 +117,13 @@ pub fn run_batch(
     let (results, spectra) = (0..sets)
         .into_par_iter()
         .fold(
-            || (Vec::<SetResult>::new(), SpectrumSums::zeros(n_ctrl, &grid), FftPlanner::new()),
+            || {
+                (
+                    Vec::<SetResult>::new(),
+                    SpectrumSums::zeros(n_ctrl, &grid),
+                    FftPlanner::new(),
+                )
+            },
             |(mut out, mut spectra, mut planner), set| {
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
                 let indices: Vec<u64> = (0..LANES as u64)
@@ -223,7 +229,10 @@ mod tests {
         let row = 2 * 2 * N_METRICS;
         assert_eq!(
             c.metrics.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-            a.metrics[3 * row..9 * row].iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+            a.metrics[3 * row..9 * row]
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
         );
     }
 

@@ -136,7 +136,10 @@ mod tests {
         let mut seg = 0;
         let mid = tr.at(2.0, &mut seg);
         assert!((mid.pos[2] - 1.5).abs() < 1e-12, "symmetric halfway");
-        assert!((mid.vel[2] - 3.0 * 1.875 / 4.0).abs() < 1e-12, "peak speed 1.875 d/T");
+        assert!(
+            (mid.vel[2] - 3.0 * 1.875 / 4.0).abs() < 1e-12,
+            "peak speed 1.875 d/T"
+        );
         // derivatives agree with finite differences of position
         let h = 1e-5;
         let (mut s1, mut s2) = (0, 0);
@@ -155,8 +158,26 @@ mod tests {
     fn paper_phases_on_the_grid() {
         let cfg = paper();
         let ph = phase_steps(&cfg);
-        assert_eq!(ph[0], PhaseSteps { first: 0, last: 100_000 });
-        assert_eq!(ph[1], PhaseSteps { first: 100_000, last: 250_000 });
-        assert_eq!(ph[2], PhaseSteps { first: 250_000, last: 350_000 });
+        assert_eq!(
+            ph[0],
+            PhaseSteps {
+                first: 0,
+                last: 100_000
+            }
+        );
+        assert_eq!(
+            ph[1],
+            PhaseSteps {
+                first: 100_000,
+                last: 250_000
+            }
+        );
+        assert_eq!(
+            ph[2],
+            PhaseSteps {
+                first: 250_000,
+                last: 350_000
+            }
+        );
     }
 }

@@ -103,7 +103,9 @@ impl Shared {
     fn desired_attitude<L: Lane>(&self, ux: L, uy: L, spsi: L, cpsi: L) -> (L, L) {
         let lim = L::splat(self.sin_tilt);
         let sphi = (spsi * ux - cpsi * uy).clamp(-lim, lim);
-        let cphi = (L::splat(1.0) - sphi * sphi).sqrt().max(L::splat(MIN_TILT_COS));
+        let cphi = (L::splat(1.0) - sphi * sphi)
+            .sqrt()
+            .max(L::splat(MIN_TILT_COS));
         let sth = ((cpsi * ux + spsi * uy) / cphi).clamp(-lim, lim);
         (sphi.asin(), sth.asin())
     }
