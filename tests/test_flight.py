@@ -37,7 +37,9 @@ def test_hover_equilibrium_stays_put(paper: Scenario, controller: str) -> None:
     assert f.metrics["iae"].iloc[0] < 1e-9
 
 
-@pytest.mark.parametrize(("compensate", "offset"), [(False, 0.22 * 9.81 / (2.2 * 1.5)), (True, 0.0)])
+@pytest.mark.parametrize(
+    ("compensate", "offset"), [(False, 0.22 * 9.81 / (2.2 * 1.5)), (True, 0.0)]
+)
 def test_mass_compensation_offset(paper: Scenario, compensate: bool, offset: float) -> None:
     """The paper's Fig. 16: PD without compensation settles mc g / (m kpz) below the reference."""
     s = paper.override({"gust.enabled": False, "controller.mass_compensation": compensate})

@@ -1,8 +1,10 @@
 """Monte Carlo: determinism, pairing, confidence intervals, divergence, persistence, Ctrl-C."""
 
+import functools
 import os
 import signal
 import threading
+import time
 
 import numpy as np
 import pandas as pd
@@ -63,9 +65,12 @@ def test_confidence_interval_shrinks_like_one_over_sqrt_n(paper: Scenario) -> No
     large = summarise(mc.runs, mc.controllers, phases)
     from scipy import stats
 
+    def half_width(summary, c: str) -> float:
+        row = summary.loc[("iae", "P2")]
+        return (row[f"{c}_ci_high"] - row[f"{c}_ci_low"]) / 2
+
     for c in ("pd", "smc"):
-        hw = lambda s: (s.loc[("iae", "P2"), f"{c}_ci_high"] - s.loc[("iae", "P2"), f"{c}_ci_low"]) / 2  # noqa: E731
-        # half-width = t(n-1) s / sqrt(n): remove t and compare with sqrt(64/16) = 2
+        hw = functools.partial(half_width, c=c)
         ratio = (hw(small) / stats.t.ppf(0.975, 15)) / (hw(large) / stats.t.ppf(0.975, 63))
         assert 1.3 < ratio < 3.0, ratio
         assert large.loc[("iae", "P2"), f"{c}_n"] == 64
@@ -80,7 +85,7 @@ def test_paired_ratio_interval_is_tighter_than_unpaired() -> None:
     assert lo < p < hi
     assert p == pytest.approx(30.0, abs=1.0)
     assert hi - lo < 2.0  # shuffled pairs give an interval several times wider
-    p2, lo2, hi2 = ratio_ci(smc, rng.permutation(pd_), 0.95)
+    _, lo2, hi2 = ratio_ci(smc, rng.permutation(pd_), 0.95)
     assert hi2 - lo2 > 3 * (hi - lo)
 
 
@@ -154,27 +159,53 @@ def test_summary_layout(short: Scenario) -> None:
 
 def test_cancel_keeps_what_finished(paper: Scenario) -> None:
     progress = quadrs._core.Progress()
-    timer = threading.Timer(1.0, progress.cancel)
-    timer.start()
+
+    def cancel_after_first_lane_set() -> None:
+        while progress.done() == 0:
+            time.sleep(0.01)
+        progress.cancel()
+
+    watcher = threading.Thread(target=cancel_after_first_lane_set)
+    watcher.start()
     out = quadrs._core.run_batch(paper.to_json(), ["pd", "smc"], 0, 0, 400, 2, False, progress)
-    timer.join()
+    watcher.join()
     done = out["done"]
     assert 0 < done.sum() < 400
+    assert done.sum() == progress.done()
     assert np.isfinite(out["metrics"][done]).all()
     assert np.isnan(out["metrics"][~done]).all()
 
 
-def test_ctrl_c_returns_finished_realisations(paper: Scenario) -> None:
-    timer = threading.Timer(1.5, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
+def interrupt_when(condition) -> threading.Thread:
+    """SIGINT this process (as Ctrl-C does) once `condition()` holds."""
+
+    def watch() -> None:
+        while not condition():
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    t = threading.Thread(target=watch, daemon=True)
+    t.start()
+    return t
+
+
+def test_ctrl_c_returns_finished_realisations(paper: Scenario, tmp_path) -> None:
+    out = tmp_path / "run"
+    watcher = interrupt_when(lambda: out.exists() and len(list(out.glob("part-*"))) >= 1)
     with pytest.warns(RuntimeWarning, match="interrupted"):
-        mc = quadrs.monte_carlo(paper, runs=400, workers=2, progress=False)
-    timer.join()
+        mc = quadrs.monte_carlo(paper, runs=400, workers=2, progress=False, out=out, chunk=8)
+    watcher.join()
     assert mc.interrupted
     n = mc.runs["realisation"].nunique()
     assert 0 < n < 400
     assert len(mc.runs) == n * 2 * 3
     assert np.isfinite(mc.runs[METRICS].to_numpy()).all()
+    # Resuming flies only what is missing, and equals an uninterrupted run.
+    resumed = quadrs.monte_carlo(paper, runs=12, workers=2, progress=False, out=out, resume=True)
+    fresh = quadrs.monte_carlo(paper, runs=12, workers=2, progress=False)
+    pd.testing.assert_frame_equal(
+        resumed.runs[resumed.runs["realisation"] < 12].reset_index(drop=True), fresh.runs
+    )
 
 
 @pytest.mark.parametrize(

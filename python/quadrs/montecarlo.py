@@ -2,28 +2,31 @@
 
 from __future__ import annotations
 
-import json
+import functools
+import operator
 import os
 import threading
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from quadrs import _core
-from quadrs.flight import METRIC_COLUMNS, check_controller
-from quadrs.report import summarise
+from quadrs.flight import check_controller
+from quadrs.results import MonteCarloResult, SpectrumSums, runs_frame, sums_from_raw
 from quadrs.scenario import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
+
+__all__ = ["MonteCarloResult", "SpectrumSums", "default_workers", "monte_carlo", "run_range"]
 
 #: Seconds between progress polls (the main thread also answers Ctrl-C at this pace).
 POLL_SECONDS = 0.2
-_META_KEY = b"quadrs"
+#: Realisations the engine flies at once (its SIMD width).
+LANES = 4
 
 
 def default_workers() -> int:
@@ -32,179 +35,6 @@ def default_workers() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
-
-
-@dataclass
-class SpectrumSums:
-    """Ensemble sums of amplitude spectra, per phase an array (n_controllers, bins): they add
-    exactly across chunks and machines, and give the mean and spread."""
-
-    frequencies: list[np.ndarray]
-    total: list[np.ndarray]
-    total_sq: list[np.ndarray]
-    count: np.ndarray  # per controller
-
-    def __add__(self, other: SpectrumSums) -> SpectrumSums:
-        return SpectrumSums(
-            self.frequencies,
-            [a + b for a, b in zip(self.total, other.total, strict=True)],
-            [a + b for a, b in zip(self.total_sq, other.total_sq, strict=True)],
-            self.count + other.count,
-        )
-
-    def frame(self, controllers: Sequence[str], phases: Sequence[str]) -> pd.DataFrame:
-        """Tidy: controller, phase, frequency (Hz), mean and std of the amplitude (m), n."""
-        parts = []
-        for p, phase in enumerate(phases):
-            for c, ctrl in enumerate(controllers):
-                n = int(self.count[c])
-                mean = self.total[p][c] / max(n, 1)
-                var = np.maximum(self.total_sq[p][c] / max(n, 1) - mean**2, 0.0)
-                std = np.sqrt(var * n / (n - 1)) if n > 1 else np.full_like(mean, np.nan)
-                parts.append(
-                    pd.DataFrame(
-                        {
-                            "controller": ctrl,
-                            "phase": phase,
-                            "frequency": self.frequencies[p],
-                            "mean": mean if n else np.full_like(mean, np.nan),
-                            "std": std,
-                            "n": n,
-                        }
-                    )
-                )
-        return pd.concat(parts, ignore_index=True)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "frequencies": [f.tolist() for f in self.frequencies],
-            "total": [t.tolist() for t in self.total],
-            "total_sq": [t.tolist() for t in self.total_sq],
-            "count": self.count.tolist(),
-        }
-
-    @classmethod
-    def from_json(cls, d: dict[str, Any]) -> SpectrumSums:
-        return cls(
-            [np.asarray(f) for f in d["frequencies"]],
-            [np.asarray(t) for t in d["total"]],
-            [np.asarray(t) for t in d["total_sq"]],
-            np.asarray(d["count"], dtype=np.int64),
-        )
-
-
-@dataclass
-class MonteCarloResult:
-    """Everything a batch produced.
-
-    ``runs``: one row per (realisation, controller, phase) with the metric columns,
-    ``diverged`` and ``diverged_at`` (s, NaN if it did not). Diverged rows keep NaN metrics.
-    ``interrupted``: the batch was stopped (Ctrl-C) and ``runs`` holds what had finished.
-    """
-
-    scenario: Scenario
-    seed: int
-    controllers: tuple[str, ...]
-    runs: pd.DataFrame
-    spectrum_sums: SpectrumSums | None = field(default=None, repr=False)
-    interrupted: bool = False
-
-    @property
-    def realisations(self) -> np.ndarray:
-        """Indices of the realisations present, sorted."""
-        return np.unique(self.runs["realisation"].to_numpy())
-
-    @property
-    def spectra(self) -> pd.DataFrame | None:
-        """Ensemble amplitude spectra of e_o (mean and std over non-diverged realisations)."""
-        if self.spectrum_sums is None:
-            return None
-        return self.spectrum_sums.frame(self.controllers, self.scenario.phase_names)
-
-    def summary(self, confidence: float = 0.95) -> pd.DataFrame:
-        """The paper's Table 3 and more: for each (metric, phase), per controller the mean and
-        its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI."""
-        return summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
-
-    # -- persistence ----------------------------------------------------------------------
-    def metadata(self) -> dict[str, Any]:
-        return {
-            "version": _core.__version__,
-            "seed": self.seed,
-            "controllers": list(self.controllers),
-            "scenario": self.scenario.to_toml(),
-            "interrupted": self.interrupted,
-            "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
-        }
-
-    def to_parquet(self, path: str | Path) -> None:
-        """Write ``runs`` with the scenario, seed, controllers, spectra and quadrs version in
-        the file's metadata (written to a temporary file, then renamed: never half-written)."""
-        path = Path(path)
-        table = pa.Table.from_pandas(self.runs, preserve_index=False)
-        meta = dict(table.schema.metadata or {})
-        meta[_META_KEY] = json.dumps(self.metadata()).encode()
-        tmp = path.with_name(f".{path.name}.partial")
-        pq.write_table(table.replace_schema_metadata(meta), tmp)
-        os.replace(tmp, path)
-
-    @classmethod
-    def read_parquet(cls, path: str | Path) -> MonteCarloResult:
-        """Read a file written by :meth:`to_parquet`."""
-        table = pq.read_table(path)
-        raw = (table.schema.metadata or {}).get(_META_KEY)
-        if raw is None:
-            raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
-        meta = json.loads(raw)
-        spectra = meta.get("spectra")
-        return cls(
-            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
-            seed=int(meta["seed"]),
-            controllers=tuple(meta["controllers"]),
-            runs=table.to_pandas(),
-            spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
-            interrupted=bool(meta.get("interrupted", False)),
-        )
-
-
-def runs_frame(
-    raw: dict[str, Any], controllers: Sequence[str], phases: Sequence[str], first: int
-) -> pd.DataFrame:
-    """The engine's arrays -> the tidy table (finished realisations only)."""
-    metrics = raw["metrics"]  # (count, n_ctrl, n_phase, n_metric)
-    done = np.asarray(raw["done"], dtype=bool)
-    count, n_ctrl, n_phase, _ = metrics.shape
-    real = first + np.arange(count)
-    shape = (count, n_ctrl, n_phase)
-    diverged_at = np.broadcast_to(raw["diverged_at"][:, :, None], shape)
-    keep = np.broadcast_to(done[:, None, None], shape).reshape(-1)
-    frame = pd.DataFrame(
-        {
-            "realisation": np.broadcast_to(real[:, None, None], shape).reshape(-1),
-            "controller": np.broadcast_to(np.asarray(controllers)[None, :, None], shape).reshape(
-                -1
-            ),
-            "phase": np.broadcast_to(np.asarray(phases)[None, None, :], shape).reshape(-1),
-        }
-    )
-    for k, name in enumerate(METRIC_COLUMNS):
-        frame[name] = metrics[..., k].reshape(-1)
-    frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
-    frame["diverged_at"] = diverged_at.reshape(-1)
-    frame["realisation"] = frame["realisation"].astype(np.int64)
-    return frame[keep].reset_index(drop=True)
-
-
-def spectrum_sums(raw: dict[str, Any], scenario: Scenario) -> SpectrumSums | None:
-    if "spectrum_sum" not in raw:
-        return None
-    freqs = _core.describe(scenario.to_json())["spectrum_frequencies"]
-    return SpectrumSums(
-        list(freqs),
-        list(raw["spectrum_sum"]),
-        list(raw["spectrum_sum_sq"]),
-        np.asarray(raw["spectrum_count"], dtype=np.int64),
-    )
 
 
 def run_range(
@@ -227,7 +57,14 @@ def run_range(
     def work() -> None:
         try:
             box["out"] = _core.run_batch(
-                scenario.to_json(), list(controllers), seed, first, count, workers, spectra, progress
+                scenario.to_json(),
+                list(controllers),
+                seed,
+                first,
+                count,
+                workers,
+                spectra,
+                progress,
             )
         except BaseException as e:  # re-raised on the calling thread
             box["error"] = e
@@ -253,6 +90,24 @@ def run_range(
     return box["out"], interrupted
 
 
+def default_chunk(runs: int, threads: int, checkpointing: bool, distributed: bool) -> int:
+    """Realisations per chunk. One Rust call is fastest, so a plain local run is one chunk;
+    a checkpointed run saves about every twentieth of the work (and at least a few lane-sets
+    per thread, so chunk tails do not idle the cores); on Dask, about four tasks per thread
+    balance the load."""
+    lane_sets = lambda n: -(-n // LANES) * LANES  # noqa: E731  round up to whole lane-sets
+    if distributed:
+        return max(LANES, lane_sets(-(-runs // (4 * threads))))
+    if checkpointing:
+        return max(8 * LANES * threads, lane_sets(-(-runs // 20)))
+    return runs
+
+
+def split_ranges(ranges: Sequence[tuple[int, int]], chunk: int) -> list[tuple[int, int]]:
+    """(first, count) ranges cut into pieces of at most ``chunk`` realisations."""
+    return [(f + i, min(chunk, c - i)) for f, c in ranges for i in range(0, c, chunk)]
+
+
 def monte_carlo(
     scenario: Scenario,
     runs: int = 1000,
@@ -263,16 +118,30 @@ def monte_carlo(
     *,
     first: int = 0,
     spectra: bool = True,
+    out: str | Path | None = None,
+    resume: bool = False,
+    chunk: int | None = None,
+    client: Client | None = None,
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
     Each realisation flies all controllers through the very same gust (a paired comparison).
     A realisation's numbers depend only on (scenario, seed, realisation index): not on
-    ``workers`` or on how the range is split. A diverged realisation is flagged in
+    ``workers``, chunking, or the machine that ran it. A diverged realisation is flagged in
     ``runs.diverged`` and the batch goes on. Ctrl-C stops promptly and returns what finished
     (``result.interrupted`` is then True).
+
+    ``out``: a directory that receives each chunk's rows as a Parquet part as soon as it
+    finishes (see :mod:`quadrs.store`); a killed run loses at most the chunks in flight.
+    With ``resume=True`` an existing ``out`` is continued: only realisations it lacks are
+    flown, and the result is everything it then holds. ``chunk``: realisations per chunk.
+    ``client``: a ``dask.distributed.Client``; chunks then run as tasks on its workers
+    (``workers`` is ignored: each task uses its worker's threads).
     """
     from tqdm.auto import tqdm
+
+    from quadrs.stability import StabilityWarning, stability
+    from quadrs.store import RunStore, missing_ranges
 
     controllers = tuple(check_controller(c) for c in controllers)
     if len(set(controllers)) != len(controllers) or not controllers:
@@ -284,7 +153,10 @@ def monte_carlo(
     workers = default_workers() if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
-    from quadrs.stability import StabilityWarning, stability
+    if chunk is not None and chunk < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk}")
+    if resume and out is None:
+        raise ValueError("resume=True needs out= (the directory of the run to continue)")
 
     # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6).
     for name in controllers:
@@ -292,31 +164,91 @@ def monte_carlo(
         if not report.stable:
             warnings.warn(report.warning(), StabilityWarning, stacklevel=2)
 
-    bar = tqdm(total=runs, unit="run", desc="quadrs mc", delay=1.0, disable=not progress)
+    todo = [(first, runs)]
+    store = RunStore(out) if out is not None else None
+    if store is not None:
+        if store.exists() and resume:
+            store.check_matches(scenario, seed, controllers)
+            todo = missing_ranges(first, runs, store.done_realisations())
+        else:
+            store.create(scenario, seed, controllers)
+    if client is not None:
+        from quadrs.distributed import total_threads
+
+        threads = total_threads(client)
+    else:
+        threads = workers
+    size = chunk or default_chunk(runs, threads, store is not None, client is not None)
+    ranges = split_ranges(todo, size)
+    config_json, phases = scenario.to_json(), scenario.phase_names
+    parts: list[tuple[Any, SpectrumSums | None]] = []
+
+    def keep(rows: Any, sums: SpectrumSums | None) -> None:
+        if store is not None:
+            store.write_part(rows, sums)
+        else:
+            parts.append((rows, sums))
+
+    remaining = sum(c for _, c in ranges)
+    bar = tqdm(
+        total=runs,
+        initial=runs - remaining,
+        unit="run",
+        desc="quadrs mc",
+        delay=1.0,
+        disable=not progress,
+    )
+    interrupted = False
     try:
-        raw, interrupted = run_range(
-            scenario,
-            controllers,
-            seed,
-            first,
-            runs,
-            workers,
-            spectra,
-            on_progress=lambda done: bar.update(done - bar.n),
-        )
+        if client is None:
+            for f, c in ranges:
+                base = bar.n
+                raw, interrupted = run_range(
+                    scenario,
+                    controllers,
+                    seed,
+                    f,
+                    c,
+                    workers,
+                    spectra,
+                    on_progress=lambda done, base=base: bar.update(base + done - bar.n),
+                )
+                keep(runs_frame(raw, controllers, phases, f), sums_from_raw(raw, config_json))
+                if interrupted:
+                    break
+        else:
+            from quadrs.distributed import run_on_dask
+
+            tasks = run_on_dask(client, config_json, phases, controllers, seed, ranges, spectra)
+            try:
+                for count, rows, sums in tasks:
+                    keep(rows, SpectrumSums.from_json(sums) if sums else None)
+                    bar.update(count)
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                tasks.close()
     finally:
         bar.close()
     if interrupted:
         warnings.warn(
-            "Monte Carlo interrupted: the result holds only the realisations that finished",
+            "Monte Carlo interrupted: the result holds only the realisations that finished"
+            + (f" (saved in {out}; resume=True continues it)" if out is not None else ""),
             RuntimeWarning,
             stacklevel=2,
         )
+    if store is not None:
+        return store.result(interrupted)
+    frames = [rows for rows, _ in parts]
+    table = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+    if len(frames) > 1:
+        table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
+    sums = [s for _, s in parts if s is not None]
     return MonteCarloResult(
         scenario=scenario,
         seed=seed,
         controllers=controllers,
-        runs=runs_frame(raw, controllers, scenario.phase_names, first),
-        spectrum_sums=spectrum_sums(raw, scenario),
+        runs=table,
+        spectrum_sums=functools.reduce(operator.add, sums) if sums else None,
         interrupted=interrupted,
     )

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -68,7 +70,9 @@ def summarise(
                 n, mean, lo, hi = mean_ci(wide[c].to_numpy(float), confidence)
                 row.update({f"{c}_mean": mean, f"{c}_ci_low": lo, f"{c}_ci_high": hi, f"{c}_n": n})
             if "pd" in controllers and "smc" in controllers:
-                p, lo, hi = ratio_ci(wide["smc"].to_numpy(float), wide["pd"].to_numpy(float), confidence)
+                p, lo, hi = ratio_ci(
+                    wide["smc"].to_numpy(float), wide["pd"].to_numpy(float), confidence
+                )
                 row.update({"P": p, "P_ci_low": lo, "P_ci_high": hi})
             row["diverged"] = int(sel.groupby("realisation")["diverged"].any().sum())
             rows.append(row)
@@ -103,6 +107,97 @@ def table3(summary: pd.DataFrame) -> pd.DataFrame:
             ]
     any_part = summary.xs("iae", level="metric")
     frame = pd.DataFrame(out, index=any_part.index)
-    frame["n"] = [int(r[[c for c in r.index if c.endswith("_n")]].min()) for _, r in any_part.iterrows()]
+    frame["n"] = [
+        int(r[[c for c in r.index if c.endswith("_n")]].min()) for _, r in any_part.iterrows()
+    ]
     frame["diverged"] = any_part["diverged"].to_numpy()
     return frame
+
+
+#: The paper's spectral-peak ratio (percent, SMC/PD, read from its text: "about 35 %" in P1,
+#: "around eight times smaller" in P2; not stated for P3).
+PAPER_PEAK_RATIO = pd.Series({"P1": 35.0, "P2": 12.5}, name="P_peak", dtype=float)
+
+
+def paper_comparison(summary: pd.DataFrame) -> pd.DataFrame:
+    """Ours beside the paper's, per phase: P = 100 SMC/PD of IAE, ITAE and the spectral peak
+    amplitude, each with its 95% CI (``lo``, ``hi``), the paper's value, and whether the
+    paper's value lies inside our interval. Needs a summary with both PD and SMC."""
+    if "P" not in summary:
+        raise ValueError("the comparison needs runs of both controllers, pd and smc")
+    paper = {"iae": PAPER_TABLE3["P_iae"], "itae": PAPER_TABLE3["P_itae"]}
+    paper["peak_amplitude"] = PAPER_PEAK_RATIO
+    rows = []
+    for metric, ref in paper.items():
+        part = summary.xs(metric, level="metric")
+        for phase, r in part.iterrows():
+            value = float(ref.get(phase, np.nan))
+            inside = bool(r["P_ci_low"] <= value <= r["P_ci_high"]) if np.isfinite(value) else None
+            rows.append(
+                {
+                    "metric": metric,
+                    "phase": phase,
+                    "P": r["P"],
+                    "P_ci_low": r["P_ci_low"],
+                    "P_ci_high": r["P_ci_high"],
+                    "paper_P": value,
+                    "paper_in_ci": inside,
+                }
+            )
+    return pd.DataFrame(rows).set_index(["metric", "phase"])
+
+
+def to_markdown(frame: pd.DataFrame, floatfmt: str = ".4g", index: bool = True) -> str:
+    """A GitHub-flavoured Markdown table of ``frame`` (no extra dependency); NaN and None
+    print as empty cells."""
+    df = frame.reset_index() if index else frame
+
+    def cell(v: object) -> str:
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            return ""
+        if isinstance(v, float | np.floating):
+            return format(float(v), floatfmt)
+        return str(v).replace("|", "\\|")
+
+    header = "| " + " | ".join(str(c) for c in df.columns) + " |"
+    rule = "|" + "|".join("---" for _ in df.columns) + "|"
+    body = ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join([header, rule, *body])
+
+
+def toml_value(value: Any) -> str:
+    """``value`` in TOML syntax on one line (what ``quadrs --set KEY=VALUE`` accepts back)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return json.dumps(str(value))
+
+
+def ordering(summary: pd.DataFrame, metric: str = "iae") -> pd.DataFrame:
+    """Per phase, which controller has the smaller mean ``metric``: ``"SMC lower"`` when the
+    CI of P = 100 SMC/PD lies below 100, ``"SMC higher"`` above, ``"no clear difference"``
+    when it straddles 100; with P and the paper's P."""
+    part = summary.xs(metric, level="metric")
+    paper = PAPER_TABLE3.get(f"P_{metric}")
+
+    def verdict(r: pd.Series) -> str:
+        if r["P_ci_high"] < 100:
+            return "SMC lower"
+        if r["P_ci_low"] > 100:
+            return "SMC higher"
+        return "no clear difference"
+
+    return pd.DataFrame(
+        {
+            "P": part["P"],
+            "verdict": [verdict(r) for _, r in part.iterrows()],
+            "paper_P": paper.reindex(part.index) if paper is not None else np.nan,
+        }
+    )

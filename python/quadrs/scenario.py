@@ -11,7 +11,6 @@ import copy
 import json
 import math
 import re
-import tomllib
 from collections.abc import Iterator, Mapping
 from functools import cached_property
 from importlib import resources
@@ -19,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import tomli_w
+import tomllib
 
 from quadrs import _core
 
@@ -113,7 +113,7 @@ class Scenario:
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
         _check_finite(data, "")
         self._data: dict[str, Any] = data
-        self._derived  # validate now: a Scenario that exists is one the engine accepts
+        _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
 
     # -- construction -------------------------------------------------------------------
     @classmethod
@@ -269,4 +269,5 @@ class Scenario:
             else f"kc={p['stiffness']} N/m"
         )
         gust = f"{g['model']} w20={g['w20']} m/s" if g["enabled"] else "off"
-        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={self['integrator.dt']}>"
+        dt = self["integrator.dt"]
+        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={dt}>"

@@ -1,0 +1,89 @@
+"""Past one machine: realisation chunks as Dask tasks.
+
+Each task is one Rust batch over a contiguous range of realisations on a Dask worker; its
+rows depend only on (scenario, seed, index), so a task Dask recomputes after losing a worker
+gives the very same rows, and the gathered result equals a local run. Dask is an optional
+extra (``pip install quadrs[dask]``): nothing here imports it at module level.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING, Any
+
+import pandas as pd
+
+from quadrs import _core
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
+
+
+def run_chunk(
+    config_json: str,
+    phases: Sequence[str],
+    controllers: Sequence[str],
+    seed: int,
+    first: int,
+    count: int,
+    workers: int,
+    spectra: bool,
+) -> tuple[pd.DataFrame, dict[str, Any] | None]:
+    """One chunk on whichever machine runs it: the tidy rows and the spectrum sums (JSON)."""
+    from quadrs.results import runs_frame, sums_from_raw
+
+    raw = _core.run_batch(config_json, list(controllers), seed, first, count, workers, spectra)
+    sums = sums_from_raw(raw, config_json)
+    return runs_frame(raw, controllers, phases, first), sums.to_json() if sums else None
+
+
+def worker_threads(client: Client) -> int:
+    """Threads of the smallest worker: each task's Rust batch uses that many."""
+    info = client.scheduler_info()["workers"]
+    if not info:
+        raise RuntimeError("the Dask cluster has no workers")
+    return max(1, min(int(w.get("nthreads", 1)) for w in info.values()))
+
+
+def total_threads(client: Client) -> int:
+    return sum(int(w.get("nthreads", 1)) for w in client.scheduler_info()["workers"].values())
+
+
+def run_on_dask(
+    client: Client,
+    config_json: str,
+    phases: Sequence[str],
+    controllers: Sequence[str],
+    seed: int,
+    ranges: Sequence[tuple[int, int]],
+    spectra: bool,
+) -> Iterator[tuple[int, pd.DataFrame, dict[str, Any] | None]]:
+    """Submit one task per (first, count) range; yield (count, rows, sums) as tasks finish.
+    Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
+    from dask.distributed import as_completed
+
+    threads = worker_threads(client)
+    futures = [
+        client.submit(
+            run_chunk,
+            config_json,
+            list(phases),
+            list(controllers),
+            seed,
+            first,
+            count,
+            threads,
+            spectra,
+            key=f"quadrs-chunk-{seed}-{first}-{count}-{abs(hash(config_json)):x}",
+            pure=True,
+            retries=2,
+        )
+        for first, count in ranges
+    ]
+    sizes = {f.key: count for f, (_, count) in zip(futures, ranges, strict=True)}
+    try:
+        for future in as_completed(futures):
+            rows, sums = future.result()
+            yield sizes[future.key], rows, sums
+    finally:
+        client.cancel([f for f in futures if not f.done()])

@@ -1,0 +1,201 @@
+"""What a Monte Carlo batch produced: the tidy runs table, ensemble spectra, persistence."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from quadrs import _core
+from quadrs.flight import METRIC_COLUMNS
+from quadrs.report import summarise
+from quadrs.scenario import Scenario
+
+_META_KEY = b"quadrs"
+
+
+@dataclass
+class SpectrumSums:
+    """Ensemble sums of amplitude spectra, per phase an array (n_controllers, bins): they add
+    exactly across chunks and machines, and give the mean and spread."""
+
+    frequencies: list[np.ndarray]
+    total: list[np.ndarray]
+    total_sq: list[np.ndarray]
+    count: np.ndarray  # per controller
+
+    def __add__(self, other: SpectrumSums) -> SpectrumSums:
+        return SpectrumSums(
+            self.frequencies,
+            [a + b for a, b in zip(self.total, other.total, strict=True)],
+            [a + b for a, b in zip(self.total_sq, other.total_sq, strict=True)],
+            self.count + other.count,
+        )
+
+    def frame(self, controllers: Sequence[str], phases: Sequence[str]) -> pd.DataFrame:
+        """Tidy: controller, phase, frequency (Hz), mean and std of the amplitude (m), n."""
+        parts = []
+        for p, phase in enumerate(phases):
+            for c, ctrl in enumerate(controllers):
+                n = int(self.count[c])
+                mean = self.total[p][c] / max(n, 1)
+                var = np.maximum(self.total_sq[p][c] / max(n, 1) - mean**2, 0.0)
+                std = np.sqrt(var * n / (n - 1)) if n > 1 else np.full_like(mean, np.nan)
+                parts.append(
+                    pd.DataFrame(
+                        {
+                            "controller": ctrl,
+                            "phase": phase,
+                            "frequency": self.frequencies[p],
+                            "mean": mean if n else np.full_like(mean, np.nan),
+                            "std": std,
+                            "n": n,
+                        }
+                    )
+                )
+        return pd.concat(parts, ignore_index=True)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "frequencies": [f.tolist() for f in self.frequencies],
+            "total": [t.tolist() for t in self.total],
+            "total_sq": [t.tolist() for t in self.total_sq],
+            "count": self.count.tolist(),
+        }
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> SpectrumSums:
+        return cls(
+            [np.asarray(f) for f in d["frequencies"]],
+            [np.asarray(t) for t in d["total"]],
+            [np.asarray(t) for t in d["total_sq"]],
+            np.asarray(d["count"], dtype=np.int64),
+        )
+
+
+@dataclass
+class MonteCarloResult:
+    """Everything a batch produced.
+
+    ``runs``: one row per (realisation, controller, phase) with the metric columns,
+    ``diverged`` and ``diverged_at`` (s, NaN if it did not). Diverged rows keep NaN metrics.
+    ``interrupted``: the batch was stopped (Ctrl-C) and ``runs`` holds what had finished.
+    """
+
+    scenario: Scenario
+    seed: int
+    controllers: tuple[str, ...]
+    runs: pd.DataFrame
+    spectrum_sums: SpectrumSums | None = field(default=None, repr=False)
+    interrupted: bool = False
+
+    @property
+    def realisations(self) -> np.ndarray:
+        """Indices of the realisations present, sorted."""
+        return np.unique(self.runs["realisation"].to_numpy())
+
+    @property
+    def spectra(self) -> pd.DataFrame | None:
+        """Ensemble amplitude spectra of e_o (mean and std over non-diverged realisations)."""
+        if self.spectrum_sums is None:
+            return None
+        return self.spectrum_sums.frame(self.controllers, self.scenario.phase_names)
+
+    def summary(self, confidence: float = 0.95) -> pd.DataFrame:
+        """The paper's Table 3 and more: for each (metric, phase), per controller the mean and
+        its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI."""
+        return summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
+
+    # -- persistence ----------------------------------------------------------------------
+    def metadata(self) -> dict[str, Any]:
+        return {
+            "version": _core.__version__,
+            "seed": self.seed,
+            "controllers": list(self.controllers),
+            "scenario": self.scenario.to_toml(),
+            "interrupted": self.interrupted,
+            "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
+        }
+
+    def to_parquet(self, path: str | Path) -> None:
+        """Write ``runs`` with the scenario, seed, controllers, spectra and quadrs version in
+        the file's metadata (written to a temporary file, then renamed: never half-written)."""
+        path = Path(path)
+        table = pa.Table.from_pandas(self.runs, preserve_index=False)
+        meta = dict(table.schema.metadata or {})
+        meta[_META_KEY] = json.dumps(self.metadata()).encode()
+        tmp = path.with_name(f".{path.name}.partial")
+        pq.write_table(table.replace_schema_metadata(meta), tmp)
+        os.replace(tmp, path)
+
+    @classmethod
+    def read_parquet(cls, path: str | Path) -> MonteCarloResult:
+        """Read a file written by :meth:`to_parquet`, or a run directory written by
+        ``monte_carlo(..., out=DIR)`` (complete or not)."""
+        if Path(path).is_dir():
+            from quadrs.store import RunStore  # the store builds on this module
+
+            return RunStore(path).result()
+        table = pq.read_table(path)
+        raw = (table.schema.metadata or {}).get(_META_KEY)
+        if raw is None:
+            raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
+        meta = json.loads(raw)
+        spectra = meta.get("spectra")
+        return cls(
+            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
+            seed=int(meta["seed"]),
+            controllers=tuple(meta["controllers"]),
+            runs=table.to_pandas(),
+            spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
+            interrupted=bool(meta.get("interrupted", False)),
+        )
+
+
+def runs_frame(
+    raw: dict[str, Any], controllers: Sequence[str], phases: Sequence[str], first: int
+) -> pd.DataFrame:
+    """The engine's arrays -> the tidy table (finished realisations only)."""
+    metrics = raw["metrics"]  # (count, n_ctrl, n_phase, n_metric)
+    done = np.asarray(raw["done"], dtype=bool)
+    count, n_ctrl, n_phase, _ = metrics.shape
+    real = first + np.arange(count)
+    shape = (count, n_ctrl, n_phase)
+    diverged_at = np.broadcast_to(raw["diverged_at"][:, :, None], shape)
+    keep = np.broadcast_to(done[:, None, None], shape).reshape(-1)
+    frame = pd.DataFrame(
+        {
+            "realisation": np.broadcast_to(real[:, None, None], shape).reshape(-1),
+            "controller": np.broadcast_to(np.asarray(controllers)[None, :, None], shape).reshape(
+                -1
+            ),
+            "phase": np.broadcast_to(np.asarray(phases)[None, None, :], shape).reshape(-1),
+        }
+    )
+    for k, name in enumerate(METRIC_COLUMNS):
+        frame[name] = metrics[..., k].reshape(-1)
+    frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
+    frame["diverged_at"] = diverged_at.reshape(-1)
+    frame["realisation"] = frame["realisation"].astype(np.int64)
+    return frame[keep].reset_index(drop=True)
+
+
+def sums_from_raw(raw: dict[str, Any], config_json: str) -> SpectrumSums | None:
+    """The engine's spectrum arrays -> SpectrumSums (None when spectra were not asked for)."""
+    if "spectrum_sum" not in raw:
+        return None
+    freqs = _core.describe(config_json)["spectrum_frequencies"]
+    return SpectrumSums(
+        list(freqs),
+        list(raw["spectrum_sum"]),
+        list(raw["spectrum_sum_sq"]),
+        np.asarray(raw["spectrum_count"], dtype=np.int64),
+    )

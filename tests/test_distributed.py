@@ -1,0 +1,108 @@
+"""Past one machine: Dask chunks equal the local run; checkpointed runs survive kills."""
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import quadrs
+from quadrs import MonteCarloResult, Scenario
+from quadrs.store import RunStore, missing_ranges
+
+
+def test_missing_ranges() -> None:
+    assert missing_ranges(0, 10, set()) == [(0, 10)]
+    assert missing_ranges(5, 10, {5, 6, 9, 14}) == [(7, 2), (10, 4)]
+    assert missing_ranges(0, 4, {0, 1, 2, 3}) == []
+
+
+def test_chunked_checkpointed_run_equals_one_batch(short: Scenario, tmp_path) -> None:
+    whole = quadrs.monte_carlo(short, runs=10, seed=4, progress=False)
+    chunked = quadrs.monte_carlo(short, runs=10, seed=4, progress=False, chunk=3)
+    pd.testing.assert_frame_equal(chunked.runs, whole.runs)
+    pd.testing.assert_frame_equal(chunked.spectra, whole.spectra, rtol=1e-12)
+    stored = quadrs.monte_carlo(short, runs=10, seed=4, progress=False, out=tmp_path / "r", chunk=4)
+    pd.testing.assert_frame_equal(stored.runs, whole.runs)
+    assert len(RunStore(tmp_path / "r").parts()) == 3
+    back = MonteCarloResult.read_parquet(tmp_path / "r")
+    pd.testing.assert_frame_equal(back.runs, whole.runs)
+    assert back.scenario == short and back.seed == 4
+
+
+def test_store_refuses_to_mix_runs(short: Scenario, tmp_path) -> None:
+    out = tmp_path / "r"
+    quadrs.monte_carlo(short, runs=4, seed=1, progress=False, out=out)
+    with pytest.raises(FileExistsError, match="already holds a run"):
+        quadrs.monte_carlo(short, runs=4, seed=1, progress=False, out=out)
+    with pytest.raises(ValueError, match="seed differs"):
+        quadrs.monte_carlo(short, runs=4, seed=2, progress=False, out=out, resume=True)
+    with pytest.raises(ValueError, match="scenario differs"):
+        other = short.override({"gust.w20": 5.0})
+        quadrs.monte_carlo(other, runs=4, seed=1, progress=False, out=out, resume=True)
+    # resuming a complete run flies nothing new and returns it
+    again = quadrs.monte_carlo(short, runs=4, seed=1, progress=False, out=out, resume=True)
+    assert again.runs["realisation"].nunique() == 4
+    assert len(RunStore(out).parts()) == 1
+
+
+KILLED_RUN = textwrap.dedent(
+    """
+    import sys, quadrs
+    s = quadrs.Scenario.paper().override({"integrator.dt": 0.001})
+    quadrs.monte_carlo(s, runs=200, seed=9, workers=2, progress=False, out=sys.argv[1], chunk=8)
+    """
+)
+
+
+def test_killed_run_resumes_exactly(paper: Scenario, tmp_path) -> None:
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-c", KILLED_RUN, str(out)])
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(out.glob("part-*.parquet"))) < 2:
+            assert proc.poll() is None, "the run ended before it could be killed"
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    done = RunStore(out).done_realisations()
+    assert 16 <= len(done) < 200
+    s = paper.override({"integrator.dt": 0.001})
+    resumed = quadrs.monte_carlo(s, runs=40, seed=9, progress=False, out=out, resume=True)
+    fresh = quadrs.monte_carlo(s, runs=40, seed=9, progress=False)
+    got = resumed.runs[resumed.runs["realisation"] < 40].reset_index(drop=True)
+    pd.testing.assert_frame_equal(got, fresh.runs)
+    assert not resumed.runs.duplicated(["realisation", "controller", "phase"]).any()
+
+
+def test_local_path_does_not_import_dask(tmp_path) -> None:
+    code = textwrap.dedent(
+        """
+        import sys, quadrs
+        s = quadrs.Scenario.paper().override({"integrator.duration": 2.0, "integrator.dt": 0.01,
+            "phases": [{"name": "all", "start": 0.0, "end": 2.0}]})
+        quadrs.monte_carlo(s, runs=2, progress=False)
+        assert "dask" not in sys.modules and "distributed" not in sys.modules
+        """
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_dask_local_cluster_equals_local_run(short: Scenario) -> None:
+    distributed = pytest.importorskip("dask.distributed")
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        remote = quadrs.monte_carlo(short, runs=12, seed=6, progress=False, client=client, chunk=4)
+    local = quadrs.monte_carlo(short, runs=12, seed=6, progress=False)
+    pd.testing.assert_frame_equal(remote.runs, local.runs)
+    np.testing.assert_allclose(remote.spectra["mean"], local.spectra["mean"], rtol=1e-12)
