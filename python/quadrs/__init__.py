@@ -8,7 +8,7 @@ from quadrs.flight import Flight, simulate
 from quadrs.gust import gust_scales, gust_series
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.scenario import Scenario
-from quadrs.stability import StabilityReport, StabilityWarning, stability
+from quadrs.stability import StabilityReport, StabilityWarning, StepSizeWarning, stability
 from quadrs.sweep import sweep
 
 __all__ = [
@@ -19,6 +19,7 @@ __all__ = [
     "ScenarioError",
     "StabilityReport",
     "StabilityWarning",
+    "StepSizeWarning",
     "__version__",
     "gust_scales",
     "gust_series",

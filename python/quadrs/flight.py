@@ -66,7 +66,10 @@ def simulate(
     gust in :func:`quadrs.monte_carlo`. ``record_every`` thins the trace to every n-th step
     (default: about one row per millisecond).
     """
+    from quadrs.stability import warn_before_running
+
     check_controller(controller)
+    warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
     if seed < 0 or realisation < 0:

@@ -140,7 +140,7 @@ def monte_carlo(
     """
     from tqdm.auto import tqdm
 
-    from quadrs.stability import StabilityWarning, stability
+    from quadrs.stability import warn_before_running
     from quadrs.store import RunStore, missing_ranges
 
     controllers = tuple(check_controller(c) for c in controllers)
@@ -158,11 +158,9 @@ def monte_carlo(
     if resume and out is None:
         raise ValueError("resume=True needs out= (the directory of the run to continue)")
 
-    # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6).
-    for name in controllers:
-        report = stability(scenario, name)
-        if not report.stable:
-            warnings.warn(report.warning(), StabilityWarning, stacklevel=2)
+    # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6)
+    # or on a step too coarse for the fastest mode.
+    warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
     todo = [(first, runs)]
     store = RunStore(out) if out is not None else None

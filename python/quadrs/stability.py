@@ -11,6 +11,7 @@ an unstable lateral mode never shows, as in the paper's vertical flights.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,6 +26,50 @@ POLE_COLUMNS = ("real", "imag", "frequency_hz", "damping", "mode", "dominant", "
 
 class StabilityWarning(UserWarning):
     """A gain set is not asymptotically stable at hover (issued before a Monte Carlo run)."""
+
+
+class StepSizeWarning(UserWarning):
+    """``integrator.dt`` is too large for the fastest closed-loop mode (issued before running)."""
+
+
+#: Largest |pole| * dt considered safe. RK4 alone is stable up to about 2.8 (2.83 on the
+#: imaginary axis, 2.79 on the real one), but the controls are held over each step, which
+#: narrows the margin, and accuracy is poor long before that: at 1 a mode's per-step phase
+#: error is already ~0.5 %.
+STEP_LIMIT = 1.0
+
+
+def step_size_warning(scenario: Scenario, reports: list[StabilityReport]) -> str:
+    """Why ``integrator.dt`` is too large for these controllers' fastest modes ("" if not)."""
+    dt = float(scenario["integrator.dt"])
+    worst = max(
+        ((float(np.hypot(r.real, r.imag)), r.mode, rep.controller)
+         for rep in reports for r in rep.poles.itertuples()),
+        default=(0.0, "", ""),
+    )  # fmt: skip
+    speed, mode, controller = worst
+    if speed * dt <= STEP_LIMIT:
+        return ""
+    return (
+        f"integrator.dt = {dt:g} s is too large for the {controller.upper()} closed loop's "
+        f"fastest mode ({mode}, |pole| = {speed:.4g} 1/s): |pole| dt = {speed * dt:.3g} > "
+        f"{STEP_LIMIT:g}. RK4 with held controls may be inaccurate or go unstable (flagged as "
+        f"diverged); use integrator.dt <= {STEP_LIMIT / speed:.3g} s."
+    )
+
+
+def warn_before_running(
+    scenario: Scenario, controllers: tuple[str, ...], *, gains: bool, stacklevel: int
+) -> None:
+    """Warn about a step too large for the fastest mode and, with ``gains``, unstable gains."""
+    reports = [stability(scenario, c) for c in controllers]
+    if gains:
+        for report in reports:
+            if not report.stable:
+                warnings.warn(report.warning(), StabilityWarning, stacklevel=stacklevel + 1)
+    message = step_size_warning(scenario, reports)
+    if message:
+        warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
 
 
 def _pole(real: float, imag: float) -> str:

@@ -204,7 +204,15 @@ def sweep(
     bar = _points_bar(len(points), progress)
     try:
         for point, sc in zip(points, scenarios, strict=True):
-            mc = monte_carlo(sc, runs, seed, controllers, workers, progress, spectra=False)
+            mc = monte_carlo(
+                sc,
+                runs=runs,
+                seed=seed,
+                controllers=controllers,
+                workers=workers,
+                progress=progress,
+                spectra=False,
+            )
             frame = mc.runs
             for k in reversed(list(grid)):
                 frame.insert(0, k, column_value(point[k]))
@@ -224,7 +232,7 @@ def sweep(
 def _points_bar(total: int, progress: bool) -> Any:
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, unit="point", desc="quadrs sweep", disable=not progress or total < 2)
+    return tqdm(total=total, unit="point", desc="quadrs sweep", delay=1.0, disable=not progress)
 
 
 def _empty_runs(grid: Mapping[str, Any], controllers: Sequence[str]) -> pd.DataFrame:

@@ -128,7 +128,7 @@ mod _core {
         use crate::stability::{analyse, Pole, Verdict, TOLERANCE};
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-        let a = guarded("stability", || analyse(&cfg, kind))?;
+        let a = py.detach(|| guarded("stability", || analyse(&cfg, kind)))?;
         let numbers = |f: fn(&Pole) -> f64| Array1::from_iter(a.poles.iter().map(f));
         let names = |f: fn(&Pole) -> &'static str| a.poles.iter().map(f).collect::<Vec<_>>();
         let excited = Array1::from_iter(a.poles.iter().map(|p| p.excited));
@@ -269,6 +269,21 @@ mod _core {
             })
         })?;
         Ok(out.into_pyarray(py))
+    }
+
+    /// Panic inside the engine (on a worker thread of the pool when `in_pool`): lets the tests
+    /// prove that a Rust panic surfaces as EngineError and the process survives. Not public API.
+    #[pyfunction]
+    fn _panic_for_tests(py: Python<'_>, message: &str, in_pool: bool) -> PyResult<()> {
+        py.detach(|| {
+            guarded("_panic_for_tests", || {
+                if in_pool {
+                    pool(2).install(|| rayon::join(|| panic!("{message}"), || ()));
+                } else {
+                    panic!("{message}");
+                }
+            })
+        })
     }
 
     /// Progress of a batch, shared between the polling Python thread and the workers.

@@ -27,7 +27,7 @@ use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::lane::Lane;
 use crate::model::{ix, Inputs, Plant, State, NX, STATE_NAMES};
 use crate::trajectory::Reference;
-use nalgebra::{Complex, DMatrix, SMatrix, SVector};
+use nalgebra::{Complex, DMatrix, SMatrix, SVector, Schur, SVD};
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 /// Real parts within this (1/s) of zero are "marginal", e.g. a position with no feedback. Not
@@ -65,8 +65,9 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// A NaN pole (the linearisation broke down) is never called stable.
     pub fn of(re: f64) -> Self {
-        if re > TOLERANCE {
+        if re.is_nan() || re > TOLERANCE {
             Self::Unstable
         } else if re >= -TOLERANCE {
             Self::Marginal
@@ -196,7 +197,9 @@ fn equilibrium<C: Control>(plant: &Plant, ctrl: &C, r: &Reference) -> (State<f64
         }
         let f = SVector::<f64, NX>::from(closed_loop(plant, ctrl, r, &s));
         let jac = closed_loop_jacobian(plant, ctrl, r, &s);
-        let Ok(step) = jac.svd(true, true).solve(&f, 1e-12) else {
+        // Bounded SVD: the plain one never returns on a non-finite Jacobian.
+        let svd = SVD::try_new(jac, true, true, f64::EPSILON, MAX_ITERATIONS);
+        let Some(Ok(step)) = svd.map(|svd| svd.solve(&f, 1e-12)) else {
             break;
         };
         let mut next = s;
@@ -248,13 +251,24 @@ fn blocks(jac: &Jacobian) -> Vec<Vec<usize>> {
 }
 
 /// Eigenvalues of the block's sub-matrix, each with a unit eigenvector over the block's states.
+/// Iterations allowed to the Schur and SVD solvers (they converge in tens on a 14x14).
+const MAX_ITERATIONS: usize = 10_000;
+
 fn eigen(jac: &Jacobian, block: &[usize]) -> Vec<(Complex<f64>, Vec<Complex<f64>>)> {
     let n = block.len();
     let sub = DMatrix::from_fn(n, n, |i, j| jac[(block[i], block[j])]);
+    // nalgebra's plain `complex_eigenvalues`/`svd` iterate without bound, which never ends on
+    // a non-finite matrix (an absurd but legal scenario): bound them and report NaN instead.
+    let nan = Complex::new(f64::NAN, f64::NAN);
     let values: Vec<Complex<f64>> = if n == 1 {
         vec![Complex::new(sub[(0, 0)], 0.0)]
+    } else if !sub.iter().all(|x| x.is_finite()) {
+        vec![nan; n]
     } else {
-        sub.complex_eigenvalues().iter().copied().collect()
+        match Schur::try_new(sub.clone(), f64::EPSILON, MAX_ITERATIONS) {
+            Some(schur) => schur.complex_eigenvalues().iter().copied().collect(),
+            None => vec![nan; n],
+        }
     };
     let csub = sub.map(|x| Complex::new(x, 0.0));
     values
@@ -262,10 +276,18 @@ fn eigen(jac: &Jacobian, block: &[usize]) -> Vec<(Complex<f64>, Vec<Complex<f64>
         .map(|lambda| {
             // Eigenvector: the right singular vector of (A - lambda I) with the least singular value.
             let shifted = &csub - DMatrix::from_diagonal_element(n, n, lambda);
-            let svd = shifted.svd(false, true);
-            let k = svd.singular_values.argmin().0;
-            let v_t = svd.v_t.expect("asked for V");
-            let v: Vec<Complex<f64>> = v_t.row(k).iter().map(|c| c.conj()).collect();
+            let svd = lambda
+                .is_finite()
+                .then(|| SVD::try_new(shifted, false, true, f64::EPSILON, MAX_ITERATIONS))
+                .flatten();
+            let v: Vec<Complex<f64>> = match svd {
+                Some(svd) => {
+                    let k = svd.singular_values.argmin().0;
+                    let v_t = svd.v_t.expect("asked for V");
+                    v_t.row(k).iter().map(|c| c.conj()).collect()
+                }
+                None => vec![nan; n],
+            };
             (lambda, v)
         })
         .collect()

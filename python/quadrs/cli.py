@@ -1,0 +1,697 @@
+"""``quadrs``: the command line.
+
+Exit status: 0 on success; 2 on bad input, with one line on stderr naming the key or file; 130
+on Ctrl-C, after saving what had finished. Set ``QUADRS_TRACEBACK=1`` to see the full
+traceback of an error instead of its one-line reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import sys
+import warnings
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any, NoReturn, TextIO
+
+import pandas as pd
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
+
+
+class BadInput(ValueError):
+    """Bad command-line input caught by the CLI itself (not by the scenario)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line on stderr (then exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+# -- options ----------------------------------------------------------------------------------
+def _scenario_options() -> argparse.ArgumentParser:
+    from quadrs.scenario import presets
+
+    common = argparse.ArgumentParser(add_help=False)
+    g = common.add_argument_group("scenario")
+    g.add_argument(
+        "--preset",
+        default=None,
+        choices=presets(),
+        help="start from a shipped preset (default: paper)",
+    )
+    g.add_argument(
+        "--scenario",
+        metavar="FILE.toml",
+        type=Path,
+        help='start from a scenario file instead (it may begin with base = "paper" and give '
+        "only what differs)",
+    )
+    g.add_argument(
+        "--set",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        dest="overrides",
+        help="override one dotted key, repeatable; VALUE in TOML syntax and SI units, e.g. "
+        "payload.mass=0.44 (kg), gust.w20=15 (m/s), payload.natural_frequency=4 (Hz), "
+        "integrator.duration=10 (s), 'trajectory.interpolation=\"min_jerk\"'; "
+        "`quadrs scenario keys` lists every key with its value",
+    )
+    return common
+
+
+def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None:
+    p.add_argument(
+        "--runs",
+        type=int,
+        default=runs,
+        metavar="N",
+        help="gust realisations (each flown by every controller) (default: %(default)s)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="W",
+        help="worker threads (default: every core this process may use)",
+    )
+    p.add_argument(
+        "--controllers",
+        type=_controllers,
+        default=("pd", "smc"),
+        metavar="LIST",
+        help="comma-separated controllers to fly (default: pd,smc)",
+    )
+    p.add_argument("--out", type=Path, metavar="FILE.parquet", help=out_help)
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _controllers(text: str) -> tuple[str, ...]:
+    names = tuple(c.strip() for c in text.split(",") if c.strip())
+    bad = [c for c in names if c not in ("pd", "smc")]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"controllers are pd and/or smc, got {text!r}")
+    return names
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``quadrs`` argument parser with every subcommand."""
+    common = _scenario_options()
+    parser = Parser(
+        prog="quadrs",
+        description="Quadrotor with a spring-attached payload through a Dryden gust: single "
+        "flights, Monte Carlo batches, sweeps and the paper's figures. Units are SI "
+        "(m, s, kg, N, rad; frequencies in Hz).",
+        epilog="Exit status: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C (what "
+        "finished is saved).",
+    )
+    from quadrs import __version__
+
+    parser.add_argument("--version", action="version", version=f"quadrs {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    _add_run(sub, common)
+    _add_mc(sub, common)
+    _add_sweep(sub, common)
+    _add_report(sub)
+    _add_paper(sub, common)
+    _add_stability(sub, common)
+    _add_scenario(sub, common)
+    return parser
+
+
+def _add_run(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "run",
+        parents=[common],
+        help="fly once and print the per-phase metrics",
+        description="Fly the scenario once and print the per-phase metrics of the relative "
+        "oscillation e_o (IAE in m s, ITAE in m s^2, max_abs/rms in m, tracking_rms in m, "
+        "peak_frequency in Hz, peak_amplitude in m).",
+    )
+    p.add_argument(
+        "--controller", choices=("pd", "smc"), default="smc", help="controller (default: smc)"
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--realisation",
+        type=int,
+        default=0,
+        metavar="I",
+        help="gust realisation of the seed, the same as realisation I of `quadrs mc` (default: 0)",
+    )
+    p.add_argument("--plot", type=Path, metavar="DIR", help="write the flight's figures here")
+    p.add_argument(
+        "--trace",
+        type=Path,
+        metavar="FILE",
+        help="write the time trace (t in s; states, references, controls, wind in m/s, e_o "
+        "in m) as .parquet or .csv",
+    )
+
+
+def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "mc",
+        parents=[common],
+        help="Monte Carlo batch; prints the Table-3 summary",
+        description="Fly many gust realisations with every controller (paired: the same gust "
+        "for each) and print the paper's Table 3 with 95% confidence intervals (IAE in m s, "
+        "ITAE in m s^2; P = 100 SMC/PD in percent).",
+    )
+    _batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
+    p.add_argument("--plots", type=Path, metavar="DIR", help="write the batch's figures here")
+    p.add_argument(
+        "--checkpoint",
+        type=Path,
+        metavar="DIR",
+        help="append each finished chunk of realisations to this Parquet dataset directory "
+        "as it completes, so a killed run loses at most the chunks in flight",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --checkpoint DIR: fly only the realisations it lacks "
+        "(same scenario, seed and controllers required)",
+    )
+    p.add_argument(
+        "--chunk",
+        type=int,
+        metavar="N",
+        help="realisations per chunk (default: about 1/20 of the runs when checkpointing, "
+        "4 tasks per thread on Dask, else all at once)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the chunks on a Dask cluster, e.g. tcp://10.0.0.5:8786 "
+        "(needs pip install quadrs[dask])",
+    )
+
+
+def _add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "sweep",
+        parents=[common],
+        help="Monte Carlo at every point of a one- or two-key grid",
+        description="Run a Monte Carlo batch at every grid point of one or two scenario keys, "
+        "with the same seed at every point (common random numbers: differences between "
+        "points are not gust noise). Prints mean IAE (m s) and ITAE (m s^2) per controller "
+        "and P = 100 SMC/PD (%) per point and phase.",
+    )
+    p.add_argument(
+        "--param",
+        required=True,
+        metavar="KEY",
+        help="dotted scenario key to sweep, e.g. payload.natural_frequency (Hz)",
+    )
+    p.add_argument(
+        "--values",
+        required=True,
+        type=_values,
+        metavar="V1,V2,...",
+        help="its values in the key's unit, comma-separated (or a TOML array)",
+    )
+    p.add_argument("--param2", metavar="KEY", help="optional second key (full grid)")
+    p.add_argument("--values2", type=_values, metavar="V1,V2,...", help="values of --param2")
+    _batch_options(p, 100, "write the tidy runs table of every point (swept keys as columns)")
+    p.add_argument("--plots", type=Path, metavar="DIR", help="write the sweep's figures here")
+
+
+def _values(text: str) -> list[Any]:
+    from quadrs.scenario import parse_value
+
+    text = text.strip()
+    if text.startswith("["):
+        value = parse_value(text)
+        if not isinstance(value, list):
+            raise argparse.ArgumentTypeError(f"not a TOML array: {text!r}")
+        return value
+    values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
+    if not values:
+        raise argparse.ArgumentTypeError("no values given")
+    return values
+
+
+def _add_report(sub: Any) -> None:
+    p = sub.add_parser(
+        "report",
+        help="reprint the summary of a saved Monte Carlo or sweep file",
+        description="Reprint the Table-3 summary (or a sweep's summary) from a Parquet file "
+        "written by `quadrs mc --out` or `quadrs sweep --out`.",
+    )
+    p.add_argument(
+        "file",
+        type=Path,
+        metavar="RUNS",
+        help="the saved runs: a .parquet file (mc --out, sweep --out) or a --checkpoint directory",
+    )
+    p.add_argument("--plots", type=Path, metavar="DIR", help="write figures from the file here")
+
+
+def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
+    from quadrs.paper import FREQUENCIES, MASSES
+
+    p = sub.add_parser(
+        "paper",
+        parents=[common],
+        help="every table and figure of the paper, and report.md",
+        description="Reproduce the paper's Figs. 4-16 and Table 3 (with Monte Carlo versions) "
+        "into DIR, with report.md setting our Table 3 beside the paper's.",
+    )
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
+    p.add_argument(
+        "--runs",
+        type=int,
+        default=200,
+        metavar="N",
+        help="Monte Carlo realisations for Table 3 (default: %(default)s; raise for tighter "
+        "intervals)",
+    )
+    p.add_argument(
+        "--sweep-runs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="realisations per natural frequency for Figs. 13/14 (default: runs/10, >= 2)",
+    )
+    p.add_argument(
+        "--frequencies",
+        type=_values,
+        default=list(FREQUENCIES),
+        metavar="F1,F2,...",
+        help=f"payload natural frequencies in Hz for Figs. 13/14 (default: "
+        f"{','.join(map(str, FREQUENCIES))})",
+    )
+    p.add_argument(
+        "--masses",
+        type=_values,
+        default=list(MASSES),
+        metavar="M1,M2,...",
+        help=f"payload masses in kg for Fig. 16 (default: {','.join(map(str, MASSES))})",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--workers", type=int, default=None, metavar="W", help="worker threads (default: all)"
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "stability",
+        parents=[common],
+        help="closed-loop poles at hover and a verdict",
+        description="Linearise the closed loop at hover and print its poles (1/s) and a "
+        "stability verdict for each controller.",
+    )
+    p.add_argument(
+        "--controller",
+        choices=("pd", "smc", "both"),
+        default="both",
+        help="controller (default: both)",
+    )
+    p.add_argument(
+        "--poles",
+        action="store_true",
+        help="also print every pole (real and imaginary part in 1/s, frequency in Hz)",
+    )
+
+
+def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "scenario",
+        help="show a scenario, list its keys or the presets",
+        description="Inspect scenarios: `show` prints the full TOML (SI units), `keys` every "
+        "dotted key with its value, `presets` the shipped presets.",
+    )
+    ssub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    ssub.add_parser("show", parents=[common], help="print the scenario as TOML")
+    ssub.add_parser("keys", parents=[common], help="list every dotted key = current value")
+    ssub.add_parser("presets", help="list the shipped presets")
+
+
+# -- shared steps -----------------------------------------------------------------------------
+def load_scenario(args: argparse.Namespace) -> Any:
+    """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once."""
+    from quadrs.scenario import Scenario, parse_value
+
+    if args.scenario is not None and args.preset is not None:
+        raise BadInput("--preset and --scenario: give one or the other")
+    if args.scenario is not None:
+        base = Scenario.from_toml(args.scenario)
+    else:
+        base = Scenario.preset(args.preset or "paper")
+    changes: dict[str, Any] = {}
+    for item in args.overrides:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise BadInput(f"--set {item!r}: expected KEY=VALUE")
+        changes[key] = parse_value(value.strip())
+    return base.override(changes) if changes else base
+
+
+def _print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4) -> None:
+    with pd.option_context(
+        "display.width",
+        250,
+        "display.max_columns",
+        None,
+        "display.max_rows",
+        500,
+        "display.float_format",
+        lambda v: f"{v:.{digits}g}",
+    ):
+        print(frame.to_string(), file=out or sys.stdout)
+
+
+def _check_suffix(path: Path | None, allowed: Sequence[str], option: str) -> None:
+    if path is not None and path.suffix.lower() not in allowed:
+        raise BadInput(f"{option} {str(path)!r}: expected a file ending in {' or '.join(allowed)}")
+
+
+def _check_positive(name: str, value: int | None, minimum: int = 1) -> None:
+    if value is not None and value < minimum:
+        raise BadInput(f"{name} must be >= {minimum}, got {value}")
+
+
+def _write_atomic(frame: pd.DataFrame, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.partial")
+    if path.suffix.lower() == ".csv":
+        frame.to_csv(tmp)
+    else:
+        frame.to_parquet(tmp)
+    os.replace(tmp, path)
+
+
+def _saved(path: Path) -> None:
+    print(f"wrote {path}", file=sys.stderr)
+
+
+# -- commands ---------------------------------------------------------------------------------
+def cmd_run(args: argparse.Namespace) -> int:
+    """One flight: metrics table, optional figures and trace."""
+    from quadrs import plots
+    from quadrs.flight import simulate
+
+    scenario = load_scenario(args)
+    _check_suffix(args.trace, (".parquet", ".csv"), "--trace")
+    flight = simulate(scenario, args.controller, args.seed, realisation=args.realisation)
+    print(f"{args.controller.upper()}, seed {args.seed}, realisation {args.realisation}")
+    _print_frame(flight.metrics.set_index("phase"))
+    if flight.diverged:
+        print(f"warning: the flight diverged at t = {flight.diverged_at:g} s", file=sys.stderr)
+    if args.trace is not None:
+        _write_atomic(flight.trace, args.trace)
+        _saved(args.trace)
+    if args.plot is not None:
+        d = args.plot
+        files = plots.save(plots.altitude(flight), d / "altitude")
+        files += plots.save(plots.oscillation(flight), d / "oscillation")
+        files += plots.save(plots.spectra(flight), d / "spectra")
+        files += plots.save(plots.gust_force(flight), d / "gust_force")
+        print(f"wrote {len(files)} figure files to {d}", file=sys.stderr)
+    return EXIT_OK
+
+
+def cmd_mc(args: argparse.Namespace) -> int:
+    """A Monte Carlo batch: Table 3, optional Parquet and figures; 130 if interrupted."""
+    from quadrs.montecarlo import monte_carlo
+    from quadrs.report import table3
+
+    scenario = load_scenario(args)
+    _check_suffix(args.out, (".parquet",), "--out")
+    _check_positive("--runs", args.runs)
+    _check_positive("--workers", args.workers)
+    _check_positive("--chunk", args.chunk)
+    if args.resume and args.checkpoint is None:
+        raise BadInput("--resume needs --checkpoint DIR (the run to continue)")
+    if args.checkpoint is not None and not args.resume and args.checkpoint.exists():
+        if any(args.checkpoint.iterdir()):
+            raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
+    with _dask_client(args.scheduler) as client:
+        mc = monte_carlo(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controllers,
+            workers=args.workers,
+            progress=not args.no_progress,
+            out=args.checkpoint,
+            resume=args.resume,
+            chunk=args.chunk,
+            client=client,
+        )
+    if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        mc.to_parquet(args.out)
+        _saved(args.out)
+    if not mc.runs.empty:
+        _print_frame(table3(mc.summary()))
+    if args.plots is not None and not mc.runs.empty:
+        _mc_plots(mc, args.plots)
+    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK
+
+
+@contextlib.contextmanager
+def _dask_client(address: str | None) -> Iterator[Any]:
+    """A Dask client for ``--scheduler`` (None without it): Dask is imported only then."""
+    if address is None:
+        yield None
+        return
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise BadInput("--scheduler needs Dask: pip install 'quadrs[dask]'") from None
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError) as e:
+        raise BadInput(f"--scheduler {address}: cannot connect ({e})") from None
+    with client:
+        yield client
+
+
+def _mc_plots(mc: Any, directory: Path) -> None:
+    from quadrs import plots
+
+    files = plots.save(plots.distributions(mc.runs), directory / "distributions")
+    if mc.spectra is not None:
+        files += plots.save(plots.ensemble_spectra(mc.spectra), directory / "spectra")
+    print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """A one- or two-key sweep: compact summary, optional Parquet and figures."""
+    from quadrs.sweep import sweep
+
+    scenario = load_scenario(args)
+    grid = {args.param: args.values}
+    if (args.param2 is None) != (args.values2 is None):
+        raise BadInput("--param2 and --values2 go together")
+    if args.param2 is not None:
+        if args.param2 == args.param:
+            raise BadInput(f"--param2 {args.param2}: the same key as --param")
+        grid[args.param2] = args.values2
+    _check_suffix(args.out, (".parquet",), "--out")
+    _check_positive("--runs", args.runs)
+    _check_positive("--workers", args.workers)
+    result = sweep(
+        scenario,
+        grid,
+        runs=args.runs,
+        seed=args.seed,
+        controllers=args.controllers,
+        workers=args.workers,
+        progress=not args.no_progress,
+    )
+    if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        result.to_parquet(args.out)
+        _saved(args.out)
+    if not result.runs.empty:
+        _print_frame(result.compact())
+    if args.plots is not None and not result.runs.empty:
+        _sweep_plots(result, args.plots)
+    return EXIT_INTERRUPT if result.interrupted else EXIT_OK
+
+
+def _sweep_plots(result: Any, directory: Path) -> None:
+    from quadrs import plots
+
+    summ = result.summary()
+    files = plots.save(plots.sweep_metric(summ, "max_abs"), directory / "sweep_max_abs")
+    files += plots.save(plots.sweep_metric(summ, "iae"), directory / "sweep_iae")
+    files += plots.save(plots.distributions(result.runs), directory / "distributions")
+    print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Reprint a saved batch's (or sweep's) summary; figures from it."""
+    from quadrs.montecarlo import MonteCarloResult
+    from quadrs.report import table3
+    from quadrs.sweep import SweepResult, is_sweep_file
+
+    if args.file.is_dir():
+        from quadrs.store import RunStore
+
+        if not RunStore(args.file).exists():
+            raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
+    elif not args.file.is_file():
+        raise BadInput(f"{str(args.file)!r}: no such file")
+    if args.file.is_file() and is_sweep_file(args.file):
+        result = SweepResult.read_parquet(args.file)
+        _print_frame(result.compact())
+        if args.plots is not None:
+            _sweep_plots(result, args.plots)
+    else:
+        mc = MonteCarloResult.read_parquet(args.file)
+        note = " (interrupted batch)" if mc.interrupted else ""
+        print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
+        _print_frame(table3(mc.summary()))
+        if args.plots is not None:
+            _mc_plots(mc, args.plots)
+    return EXIT_OK
+
+
+def cmd_paper(args: argparse.Namespace) -> int:
+    """Every table and figure of the paper, and report.md."""
+    from quadrs.paper import paper
+    from quadrs.report import table3
+
+    scenario = load_scenario(args)
+    _check_positive("--runs", args.runs, 2)
+    _check_positive("--sweep-runs", args.sweep_runs, 2)
+    _check_positive("--workers", args.workers)
+    result = paper(
+        args.out,
+        scenario,
+        args.runs,
+        args.seed,
+        args.workers,
+        not args.no_progress,
+        sweep_runs=args.sweep_runs,
+        frequencies=args.frequencies,
+        masses=args.masses,
+    )
+    if result.mc is not None and not result.mc.runs.empty:
+        _print_frame(table3(result.mc.summary()))
+    print(f"wrote {len(result.files)} files to {result.out}", file=sys.stderr)
+    return EXIT_INTERRUPT if result.interrupted else EXIT_OK
+
+
+def cmd_stability(args: argparse.Namespace) -> int:
+    """Closed-loop poles at hover, per controller."""
+    import quadrs
+
+    scenario = load_scenario(args)
+    check = getattr(quadrs, "stability", None)
+    if check is None:
+        print(
+            "quadrs stability: error: quadrs.stability is not available in this build",
+            file=sys.stderr,
+        )
+        return EXIT_FAIL
+    controllers = ("pd", "smc") if args.controller == "both" else (args.controller,)
+    for controller in controllers:
+        report = check(scenario, controller=controller)
+        print(f"== {controller.upper()} ==")
+        print(str(report))
+        poles = getattr(report, "poles", None)
+        if args.poles and isinstance(poles, pd.DataFrame):
+            _print_frame(poles)
+    return EXIT_OK
+
+
+def cmd_scenario(args: argparse.Namespace) -> int:
+    """Show a scenario as TOML, list its keys, or list the presets."""
+    from quadrs.report import toml_value
+    from quadrs.scenario import presets
+
+    if args.action == "presets":
+        print("\n".join(presets()))
+        return EXIT_OK
+    scenario = load_scenario(args)
+    if args.action == "show":
+        sys.stdout.write(scenario.to_toml())
+    else:
+        for key in scenario.keys():
+            print(f"{key} = {toml_value(scenario[key])}")
+    return EXIT_OK
+
+
+COMMANDS = {
+    "run": cmd_run,
+    "mc": cmd_mc,
+    "sweep": cmd_sweep,
+    "report": cmd_report,
+    "paper": cmd_paper,
+    "stability": cmd_stability,
+    "scenario": cmd_scenario,
+}
+
+
+# -- entry point ------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _terse_warnings() -> Iterator[None]:
+    """Warnings as one ``quadrs: warning: ...`` line each, without source lines, each distinct
+    message once (a sweep would otherwise repeat the same stability warning at every point)."""
+    seen: set[str] = set()
+
+    def show(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> None:
+        text = _one_line(str(message))
+        if text not in seen:
+            seen.add(text)
+            print(f"quadrs: warning: {text}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        yield
+
+
+def _one_line(text: str) -> str:
+    return "; ".join(line.strip() for line in text.strip().splitlines() if line.strip())
+
+
+def _bad_input_types() -> tuple[type[BaseException], ...]:
+    """What counts as bad input: scenario errors (a ValueError), other ValueErrors from the
+    API (which include pyarrow's ArrowInvalid) and files that cannot be read."""
+    return (ValueError, OSError)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``quadrs`` with ``argv`` (default: the process's arguments); returns the exit
+    status (the console script exits with it)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help, --version or a usage error
+        return int(e.code) if isinstance(e.code, int) else EXIT_USAGE
+    prog = f"quadrs {args.command}"
+    try:
+        with _terse_warnings():
+            return COMMANDS[args.command](args)
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPT
+    except _bad_input_types() as e:
+        if os.environ.get("QUADRS_TRACEBACK"):
+            raise
+        print(f"{prog}: error: {_describe(e)}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def _describe(e: BaseException) -> str:
+    if isinstance(e, OSError) and e.filename is not None:
+        return f"{e.filename!r}: {e.strerror or e}"
+    return _one_line(str(e)) or type(e).__name__
+
+
+if __name__ == "__main__":
+    sys.exit(main())

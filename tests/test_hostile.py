@@ -1,0 +1,158 @@
+"""Hostile input and faults: every input runs or raises ScenarioError naming its key; never a
+panic, hang, abort or silent NaN."""
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import quadrs
+from quadrs import EngineError, Scenario, ScenarioError
+from quadrs.stability import StepSizeWarning
+
+METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude"]
+#: Flights longer than this many steps are validated but not flown (keeps the property fast).
+MAX_FLOWN_STEPS = 20_000
+
+numbers = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(min_value=-1e6, max_value=1e6),
+    st.sampled_from([0.0, -0.0, 1e-300, 1e-12, 1e12, 1e300, -1.0, 5e-324]),
+    st.integers(min_value=-(10**6), max_value=10**6),
+)
+values = st.one_of(
+    numbers,
+    st.booleans(),
+    st.text(max_size=8),
+    st.lists(numbers, max_size=6),
+    st.none(),
+)
+
+
+def leaf_keys(s: Scenario) -> list[str]:
+    return [k for k in s.keys() if not k.startswith("phases[")] + ["phases[1].end"]
+
+
+def check_flight(s: Scenario, controller: str) -> None:
+    if s.steps > MAX_FLOWN_STEPS:
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        f = quadrs.simulate(s, controller, record_every=max(1, s.steps // 50))
+    m = f.metrics[METRICS].to_numpy()
+    if f.diverged:
+        assert np.isnan(m).all(), "a diverged flight reports no numbers"
+        assert 0 < f.diverged_at <= s["integrator.duration"] + s["integrator.dt"]
+    else:
+        # a phase too short for a spectrum bin reports NaN peaks; everything else is a number
+        assert np.isfinite(m[:, :5]).all(), f.metrics
+        assert np.isfinite(f.trace.to_numpy()).all()
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_any_override_runs_or_names_its_key(short: Scenario, data: st.DataObject) -> None:
+    key = data.draw(st.sampled_from(leaf_keys(short)), label="key")
+    value = data.draw(values, label="value")
+    try:
+        s = short.override({key: value})
+    except ScenarioError as e:
+        head = key.split("[")[0].split(".")[0]
+        assert head in str(e), (key, str(e))
+        return
+    check_flight(s, data.draw(st.sampled_from(["pd", "smc"]), label="controller"))
+
+
+@settings(max_examples=300, deadline=None)
+@given(text=st.one_of(st.text(max_size=200), st.binary(max_size=64).map(repr)))
+def test_engine_rejects_garbage_json(text: str) -> None:
+    with pytest.raises(ValueError):
+        quadrs._core.describe(text)
+
+
+@settings(max_examples=100, deadline=None)
+@given(doc=st.recursive(
+    st.one_of(st.integers(), st.floats(allow_nan=False), st.text(max_size=5), st.booleans()),
+    lambda children: st.one_of(st.lists(children, max_size=3),
+                               st.dictionaries(st.text(max_size=6), children, max_size=3)),
+    max_leaves=10,
+))  # fmt: skip
+def test_arbitrary_documents_are_rejected_cleanly(doc: object) -> None:
+    with pytest.raises(ScenarioError):
+        Scenario.from_dict(doc if isinstance(doc, dict) else {"x": doc})
+
+
+def test_engine_json_is_checked_even_when_python_is_bypassed(paper: Scenario) -> None:
+    """The engine guards itself: NaN smuggled past Python still names the key."""
+    data = json.loads(paper.to_json())
+    data["payload"]["mass"] = -3.0
+    with pytest.raises(ScenarioError, match=r"payload\.mass must be > 0, got -3\.0"):
+        quadrs._core.simulate(json.dumps(data), "pd", 0)
+    with pytest.raises(ScenarioError):
+        quadrs._core.run_batch("{", ["pd"], 0, 0, 1, 1)
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"vehicle.mass": 1e-6, "payload.mass": 1e-7},
+        {"vehicle.mass": 1e4, "payload.mass": 1e3},
+        {"payload.natural_frequency": 1e-3},
+        {"gust.airspeed": 1e-9},
+        {"gust.airspeed": 1e4},
+        {"gust.w20": 0.0},
+        {"gust.altitude": 1e5},
+        {"integrator.dt": 0.0023},  # does not divide the duration
+        {"phases": [{"name": "all", "start": 0.0, "end": 6.0}]},  # touches both ends
+        {"gust.start": 0.0, "gust.end": 6.0},
+        {"gust.model": "von_karman", "gust.components": ["longitudinal", "lateral", "vertical"]},
+        {"controller.thrust_max": 30.0, "controller.thrust_min": 5.0, "controller.tilt_limit": 0.3},
+        {"payload.damping": 50.0, "payload.stiffness": 1e6, "integrator.dt": 1e-4},
+    ],
+)
+def test_extreme_but_legal_values(short: Scenario, changes: dict) -> None:
+    s = short.override(changes)
+    for controller in ("pd", "smc"):
+        check_flight(s, controller)
+    mc = quadrs.monte_carlo(s, runs=3, progress=False) if s.steps <= MAX_FLOWN_STEPS else None
+    if mc is not None:
+        ok = ~mc.runs["diverged"]
+        assert np.isfinite(mc.runs.loc[ok, METRICS[:5]].to_numpy()).all()
+
+
+def test_stiff_spring_warns_before_running_and_is_flagged(short: Scenario) -> None:
+    """fn = 400 Hz at dt = 2 ms: |pole| dt ~ 5, beyond RK4's stability bound."""
+    s = short.override({"payload.natural_frequency": 400.0})
+    with pytest.warns(StepSizeWarning, match=r"integrator\.dt = 0\.002 s is too large.*payload"):
+        f = quadrs.simulate(s, "pd")
+    assert f.diverged
+    assert np.isnan(f.metrics[METRICS].to_numpy()).all()
+    with pytest.warns(StepSizeWarning):
+        mc = quadrs.monte_carlo(s, runs=2, progress=False)
+    assert mc.runs["diverged"].all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StepSizeWarning)
+        quadrs.simulate(short, "pd")  # the default attachment is fine at this dt
+
+
+@pytest.mark.parametrize("in_pool", [False, True])
+def test_rust_panic_becomes_an_exception(in_pool: bool) -> None:
+    with pytest.raises(EngineError, match="boom"):
+        quadrs._core._panic_for_tests("boom", in_pool)
+    assert quadrs.simulate(  # the process and the pool still work
+        Scenario.paper().override({"integrator.duration": 1.0, "integrator.dt": 0.01,
+                                   "phases": [{"name": "a", "start": 0.0, "end": 1.0}]}),
+        "pd",
+    ).metrics["iae"].notna().all()  # fmt: skip
+
+
+def test_nan_cannot_enter_a_scenario(paper: Scenario) -> None:
+    for key in ("vehicle.mass", "gust.w20", "integrator.dt"):
+        with pytest.raises(ScenarioError, match=key.replace(".", r"\.")):
+            paper.override({key: math.nan})
+    with pytest.raises(ScenarioError, match=r"trajectory\.waypoints\[1\]\[3\]"):
+        paper.override({"trajectory.waypoints": [[0, 0, 0, 2, 0], [60, 0, 0, math.inf, 0]]})
