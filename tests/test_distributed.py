@@ -59,26 +59,33 @@ KILLED_RUN = textwrap.dedent(
 )
 
 
-def test_killed_run_resumes_exactly(paper: Scenario, tmp_path) -> None:
+@pytest.mark.parametrize("kill_after", [0.2, 1.1, 2.3, "2 parts"])
+def test_killed_run_resumes_exactly(paper: Scenario, tmp_path, kill_after) -> None:
+    """SIGKILL at an arbitrary moment (before the store exists, mid-chunk, mid-write...):
+    resuming gives exactly the uninterrupted run, no duplicates, none missing."""
     out = tmp_path / "killed"
     proc = subprocess.Popen([sys.executable, "-c", KILLED_RUN, str(out)])
     try:
-        deadline = time.monotonic() + 120
-        while len(list(out.glob("part-*.parquet"))) < 2:
-            assert proc.poll() is None, "the run ended before it could be killed"
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        if kill_after == "2 parts":
+            deadline = time.monotonic() + 120
+            while len(list(out.glob("part-*.parquet"))) < 2:
+                assert proc.poll() is None, "the run ended before it could be killed"
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+        else:
+            time.sleep(kill_after)
         proc.send_signal(signal.SIGKILL)
     finally:
         proc.wait()
-    done = RunStore(out).done_realisations()
-    assert 16 <= len(done) < 200
     s = paper.override({"integrator.dt": 0.001})
-    resumed = quadrs.monte_carlo(s, runs=40, seed=9, progress=False, out=out, resume=True)
-    fresh = quadrs.monte_carlo(s, runs=40, seed=9, progress=False)
-    got = resumed.runs[resumed.runs["realisation"] < 40].reset_index(drop=True)
+    if kill_after == "2 parts":
+        assert 16 <= len(RunStore(out).done_realisations()) < 200
+    resumed = quadrs.monte_carlo(s, runs=24, seed=9, progress=False, out=out, resume=True)
+    fresh = quadrs.monte_carlo(s, runs=24, seed=9, progress=False)
+    got = resumed.runs[resumed.runs["realisation"] < 24].reset_index(drop=True)
     pd.testing.assert_frame_equal(got, fresh.runs)
     assert not resumed.runs.duplicated(["realisation", "controller", "phase"]).any()
+    assert set(range(24)) <= RunStore(out).done_realisations()
 
 
 def test_local_path_does_not_import_dask(tmp_path) -> None:

@@ -72,19 +72,22 @@ def run_range(
             finished.set()
 
     # Poll an Event, not Thread.join: an interrupted join can mark a live thread as finished.
-    threading.Thread(target=work, name="quadrs-batch", daemon=True).start()
+    thread = threading.Thread(target=work, name="quadrs-batch", daemon=True)
     interrupted = False
     try:
+        thread.start()  # inside the try: Ctrl-C can land while start() waits
         while not finished.wait(POLL_SECONDS):
             if on_progress is not None:
                 on_progress(progress.done())
     except KeyboardInterrupt:
         progress.cancel()
         interrupted = True
-        while not finished.wait(POLL_SECONDS):
+        while thread.is_alive() and not finished.wait(POLL_SECONDS):
             pass
     if "error" in box:
         raise box["error"]
+    if "out" not in box:  # interrupted before the batch began
+        raise KeyboardInterrupt
     if on_progress is not None:
         on_progress(progress.done())
     return box["out"], interrupted
@@ -180,12 +183,18 @@ def monte_carlo(
     ranges = split_ranges(todo, size)
     config_json, phases = scenario.to_json(), scenario.phase_names
     parts: list[tuple[Any, SpectrumSums | None]] = []
+    pending: list[tuple[Any, SpectrumSums | None]] = []
 
-    def keep(rows: Any, sums: SpectrumSums | None) -> None:
-        if store is not None:
-            store.write_part(rows, sums)
-        else:
-            parts.append((rows, sums))
+    def flush() -> None:
+        """Hand finished chunks to the store (or the in-memory list). An item leaves `pending`
+        only once written, so a Ctrl-C landing mid-write is retried from `finally`."""
+        while pending:
+            rows, sums = pending[0]
+            if store is not None:
+                store.write_part(rows, sums)
+            else:
+                parts.append((rows, sums))
+            pending.pop(0)
 
     remaining = sum(c for _, c in ranges)
     bar = tqdm(
@@ -211,7 +220,10 @@ def monte_carlo(
                     spectra,
                     on_progress=lambda done, base=base: bar.update(base + done - bar.n),
                 )
-                keep(runs_frame(raw, controllers, phases, f), sums_from_raw(raw, config_json))
+                pending.append(
+                    (runs_frame(raw, controllers, phases, f), sums_from_raw(raw, config_json))
+                )
+                flush()
                 if interrupted:
                     break
         else:
@@ -220,14 +232,17 @@ def monte_carlo(
             tasks = run_on_dask(client, config_json, phases, controllers, seed, ranges, spectra)
             try:
                 for count, rows, sums in tasks:
-                    keep(rows, SpectrumSums.from_json(sums) if sums else None)
+                    pending.append((rows, SpectrumSums.from_json(sums) if sums else None))
+                    flush()
                     bar.update(count)
-            except KeyboardInterrupt:
-                interrupted = True
             finally:
                 tasks.close()
+    except KeyboardInterrupt:
+        # Between chunks (inside one, run_range already turned Ctrl-C into a cancel).
+        interrupted = True
     finally:
         bar.close()
+        flush()
     if interrupted:
         warnings.warn(
             "Monte Carlo interrupted: the result holds only the realisations that finished"

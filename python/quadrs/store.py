@@ -47,11 +47,13 @@ class RunStore:
 
     def create(self, scenario: Scenario, seed: int, controllers: tuple[str, ...]) -> None:
         """Start a new run; refuses to overwrite an existing one."""
-        if self.path.exists() and any(self.path.iterdir()):
+        if self.exists() or self.parts():
             raise FileExistsError(
                 f"{self.path} already holds a run: resume it, or choose another output"
             )
         self.path.mkdir(parents=True, exist_ok=True)
+        for leftover in self.path.glob(".*.partial"):  # a write cut short by a kill
+            leftover.unlink()
         manifest = {
             "version": _core.__version__,
             "seed": seed,
@@ -94,6 +96,7 @@ class RunStore:
         os.replace(tmp, self.path / name)
 
     def parts(self) -> list[Path]:
+        """The finished parts (temporary files of interrupted writes are never read)."""
         return sorted(self.path.glob("part-*.parquet"))
 
     def load(self) -> tuple[pd.DataFrame | None, SpectrumSums | None]:
