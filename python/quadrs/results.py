@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,11 +9,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from quadrs import _core
 from quadrs.flight import METRIC_COLUMNS
+from quadrs.parquet import read_frame, write_frame
 from quadrs.report import summarise
 from quadrs.scenario import Scenario
 
@@ -128,13 +125,7 @@ class MonteCarloResult:
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the scenario, seed, controllers, spectra and quadrs version in
         the file's metadata (written to a temporary file, then renamed: never half-written)."""
-        path = Path(path)
-        table = pa.Table.from_pandas(self.runs, preserve_index=False)
-        meta = dict(table.schema.metadata or {})
-        meta[_META_KEY] = json.dumps(self.metadata()).encode()
-        tmp = path.with_name(f".{path.name}.partial")
-        pq.write_table(table.replace_schema_metadata(meta), tmp)
-        os.replace(tmp, path)
+        write_frame(self.runs, path, _META_KEY, self.metadata())
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> MonteCarloResult:
@@ -144,17 +135,15 @@ class MonteCarloResult:
             from quadrs.store import RunStore  # the store builds on this module
 
             return RunStore(path).result()
-        table = pq.read_table(path)
-        raw = (table.schema.metadata or {}).get(_META_KEY)
-        if raw is None:
+        runs, meta = read_frame(path, _META_KEY)
+        if meta is None:
             raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
-        meta = json.loads(raw)
         spectra = meta.get("spectra")
         return cls(
             scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
             seed=int(meta["seed"]),
             controllers=tuple(meta["controllers"]),
-            runs=table.to_pandas(),
+            runs=runs,
             spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
             interrupted=bool(meta.get("interrupted", False)),
         )

@@ -14,17 +14,16 @@ leaves either a whole part or none. Because a realisation's numbers depend only 
 from __future__ import annotations
 
 import json
-import os
 import uuid
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
 import pyarrow.parquet as pq
 
 from quadrs import _core
+from quadrs.parquet import atomic_write_bytes, read_frame, write_frame
 from quadrs.results import MonteCarloResult, SpectrumSums
 from quadrs.scenario import Scenario
 
@@ -60,7 +59,7 @@ class RunStore:
             "controllers": list(controllers),
             "scenario": scenario.to_toml(),
         }
-        _atomic_write(self.manifest_path, json.dumps(manifest, indent=1).encode())
+        atomic_write_bytes(self.manifest_path, json.dumps(manifest, indent=1).encode())
 
     def manifest(self) -> dict[str, Any]:
         try:
@@ -86,14 +85,7 @@ class RunStore:
             return
         real = runs["realisation"]
         name = f"part-{real.min():09d}-{real.max():09d}-{uuid.uuid4().hex[:8]}.parquet"
-        table = pa.Table.from_pandas(runs, preserve_index=False)
-        if spectra is not None:
-            meta = dict(table.schema.metadata or {})
-            meta[_SPECTRA_KEY] = json.dumps(spectra.to_json()).encode()
-            table = table.replace_schema_metadata(meta)
-        tmp = self.path / f".{name}.partial"
-        pq.write_table(table, tmp)
-        os.replace(tmp, self.path / name)
+        write_frame(runs, self.path / name, _SPECTRA_KEY, spectra.to_json() if spectra else None)
 
     def parts(self) -> list[Path]:
         """The finished parts (temporary files of interrupted writes are never read)."""
@@ -103,11 +95,10 @@ class RunStore:
         """All rows so far (sorted by realisation, duplicates dropped) and the summed spectra."""
         frames, sums = [], None
         for part in self.parts():
-            table = pq.read_table(part)
-            frames.append(table.to_pandas())
-            raw = (table.schema.metadata or {}).get(_SPECTRA_KEY)
+            frame, raw = read_frame(part, _SPECTRA_KEY)
+            frames.append(frame)
             if raw is not None:
-                s = SpectrumSums.from_json(json.loads(raw))
+                s = SpectrumSums.from_json(raw)
                 sums = s if sums is None else sums + s
         if not frames:
             return None, sums
@@ -147,9 +138,3 @@ def missing_ranges(first: int, runs: int, done: set[int]) -> list[tuple[int, int
             out.append((start, i - start))
             start = None
     return out
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,11 +15,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from quadrs import _core
 from quadrs.montecarlo import monte_carlo
+from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
 from quadrs.scenario import Scenario
 
@@ -140,36 +138,27 @@ class SweepResult:
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the base scenario, grid, seed and quadrs version in the file's
         metadata (through a temporary file and a rename: never half-written)."""
-        path = Path(path)
-        table = pa.Table.from_pandas(self.runs, preserve_index=False)
-        meta = dict(table.schema.metadata or {})
-        meta[_META_KEY] = json.dumps(self.metadata()).encode()
-        tmp = path.with_name(f".{path.name}.partial")
-        pq.write_table(table.replace_schema_metadata(meta), tmp)
-        os.replace(tmp, path)
+        write_frame(self.runs, path, _META_KEY, self.metadata())
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> SweepResult:
         """Read a file written by :meth:`to_parquet`."""
-        table = pq.read_table(path)
-        raw = (table.schema.metadata or {}).get(_META_KEY)
-        if raw is None:
+        runs, meta = read_frame(path, _META_KEY)
+        if meta is None:
             raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
-        meta = json.loads(raw)
         return cls(
             scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
             grid={k: list(v) for k, v in meta["grid"].items()},
             seed=int(meta["seed"]),
             controllers=tuple(meta["controllers"]),
-            runs=table.to_pandas(),
+            runs=runs,
             interrupted=bool(meta.get("interrupted", False)),
         )
 
 
 def is_sweep_file(path: str | Path) -> bool:
     """True if ``path`` is a Parquet file written by :meth:`SweepResult.to_parquet`."""
-    meta = pq.read_schema(path).metadata or {}
-    return _META_KEY in meta
+    return read_meta(path, _META_KEY) is not None
 
 
 def sweep(
