@@ -101,15 +101,44 @@ def test_local_path_does_not_import_dask(tmp_path) -> None:
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
-def test_dask_local_cluster_equals_local_run(short: Scenario) -> None:
+@pytest.fixture(scope="module")
+def cluster():
+    """A LocalCluster of two worker processes (one thread each), started by the test."""
     distributed = pytest.importorskip("dask.distributed")
-    with (
-        distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-        ) as cluster,
-        distributed.Client(cluster) as client,
-    ):
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as c:
+        yield c
+
+
+def test_dask_local_cluster_equals_local_run(short: Scenario, cluster) -> None:
+    from dask.distributed import Client
+
+    with Client(cluster) as client:
         remote = quadrs.monte_carlo(short, runs=12, seed=6, progress=False, client=client, chunk=4)
+        swept = quadrs.sweep(
+            short, {"payload.mass": [0.2, 0.4]}, runs=4, seed=6, progress=False, client=client
+        )
     local = quadrs.monte_carlo(short, runs=12, seed=6, progress=False)
     pd.testing.assert_frame_equal(remote.runs, local.runs)
     np.testing.assert_allclose(remote.spectra["mean"], local.spectra["mean"], rtol=1e-12)
+    local_sweep = quadrs.sweep(short, {"payload.mass": [0.2, 0.4]}, runs=4, seed=6, progress=False)
+    pd.testing.assert_frame_equal(swept.runs, local_sweep.runs)
+
+
+def test_cli_scheduler_and_checkpoint(cluster, tmp_path) -> None:
+    from quadrs.cli import main
+
+    from .test_cli import SHORT
+
+    remote, local = tmp_path / "remote.parquet", tmp_path / "local.parquet"
+    args = ["mc", "--runs", "8", "--seed", "2", "--no-progress", *SHORT]
+    assert main([*args, "--scheduler", cluster.scheduler_address, "--out", str(remote)]) == 0
+    assert main([*args, "--checkpoint", str(tmp_path / "ck"), "--out", str(local)]) == 0
+    a, b = MonteCarloResult.read_parquet(remote), MonteCarloResult.read_parquet(local)
+    pd.testing.assert_frame_equal(a.runs, b.runs)
+    pd.testing.assert_frame_equal(MonteCarloResult.read_parquet(tmp_path / "ck").runs, b.runs)
+    # the checkpoint exists: running again needs --resume, which then flies nothing new
+    assert main([*args, "--checkpoint", str(tmp_path / "ck")]) == 2
+    assert main([*args, "--checkpoint", str(tmp_path / "ck"), "--resume"]) == 0
+    assert main([*args, "--scheduler", "tcp://127.0.0.1:1"]) == 2

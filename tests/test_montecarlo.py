@@ -38,6 +38,10 @@ def test_results_depend_only_on_seed_and_index(short: Scenario) -> None:
     pd.testing.assert_frame_equal(
         inner, one[one["realisation"].between(3, 7)].reset_index(drop=True)
     )
+    # runs 0..99 alone equal the same runs inside 0..199
+    alone = quadrs.monte_carlo(short, runs=100, seed=3, progress=False, spectra=False).runs
+    inside = quadrs.monte_carlo(short, runs=200, seed=3, progress=False, spectra=False).runs
+    pd.testing.assert_frame_equal(alone, inside[inside["realisation"] < 100])
     other_seed = quadrs.monte_carlo(short, runs=10, seed=4, workers=2, progress=False).runs
     assert not np.array_equal(other_seed["iae"], one["iae"])
 

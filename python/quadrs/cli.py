@@ -90,6 +90,12 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
     )
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help=out_help)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the chunks on a Dask cluster, e.g. tcp://10.0.0.5:8786 "
+        "(needs pip install quadrs[dask])",
+    )
 
 
 def _controllers(text: str) -> tuple[str, ...]:
@@ -185,12 +191,6 @@ def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         metavar="N",
         help="realisations per chunk (default: about 1/20 of the runs when checkpointing, "
         "4 tasks per thread on Dask, else all at once)",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="run the chunks on a Dask cluster, e.g. tcp://10.0.0.5:8786 "
-        "(needs pip install quadrs[dask])",
     )
 
 
@@ -502,15 +502,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     _check_suffix(args.out, (".parquet",), "--out")
     _check_positive("--runs", args.runs)
     _check_positive("--workers", args.workers)
-    result = sweep(
-        scenario,
-        grid,
-        runs=args.runs,
-        seed=args.seed,
-        controllers=args.controllers,
-        workers=args.workers,
-        progress=not args.no_progress,
-    )
+    with _dask_client(args.scheduler) as client:
+        result = sweep(
+            scenario,
+            grid,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controllers,
+            workers=args.workers,
+            progress=not args.no_progress,
+            client=client,
+        )
     if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
         args.out.parent.mkdir(parents=True, exist_ok=True)
         result.to_parquet(args.out)

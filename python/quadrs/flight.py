@@ -78,7 +78,7 @@ def simulate(
     raw = out["trace"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)
     phases = scenario.phase_names
-    freqs = _core.describe(scenario.to_json())["spectrum_frequencies"]
+    freqs = scenario.spectrum_frequencies
     spectra = {
         name: pd.DataFrame({"frequency": f, "amplitude": a})
         for name, f, a in zip(phases, freqs, out["spectra"], strict=True)

@@ -255,6 +255,11 @@ class Scenario:
     def phase_names(self) -> list[str]:
         return list(self._derived["phases"])
 
+    @property
+    def spectrum_frequencies(self) -> list[Any]:
+        """Per phase, the frequencies (Hz) of its amplitude-spectrum bins."""
+        return list(self._derived["spectrum_frequencies"])
+
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Scenario) and self._data == other._data
 

@@ -11,7 +11,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -21,6 +21,9 @@ from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
 from quadrs.scenario import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
 
 _META_KEY = b"quadrs_sweep"
 #: Columns of ``mc.runs`` that a swept key may not shadow.
@@ -169,6 +172,8 @@ def sweep(
     controllers: Sequence[str] = ("pd", "smc"),
     workers: int | None = None,
     progress: bool = True,
+    *,
+    client: Client | None = None,
 ) -> SweepResult:
     """A Monte Carlo batch of ``runs`` realisations at every point of ``grid``.
 
@@ -182,6 +187,8 @@ def sweep(
     due to the parameter, not to gust-to-gust scatter, and far fewer runs resolve them.
 
     Ctrl-C stops the sweep and returns what finished (``result.interrupted`` is then True).
+    ``client``: a ``dask.distributed.Client``; each point's realisations then run as chunks
+    on the cluster (see :func:`quadrs.monte_carlo`), with results identical to a local sweep.
     """
     grid = check_grid(grid)
     points = grid_points(grid)
@@ -201,6 +208,7 @@ def sweep(
                 workers=workers,
                 progress=progress,
                 spectra=False,
+                client=client,
             )
             frame = mc.runs
             for k in reversed(list(grid)):
