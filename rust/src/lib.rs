@@ -11,6 +11,7 @@ pub mod lane;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
+pub mod simd;
 pub mod stability;
 pub mod trajectory;
 

@@ -35,6 +35,8 @@ pub struct PhaseAccumulator<L: Lane> {
     sums: Vec<Sums<L>>,
     dt: f64,
     decimation: usize,
+    /// Samples still to add before the current block is complete (avoids a `%` per step).
+    block_left: usize,
     block_sum: L,
     blocks: Vec<L>,
 }
@@ -57,12 +59,13 @@ impl<L: Lane> PhaseAccumulator<L> {
             ],
             dt,
             decimation: decimation.max(1),
+            block_left: decimation.max(1),
             block_sum: zero,
             blocks: Vec::with_capacity(steps / decimation.max(1) + 1),
         }
     }
 
-    /// Take sample k (time t) of e_o and of the altitude tracking error.
+    /// Take sample k (time t) of e_o and of the altitude tracking error; k = 0, 1, 2, ... in turn.
     #[inline(always)]
     pub fn sample(&mut self, k: usize, t: f64, e_o: L, tracking: L) {
         let a = e_o.abs();
@@ -81,10 +84,12 @@ impl<L: Lane> PhaseAccumulator<L> {
             }
         }
         self.block_sum += e_o;
-        if (k + 1).is_multiple_of(self.decimation) {
+        self.block_left -= 1;
+        if self.block_left == 0 {
             self.blocks
                 .push(self.block_sum * (1.0 / self.decimation as f64));
             self.block_sum = L::splat(0.0);
+            self.block_left = self.decimation;
         }
     }
 

@@ -52,26 +52,65 @@ pub struct Plant {
     pub drag_quad: f64,
     pub drag_payload: f64,
     pub drag_lateral: f64,
+    /// Reciprocals, computed once: the derivative multiplies by them.
+    inv_m_lateral: f64,
+    inv_m: f64,
+    inv_mc: f64,
+    inv_inertia: [f64; 3],
+}
+
+/// Sines and cosines of the Euler angles of one state: computed once per RK4 stage and shared
+/// by the controller and the first stage of the step.
+#[derive(Clone, Copy, Debug)]
+pub struct Trig<L> {
+    pub sphi: L,
+    pub cphi: L,
+    pub sth: L,
+    pub cth: L,
+    pub spsi: L,
+    pub cpsi: L,
+}
+
+impl<L: Lane> Trig<L> {
+    #[inline(always)]
+    pub fn of(s: &State<L>) -> Self {
+        let (sphi, cphi) = s[ix::PHI].sin_cos();
+        let (sth, cth) = s[ix::THETA].sin_cos();
+        let (spsi, cpsi) = s[ix::PSI].sin_cos();
+        Self {
+            sphi,
+            cphi,
+            sth,
+            cth,
+            spsi,
+            cpsi,
+        }
+    }
 }
 
 impl Plant {
     pub fn new(cfg: &Config) -> Self {
         let half_rho = 0.5 * cfg.gust.air_density;
         let v = &cfg.vehicle;
+        let inertia = [
+            v.inertia[0] + v.inertia_error[0],
+            v.inertia[1] + v.inertia_error[1],
+            v.inertia[2] + v.inertia_error[2],
+        ];
         Self {
             m: v.mass,
             mc: cfg.payload.mass,
             g: cfg.environment.gravity,
             kc: cfg.stiffness(),
             cc: cfg.payload.damping,
-            inertia: [
-                v.inertia[0] + v.inertia_error[0],
-                v.inertia[1] + v.inertia_error[1],
-                v.inertia[2] + v.inertia_error[2],
-            ],
+            inertia,
             drag_quad: half_rho * v.drag_area,
             drag_payload: half_rho * cfg.payload.drag_area,
             drag_lateral: half_rho * v.lateral_drag_area,
+            inv_m_lateral: 1.0 / (v.mass + cfg.payload.mass),
+            inv_m: 1.0 / v.mass,
+            inv_mc: 1.0 / cfg.payload.mass,
+            inv_inertia: inertia.map(|i| 1.0 / i),
         }
     }
 
@@ -103,11 +142,27 @@ impl Plant {
     /// ds/dt for inputs `u` and wind `w` (m/s, inertial), both held over the step.
     #[inline(always)]
     pub fn derivative<L: Lane>(&self, s: &State<L>, u: &Inputs<L>, w: &[L; 3]) -> State<L> {
+        self.derivative_with(s, &Trig::of(s), u, w)
+    }
+
+    /// `derivative` with the sines and cosines of `s`'s angles already at hand.
+    #[inline(always)]
+    pub fn derivative_with<L: Lane>(
+        &self,
+        s: &State<L>,
+        trig: &Trig<L>,
+        u: &Inputs<L>,
+        w: &[L; 3],
+    ) -> State<L> {
         use ix::*;
-        let (sphi, cphi) = s[PHI].sin_cos();
-        let (sth, cth) = s[THETA].sin_cos();
-        let (spsi, cpsi) = s[PSI].sin_cos();
-        let m_lat = self.m + self.mc;
+        let Trig {
+            sphi,
+            cphi,
+            sth,
+            cth,
+            spsi,
+            cpsi,
+        } = *trig;
 
         let drag = |k: f64, v: L, wind: L| {
             let rel = v - wind;
@@ -119,15 +174,16 @@ impl Plant {
         let fdzc = drag(self.drag_payload, s[VZC], w[2]);
         let spring = (s[Z] - s[ZC]) * self.kc + (s[VZ] - s[VZC]) * self.cc;
 
-        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * (1.0 / m_lat);
-        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * (1.0 / m_lat);
-        let az = (cphi * cth * u.u1 - spring + fdz) * (1.0 / self.m) - self.g;
-        let azc = (spring + fdzc) * (1.0 / self.mc) - self.g;
+        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * self.inv_m_lateral;
+        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * self.inv_m_lateral;
+        let az = (cphi * cth * u.u1 - spring + fdz) * self.inv_m - self.g;
+        let azc = (spring + fdzc) * self.inv_mc - self.g;
 
         let [ixx, iyy, izz] = self.inertia;
-        let pdot = (s[Q] * s[R] * (iyy - izz) + u.tau[0]) * (1.0 / ixx);
-        let qdot = (s[P] * s[R] * (izz - ixx) + u.tau[1]) * (1.0 / iyy);
-        let rdot = (s[P] * s[Q] * (ixx - iyy) + u.tau[2]) * (1.0 / izz);
+        let [inv_ixx, inv_iyy, inv_izz] = self.inv_inertia;
+        let pdot = (s[Q] * s[R] * (iyy - izz) + u.tau[0]) * inv_ixx;
+        let qdot = (s[P] * s[R] * (izz - ixx) + u.tau[1]) * inv_iyy;
+        let rdot = (s[P] * s[Q] * (ixx - iyy) + u.tau[2]) * inv_izz;
 
         [
             s[VX], s[VY], s[VZ], s[P], s[Q], s[R], s[VZC], ax, ay, az, pdot, qdot, rdot, azc,

@@ -10,10 +10,9 @@ use rustfft::FftPlanner;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
-use wide::f64x4;
 
 /// Realisations per lane-set (the SIMD width).
-pub const LANES: usize = 4;
+pub const LANES: usize = crate::integrate::SET_LANES;
 
 /// Ensemble sums of amplitude spectra: per controller, per phase, per bin.
 #[derive(Clone, Debug, Default)]
@@ -136,12 +135,11 @@ pub fn run_batch(
                     if cancel.load(Ordering::Relaxed) {
                         return (out, spectra, planner);
                     }
-                    let Some(res) = engine.fly::<f64x4>(
+                    let Some(res) = engine.fly_set(
                         kind,
                         seed,
                         &indices,
                         want_spectra,
-                        None,
                         Some(cancel),
                         &mut planner,
                     ) else {

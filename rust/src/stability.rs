@@ -532,9 +532,6 @@ impl Lane for Dual {
             self
         }
     }
-    fn within(self, bound: Self) -> [bool; 4] {
-        [self.v <= bound.v, true, true, true]
-    }
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ pub struct Reference {
 
 /// Times are compared with this slack so that a waypoint at t = 60 s is reached at the step
 /// whose nominal time k dt rounds to 60 s, whatever the floating-point noise in k dt.
-const TIME_SLACK: f64 = 1e-9;
+pub(crate) const TIME_SLACK: f64 = 1e-9;
 
 #[derive(Clone, Debug)]
 pub struct Trajectory {
@@ -28,6 +28,21 @@ impl Trajectory {
         Self {
             waypoints: cfg.trajectory.waypoints.clone(),
             interpolation: cfg.trajectory.interpolation,
+        }
+    }
+
+    /// The time from which `at` may give a different reference than it gave with `segment`:
+    /// the next waypoint's time for step references (constant in between), -inf for min-jerk
+    /// (changes every step). The flight loop recomputes the reference once `t + TIME_SLACK`
+    /// reaches it, the same test `at` makes.
+    #[inline]
+    pub fn next_change(&self, segment: usize) -> f64 {
+        match self.interpolation {
+            Interpolation::Step => self
+                .waypoints
+                .get(segment + 1)
+                .map_or(f64::INFINITY, |w| w[0]),
+            Interpolation::MinJerk => f64::NEG_INFINITY,
         }
     }
 

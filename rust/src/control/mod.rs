@@ -9,12 +9,19 @@ pub use smc::Smc;
 
 use crate::config::Config;
 use crate::lane::Lane;
-use crate::model::{ix, Inputs, State};
+use crate::model::{ix, Inputs, State, Trig};
 use crate::trajectory::Reference;
 
 /// A control law: inputs for the state `s` and reference `r`, computed once per step.
 pub trait Control: Sync {
-    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L>;
+    /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
+    /// flight loop computes them once and shares them with the plant's first RK4 stage.
+    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>;
+
+    #[inline(always)]
+    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L> {
+        self.control_with(s, &Trig::of(s), r)
+    }
 }
 
 /// Which law to fly; the names are the public ones ("pd", "smc").

@@ -3,7 +3,7 @@
 use super::{position_errors, Control, Shared};
 use crate::config::{Config, PdGains};
 use crate::lane::Lane;
-use crate::model::{ix, Inputs, State};
+use crate::model::{ix, Inputs, State, Trig};
 use crate::trajectory::Reference;
 
 #[derive(Clone, Debug)]
@@ -23,11 +23,9 @@ impl Pd {
 
 impl Control for Pd {
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L> {
+    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L> {
         let (sh, k) = (&self.shared, &self.gains);
-        let cphi = s[ix::PHI].sin_cos().1;
-        let cth = s[ix::THETA].sin_cos().1;
-        let (spsi, cpsi) = s[ix::PSI].sin_cos();
+        let (cphi, cth, spsi, cpsi) = (trig.cphi, trig.cth, trig.spsi, trig.cpsi);
         let (e, ed) = position_errors(s, r);
 
         let u1 = (e[2] * k.kp[2] + ed[2] * k.kd[2] + sh.g) * sh.mt * sh.inv_tilt(cphi, cth);

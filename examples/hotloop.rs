@@ -1,0 +1,105 @@
+//! A small driver for profiling the hot loop (callgrind, perf) and for before/after checks.
+//!
+//!     cargo run --release --example hotloop -- MODE DURATION_S [CTRL] [RUNS]
+//!
+//! MODE: `scalar` (Engine::fly::<f64>), `simd` (one f64x4 lane-set), `batch` (run_batch on
+//! the global pool), `metrics` (print full-precision metrics of a few realisations, scalar and
+//! SIMD, to compare physics before and after a change). CTRL: pd | smc (default pd).
+
+use _core::config::Config;
+use _core::control::ControllerKind;
+use _core::integrate::Engine;
+use _core::montecarlo::{pool, run_batch};
+use rustfft::FftPlanner;
+use std::sync::atomic::{AtomicBool, AtomicU64};
+use std::time::Instant;
+
+fn paper(duration: f64) -> Config {
+    let text = include_str!("../python/quadrs/presets/paper.toml");
+    let v: serde_json::Value = toml::from_str(text).expect("paper.toml");
+    let mut cfg = Config::from_json(&v.to_string()).expect("valid");
+    if duration < cfg.integrator.duration {
+        cfg.integrator.duration = duration;
+        cfg.phases
+            .retain(|p| p.start + 2.0 * cfg.integrator.dt < duration);
+        if let Some(last) = cfg.phases.last_mut() {
+            last.end = last.end.min(duration);
+        }
+    }
+    cfg
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mode = args.get(1).map_or("scalar", |s| s.as_str());
+    let duration: f64 = args.get(2).map_or(70.0, |s| s.parse().expect("duration"));
+    let kind = ControllerKind::parse(args.get(3).map_or("pd", |s| s.as_str())).expect("ctrl");
+    let runs: usize = args.get(4).map_or(4, |s| s.parse().expect("runs"));
+    let engine = Engine::new(paper(duration)).expect("engine");
+    let mut planner = FftPlanner::new();
+    let t0 = Instant::now();
+    let real_steps = match mode {
+        "scalar" => {
+            let r = engine
+                .fly::<f64>(kind, 1, &[0], false, None, None, &mut planner)
+                .unwrap();
+            println!(
+                "iae {:?}",
+                r[0].metrics.iter().map(|m| m[0]).collect::<Vec<_>>()
+            );
+            engine.steps
+        }
+        "simd" => {
+            let r = engine
+                .fly_set(kind, 1, &[0, 1, 2, 3], false, None, &mut planner)
+                .unwrap();
+            println!(
+                "iae {:?}",
+                r[0].metrics.iter().map(|m| m[0]).collect::<Vec<_>>()
+            );
+            4 * engine.steps
+        }
+        "batch" => {
+            let (p, c) = (AtomicU64::new(0), AtomicBool::new(false));
+            let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let workers = args.get(5).map_or(workers, |s| s.parse().expect("workers"));
+            let out = pool(workers).install(|| {
+                run_batch(
+                    &engine,
+                    &[ControllerKind::Pd, ControllerKind::Smc],
+                    1,
+                    0,
+                    runs,
+                    true,
+                    &p,
+                    &c,
+                )
+            });
+            println!("first iae {}", out.metrics[0]);
+            2 * runs * engine.steps
+        }
+        "metrics" => {
+            for kind in [ControllerKind::Pd, ControllerKind::Smc] {
+                let simd = engine
+                    .fly_set(kind, 11, &[0, 1, 2, 3], true, None, &mut planner)
+                    .unwrap();
+                for (lane, r) in simd.iter().enumerate() {
+                    let s = engine
+                        .fly::<f64>(kind, 11, &[lane as u64], true, None, None, &mut planner)
+                        .unwrap();
+                    for (p, (a, b)) in r.metrics.iter().zip(&s[0].metrics).enumerate() {
+                        println!("{} r{lane} P{} simd {:?}", kind.name(), p + 1, a);
+                        println!("{} r{lane} P{} scal {:?}", kind.name(), p + 1, b);
+                    }
+                }
+            }
+            return;
+        }
+        other => panic!("unknown mode {other}"),
+    };
+    let secs = t0.elapsed().as_secs_f64();
+    println!(
+        "{mode}: {real_steps} realisation-steps in {secs:.3} s = {:.3} M/s",
+        real_steps as f64 / secs / 1e6
+    );
+}
