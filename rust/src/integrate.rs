@@ -8,7 +8,7 @@ use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
 use crate::lane::F64x4Avx;
 use crate::lane::{F64x4, Lane};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
-use crate::model::{ix, Inputs, Plant, State, Trig};
+use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
 use crate::simd::Isa;
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
@@ -39,14 +39,20 @@ pub fn rk4_step_with<L: Lane>(
 ) -> State<L> {
     #[inline(always)]
     fn stage<L: Lane>(base: &State<L>, k: &State<L>, h: f64) -> State<L> {
-        std::array::from_fn(|i| base[i] + k[i] * h)
+        state_from_fn(
+            #[inline(always)]
+            |i| base[i] + k[i] * h,
+        )
     }
     let k1 = plant.derivative_with(s, trig, u, w);
     let k2 = plant.derivative(&stage(s, &k1, 0.5 * dt), u, w);
     let k3 = plant.derivative(&stage(s, &k2, 0.5 * dt), u, w);
     let k4 = plant.derivative(&stage(s, &k3, dt), u, w);
     let h6 = dt / 6.0;
-    std::array::from_fn(|i| s[i] + (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]) * h6)
+    state_from_fn(
+        #[inline(always)]
+        |i| s[i] + (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]) * h6,
+    )
 }
 
 /// Trace columns after `t`, in order.
@@ -359,10 +365,27 @@ impl Engine {
             }
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&s, &trig, &r);
-            for (ws, v) in winds.iter_mut().zip(wind_lanes.iter_mut()) {
-                *v = self.wind.sample(ws, k as u64);
+            // Outside the gust window `sample` returns zeros without touching the state, so the
+            // per-lane calls are skipped there (most of a flight).
+            if self.wind.is_active(k as u64) {
+                for (ws, v) in winds.iter_mut().zip(wind_lanes.iter_mut()) {
+                    *v = self.wind.sample(ws, k as u64);
+                }
+            } else {
+                wind_lanes = [[0.0; 3]; MAX_LANES];
             }
-            let w: [L; 3] = std::array::from_fn(|c| L::from_fn(|lane| wind_lanes[lane][c]));
+            #[inline(always)]
+            fn wind_of<L: Lane>(lanes: &[[f64; 3]; MAX_LANES], c: usize) -> L {
+                L::from_fn(
+                    #[inline(always)]
+                    |lane| lanes[lane][c],
+                )
+            }
+            let w: [L; 3] = [
+                wind_of(&wind_lanes, 0),
+                wind_of(&wind_lanes, 1),
+                wind_of(&wind_lanes, 2),
+            ];
             let e_o = s[ix::ZC] - s[ix::Z] + d0;
             acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2]);
             if let Some(tr) = trace.as_deref_mut() {

@@ -13,6 +13,12 @@
 //!   flight loop compiled with `#[target_feature(enable = "avx2")]` and entered only after a
 //!   run-time check (`crate::simd`).
 //!
+//! Speed: the flight loop is written so that everything it does to lane values is inlined into
+//! it (every lane method here is `#[inline(always)]`; closures in the loop are marked so; no
+//! `std::array::from_fn` or iterator adaptors on lane values in the loop). An operation left
+//! out of line would be compiled without the loop's target features: correct, but an order of
+//! magnitude slower for `F64x4Avx`.
+//!
 //! Reproducibility: every lane operation is a single IEEE-754 operation (add, sub, mul, div,
 //! sqrt, compare, select, bit operations) and nothing is fused (Rust never contracts
 //! `a * b + c` into an FMA and this crate never calls `mul_add`), so a lane's result is
@@ -195,35 +201,35 @@ impl KernelOps for f64 {
     }
 }
 
-/// Operators of a lane type from a handful of binary/unary functions on itself.
+/// Operators of a lane type from its inherent `add_`, `sub_`, `mul_`, `div_` and `Lane` methods.
 macro_rules! lane_ops {
-    ($ty:ident, add = $add:expr, sub = $sub:expr, mul = $mul:expr, div = $div:expr) => {
+    ($ty:ident) => {
         impl Add for $ty {
             type Output = Self;
             #[inline(always)]
             fn add(self, o: Self) -> Self {
-                $add(self, o)
+                self.add_(o)
             }
         }
         impl Sub for $ty {
             type Output = Self;
             #[inline(always)]
             fn sub(self, o: Self) -> Self {
-                $sub(self, o)
+                self.sub_(o)
             }
         }
         impl Mul for $ty {
             type Output = Self;
             #[inline(always)]
             fn mul(self, o: Self) -> Self {
-                $mul(self, o)
+                self.mul_(o)
             }
         }
         impl Div for $ty {
             type Output = Self;
             #[inline(always)]
             fn div(self, o: Self) -> Self {
-                $div(self, o)
+                self.div_(o)
             }
         }
         impl Neg for $ty {
@@ -236,28 +242,28 @@ macro_rules! lane_ops {
         impl AddAssign for $ty {
             #[inline(always)]
             fn add_assign(&mut self, o: Self) {
-                *self = *self + o;
+                *self = self.add_(o);
             }
         }
         impl Add<f64> for $ty {
             type Output = Self;
             #[inline(always)]
             fn add(self, o: f64) -> Self {
-                self + <$ty as Lane>::splat(o)
+                self.add_(<$ty as Lane>::splat(o))
             }
         }
         impl Sub<f64> for $ty {
             type Output = Self;
             #[inline(always)]
             fn sub(self, o: f64) -> Self {
-                self - <$ty as Lane>::splat(o)
+                self.sub_(<$ty as Lane>::splat(o))
             }
         }
         impl Mul<f64> for $ty {
             type Output = Self;
             #[inline(always)]
             fn mul(self, o: f64) -> Self {
-                self * <$ty as Lane>::splat(o)
+                self.mul_(<$ty as Lane>::splat(o))
             }
         }
     };
@@ -279,19 +285,50 @@ mod x86 {
     #[repr(C, align(32))]
     pub struct F64x4(__m128d, __m128d);
 
+    /// An SSE2 intrinsic applied to both halves.
+    macro_rules! halves {
+        ($f:ident($a:expr)) => {{
+            let a = $a;
+            // SAFETY: SSE2 is part of x86-64.
+            #[allow(unused_unsafe)]
+            let r = unsafe { F64x4($f(a.0), $f(a.1)) };
+            r
+        }};
+        ($f:ident($a:expr, $b:expr)) => {{
+            let (a, b) = ($a, $b);
+            // SAFETY: SSE2 is part of x86-64.
+            #[allow(unused_unsafe)]
+            let r = unsafe { F64x4($f(a.0, b.0), $f(a.1, b.1)) };
+            r
+        }};
+    }
+
+    #[inline(always)]
+    fn add_epi64(a: __m128d, b: __m128d) -> __m128d {
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe { _mm_castsi128_pd(_mm_add_epi64(_mm_castpd_si128(a), _mm_castpd_si128(b))) }
+    }
+    #[inline(always)]
+    fn shl62(a: __m128d) -> __m128d {
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe { _mm_castsi128_pd(_mm_slli_epi64::<62>(_mm_castpd_si128(a))) }
+    }
+    #[inline(always)]
+    fn select(m: __m128d, a: __m128d, b: __m128d) -> __m128d {
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe { _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)) }
+    }
+    #[inline(always)]
+    fn abs(a: __m128d) -> __m128d {
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe { _mm_andnot_pd(_mm_set1_pd(-0.0), a) }
+    }
+
     impl F64x4 {
-        #[inline(always)]
-        fn both(self, o: Self, f: impl Fn(__m128d, __m128d) -> __m128d) -> Self {
-            Self(f(self.0, o.0), f(self.1, o.1))
-        }
-        #[inline(always)]
-        fn each(self, f: impl Fn(__m128d) -> __m128d) -> Self {
-            Self(f(self.0), f(self.1))
-        }
         #[inline(always)]
         pub fn to_array(self) -> [f64; 4] {
             let mut a = [0.0; 4];
-            // SAFETY: a has room for two f64 at 0 and two at 2.
+            // SAFETY: SSE2; a has room for two f64 at 0 and two at 2.
             unsafe {
                 _mm_storeu_pd(a.as_mut_ptr(), self.0);
                 _mm_storeu_pd(a.as_mut_ptr().add(2), self.1);
@@ -300,25 +337,34 @@ mod x86 {
         }
         #[inline(always)]
         pub fn from_array(a: [f64; 4]) -> Self {
-            // SAFETY: a holds four f64.
+            // SAFETY: SSE2; a holds four f64.
             unsafe { Self(_mm_loadu_pd(a.as_ptr()), _mm_loadu_pd(a.as_ptr().add(2))) }
+        }
+        #[inline(always)]
+        fn add_(self, o: Self) -> Self {
+            halves!(_mm_add_pd(self, o))
+        }
+        #[inline(always)]
+        fn sub_(self, o: Self) -> Self {
+            halves!(_mm_sub_pd(self, o))
+        }
+        #[inline(always)]
+        fn mul_(self, o: Self) -> Self {
+            halves!(_mm_mul_pd(self, o))
+        }
+        #[inline(always)]
+        fn div_(self, o: Self) -> Self {
+            halves!(_mm_div_pd(self, o))
         }
     }
 
-    lane_ops!(
-        F64x4,
-        add = |a: F64x4, b: F64x4| a.both(b, |x, y| unsafe { _mm_add_pd(x, y) }),
-        sub = |a: F64x4, b: F64x4| a.both(b, |x, y| unsafe { _mm_sub_pd(x, y) }),
-        mul = |a: F64x4, b: F64x4| a.both(b, |x, y| unsafe { _mm_mul_pd(x, y) }),
-        div = |a: F64x4, b: F64x4| a.both(b, |x, y| unsafe { _mm_div_pd(x, y) })
-    );
+    lane_ops!(F64x4);
 
-    // SAFETY (all `unsafe` blocks in this impl): SSE2 intrinsics, always available on x86-64.
-    #[allow(unused_unsafe)]
     impl Lane for F64x4 {
         const LANES: usize = 4;
         #[inline(always)]
         fn splat(x: f64) -> Self {
+            // SAFETY: SSE2 is part of x86-64.
             let v = unsafe { _mm_set1_pd(x) };
             Self(v, v)
         }
@@ -337,28 +383,6 @@ mod x86 {
             *self = Self::from_array(a);
         }
         #[inline(always)]
-        fn abs(self) -> Self {
-            let sign = unsafe { _mm_set1_pd(-0.0) };
-            self.each(|x| unsafe { _mm_andnot_pd(sign, x) })
-        }
-        #[inline(always)]
-        fn sqrt(self) -> Self {
-            self.each(|x| unsafe { _mm_sqrt_pd(x) })
-        }
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_max_pd(x, y) })
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_min_pd(x, y) })
-        }
-        #[inline(always)]
-        fn le_mask(self, bound: Self) -> u32 {
-            let m = self.cmp_le(bound);
-            unsafe { (_mm_movemask_pd(m.0) | (_mm_movemask_pd(m.1) << 2)) as u32 }
-        }
-        #[inline(always)]
         fn sin_cos(self) -> (Self, Self) {
             kernels::sin_cos(self)
         }
@@ -366,56 +390,83 @@ mod x86 {
         fn asin(self) -> Self {
             kernels::asin(self)
         }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            halves!(abs(self))
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            halves!(_mm_sqrt_pd(self))
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            halves!(_mm_max_pd(self, o))
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            halves!(_mm_min_pd(self, o))
+        }
+        #[inline(always)]
+        fn le_mask(self, bound: Self) -> u32 {
+            let m = self.cmp_le(bound);
+            // SAFETY: SSE2 is part of x86-64.
+            unsafe { (_mm_movemask_pd(m.0) | (_mm_movemask_pd(m.1) << 2)) as u32 }
+        }
     }
 
-    #[allow(unused_unsafe)]
     impl KernelOps for F64x4 {
         #[inline(always)]
         fn cmp_le(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_cmple_pd(x, y) })
+            halves!(_mm_cmple_pd(self, o))
         }
         #[inline(always)]
         fn cmp_ge(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_cmpge_pd(x, y) })
+            halves!(_mm_cmpge_pd(self, o))
         }
         #[inline(always)]
         fn cmp_ne(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_cmpneq_pd(x, y) })
+            halves!(_mm_cmpneq_pd(self, o))
         }
         #[inline(always)]
         fn select(m: Self, a: Self, b: Self) -> Self {
-            let sel = |m: __m128d, a: __m128d, b: __m128d| unsafe {
-                _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b))
-            };
-            Self(sel(m.0, a.0, b.0), sel(m.1, a.1, b.1))
+            Self(select(m.0, a.0, b.0), select(m.1, a.1, b.1))
         }
         #[inline(always)]
         fn and_bits(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_and_pd(x, y) })
+            halves!(_mm_and_pd(self, o))
         }
         #[inline(always)]
         fn xor_bits(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe { _mm_xor_pd(x, y) })
+            halves!(_mm_xor_pd(self, o))
         }
         #[inline(always)]
         fn add_bits(self, o: Self) -> Self {
-            self.both(o, |x, y| unsafe {
-                _mm_castsi128_pd(_mm_add_epi64(_mm_castpd_si128(x), _mm_castpd_si128(y)))
-            })
+            halves!(add_epi64(self, o))
         }
         #[inline(always)]
         fn shl62_bits(self) -> Self {
-            self.each(|x| unsafe { _mm_castsi128_pd(_mm_slli_epi64::<62>(_mm_castpd_si128(x))) })
+            halves!(shl62(self))
         }
     }
 
     /// Four realisations in one AVX register.
     ///
     /// Every operation executes AVX/AVX2 instructions: only create values of this type on a
-    /// CPU that has AVX2 (the engine does so inside `Engine::fly_avx2`, after checking).
+    /// CPU that has AVX2 (the engine does so inside `Engine::fly_avx2`, after checking). All
+    /// `unsafe` blocks below rely on that invariant. For speed, every method is
+    /// `#[inline(always)]` so that it lands in the AVX2-compiled flight loop; an operation
+    /// left out of line there would still be correct, only slow.
     #[derive(Clone, Copy, Debug)]
     #[repr(transparent)]
     pub(crate) struct F64x4Avx(__m256d);
+
+    /// An AVX intrinsic applied to the register(s).
+    macro_rules! avx {
+        ($f:ident($($a:expr),+)) => {
+            // SAFETY: AVX2 is available (type invariant).
+            F64x4Avx(unsafe { $f($($a.0),+) })
+        };
+    }
 
     impl F64x4Avx {
         #[inline(always)]
@@ -430,21 +481,31 @@ mod x86 {
             // SAFETY: AVX is available (type invariant); a holds four f64.
             Self(unsafe { _mm256_loadu_pd(a.as_ptr()) })
         }
+        #[inline(always)]
+        fn add_(self, o: Self) -> Self {
+            avx!(_mm256_add_pd(self, o))
+        }
+        #[inline(always)]
+        fn sub_(self, o: Self) -> Self {
+            avx!(_mm256_sub_pd(self, o))
+        }
+        #[inline(always)]
+        fn mul_(self, o: Self) -> Self {
+            avx!(_mm256_mul_pd(self, o))
+        }
+        #[inline(always)]
+        fn div_(self, o: Self) -> Self {
+            avx!(_mm256_div_pd(self, o))
+        }
     }
 
-    // SAFETY (all `unsafe` blocks below): AVX/AVX2 are available (type invariant).
-    lane_ops!(
-        F64x4Avx,
-        add = |a: F64x4Avx, b: F64x4Avx| F64x4Avx(unsafe { _mm256_add_pd(a.0, b.0) }),
-        sub = |a: F64x4Avx, b: F64x4Avx| F64x4Avx(unsafe { _mm256_sub_pd(a.0, b.0) }),
-        mul = |a: F64x4Avx, b: F64x4Avx| F64x4Avx(unsafe { _mm256_mul_pd(a.0, b.0) }),
-        div = |a: F64x4Avx, b: F64x4Avx| F64x4Avx(unsafe { _mm256_div_pd(a.0, b.0) })
-    );
+    lane_ops!(F64x4Avx);
 
     impl Lane for F64x4Avx {
         const LANES: usize = 4;
         #[inline(always)]
         fn splat(x: f64) -> Self {
+            // SAFETY: AVX is available (type invariant).
             Self(unsafe { _mm256_set1_pd(x) })
         }
         #[inline(always)]
@@ -462,26 +523,6 @@ mod x86 {
             *self = Self::from_array(a);
         }
         #[inline(always)]
-        fn abs(self) -> Self {
-            Self(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0) })
-        }
-        #[inline(always)]
-        fn sqrt(self) -> Self {
-            Self(unsafe { _mm256_sqrt_pd(self.0) })
-        }
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            Self(unsafe { _mm256_max_pd(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            Self(unsafe { _mm256_min_pd(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn le_mask(self, bound: Self) -> u32 {
-            unsafe { _mm256_movemask_pd(self.cmp_le(bound).0) as u32 }
-        }
-        #[inline(always)]
         fn sin_cos(self) -> (Self, Self) {
             kernels::sin_cos(self)
         }
@@ -489,35 +530,60 @@ mod x86 {
         fn asin(self) -> Self {
             kernels::asin(self)
         }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            self.and_bits(Self::splat(f64::from_bits(!(1u64 << 63))))
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            avx!(_mm256_sqrt_pd(self))
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            avx!(_mm256_max_pd(self, o))
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            avx!(_mm256_min_pd(self, o))
+        }
+        #[inline(always)]
+        fn le_mask(self, bound: Self) -> u32 {
+            // SAFETY: AVX is available (type invariant).
+            unsafe { _mm256_movemask_pd(self.cmp_le(bound).0) as u32 }
+        }
     }
 
     impl KernelOps for F64x4Avx {
         #[inline(always)]
         fn cmp_le(self, o: Self) -> Self {
+            // SAFETY: AVX is available (type invariant).
             Self(unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(self.0, o.0) })
         }
         #[inline(always)]
         fn cmp_ge(self, o: Self) -> Self {
+            // SAFETY: AVX is available (type invariant).
             Self(unsafe { _mm256_cmp_pd::<_CMP_GE_OQ>(self.0, o.0) })
         }
         #[inline(always)]
         fn cmp_ne(self, o: Self) -> Self {
+            // SAFETY: AVX is available (type invariant).
             Self(unsafe { _mm256_cmp_pd::<_CMP_NEQ_UQ>(self.0, o.0) })
         }
         #[inline(always)]
         fn select(m: Self, a: Self, b: Self) -> Self {
-            Self(unsafe { _mm256_blendv_pd(b.0, a.0, m.0) })
+            avx!(_mm256_blendv_pd(b, a, m))
         }
         #[inline(always)]
         fn and_bits(self, o: Self) -> Self {
-            Self(unsafe { _mm256_and_pd(self.0, o.0) })
+            avx!(_mm256_and_pd(self, o))
         }
         #[inline(always)]
         fn xor_bits(self, o: Self) -> Self {
-            Self(unsafe { _mm256_xor_pd(self.0, o.0) })
+            avx!(_mm256_xor_pd(self, o))
         }
         #[inline(always)]
         fn add_bits(self, o: Self) -> Self {
+            // SAFETY: AVX2 is available (type invariant).
             Self(unsafe {
                 _mm256_castsi256_pd(_mm256_add_epi64(
                     _mm256_castpd_si256(self.0),
@@ -527,6 +593,7 @@ mod x86 {
         }
         #[inline(always)]
         fn shl62_bits(self) -> Self {
+            // SAFETY: AVX2 is available (type invariant).
             Self(unsafe {
                 _mm256_castsi256_pd(_mm256_slli_epi64::<62>(_mm256_castpd_si256(self.0)))
             })
@@ -547,16 +614,20 @@ mod portable {
     #[repr(C, align(32))]
     pub struct F64x4(pub [f64; 4]);
 
+    macro_rules! each {
+        (|$x:ident| $e:expr, $a:expr) => {{
+            let a = $a.0;
+            let f = |$x: f64| $e;
+            F64x4([f(a[0]), f(a[1]), f(a[2]), f(a[3])])
+        }};
+        (|$x:ident, $y:ident| $e:expr, $a:expr, $b:expr) => {{
+            let (a, b) = ($a.0, $b.0);
+            let f = |$x: f64, $y: f64| $e;
+            F64x4([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+        }};
+    }
+
     impl F64x4 {
-        #[inline(always)]
-        fn map(self, f: impl Fn(f64) -> f64) -> Self {
-            Self(self.0.map(f))
-        }
-        #[inline(always)]
-        fn zip(self, o: Self, f: impl Fn(f64, f64) -> f64) -> Self {
-            let (a, b) = (self.0, o.0);
-            Self([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
-        }
         #[inline(always)]
         pub fn to_array(self) -> [f64; 4] {
             self.0
@@ -565,15 +636,25 @@ mod portable {
         pub fn from_array(a: [f64; 4]) -> Self {
             Self(a)
         }
+        #[inline(always)]
+        fn add_(self, o: Self) -> Self {
+            each!(|x, y| x + y, self, o)
+        }
+        #[inline(always)]
+        fn sub_(self, o: Self) -> Self {
+            each!(|x, y| x - y, self, o)
+        }
+        #[inline(always)]
+        fn mul_(self, o: Self) -> Self {
+            each!(|x, y| x * y, self, o)
+        }
+        #[inline(always)]
+        fn div_(self, o: Self) -> Self {
+            each!(|x, y| x / y, self, o)
+        }
     }
 
-    lane_ops!(
-        F64x4,
-        add = |a: F64x4, b: F64x4| a.zip(b, |x, y| x + y),
-        sub = |a: F64x4, b: F64x4| a.zip(b, |x, y| x - y),
-        mul = |a: F64x4, b: F64x4| a.zip(b, |x, y| x * y),
-        div = |a: F64x4, b: F64x4| a.zip(b, |x, y| x / y)
-    );
+    lane_ops!(F64x4);
 
     impl Lane for F64x4 {
         const LANES: usize = 4;
@@ -594,26 +675,6 @@ mod portable {
             self.0[i] = x;
         }
         #[inline(always)]
-        fn abs(self) -> Self {
-            self.map(f64::abs)
-        }
-        #[inline(always)]
-        fn sqrt(self) -> Self {
-            self.map(f64::sqrt)
-        }
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            self.zip(o, Lane::max)
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            self.zip(o, Lane::min)
-        }
-        #[inline(always)]
-        fn le_mask(self, bound: Self) -> u32 {
-            (0..4).fold(0, |m, i| m | ((self.0[i] <= bound.0[i]) as u32) << i)
-        }
-        #[inline(always)]
         fn sin_cos(self) -> (Self, Self) {
             kernels::sin_cos(self)
         }
@@ -621,42 +682,71 @@ mod portable {
         fn asin(self) -> Self {
             kernels::asin(self)
         }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            each!(|x| x.abs(), self)
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            each!(|x| x.sqrt(), self)
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            each!(|x, y| Lane::max(x, y), self, o)
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            each!(|x, y| Lane::min(x, y), self, o)
+        }
+        #[inline(always)]
+        fn le_mask(self, bound: Self) -> u32 {
+            let (a, b) = (self.0, bound.0);
+            (a[0] <= b[0]) as u32
+                | ((a[1] <= b[1]) as u32) << 1
+                | ((a[2] <= b[2]) as u32) << 2
+                | ((a[3] <= b[3]) as u32) << 3
+        }
     }
 
     impl KernelOps for F64x4 {
         #[inline(always)]
         fn cmp_le(self, o: Self) -> Self {
-            self.zip(o, Lane::cmp_le)
+            each!(|x, y| KernelOps::cmp_le(x, y), self, o)
         }
         #[inline(always)]
         fn cmp_ge(self, o: Self) -> Self {
-            self.zip(o, Lane::cmp_ge)
+            each!(|x, y| KernelOps::cmp_ge(x, y), self, o)
         }
         #[inline(always)]
         fn cmp_ne(self, o: Self) -> Self {
-            self.zip(o, Lane::cmp_ne)
+            each!(|x, y| KernelOps::cmp_ne(x, y), self, o)
         }
         #[inline(always)]
         fn select(m: Self, a: Self, b: Self) -> Self {
-            Self(std::array::from_fn(|i| {
-                <f64 as Lane>::select(m.0[i], a.0[i], b.0[i])
-            }))
+            let (m, a, b) = (m.0, a.0, b.0);
+            let f = <f64 as KernelOps>::select;
+            Self([
+                f(m[0], a[0], b[0]),
+                f(m[1], a[1], b[1]),
+                f(m[2], a[2], b[2]),
+                f(m[3], a[3], b[3]),
+            ])
         }
         #[inline(always)]
         fn and_bits(self, o: Self) -> Self {
-            self.zip(o, Lane::and_bits)
+            each!(|x, y| x.and_bits(y), self, o)
         }
         #[inline(always)]
         fn xor_bits(self, o: Self) -> Self {
-            self.zip(o, Lane::xor_bits)
+            each!(|x, y| x.xor_bits(y), self, o)
         }
         #[inline(always)]
         fn add_bits(self, o: Self) -> Self {
-            self.zip(o, Lane::add_bits)
+            each!(|x, y| x.add_bits(y), self, o)
         }
         #[inline(always)]
         fn shl62_bits(self) -> Self {
-            self.map(Lane::shl62_bits)
+            each!(|x| x.shl62_bits(), self)
         }
     }
 }

@@ -9,6 +9,29 @@ use crate::lane::Lane;
 pub const NX: usize = 14;
 pub type State<L> = [L; NX];
 
+/// `[f(0), f(1), ..., f(NX - 1)]`, always inlined. (`std::array::from_fn` is not guaranteed to
+/// be, and an out-of-line copy would be compiled without the flight loop's target features:
+/// see `lane.rs`.)
+#[inline(always)]
+pub fn state_from_fn<L>(mut f: impl FnMut(usize) -> L) -> State<L> {
+    [
+        f(0),
+        f(1),
+        f(2),
+        f(3),
+        f(4),
+        f(5),
+        f(6),
+        f(7),
+        f(8),
+        f(9),
+        f(10),
+        f(11),
+        f(12),
+        f(13),
+    ]
+}
+
 /// Indices into the state, so the physics reads like the equations.
 pub mod ix {
     pub const X: usize = 0;
@@ -164,10 +187,11 @@ impl Plant {
             cpsi,
         } = *trig;
 
-        let drag = |k: f64, v: L, wind: L| {
+        #[inline(always)]
+        fn drag<L: Lane>(k: f64, v: L, wind: L) -> L {
             let rel = v - wind;
             rel * rel.abs() * (-k)
-        };
+        }
         let fdx = drag(self.drag_lateral, s[VX], w[0]);
         let fdy = drag(self.drag_lateral, s[VY], w[1]);
         let fdz = drag(self.drag_quad, s[VZ], w[2]);
