@@ -94,6 +94,14 @@ mod _core {
     }
 
     /// Validate a scenario; return the quantities derived from it.
+    /// The instruction set the engine's hot loop uses on this machine ("avx2" or "baseline"),
+    /// chosen at run time (QUADRS_SIMD=baseline forces the portable one). Every path gives
+    /// bit-identical results.
+    #[pyfunction]
+    fn simd_path() -> &'static str {
+        crate::simd::Isa::active().name()
+    }
+
     #[pyfunction]
     fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
         let e = engine(config_json)?;

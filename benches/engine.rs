@@ -1,0 +1,78 @@
+//! Criterion benches of the flight loop on the paper preset (350,000 RK4 steps per flight).
+//!
+//!     cargo bench --bench engine
+//!
+//! Throughput is reported in realisation-steps (one RK4 step of one realisation under one
+//! controller): `elem/s` in criterion's output. Benches:
+//! - `single_flight/scalar`: `Engine::fly::<f64>`, one realisation (the `simulate` path);
+//! - `lane_set/<isa>`: `Engine::fly_set`, four realisations at once (the Monte Carlo path),
+//!   once per instruction set this CPU supports (`baseline` = SSE2, `avx2`).
+//!
+//! Both controllers are flown in turn (PD then SMC), as a paired realisation is.
+
+use _core::config::Config;
+use _core::control::ControllerKind;
+use _core::integrate::{Engine, SET_LANES};
+use _core::simd::Isa;
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use rustfft::FftPlanner;
+use std::hint::black_box;
+use std::time::Duration;
+
+fn paper() -> Config {
+    let text = include_str!("../python/quadrs/presets/paper.toml");
+    let value: serde_json::Value = toml::from_str(text).expect("paper.toml parses");
+    Config::from_json(&value.to_string()).expect("paper preset is valid")
+}
+
+const KINDS: [ControllerKind; 2] = [ControllerKind::Pd, ControllerKind::Smc];
+
+fn single_flight(c: &mut Criterion) {
+    let engine = Engine::new(paper()).unwrap();
+    let mut planner = FftPlanner::new();
+    let mut g = c.benchmark_group("single_flight");
+    g.sample_size(10).measurement_time(Duration::from_secs(4));
+    g.throughput(Throughput::Elements((KINDS.len() * engine.steps) as u64));
+    g.bench_function("scalar", |b| {
+        b.iter(|| {
+            for kind in KINDS {
+                let r = engine.fly::<f64>(kind, 1, &[black_box(0)], true, None, None, &mut planner);
+                black_box(r);
+            }
+        })
+    });
+    g.finish();
+}
+
+fn lane_set(c: &mut Criterion) {
+    let mut engine = Engine::new(paper()).unwrap();
+    let mut planner = FftPlanner::new();
+    let mut g = c.benchmark_group("lane_set");
+    g.sample_size(10).measurement_time(Duration::from_secs(4));
+    g.throughput(Throughput::Elements(
+        (KINDS.len() * SET_LANES * engine.steps) as u64,
+    ));
+    for isa in [Isa::Baseline, Isa::Avx2] {
+        if !isa.supported() {
+            continue;
+        }
+        engine.isa = isa;
+        let indices: Vec<u64> = (0..SET_LANES as u64).collect();
+        g.bench_with_input(
+            BenchmarkId::from_parameter(isa.name()),
+            &indices,
+            |b, idx| {
+                b.iter(|| {
+                    for kind in KINDS {
+                        let r = engine.fly_set(kind, 1, black_box(idx), true, None, &mut planner);
+                        black_box(r);
+                    }
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+criterion_group!(benches, single_flight, lane_set);
+criterion_main!(benches);

@@ -1,0 +1,108 @@
+"""Monte Carlo throughput through the public API, in realisation-steps per second.
+
+    python benches/throughput.py               # 1 worker, all workers, then 1,000 paired runs
+    python benches/throughput.py --runs 100    # quicker: the long run with 100 realisations
+
+A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
+realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
+``quadrs.monte_carlo(scenario, runs=..., workers=..., progress=False)`` end to end (stability
+check, engine, results table), so it is what a user gets. Timings on a shared machine are
+noisy: each is repeated (``--repeat``) and reported as median [min, max]; the load average is
+printed before and after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+import warnings
+
+import quadrs
+from quadrs import _core
+from quadrs.montecarlo import default_workers
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def load() -> str:
+    try:
+        return " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def timed(scenario: quadrs.Scenario, runs: int, workers: int, seed: int) -> float:
+    t0 = time.perf_counter()
+    res = quadrs.monte_carlo(scenario, runs=runs, workers=workers, progress=False, seed=seed)
+    dt = time.perf_counter() - t0
+    assert res.runs["realisation"].nunique() == runs
+    return dt
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=1000, help="realisations of the long run")
+    ap.add_argument(
+        "--sample-runs", type=int, default=40, help="realisations per throughput timing"
+    )
+    ap.add_argument("--repeat", type=int, default=3, help="timings per configuration")
+    ap.add_argument("--workers", type=int, default=default_workers(), help="all workers")
+    ap.add_argument("--preset", default="paper", help="scenario preset")
+    ap.add_argument("--dt", type=float, default=None, help="override integrator.dt (s)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+
+    scenario = quadrs.Scenario.preset(args.preset)
+    if args.dt is not None:
+        scenario = scenario.override({"integrator.dt": args.dt})
+    # The paper's SMC gains are unstable laterally (MODEL.md section 2); the warning is noise here.
+    warnings.simplefilter("ignore")
+    per_run = 2 * scenario.steps  # paired PD + SMC
+
+    print(f"machine: {cpu_model()}, {os.cpu_count()} CPUs, python {platform.python_version()}")
+    print(f"quadrs {quadrs.__version__}, SIMD path: {_core.simd_path()}")
+    print(
+        f"scenario: {args.preset}, {scenario.steps} steps per flight (dt = "
+        f"{scenario['integrator.dt']} s), {per_run:,} realisation-steps per paired run"
+    )
+    print(f"load average before: {load()}")
+
+    timed(scenario, 4, 1, args.seed)  # warm-up: thread pool, page faults
+    rates = {}
+    for workers in sorted({1, args.workers}):
+        samples = [
+            args.sample_runs * per_run / timed(scenario, args.sample_runs, workers, args.seed)
+            for _ in range(args.repeat)
+        ]
+        rates[workers] = statistics.median(samples)
+        print(
+            f"{workers} worker(s), {args.sample_runs} paired runs: "
+            f"{rates[workers] / 1e6:.2f} M realisation-steps/s "
+            f"[{min(samples) / 1e6:.2f}, {max(samples) / 1e6:.2f}]"
+            + (f" = {rates[workers] / workers / 1e6:.2f} M/s per worker" if workers > 1 else "")
+        )
+    if args.workers > 1:
+        print(f"scaling {args.workers} workers / 1: {rates[args.workers] / rates[1]:.2f}x")
+
+    wall = timed(scenario, args.runs, args.workers, args.seed)
+    print(
+        f"{args.runs} paired PD + SMC runs on {args.workers} worker(s): {wall:.1f} s wall "
+        f"({args.runs * per_run / wall / 1e6:.2f} M realisation-steps/s)"
+    )
+    print(f"load average after: {load()}")
+
+
+if __name__ == "__main__":
+    main()
