@@ -4,7 +4,8 @@
 //!
 //! MODE: `scalar` (Engine::fly::<f64>), `simd` (one f64x4 lane-set), `batch` (run_batch on
 //! the global pool), `metrics` (print full-precision metrics of a few realisations, scalar and
-//! SIMD, to compare physics before and after a change). CTRL: pd | smc (default pd).
+//! SIMD, to compare physics before and after a change; `metrics-lateral` the same off the
+//! vertical line, with all gust components). CTRL: pd | smc (default pd).
 
 use _core::config::Config;
 use _core::control::ControllerKind;
@@ -35,7 +36,21 @@ fn main() {
     let duration: f64 = args.get(2).map_or(70.0, |s| s.parse().expect("duration"));
     let kind = ControllerKind::parse(args.get(3).map_or("pd", |s| s.as_str())).expect("ctrl");
     let runs: usize = args.get(4).map_or(4, |s| s.parse().expect("runs"));
-    let engine = Engine::new(paper(duration)).expect("engine");
+    let mut cfg = paper(duration);
+    if mode == "metrics-lateral" {
+        // Off the paper's vertical line: lateral offsets, all three gust components, and the
+        // SMC's lateral gains of the paper_stable_lateral preset (the paper's are unstable).
+        use _core::config::GustComponent::*;
+        cfg.initial.position = [0.3, -0.2, 0.0];
+        cfg.initial.attitude = [0.05, -0.03, 0.5];
+        cfg.gust.components = vec![Longitudinal, Lateral, Vertical];
+        let smc = &mut cfg.controller.smc;
+        smc.epsilon = [0.16, 0.16, 1.8];
+        smc.lambda = [1.2, 1.2, 3.2];
+        smc.epsilon_attitude = [1.432, 1.432, 1.1];
+        smc.lambda_attitude = [7.2, 7.2, 1.5];
+    }
+    let engine = Engine::new(cfg).expect("engine");
     let mut planner = FftPlanner::new();
     let t0 = Instant::now();
     let real_steps = match mode {
@@ -78,7 +93,7 @@ fn main() {
             println!("first iae {}", out.metrics[0]);
             2 * runs * engine.steps
         }
-        "metrics" => {
+        "metrics" | "metrics-lateral" => {
             for kind in [ControllerKind::Pd, ControllerKind::Smc] {
                 let simd = engine
                     .fly_set(kind, 11, &[0, 1, 2, 3], true, None, &mut planner)

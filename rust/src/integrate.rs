@@ -6,7 +6,7 @@ use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::F64x4Avx;
-use crate::lane::{F64x4, Lane};
+use crate::lane::{F64x4, KernelOps, Lane};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
 use crate::simd::Isa;
@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// One RK4 step of the plant with inputs and wind held.
 #[inline(always)]
-pub fn rk4_step<L: Lane>(
+pub fn rk4_step<L: KernelOps>(
     plant: &Plant,
     s: &State<L>,
     u: &Inputs<L>,
@@ -27,9 +27,9 @@ pub fn rk4_step<L: Lane>(
 }
 
 /// `rk4_step` with the sines and cosines of `s`'s angles already at hand (the controller needed
-/// them too): each stage then computes them once.
+/// them too). The later stages get theirs from these by angle addition (`Trig::advanced`).
 #[inline(always)]
-pub fn rk4_step_with<L: Lane>(
+pub fn rk4_step_with<L: KernelOps>(
     plant: &Plant,
     s: &State<L>,
     trig: &Trig<L>,
@@ -45,9 +45,12 @@ pub fn rk4_step_with<L: Lane>(
         )
     }
     let k1 = plant.derivative_with(s, trig, u, w);
-    let k2 = plant.derivative(&stage(s, &k1, 0.5 * dt), u, w);
-    let k3 = plant.derivative(&stage(s, &k2, 0.5 * dt), u, w);
-    let k4 = plant.derivative(&stage(s, &k3, dt), u, w);
+    let s2 = stage(s, &k1, 0.5 * dt);
+    let k2 = plant.derivative_with(&s2, &trig.advanced(&k1, 0.5 * dt, &s2), u, w);
+    let s3 = stage(s, &k2, 0.5 * dt);
+    let k3 = plant.derivative_with(&s3, &trig.advanced(&k2, 0.5 * dt, &s3), u, w);
+    let s4 = stage(s, &k3, dt);
+    let k4 = plant.derivative_with(&s4, &trig.advanced(&k3, dt, &s4), u, w);
     let h6 = dt / 6.0;
     state_from_fn(
         #[inline(always)]
@@ -197,7 +200,7 @@ impl Engine {
 
     /// Fly realisations `indices` (one per lane) under `kind`. Returns None if cancelled.
     #[allow(clippy::too_many_arguments)]
-    pub fn fly<L: Lane>(
+    pub fn fly<L: KernelOps>(
         &self,
         kind: ControllerKind,
         seed: u64,
@@ -282,7 +285,7 @@ impl Engine {
 
     /// Run the flight loop on the instruction set chosen for this engine.
     #[allow(clippy::too_many_arguments)]
-    fn fly_with<L: Lane, C: Control>(
+    fn fly_with<L: KernelOps, C: Control>(
         &self,
         ctrl: &C,
         seed: u64,
@@ -313,7 +316,7 @@ impl Engine {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
-    unsafe fn fly_avx2<L: Lane, C: Control>(
+    unsafe fn fly_avx2<L: KernelOps, C: Control>(
         &self,
         ctrl: &C,
         seed: u64,
@@ -328,7 +331,7 @@ impl Engine {
 
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn fly_loop<L: Lane, C: Control>(
+    fn fly_loop<L: KernelOps, C: Control>(
         &self,
         ctrl: &C,
         seed: u64,
