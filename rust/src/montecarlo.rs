@@ -109,31 +109,37 @@ pub fn run_batch(
     let n_phase = engine.phase_count();
     let row = n_ctrl * n_phase * N_METRICS;
     let grid = engine.spectrum_grid();
-    let sets = count.div_ceil(LANES);
     let last = first + count as u64 - 1;
+    let mut metrics = vec![f64::NAN; count * row];
+    let mut diverged_at = vec![f64::NAN; count * n_ctrl];
+    let mut done = vec![false; count];
 
-    type SetResult = (usize, Vec<f64>, Vec<f64>);
-    let (results, spectra) = (0..sets)
-        .into_par_iter()
+    // Each lane-set writes its rows straight into the output (disjoint chunks): nothing per set
+    // is kept on the heap, so memory is the output arrays plus a few buffers per thread.
+    let spectra = metrics
+        .par_chunks_mut(LANES * row)
+        .zip(diverged_at.par_chunks_mut(LANES * n_ctrl))
+        .zip(done.par_chunks_mut(LANES))
+        .enumerate()
         .fold(
             || {
+                // Per thread: spectrum sums, FFT plans and the rows of the set in flight.
+                let buffers = (vec![f64::NAN; LANES * row], vec![f64::NAN; LANES * n_ctrl]);
                 (
-                    Vec::<SetResult>::new(),
                     SpectrumSums::zeros(n_ctrl, &grid),
                     FftPlanner::new(),
+                    buffers,
                 )
             },
-            |(mut out, mut spectra, mut planner), set| {
+            |(mut spectra, mut planner, (mut set_metrics, mut set_diverged)),
+             (set, ((out_metrics, out_diverged), out_done))| {
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
-                let indices: Vec<u64> = (0..LANES as u64)
-                    .map(|l| (first + (set * LANES) as u64 + l).min(last))
-                    .collect();
-                let lanes = (count - set * LANES).min(LANES);
-                let mut metrics = vec![f64::NAN; lanes * row];
-                let mut diverged = vec![f64::NAN; lanes * n_ctrl];
+                let indices: [u64; LANES] =
+                    std::array::from_fn(|l| (first + (set * LANES + l) as u64).min(last));
+                let lanes = out_done.len();
                 for (c, &kind) in kinds.iter().enumerate() {
                     if cancel.load(Ordering::Relaxed) {
-                        return (out, spectra, planner);
+                        return (spectra, planner, (set_metrics, set_diverged));
                     }
                     let Some(res) = engine.fly_set(
                         kind,
@@ -143,47 +149,36 @@ pub fn run_batch(
                         Some(cancel),
                         &mut planner,
                     ) else {
-                        return (out, spectra, planner);
+                        return (spectra, planner, (set_metrics, set_diverged));
                     };
                     for (l, r) in res.iter().take(lanes).enumerate() {
-                        diverged[l * n_ctrl + c] = r.diverged_at;
+                        set_diverged[l * n_ctrl + c] = r.diverged_at;
                         for (p, m) in r.metrics.iter().enumerate() {
                             let at = l * row + (c * n_phase + p) * N_METRICS;
-                            metrics[at..at + N_METRICS].copy_from_slice(m);
+                            set_metrics[at..at + N_METRICS].copy_from_slice(m);
                         }
                         if want_spectra && r.diverged_at.is_nan() {
                             spectra.add(c, &r.spectra);
                         }
                     }
                 }
+                // Only a finished set is published (a cancelled one stays NaN, not done).
+                out_metrics.copy_from_slice(&set_metrics[..lanes * row]);
+                out_diverged.copy_from_slice(&set_diverged[..lanes * n_ctrl]);
+                out_done.fill(true);
                 progress.fetch_add(lanes as u64, Ordering::Relaxed);
-                out.push((set, metrics, diverged));
-                (out, spectra, planner)
+                (spectra, planner, (set_metrics, set_diverged))
             },
         )
-        .map(|(out, spectra, _)| (out, spectra))
-        .reduce(
-            || (Vec::new(), SpectrumSums::zeros(n_ctrl, &grid)),
-            |(mut a, sa), (b, sb)| {
-                a.extend(b);
-                (a, sa.merge(sb))
-            },
-        );
+        .map(|(spectra, _, _)| spectra)
+        .reduce(|| SpectrumSums::zeros(n_ctrl, &grid), SpectrumSums::merge);
 
-    let mut out = BatchOutput {
-        metrics: vec![f64::NAN; count * row],
-        diverged_at: vec![f64::NAN; count * n_ctrl],
-        done: vec![false; count],
+    BatchOutput {
+        metrics,
+        diverged_at,
+        done,
         spectra,
-    };
-    for (set, metrics, diverged) in results {
-        let lo = set * LANES;
-        let lanes = diverged.len() / n_ctrl.max(1);
-        out.metrics[lo * row..(lo + lanes) * row].copy_from_slice(&metrics);
-        out.diverged_at[lo * n_ctrl..(lo + lanes) * n_ctrl].copy_from_slice(&diverged);
-        out.done[lo..lo + lanes].fill(true);
     }
-    out
 }
 
 #[cfg(test)]
