@@ -55,7 +55,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=1000, help="realisations of the long run")
     ap.add_argument(
-        "--sample-runs", type=int, default=40, help="realisations per throughput timing"
+        "--sample-runs", type=int, default=100, help="realisations per throughput timing"
     )
     ap.add_argument("--repeat", type=int, default=3, help="timings per configuration")
     ap.add_argument("--workers", type=int, default=default_workers(), help="all workers")

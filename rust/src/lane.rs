@@ -25,7 +25,10 @@
 //! bit-for-bit the same whatever the lane type, the packing of realisations into lanes, the
 //! instruction set chosen at run time or the machine. The transcendental functions are our
 //! own branch-free kernels (`kernels::sin_cos`, `kernels::asin`) written once over these
-//! operations and used by the scalar path too, so scalar and SIMD flights agree exactly.
+//! operations and used by the scalar path too, so scalar and SIMD flights agree exactly. (RK4
+//! stages 2-4 get their sines and cosines from stage 1's by angle addition, per lane:
+//! `model::Trig::advanced`.) Measurements and the reasons behind these choices:
+//! `docs/performance.md`.
 
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
@@ -605,7 +608,9 @@ mod x86 {
 pub use portable::F64x4;
 
 /// Elsewhere: four lanes as a plain array, operation by operation (LLVM vectorises what it can).
-#[cfg(not(target_arch = "x86_64"))]
+/// Also compiled, and tested, on x86-64 test builds.
+#[cfg(any(not(target_arch = "x86_64"), test))]
+#[cfg_attr(test, allow(dead_code))]
 mod portable {
     use super::{kernels, KernelOps, Lane};
     use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
@@ -958,6 +963,7 @@ mod tests {
     #[test]
     fn packs_agree_bitwise_with_scalars() {
         pack_agrees_bitwise::<F64x4>();
+        pack_agrees_bitwise::<portable::F64x4>();
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 is available (checked above).
