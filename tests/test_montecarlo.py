@@ -99,7 +99,7 @@ def test_unstable_scenario_flags_divergence_and_keeps_the_rest(paper: Scenario) 
     s = paper.override(
         {"integrator.dt": 0.002, "trajectory.waypoints": [[0, 1.0, 0, 2, 0], [60, 1.0, 0, 0, 0]]}
     )
-    with pytest.warns(UserWarning) if hasattr(quadrs, "stability") else _no_warning():
+    with pytest.warns(quadrs.StabilityWarning, match=r"(?<!not )excited by this scenario"):
         mc = quadrs.monte_carlo(s, runs=4, seed=0, workers=2, progress=False)
     smc = mc.runs[mc.runs["controller"] == "smc"]
     pd_rows = mc.runs[mc.runs["controller"] == "pd"]
@@ -111,14 +111,6 @@ def test_unstable_scenario_flags_divergence_and_keeps_the_rest(paper: Scenario) 
     summary = mc.summary()
     assert (summary["diverged"] == 4).all()
     assert np.isfinite(summary.loc[("iae", "P1"), "pd_mean"])
-
-
-class _no_warning:
-    def __enter__(self) -> None:
-        return None
-
-    def __exit__(self, *exc: object) -> None:
-        return None
 
 
 def test_parquet_round_trip(short: Scenario, tmp_path) -> None:
