@@ -59,7 +59,7 @@ pub fn rk4_step_with<L: KernelOps>(
 }
 
 /// Trace columns after `t`, in order.
-pub const TRACE_COLUMNS: [&str; 26] = [
+pub const TRACE_COLUMNS: [&str; 27] = [
     "x",
     "y",
     "z",
@@ -86,6 +86,7 @@ pub const TRACE_COLUMNS: [&str; 26] = [
     "wind_y",
     "wind_z",
     "e_o",
+    "accel_c",
 ];
 
 /// Rows of (t, TRACE_COLUMNS...) every `every` steps, for lane 0 of a flight.
@@ -105,6 +106,7 @@ impl Trace {
         }
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn push<L: Lane>(
         &mut self,
         t: f64,
@@ -113,6 +115,7 @@ impl Trace {
         u: &Inputs<L>,
         w: &[L; 3],
         e_o: L,
+        accel_c: L,
     ) {
         self.data.push(t);
         self.data.extend(s.iter().map(|x| x.lane(0)));
@@ -121,6 +124,7 @@ impl Trace {
         self.data
             .extend(u.tau.iter().chain(w.iter()).map(|x| x.lane(0)));
         self.data.push(e_o.lane(0));
+        self.data.push(accel_c.lane(0));
     }
 }
 
@@ -390,10 +394,11 @@ impl Engine {
                 wind_of(&wind_lanes, 2),
             ];
             let e_o = s[ix::ZC] - s[ix::Z] + d0;
-            acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2]);
+            let accel_c = plant.payload_acceleration(&s, w[2]);
+            acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2], accel_c);
             if let Some(tr) = trace.as_deref_mut() {
                 if k % tr.every == 0 {
-                    tr.push(t, &s, &r, &u, &w, e_o);
+                    tr.push(t, &s, &r, &u, &w, e_o, accel_c);
                 }
             }
             if k == self.steps {

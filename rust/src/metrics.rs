@@ -1,4 +1,6 @@
-//! Per-phase indices of the relative oscillation e_o, accumulated online (MODEL.md section 5).
+//! Per-phase indices of the relative oscillation e_o, accumulated online (MODEL.md section 5),
+//! and of the payload's vertical inertial acceleration (`max_accel`, `rms_accel`: what a
+//! fragile cargo feels; docs/risk.md).
 //!
 //! Integrals use the trapezoidal rule on the step grid. The amplitude spectrum needs the signal,
 //! so e_o is also kept block-averaged at `metrics.spectrum_rate` (a few thousand numbers per
@@ -9,7 +11,7 @@ use crate::trajectory::PhaseSteps;
 use rustfft::{num_complex::Complex, FftPlanner};
 
 /// Column order of every metrics array the engine returns.
-pub const METRIC_NAMES: [&str; 7] = [
+pub const METRIC_NAMES: [&str; 9] = [
     "iae",
     "itae",
     "max_abs",
@@ -17,6 +19,8 @@ pub const METRIC_NAMES: [&str; 7] = [
     "tracking_rms",
     "peak_frequency",
     "peak_amplitude",
+    "max_accel",
+    "rms_accel",
 ];
 pub const N_METRICS: usize = METRIC_NAMES.len();
 
@@ -27,6 +31,8 @@ struct Sums<L> {
     sq: L,
     tracking_sq: L,
     max_abs: L,
+    accel_sq: L,
+    max_accel: L,
 }
 
 /// Online accumulator for one lane-set over all phases.
@@ -54,6 +60,8 @@ impl<L: Lane> PhaseAccumulator<L> {
                     sq: zero,
                     tracking_sq: zero,
                     max_abs: zero,
+                    accel_sq: zero,
+                    max_accel: zero,
                 };
                 phases.len()
             ],
@@ -65,9 +73,10 @@ impl<L: Lane> PhaseAccumulator<L> {
         }
     }
 
-    /// Take sample k (time t) of e_o and of the altitude tracking error; k = 0, 1, 2, ... in turn.
+    /// Take sample k (time t) of e_o, of the altitude tracking error and of the payload's
+    /// vertical acceleration `accel` (m/s^2); k = 0, 1, 2, ... in turn.
     #[inline(always)]
-    pub fn sample(&mut self, k: usize, t: f64, e_o: L, tracking: L) {
+    pub fn sample(&mut self, k: usize, t: f64, e_o: L, tracking: L, accel: L) {
         let a = e_o.abs();
         for (ph, sums) in self.phases.iter().zip(self.sums.iter_mut()) {
             if ph.contains(k) {
@@ -81,6 +90,8 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.sq += e_o * e_o * w;
                 sums.tracking_sq += tracking * tracking * w;
                 sums.max_abs = sums.max_abs.max(a);
+                sums.accel_sq += accel * accel * w;
+                sums.max_accel = sums.max_accel.max(accel.abs());
             }
         }
         self.block_sum += e_o;
@@ -130,6 +141,8 @@ impl<L: Lane> PhaseAccumulator<L> {
                 (s.tracking_sq.lane(lane) / span).sqrt(),
                 peak_f,
                 peak_a,
+                s.max_accel.lane(lane),
+                (s.accel_sq.lane(lane) / span).sqrt(),
             ]);
         }
         rows
@@ -220,12 +233,15 @@ mod tests {
         let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100);
         for k in 0..=100 {
             let t = k as f64 * dt;
-            acc.sample(k, t, t, 0.0);
+            acc.sample(k, t, t, 0.0, -2.0 * t);
         }
         let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
         assert!((row[0] - 0.5).abs() < 1e-12);
         assert!((row[1] - (1.0 / 3.0 + dt * dt / 6.0)).abs() < 1e-12);
         assert!((row[2] - 1.0).abs() < 1e-12);
         assert!((row[3] - (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
+        // accel = -2 t: peak |accel| 2, RMS 2 sqrt(1/3 + dt^2/6).
+        assert!((row[7] - 2.0).abs() < 1e-12);
+        assert!((row[8] - 2.0 * (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
     }
 }

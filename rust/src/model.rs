@@ -206,6 +206,17 @@ impl Plant {
         s[ix::ZC] - s[ix::Z] + self.hover_offset()
     }
 
+    /// The payload's vertical inertial acceleration d2zc/dt2 (m/s^2) at state `s` with vertical
+    /// wind `wind_z` (m/s): its equation of motion, mc azc = -mc g + Fs + Fdzc (MODEL.md
+    /// section 1), the same expression the derivative uses; zero at hover.
+    #[inline(always)]
+    pub fn payload_acceleration<L: Lane>(&self, s: &State<L>, wind_z: L) -> L {
+        let rel = s[ix::VZC] - wind_z;
+        let fdzc = rel * rel.abs() * (-self.drag_payload);
+        let spring = (s[ix::Z] - s[ix::ZC]) * self.kc + (s[ix::VZ] - s[ix::VZC]) * self.cc;
+        (spring + fdzc) * self.inv_mc - self.g
+    }
+
     /// A state at rest at `position` and `attitude`, payload at its hover equilibrium.
     pub fn rest_state(&self, position: [f64; 3], attitude: [f64; 3]) -> State<f64> {
         let mut s = [0.0; NX];
@@ -288,6 +299,25 @@ mod tests {
         let ds = plant.derivative(&s, &u, &[0.0; 3]);
         for (i, d) in ds.iter().enumerate() {
             assert!(d.abs() < 1e-12, "d{}/dt = {d}", STATE_NAMES[i]);
+        }
+    }
+
+    #[test]
+    fn payload_acceleration_is_the_derivative_of_vzc() {
+        let plant = Plant::new(&paper());
+        let mut s = plant.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
+        let u = Inputs {
+            u1: (plant.m + plant.mc) * plant.g,
+            tau: [0.0; 3],
+        };
+        assert!(plant.payload_acceleration(&s, 0.0).abs() < 1e-12, "zero at hover");
+        s[ix::ZC] -= 0.03;
+        s[ix::VZ] = 0.4;
+        s[ix::VZC] = -0.7;
+        for wz in [0.0, 1.3, -2.0] {
+            let ds = plant.derivative(&s, &u, &[0.0, 0.0, wz]);
+            let a = plant.payload_acceleration(&s, wz);
+            assert_eq!(a.to_bits(), ds[ix::VZC].to_bits(), "wind {wz}");
         }
     }
 
