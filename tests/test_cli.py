@@ -21,7 +21,8 @@ from quadrs.cli import build_parser, main
 from quadrs.scenario import parse_value
 from quadrs.sweep import SweepResult
 
-METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude"]
+METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
+           "max_accel", "rms_accel"]  # fmt: skip
 RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at"]
 TABLE3_COLUMNS = [
     "phase", "IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %",

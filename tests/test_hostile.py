@@ -14,7 +14,8 @@ import quadrs
 from quadrs import EngineError, Scenario, ScenarioError
 from quadrs.stability import StepSizeWarning
 
-METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude"]
+METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
+           "max_accel", "rms_accel"]  # fmt: skip
 #: Flights longer than this many steps are validated but not flown (keeps the property fast).
 MAX_FLOWN_STEPS = 20_000
 

@@ -14,7 +14,8 @@ import quadrs
 from quadrs import MonteCarloResult, Scenario
 from quadrs.report import ratio_ci, summarise
 
-METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude"]
+METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
+           "max_accel", "rms_accel"]  # fmt: skip
 
 
 def test_runs_table_layout(short: Scenario) -> None:

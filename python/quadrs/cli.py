@@ -138,7 +138,8 @@ def _add_run(sub: Any, common: argparse.ArgumentParser) -> None:
         help="fly once and print the per-phase metrics",
         description="Fly the scenario once and print the per-phase metrics of the relative "
         "oscillation e_o (IAE in m s, ITAE in m s^2, max_abs/rms in m, tracking_rms in m, "
-        "peak_frequency in Hz, peak_amplitude in m).",
+        "peak_frequency in Hz, peak_amplitude in m) and of the payload's vertical "
+        "acceleration (max_accel, rms_accel in m/s^2).",
     )
     p.add_argument(
         "--controller", choices=("pd", "smc"), default="smc", help="controller (default: smc)"
@@ -192,6 +193,7 @@ def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         help="realisations per chunk (default: about 1/20 of the runs when checkpointing, "
         "4 tasks per thread on Dask, else all at once)",
     )
+    _limit_options(p)
 
 
 def _add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -252,6 +254,63 @@ def _add_report(sub: Any) -> None:
         help="the saved runs: a .parquet file (mc --out, sweep --out) or a --checkpoint directory",
     )
     p.add_argument("--plots", type=Path, metavar="DIR", help="write figures from the file here")
+    _limit_options(p)
+
+
+def _limit_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--limit",
+        metavar="METRIC=THRESHOLD",
+        action="append",
+        type=_limit,
+        default=[],
+        help="print P(METRIC > THRESHOLD) per controller and phase with its exact 95%% "
+        "interval and the runs needed for a chosen width, e.g. max_accel=2.0 (m/s^2); "
+        "repeatable; diverged runs count as exceeding",
+    )
+    p.add_argument(
+        "--half-width",
+        type=_half_width,
+        default=1.0,
+        metavar="PP",
+        help="interval half-width, in percentage points, for the runs-needed column of "
+        "--limit (default: %(default)s)",
+    )
+
+
+def _limit(text: str) -> tuple[str, float]:
+    from quadrs.risk import parse_limit
+
+    try:
+        return parse_limit(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _half_width(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 < value < 50:
+        raise argparse.ArgumentTypeError(f"must be in (0, 50) percentage points, got {text!r}")
+    return value
+
+
+def _print_limits(result: Any, args: argparse.Namespace) -> None:
+    """The exceedance tables of ``--limit`` (and the paired PD/SMC difference)."""
+    from quadrs.risk import limits_difference_table, limits_table
+
+    if not args.limit:
+        return
+    print(
+        "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; diverged runs count as "
+        "exceeding:"
+    )
+    _print_frame(limits_table(result, args.limit, args.half_width / 100))
+    if {"pd", "smc"} <= set(result.controllers):
+        print("\nSMC - PD, paired on the same gusts (Newcombe interval, exact McNemar p):")
+        _print_frame(limits_difference_table(result, args.limit))
 
 
 def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -455,8 +514,9 @@ def cmd_mc(args: argparse.Namespace) -> int:
         _saved(args.out)
     if not mc.runs.empty:
         _print_frame(table3(mc.summary()))
+        _print_limits(mc, args)
     if args.plots is not None and not mc.runs.empty:
-        _mc_plots(mc, args.plots)
+        _mc_plots(mc, args.plots, args.limit)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK
 
 
@@ -478,12 +538,16 @@ def _dask_client(address: str | None) -> Iterator[Any]:
         yield client
 
 
-def _mc_plots(mc: Any, directory: Path) -> None:
+def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
     from quadrs import plots
 
     files = plots.save(plots.distributions(mc.runs), directory / "distributions")
     if mc.spectra is not None:
         files += plots.save(plots.ensemble_spectra(mc.spectra), directory / "spectra")
+    for metric in dict.fromkeys([m for m, _ in limits] or ["max_accel"]):
+        marks = [t for m, t in limits if m == metric]
+        fig = plots.exceedance_curves(mc.runs, metric, marks)
+        files += plots.save(fig, directory / f"exceedance_{metric}")
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
@@ -550,6 +614,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     if args.file.is_file() and is_sweep_file(args.file):
         result = SweepResult.read_parquet(args.file)
         _print_frame(result.compact())
+        _print_limits(result, args)
         if args.plots is not None:
             _sweep_plots(result, args.plots)
     else:
@@ -557,8 +622,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         note = " (interrupted batch)" if mc.interrupted else ""
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
         _print_frame(table3(mc.summary()))
+        _print_limits(mc, args)
         if args.plots is not None:
-            _mc_plots(mc, args.plots)
+            _mc_plots(mc, args.plots, args.limit)
     return EXIT_OK
 
 

@@ -37,6 +37,8 @@ UNITS = {
     "tracking_rms": "m",
     "peak_frequency": "Hz",
     "peak_amplitude": "m",
+    "max_accel": "m/s^2",
+    "rms_accel": "m/s^2",
     "payload.natural_frequency": "Hz",
     "payload.stiffness": "N/m",
     "payload.mass": "kg",
@@ -413,3 +415,73 @@ def max_amplitude(
     95% CIs, from a sweep's summary."""
     present = set(summary.index.get_level_values("phase"))
     return sweep_metric(summary, "max_abs", [p for p in phases if p in present] or None, path)
+
+
+# -- risk -----------------------------------------------------------------------------------
+#: Plain-English axis labels of metrics, with units.
+PLAIN_LABELS = {
+    "max_accel": "Payload acceleration peak (m/s²)",
+    "rms_accel": "Payload acceleration RMS (m/s²)",
+    "max_abs": "Peak payload bounce |e_o| (m)",
+    "rms": "RMS payload bounce e_o (m)",
+    "iae": "Integrated absolute bounce, IAE (m s)",
+    "itae": "Time-weighted IAE, ITAE (m s²)",
+    "tracking_rms": "RMS altitude tracking error (m)",
+    "peak_frequency": "Frequency of the bounce's spectral peak (Hz)",
+    "peak_amplitude": "Amplitude of the bounce's spectral peak (m)",
+}
+
+
+def exceedance_curves(
+    runs: pd.DataFrame,
+    metric: str = "max_accel",
+    thresholds: Sequence[float] = (),
+    phases: Sequence[str] | None = None,
+    confidence: float = 0.95,
+    path: str | Path | None = None,
+) -> Figure:
+    """Empirical exceedance curves P(metric > x) = 1 - CDF, log y, one panel per phase, one line
+    per controller, with a band of pointwise exact (Clopper-Pearson) ``confidence`` intervals
+    (:func:`quadrs.risk.survival_curve`; pointwise, not simultaneous). Diverged realisations
+    count as exceeding every x. ``thresholds`` are marked as vertical lines."""
+    from quadrs.risk import check_metric, survival_curve
+
+    check_metric(metric)
+    phases = list(phases) if phases is not None else [str(p) for p in pd.unique(runs["phase"])]
+    ctrls = [str(c) for c in pd.unique(runs["controller"])]
+    fig = new_figure(len(phases), 1)
+    floor = 1.0
+    for ax, phase in zip(_axes(fig), phases, strict=True):
+        for i, ctrl in enumerate(ctrls):
+            sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
+            div = sel["diverged"].to_numpy(bool)
+            curve = survival_curve(sel[metric].to_numpy(float), div, confidence)
+            if curve.empty:
+                continue
+            style = _style(ctrl, i)
+            n = int(curve["n"].iloc[0])
+            note = f", {int(div.sum())} diverged (counted as exceeding)" if div.any() else ""
+            style["label"] = f"{style['label']} (n = {n}{note})"
+            x, p = curve["threshold"].to_numpy(float), curve["probability"].to_numpy(float)
+            shown = p > 0
+            ax.step(x[shown], p[shown], where="post", lw=1.2, **style)
+            ax.fill_between(
+                x,
+                curve["ci_low"].to_numpy(float),
+                curve["ci_high"].to_numpy(float),
+                step="post",
+                color=style["color"],
+                alpha=0.2,
+            )
+            floor = min(floor, 0.5 / max(n, 1))
+        for t in thresholds:
+            ax.axvline(float(t), color="black", lw=0.8, ls=":")
+        ax.set_yscale("log")
+        ax.set_ylim(floor, 1.05)
+        ax.set(
+            xlabel=PLAIN_LABELS.get(metric, _unit(metric)),
+            ylabel="Chance of exceeding",
+            title=f"Exceedance, {phase} (bands: pointwise {confidence:.0%} exact intervals)",
+        )
+        ax.legend(loc="best", fontsize="small")
+    return _finish(fig, path)

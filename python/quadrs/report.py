@@ -16,7 +16,17 @@ PAPER_TABLE3 = pd.DataFrame(
     index=pd.Index(["P1", "P2", "P3"], name="phase"),
 )
 
-_METRICS = ("iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude")
+_METRICS = (
+    "iae",
+    "itae",
+    "max_abs",
+    "rms",
+    "tracking_rms",
+    "peak_frequency",
+    "peak_amplitude",
+    "max_accel",
+    "rms_accel",
+)
 
 
 def mean_ci(values: np.ndarray, confidence: float) -> tuple[int, float, float, float]:
@@ -61,7 +71,7 @@ def summarise(
     if not 0 < confidence < 1:
         raise ValueError(f"confidence must be in (0, 1), got {confidence}")
     rows = []
-    for metric in _METRICS:
+    for metric in [m for m in _METRICS if m in runs]:  # files from older versions lack some
         for phase in phases:
             sel = runs[runs["phase"] == phase]
             wide = sel.pivot(index="realisation", columns="controller", values=metric)

@@ -111,6 +111,57 @@ class MonteCarloResult:
         its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI."""
         return summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
 
+    def exceedance(
+        self,
+        metric: str,
+        threshold: float,
+        confidence: float = 0.95,
+        *,
+        paired: bool = False,
+        controllers: tuple[str, str] = ("smc", "pd"),
+        half_width: float = 0.01,
+        relative: bool = False,
+    ) -> pd.DataFrame:
+        """P(metric > threshold) per controller and phase with an exact (Clopper-Pearson)
+        interval, the counts behind it and ``runs_needed`` for an interval half-width of
+        ``half_width`` (default 0.01: +-1 percentage point; with ``relative``, a fraction of the
+        probability). Diverged realisations count as exceedances (column ``diverged``).
+
+        ``paired=True``: instead, per phase, P(a exceeds) - P(b exceeds) for ``controllers =
+        (a, b)`` on the same gusts, with Newcombe's paired interval and McNemar's exact test.
+        See :mod:`quadrs.risk` and docs/risk.md."""
+        from quadrs import risk
+
+        phases = self.scenario.phase_names
+        if paired:
+            return risk.exceedance_difference_table(
+                self.runs, metric, threshold, phases, risk.check_pair(self.controllers, controllers), confidence
+            )
+        return risk.exceedance_table(
+            self.runs, metric, threshold, self.controllers, phases, confidence, half_width, relative
+        )
+
+    def quantile(
+        self,
+        metric: str,
+        q: float,
+        confidence: float = 0.95,
+        *,
+        paired: bool = False,
+        controllers: tuple[str, str] = ("smc", "pd"),
+    ) -> pd.DataFrame:
+        """The ``q``-quantile of ``metric`` per controller and phase with a distribution-free
+        (order-statistic) interval; diverged realisations count as +inf. ``paired=True``: per
+        phase, the ``q``-quantile of the per-realisation difference a - b instead."""
+        from quadrs import risk
+
+        phases = self.scenario.phase_names
+        if paired:
+            return risk.quantile_difference_table(
+                self.runs, metric, q, phases, risk.check_pair(self.controllers, controllers), confidence
+            )
+        return risk.quantile_table(self.runs, metric, q, self.controllers, phases, confidence)
+
     # -- persistence ----------------------------------------------------------------------
     def metadata(self) -> dict[str, Any]:
         return {

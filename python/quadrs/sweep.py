@@ -110,6 +110,77 @@ class SweepResult:
             raise ValueError("the sweep holds no finished runs")
         return pd.concat(parts, ignore_index=True).set_index([*self.keys, "metric", "phase"])
 
+    def _per_point(self, table: Any) -> pd.DataFrame:
+        """``table(runs, phases)`` at every grid point, the swept keys prepended."""
+        parts = []
+        for _, point in self.points.iterrows():
+            mask = np.ones(len(self.runs), dtype=bool)
+            for k in self.keys:
+                mask &= (self.runs[k] == point[k]).to_numpy()
+            sub = self.runs[mask]
+            if sub.empty:
+                continue
+            part = table(sub, list(pd.unique(sub["phase"])))
+            for k in reversed(self.keys):
+                part.insert(0, k, point[k])
+            parts.append(part)
+        if not parts:
+            raise ValueError("the sweep holds no finished runs")
+        return pd.concat(parts, ignore_index=True)
+
+    def exceedance(
+        self,
+        metric: str,
+        threshold: float,
+        confidence: float = 0.95,
+        *,
+        paired: bool = False,
+        controllers: tuple[str, str] = ("smc", "pd"),
+        half_width: float = 0.01,
+        relative: bool = False,
+    ) -> pd.DataFrame:
+        """:meth:`quadrs.MonteCarloResult.exceedance` at every grid point (swept keys as the
+        first columns)."""
+        from quadrs import risk
+
+        if paired:
+            pair = risk.check_pair(self.controllers, controllers)
+            return self._per_point(
+                lambda runs, phases: risk.exceedance_difference_table(
+                    runs, metric, threshold, phases, pair, confidence
+                )
+            )
+        return self._per_point(
+            lambda runs, phases: risk.exceedance_table(
+                runs, metric, threshold, self.controllers, phases, confidence, half_width, relative
+            )
+        )
+
+    def quantile(
+        self,
+        metric: str,
+        q: float,
+        confidence: float = 0.95,
+        *,
+        paired: bool = False,
+        controllers: tuple[str, str] = ("smc", "pd"),
+    ) -> pd.DataFrame:
+        """:meth:`quadrs.MonteCarloResult.quantile` at every grid point."""
+        from quadrs import risk
+
+        if paired:
+            pair = risk.check_pair(self.controllers, controllers)
+            return self._per_point(
+                lambda runs, phases: risk.quantile_difference_table(
+                    runs, metric, q, phases, pair, confidence
+                )
+            )
+        return self._per_point(
+            lambda runs, phases: risk.quantile_table(
+                runs, metric, q, self.controllers, phases, confidence
+            )
+        )
+
     def compact(self, metrics: Sequence[str] = ("iae", "itae")) -> pd.DataFrame:
         """The summary in one screen: per point and phase, the mean of each metric per
         controller and P = 100 SMC/PD (percent)."""
