@@ -158,7 +158,7 @@ def test_paired_difference_covers_at_the_nominal_rate() -> None:
 
 
 def test_quantile_interval_covers_the_true_quantile() -> None:
-    n, q, trials = 80, 0.9, 2000
+    n, q, trials = 80, 0.9, 800
     truth = stats.expon.ppf(q)
     rng = np.random.default_rng(9)
     covered = 0

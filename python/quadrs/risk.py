@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import pandas as pd
@@ -79,8 +80,22 @@ def exceedance_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float
     confidence = _check_confidence(confidence)
     if n == 0:
         return math.nan, math.nan, math.nan
-    ci = stats.binomtest(int(k), int(n)).proportion_ci(confidence, method="exact")
-    return k / n, float(ci.low), float(ci.high)
+    low, high = _binomial_ci(int(k), int(n), confidence, "exact")
+    return k / n, low, high
+
+
+@lru_cache(maxsize=4096)
+def _binomial_ci(k: int, n: int, confidence: float, method: str) -> tuple[float, float]:
+    """scipy's interval for k successes in n trials (memoised: it depends on k and n only, and
+    a table or curve asks for the same few counts again and again)."""
+    ci = stats.binomtest(k, n).proportion_ci(confidence, method=method)
+    return float(ci.low), float(ci.high)
+
+
+@lru_cache(maxsize=4096)
+def _mcnemar_p(only_a: int, discordant: int) -> float:
+    """Exact McNemar test: ``only_a`` of the discordant pairs against Binomial(m, 1/2)."""
+    return float(stats.binomtest(only_a, discordant, 0.5).pvalue)
 
 
 @dataclass(frozen=True)
@@ -216,16 +231,16 @@ def paired_exceedance(
         nan = math.nan
         return PairedExceedance(0, 0, 0, 0, 0, nan, nan, nan, nan, nan, nan)
     p1, p2 = (both + only_a) / n, (both + only_b) / n
-    w1 = stats.binomtest(both + only_a, n).proportion_ci(confidence, method="wilson")
-    w2 = stats.binomtest(both + only_b, n).proportion_ci(confidence, method="wilson")
+    l1, u1 = _binomial_ci(both + only_a, n, confidence, "wilson")
+    l2, u2 = _binomial_ci(both + only_b, n, confidence, "wilson")
     denom = (both + only_a) * (only_b + neither) * (both + only_b) * (only_a + neither)
     phi = (both * neither - only_a * only_b) / math.sqrt(denom) if denom > 0 else 0.0
-    d1lo, d1hi, d2lo, d2hi = p1 - w1.low, w1.high - p1, p2 - w2.low, w2.high - p2
+    d1lo, d1hi, d2lo, d2hi = p1 - l1, u1 - p1, p2 - l2, u2 - p2
     delta = math.sqrt(max(d1lo**2 - 2 * phi * d1lo * d2hi + d2hi**2, 0.0))
     eps = math.sqrt(max(d1hi**2 - 2 * phi * d1hi * d2lo + d2lo**2, 0.0))
     diff = p1 - p2
     m = only_a + only_b
-    mcnemar = stats.binomtest(only_a, m, 0.5).pvalue if m > 0 else math.nan
+    mcnemar = _mcnemar_p(only_a, m) if m > 0 else math.nan
     return PairedExceedance(
         n,
         both,
@@ -517,9 +532,9 @@ def limits_table(
     need = f"runs for ±{100 * half_width:g} pp"
     table[need] = [f"{v:.0f}" if math.isfinite(v) else "" for v in table["runs_needed"]]
     drop = ["probability", "ci_low", "ci_high", "runs_needed", "undefined"]
-    if not table["undefined"].any():
-        return table.drop(columns=drop)
-    return table.drop(columns=drop[:-1])
+    if table["undefined"].any():
+        drop.pop()
+    return table.drop(columns=drop).set_index("metric")
 
 
 def limits_difference_table(
@@ -539,4 +554,5 @@ def limits_difference_table(
     table[f"{a.upper()} - {b.upper()} pp [{confidence:.0%} CI]"] = [
         _pct(r.difference, r.ci_low, r.ci_high) for r in table.itertuples()
     ]
-    return table.drop(columns=[f"p_{a}", f"p_{b}", "difference", "ci_low", "ci_high"])
+    drop = [f"p_{a}", f"p_{b}", "difference", "ci_low", "ci_high"]
+    return table.drop(columns=drop).set_index("metric")
