@@ -96,7 +96,8 @@ def test_clopper_pearson_covers_at_the_nominal_rate() -> None:
     rate = covered / trials
     # The exact coverage of Clopper-Pearson at (n, p), from the binomial pmf.
     ks = np.arange(n + 1)
-    inside = [risk.exceedance_interval(k, n)[1] <= p <= risk.exceedance_interval(k, n)[2] for k in ks]
+    bounds = [risk.exceedance_interval(k, n)[1:] for k in ks]
+    inside = [lo <= p <= hi for lo, hi in bounds]
     exact = float(stats.binom.pmf(ks, n, p)[inside].sum())
     se = math.sqrt(exact * (1 - exact) / trials)
     assert 0.93 <= rate <= 0.97, rate
@@ -163,7 +164,7 @@ def test_quantile_interval_covers_the_true_quantile() -> None:
     rng = np.random.default_rng(9)
     covered = 0
     for _ in range(trials):
-        _, est, lo, hi = risk.quantile_interval(rng.exponential(size=n), q)
+        _, _est, lo, hi = risk.quantile_interval(rng.exponential(size=n), q)
         covered += lo <= truth <= hi
     # Order-statistic intervals are exact-or-conservative: at least nominal, not far above.
     rate = covered / trials
@@ -173,7 +174,7 @@ def test_quantile_interval_covers_the_true_quantile() -> None:
 
 def test_quantile_treats_diverged_as_infinite() -> None:
     values = np.r_[np.arange(1.0, 11.0), np.inf]
-    n, est, lo, hi = risk.quantile_interval(values, 0.5)
+    n, est, _lo, _hi = risk.quantile_interval(values, 0.5)
     assert (n, est) == (11, 6.0)
     _, est, _, hi = risk.quantile_interval(values, 0.95)
     assert est == np.inf and hi == np.inf
@@ -265,9 +266,7 @@ def test_cli_limit_prints_the_exceedance_table(tmp_path, capsys) -> None:
     assert (plots / "exceedance_max_accel.png").exists()
 
 
-@pytest.mark.parametrize(
-    "limit", ["nope=1", "max_accel", "max_accel=abc", "max_accel=nan", "=2"]
-)
+@pytest.mark.parametrize("limit", ["nope=1", "max_accel", "max_accel=abc", "max_accel=nan", "=2"])
 def test_cli_bad_limit_exits_2_with_one_line(limit: str, capsys) -> None:
     assert main(["mc", "--runs", "2", "--limit", limit]) == 2
     err = capsys.readouterr().err.strip()

@@ -134,8 +134,9 @@ class MonteCarloResult:
 
         phases = self.scenario.phase_names
         if paired:
+            pair = risk.check_pair(self.controllers, controllers)
             return risk.exceedance_difference_table(
-                self.runs, metric, threshold, phases, risk.check_pair(self.controllers, controllers), confidence
+                self.runs, metric, threshold, phases, pair, confidence
             )
         return risk.exceedance_table(
             self.runs, metric, threshold, self.controllers, phases, confidence, half_width, relative
@@ -157,9 +158,8 @@ class MonteCarloResult:
 
         phases = self.scenario.phase_names
         if paired:
-            return risk.quantile_difference_table(
-                self.runs, metric, q, phases, risk.check_pair(self.controllers, controllers), confidence
-            )
+            pair = risk.check_pair(self.controllers, controllers)
+            return risk.quantile_difference_table(self.runs, metric, q, phases, pair, confidence)
         return risk.quantile_table(self.runs, metric, q, self.controllers, phases, confidence)
 
     # -- persistence ----------------------------------------------------------------------

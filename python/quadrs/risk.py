@@ -214,9 +214,7 @@ class PairedExceedance:
     mcnemar_p: float
 
 
-def paired_exceedance(
-    a: np.ndarray, b: np.ndarray, confidence: float = 0.95
-) -> PairedExceedance:
+def paired_exceedance(a: np.ndarray, b: np.ndarray, confidence: float = 0.95) -> PairedExceedance:
     """Paired difference of exceedance probabilities from boolean arrays ``a``, ``b`` (one
     entry per pair): Newcombe's method 10 from the Wilson intervals of each marginal
     (``binomtest(...).proportion_ci("wilson")``) and the phi coefficient of the 2x2 table."""
@@ -312,11 +310,7 @@ def exceedance_table(
                 sel["diverged"].to_numpy(bool),
                 confidence,
             )
-            need = (
-                runs_needed(e.probability, half_width, confidence, relative)
-                if e.n
-                else math.nan
-            )
+            need = runs_needed(e.probability, half_width, confidence, relative) if e.n else math.nan
             rows.append(
                 {
                     "controller": c,

@@ -310,7 +310,10 @@ mod tests {
             u1: (plant.m + plant.mc) * plant.g,
             tau: [0.0; 3],
         };
-        assert!(plant.payload_acceleration(&s, 0.0).abs() < 1e-12, "zero at hover");
+        assert!(
+            plant.payload_acceleration(&s, 0.0).abs() < 1e-12,
+            "zero at hover"
+        );
         s[ix::ZC] -= 0.03;
         s[ix::VZ] = 0.4;
         s[ix::VZC] = -0.7;
