@@ -271,3 +271,31 @@ def test_cli_bad_limit_exits_2_with_one_line(limit: str, capsys) -> None:
     assert main(["mc", "--runs", "2", "--limit", limit]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--limit" in err
+
+
+def test_exceedance_curve_plot_draws_the_empirical_survival() -> None:
+    from quadrs import plots
+
+    rng = np.random.default_rng(2)
+    n = 50
+    values = rng.exponential(size=n)
+    runs = pd.DataFrame(
+        {
+            "realisation": np.arange(n),
+            "controller": "pd",
+            "phase": "P2",
+            "max_accel": values,
+            "diverged": np.arange(n) < 2,  # two diverged: they exceed everything
+        }
+    )
+    runs.loc[runs["diverged"], "max_accel"] = np.nan
+    fig = plots.exceedance_curves(runs, "max_accel", thresholds=[1.0])
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log"
+    assert ax.get_xlabel() == "Payload acceleration peak (m/s²)"
+    assert "2 diverged" in ax.get_legend().get_texts()[0].get_text()
+    x, y = ax.lines[0].get_xdata(), ax.lines[0].get_ydata()
+    for xi, yi in zip(x, y, strict=True):
+        direct = (np.nansum(runs["max_accel"] > xi) + 2) / n
+        assert yi == pytest.approx(direct)
+    assert y.min() == pytest.approx(2 / n)  # the diverged floor
