@@ -12,7 +12,7 @@
 
 use _core::config::Config;
 use _core::control::ControllerKind;
-use _core::integrate::{Engine, SET_LANES};
+use _core::integrate::{Engine, FlightRequest, SET_LANES};
 use _core::simd::Isa;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rustfft::FftPlanner;
@@ -36,7 +36,12 @@ fn single_flight(c: &mut Criterion) {
     g.bench_function("scalar", |b| {
         b.iter(|| {
             for kind in KINDS {
-                let r = engine.fly::<f64>(kind, 1, &[black_box(0)], true, None, None, &mut planner);
+                let idx = [black_box(0)];
+                let req = FlightRequest {
+                    want_spectra: true,
+                    ..FlightRequest::new(kind, 1, &idx)
+                };
+                let r = engine.fly::<f64>(&req, None, &mut planner);
                 black_box(r);
             }
         })
@@ -64,7 +69,11 @@ fn lane_set(c: &mut Criterion) {
             |b, idx| {
                 b.iter(|| {
                     for kind in KINDS {
-                        let r = engine.fly_set(kind, 1, black_box(idx), true, None, &mut planner);
+                        let req = FlightRequest {
+                            want_spectra: true,
+                            ..FlightRequest::new(kind, 1, black_box(idx))
+                        };
+                        let r = engine.fly_set(&req, &mut planner);
                         black_box(r);
                     }
                 })

@@ -2,6 +2,7 @@
 
     python benches/throughput.py               # 1 worker, all workers, then 1,000 paired runs
     python benches/throughput.py --runs 100    # quicker: the long run with 100 realisations
+    python benches/throughput.py --dispersions # dispersed against fixed parameters, paired
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -43,6 +44,15 @@ def load() -> str:
         return "n/a"
 
 
+#: Four uncertain parameters of the paper preset: a different vehicle in every lane.
+DISPERSIONS = {
+    "payload.mass": {"dist": "uniform", "low": 0.18, "high": 0.26},
+    "payload.natural_frequency": {"dist": "normal", "mean": 2.0, "std": 0.2},
+    "vehicle.inertia[2]": {"dist": "triangular", "low": 0.04, "mode": 0.05, "high": 0.07},
+    "gust.w20": {"dist": "lognormal", "mu": 2.3, "sigma": 0.3},
+}
+
+
 def timed(scenario: quadrs.Scenario, runs: int, workers: int, seed: int) -> float:
     t0 = time.perf_counter()
     res = quadrs.monte_carlo(scenario, runs=runs, workers=workers, progress=False, seed=seed)
@@ -62,6 +72,11 @@ def main() -> None:
     ap.add_argument("--preset", default="paper", help="scenario preset")
     ap.add_argument("--dt", type=float, default=None, help="override integrator.dt (s)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--dispersions",
+        action="store_true",
+        help="time a batch with four dispersed keys against the fixed one, alternately",
+    )
     args = ap.parse_args()
 
     scenario = quadrs.Scenario.preset(args.preset)
@@ -80,6 +95,9 @@ def main() -> None:
     print(f"load average before: {load()}")
 
     timed(scenario, 4, 1, args.seed)  # warm-up: thread pool, page faults
+    if args.dispersions:
+        compare_dispersed(scenario, args)
+        return
     rates = {}
     for workers in sorted({1, args.workers}):
         samples = [
@@ -100,6 +118,25 @@ def main() -> None:
     print(
         f"{args.runs} paired PD + SMC runs on {args.workers} worker(s): {wall:.1f} s wall "
         f"({args.runs * per_run / wall / 1e6:.2f} M realisation-steps/s)"
+    )
+    print(f"load average after: {load()}")
+
+
+def compare_dispersed(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
+    """Fixed and dispersed batches in turn (A B A B ...), the ratio pair by pair, so that the
+    comparison holds on a noisy machine."""
+    dispersed = scenario.override({"dispersions": DISPERSIONS})
+    per_run = 2 * scenario.steps
+    ratios, fixed_rates = [], []
+    for _ in range(args.repeat):
+        a = timed(scenario, args.sample_runs, args.workers, args.seed)
+        b = timed(dispersed, args.sample_runs, args.workers, args.seed)
+        ratios.append(a / b)
+        fixed_rates.append(args.sample_runs * per_run / a)
+    print(
+        f"{args.workers} worker(s), {args.sample_runs} paired runs: fixed "
+        f"{statistics.median(fixed_rates) / 1e6:.2f} M realisation-steps/s; dispersed/fixed "
+        f"throughput {statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
     )
     print(f"load average after: {load()}")
 

@@ -9,8 +9,8 @@
 
 use _core::config::Config;
 use _core::control::ControllerKind;
-use _core::integrate::Engine;
-use _core::montecarlo::{pool, run_batch};
+use _core::integrate::{Engine, FlightRequest};
+use _core::montecarlo::{pool, run_batch, Batch};
 use rustfft::FftPlanner;
 use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::time::Instant;
@@ -56,7 +56,7 @@ fn main() {
     let real_steps = match mode {
         "scalar" => {
             let r = engine
-                .fly::<f64>(kind, 1, &[0], false, None, None, &mut planner)
+                .fly::<f64>(&FlightRequest::new(kind, 1, &[0]), None, &mut planner)
                 .unwrap();
             println!(
                 "iae {:?}",
@@ -66,7 +66,7 @@ fn main() {
         }
         "simd" => {
             let r = engine
-                .fly_set(kind, 1, &[0, 1, 2, 3], false, None, &mut planner)
+                .fly_set(&FlightRequest::new(kind, 1, &[0, 1, 2, 3]), &mut planner)
                 .unwrap();
             println!(
                 "iae {:?}",
@@ -79,16 +79,12 @@ fn main() {
             let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
             let workers = args.get(5).map_or(workers, |s| s.parse().expect("workers"));
             let out = pool(workers).install(|| {
-                run_batch(
-                    &engine,
-                    &[ControllerKind::Pd, ControllerKind::Smc],
-                    1,
-                    0,
-                    runs,
-                    true,
-                    &p,
-                    &c,
-                )
+                let kinds = [ControllerKind::Pd, ControllerKind::Smc];
+                let b = Batch {
+                    want_spectra: true,
+                    ..Batch::new(&kinds, 1, 0, runs)
+                };
+                run_batch(&engine, &b, &p, &c)
             });
             println!("first iae {}", out.metrics[0]);
             2 * runs * engine.steps
@@ -96,11 +92,24 @@ fn main() {
         "metrics" | "metrics-lateral" => {
             for kind in [ControllerKind::Pd, ControllerKind::Smc] {
                 let simd = engine
-                    .fly_set(kind, 11, &[0, 1, 2, 3], true, None, &mut planner)
+                    .fly_set(
+                        &FlightRequest {
+                            want_spectra: true,
+                            ..FlightRequest::new(kind, 11, &[0, 1, 2, 3])
+                        },
+                        &mut planner,
+                    )
                     .unwrap();
                 for (lane, r) in simd.iter().enumerate() {
                     let s = engine
-                        .fly::<f64>(kind, 11, &[lane as u64], true, None, None, &mut planner)
+                        .fly::<f64>(
+                            &FlightRequest {
+                                want_spectra: true,
+                                ..FlightRequest::new(kind, 11, &[lane as u64])
+                            },
+                            None,
+                            &mut planner,
+                        )
                         .unwrap();
                     for (p, (a, b)) in r.metrics.iter().zip(&s[0].metrics).enumerate() {
                         println!("{} r{lane} P{} simd {:?}", kind.name(), p + 1, a);

@@ -8,6 +8,7 @@ from quadrs.flight import Flight, simulate
 from quadrs.gust import gust_scales, gust_series
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.scenario import Scenario
+from quadrs.sensitivity import SensitivityResult, sensitivity
 from quadrs.stability import StabilityReport, StabilityWarning, StepSizeWarning, stability
 from quadrs.sweep import sweep
 
@@ -17,6 +18,7 @@ __all__ = [
     "MonteCarloResult",
     "Scenario",
     "ScenarioError",
+    "SensitivityResult",
     "StabilityReport",
     "StabilityWarning",
     "StepSizeWarning",
@@ -24,6 +26,7 @@ __all__ = [
     "gust_scales",
     "gust_series",
     "monte_carlo",
+    "sensitivity",
     "simulate",
     "stability",
     "sweep",

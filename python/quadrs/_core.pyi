@@ -45,6 +45,9 @@ def run_batch(
     workers: int,
     spectra: bool = True,
     progress: Progress | None = None,
+    dispersion_keys: list[str] = ...,
+    dispersion_values: npt.NDArray[np.float64] | None = None,
+    streams: npt.NDArray[np.uint64] | None = None,
 ) -> dict[str, Any]: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
 def gust_series(

@@ -62,6 +62,17 @@ def _scenario_options() -> argparse.ArgumentParser:
         "integrator.duration=10 (s), 'trajectory.interpolation=\"min_jerk\"'; "
         "`quadrs scenario keys` lists every key with its value",
     )
+    g.add_argument(
+        "--disperse",
+        metavar="KEY=DIST(ARGS)",
+        action="append",
+        default=[],
+        dest="dispersions",
+        help="give a numeric key a distribution, repeatable: uniform(low,high), "
+        "normal(mean,std), truncnorm(mean,std,low,high), lognormal(mu,sigma) (of the "
+        "logarithm), triangular(low,mode,high); e.g. payload.mass=uniform(0.1,0.4); "
+        "see docs/dispersions.md",
+    )
     return common
 
 
@@ -96,6 +107,13 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
         help="run the chunks on a Dask cluster, e.g. tcp://10.0.0.5:8786 "
         "(needs pip install quadrs[dask])",
     )
+    p.add_argument(
+        "--sampling",
+        choices=("random", "lhs", "sobol"),
+        default="random",
+        help="how the values of dispersed keys are drawn: independent per realisation "
+        "(random), or a stratified design over the batch (lhs, sobol) (default: random)",
+    )
 
 
 def _controllers(text: str) -> tuple[str, ...]:
@@ -127,6 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_report(sub)
     _add_paper(sub, common)
     _add_stability(sub, common)
+    _add_sensitivity(sub, common)
     _add_scenario(sub, common)
     return parser
 
@@ -382,6 +401,48 @@ def _add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "sensitivity",
+        parents=[common],
+        help="which uncertain parameter matters most: Sobol' indices",
+        description="Fly a Saltelli design over the scenario's dispersed keys (--disperse or "
+        "a [dispersions] table) and the gust realisation, and print each key's first-order "
+        "(S1) and total (ST) Sobol' index of one metric with 95%% intervals, largest first.",
+    )
+    p.add_argument(
+        "--runs",
+        type=int,
+        default=256,
+        metavar="N",
+        help="base sample size, a power of two; flies N (k + 2) realisations per controller "
+        "for k factors (default: %(default)s)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--workers", type=int, default=None, metavar="W", help="worker threads (default: all)"
+    )
+    p.add_argument(
+        "--controllers",
+        type=_controllers,
+        default=("pd", "smc"),
+        metavar="LIST",
+        help="comma-separated controllers (default: pd,smc)",
+    )
+    p.add_argument(
+        "--metric", default="iae", metavar="NAME", help="metric to rank by (default: iae)"
+    )
+    p.add_argument("--phase", metavar="NAME", help="only this phase (default: every phase)")
+    p.add_argument(
+        "--no-gust-factor",
+        action="store_true",
+        help="fly one gust for every row instead of treating the realisation as a factor",
+    )
+    p.add_argument("--out", type=Path, metavar="FILE.parquet", help="write every index here")
+    p.add_argument("--plots", type=Path, metavar="DIR", help="write index bar charts here")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
     p = sub.add_parser(
         "scenario",
@@ -413,7 +474,51 @@ def load_scenario(args: argparse.Namespace) -> Any:
         if not sep or not key:
             raise BadInput(f"--set {item!r}: expected KEY=VALUE")
         changes[key] = parse_value(value.strip())
+    if args.dispersions:
+        table = dict(base.dispersions)
+        if isinstance(changes.get("dispersions"), dict):
+            table.update(changes.pop("dispersions"))
+        for item in args.dispersions:
+            key, sep, spec = item.partition("=")
+            if not sep or not key.strip():
+                raise BadInput(f"--disperse {item!r}: expected KEY=DIST(ARGS)")
+            table[key.strip()] = parse_distribution(spec)
+        changes["dispersions"] = table
     return base.override(changes) if changes else base
+
+
+#: Positional parameters of each distribution, in the order --disperse takes them.
+DISTRIBUTION_PARAMETERS = {
+    "uniform": ("low", "high"),
+    "normal": ("mean", "std"),
+    "truncnorm": ("mean", "std", "low", "high"),
+    "lognormal": ("mu", "sigma"),
+    "triangular": ("low", "mode", "high"),
+}
+
+
+def parse_distribution(text: str) -> dict[str, Any]:
+    """``"uniform(0.1, 0.4)"`` or ``"normal(mean=2, std=0.2)"`` -> a dispersion entry."""
+    from quadrs.scenario import parse_value
+
+    name, sep, rest = text.strip().partition("(")
+    name = name.strip()
+    if not sep or not rest.endswith(")") or name not in DISTRIBUTION_PARAMETERS:
+        raise BadInput(
+            f"--disperse: {text!r} is not DIST(ARGS) with DIST one of "
+            f"{', '.join(DISTRIBUTION_PARAMETERS)}"
+        )
+    order = DISTRIBUTION_PARAMETERS[name]
+    spec: dict[str, Any] = {"dist": name}
+    args = [a.strip() for a in rest[:-1].split(",") if a.strip()]
+    for i, arg in enumerate(args):
+        pname, eq, value = arg.partition("=")
+        if not eq:
+            if i >= len(order):
+                raise BadInput(f"--disperse: {name} takes {len(order)} values ({', '.join(order)})")
+            pname, value = order[i], arg
+        spec[pname.strip()] = parse_value(value.strip())
+    return spec
 
 
 def _print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4) -> None:
@@ -507,17 +612,30 @@ def cmd_mc(args: argparse.Namespace) -> int:
             resume=args.resume,
             chunk=args.chunk,
             client=client,
+            sampling=args.sampling,
         )
     if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
         args.out.parent.mkdir(parents=True, exist_ok=True)
         mc.to_parquet(args.out)
         _saved(args.out)
     if not mc.runs.empty:
+        _print_dispersions(mc)
         _print_frame(table3(mc.summary()))
         _print_limits(mc, args)
     if args.plots is not None and not mc.runs.empty:
         _mc_plots(mc, args.plots, args.limit)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK
+
+
+def _print_dispersions(mc: Any) -> None:
+    """A dispersed batch says what varied before its table."""
+    from quadrs.dispersion import describe
+
+    lines = describe(mc.scenario)
+    if lines:
+        print(f"Dispersed ({mc.sampling} sampling, values per realisation in the runs table):")
+        for line in lines:
+            print(f"  {line}")
 
 
 @contextlib.contextmanager
@@ -548,6 +666,8 @@ def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()
         marks = [t for m, t in limits if m == metric]
         fig = plots.exceedance_curves(mc.runs, metric, marks)
         files += plots.save(fig, directory / f"exceedance_{metric}")
+    if mc.dispersed_keys:
+        files += plots.save(plots.dispersion_scatter(mc, "iae"), directory / "dispersion_iae")
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
@@ -628,6 +748,61 @@ def cmd_report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_sensitivity(args: argparse.Namespace) -> int:
+    """Sobol' indices of the dispersed keys: a compact ranking, optional Parquet and bars."""
+    from quadrs.flight import METRIC_COLUMNS
+    from quadrs.sensitivity import sensitivity
+
+    scenario = load_scenario(args)
+    _check_suffix(args.out, (".parquet",), "--out")
+    _check_positive("--workers", args.workers)
+    if args.metric not in METRIC_COLUMNS:
+        raise BadInput(f"--metric {args.metric!r}: one of {', '.join(METRIC_COLUMNS)}")
+    if args.phase is not None and args.phase not in scenario.phase_names:
+        raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+    sa = sensitivity(
+        scenario,
+        runs=args.runs,
+        seed=args.seed,
+        controllers=args.controllers,
+        workers=args.workers,
+        progress=not args.no_progress,
+        gust=not args.no_gust_factor,
+    )
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        sa.to_parquet(args.out)
+        _saved(args.out)
+    print(
+        f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "
+        f"flights per controller; ± half-width of the 95% interval)"
+    )
+    _print_frame(sensitivity_table(sa, args.metric, args.phase), digits=2)
+    if args.plots is not None:
+        from quadrs import plots
+
+        files = plots.save(plots.sobol_bars(sa, args.metric), args.plots / f"sobol_{args.metric}")
+        print(f"wrote {len(files)} figure files to {args.plots}", file=sys.stderr)
+    return EXIT_OK
+
+
+def sensitivity_table(sa: Any, metric: str, phase: str | None) -> pd.DataFrame:
+    """Phase, controller, parameter, S1 ± and ST ±: largest total index first, fits 100
+    columns."""
+    t = sa.ranking(metric, phase)
+    pm = lambda v, c: "" if pd.isna(v) else f"{v:5.2f} ± {c:4.2f}"  # noqa: E731
+    out = pd.DataFrame(
+        {
+            "phase": t["phase"].to_numpy(),
+            "controller": t["controller"].to_numpy(),
+            "parameter": t["parameter"].to_numpy(),
+            "S1": [pm(v, c) for v, c in zip(t["S1"], t["S1_conf"], strict=True)],
+            "ST": [pm(v, c) for v, c in zip(t["ST"], t["ST_conf"], strict=True)],
+        }
+    )
+    return out.set_index(["phase", "controller", "parameter"])
+
+
 def cmd_paper(args: argparse.Namespace) -> int:
     """Every table and figure of the paper, and report.md."""
     from quadrs.paper import paper
@@ -701,6 +876,7 @@ COMMANDS = {
     "report": cmd_report,
     "paper": cmd_paper,
     "stability": cmd_stability,
+    "sensitivity": cmd_sensitivity,
     "scenario": cmd_scenario,
 }
 

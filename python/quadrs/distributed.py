@@ -18,23 +18,44 @@ from quadrs import _core
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
 
+    from quadrs.montecarlo import Design
+    from quadrs.scenario import Scenario
+
 
 def run_chunk(
-    config_json: str,
-    phases: Sequence[str],
+    scenario_toml: str,
     controllers: Sequence[str],
     seed: int,
     first: int,
     count: int,
     workers: int,
     spectra: bool,
+    design: Design,
 ) -> tuple[pd.DataFrame, dict[str, Any] | None]:
-    """One chunk on whichever machine runs it: the tidy rows and the spectrum sums (JSON)."""
+    """One chunk on whichever machine runs it: the tidy rows and the spectrum sums (JSON).
+    Its dispersed values are drawn here, from the same (seed, design) as a local run."""
+    from quadrs.montecarlo import dispersion_arrays
     from quadrs.results import runs_frame, sums_from_raw
+    from quadrs.scenario import Scenario
 
-    raw = _core.run_batch(config_json, list(controllers), seed, first, count, workers, spectra)
+    scenario = Scenario.from_toml_string(scenario_toml)
+    config_json = scenario.to_json()
+    values = design.values(scenario, seed, first, count)
+    keys, table = dispersion_arrays(values)
+    raw = _core.run_batch(
+        config_json,
+        list(controllers),
+        seed,
+        first,
+        count,
+        workers,
+        spectra,
+        dispersion_keys=keys,
+        dispersion_values=table,
+    )
     sums = sums_from_raw(raw, config_json)
-    return runs_frame(raw, controllers, phases, first), sums.to_json() if sums else None
+    rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
+    return rows, sums.to_json() if sums else None
 
 
 def worker_threads(client: Client) -> int:
@@ -51,30 +72,35 @@ def total_threads(client: Client) -> int:
 
 def run_on_dask(
     client: Client,
-    config_json: str,
-    phases: Sequence[str],
+    scenario: Scenario,
     controllers: Sequence[str],
     seed: int,
     ranges: Sequence[tuple[int, int]],
     spectra: bool,
+    design: Design,
 ) -> Iterator[tuple[int, pd.DataFrame, dict[str, Any] | None]]:
     """Submit one task per (first, count) range; yield (count, rows, sums) as tasks finish.
     Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
     from dask.distributed import as_completed
 
+    from dask.base import tokenize
+
     threads = worker_threads(client)
+    toml = scenario.to_toml()
     futures = [
         client.submit(
             run_chunk,
-            config_json,
-            list(phases),
+            toml,
             list(controllers),
             seed,
             first,
             count,
             threads,
             spectra,
-            key=f"quadrs-chunk-{seed}-{first}-{count}-{abs(hash(config_json)):x}",
+            design,
+            # Every input of the chunk is in its key: equal keys mean equal rows.
+            key="quadrs-chunk-"
+            + tokenize(toml, list(controllers), seed, first, count, spectra, design),
             pure=True,
             retries=2,
         )

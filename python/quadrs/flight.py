@@ -64,16 +64,18 @@ def simulate(
 
     The gust is realisation ``realisation`` of master ``seed``: the same pair gives the same
     gust in :func:`quadrs.monte_carlo`. ``record_every`` thins the trace to every n-th step
-    (default: about one row per millisecond).
+    (default: about one row per millisecond). A dispersed scenario flies the values that
+    realisation drew under ``sampling="random"`` (``flight.scenario`` is that fixed scenario).
     """
     from quadrs.stability import warn_before_running
 
     check_controller(controller)
+    if seed < 0 or realisation < 0:
+        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
+    scenario = scenario.realisation(seed, realisation)
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
-    if seed < 0 or realisation < 0:
-        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
     out = _core.simulate(scenario.to_json(), controller, seed, realisation, record_every)
     raw = out["trace"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)

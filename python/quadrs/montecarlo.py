@@ -8,9 +8,11 @@ import os
 import threading
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pandas as pd
 
 from quadrs import _core
@@ -37,6 +39,31 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+@dataclass(frozen=True)
+class Design:
+    """How a batch's dispersed values are drawn: the sampling scheme and, for the designs
+    (lhs, sobol), the batch they stratify (``runs`` realisations from ``first``)."""
+
+    sampling: str = "random"
+    first: int = 0
+    runs: int = 1
+
+    def record(self) -> dict[str, Any]:
+        """What fixes the values, for a checkpoint's manifest: a random-sampled run may be
+        extended, a design is tied to its batch."""
+        if self.sampling == "random":
+            return {"sampling": "random"}
+        return {"sampling": self.sampling, "first": self.first, "runs": self.runs}
+
+    def values(self, scenario: Scenario, seed: int, first: int, count: int) -> pd.DataFrame:
+        """The dispersed values of realisations first..first+count (no columns if fixed)."""
+        from quadrs.dispersion import draw
+
+        return draw(
+            scenario, seed, first, count, runs=self.runs, sampling=self.sampling, offset=self.first
+        )
+
+
 def run_range(
     scenario: Scenario,
     controllers: Sequence[str],
@@ -46,13 +73,18 @@ def run_range(
     workers: int,
     spectra: bool = True,
     on_progress: Callable[[int], None] | None = None,
+    values: pd.DataFrame | None = None,
+    streams: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], bool]:
     """Run realisations first..first+count in the engine (GIL released, on a worker thread)
-    while this thread polls progress and turns Ctrl-C into a cancel. Returns the engine's
-    arrays and whether it was interrupted."""
+    while this thread polls progress and turns Ctrl-C into a cancel. ``values``: the
+    dispersed keys' values, one row per realisation; ``streams``: the gust stream each one
+    flies (default its own index). Returns the engine's arrays and whether it was
+    interrupted."""
     progress = _core.Progress()
     box: dict[str, Any] = {}
     finished = threading.Event()
+    keys, table = dispersion_arrays(values)
 
     def work() -> None:
         try:
@@ -65,6 +97,9 @@ def run_range(
                 workers,
                 spectra,
                 progress,
+                dispersion_keys=keys,
+                dispersion_values=table,
+                streams=streams,
             )
         except BaseException as e:  # re-raised on the calling thread
             box["error"] = e
@@ -91,6 +126,13 @@ def run_range(
     if on_progress is not None:
         on_progress(progress.done())
     return box["out"], interrupted
+
+
+def dispersion_arrays(values: pd.DataFrame | None) -> tuple[list[str], Any]:
+    """The engine's form of a values table: its keys and a C-contiguous (rows, keys) array."""
+    if values is None or values.shape[1] == 0:
+        return [], None
+    return list(values.columns), np.ascontiguousarray(values.to_numpy(dtype=np.float64))
 
 
 def default_chunk(runs: int, threads: int, checkpointing: bool, distributed: bool) -> int:
@@ -125,6 +167,7 @@ def monte_carlo(
     resume: bool = False,
     chunk: int | None = None,
     client: Client | None = None,
+    sampling: str = "random",
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
@@ -140,6 +183,12 @@ def monte_carlo(
     flown, and the result is everything it then holds. ``chunk``: realisations per chunk.
     ``client``: a ``dask.distributed.Client``; chunks then run as tasks on its workers
     (``workers`` is ignored: each task uses its worker's threads).
+
+    A scenario with ``[dispersions]`` flies each realisation with its own values of the
+    dispersed keys (a column each in ``runs``), drawn by ``sampling``: ``"random"`` (values of
+    realisation i depend only on (seed, i)), ``"lhs"`` or ``"sobol"`` (one stratified design
+    over the batch's ``runs`` realisations from (seed, runs)). Every controller of a
+    realisation flies the same values and the same gust; see docs/dispersions.md.
     """
     from tqdm.auto import tqdm
 
@@ -160,6 +209,11 @@ def monte_carlo(
         raise ValueError(f"chunk must be >= 1, got {chunk}")
     if resume and out is None:
         raise ValueError("resume=True needs out= (the directory of the run to continue)")
+    from quadrs.dispersion import SAMPLINGS
+
+    if sampling not in SAMPLINGS:
+        raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
+    design = Design(sampling, first, runs)
 
     # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6)
     # or on a step too coarse for the fastest mode.
@@ -169,10 +223,10 @@ def monte_carlo(
     store = RunStore(out) if out is not None else None
     if store is not None:
         if store.exists() and resume:
-            store.check_matches(scenario, seed, controllers)
+            store.check_matches(scenario, seed, controllers, design.record())
             todo = missing_ranges(first, runs, store.done_realisations())
         else:
-            store.create(scenario, seed, controllers)
+            store.create(scenario, seed, controllers, design.record())
     if client is not None:
         from quadrs.distributed import total_threads
 
@@ -210,6 +264,7 @@ def monte_carlo(
         if client is None:
             for f, c in ranges:
                 base = bar.n
+                values = design.values(scenario, seed, f, c)
                 raw, interrupted = run_range(
                     scenario,
                     controllers,
@@ -219,9 +274,13 @@ def monte_carlo(
                     workers,
                     spectra,
                     on_progress=lambda done, base=base: bar.update(base + done - bar.n),
+                    values=values,
                 )
                 pending.append(
-                    (runs_frame(raw, controllers, phases, f), sums_from_raw(raw, config_json))
+                    (
+                        runs_frame(raw, controllers, phases, f, values),
+                        sums_from_raw(raw, config_json),
+                    )
                 )
                 flush()
                 if interrupted:
@@ -229,7 +288,7 @@ def monte_carlo(
         else:
             from quadrs.distributed import run_on_dask
 
-            tasks = run_on_dask(client, config_json, phases, controllers, seed, ranges, spectra)
+            tasks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design)
             try:
                 for count, rows, sums in tasks:
                     pending.append((rows, SpectrumSums.from_json(sums) if sums else None))
@@ -264,4 +323,5 @@ def monte_carlo(
         runs=table,
         spectrum_sums=functools.reduce(operator.add, sums) if sums else None,
         interrupted=interrupted,
+        sampling=sampling,
     )

@@ -484,4 +484,76 @@ def exceedance_curves(
             title=f"Exceedance, {phase} (bands: pointwise {confidence:.0%} exact intervals)",
         )
         ax.legend(loc="best", fontsize="small")
+
+
+# -- uncertain parameters -------------------------------------------------------------------
+def dispersion_scatter(
+    mc: Any,
+    metric: str = "iae",
+    phases: Sequence[str] | None = None,
+    path: str | Path | None = None,
+) -> Figure:
+    """A metric against each dispersed key, one point per realisation and controller (rows:
+    keys; columns: phases). Diverged realisations are drawn as crosses at the top."""
+    keys = list(mc.dispersed_keys)
+    if not keys:
+        raise ValueError("dispersion_scatter needs a batch with dispersed keys")
+    phases = list(phases or mc.scenario.phase_names)
+    runs = mc.runs
+    fig = new_figure(len(keys), len(phases), width=3.2 * len(phases), height=2.6)
+    grid = np.asarray(fig.axes).reshape(len(keys), len(phases))
+    label = PLAIN_LABELS.get(metric, _unit(metric))
+    for r, key in enumerate(keys):
+        for c, phase in enumerate(phases):
+            ax = grid[r, c]
+            for i, ctrl in enumerate(mc.controllers):
+                sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
+                ok = ~sel["diverged"].astype(bool)
+                style = _style(ctrl, i)
+                ax.scatter(sel.loc[ok, key], sel.loc[ok, metric], s=6, alpha=0.5,
+                           color=style["color"], label=style["label"])
+                if (~ok).any():
+                    top = np.nanmax(sel[metric]) if ok.any() else 1.0
+                    ax.scatter(sel.loc[~ok, key], np.full((~ok).sum(), top), marker="x",
+                               color=style["color"], label=f"{style['label']} diverged")
+            ax.set(xlabel=_unit(key), title=f"{phase}")
+            if c == 0:
+                ax.set_ylabel(label)
+            if r == 0 and c == len(phases) - 1:
+                ax.legend(loc="best", fontsize="small")
+    return _finish(fig, path)
+
+
+def sobol_bars(
+    sa: Any,
+    metric: str = "iae",
+    phases: Sequence[str] | None = None,
+    path: str | Path | None = None,
+) -> Figure:
+    """First-order (S1, solid) and total (ST, hatched) Sobol' indices of one metric with
+    their 95 % intervals, per phase (columns) and controller (bar colours)."""
+    idx = sa.indices[sa.indices["metric"] == metric]
+    phases = list(phases or pd.unique(idx["phase"]))
+    params = list(sa.parameters)
+    ctrls = [str(c) for c in pd.unique(idx["controller"])]
+    fig = new_figure(1, len(phases), width=3.4 * len(phases), height=0.5 * len(params) + 1.6)
+    width = 0.8 / (2 * len(ctrls))
+    y = np.arange(len(params))
+    for ax, phase in zip(fig.axes, phases, strict=True):
+        for i, ctrl in enumerate(ctrls):
+            sel = idx[(idx["phase"] == phase) & (idx["controller"] == ctrl)].set_index("parameter")
+            sel = sel.reindex(params)
+            style = _style(ctrl, i)
+            for j, (col, hatch) in enumerate((("S1", None), ("ST", "//"))):
+                pos = y - 0.4 + width * (2 * i + j + 0.5)
+                ax.barh(pos, sel[col], height=width, xerr=sel[f"{col}_conf"], color=style["color"],
+                        alpha=0.45 if hatch else 0.85, hatch=hatch,
+                        label=f"{style['label']} {'total' if hatch else 'first-order'}")
+        ax.set_yticks(y, params if ax is fig.axes[0] else [""] * len(params))
+        ax.set_xlim(-0.05, 1.05)
+        ax.axvline(0, color="grey", lw=0.5)
+        ax.set(xlabel="Sobol' index (share of variance)", title=phase)
+    fig.axes[-1].legend(loc="lower right", fontsize="small")
+    name = PLAIN_LABELS.get(metric, metric).split(" (")[0].split(",")[0]
+    fig.suptitle(f"What drives the {name[0].lower() + name[1:]}")
     return _finish(fig, path)

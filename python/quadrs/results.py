@@ -93,6 +93,43 @@ class MonteCarloResult:
     runs: pd.DataFrame
     spectrum_sums: SpectrumSums | None = field(default=None, repr=False)
     interrupted: bool = False
+    #: How the dispersed values were drawn ("random", "lhs", "sobol").
+    sampling: str = "random"
+
+    @property
+    def dispersed_keys(self) -> list[str]:
+        """The keys that carried a distribution (a column each in ``runs``)."""
+        from quadrs.dispersion import dispersed_keys
+
+        return dispersed_keys(self.scenario)
+
+    def dispersions(self) -> pd.DataFrame:
+        """Per dispersed key: its distribution, how it was sampled, and the range and mean of
+        the values the realisations flew."""
+        from quadrs.dispersion import describe
+
+        one = self.runs.drop_duplicates("realisation")
+        rows = []
+        for key, line in zip(self.dispersed_keys, describe(self.scenario), strict=True):
+            v = one[key]
+            rows.append(
+                {
+                    "key": key,
+                    "distribution": line.split(" ~ ", 1)[1],
+                    "sampling": self.sampling,
+                    "min": v.min(),
+                    "mean": v.mean(),
+                    "max": v.max(),
+                }
+            )
+        return pd.DataFrame(rows, columns=["key", "distribution", "sampling", "min", "mean", "max"])
+
+    def scenario_of(self, realisation: int) -> Scenario:
+        """The fixed scenario realisation ``realisation`` flew (its dispersed values set)."""
+        rows = self.runs[self.runs["realisation"] == realisation]
+        if rows.empty:
+            raise KeyError(f"realisation {realisation} is not in this result")
+        return self.scenario.fixed({k: float(rows[k].iloc[0]) for k in self.dispersed_keys})
 
     @property
     def realisations(self) -> np.ndarray:
@@ -108,8 +145,15 @@ class MonteCarloResult:
 
     def summary(self, confidence: float = 0.95) -> pd.DataFrame:
         """The paper's Table 3 and more: for each (metric, phase), per controller the mean and
-        its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI."""
-        return summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
+        its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI. A
+        dispersed batch lists its dispersions in ``.attrs["dispersions"]``."""
+        table = summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
+        if self.dispersed_keys:
+            from quadrs.dispersion import describe
+
+            table.attrs["dispersions"] = describe(self.scenario)
+            table.attrs["sampling"] = self.sampling
+        return table
 
     def exceedance(
         self,
@@ -170,6 +214,7 @@ class MonteCarloResult:
             "controllers": list(self.controllers),
             "scenario": self.scenario.to_toml(),
             "interrupted": self.interrupted,
+            "sampling": self.sampling,
             "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
         }
 
@@ -197,13 +242,19 @@ class MonteCarloResult:
             runs=runs,
             spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
             interrupted=bool(meta.get("interrupted", False)),
+            sampling=str(meta.get("sampling", "random")),
         )
 
 
 def runs_frame(
-    raw: dict[str, Any], controllers: Sequence[str], phases: Sequence[str], first: int
+    raw: dict[str, Any],
+    controllers: Sequence[str],
+    phases: Sequence[str],
+    first: int,
+    values: pd.DataFrame | None = None,
 ) -> pd.DataFrame:
-    """The engine's arrays -> the tidy table (finished realisations only)."""
+    """The engine's arrays -> the tidy table (finished realisations only), with a column per
+    dispersed key holding the value each realisation flew (``values``, one row each)."""
     metrics = raw["metrics"]  # (count, n_ctrl, n_phase, n_metric)
     done = np.asarray(raw["done"], dtype=bool)
     count, n_ctrl, n_phase, _ = metrics.shape
@@ -225,6 +276,10 @@ def runs_frame(
     frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
     frame["diverged_at"] = diverged_at.reshape(-1)
     frame["realisation"] = frame["realisation"].astype(np.int64)
+    if values is not None:
+        for key in values.columns:
+            column = values[key].to_numpy(dtype=np.float64)
+            frame[key] = np.broadcast_to(column[:, None, None], shape).reshape(-1)
     return frame[keep].reset_index(drop=True)
 
 

@@ -200,6 +200,36 @@ class Scenario:
                 raise ScenarioError(f"{key}: unknown scenario key")
         return Scenario(data)
 
+    # -- uncertain parameters -----------------------------------------------------------
+    @property
+    def dispersions(self) -> dict[str, dict[str, Any]]:
+        """The ``[dispersions]`` table: dotted key -> distribution (empty when fixed)."""
+        return copy.deepcopy(self._data.get("dispersions", {}))
+
+    @property
+    def dispersed(self) -> bool:
+        """True if some key carries a distribution."""
+        return bool(self._data.get("dispersions"))
+
+    def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
+        """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
+        realisation drew) set: the scenario one realisation of a dispersed batch flies."""
+        data = copy.deepcopy(self._data)
+        data.pop("dispersions", None)
+        fixed = Scenario(data)
+        return fixed.override(dict(values)) if values else fixed
+
+    def realisation(self, seed: int, realisation: int) -> Scenario:
+        """The fixed scenario realisation ``realisation`` of master ``seed`` flies under
+        ``sampling="random"`` (its draws depend only on (seed, realisation)); itself when
+        nothing is dispersed. For a design (lhs, sobol) use ``MonteCarloResult.scenario_of``."""
+        if not self.dispersed:
+            return self
+        from quadrs.dispersion import draw
+
+        row = draw(self, seed, realisation, 1).iloc[0]
+        return self.fixed({k: float(v) for k, v in row.items()})
+
     # -- reading ------------------------------------------------------------------------
     def __getitem__(self, key: str) -> Any:
         """A value by dotted key: ``s["gust.w20"]``, ``s["phases[0].name"]``."""
@@ -275,4 +305,6 @@ class Scenario:
         )
         gust = f"{g['model']} w20={g['w20']} m/s" if g["enabled"] else "off"
         dt = self["integrator.dt"]
-        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={dt}>"
+        n = len(self._data.get("dispersions", {}))
+        spread = f", {n} dispersed key{'s' if n > 1 else ''}" if n else ""
+        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={dt}{spread}>"

@@ -44,8 +44,15 @@ class RunStore:
     def exists(self) -> bool:
         return self.manifest_path.exists()
 
-    def create(self, scenario: Scenario, seed: int, controllers: tuple[str, ...]) -> None:
-        """Start a new run; refuses to overwrite an existing one."""
+    def create(
+        self,
+        scenario: Scenario,
+        seed: int,
+        controllers: tuple[str, ...],
+        design: dict[str, Any] | None = None,
+    ) -> None:
+        """Start a new run; refuses to overwrite an existing one. ``design``: how dispersed
+        values are drawn (``sampling``, and for lhs/sobol the batch ``first``, ``runs``)."""
         if self.exists() or self.parts():
             raise FileExistsError(
                 f"{self.path} already holds a run: resume it, or choose another output"
@@ -58,6 +65,7 @@ class RunStore:
             "seed": seed,
             "controllers": list(controllers),
             "scenario": scenario.to_toml(),
+            "design": design or {"sampling": "random"},
         }
         atomic_write_bytes(self.manifest_path, json.dumps(manifest, indent=1).encode())
 
@@ -67,14 +75,24 @@ class RunStore:
         except FileNotFoundError:
             raise FileNotFoundError(f"{self.path} is not a quadrs run (no {MANIFEST})") from None
 
-    def check_matches(self, scenario: Scenario, seed: int, controllers: tuple[str, ...]) -> None:
-        """Resuming must continue the same experiment, or its rows would not belong together."""
+    def check_matches(
+        self,
+        scenario: Scenario,
+        seed: int,
+        controllers: tuple[str, ...],
+        design: dict[str, Any] | None = None,
+    ) -> None:
+        """Resuming must continue the same experiment, or its rows would not belong together
+        (a random-sampled run may be extended; a design (lhs, sobol) is fixed by its batch)."""
         m = self.manifest()
         theirs = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
+        ours_design = design or {"sampling": "random"}
+        saved_design = m.get("design", {"sampling": "random"})
         for what, ours, saved in (
             ("scenario", scenario, theirs),
             ("seed", seed, m["seed"]),
             ("controllers", list(controllers), m["controllers"]),
+            ("sampling design", ours_design, saved_design),
         ):
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
@@ -123,7 +141,10 @@ class RunStore:
         scenario = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
         if runs is None:
             runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
-        return MonteCarloResult(scenario, int(m["seed"]), controllers, runs, sums, interrupted)
+        sampling = str(m.get("design", {}).get("sampling", "random"))
+        return MonteCarloResult(
+            scenario, int(m["seed"]), controllers, runs, sums, interrupted, sampling
+        )
 
 
 def missing_ranges(first: int, runs: int, done: set[int]) -> list[tuple[int, int]]:

@@ -2,6 +2,7 @@
 //! JSON the Python layer sends, then validated here so that every entry point of the engine
 //! guards itself. Field names mirror the TOML keys, so an error names the user's key.
 
+use crate::dispersion::Dispersions;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -43,6 +44,9 @@ pub struct Config {
     pub integrator: Integrator,
     pub metrics: Metrics,
     pub divergence: Divergence,
+    /// Uncertain parameters: dotted key -> distribution (`crate::dispersion`).
+    #[serde(default, skip_serializing_if = "Dispersions::is_empty")]
+    pub dispersions: Dispersions,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -358,7 +362,7 @@ impl Config {
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
         positive("divergence.max_distance", self.divergence.max_distance)?;
         positive("divergence.max_tilt", self.divergence.max_tilt)?;
-        Ok(())
+        crate::dispersion::validate(self)
     }
 
     fn validate_controller(&self) -> Result<(), ConfigError> {

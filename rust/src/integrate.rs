@@ -6,7 +6,7 @@ use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::F64x4Avx;
-use crate::lane::{F64x4, KernelOps, Lane};
+use crate::lane::{F64x4, KernelOps, Lane, Param};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
 use crate::simd::Isa;
@@ -16,8 +16,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// One RK4 step of the plant with inputs and wind held.
 #[inline(always)]
-pub fn rk4_step<L: KernelOps>(
-    plant: &Plant,
+pub fn rk4_step<L: KernelOps, P: Param<L>>(
+    plant: &Plant<P>,
     s: &State<L>,
     u: &Inputs<L>,
     w: &[L; 3],
@@ -29,8 +29,8 @@ pub fn rk4_step<L: KernelOps>(
 /// `rk4_step` with the sines and cosines of `s`'s angles already at hand (the controller needed
 /// them too). The later stages get theirs from these by angle addition (`Trig::advanced`).
 #[inline(always)]
-pub fn rk4_step_with<L: KernelOps>(
-    plant: &Plant,
+pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
+    plant: &Plant<P>,
     s: &State<L>,
     trig: &Trig<L>,
     u: &Inputs<L>,
@@ -139,19 +139,79 @@ pub struct LaneResult {
     pub spectra: Vec<Vec<f64>>,
 }
 
+/// What may differ between realisations: one vehicle's physical parameters, controllers,
+/// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
+/// scenario has one (`Engine::craft`); a dispersed batch builds one per realisation and the
+/// flight loop carries them one per lane.
+pub struct Craft {
+    pub plant: Plant,
+    pd: Pd,
+    smc: Smc,
+    wind: WindField,
+    x0: State<f64>,
+    /// m and rad: `divergence.max_distance`, `divergence.max_tilt`.
+    max_distance: f64,
+    max_tilt: f64,
+}
+
+impl Craft {
+    /// The craft of a validated config (`Config::validate` has run).
+    pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+        let plant = Plant::new(cfg);
+        let wind =
+            WindField::new(&gust_spec(cfg), cfg.integrator.dt).map_err(|message| ConfigError {
+                key: "gust".into(),
+                message,
+            })?;
+        let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
+        Ok(Self {
+            plant,
+            pd: Pd::new(cfg),
+            smc: Smc::new(cfg),
+            wind,
+            x0,
+            max_distance: cfg.divergence.max_distance,
+            max_tilt: cfg.divergence.max_tilt,
+        })
+    }
+}
+
+/// One request to the flight loop: which law, which realisations (one per lane) and, for a
+/// dispersed batch, each realisation's craft (`None`: the engine's own, in every lane).
+#[derive(Clone, Copy)]
+pub struct FlightRequest<'a> {
+    pub kind: ControllerKind,
+    pub seed: u64,
+    pub indices: &'a [u64],
+    pub crafts: Option<&'a [&'a Craft]>,
+    pub want_spectra: bool,
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+impl<'a> FlightRequest<'a> {
+    /// The engine's own craft in every lane, no spectra, no cancel flag.
+    pub fn new(kind: ControllerKind, seed: u64, indices: &'a [u64]) -> Self {
+        Self {
+            kind,
+            seed,
+            indices,
+            crafts: None,
+            want_spectra: false,
+            cancel: None,
+        }
+    }
+}
+
 /// A validated scenario turned into everything the loop needs, built once and shared read-only.
 pub struct Engine {
     pub cfg: Config,
-    pub plant: Plant,
+    /// The scenario's own vehicle (every realisation's, unless dispersed).
+    pub craft: Craft,
     trajectory: Trajectory,
     phases: Vec<PhaseSteps>,
-    wind: WindField,
     pub steps: usize,
     pub dt: f64,
     decimation: usize,
-    x0: State<f64>,
-    pd: Pd,
-    smc: Smc,
     /// The instruction set the flight loop runs on (`Isa::active()` unless set otherwise).
     pub isa: Isa,
 }
@@ -168,29 +228,24 @@ const CANCEL_CHECK_STEPS: usize = 4096;
 impl Engine {
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate()?;
-        let plant = Plant::new(&cfg);
         let dt = cfg.integrator.dt;
-        let wind = WindField::new(&gust_spec(&cfg), dt).map_err(|message| ConfigError {
-            key: "gust".into(),
-            message,
-        })?;
         let steps = cfg.steps();
         let decimation = ((1.0 / (cfg.metrics.spectrum_rate * dt)).round() as usize).max(1);
-        let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
         Ok(Self {
-            plant,
+            craft: Craft::new(&cfg)?,
             trajectory: Trajectory::new(&cfg),
             phases: phase_steps(&cfg),
-            wind,
             steps,
             dt,
             decimation,
-            x0,
-            pd: Pd::new(&cfg),
-            smc: Smc::new(&cfg),
             cfg,
             isa: Isa::active(),
         })
+    }
+
+    /// The scenario's own plant.
+    pub fn plant(&self) -> &Plant {
+        &self.craft.plant
     }
 
     pub fn phase_count(&self) -> usize {
@@ -202,116 +257,50 @@ impl Engine {
         crate::metrics::spectrum_grid(&self.phases, self.dt, self.decimation, self.steps)
     }
 
-    /// Fly realisations `indices` (one per lane) under `kind`. Returns None if cancelled.
-    #[allow(clippy::too_many_arguments)]
+    /// Fly `req.indices` (one per lane of `L`) on lane type `L`, with a trace of lane 0 if
+    /// asked. Returns None if cancelled.
     pub fn fly<L: KernelOps>(
         &self,
-        kind: ControllerKind,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
+        req: &FlightRequest,
         trace: Option<&mut Trace>,
-        cancel: Option<&AtomicBool>,
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>> {
-        match kind {
-            ControllerKind::Pd => self.fly_with::<L, _>(
-                &self.pd,
-                seed,
-                indices,
-                want_spectra,
-                trace,
-                cancel,
-                planner,
-            ),
-            ControllerKind::Smc => self.fly_with::<L, _>(
-                &self.smc,
-                seed,
-                indices,
-                want_spectra,
-                trace,
-                cancel,
-                planner,
-            ),
-        }
-    }
-
-    /// Fly `SET_LANES` realisations at once (`indices`) on the fastest SIMD path this engine
-    /// may use (`self.isa`): the batch path. Every path gives bit-identical numbers.
-    #[allow(clippy::too_many_arguments)]
-    pub fn fly_set(
-        &self,
-        kind: ControllerKind,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
-        cancel: Option<&AtomicBool>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        match kind {
-            ControllerKind::Pd => {
-                self.fly_set_with(&self.pd, seed, indices, want_spectra, cancel, planner)
-            }
-            ControllerKind::Smc => {
-                self.fly_set_with(&self.smc, seed, indices, want_spectra, cancel, planner)
-            }
-        }
-    }
-
-    fn fly_set_with<C: Control>(
-        &self,
-        ctrl: &C,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
-        cancel: Option<&AtomicBool>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        assert_eq!(indices.len(), SET_LANES, "one realisation index per lane");
-        #[cfg(target_arch = "x86_64")]
-        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
-            // SAFETY: the CPU supports AVX2 (checked just above); F64x4Avx values exist only
-            // inside this call.
-            return unsafe {
-                self.fly_avx2::<F64x4Avx, C>(
-                    ctrl,
-                    seed,
-                    indices,
-                    want_spectra,
-                    None,
-                    cancel,
-                    planner,
-                )
-            };
-        }
-        self.fly_with::<F64x4, C>(ctrl, seed, indices, want_spectra, None, cancel, planner)
-    }
-
-    /// Run the flight loop on the instruction set chosen for this engine.
-    #[allow(clippy::too_many_arguments)]
-    fn fly_with<L: KernelOps, C: Control>(
-        &self,
-        ctrl: &C,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
-        trace: Option<&mut Trace>,
-        cancel: Option<&AtomicBool>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        assert_eq!(indices.len(), L::LANES, "one realisation index per lane");
+        assert_eq!(
+            req.indices.len(),
+            L::LANES,
+            "one realisation index per lane"
+        );
         assert!(L::LANES <= MAX_LANES);
         #[cfg(target_arch = "x86_64")]
         if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe {
-                self.fly_avx2::<L, C>(ctrl, seed, indices, want_spectra, trace, cancel, planner)
-            };
+            return unsafe { self.fly_avx2::<L>(req, trace, planner) };
         }
-        self.fly_loop::<L, C>(ctrl, seed, indices, want_spectra, trace, cancel, planner)
+        self.fly_any::<L>(req, trace, planner)
     }
 
-    /// The flight loop compiled with AVX2 enabled: `fly_loop` and everything it inlines (the
+    /// Fly `SET_LANES` realisations at once on the fastest SIMD path this engine may use
+    /// (`self.isa`): the batch path. Every path gives bit-identical numbers.
+    pub fn fly_set(
+        &self,
+        req: &FlightRequest,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert_eq!(
+            req.indices.len(),
+            SET_LANES,
+            "one realisation index per lane"
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
+            // SAFETY: the CPU supports AVX2 (checked just above); F64x4Avx values exist only
+            // inside this call.
+            return unsafe { self.fly_avx2::<F64x4Avx>(req, None, planner) };
+        }
+        self.fly_any::<F64x4>(req, None, planner)
+    }
+
+    /// The flight loop compiled with AVX2 enabled: `fly_any` and everything it inlines (the
     /// whole model, controller and integrator) become VEX code, 256-bit with `F64x4Avx`.
     /// No FMA: see `simd.rs`.
     ///
@@ -319,50 +308,82 @@ impl Engine {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn fly_avx2<L: KernelOps, C: Control>(
+    unsafe fn fly_avx2<L: KernelOps>(
         &self,
-        ctrl: &C,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
+        req: &FlightRequest,
         trace: Option<&mut Trace>,
-        cancel: Option<&AtomicBool>,
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>> {
-        self.fly_loop::<L, C>(ctrl, seed, indices, want_spectra, trace, cancel, planner)
+        self.fly_any::<L>(req, trace, planner)
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
     #[inline(always)]
-    fn fly_loop<L: KernelOps, C: Control>(
+    fn fly_any<L: KernelOps>(
         &self,
-        ctrl: &C,
-        seed: u64,
-        indices: &[u64],
-        want_spectra: bool,
-        mut trace: Option<&mut Trace>,
-        cancel: Option<&AtomicBool>,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>> {
-        let plant = &self.plant;
-        let x0: State<L> = self.x0.map(L::splat);
+        let own = [&self.craft; MAX_LANES];
+        let crafts: &[&Craft] = match req.crafts {
+            Some(c) => {
+                assert_eq!(c.len(), L::LANES, "one craft per lane");
+                c
+            }
+            None => &own[..L::LANES],
+        };
+        let plants: Vec<&Plant> = crafts.iter().map(|c| &c.plant).collect();
+        let plant = Plant::gather::<L>(&plants);
+        match req.kind {
+            ControllerKind::Pd => {
+                let each: Vec<&Pd> = crafts.iter().map(|c| &c.pd).collect();
+                let ctrl = Pd::gather::<L>(&each);
+                self.fly_loop::<L, _>(&plant, &ctrl, crafts, req, trace, planner)
+            }
+            ControllerKind::Smc => {
+                let each: Vec<&Smc> = crafts.iter().map(|c| &c.smc).collect();
+                let ctrl = Smc::gather::<L>(&each);
+                self.fly_loop::<L, _>(&plant, &ctrl, crafts, req, trace, planner)
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn fly_loop<L: KernelOps, C: Control<L>>(
+        &self,
+        plant: &Plant<L>,
+        ctrl: &C,
+        crafts: &[&Craft],
+        req: &FlightRequest,
+        mut trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        let lane_value = |f: fn(&Craft) -> f64| L::from_fn(|l| f(crafts[l]));
+        let x0: State<L> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
         let mut s = x0;
-        let mut winds: Vec<WindState> = indices
+        let mut winds: Vec<WindState> = req
+            .indices
             .iter()
-            .map(|&i| self.wind.realisation(seed, i))
+            .zip(crafts)
+            .map(|(&i, c)| c.wind.realisation(req.seed, i))
             .collect();
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; MAX_LANES];
         let mut alive = L::LANES;
-        let div = &self.cfg.divergence;
-        let (max_dist, max_tilt) = (L::splat(div.max_distance), L::splat(div.max_tilt));
+        let max_dist = lane_value(|c| c.max_distance);
+        let max_tilt = lane_value(|c| c.max_tilt);
         let mut segment = 0;
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
-        let d0 = plant.hover_offset();
+        let d0 = lane_value(|c| c.plant.hover_offset());
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
+        // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
+        let windy = || crafts.iter().filter(|c| c.wind.enabled());
+        let gust_from = windy().map(|c| c.wind.start_step()).min();
+        let gust_to = windy().map(|c| c.wind.end_step()).max();
+        let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -373,10 +394,10 @@ impl Engine {
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&s, &trig, &r);
             // Outside the gust window `sample` returns zeros without touching the state, so the
-            // per-lane calls are skipped there (most of a flight).
-            if self.wind.is_active(k as u64) {
-                for (ws, v) in winds.iter_mut().zip(wind_lanes.iter_mut()) {
-                    *v = self.wind.sample(ws, k as u64);
+            // per-lane calls are skipped where no lane's window is open (most of a flight).
+            if (gust_from..gust_to).contains(&(k as u64)) {
+                for ((ws, v), c) in winds.iter_mut().zip(wind_lanes.iter_mut()).zip(crafts) {
+                    *v = c.wind.sample(ws, k as u64);
                 }
             } else {
                 wind_lanes = [[0.0; 3]; MAX_LANES];
@@ -419,7 +440,7 @@ impl Engine {
                         *at = t + self.dt;
                         alive -= 1;
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
-                        for (x, x0) in s.iter_mut().zip(self.x0.iter()) {
+                        for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
                             x.set_lane(lane, *x0);
                         }
                     }
@@ -428,12 +449,14 @@ impl Engine {
                     break;
                 }
             }
-            if k % CANCEL_CHECK_STEPS == 0 && cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            if k % CANCEL_CHECK_STEPS == 0 && req.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+            {
                 return None;
             }
         }
 
         let n_phase = self.phases.len();
+        let want_spectra = req.want_spectra;
         Some(
             (0..L::LANES)
                 .map(|lane| {
@@ -584,16 +607,12 @@ mod tests {
             let mut tr = Trace::new(1000, engine.steps);
             engine
                 .fly::<f64>(
-                    kind,
-                    0,
-                    &[0],
-                    false,
+                    &FlightRequest::new(kind, 0, &[0]),
                     Some(&mut tr),
-                    None,
                     &mut FftPlanner::new(),
                 )
                 .unwrap();
-            let x0 = engine.x0;
+            let x0 = engine.craft.x0;
             for row in tr.data.chunks(Trace::WIDTH) {
                 for i in 0..NX {
                     assert!(
@@ -633,20 +652,14 @@ mod tests {
                     continue;
                 }
                 engine.isa = isa;
-                runs.push(
-                    engine
-                        .fly_set(kind, 7, &[3, 4, 5, 6], false, None, &mut planner)
-                        .unwrap(),
-                );
-                runs.push(
-                    engine
-                        .fly::<F64x4>(kind, 7, &[3, 4, 5, 6], false, None, None, &mut planner)
-                        .unwrap(),
-                );
+                let req = FlightRequest::new(kind, 7, &[3, 4, 5, 6]);
+                runs.push(engine.fly_set(&req, &mut planner).unwrap());
+                runs.push(engine.fly::<F64x4>(&req, None, &mut planner).unwrap());
                 let scalar: Vec<LaneResult> = [3u64, 4, 5, 6]
                     .iter()
                     .map(|&i| {
-                        let r = engine.fly::<f64>(kind, 7, &[i], false, None, None, &mut planner);
+                        let req = FlightRequest::new(kind, 7, std::slice::from_ref(&i));
+                        let r = engine.fly::<f64>(&req, None, &mut planner);
                         r.unwrap().remove(0)
                     })
                     .collect();

@@ -2,7 +2,8 @@
 //!
 //! The model, the controllers and the integrator are written once, generic over `Lane`, so the
 //! scalar path (single flights, traces) and the SIMD path (Monte Carlo batches) are the same
-//! code. Parameters stay scalar `f64`; only states, inputs and wind differ per lane.
+//! code. Parameters are either scalar `f64` (the same vehicle in every lane) or lane values
+//! (a different vehicle per lane: dispersed parameters); `Param` reads either as a lane value.
 //!
 //! Lane types:
 //! - `f64`: one realisation.
@@ -87,10 +88,24 @@ pub trait Lane:
     }
 }
 
+/// A model or controller parameter read as a lane value: an `f64` is the same in every lane
+/// (`splat`), a lane value differs per lane (a dispersed parameter). Both give the same bits
+/// in the arithmetic: `x * splat(p)` is what `x * p` always computed.
+pub trait Param<L>: Copy + Send + Sync {
+    fn get(self) -> L;
+}
+
+impl<L: Lane> Param<L> for f64 {
+    #[inline(always)]
+    fn get(self) -> L {
+        L::splat(self)
+    }
+}
+
 /// What the branch-free kernels (`kernels::sin_cos`, `kernels::asin`) are built from. A mask is
 /// a value whose lanes have all bits set (true) or clear (false); the `_bits` operations act on
 /// the lanes' IEEE-754 bit patterns.
-pub trait KernelOps: Lane {
+pub trait KernelOps: Lane + Param<Self> {
     /// Mask of `self <= other` (false for NaN).
     fn cmp_le(self, other: Self) -> Self;
     /// Mask of `self >= other` (false for NaN).
@@ -207,6 +222,12 @@ impl KernelOps for f64 {
 /// Operators of a lane type from its inherent `add_`, `sub_`, `mul_`, `div_` and `Lane` methods.
 macro_rules! lane_ops {
     ($ty:ident) => {
+        impl Param<$ty> for $ty {
+            #[inline(always)]
+            fn get(self) -> Self {
+                self
+            }
+        }
         impl Add for $ty {
             type Output = Self;
             #[inline(always)]
@@ -279,7 +300,7 @@ pub(crate) use x86::F64x4Avx;
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{kernels, KernelOps, Lane};
+    use super::{kernels, KernelOps, Lane, Param};
     use std::arch::x86_64::*;
     use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
@@ -612,7 +633,7 @@ pub use portable::F64x4;
 #[cfg(any(not(target_arch = "x86_64"), test))]
 #[cfg_attr(test, allow(dead_code))]
 mod portable {
-    use super::{kernels, KernelOps, Lane};
+    use super::{kernels, KernelOps, Lane, Param};
     use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
     #[derive(Clone, Copy, Debug)]

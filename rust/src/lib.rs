@@ -5,6 +5,7 @@
 
 pub mod config;
 pub mod control;
+pub mod dispersion;
 pub mod gust;
 pub mod integrate;
 pub mod lane;
@@ -35,13 +36,14 @@ mod _core {
     use super::{EngineError, ScenarioError};
     use crate::config::{Config, ConfigError};
     use crate::control::ControllerKind;
+    use crate::dispersion::Dispersion;
     use crate::gust;
-    use crate::integrate::{Engine, Trace, TRACE_COLUMNS};
+    use crate::integrate::{Engine, FlightRequest, Trace, TRACE_COLUMNS};
     use crate::metrics::{METRIC_NAMES, N_METRICS};
     use crate::model::STATE_NAMES;
-    use crate::montecarlo::{pool, run_batch as batch};
+    use crate::montecarlo::{pool, run_batch as batch, Batch};
     use numpy::ndarray::{Array1, Array2, Array4};
-    use numpy::{IntoPyArray, PyArray1, PyArray2};
+    use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
     use pyo3::exceptions::PyValueError;
     use pyo3::prelude::*;
     use pyo3::types::PyDict;
@@ -106,8 +108,8 @@ mod _core {
     fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
         let e = engine(config_json)?;
         let d = PyDict::new(py);
-        d.set_item("stiffness", e.plant.kc)?;
-        d.set_item("hover_offset", e.plant.hover_offset())?;
+        d.set_item("stiffness", e.plant().kc)?;
+        d.set_item("hover_offset", e.plant().hover_offset())?;
         d.set_item("steps", e.steps)?;
         d.set_item(
             "phases",
@@ -179,16 +181,13 @@ mod _core {
         let (trace, res) = py.detach(|| {
             guarded("simulate", || {
                 let mut trace = Trace::new(record_every, e.steps);
+                let indices = [realisation];
+                let req = FlightRequest {
+                    want_spectra: true,
+                    ..FlightRequest::new(kind, seed, &indices)
+                };
                 let res = e
-                    .fly::<f64>(
-                        kind,
-                        seed,
-                        &[realisation],
-                        true,
-                        Some(&mut trace),
-                        None,
-                        &mut FftPlanner::new(),
-                    )
+                    .fly::<f64>(&req, Some(&mut trace), &mut FftPlanner::new())
                     .expect("a flight without a cancel flag always finishes");
                 (trace, res.into_iter().next().expect("one lane"))
             })
@@ -324,9 +323,11 @@ mod _core {
         }
     }
 
-    /// Realisations first..first+count of every controller, on `workers` threads.
+    /// Realisations first..first+count of every controller, on `workers` threads. With
+    /// `dispersion_keys`, row j of `dispersion_values` (count, keys) holds the values
+    /// realisation first + j flies; `streams` (count,) overrides each one's gust stream.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None))]
+    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None, dispersion_keys=Vec::new(), dispersion_values=None, streams=None))]
     #[allow(clippy::too_many_arguments)]
     fn run_batch<'py>(
         py: Python<'py>,
@@ -338,6 +339,9 @@ mod _core {
         workers: usize,
         spectra: bool,
         progress: Option<&Bound<'py, Progress>>,
+        dispersion_keys: Vec<String>,
+        dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
+        streams: Option<PyReadonlyArray1<'py, u64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kinds = self::controllers(&controllers)?;
         if count == 0 {
@@ -347,6 +351,36 @@ mod _core {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
         let e = engine(config_json)?;
+        let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
+            (true, None) => None,
+            (false, Some(v)) => {
+                let v = v.as_array();
+                let shape = v.shape();
+                if shape != [count, dispersion_keys.len()] {
+                    return Err(PyValueError::new_err(format!(
+                        "dispersion_values must have shape ({count}, {}), got {shape:?}",
+                        dispersion_keys.len()
+                    )));
+                }
+                let values = v.iter().copied().collect();
+                Some(
+                    Dispersion::new(&e.cfg, dispersion_keys, values, count)
+                        .map_err(scenario_error)?,
+                )
+            }
+            _ => {
+                return Err(PyValueError::new_err(
+                    "dispersion_keys and dispersion_values go together",
+                ))
+            }
+        };
+        let streams: Option<Vec<u64>> = streams.map(|s| s.as_array().iter().copied().collect());
+        let b = Batch {
+            want_spectra: spectra,
+            dispersion: dispersion.as_ref(),
+            streams: streams.as_deref(),
+            ..Batch::new(&kinds, seed, first, count)
+        };
         let (done, cancel) = match progress {
             Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
             None => (
@@ -356,10 +390,13 @@ mod _core {
         };
         let out = py.detach(|| {
             guarded("run_batch", || {
-                pool(workers)
-                    .install(|| batch(&e, &kinds, seed, first, count, spectra, &done, &cancel))
+                pool(workers).install(|| {
+                    b.check()?;
+                    Ok(batch(&e, &b, &done, &cancel))
+                })
             })
         })?;
+        let out = out.map_err(scenario_error)?;
         let n_ctrl = kinds.len();
         let n_phase = e.phase_count();
         let d = PyDict::new(py);

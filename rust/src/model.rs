@@ -4,7 +4,7 @@
 //! the Euler-angle rates (the paper's near-hover form).
 
 use crate::config::Config;
-use crate::lane::{KernelOps, Lane};
+use crate::lane::{KernelOps, Lane, Param};
 
 pub const NX: usize = 14;
 pub type State<L> = [L; NX];
@@ -62,24 +62,25 @@ pub struct Inputs<L> {
 }
 
 /// Plant parameters, resolved once from the scenario (plant inertia = nominal + error).
+/// `P = f64` is one vehicle; `P` a lane type carries one vehicle per lane (`Plant::gather`).
 #[derive(Clone, Debug)]
-pub struct Plant {
-    pub m: f64,
-    pub mc: f64,
-    pub g: f64,
-    pub kc: f64,
-    pub cc: f64,
+pub struct Plant<P = f64> {
+    pub m: P,
+    pub mc: P,
+    pub g: P,
+    pub kc: P,
+    pub cc: P,
     /// Plant inertia I + dI.
-    pub inertia: [f64; 3],
+    pub inertia: [P; 3],
     /// 1/2 rho CdA for the quadrotor (vertical), payload (vertical) and the pair (horizontal).
-    pub drag_quad: f64,
-    pub drag_payload: f64,
-    pub drag_lateral: f64,
+    pub drag_quad: P,
+    pub drag_payload: P,
+    pub drag_lateral: P,
     /// Reciprocals, computed once: the derivative multiplies by them.
-    inv_m_lateral: f64,
-    inv_m: f64,
-    inv_mc: f64,
-    inv_inertia: [f64; 3],
+    inv_m_lateral: P,
+    inv_m: P,
+    inv_mc: P,
+    inv_inertia: [P; 3],
 }
 
 /// Sines and cosines of the Euler angles of one state: computed once per RK4 stage and shared
@@ -199,22 +200,35 @@ impl Plant {
         self.mc * self.g / self.kc
     }
 
+    /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s (built once per flight,
+    /// outside the loop).
+    pub fn gather<L: Lane>(each: &[&Plant]) -> Plant<L> {
+        let at = |f: fn(&Plant) -> f64| L::from_fn(|l| f(each[l]));
+        let at3 = |f: fn(&Plant) -> [f64; 3]| -> [L; 3] {
+            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
+        };
+        Plant {
+            m: at(|p| p.m),
+            mc: at(|p| p.mc),
+            g: at(|p| p.g),
+            kc: at(|p| p.kc),
+            cc: at(|p| p.cc),
+            inertia: at3(|p| p.inertia),
+            drag_quad: at(|p| p.drag_quad),
+            drag_payload: at(|p| p.drag_payload),
+            drag_lateral: at(|p| p.drag_lateral),
+            inv_m_lateral: at(|p| p.inv_m_lateral),
+            inv_m: at(|p| p.inv_m),
+            inv_mc: at(|p| p.inv_mc),
+            inv_inertia: at3(|p| p.inv_inertia),
+        }
+    }
+
     /// Relative oscillation e_o = (zc - z) + d0: the payload's displacement from its hover
     /// equilibrium relative to the quadrotor.
     #[inline(always)]
     pub fn relative_oscillation<L: Lane>(&self, s: &State<L>) -> L {
         s[ix::ZC] - s[ix::Z] + self.hover_offset()
-    }
-
-    /// The payload's vertical inertial acceleration d2zc/dt2 (m/s^2) at state `s` with vertical
-    /// wind `wind_z` (m/s): its equation of motion, mc azc = -mc g + Fs + Fdzc (MODEL.md
-    /// section 1), the same expression the derivative uses; zero at hover.
-    #[inline(always)]
-    pub fn payload_acceleration<L: Lane>(&self, s: &State<L>, wind_z: L) -> L {
-        let rel = s[ix::VZC] - wind_z;
-        let fdzc = rel * rel.abs() * (-self.drag_payload);
-        let spring = (s[ix::Z] - s[ix::ZC]) * self.kc + (s[ix::VZ] - s[ix::VZC]) * self.cc;
-        (spring + fdzc) * self.inv_mc - self.g
     }
 
     /// A state at rest at `position` and `attitude`, payload at its hover equilibrium.
@@ -229,10 +243,51 @@ impl Plant {
         s[ix::ZC] = position[2] - self.hover_offset();
         s
     }
+}
+
+/// Drag force on a body of `k` = 1/2 rho CdA moving at `v` in wind `wind` (one axis).
+#[inline(always)]
+fn drag<L: Lane>(k: L, v: L, wind: L) -> L {
+    let rel = v - wind;
+    rel * rel.abs() * (-k)
+}
+
+impl<P: Copy> Plant<P> {
+    /// Spring and damper force Fs = kc (z - zc) + cc (vz - vzc) (N, pulls the payload up).
+    #[inline(always)]
+    fn spring_force<L: Lane>(&self, s: &State<L>) -> L
+    where
+        P: Param<L>,
+    {
+        (s[ix::Z] - s[ix::ZC]) * self.kc.get() + (s[ix::VZ] - s[ix::VZC]) * self.cc.get()
+    }
+
+    /// The payload's vertical inertial acceleration d2zc/dt2 (m/s^2) at state `s` with vertical
+    /// wind `wind_z` (m/s): its equation of motion, mc azc = -mc g + Fs + Fdzc (MODEL.md
+    /// section 1), the very expression the derivative uses; zero at hover.
+    #[inline(always)]
+    pub fn payload_acceleration<L: Lane>(&self, s: &State<L>, wind_z: L) -> L
+    where
+        P: Param<L>,
+    {
+        self.payload_acceleration_with(s, self.spring_force(s), wind_z)
+    }
+
+    #[inline(always)]
+    fn payload_acceleration_with<L: Lane>(&self, s: &State<L>, spring: L, wind_z: L) -> L
+    where
+        P: Param<L>,
+    {
+        let fdzc = drag(self.drag_payload.get(), s[ix::VZC], wind_z);
+        (spring + fdzc) * self.inv_mc.get() - self.g.get()
+    }
 
     /// ds/dt for inputs `u` and wind `w` (m/s, inertial), both held over the step.
     #[inline(always)]
-    pub fn derivative<L: Lane>(&self, s: &State<L>, u: &Inputs<L>, w: &[L; 3]) -> State<L> {
+    pub fn derivative<L: Lane>(&self, s: &State<L>, u: &Inputs<L>, w: &[L; 3]) -> State<L>
+    where
+        P: Param<L>,
+    {
         self.derivative_with(s, &Trig::of(s), u, w)
     }
 
@@ -244,7 +299,10 @@ impl Plant {
         trig: &Trig<L>,
         u: &Inputs<L>,
         w: &[L; 3],
-    ) -> State<L> {
+    ) -> State<L>
+    where
+        P: Param<L>,
+    {
         use ix::*;
         let Trig {
             sphi,
@@ -255,24 +313,23 @@ impl Plant {
             cpsi,
         } = *trig;
 
-        #[inline(always)]
-        fn drag<L: Lane>(k: f64, v: L, wind: L) -> L {
-            let rel = v - wind;
-            rel * rel.abs() * (-k)
-        }
-        let fdx = drag(self.drag_lateral, s[VX], w[0]);
-        let fdy = drag(self.drag_lateral, s[VY], w[1]);
-        let fdz = drag(self.drag_quad, s[VZ], w[2]);
-        let fdzc = drag(self.drag_payload, s[VZC], w[2]);
-        let spring = (s[Z] - s[ZC]) * self.kc + (s[VZ] - s[VZC]) * self.cc;
+        let drag_lateral: L = self.drag_lateral.get();
+        let fdx = drag(drag_lateral, s[VX], w[0]);
+        let fdy = drag(drag_lateral, s[VY], w[1]);
+        let fdz = drag(self.drag_quad.get(), s[VZ], w[2]);
+        let spring = self.spring_force(s);
 
-        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * self.inv_m_lateral;
-        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * self.inv_m_lateral;
-        let az = (cphi * cth * u.u1 - spring + fdz) * self.inv_m - self.g;
-        let azc = (spring + fdzc) * self.inv_mc - self.g;
+        let (inv_m_lateral, g): (L, L) = (self.inv_m_lateral.get(), self.g.get());
+        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * inv_m_lateral;
+        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * inv_m_lateral;
+        let az = (cphi * cth * u.u1 - spring + fdz) * self.inv_m.get() - g;
+        let azc = self.payload_acceleration_with(s, spring, w[2]);
 
+        // Destructured, not `array::map`: everything here must inline into the flight loop.
         let [ixx, iyy, izz] = self.inertia;
+        let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
         let [inv_ixx, inv_iyy, inv_izz] = self.inv_inertia;
+        let (inv_ixx, inv_iyy, inv_izz): (L, L, L) = (inv_ixx.get(), inv_iyy.get(), inv_izz.get());
         let pdot = (s[Q] * s[R] * (iyy - izz) + u.tau[0]) * inv_ixx;
         let qdot = (s[P] * s[R] * (izz - ixx) + u.tau[1]) * inv_iyy;
         let rdot = (s[P] * s[Q] * (ixx - iyy) + u.tau[2]) * inv_izz;

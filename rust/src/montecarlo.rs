@@ -2,8 +2,10 @@
 //! the same gust (common random numbers). Only per-phase metrics and running spectrum sums are
 //! kept, so memory does not grow with the number of realisations beyond the result table.
 
+use crate::config::ConfigError;
 use crate::control::ControllerKind;
-use crate::integrate::Engine;
+use crate::dispersion::Dispersion;
+use crate::integrate::{Craft, Engine, FlightRequest};
 use crate::metrics::N_METRICS;
 use rayon::prelude::*;
 use rustfft::FftPlanner;
@@ -91,25 +93,83 @@ pub fn pool(workers: usize) -> Arc<rayon::ThreadPool> {
         .clone()
 }
 
-/// Fly realisations first..first+count under every controller in `kinds`.
-/// `progress` counts finished realisations; setting `cancel` stops work promptly and leaves
-/// `done` false for whatever had not finished.
-#[allow(clippy::too_many_arguments)]
+/// A batch: realisations `first..first + count` under every controller in `kinds`.
+#[derive(Clone, Copy)]
+pub struct Batch<'a> {
+    pub kinds: &'a [ControllerKind],
+    pub seed: u64,
+    pub first: u64,
+    pub count: usize,
+    pub want_spectra: bool,
+    /// Per realisation, the values of the dispersed keys (row j: realisation first + j).
+    pub dispersion: Option<&'a Dispersion>,
+    /// Per realisation, the gust stream it flies (default: its own index, first + j). A
+    /// sensitivity design sets it to reuse one gust across rows that differ in parameters.
+    pub streams: Option<&'a [u64]>,
+}
+
+impl<'a> Batch<'a> {
+    pub fn new(kinds: &'a [ControllerKind], seed: u64, first: u64, count: usize) -> Self {
+        Self {
+            kinds,
+            seed,
+            first,
+            count,
+            want_spectra: false,
+            dispersion: None,
+            streams: None,
+        }
+    }
+
+    /// Check the per-realisation inputs before anything flies: every drawn scenario valid.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        if let Some(s) = self.streams {
+            if s.len() != self.count {
+                return Err(ConfigError {
+                    key: "streams".into(),
+                    message: format!("{} gust streams for {} realisations", s.len(), self.count),
+                });
+            }
+        }
+        if let Some(d) = self.dispersion {
+            if d.rows() != self.count {
+                return Err(ConfigError {
+                    key: "dispersions".into(),
+                    message: format!(
+                        "dispersions: {} rows of values for {} realisations",
+                        d.rows(),
+                        self.count
+                    ),
+                });
+            }
+            (0..self.count)
+                .into_par_iter()
+                .try_for_each(|j| d.config(j, self.first).map(|_| ()))?;
+        }
+        Ok(())
+    }
+}
+
+/// Fly `batch` (checked with `Batch::check`). `progress` counts finished realisations; setting
+/// `cancel` stops work promptly and leaves `done` false for whatever had not finished.
 pub fn run_batch(
     engine: &Engine,
-    kinds: &[ControllerKind],
-    seed: u64,
-    first: u64,
-    count: usize,
-    want_spectra: bool,
+    batch: &Batch,
     progress: &AtomicU64,
     cancel: &AtomicBool,
 ) -> BatchOutput {
+    let Batch {
+        kinds,
+        seed,
+        first,
+        count,
+        want_spectra,
+        ..
+    } = *batch;
     let n_ctrl = kinds.len();
     let n_phase = engine.phase_count();
     let row = n_ctrl * n_phase * N_METRICS;
     let grid = engine.spectrum_grid();
-    let last = first + count as u64 - 1;
     let mut metrics = vec![f64::NAN; count * row];
     let mut diverged_at = vec![f64::NAN; count * n_ctrl];
     let mut done = vec![false; count];
@@ -134,21 +194,31 @@ pub fn run_batch(
             |(mut spectra, mut planner, (mut set_metrics, mut set_diverged)),
              (set, ((out_metrics, out_diverged), out_done))| {
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
-                let indices: [u64; LANES] =
-                    std::array::from_fn(|l| (first + (set * LANES + l) as u64).min(last));
+                let rows: [usize; LANES] =
+                    std::array::from_fn(|l| (set * LANES + l).min(count - 1));
+                let indices: [u64; LANES] = rows.map(|j| match batch.streams {
+                    Some(s) => s[j],
+                    None => first + j as u64,
+                });
+                // A dispersed batch builds each lane's craft (its own vehicle) once per set.
+                let crafts: Option<Vec<Craft>> = batch.dispersion.map(|d| {
+                    rows.iter()
+                        .map(|&j| d.craft(j, first).expect("checked by Batch::check"))
+                        .collect()
+                });
+                let craft_refs: Option<Vec<&Craft>> = crafts.as_ref().map(|c| c.iter().collect());
                 let lanes = out_done.len();
                 for (c, &kind) in kinds.iter().enumerate() {
                     if cancel.load(Ordering::Relaxed) {
                         return (spectra, planner, (set_metrics, set_diverged));
                     }
-                    let Some(res) = engine.fly_set(
-                        kind,
-                        seed,
-                        &indices,
+                    let req = FlightRequest {
                         want_spectra,
-                        Some(cancel),
-                        &mut planner,
-                    ) else {
+                        cancel: Some(cancel),
+                        crafts: craft_refs.as_deref(),
+                        ..FlightRequest::new(kind, seed, &indices)
+                    };
+                    let Some(res) = engine.fly_set(&req, &mut planner) else {
                         return (spectra, planner, (set_metrics, set_diverged));
                     };
                     for (l, r) in res.iter().take(lanes).enumerate() {
@@ -203,7 +273,11 @@ mod tests {
     fn batch(engine: &Engine, first: u64, count: usize, workers: usize) -> BatchOutput {
         let (p, c) = (AtomicU64::new(0), AtomicBool::new(false));
         let kinds = [ControllerKind::Pd, ControllerKind::Smc];
-        pool(workers).install(|| run_batch(engine, &kinds, 3, first, count, true, &p, &c))
+        let b = Batch {
+            want_spectra: true,
+            ..Batch::new(&kinds, 3, first, count)
+        };
+        pool(workers).install(|| run_batch(engine, &b, &p, &c))
     }
 
     #[test]
@@ -233,8 +307,88 @@ mod tests {
     fn cancel_stops_and_reports_nothing_false() {
         let engine = Engine::new(short()).unwrap();
         let (p, c) = (AtomicU64::new(0), AtomicBool::new(true));
-        let out = run_batch(&engine, &[ControllerKind::Pd], 0, 0, 8, false, &p, &c);
+        let out = run_batch(&engine, &Batch::new(&[ControllerKind::Pd], 0, 0, 8), &p, &c);
         assert!(out.done.iter().all(|d| !d));
         assert!(out.metrics.iter().all(|x| x.is_nan()));
+    }
+
+    #[test]
+    fn a_dispersed_row_equals_the_single_flight_of_its_drawn_scenario() {
+        use crate::simd::Isa;
+        let cfg = short();
+        let keys: Vec<String> = [
+            "payload.mass",
+            "payload.natural_frequency",
+            "vehicle.inertia[2]",
+            "controller.smc.lambda[2]",
+            "gust.w20",
+            "initial.position[0]",
+        ]
+        .map(String::from)
+        .to_vec();
+        let count = 6;
+        let values: Vec<f64> = (0..count)
+            .flat_map(|j| {
+                let f = j as f64;
+                [
+                    0.1 + 0.05 * f,
+                    1.5 + 0.2 * f,
+                    0.05 + 0.002 * f,
+                    3.0 + 0.1 * f,
+                    5.0 + f,
+                    0.01 * f,
+                ]
+            })
+            .collect();
+        let d = Dispersion::new(&cfg, keys, values, count).unwrap();
+        let kinds = [ControllerKind::Pd, ControllerKind::Smc];
+        let b = Batch {
+            dispersion: Some(&d),
+            ..Batch::new(&kinds, 5, 20, count)
+        };
+        b.check().unwrap();
+        let mut engine = Engine::new(cfg).unwrap();
+        let mut planner = FftPlanner::new();
+        for isa in [Isa::Baseline, Isa::Avx2] {
+            if !isa.supported() {
+                continue;
+            }
+            engine.isa = isa;
+            let (p, c) = (AtomicU64::new(0), AtomicBool::new(false));
+            let out = pool(2).install(|| run_batch(&engine, &b, &p, &c));
+            let row = kinds.len() * engine.phase_count() * N_METRICS;
+            for j in 0..count {
+                let alone = Engine::new(d.config(j, 20).unwrap()).unwrap();
+                for (ci, &kind) in kinds.iter().enumerate() {
+                    let idx = [20 + j as u64];
+                    let r = alone
+                        .fly::<f64>(&FlightRequest::new(kind, 5, &idx), None, &mut planner)
+                        .unwrap();
+                    let want: Vec<u64> =
+                        r[0].metrics.concat().iter().map(|x| x.to_bits()).collect();
+                    let at = j * row + ci * engine.phase_count() * N_METRICS;
+                    let got: Vec<u64> = out.metrics[at..at + engine.phase_count() * N_METRICS]
+                        .iter()
+                        .map(|x| x.to_bits())
+                        .collect();
+                    assert_eq!(got, want, "{isa:?} {kind:?} row {j}");
+                }
+            }
+            // The rows differ: the dispersion reached the flights.
+            assert_ne!(out.metrics[0].to_bits(), out.metrics[row].to_bits());
+        }
+        // A drawn value the scenario refuses is reported before anything flies.
+        let bad =
+            Dispersion::new(&engine.cfg, vec!["payload.mass".into()], vec![0.2, -1.0], 2).unwrap();
+        let e = Batch {
+            dispersion: Some(&bad),
+            ..Batch::new(&kinds, 5, 0, 2)
+        }
+        .check()
+        .unwrap_err();
+        assert!(
+            e.message.contains("realisation 1") && e.message.contains("payload.mass"),
+            "{e:?}"
+        );
     }
 }

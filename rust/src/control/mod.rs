@@ -8,18 +8,24 @@ pub use pd::Pd;
 pub use smc::Smc;
 
 use crate::config::Config;
-use crate::lane::Lane;
+use crate::lane::{Lane, Param};
 use crate::model::{ix, Inputs, State, Trig};
 use crate::trajectory::Reference;
 
-/// A control law: inputs for the state `s` and reference `r`, computed once per step.
-pub trait Control: Sync {
+/// A control law: inputs for the state `s` and reference `r`, computed once per step. Its
+/// gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per lane).
+pub trait Control<P = f64>: Sync {
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>;
+    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    where
+        P: Param<L>;
 
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L> {
+    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
         self.control_with(s, &Trig::of(s), r)
     }
 }
@@ -50,17 +56,17 @@ impl ControllerKind {
 
 /// What both laws share: the mass they compensate, the thrust guards and the attitude inversion.
 #[derive(Clone, Debug)]
-pub struct Shared {
+pub struct Shared<P = f64> {
     /// m~: m + mc with mass compensation, m without.
-    pub mt: f64,
-    pub g: f64,
+    pub mt: P,
+    pub g: P,
     /// Nominal inertia (the controller's belief).
-    pub inertia: [f64; 3],
-    thrust_min: f64,
-    thrust_max: f64,
-    thrust_floor: f64,
+    pub inertia: [P; 3],
+    thrust_min: P,
+    thrust_max: P,
+    thrust_floor: P,
     /// sin of the tilt limit: asin is monotone, so clamping its argument clamps the angle.
-    sin_tilt: f64,
+    sin_tilt: P,
 }
 
 /// Smallest cos(phi) cos(theta) the laws divide by. Only reached by a vehicle tipped on its
@@ -86,6 +92,26 @@ impl Shared {
         }
     }
 
+    /// One vehicle per lane (see `Plant::gather`).
+    pub fn gather<L: Lane>(each: &[&Shared]) -> Shared<L> {
+        let at = |f: fn(&Shared) -> f64| L::from_fn(|l| f(each[l]));
+        Shared {
+            mt: at(|s| s.mt),
+            g: at(|s| s.g),
+            inertia: [
+                at(|s| s.inertia[0]),
+                at(|s| s.inertia[1]),
+                at(|s| s.inertia[2]),
+            ],
+            thrust_min: at(|s| s.thrust_min),
+            thrust_max: at(|s| s.thrust_max),
+            thrust_floor: at(|s| s.thrust_floor),
+            sin_tilt: at(|s| s.sin_tilt),
+        }
+    }
+}
+
+impl<P: Copy> Shared<P> {
     /// 1 / (cos(phi) cos(theta)), guarded.
     #[inline(always)]
     fn inv_tilt<L: Lane>(&self, cphi: L, cth: L) -> L {
@@ -94,21 +120,30 @@ impl Shared {
 
     /// Thrust after the optional limits.
     #[inline(always)]
-    fn limit_thrust<L: Lane>(&self, u1: L) -> L {
-        u1.clamp(L::splat(self.thrust_min), L::splat(self.thrust_max))
+    fn limit_thrust<L: Lane>(&self, u1: L) -> L
+    where
+        P: Param<L>,
+    {
+        u1.clamp(self.thrust_min.get(), self.thrust_max.get())
     }
 
     /// mt / U1 with U1 kept away from zero (the virtual inputs divide by it).
     #[inline(always)]
-    fn mass_over_thrust<L: Lane>(&self, u1: L) -> L {
-        L::splat(self.mt) / u1.max(L::splat(self.thrust_floor))
+    fn mass_over_thrust<L: Lane>(&self, u1: L) -> L
+    where
+        P: Param<L>,
+    {
+        self.mt.get() / u1.max(self.thrust_floor.get())
     }
 
     /// Exact inversion of the x/y equations: commanded (phi, theta) for virtual inputs Ux, Uy
     /// at the current yaw.
     #[inline(always)]
-    fn desired_attitude<L: Lane>(&self, ux: L, uy: L, spsi: L, cpsi: L) -> (L, L) {
-        let lim = L::splat(self.sin_tilt);
+    fn desired_attitude<L: Lane>(&self, ux: L, uy: L, spsi: L, cpsi: L) -> (L, L)
+    where
+        P: Param<L>,
+    {
+        let lim: L = self.sin_tilt.get();
         let sphi = (spsi * ux - cpsi * uy).clamp(-lim, lim);
         let cphi = (L::splat(1.0) - sphi * sphi)
             .sqrt()

@@ -1,46 +1,77 @@
 //! PD cascade (paper eqs. 4-7).
 
 use super::{position_errors, Control, Shared};
-use crate::config::{Config, PdGains};
-use crate::lane::Lane;
+use crate::config::Config;
+use crate::lane::{Lane, Param};
 use crate::model::{ix, Inputs, State, Trig};
 use crate::trajectory::Reference;
 
+/// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Pd::gather`).
 #[derive(Clone, Debug)]
-pub struct Pd {
-    shared: Shared,
-    gains: PdGains,
+pub struct Pd<P = f64> {
+    shared: Shared<P>,
+    /// x, y, z position gains; roll, pitch, yaw attitude gains.
+    kp: [P; 3],
+    kd: [P; 3],
+    kp_attitude: [P; 3],
+    kd_attitude: [P; 3],
 }
 
 impl Pd {
     pub fn new(cfg: &Config) -> Self {
+        let k = &cfg.controller.pd;
         Self {
             shared: Shared::new(cfg),
-            gains: cfg.controller.pd.clone(),
+            kp: k.kp,
+            kd: k.kd,
+            kp_attitude: k.kp_attitude,
+            kd_attitude: k.kd_attitude,
+        }
+    }
+
+    /// One vehicle per lane (see `Plant::gather`).
+    pub fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
+        let at3 =
+            |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i])) };
+        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
+        Pd {
+            shared: Shared::gather(&shared),
+            kp: at3(|p| p.kp),
+            kd: at3(|p| p.kd),
+            kp_attitude: at3(|p| p.kp_attitude),
+            kd_attitude: at3(|p| p.kd_attitude),
         }
     }
 }
 
-impl Control for Pd {
+impl<P: Copy + Sync> Control<P> for Pd<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L> {
-        let (sh, k) = (&self.shared, &self.gains);
+    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        let sh = &self.shared;
         let (cphi, cth, spsi, cpsi) = (trig.cphi, trig.cth, trig.spsi, trig.cpsi);
         let (e, ed) = position_errors(s, r);
+        let [kpx, kpy, kpz] = self.kp;
+        let [kdx, kdy, kdz] = self.kd;
+        let (g, mt): (L, L) = (sh.g.get(), sh.mt.get());
 
-        let u1 = (e[2] * k.kp[2] + ed[2] * k.kd[2] + sh.g) * sh.mt * sh.inv_tilt(cphi, cth);
+        let u1 = (e[2] * kpz.get() + ed[2] * kdz.get() + g) * mt * sh.inv_tilt(cphi, cth);
         let u1 = sh.limit_thrust(u1);
         let m_u1 = sh.mass_over_thrust(u1);
-        let ux = (e[0] * k.kp[0] + ed[0] * k.kd[0]) * m_u1;
-        let uy = (e[1] * k.kp[1] + ed[1] * k.kd[1]) * m_u1;
+        let ux = (e[0] * kpx.get() + ed[0] * kdx.get()) * m_u1;
+        let uy = (e[1] * kpy.get() + ed[1] * kdy.get()) * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
 
-        let kp = k.kp_attitude;
-        let kd = k.kd_attitude;
+        let [kp0, kp1, kp2] = self.kp_attitude;
+        let [kd0, kd1, kd2] = self.kd_attitude;
+        let (kp0, kp1, kp2): (L, L, L) = (kp0.get(), kp1.get(), kp2.get());
+        let (kd0, kd1, kd2): (L, L, L) = (kd0.get(), kd1.get(), kd2.get());
         let tau = [
-            (phi_d - s[ix::PHI]) * kp[0] - s[ix::P] * kd[0],
-            (theta_d - s[ix::THETA]) * kp[1] - s[ix::Q] * kd[1],
-            (L::splat(r.psi) - s[ix::PSI]) * kp[2] + (L::splat(r.psi_dot) - s[ix::R]) * kd[2],
+            (phi_d - s[ix::PHI]) * kp0 - s[ix::P] * kd0,
+            (theta_d - s[ix::THETA]) * kp1 - s[ix::Q] * kd1,
+            (L::splat(r.psi) - s[ix::PSI]) * kp2 + (L::splat(r.psi_dot) - s[ix::R]) * kd2,
         ];
         Inputs { u1, tau }
     }

@@ -1,59 +1,107 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
 use super::{position_errors, Control, Shared};
-use crate::config::{Config, SmcGains};
-use crate::lane::Lane;
+use crate::config::Config;
+use crate::lane::{Lane, Param};
 use crate::model::{ix, Inputs, State, Trig};
 use crate::trajectory::Reference;
 
+/// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Smc::gather`).
 #[derive(Clone, Debug)]
-pub struct Smc {
-    shared: Shared,
-    gains: SmcGains,
+pub struct Smc<P = f64> {
+    shared: Shared<P>,
+    /// x, y, z channels, then roll, pitch, yaw.
+    epsilon: [P; 3],
+    lambda: [P; 3],
+    eta: [P; 3],
+    epsilon_attitude: [P; 3],
+    lambda_attitude: [P; 3],
+    eta_attitude: [P; 3],
+    /// Boundary-layer width of sat(s) = s / (|s| + gamma).
+    gamma: P,
 }
 
 impl Smc {
     pub fn new(cfg: &Config) -> Self {
+        let k = &cfg.controller.smc;
         Self {
             shared: Shared::new(cfg),
-            gains: cfg.controller.smc.clone(),
+            epsilon: k.epsilon,
+            lambda: k.lambda,
+            eta: k.eta,
+            epsilon_attitude: k.epsilon_attitude,
+            lambda_attitude: k.lambda_attitude,
+            eta_attitude: k.eta_attitude,
+            gamma: k.gamma,
         }
     }
 
+    /// One vehicle per lane (see `Plant::gather`).
+    pub fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
+        let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] {
+            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
+        };
+        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
+        Smc {
+            shared: Shared::gather(&shared),
+            epsilon: at3(|p| p.epsilon),
+            lambda: at3(|p| p.lambda),
+            eta: at3(|p| p.eta),
+            epsilon_attitude: at3(|p| p.epsilon_attitude),
+            lambda_attitude: at3(|p| p.lambda_attitude),
+            eta_attitude: at3(|p| p.eta_attitude),
+            gamma: L::from_fn(|l| each[l].gamma),
+        }
+    }
+}
+
+impl<P: Copy> Smc<P> {
     /// lambda edot + eta s + eps sat(s): the reaching law shared by every channel.
     #[inline(always)]
-    fn reach<L: Lane>(&self, lambda: f64, eta: f64, eps: f64, e: L, ed: L) -> L {
+    fn reach<L: Lane>(&self, lambda: P, eta: P, eps: P, e: L, ed: L) -> L
+    where
+        P: Param<L>,
+    {
+        let (lambda, eta, eps): (L, L, L) = (lambda.get(), eta.get(), eps.get());
         let s = e * lambda + ed;
-        let sat = s / (s.abs() + self.gains.gamma);
+        let sat = s / (s.abs() + self.gamma.get());
         ed * lambda + s * eta + sat * eps
     }
 }
 
-impl Control for Smc {
+impl<P: Copy + Sync> Control<P> for Smc<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L> {
-        let (sh, k) = (&self.shared, &self.gains);
+    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        let sh = &self.shared;
         let (cphi, cth, spsi, cpsi) = (trig.cphi, trig.cth, trig.spsi, trig.cpsi);
         let (e, ed) = position_errors(s, r);
+        let ([lx, ly, lz], [hx, hy, hz], [ex, ey, ez]) = (self.lambda, self.eta, self.epsilon);
+        let (g, mt): (L, L) = (sh.g.get(), sh.mt.get());
 
-        let vz = self.reach(k.lambda[2], k.eta[2], k.epsilon[2], e[2], ed[2]);
-        let u1 = (vz + r.acc[2] + sh.g) * sh.mt * sh.inv_tilt(cphi, cth);
+        let vz = self.reach(lz, hz, ez, e[2], ed[2]);
+        let u1 = (vz + r.acc[2] + g) * mt * sh.inv_tilt(cphi, cth);
         let u1 = sh.limit_thrust(u1);
         let m_u1 = sh.mass_over_thrust(u1);
-        let ux = (self.reach(k.lambda[0], k.eta[0], k.epsilon[0], e[0], ed[0]) + r.acc[0]) * m_u1;
-        let uy = (self.reach(k.lambda[1], k.eta[1], k.epsilon[1], e[1], ed[1]) + r.acc[1]) * m_u1;
+        let ux = (self.reach(lx, hx, ex, e[0], ed[0]) + r.acc[0]) * m_u1;
+        let uy = (self.reach(ly, hy, ey, e[1], ed[1]) + r.acc[1]) * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
 
-        let (la, et, ep) = (k.lambda_attitude, k.eta_attitude, k.epsilon_attitude);
+        let [la0, la1, la2] = self.lambda_attitude;
+        let [et0, et1, et2] = self.eta_attitude;
+        let [ep0, ep1, ep2] = self.epsilon_attitude;
         let [ixx, iyy, izz] = sh.inertia;
+        let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
         let (p, q, rr) = (s[ix::P], s[ix::Q], s[ix::R]);
         // Roll and pitch: desired rates and accelerations are zero (commanded by the outer loop).
-        let v_phi = self.reach(la[0], et[0], ep[0], phi_d - s[ix::PHI], -p);
-        let v_theta = self.reach(la[1], et[1], ep[1], theta_d - s[ix::THETA], -q);
+        let v_phi = self.reach(la0, et0, ep0, phi_d - s[ix::PHI], -p);
+        let v_theta = self.reach(la1, et1, ep1, theta_d - s[ix::THETA], -q);
         let v_psi = self.reach(
-            la[2],
-            et[2],
-            ep[2],
+            la2,
+            et2,
+            ep2,
             L::splat(r.psi) - s[ix::PSI],
             L::splat(r.psi_dot) - rr,
         ) + r.psi_ddot;
