@@ -181,3 +181,35 @@ def test_realisations_a_dispersion_makes_diverge_are_flagged_and_the_rest_kept(s
     assert low.any() and high.any()
     assert one.loc[low, "diverged"].all() and not one.loc[high, "diverged"].any()
     assert np.isfinite(one.loc[high, METRICS[:4]].to_numpy()).all()
+
+
+def test_cli_disperses_samples_and_ranks(tmp_path, capsys):
+    from quadrs.cli import main, parse_distribution
+    from tests.test_cli import SHORT
+
+    assert parse_distribution("normal(mean=2, std=0.2)") == {
+        "dist": "normal",
+        "mean": 2,
+        "std": 0.2,
+    }
+    out = tmp_path / "runs.parquet"
+    disperse = ["--disperse", "payload.mass=uniform(0.15, 0.3)"]
+    args = ["mc", *SHORT, *disperse, "--runs", "8", "--sampling", "lhs", "--no-progress"]
+    assert main([*args, "--out", str(out), "--plots", str(tmp_path / "figs")]) == 0
+    text = capsys.readouterr().out
+    assert (
+        "Dispersed (lhs sampling" in text and "payload.mass ~ uniform(low=0.15, high=0.3)" in text
+    )
+    mc = quadrs.MonteCarloResult.read_parquet(out)
+    assert mc.sampling == "lhs" and mc.runs["payload.mass"].between(0.15, 0.3).all()
+    assert (tmp_path / "figs" / "dispersion_iae.png").exists()
+
+    sa = ["sensitivity", *SHORT, *disperse, "--disperse", "gust.w20=triangular(5, 10, 15)"]
+    assert main([*sa, "--runs", "16", "--phase", "P2", "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "Sobol' indices of iae" in text and "gust.w20" in text
+    assert max(len(line) for line in text.splitlines()) <= 100
+    for bad in (["--disperse", "payload.mass=cauchy(0, 1)"], ["--disperse", "payload.mass"]):
+        assert main(["mc", *SHORT, *bad, "--runs", "4", "--no-progress"]) == 2
+    assert main([*sa, "--runs", "12", "--no-progress"]) == 2  # not a power of two
+    assert main([*sa, "--metric", "nope", "--no-progress"]) == 2

@@ -81,9 +81,8 @@ def run_on_dask(
 ) -> Iterator[tuple[int, pd.DataFrame, dict[str, Any] | None]]:
     """Submit one task per (first, count) range; yield (count, rows, sums) as tasks finish.
     Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
-    from dask.distributed import as_completed
-
     from dask.base import tokenize
+    from dask.distributed import as_completed
 
     threads = worker_threads(client)
     toml = scenario.to_toml()

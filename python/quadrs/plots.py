@@ -484,6 +484,7 @@ def exceedance_curves(
             title=f"Exceedance, {phase} (bands: pointwise {confidence:.0%} exact intervals)",
         )
         ax.legend(loc="best", fontsize="small")
+    return _finish(fig, path)
 
 
 # -- uncertain parameters -------------------------------------------------------------------
@@ -510,12 +511,23 @@ def dispersion_scatter(
                 sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
                 ok = ~sel["diverged"].astype(bool)
                 style = _style(ctrl, i)
-                ax.scatter(sel.loc[ok, key], sel.loc[ok, metric], s=6, alpha=0.5,
-                           color=style["color"], label=style["label"])
+                ax.scatter(
+                    sel.loc[ok, key],
+                    sel.loc[ok, metric],
+                    s=6,
+                    alpha=0.5,
+                    color=style["color"],
+                    label=style["label"],
+                )
                 if (~ok).any():
                     top = np.nanmax(sel[metric]) if ok.any() else 1.0
-                    ax.scatter(sel.loc[~ok, key], np.full((~ok).sum(), top), marker="x",
-                               color=style["color"], label=f"{style['label']} diverged")
+                    ax.scatter(
+                        sel.loc[~ok, key],
+                        np.full((~ok).sum(), top),
+                        marker="x",
+                        color=style["color"],
+                        label=f"{style['label']} diverged",
+                    )
             ax.set(xlabel=_unit(key), title=f"{phase}")
             if c == 0:
                 ax.set_ylabel(label)
@@ -546,9 +558,16 @@ def sobol_bars(
             style = _style(ctrl, i)
             for j, (col, hatch) in enumerate((("S1", None), ("ST", "//"))):
                 pos = y - 0.4 + width * (2 * i + j + 0.5)
-                ax.barh(pos, sel[col], height=width, xerr=sel[f"{col}_conf"], color=style["color"],
-                        alpha=0.45 if hatch else 0.85, hatch=hatch,
-                        label=f"{style['label']} {'total' if hatch else 'first-order'}")
+                ax.barh(
+                    pos,
+                    sel[col],
+                    height=width,
+                    xerr=sel[f"{col}_conf"],
+                    color=style["color"],
+                    alpha=0.45 if hatch else 0.85,
+                    hatch=hatch,
+                    label=f"{style['label']} {'total' if hatch else 'first-order'}",
+                )
         ax.set_yticks(y, params if ax is fig.axes[0] else [""] * len(params))
         ax.set_xlim(-0.05, 1.05)
         ax.axvline(0, color="grey", lw=0.5)
