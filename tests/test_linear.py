@@ -55,8 +55,9 @@ def test_eigenvalues_of_a_are_the_stability_poles(preset: str, controller: str) 
 
 
 def test_still_air_has_no_first_order_wind_input_and_outputs_are_named() -> None:
-    lin = linearize(quadrs.Scenario.paper(), "pd", inputs=("wind_x", "wind_y", "wind_z"),
-                    outputs=OUTPUT_NAMES)  # fmt: skip
+    lin = linearize(
+        quadrs.Scenario.paper(), "pd", inputs=("wind_x", "wind_y", "wind_z"), outputs=OUTPUT_NAMES
+    )
     assert isinstance(lin, LinearModel)
     assert lin.B.shape == (14, 3) and lin.C.shape == (20, 14) and lin.D.shape == (20, 3)
     assert not lin.B.any() and not lin.D.any()
@@ -92,8 +93,9 @@ def test_frequency_response_matches_flights_with_a_sinusoidal_wind(controller: s
         np.testing.assert_allclose(trace["wind_z"].to_numpy(), wind[:, 2])
         tt = trace.index.to_numpy()
         m = tt >= T - 8.0
-        x = np.column_stack([np.sin(2 * np.pi * f * tt[m]), np.cos(2 * np.pi * f * tt[m]),
-                             np.ones(m.sum())])  # fmt: skip
+        x = np.column_stack(
+            [np.sin(2 * np.pi * f * tt[m]), np.cos(2 * np.pi * f * tt[m]), np.ones(m.sum())]
+        )
         c, *_ = np.linalg.lstsq(x, trace["e_o"].to_numpy()[m], rcond=None)
         measured = (c[0] + 1j * c[1]) / amp
         g = lin.frequency_response([f])[0, 0, 0]
@@ -114,7 +116,7 @@ def test_prescribed_wind_equals_the_same_steady_wind_from_the_gust_block() -> No
             "gust.start": 1.0,
             "gust.end": 3.0,
             "gust.mean_wind": [0.5, -0.2, 1.5],
-        }  # fmt: skip
+        }
     )
     t = np.arange(s.steps + 1) * DT
     wind = np.zeros((t.size, 3))
@@ -150,5 +152,6 @@ def test_to_control_is_the_same_system() -> None:
     sys = lin.to_control()
     assert isinstance(sys, control.StateSpace)
     g = control.frequency_response(sys, [2 * np.pi * 2.0])
-    np.testing.assert_allclose(complex(g.complex.ravel()[0]),
-                               lin.frequency_response([2.0])[0, 0, 0], rtol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        complex(g.complex.ravel()[0]), lin.frequency_response([2.0])[0, 0, 0], rtol=1e-9
+    )

@@ -82,7 +82,7 @@ class LinearModel:
         return out
 
     def to_control(self) -> Any:
-        """The model as a python-control ``StateSpace`` (needs ``pip install 'quadrs[control]'``)."""
+        """The model as a python-control ``StateSpace`` (``pip install 'quadrs[control]'``)."""
         try:
             import control
         except ImportError as e:  # pragma: no cover - depends on the environment
