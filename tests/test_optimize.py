@@ -156,3 +156,14 @@ def test_bad_input_names_the_key() -> None:
         optimize(s, params={KEY: (0.5, 1.5)}, phases=("P9",))
     with pytest.raises(ValueError, match="method"):
         optimize(s, params={KEY: (0.5, 1.5)}, phases=("G",), method="bfgs")
+
+
+def test_tied_keys_share_one_value() -> None:
+    tied = "controller.smc.lambda[0],controller.smc.lambda[1]"
+    res = optimize(short(duration=2.0), "smc", {tied: (0.8, 1.6)}, "rms", ("G",), runs=2,
+                   method="nelder-mead", maxiter=3)  # fmt: skip
+    assert list(res.history.columns[:2]) == ["evaluation", tied]
+    lam = res.scenario["controller.smc.lambda"]
+    assert lam[0] == lam[1] == res.best[tied]
+    with pytest.raises(quadrs.ScenarioError, match=r"nope\.key"):
+        optimize(short(duration=2.0), params={"controller.smc.lambda[0],nope.key": (1, 2)})

@@ -55,7 +55,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         required=True,
         metavar="KEY=LO:HI",
         help="a numeric scenario key and its bounds, repeatable, e.g. "
-        "controller.smc.lambda[0]=0.5:8",
+        "controller.smc.lambda[0]=0.5:8; KEY1,KEY2=LO:HI tunes several keys as one value",
     )
     p.add_argument(
         "--objective",
@@ -132,6 +132,7 @@ def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
 def _tuned_toml(args: argparse.Namespace, out: Path, best: dict[str, float], tuned: Any) -> str:
     """``base`` = the input (preset name or the file's path relative to ``out``), then every
     --set value and tuned value (a vector element writes its whole vector)."""
+    from quadrs.optimize import expand
     from quadrs.report import toml_value
     from quadrs.scenario import _split_key
 
@@ -143,7 +144,7 @@ def _tuned_toml(args: argparse.Namespace, out: Path, best: dict[str, float], tun
             base = str(src)
     else:
         base = args.preset or "paper"
-    keys = [item.partition("=")[0].strip() for item in args.overrides] + list(best)
+    keys = [item.partition("=")[0].strip() for item in args.overrides] + list(expand(best))
     nested: dict[str, Any] = {}
     for key in keys:
         parts = _split_key(key)

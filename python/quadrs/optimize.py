@@ -85,16 +85,22 @@ class OptimizeResult:
     runs: int
 
 
+def expand(values: Mapping[str, float]) -> dict[str, float]:
+    """{key: value} with tied keys ("a,b": one value for both) split into one entry each."""
+    return {k.strip(): v for key, v in values.items() for k in key.split(",")}
+
+
 def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> None:
     if not params:
         raise ValueError("params must name at least one scenario key with (low, high) bounds")
     for key, bounds in params.items():
-        try:
-            value = scenario[key]
-        except KeyError:
-            raise ScenarioError(f"{key}: unknown scenario key") from None
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ScenarioError(f"{key} must be a numeric scenario key to tune, got {value!r}")
+        for one in key.split(","):
+            try:
+                value = scenario[one.strip()]
+            except KeyError:
+                raise ScenarioError(f"{one.strip()}: unknown scenario key") from None
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ScenarioError(f"{one} must be a numeric scenario key to tune, got {value!r}")
         try:
             low, high = (float(b) for b in bounds)
         except (TypeError, ValueError):
@@ -102,7 +108,7 @@ def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> 
         if not (math.isfinite(low) and math.isfinite(high) and low < high):
             raise ScenarioError(f"{key}: bounds must be finite with low < high, got {bounds!r}")
         for b in (low, high):
-            scenario.override({key: b})  # ScenarioError naming the key if out of its domain
+            scenario.override(expand({key: b}))  # ScenarioError naming the key if out of its domain
 
 
 def _metric_values(
@@ -137,7 +143,9 @@ def optimize(
     """Minimise a Monte Carlo objective over bounded scenario keys.
 
     ``params``: {dotted key: (low, high)}, any numeric key including vector elements
-    (``"controller.smc.lambda[0]"``). ``objective``: a metric name (``_core.METRIC_NAMES``):
+    (``"controller.smc.lambda[0]"``); a key naming several keys separated by commas ties them
+    to one value (``"controller.smc.lambda[0],controller.smc.lambda[1]"``: x and y alike).
+    ``objective``: a metric name (``_core.METRIC_NAMES``):
     the mean over the ``runs`` realisations of that metric summed over ``phases``, for one
     ``controller``; or a callable ``f(mc) -> float`` of the :class:`MonteCarloResult` of
     every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``.
@@ -230,7 +238,7 @@ def optimize(
 
     def evaluate(x: np.ndarray) -> float:
         values = {k: float(v) for k, v in zip(keys, x, strict=True)}
-        candidate = scenario.override(values)
+        candidate = scenario.override(expand(values))
         row: dict[str, Any] = {"evaluation": len(rows), **values}
         reports = [stability(candidate, c) for c in controllers]
         max_real = max(float(r.poles["real"].max()) for r in reports)
@@ -273,7 +281,7 @@ def optimize(
             )
         else:
             x0 = [
-                min(max(float(scenario[k]), lo), hi)
+                min(max(float(scenario[k.split(",")[0].strip()]), lo), hi)
                 for k, (lo, hi) in zip(keys, bounds, strict=True)
             ]
             sopt.minimize(
@@ -303,7 +311,7 @@ def optimize(
         raise KeyboardInterrupt("interrupted before the first evaluation finished")
     best_row = history.loc[history["objective"].idxmin()]
     best = {k: float(best_row[k]) for k in keys}
-    tuned = scenario.override(best)
+    tuned = scenario.override(expand(best))
 
     holdout = None
     if not interrupted and not bool(best_row["penalised"]):
