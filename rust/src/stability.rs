@@ -276,18 +276,18 @@ fn linearise_with<C: Control>(cfg: &Config, ctrl: &C, wind: [f64; 3]) -> Lineari
             w[j - NX].d = 1.0;
         }
         let (f, y) = signals(&plant, ctrl, &r, &s, &w);
-        for i in 0..NX {
+        for (i, fi) in f.iter().enumerate() {
             if j < NX {
-                lin.a[(i, j)] = f[i].d;
+                lin.a[(i, j)] = fi.d;
             } else {
-                lin.b[(i, j - NX)] = f[i].d;
+                lin.b[(i, j - NX)] = fi.d;
             }
         }
-        for i in 0..NY {
+        for (i, yi) in y.iter().enumerate() {
             if j < NX {
-                lin.c[(i, j)] = y[i].d;
+                lin.c[(i, j)] = yi.d;
             } else {
-                lin.d[(i, j - NX)] = y[i].d;
+                lin.d[(i, j - NX)] = yi.d;
             }
         }
     }
