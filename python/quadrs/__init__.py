@@ -6,7 +6,9 @@ The public API; see the README for a tour.
 from quadrs._core import EngineError, ScenarioError, __version__
 from quadrs.flight import Flight, simulate
 from quadrs.gust import gust_scales, gust_series
+from quadrs.linear import LinearModel, linearize
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
+from quadrs.optimize import OptimizeResult, optimize
 from quadrs.scenario import Scenario
 from quadrs.sensitivity import SensitivityResult, sensitivity
 from quadrs.stability import StabilityReport, StabilityWarning, StepSizeWarning, stability
@@ -15,7 +17,9 @@ from quadrs.sweep import sweep
 __all__ = [
     "EngineError",
     "Flight",
+    "LinearModel",
     "MonteCarloResult",
+    "OptimizeResult",
     "Scenario",
     "ScenarioError",
     "SensitivityResult",
@@ -25,7 +29,9 @@ __all__ = [
     "__version__",
     "gust_scales",
     "gust_series",
+    "linearize",
     "monte_carlo",
+    "optimize",
     "sensitivity",
     "simulate",
     "stability",

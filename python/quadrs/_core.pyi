@@ -34,8 +34,12 @@ def simulate(
     seed: int,
     realisation: int = 0,
     record_every: int = 1,
+    wind: npt.NDArray[np.float64] | None = None,
 ) -> dict[str, Any]: ...
 def stability(config_json: str, controller: str) -> dict[str, Any]: ...
+def linearize(
+    config_json: str, controller: str, wind: tuple[float, float, float] | list[float]
+) -> dict[str, Any]: ...
 def run_batch(
     config_json: str,
     controllers: list[str],

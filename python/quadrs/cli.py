@@ -147,6 +147,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_stability(sub, common)
     _add_sensitivity(sub, common)
     _add_scenario(sub, common)
+    from quadrs.cli_design import add_linearize, add_tune
+
+    add_tune(sub, common)
+    add_linearize(sub, common)
     return parser
 
 
@@ -878,7 +882,16 @@ COMMANDS = {
     "stability": cmd_stability,
     "sensitivity": cmd_sensitivity,
     "scenario": cmd_scenario,
+    "tune": lambda args: _design("cmd_tune", args),
+    "linearize": lambda args: _design("cmd_linearize", args),
 }
+
+
+def _design(name: str, args: argparse.Namespace) -> int:
+    """``tune`` and ``linearize`` live in quadrs.cli_design."""
+    from quadrs import cli_design
+
+    return int(getattr(cli_design, name)(args))
 
 
 # -- entry point ------------------------------------------------------------------------------

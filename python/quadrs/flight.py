@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from quadrs import _core
@@ -59,6 +60,7 @@ def simulate(
     *,
     realisation: int = 0,
     record_every: int | None = None,
+    wind: npt.ArrayLike | None = None,
 ) -> Flight:
     """Fly ``scenario`` once with ``controller`` ("pd" or "smc").
 
@@ -66,6 +68,11 @@ def simulate(
     gust in :func:`quadrs.monte_carlo`. ``record_every`` thins the trace to every n-th step
     (default: about one row per millisecond). A dispersed scenario flies the values that
     realisation drew under ``sampling="random"`` (``flight.scenario`` is that fixed scenario).
+
+    ``wind``: a prescribed wind (m/s, inertial x, y, z; z up) flown instead of the gust model
+    (the ``gust`` keys are then ignored), shape ``(scenario.steps + 1, 3)``: row k is held over
+    the step starting at t = k * dt (the last row only shows in the trace). For deterministic
+    inputs, e.g. a sinusoid to measure a frequency response (docs/design-loop.md).
     """
     from quadrs.stability import warn_before_running
 
@@ -76,7 +83,16 @@ def simulate(
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
-    out = _core.simulate(scenario.to_json(), controller, seed, realisation, record_every)
+    if seed < 0 or realisation < 0:
+        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
+    prescribed = None
+    if wind is not None:
+        prescribed = np.ascontiguousarray(wind, dtype=np.float64)
+        if prescribed.ndim != 2 or prescribed.shape[1] != 3:
+            raise ValueError(f"wind must have shape (steps + 1, 3), got {prescribed.shape}")
+    out = _core.simulate(
+        scenario.to_json(), controller, seed, realisation, record_every, prescribed
+    )
     raw = out["trace"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)
     phases = scenario.phase_names

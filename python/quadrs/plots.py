@@ -576,3 +576,32 @@ def sobol_bars(
     name = PLAIN_LABELS.get(metric, metric).split(" (")[0].split(",")[0]
     fig.suptitle(f"What drives the {name[0].lower() + name[1:]}")
     return _finish(fig, path)
+
+
+def gust_transmissibility(
+    scenario: Any,
+    controllers: Sequence[str] = ("pd", "smc"),
+    wind: float | None = None,
+    freqs_hz: Any = None,
+    path: str | Path | None = None,
+) -> Figure:
+    """Gust-to-e_o transmissibility |e_o / w_z|(f) of the closed loop linearised at hover
+    (:func:`quadrs.linearize`) about a steady vertical wind ``wind`` (m/s; default
+    :func:`quadrs.linear.equivalent_wind`, the gust's statistically equivalent wind)."""
+    from quadrs.linear import equivalent_wind, linearize
+
+    w0 = equivalent_wind(scenario) if wind is None else float(wind)
+    f = np.logspace(-2, 1.5, 600) if freqs_hz is None else np.asarray(freqs_hz, dtype=float)
+    fig = new_figure(height=3.6)
+    ax = _axes(fig)[0]
+    for c in controllers:
+        lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, w0))
+        mag = np.abs(lin.frequency_response(f)[:, 0, 0])
+        style = {k: v for k, v in STYLE[c].items() if k != "marker"}
+        ax.loglog(f, mag, **style)
+    ax.set_xlabel("Gust frequency (Hz)")
+    ax.set_ylabel("Payload oscillation per unit gust\n|e_o / vertical wind| (m per m/s)")
+    ax.set_title(f"Vertical gust to payload oscillation, linearised about {w0:.2g} m/s updraft")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return _finish(fig, path)

@@ -7,6 +7,7 @@ the engine accepts; every error names the dotted key and the offending value.
 
 from __future__ import annotations
 
+import contextvars
 import copy
 import json
 import math
@@ -26,6 +27,10 @@ ScenarioError = _core.ScenarioError
 
 _PRESET_DIR = "presets"
 _BASE_KEY = "base"
+#: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
+_BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
+    "_BASE_CHAIN", default=()
+)
 # The two ways of giving the attachment: setting one replaces the other.
 _EXCLUSIVE = {
     "payload.stiffness": "payload.natural_frequency",
@@ -139,10 +144,27 @@ class Scenario:
 
     @classmethod
     def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
+        """Parse TOML text. ``base`` may name a preset or, unlike in :meth:`from_dict`, another
+        scenario file (``base = "tuned.toml"``, relative to ``source``'s directory)."""
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ScenarioError(f"{source} is not valid TOML: {e}") from e
+        base = data.get(_BASE_KEY)
+        if isinstance(base, str) and base.endswith(".toml") and base not in presets():
+            path = Path(base)
+            if not path.is_absolute() and source != "<string>":
+                path = Path(source).parent / path
+            chain = _BASE_CHAIN.get()
+            if path.resolve() in chain:
+                raise ScenarioError(f"base = {base!r} in {source}: a scenario file bases on itself")
+            token = _BASE_CHAIN.set((*chain, path.resolve()))
+            try:
+                parent = cls.from_toml(path)
+            finally:
+                _BASE_CHAIN.reset(token)
+            del data[_BASE_KEY]
+            return cls(_merge(parent._data, data))
         return cls.from_dict(data)
 
     @classmethod
@@ -153,7 +175,7 @@ class Scenario:
         if base is not None:
             if not isinstance(base, str):
                 raise ScenarioError(f"base must name a preset, got {base!r}")
-            data = _merge(tomllib.loads(_preset_text(base)), data)
+            data = _merge(cls.preset(base)._data, data)  # a preset may base on another
         return cls(data)
 
     # -- output -------------------------------------------------------------------------

@@ -214,6 +214,8 @@ pub struct Engine {
     decimation: usize,
     /// The instruction set the flight loop runs on (`Isa::active()` unless set otherwise).
     pub isa: Isa,
+    /// A wind prescribed step by step (`with_wind`), flown instead of the gust model.
+    prescribed_wind: Option<Vec<[f64; 3]>>,
 }
 
 /// Most lanes a `Lane` type may carry (sizes the per-step wind buffer).
@@ -240,12 +242,31 @@ impl Engine {
             decimation,
             cfg,
             isa: Isa::active(),
+            prescribed_wind: None,
         })
     }
 
     /// The scenario's own plant.
     pub fn plant(&self) -> &Plant {
         &self.craft.plant
+    }
+
+    /// Fly the wind `wind` (m/s, inertial [x, y, z]; row k held over step k, one row per step
+    /// and one for the final time: `steps + 1` rows) instead of the scenario's gust model: the
+    /// `gust` block is then ignored. For deterministic inputs such as a sinusoid.
+    pub fn with_wind(mut self, wind: Vec<[f64; 3]>) -> Result<Self, String> {
+        if wind.len() != self.steps + 1 {
+            return Err(format!(
+                "wind must have steps + 1 = {} rows (one per step of the trace), got {}",
+                self.steps + 1,
+                wind.len()
+            ));
+        }
+        if let Some(k) = wind.iter().position(|w| !w.iter().all(|x| x.is_finite())) {
+            return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
+        }
+        self.prescribed_wind = Some(wind);
+        Ok(self)
     }
 
     pub fn phase_count(&self) -> usize {
@@ -395,7 +416,9 @@ impl Engine {
             let u = ctrl.control_with(&s, &trig, &r);
             // Outside the gust window `sample` returns zeros without touching the state, so the
             // per-lane calls are skipped where no lane's window is open (most of a flight).
-            if (gust_from..gust_to).contains(&(k as u64)) {
+            if let Some(prescribed) = &self.prescribed_wind {
+                wind_lanes = [prescribed[k]; MAX_LANES];
+            } else if (gust_from..gust_to).contains(&(k as u64)) {
                 for ((ws, v), c) in winds.iter_mut().zip(wind_lanes.iter_mut()).zip(crafts) {
                     *v = c.wind.sample(ws, k as u64);
                 }

@@ -162,9 +162,45 @@ mod _core {
         Ok(d)
     }
 
-    /// One flight: trace every `record_every` steps, per-phase metrics, divergence time.
+    /// The closed loop linearised at hover in the steady wind `wind` (rust/src/stability.rs):
+    /// A, B, C, D (exact, dual numbers), the equilibrium and the signal names.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1))]
+    fn linearize<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controller: &str,
+        wind: [f64; 3],
+    ) -> PyResult<Bound<'py, PyDict>> {
+        use crate::stability::{linearise, INPUT_NAMES, OUTPUT_NAMES};
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        if let Some(w) = wind.iter().find(|w| !w.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "wind must be finite, got {w}"
+            )));
+        }
+        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
+        let l = py.detach(|| guarded("linearize", || linearise(&cfg, kind, wind)))?;
+        let d = PyDict::new(py);
+        let dense = |rows: usize, cols: usize, f: &dyn Fn(usize, usize) -> f64| {
+            Array2::from_shape_fn((rows, cols), |(i, j)| f(i, j))
+        };
+        let (nx, nu, ny) = (l.b.nrows(), l.b.ncols(), l.c.nrows());
+        d.set_item("A", dense(nx, nx, &|i, j| l.a[(i, j)]).into_pyarray(py))?;
+        d.set_item("B", dense(nx, nu, &|i, j| l.b[(i, j)]).into_pyarray(py))?;
+        d.set_item("C", dense(ny, nx, &|i, j| l.c[(i, j)]).into_pyarray(py))?;
+        d.set_item("D", dense(ny, nu, &|i, j| l.d[(i, j)]).into_pyarray(py))?;
+        d.set_item("state_names", STATE_NAMES.to_vec())?;
+        d.set_item("input_names", INPUT_NAMES.to_vec())?;
+        d.set_item("output_names", OUTPUT_NAMES.to_vec())?;
+        d.set_item("equilibrium", l.equilibrium.to_vec().into_pyarray(py))?;
+        d.set_item("residual", l.residual)?;
+        Ok(d)
+    }
+
+    /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
+    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model.
+    #[pyfunction]
+    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None))]
     fn simulate<'py>(
         py: Python<'py>,
         config_json: &str,
@@ -172,12 +208,24 @@ mod _core {
         seed: u64,
         realisation: u64,
         record_every: usize,
+        wind: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if record_every == 0 {
             return Err(PyValueError::new_err("record_every must be >= 1, got 0"));
         }
-        let e = engine(config_json)?;
+        let mut e = engine(config_json)?;
+        if let Some(w) = wind {
+            let w = w.as_array();
+            if w.ncols() != 3 {
+                return Err(PyValueError::new_err(format!(
+                    "wind must have 3 columns (x, y, z), got shape {:?}",
+                    w.shape()
+                )));
+            }
+            let rows = w.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+            e = e.with_wind(rows).map_err(PyValueError::new_err)?;
+        }
         let (trace, res) = py.detach(|| {
             guarded("simulate", || {
                 let mut trace = Trace::new(record_every, e.steps);

@@ -125,14 +125,13 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
 }
 
 fn analyse_with<C: Control>(cfg: &Config, kind: ControllerKind, ctrl: &C) -> Analysis {
-    let plant = Plant::new(cfg);
-    let wp = cfg.trajectory.waypoints[0];
-    let r = Reference {
-        pos: [wp[1], wp[2], wp[3]],
-        ..Reference::default()
-    };
-    let (equilibrium, residual) = equilibrium(&plant, ctrl, &r);
-    let jacobian = closed_loop_jacobian(&plant, ctrl, &r, &equilibrium);
+    // The same linearisation `linearise` returns, in still air: A is the Jacobian.
+    let Linearisation {
+        equilibrium,
+        residual,
+        a: jacobian,
+        ..
+    } = linearise_with(cfg, ctrl, [0.0; 3]);
     let sources = lateral_sources(cfg);
     let mut poles = Vec::with_capacity(NX);
     for block in blocks(&jacobian) {
@@ -154,14 +153,145 @@ fn analyse_with<C: Control>(cfg: &Config, kind: ControllerKind, ctrl: &C) -> Ana
 }
 
 /// The closed-loop vector field at state `s` (controls recomputed from `s`, zero wind).
+#[cfg(test)]
 fn closed_loop<L: Lane, C: Control>(
     plant: &Plant,
     ctrl: &C,
     r: &Reference,
     s: &State<L>,
 ) -> State<L> {
+    closed_loop_in(plant, ctrl, r, s, &[L::splat(0.0); 3])
+}
+
+/// The closed-loop vector field at state `s` in the steady wind `w` (m/s, inertial).
+fn closed_loop_in<L: Lane, C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    s: &State<L>,
+    w: &[L; 3],
+) -> State<L> {
     let u: Inputs<L> = ctrl.control(s, r);
-    plant.derivative(s, &u, &[L::splat(0.0); 3])
+    plant.derivative(s, &u, w)
+}
+
+/// Inputs of the linear model: the wind components (m/s, inertial, z up).
+pub const NU: usize = 3;
+pub const INPUT_NAMES: [&str; NU] = ["wind_x", "wind_y", "wind_z"];
+
+/// Outputs of the linear model: every state, then e_o (m), the controls (N, N m) and the
+/// payload's vertical inertial acceleration `azc` = d(vzc)/dt (m/s^2; the only output the wind
+/// drives directly, through the payload's drag).
+pub const NY: usize = NX + 6;
+pub const OUTPUT_NAMES: [&str; NY] = [
+    "x",
+    "y",
+    "z",
+    "phi",
+    "theta",
+    "psi",
+    "zc",
+    "vx",
+    "vy",
+    "vz",
+    "p",
+    "q",
+    "r",
+    "vzc",
+    "e_o",
+    "U1",
+    "tau_phi",
+    "tau_theta",
+    "tau_psi",
+    "azc",
+];
+
+/// The closed loop linearised at hover in a steady wind: deviations from the equilibrium obey
+/// ds/dt = A ds + B dw, dy = C ds + D dw, with dw the wind's deviation from `wind`.
+#[derive(Clone, Debug)]
+pub struct Linearisation {
+    pub wind: [f64; 3],
+    pub equilibrium: State<f64>,
+    /// |f(equilibrium)| (see [`Analysis::residual`]).
+    pub residual: f64,
+    pub a: Jacobian,
+    pub b: SMatrix<f64, NX, NU>,
+    pub c: SMatrix<f64, NY, NX>,
+    pub d: SMatrix<f64, NY, NU>,
+}
+
+/// The closed loop of `kind` linearised at hover in the steady wind `wind` (m/s): A, B, C, D,
+/// exact (dual numbers). In still air A is [`Analysis::jacobian`] and B = 0: drag is quadratic
+/// in the relative velocity, so a small wind change acts only at second order there.
+pub fn linearise(cfg: &Config, kind: ControllerKind, wind: [f64; 3]) -> Linearisation {
+    match kind {
+        ControllerKind::Pd => linearise_with(cfg, &Pd::new(cfg), wind),
+        ControllerKind::Smc => linearise_with(cfg, &Smc::new(cfg), wind),
+    }
+}
+
+/// The closed-loop derivative and the outputs (in `OUTPUT_NAMES` order) at `s` in wind `w`.
+fn signals<L: Lane, C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    s: &State<L>,
+    w: &[L; 3],
+) -> (State<L>, [L; NY]) {
+    let u: Inputs<L> = ctrl.control(s, r);
+    let f = plant.derivative(s, &u, w);
+    let mut y = [L::splat(0.0); NY];
+    y[..NX].copy_from_slice(s);
+    y[NX] = plant.relative_oscillation(s);
+    y[NX + 1] = u.u1;
+    y[NX + 2..NX + 5].copy_from_slice(&u.tau);
+    y[NX + 5] = f[ix::VZC];
+    (f, y)
+}
+
+fn linearise_with<C: Control>(cfg: &Config, ctrl: &C, wind: [f64; 3]) -> Linearisation {
+    let plant = Plant::new(cfg);
+    let wp = cfg.trajectory.waypoints[0];
+    let r = Reference {
+        pos: [wp[1], wp[2], wp[3]],
+        ..Reference::default()
+    };
+    let (equilibrium, residual) = equilibrium(&plant, ctrl, &r, &wind);
+    let mut lin = Linearisation {
+        wind,
+        equilibrium,
+        residual,
+        a: Jacobian::zeros(),
+        b: SMatrix::zeros(),
+        c: SMatrix::zeros(),
+        d: SMatrix::zeros(),
+    };
+    // One dual-number pass per column: seeded on state j, then on wind component j.
+    for j in 0..NX + NU {
+        let mut s: State<Dual> = equilibrium.map(Dual::constant);
+        let mut w: [Dual; NU] = wind.map(Dual::constant);
+        if j < NX {
+            s[j].d = 1.0;
+        } else {
+            w[j - NX].d = 1.0;
+        }
+        let (f, y) = signals(&plant, ctrl, &r, &s, &w);
+        for (i, fi) in f.iter().enumerate() {
+            if j < NX {
+                lin.a[(i, j)] = fi.d;
+            } else {
+                lin.b[(i, j - NX)] = fi.d;
+            }
+        }
+        for (i, yi) in y.iter().enumerate() {
+            if j < NX {
+                lin.c[(i, j)] = yi.d;
+            } else {
+                lin.d[(i, j - NX)] = yi.d;
+            }
+        }
+    }
+    lin
 }
 
 /// d f / d s at `s`, exact: column j carries the derivative seeded on state j.
@@ -171,11 +301,23 @@ pub fn closed_loop_jacobian<C: Control>(
     r: &Reference,
     s: &State<f64>,
 ) -> Jacobian {
+    closed_loop_jacobian_in(plant, ctrl, r, s, &[0.0; 3])
+}
+
+/// [`closed_loop_jacobian`] in the steady wind `w`.
+fn closed_loop_jacobian_in<C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    s: &State<f64>,
+    w: &[f64; 3],
+) -> Jacobian {
     let mut jac = Jacobian::zeros();
+    let w = w.map(Dual::constant);
     for j in 0..NX {
         let mut sd: State<Dual> = s.map(Dual::constant);
         sd[j].d = 1.0;
-        let f = closed_loop(plant, ctrl, r, &sd);
+        let f = closed_loop_in(plant, ctrl, r, &sd, &w);
         for i in 0..NX {
             jac[(i, j)] = f[i].d;
         }
@@ -186,17 +328,23 @@ pub fn closed_loop_jacobian<C: Control>(
 /// Newton's method from rest at the reference: exact there with mass compensation, a few
 /// millimetres of altitude droop without. The pseudo-inverse lets it step past the directions
 /// with no feedback (a position with zero gains), where any point is an equilibrium.
-fn equilibrium<C: Control>(plant: &Plant, ctrl: &C, r: &Reference) -> (State<f64>, f64) {
+/// In a steady wind `w` the drag moves the equilibrium a little (no integral action).
+fn equilibrium<C: Control>(
+    plant: &Plant,
+    ctrl: &C,
+    r: &Reference,
+    w: &[f64; 3],
+) -> (State<f64>, f64) {
     let start = plant.rest_state(r.pos, [0.0; 3]);
     let norm = |f: &State<f64>| f.iter().map(|x| x * x).sum::<f64>().sqrt();
     let mut s = start;
-    let mut res = norm(&closed_loop(plant, ctrl, r, &s));
+    let mut res = norm(&closed_loop_in(plant, ctrl, r, &s, w));
     for _ in 0..50 {
         if res < 1e-13 {
             break;
         }
-        let f = SVector::<f64, NX>::from(closed_loop(plant, ctrl, r, &s));
-        let jac = closed_loop_jacobian(plant, ctrl, r, &s);
+        let f = SVector::<f64, NX>::from(closed_loop_in(plant, ctrl, r, &s, w));
+        let jac = closed_loop_jacobian_in(plant, ctrl, r, &s, w);
         // Bounded SVD: the plain one never returns on a non-finite Jacobian.
         let svd = SVD::try_new(jac, true, true, f64::EPSILON, MAX_ITERATIONS);
         let Some(Ok(step)) = svd.map(|svd| svd.solve(&f, 1e-12)) else {
@@ -206,7 +354,7 @@ fn equilibrium<C: Control>(plant: &Plant, ctrl: &C, r: &Reference) -> (State<f64
         for (x, d) in next.iter_mut().zip(step.iter()) {
             *x -= d;
         }
-        let next_res = norm(&closed_loop(plant, ctrl, r, &next));
+        let next_res = norm(&closed_loop_in(plant, ctrl, r, &next, w));
         // Stop when Newton no longer helps (or produced NaN).
         if next_res.is_nan() || next_res >= res {
             break;
@@ -217,7 +365,7 @@ fn equilibrium<C: Control>(plant: &Plant, ctrl: &C, r: &Reference) -> (State<f64
         (s, res)
     } else {
         // No hover equilibrium (e.g. a steady climb or sink): report at the reference point.
-        (start, norm(&closed_loop(plant, ctrl, r, &start)))
+        (start, norm(&closed_loop_in(plant, ctrl, r, &start, w)))
     }
 }
 
@@ -786,6 +934,80 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn linearisation_in_still_air_is_the_stability_jacobian_and_wind_enters_at_second_order() {
+        for kind in [ControllerKind::Pd, ControllerKind::Smc] {
+            let cfg = paper();
+            let a = analyse(&cfg, kind);
+            let l = linearise(&cfg, kind, [0.0; 3]);
+            assert_eq!(a.jacobian, l.a);
+            assert_eq!(l.b, SMatrix::<f64, NX, NU>::zeros());
+            assert_eq!(l.d, SMatrix::<f64, NY, NU>::zeros());
+            // Outputs: the states themselves, then e_o = zc - z + d0.
+            for i in 0..NX {
+                for j in 0..NX {
+                    assert_eq!(l.c[(i, j)], if i == j { 1.0 } else { 0.0 });
+                }
+            }
+            assert_eq!(l.c[(NX, ix::ZC)], 1.0);
+            assert_eq!(l.c[(NX, ix::Z)], -1.0);
+            // azc is the payload's row of A.
+            for j in 0..NX {
+                assert_eq!(l.c[(NY - 1, j)], l.a[(ix::VZC, j)]);
+            }
+        }
+    }
+
+    #[test]
+    fn wind_jacobian_is_the_drag_slope_and_matches_finite_differences() {
+        let mut cfg = paper();
+        cfg.payload.damping = 0.5;
+        let w0 = [0.7, -0.4, 1.5];
+        let l = linearise(&cfg, ControllerKind::Smc, w0);
+        assert!(l.residual < 1e-10, "{}", l.residual);
+        let plant = Plant::new(&cfg);
+        // At the equilibrium the bodies are at rest, so the relative speed is |w0|:
+        // d/dw of -k (v - w)|v - w| is 2 k |w0|, with k = rho CdA / 2.
+        let bz = 2.0 * plant.drag_quad * w0[2].abs() / plant.m;
+        assert!((l.b[(ix::VZ, 2)] - bz).abs() < 1e-12 * bz);
+        let bzc = 2.0 * plant.drag_payload * w0[2].abs() / plant.mc;
+        assert!((l.b[(ix::VZC, 2)] - bzc).abs() < 1e-12 * bzc);
+        assert!((l.d[(NY - 1, 2)] - bzc).abs() < 1e-12 * bzc);
+        let bx = 2.0 * plant.drag_lateral * w0[0].abs() / (plant.m + plant.mc);
+        assert!((l.b[(ix::VX, 0)] - bx).abs() < 1e-12 * bx);
+        // B and D by central differences of the same closed loop.
+        let smc = Smc::new(&cfg);
+        let wp = cfg.trajectory.waypoints[0];
+        let r = Reference {
+            pos: [wp[1], wp[2], wp[3]],
+            ..Reference::default()
+        };
+        let h = 1e-6;
+        for j in 0..NU {
+            let (mut up, mut down) = (w0, w0);
+            up[j] += h;
+            down[j] -= h;
+            let (fu, yu) = signals(&plant, &smc, &r, &l.equilibrium, &up);
+            let (fd, yd) = signals(&plant, &smc, &r, &l.equilibrium, &down);
+            for i in 0..NX {
+                let fdiff = (fu[i] - fd[i]) / (2.0 * h);
+                assert!((fdiff - l.b[(i, j)]).abs() < 1e-6 * fdiff.abs().max(1.0));
+            }
+            for i in 0..NY {
+                let fdiff = (yu[i] - yd[i]) / (2.0 * h);
+                assert!((fdiff - l.d[(i, j)]).abs() < 1e-6 * fdiff.abs().max(1.0));
+            }
+        }
+        // The drag also damps: A gains -2 k |w0| / m on vz (PD: its own slope does not depend
+        // on the operating point, unlike the SMC's sat(s), whose s moves off zero in a wind).
+        let up = linearise(&cfg, ControllerKind::Pd, [0.0, 0.0, w0[2]]);
+        let still = linearise(&cfg, ControllerKind::Pd, [0.0; 3]);
+        let damp = up.a[(ix::VZ, ix::VZ)] - still.a[(ix::VZ, ix::VZ)];
+        assert!((damp + bz).abs() < 1e-12, "{damp} vs {bz}");
+        let damp = up.a[(ix::VZC, ix::VZC)] - still.a[(ix::VZC, ix::VZC)];
+        assert!((damp + bzc).abs() < 1e-12, "{damp} vs {bzc}");
     }
 
     #[test]

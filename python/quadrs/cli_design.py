@@ -1,0 +1,277 @@
+"""``quadrs tune`` and ``quadrs linearize``: the design loop on the command line.
+
+Kept apart from :mod:`quadrs.cli`, which registers these subcommands.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
+
+
+class BadParam(ValueError):
+    """A malformed ``--param``."""
+
+
+def _param(text: str) -> tuple[str, tuple[float, float]]:
+    key, sep, rng = text.partition("=")
+    low, sep2, high = rng.partition(":")
+    try:
+        lo, hi = float(low), float(high)
+    except ValueError:
+        lo = hi = math.nan
+    if not (sep and sep2 and key.strip()) or not (math.isfinite(lo) and math.isfinite(hi)):
+        raise argparse.ArgumentTypeError(f"--param {text!r}: expected KEY=LOW:HIGH")
+    if not lo < hi:
+        raise argparse.ArgumentTypeError(f"--param {text!r}: LOW must be < HIGH")
+    return key.strip(), (lo, hi)
+
+
+def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
+    from quadrs import _core
+
+    p = sub.add_parser(
+        "tune",
+        parents=[common],
+        help="tune gains or calibrate parameters against a Monte Carlo objective",
+        description="Minimise the mean over --runs gust realisations (the same ones for every "
+        "candidate) of --objective summed over --phase, over the --param keys within their "
+        "bounds. Candidates not stable at hover are rejected before flying. Writes a scenario "
+        "file that bases on the input and holds the tuned values (see docs/design-loop.md).",
+    )
+    p.add_argument(
+        "--controller", choices=("pd", "smc"), default="smc", help="controller (default: smc)"
+    )
+    p.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        required=True,
+        metavar="KEY=LO:HI",
+        help="a numeric scenario key and its bounds, repeatable, e.g. "
+        "controller.smc.lambda[0]=0.5:8; KEY1,KEY2=LO:HI tunes several keys as one value",
+    )
+    p.add_argument(
+        "--objective",
+        choices=list(_core.METRIC_NAMES),
+        default="iae",
+        metavar="METRIC",
+        help=f"metric to minimise, one of {', '.join(_core.METRIC_NAMES)} (default: iae)",
+    )
+    p.add_argument(
+        "--phase",
+        action="append",
+        default=None,
+        metavar="P",
+        help="phase the metric is summed over, repeatable (default: every phase)",
+    )
+    p.add_argument("--runs", type=int, default=64, metavar="N", help="realisations (default: 64)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--method",
+        choices=("differential_evolution", "nelder-mead"),
+        default="differential_evolution",
+        help="optimiser (default: differential_evolution)",
+    )
+    p.add_argument(
+        "--maxiter",
+        type=int,
+        default=None,
+        metavar="K",
+        help="generations (differential_evolution, default 20) or evaluations (nelder-mead, "
+        "default 100)",
+    )
+    p.add_argument(
+        "--popsize",
+        type=int,
+        default=8,
+        metavar="P",
+        help="differential_evolution: candidates per generation per parameter (default: 8)",
+    )
+    p.add_argument(
+        "--allow-unstable",
+        action="store_true",
+        help="fly candidates that are unstable at hover instead of rejecting them",
+    )
+    p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="FILE.toml", help="tuned scenario file"
+    )
+    p.add_argument("--history", type=Path, metavar="FILE.csv", help="also save every evaluation")
+
+
+def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "linearize",
+        parents=[common],
+        help="the closed loop at hover as A, B, C, D and the gust-to-e_o frequency response",
+        description="Linearise the closed loop at hover about a steady vertical wind (default: "
+        "the gust's statistically equivalent wind sigma_z sqrt(2/pi)), print its poles and the "
+        "gust-to-e_o transmissibility of each controller, optionally plot it.",
+    )
+    p.add_argument(
+        "--controller", choices=("pd", "smc", "both"), default="both", help="(default: both)"
+    )
+    p.add_argument(
+        "--wind",
+        type=float,
+        default=None,
+        metavar="W",
+        help="steady vertical wind linearised about, m/s (default: sigma_z sqrt(2/pi))",
+    )
+    p.add_argument("--plot", type=Path, metavar="DIR", help="write the figure here")
+    p.add_argument("--out", type=Path, metavar="FILE.npz", help="save A, B, C, D (numpy .npz)")
+
+
+def _tuned_toml(args: argparse.Namespace, out: Path, best: dict[str, float], tuned: Any) -> str:
+    """``base`` = the input (preset name or the file's path relative to ``out``), then every
+    --set value and tuned value (a vector element writes its whole vector)."""
+    from quadrs.optimize import expand
+    from quadrs.report import toml_value
+    from quadrs.scenario import _split_key
+
+    if args.scenario is not None:
+        src = Path(args.scenario).resolve()
+        try:
+            base = os.path.relpath(src, out.resolve().parent)
+        except ValueError:  # another drive
+            base = str(src)
+    else:
+        base = args.preset or "paper"
+    keys = [item.partition("=")[0].strip() for item in args.overrides] + list(expand(best))
+    nested: dict[str, Any] = {}
+    for key in keys:
+        parts = _split_key(key)
+        while parts and isinstance(parts[-1], int):
+            parts = parts[:-1]
+        node = nested
+        for part in parts[:-1]:
+            node = node.setdefault(str(part), {})
+        node[str(parts[-1])] = tuned[".".join(str(x) for x in parts)]
+
+    lines = ["# Written by quadrs tune: the input, its --set values and the tuned values.",
+             f"base = {toml_value(base)}"]  # fmt: skip
+
+    def emit(table: dict[str, Any], prefix: str) -> None:
+        leaves = {k: v for k, v in table.items() if not isinstance(v, dict)}
+        if prefix and leaves:
+            lines.extend(["", f"[{prefix}]"])
+        lines.extend(f"{k} = {toml_value(v)}" for k, v in leaves.items())
+        for k, v in table.items():
+            if isinstance(v, dict):
+                emit(v, f"{prefix}.{k}" if prefix else k)
+
+    emit(nested, "")
+    return "\n".join(lines) + "\n"
+
+
+def cmd_tune(args: argparse.Namespace) -> int:
+    from quadrs.cli import load_scenario
+    from quadrs.optimize import optimize
+    from quadrs.scenario import Scenario
+
+    if args.out.suffix != ".toml":
+        raise ValueError(f"--out {str(args.out)!r}: expected a .toml file")
+    for name in ("runs", "popsize", "maxiter", "workers"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ValueError(f"--{name} must be >= 1, got {value}")
+    scenario = load_scenario(args)
+    params = dict(args.param)
+    if len(params) != len(args.param):
+        raise ValueError("--param: each key at most once")
+    phases = tuple(args.phase) if args.phase else tuple(scenario.phase_names)
+    progress = sys.stderr.isatty()
+    result = optimize(
+        scenario,
+        args.controller,
+        params,
+        args.objective,
+        phases,
+        runs=args.runs,
+        seed=args.seed,
+        require_stable=not args.allow_unstable,
+        method=args.method,
+        maxiter=args.maxiter,
+        workers=args.workers,
+        progress=progress,
+        popsize=args.popsize,
+    )
+    h = result.history
+    print(
+        f"{len(h)} evaluations ({int((~h['stable']).sum())} unstable at hover, "
+        f"{int(h['penalised'].sum())} penalised){' - interrupted' if result.interrupted else ''}"
+    )
+    for key, value in result.best.items():
+        print(f"{key} = {value:.6g}")
+    print(f"objective ({args.objective} over {', '.join(phases)}, seed {args.seed}): "
+          f"{result.objective:.6g}")  # fmt: skip
+    if result.holdout is not None:
+        ho = result.holdout
+        print(f"held out (seed {ho.seed}, {ho.runs} runs): {ho.objective:.6g} "
+              f"[95% CI {ho.low:.6g}, {ho.high:.6g}]")  # fmt: skip
+    if bool(h.loc[h["objective"].idxmin(), "penalised"]):
+        print("quadrs tune: no admissible candidate (every one was unstable at hover, diverged "
+              "or gave a non-finite objective): nothing written", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
+    text = _tuned_toml(args, args.out, result.best, result.scenario)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = args.out.with_name(args.out.name + ".part")
+    tmp.write_text(text)
+    os.replace(tmp, args.out)
+    # The file must give back exactly the tuned scenario.
+    if Scenario.from_toml(args.out) != result.scenario:  # pragma: no cover - a bug if it fires
+        raise RuntimeError(f"{args.out} does not reproduce the tuned scenario")
+    print(f"wrote {args.out}", file=sys.stderr)
+    if args.history is not None:
+        h.to_csv(args.history, index=False)
+        print(f"wrote {args.history}", file=sys.stderr)
+    if result.interrupted:
+        print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
+        return EXIT_INTERRUPT
+    return EXIT_OK
+
+
+def cmd_linearize(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from quadrs.cli import load_scenario
+    from quadrs.linear import OUTPUT_NAMES, equivalent_wind, linearize
+
+    scenario = load_scenario(args)
+    wind = equivalent_wind(scenario) if args.wind is None else args.wind
+    if not math.isfinite(wind):
+        raise ValueError(f"--wind must be finite, got {wind}")
+    controllers = ("pd", "smc") if args.controller == "both" else (args.controller,)
+    models = {}
+    for c in controllers:
+        lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, wind))
+        models[c] = lin
+        freqs = np.array([0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0])
+        mag = np.abs(lin.frequency_response(freqs)[:, 0, 0])
+        print(f"== {c.upper()} == (linearised about a steady vertical wind of {wind:.3g} m/s)")
+        poles = lin.poles()
+        print("poles (1/s): " + ", ".join(f"{p.real:+.3g}{p.imag:+.3g}j" for p in poles))
+        print("|e_o / wind_z| (m per m/s): " + ", ".join(
+            f"{f:g} Hz: {m:.3g}" for f, m in zip(freqs, mag, strict=True)))  # fmt: skip
+    if args.out is not None:
+        full = {c: linearize(scenario, c, inputs=("wind_x", "wind_y", "wind_z"),
+                             outputs=OUTPUT_NAMES,
+                             wind=(0.0, 0.0, wind)) for c in controllers}  # fmt: skip
+        arrays = {f"{c}_{m}": getattr(lin, m) for c, lin in full.items() for m in "ABCD"}
+        np.savez(args.out, **arrays)
+        print(f"wrote {args.out}", file=sys.stderr)
+    if args.plot is not None:
+        from quadrs.plots import gust_transmissibility
+
+        args.plot.mkdir(parents=True, exist_ok=True)
+        path = args.plot / "gust_transmissibility"
+        gust_transmissibility(scenario, controllers, wind=wind, path=path)
+        print(f"wrote {path}.png and .svg", file=sys.stderr)
+    return EXIT_OK

@@ -1,0 +1,378 @@
+"""Tune gains or calibrate unknown parameters with Monte Carlo: :func:`optimize`.
+
+The objective of a candidate is a Monte Carlo statistic over ``runs`` realisations flown on
+common random numbers: every evaluation uses the same ``seed``, hence the same gusts, so the
+objective is a deterministic, smooth function of the parameters and two candidates are
+compared on identical gusts. The optimiser is scipy.optimize's ``differential_evolution``
+(global, bounded, derivative-free, deterministic for a given seed) or bounded Nelder-Mead
+(local, cheaper): see docs/design-loop.md for why.
+
+Candidates not asymptotically stable at hover (:func:`quadrs.stability`) are rejected before
+flying when ``require_stable``; candidates whose flights diverge are penalised. Both are
+recorded in ``history``. The best candidate is re-evaluated on fresh seeds (``holdout``), the
+check against having tuned to the particular gusts of ``seed``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy import optimize as sopt
+from scipy import stats
+
+from quadrs import _core
+from quadrs.flight import check_controller
+from quadrs.montecarlo import monte_carlo
+from quadrs.results import MonteCarloResult
+from quadrs.scenario import Scenario, ScenarioError
+
+METHODS = ("differential_evolution", "nelder-mead")
+#: Offset of the held-out seed from the tuning seed.
+HOLDOUT_SEED_OFFSET = 1_000_003
+#: Groups the held-out realisations are split into for a callable objective's interval.
+HOLDOUT_BATCHES = 8
+
+Objective = str | Callable[[MonteCarloResult], float]
+
+
+class _Stop(Exception):
+    """Ctrl-C inside an evaluation: unwinds scipy's loop to the caller."""
+
+
+@dataclass(frozen=True)
+class Holdout:
+    """The best candidate re-evaluated on fresh seeds: ``objective`` with a 95 % interval.
+
+    For a metric objective the interval is Student's t over the per-realisation values; for a
+    callable one, over the callable's values on ``HOLDOUT_BATCHES`` disjoint groups of
+    realisations (batch means). ``diverged``: realisations that diverged.
+    """
+
+    seed: int
+    runs: int
+    objective: float
+    low: float
+    high: float
+    diverged: int
+
+
+@dataclass(frozen=True)
+class OptimizeResult:
+    """What :func:`optimize` found.
+
+    ``best``: {key: value} of the best candidate; ``objective``: its value on the tuning seed;
+    ``scenario``: the input scenario with ``best`` applied; ``history``: one row per evaluation
+    (``evaluation``, every parameter key, ``objective``, ``stable``, ``max_real`` (largest pole
+    real part, 1/s), ``flown``, ``diverged`` (realisations), ``penalised``); ``holdout``: see
+    :class:`Holdout` (None if interrupted); ``interrupted``: stopped by Ctrl-C, the best so
+    far is kept.
+    """
+
+    best: dict[str, float]
+    objective: float
+    scenario: Scenario
+    history: pd.DataFrame = field(repr=False)
+    holdout: Holdout | None
+    interrupted: bool
+    method: str
+    seed: int
+    runs: int
+
+
+def expand(values: Mapping[str, float]) -> dict[str, float]:
+    """{key: value} with tied keys ("a,b": one value for both) split into one entry each."""
+    return {k.strip(): v for key, v in values.items() for k in key.split(",")}
+
+
+def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> None:
+    if not params:
+        raise ValueError("params must name at least one scenario key with (low, high) bounds")
+    for key, bounds in params.items():
+        for one in key.split(","):
+            try:
+                value = scenario[one.strip()]
+            except KeyError:
+                raise ScenarioError(f"{one.strip()}: unknown scenario key") from None
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ScenarioError(f"{one} must be a numeric scenario key to tune, got {value!r}")
+        try:
+            low, high = (float(b) for b in bounds)
+        except (TypeError, ValueError):
+            raise ScenarioError(f"{key}: bounds must be (low, high), got {bounds!r}") from None
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ScenarioError(f"{key}: bounds must be finite with low < high, got {bounds!r}")
+        for b in (low, high):
+            scenario.override(expand({key: b}))  # ScenarioError naming the key if out of its domain
+
+
+def _metric_values(
+    mc: MonteCarloResult, metric: str, phases: Sequence[str]
+) -> tuple[np.ndarray, int]:
+    """Per-realisation metric summed over ``phases``; and the count of diverged realisations."""
+    runs = mc.runs[mc.runs["phase"].isin(list(phases))]
+    per = runs.groupby("realisation")[[metric]].sum(min_count=len(phases))[metric]
+    diverged = int(runs.groupby("realisation")["diverged"].any().sum())
+    return per.to_numpy(dtype=float), diverged
+
+
+def optimize(
+    scenario: Scenario,
+    controller: str | Sequence[str] = "smc",
+    params: Mapping[str, Sequence[float]] | None = None,
+    objective: Objective = "iae",
+    phases: Sequence[str] = ("P2",),
+    runs: int = 64,
+    seed: int = 0,
+    require_stable: bool = True,
+    method: str = "differential_evolution",
+    maxiter: int | None = None,
+    workers: int | None = None,
+    progress: bool = False,
+    *,
+    popsize: int = 8,
+    penalty: float = 1e6,
+    holdout_runs: int | None = None,
+    callback: Callable[[dict[str, Any]], None] | None = None,
+) -> OptimizeResult:
+    """Minimise a Monte Carlo objective over bounded scenario keys.
+
+    ``params``: {dotted key: (low, high)}, any numeric key including vector elements
+    (``"controller.smc.lambda[0]"``); a key naming several keys separated by commas ties them
+    to one value (``"controller.smc.lambda[0],controller.smc.lambda[1]"``: x and y alike).
+    ``objective``: a metric name (``_core.METRIC_NAMES``):
+    the mean over the ``runs`` realisations of that metric summed over ``phases``, for one
+    ``controller``; or a callable ``f(mc) -> float`` of the :class:`MonteCarloResult` of
+    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``.
+
+    Penalties (recorded, never NaN): a candidate not stable at hover under every controller
+    scores ``penalty * (1 + max(0, largest real part))`` without flying when
+    ``require_stable``; one with any diverged realisation, or a non-finite objective, scores
+    ``penalty * (1 + diverged fraction)``.
+
+    ``method``: "differential_evolution" (``maxiter`` generations of ``popsize`` x
+    parameters candidates, default 20; ``polish=False``; seeded by ``seed``) or "nelder-mead"
+    (from the scenario's values clipped to the bounds; ``maxiter`` evaluations, default 100).
+    Same seed and budget give the same history. ``holdout_runs`` (default ``runs``):
+    realisations flown at ``seed + HOLDOUT_SEED_OFFSET`` to re-evaluate the best. Ctrl-C
+    stops and returns the best so far with ``interrupted=True``. ``callback`` receives each
+    history row as it is recorded (e.g. for a progress display).
+    """
+    from tqdm.auto import tqdm
+
+    from quadrs.stability import stability
+
+    controllers = (controller,) if isinstance(controller, str) else tuple(controller)
+    if not controllers:
+        raise ValueError("controller must name at least one of 'pd', 'smc'")
+    for c in controllers:
+        check_controller(c)
+    params = dict(params or {})
+    _check_params(scenario, params)
+    keys = list(params)
+    bounds = [(float(params[k][0]), float(params[k][1])) for k in keys]
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if runs < 1:
+        raise ValueError(f"runs must be >= 1, got {runs}")
+    if seed < 0:
+        raise ValueError(f"seed must be >= 0, got {seed}")
+    if maxiter is not None and maxiter < 1:
+        raise ValueError(f"maxiter must be >= 1, got {maxiter}")
+    if popsize < 1:
+        raise ValueError(f"popsize must be >= 1, got {popsize}")
+    if not (math.isfinite(penalty) and penalty > 0):
+        raise ValueError(f"penalty must be finite and > 0, got {penalty}")
+    phases = (phases,) if isinstance(phases, str) else tuple(phases)
+    if isinstance(objective, str):
+        if objective not in _core.METRIC_NAMES:
+            raise ValueError(f"objective must be one of {_core.METRIC_NAMES}, got {objective!r}")
+        if len(controllers) != 1:
+            raise ValueError(
+                f"a metric objective needs one controller, got {controllers}: "
+                "pass a callable objective to combine several"
+            )
+        unknown = [p for p in phases if p not in scenario.phase_names]
+        if not phases or unknown:
+            raise ValueError(f"phases must be among {scenario.phase_names}, got {list(phases)}")
+    elif not callable(objective):
+        raise TypeError(f"objective must be a metric name or a callable, got {objective!r}")
+
+    rows: list[dict[str, Any]] = []
+    if method == "differential_evolution":
+        generations = 20 if maxiter is None else maxiter
+        total = popsize * len(keys) * (generations + 1)
+    else:
+        generations = 100 if maxiter is None else maxiter
+        total = generations
+    bar = tqdm(total=total, disable=not progress, unit="eval", desc="tune", leave=False)
+
+    def fly(candidate: Scenario, seed_: int, count: int) -> MonteCarloResult:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # stability is judged here, not warned about
+            mc = monte_carlo(
+                candidate,
+                runs=count,
+                seed=seed_,
+                controllers=controllers,
+                workers=workers,
+                progress=False,
+                spectra=False,
+            )
+        if mc.interrupted:
+            raise _Stop
+        return mc
+
+    def score(mc: MonteCarloResult) -> tuple[float, int, np.ndarray | None]:
+        if isinstance(objective, str):
+            values, diverged = _metric_values(mc, objective, phases)
+            value = float(np.mean(values)) if diverged == 0 else math.nan
+            return value, diverged, values
+        diverged = int(mc.runs.groupby("realisation")["diverged"].any().sum())
+        return float(objective(mc)), diverged, None
+
+    def evaluate(x: np.ndarray) -> float:
+        values = {k: float(v) for k, v in zip(keys, x, strict=True)}
+        candidate = scenario.override(expand(values))
+        row: dict[str, Any] = {"evaluation": len(rows), **values}
+        reports = [stability(candidate, c) for c in controllers]
+        max_real = max(float(r.poles["real"].max()) for r in reports)
+        stable = all(r.stable for r in reports)
+        row.update(stable=stable, max_real=max_real, flown=False, diverged=0, penalised=False)
+        if require_stable and not stable:
+            value = penalty * (1.0 + max(0.0, max_real))
+            row.update(penalised=True)
+        else:
+            try:
+                mc = fly(candidate, seed, runs)
+            except KeyboardInterrupt:
+                raise _Stop from None
+            value, diverged, _ = score(mc)
+            row.update(flown=True, diverged=diverged)
+            if diverged > 0 or not math.isfinite(value):
+                value = penalty * (1.0 + diverged / runs)
+                row.update(penalised=True)
+        row["objective"] = value
+        rows.append(row)
+        bar.update(1)
+        if callback is not None:
+            callback(dict(row))
+        return value
+
+    interrupted = False
+    try:
+        if method == "differential_evolution":
+            sopt.differential_evolution(
+                evaluate,
+                bounds,
+                maxiter=generations,
+                popsize=popsize,
+                seed=seed,
+                polish=False,
+                tol=0.0,  # no early stop: the budget is maxiter generations
+                updating="deferred",
+                workers=1,
+                init="latinhypercube",
+            )
+        else:
+            x0 = [
+                min(max(float(scenario[k.split(",")[0].strip()]), lo), hi)
+                for k, (lo, hi) in zip(keys, bounds, strict=True)
+            ]
+            sopt.minimize(
+                evaluate,
+                x0,
+                method="Nelder-Mead",
+                bounds=bounds,
+                options={"maxfev": generations, "xatol": 1e-4, "fatol": 1e-9},
+            )
+    except (_Stop, KeyboardInterrupt):
+        interrupted = True
+    finally:
+        bar.close()
+
+    columns = [
+        "evaluation",
+        *keys,
+        "objective",
+        "stable",
+        "max_real",
+        "flown",
+        "diverged",
+        "penalised",
+    ]
+    history = pd.DataFrame(rows, columns=columns)
+    if history.empty:
+        raise KeyboardInterrupt("interrupted before the first evaluation finished")
+    best_row = history.loc[history["objective"].idxmin()]
+    best = {k: float(best_row[k]) for k in keys}
+    tuned = scenario.override(expand(best))
+
+    holdout = None
+    if not interrupted and not bool(best_row["penalised"]):
+        count = runs if holdout_runs is None else int(holdout_runs)
+        hseed = seed + HOLDOUT_SEED_OFFSET
+        try:
+            mc = fly(tuned, hseed, count)
+            holdout = _holdout(mc, objective, phases, hseed, count, score)
+        except (_Stop, KeyboardInterrupt):
+            interrupted = True
+    return OptimizeResult(
+        best=best,
+        objective=float(best_row["objective"]),
+        scenario=tuned,
+        history=history,
+        holdout=holdout,
+        interrupted=interrupted,
+        method=method,
+        seed=seed,
+        runs=runs,
+    )
+
+
+def _holdout(
+    mc: MonteCarloResult,
+    objective: Objective,
+    phases: Sequence[str],
+    seed: int,
+    count: int,
+    score: Callable[[MonteCarloResult], tuple[float, int, np.ndarray | None]],
+) -> Holdout:
+    value, diverged, values = score(mc)
+    if values is not None:
+        ok = values[np.isfinite(values)]
+        value = float(np.mean(ok)) if ok.size else math.nan
+        samples = ok
+    else:
+        real = mc.realisations
+        groups = np.array_split(real, min(HOLDOUT_BATCHES, real.size))
+        samples = np.array(
+            [float(objective(_subset(mc, g))) for g in groups if g.size]  # type: ignore[operator]
+        )
+    if samples.size >= 2 and np.all(np.isfinite(samples)):
+        sem = float(stats.sem(samples))
+        low, high = (
+            stats.t.interval(0.95, samples.size - 1, loc=float(np.mean(samples)), scale=sem)
+            if sem > 0
+            else (value, value)
+        )
+        if values is None:  # centre the batch-means interval on the full-sample value
+            half = (high - low) / 2
+            low, high = value - half, value + half
+    else:
+        low = high = math.nan
+    return Holdout(
+        seed=seed, runs=count, objective=value, low=float(low), high=float(high), diverged=diverged
+    )
+
+
+def _subset(mc: MonteCarloResult, realisations: np.ndarray) -> MonteCarloResult:
+    runs = mc.runs[mc.runs["realisation"].isin(realisations)].reset_index(drop=True)
+    return MonteCarloResult(
+        scenario=mc.scenario, seed=mc.seed, controllers=mc.controllers, runs=runs
+    )
