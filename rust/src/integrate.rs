@@ -189,6 +189,11 @@ impl Engine {
         })
     }
 
+    /// Integration steps per spectrum sample.
+    pub fn decimation(&self) -> usize {
+        self.decimation
+    }
+
     pub fn phase_count(&self) -> usize {
         self.phases.len()
     }
@@ -354,6 +359,7 @@ impl Engine {
         let mut alive = L::LANES;
         let div = &self.cfg.divergence;
         let (max_dist, max_tilt) = (L::splat(div.max_distance), L::splat(div.max_tilt));
+        let (max_speed, max_rate) = (L::splat(div.max_speed), L::splat(div.max_rate));
         let mut segment = 0;
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
@@ -392,7 +398,8 @@ impl Engine {
             let e_o = s[ix::ZC] - s[ix::Z] + d0;
             acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2]);
             if let Some(tr) = trace.as_deref_mut() {
-                if k % tr.every == 0 {
+                // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
+                if k % tr.every == 0 && diverged_at[0].is_nan() {
                     tr.push(t, &s, &r, &u, &w, e_o);
                 }
             }
@@ -407,7 +414,16 @@ impl Engine {
                 & s[ix::Z].abs().le_mask(max_dist)
                 & s[ix::ZC].abs().le_mask(max_dist)
                 & s[ix::PHI].abs().le_mask(max_tilt)
-                & s[ix::THETA].abs().le_mask(max_tilt);
+                & s[ix::THETA].abs().le_mask(max_tilt)
+                // A numerically unstable step gives finite but absurd speeds long before the
+                // positions run away: bound every velocity and body rate too.
+                & s[ix::VX].abs().le_mask(max_speed)
+                & s[ix::VY].abs().le_mask(max_speed)
+                & s[ix::VZ].abs().le_mask(max_speed)
+                & s[ix::VZC].abs().le_mask(max_speed)
+                & s[ix::P].abs().le_mask(max_rate)
+                & s[ix::Q].abs().le_mask(max_rate)
+                & s[ix::R].abs().le_mask(max_rate);
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
@@ -419,7 +435,7 @@ impl Engine {
                         }
                     }
                 }
-                if alive == 0 && trace.is_none() {
+                if alive == 0 {
                     break;
                 }
             }
