@@ -382,13 +382,12 @@ def _check_positive(name: str, value: int | None, minimum: int = 1) -> None:
 
 
 def _write_atomic(frame: pd.DataFrame, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
+    from quadrs.parquet import atomic_write
+
     if path.suffix.lower() == ".csv":
-        frame.to_csv(tmp)
+        atomic_write(path, lambda f: f.write(frame.to_csv().encode()))
     else:
-        frame.to_parquet(tmp)
-    os.replace(tmp, path)
+        atomic_write(path, frame.to_parquet)
 
 
 def _saved(path: Path) -> None:

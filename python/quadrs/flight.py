@@ -72,9 +72,18 @@ def simulate(
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
-    if seed < 0 or realisation < 0:
-        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
-    out = _core.simulate(scenario.to_json(), controller, seed, realisation, record_every)
+    from quadrs.guard import check_int, run_cancellable
+
+    seed = check_int("seed", seed)
+    realisation = check_int("realisation", realisation)
+    record_every = check_int("record_every", record_every, 1, 2**63 - 1)
+    # The engine polls a cancel flag, so Ctrl-C stops even a long flight promptly.
+    progress = _core.Progress()
+    config_json = scenario.to_json()
+    out, _ = run_cancellable(
+        lambda: _core.simulate(config_json, controller, seed, realisation, record_every, progress),
+        progress,
+    )
     raw = out["trace"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)
     phases = scenario.phase_names

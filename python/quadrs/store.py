@@ -2,12 +2,16 @@
 
 Layout of ``DIR``::
 
-    DIR/_quadrs.json                 what the run is: scenario, seed, controllers, version
-    DIR/part-<lo>-<hi>-<id>.parquet  the rows of some finished realisations, with their
-                                     spectrum sums in the file's metadata
+    DIR/_quadrs.json                 what the run is: scenario, seed, controllers, version,
+                                     spectra on/off and the run identity they hash to
+    DIR/part-<lo>-<hi>-<id>.parquet  the rows of some finished realisations, with the run
+                                     identity and their spectrum sums in the file's metadata
 
 A part is written to a hidden temporary file and renamed into place, so a killed process
-leaves either a whole part or none. Because a realisation's numbers depend only on
+leaves either a whole part or none. The manifest is created exclusively: of two runs started
+at once on one directory, one proceeds and the other is refused. Every part is stamped with
+the run identity (:mod:`quadrs.integrity`) and checked on reading: a part from another run
+(another seed, scenario, controllers or version) is refused, never counted. Because a realisation's numbers depend only on
 (scenario, seed, index), resuming computes exactly the realisations no part holds yet.
 """
 
@@ -23,12 +27,14 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from quadrs import _core
-from quadrs.parquet import atomic_write_bytes, read_frame, write_frame
+from quadrs.integrity import CorruptRunError, check_rows, check_run_metadata, check_spectra
+from quadrs.integrity import run_identity
+from quadrs.parquet import atomic_create, read_frame, read_meta, write_frame
 from quadrs.results import MonteCarloResult, SpectrumSums
 from quadrs.scenario import Scenario
 
 MANIFEST = "_quadrs.json"
-_SPECTRA_KEY = b"quadrs_spectra"
+_PART_KEY = b"quadrs_part"
 
 
 class RunStore:
@@ -36,6 +42,8 @@ class RunStore:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self._checked: dict[str, Any] | None = None  # the manifest, once validated
+        self._scenario = Scenario.paper()  # replaced by the manifest's on validation
 
     @property
     def manifest_path(self) -> Path:
@@ -44,8 +52,11 @@ class RunStore:
     def exists(self) -> bool:
         return self.manifest_path.exists()
 
-    def create(self, scenario: Scenario, seed: int, controllers: tuple[str, ...]) -> None:
-        """Start a new run; refuses to overwrite an existing one."""
+    def create(
+        self, scenario: Scenario, seed: int, controllers: tuple[str, ...], spectra: bool = True
+    ) -> None:
+        """Start a new run; refuses to overwrite an existing one (FileExistsError), also when
+        another process creates one at the same moment."""
         if self.exists() or self.parts():
             raise FileExistsError(
                 f"{self.path} already holds a run: resume it, or choose another output"
@@ -58,23 +69,52 @@ class RunStore:
             "seed": seed,
             "controllers": list(controllers),
             "scenario": scenario.to_toml(),
+            "spectra": bool(spectra),
+            "run": run_identity(scenario, seed, controllers, spectra),
         }
-        atomic_write_bytes(self.manifest_path, json.dumps(manifest, indent=1).encode())
+        try:
+            atomic_create(self.manifest_path, json.dumps(manifest, indent=1).encode())
+        except FileExistsError:
+            raise FileExistsError(
+                f"{self.path} already holds a run (another process just started one there)"
+            ) from None
+        self._checked = None
 
     def manifest(self) -> dict[str, Any]:
+        """The manifest, validated (types, keys and its run identity)."""
+        if self._checked is not None:
+            return self._checked
         try:
-            return json.loads(self.manifest_path.read_text())
+            text = self.manifest_path.read_text()
         except FileNotFoundError:
             raise FileNotFoundError(f"{self.path} is not a quadrs run (no {MANIFEST})") from None
+        try:
+            m = json.loads(text)
+        except ValueError:
+            raise CorruptRunError(f"{str(self.manifest_path)!r} is not valid JSON") from None
+        self._scenario = check_run_metadata(m, self.manifest_path, {"spectra": bool})
+        self._checked = m
+        return m
 
-    def check_matches(self, scenario: Scenario, seed: int, controllers: tuple[str, ...]) -> None:
+    @property
+    def run(self) -> str:
+        """The run identity every part must carry."""
+        return str(self.manifest()["run"])
+
+    def check_matches(
+        self,
+        scenario: Scenario,
+        seed: int,
+        controllers: tuple[str, ...],
+        spectra: bool = True,
+    ) -> None:
         """Resuming must continue the same experiment, or its rows would not belong together."""
         m = self.manifest()
-        theirs = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
         for what, ours, saved in (
-            ("scenario", scenario, theirs),
+            ("scenario", scenario, self._scenario),
             ("seed", seed, m["seed"]),
             ("controllers", list(controllers), m["controllers"]),
+            ("spectra setting", bool(spectra), m["spectra"]),
         ):
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
@@ -85,7 +125,22 @@ class RunStore:
             return
         real = runs["realisation"]
         name = f"part-{real.min():09d}-{real.max():09d}-{uuid.uuid4().hex[:8]}.parquet"
-        write_frame(runs, self.path / name, _SPECTRA_KEY, spectra.to_json() if spectra else None)
+        meta = {"run": self.run, "spectra": spectra.to_json() if spectra else None}
+        write_frame(runs, self.path / name, _PART_KEY, meta)
+
+    def _part_meta(self, part: Path) -> dict[str, Any]:
+        """A part's metadata, refused unless it carries this run's identity."""
+        try:
+            meta = read_meta(part, _PART_KEY)
+        except (OSError, ValueError) as e:
+            raise CorruptRunError(f"{str(part)!r}: not a readable part ({e})") from None
+        if not isinstance(meta, dict) or meta.get("run") != self.run:
+            raise CorruptRunError(
+                f"{str(part)!r} does not belong to the run in {str(self.path)!r} (another "
+                "seed, scenario, controllers or quadrs version): remove it, or resume "
+                "into a fresh directory"
+            )
+        return meta
 
     def parts(self) -> list[Path]:
         """The finished parts (temporary files of interrupted writes are never read)."""
@@ -94,10 +149,16 @@ class RunStore:
     def load(self) -> tuple[pd.DataFrame | None, SpectrumSums | None]:
         """All rows so far (sorted by realisation, duplicates dropped) and the summed spectra."""
         frames, sums = [], None
+        m = self.manifest()
+        phases = self._scenario.phase_names
         for part in self.parts():
-            frame, raw = read_frame(part, _SPECTRA_KEY)
+            self._part_meta(part)
+            frame, meta = read_frame(part, _PART_KEY)
+            check_rows(frame, part, m["controllers"], phases)
             frames.append(frame)
+            raw = meta.get("spectra") if isinstance(meta, dict) else None
             if raw is not None:
+                check_spectra(raw, part, len(m["controllers"]), len(phases))
                 s = SpectrumSums.from_json(raw)
                 sums = s if sums is None else sums + s
         if not frames:
@@ -112,6 +173,7 @@ class RunStore:
     def done_realisations(self) -> set[int]:
         done: set[int] = set()
         for part in self.parts():
+            self._part_meta(part)
             col = pq.read_table(part, columns=["realisation"]).column("realisation")
             done.update(np.unique(col.to_numpy()).tolist())
         return done
@@ -120,7 +182,7 @@ class RunStore:
         m = self.manifest()
         runs, sums = self.load()
         controllers = tuple(m["controllers"])
-        scenario = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
+        scenario = self._scenario
         if runs is None:
             runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
         return MonteCarloResult(scenario, int(m["seed"]), controllers, runs, sums, interrupted)
