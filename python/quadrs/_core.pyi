@@ -34,6 +34,7 @@ def simulate(
     seed: int,
     realisation: int = 0,
     record_every: int = 1,
+    progress: Progress | None = None,
 ) -> dict[str, Any]: ...
 def stability(config_json: str, controller: str) -> dict[str, Any]: ...
 def run_batch(

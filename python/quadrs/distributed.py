@@ -60,26 +60,17 @@ def run_on_dask(
 ) -> Iterator[tuple[int, pd.DataFrame, dict[str, Any] | None]]:
     """Submit one task per (first, count) range; yield (count, rows, sums) as tasks finish.
     Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
+    from dask.base import tokenize
     from dask.distributed import as_completed
 
     threads = worker_threads(client)
-    futures = [
-        client.submit(
-            run_chunk,
-            config_json,
-            list(phases),
-            list(controllers),
-            seed,
-            first,
-            count,
-            threads,
-            spectra,
-            key=f"quadrs-chunk-{seed}-{first}-{count}-{abs(hash(config_json)):x}",
-            pure=True,
-            retries=2,
-        )
-        for first, count in ranges
-    ]
+    futures = []
+    for first, count in ranges:
+        # Every input of the chunk is in its key: two calls that differ in anything (controllers,
+        # spectra, scenario, seed, range, threads) never share a task.
+        args = (config_json, list(phases), list(controllers), seed, first, count, threads, spectra)
+        key = f"quadrs-chunk-{first}-{count}-{tokenize(_core.__version__, *args)}"
+        futures.append(client.submit(run_chunk, *args, key=key, pure=True, retries=2))
     sizes = {f.key: count for f, (_, count) in zip(futures, ranges, strict=True)}
     try:
         for future in as_completed(futures):

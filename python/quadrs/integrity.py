@@ -66,7 +66,8 @@ def check_run_metadata(
     meta: Any, path: str | Path, keys: Mapping[str, Any], extra_key: str | None = None
 ) -> Scenario:
     """Validate the common fields of a run's metadata (types, required keys, the run identity):
-    ``version`` (this quadrs), ``seed``, ``controllers``, ``scenario`` (TOML) and ``run``, plus ``keys`` (name -> required type). Returns the scenario."""
+    ``version`` (this quadrs), ``seed``, ``controllers``, ``scenario`` (TOML) and ``run``,
+    plus ``keys`` (name -> required type). Returns the scenario."""
     if not isinstance(meta, dict):
         raise _fail(path, f"its quadrs metadata is not a table, got {type(meta).__name__}")
     required = {
@@ -111,17 +112,22 @@ def check_run_metadata(
 
 def check_spectra(raw: Any, path: str | Path, n_ctrl: int, n_phase: int) -> None:
     """Spectrum sums shaped for ``n_ctrl`` controllers and ``n_phase`` phases."""
-    ok = isinstance(raw, dict) and all(k in raw for k in ("frequencies", "total", "total_sq", "count"))
+    ok = isinstance(raw, dict) and all(
+        k in raw for k in ("frequencies", "total", "total_sq", "count")
+    )
     ok = ok and isinstance(raw["count"], list) and len(raw["count"]) == n_ctrl
     ok = ok and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in raw["count"])
     ok = ok and all(
-        isinstance(raw[k], list) and len(raw[k]) == n_phase for k in ("frequencies", "total", "total_sq")
+        isinstance(raw[k], list) and len(raw[k]) == n_phase
+        for k in ("frequencies", "total", "total_sq")
     )
     if not ok:
         raise _fail(path, "its spectrum sums are malformed")
 
 
-def check_rows(runs: Any, path: str | Path, controllers: Sequence[str], phases: Sequence[str]) -> None:
+def check_rows(
+    runs: Any, path: str | Path, controllers: Sequence[str], phases: Sequence[str]
+) -> None:
     """The rows hold the columns of a runs table, and only our controllers and phases."""
     need = {"realisation", "controller", "phase", "diverged"}
     missing = need - set(runs.columns)

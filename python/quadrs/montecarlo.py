@@ -14,7 +14,14 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.flight import check_controller
-from quadrs.guard import I64_MAX, MAX_WORKERS, check_int, check_labels, check_memory, run_cancellable
+from quadrs.guard import (
+    I64_MAX,
+    MAX_WORKERS,
+    check_int,
+    check_labels,
+    check_memory,
+    run_cancellable,
+)
 from quadrs.results import MonteCarloResult, SpectrumSums, runs_frame, sums_from_raw
 from quadrs.scenario import Scenario
 

@@ -72,7 +72,10 @@ def save(fig: Figure, path: str | Path, formats: Sequence[str] = FORMATS) -> lis
         for fmt in formats:
             target = path.with_suffix(f".{fmt}")
             meta = {"Date": None} if fmt == "svg" else None
-            atomic_write(target, lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta))
+            atomic_write(
+                target,
+                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),
+            )
             written.append(target)
     return written
 

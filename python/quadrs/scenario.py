@@ -192,8 +192,7 @@ class Scenario:
             raise ScenarioError(f"scenario file {str(path)!r} cannot be read: {e.strerror}") from e
         if len(raw) > MAX_FILE_BYTES:
             raise ScenarioError(
-                f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: "
-                "not a scenario"
+                f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
             )
         try:
             text = raw.decode("utf-8")

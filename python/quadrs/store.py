@@ -11,8 +11,8 @@ A part is written to a hidden temporary file and renamed into place, so a killed
 leaves either a whole part or none. The manifest is created exclusively: of two runs started
 at once on one directory, one proceeds and the other is refused. Every part is stamped with
 the run identity (:mod:`quadrs.integrity`) and checked on reading: a part from another run
-(another seed, scenario, controllers or version) is refused, never counted. Because a realisation's numbers depend only on
-(scenario, seed, index), resuming computes exactly the realisations no part holds yet.
+(another seed, scenario, controllers or version) is refused, never counted. Because a
+realisation's numbers depend only on (scenario, seed, index), resuming computes exactly the realisations no part holds yet.
 """
 
 from __future__ import annotations
@@ -27,8 +27,13 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from quadrs import _core
-from quadrs.integrity import CorruptRunError, check_rows, check_run_metadata, check_spectra
-from quadrs.integrity import run_identity
+from quadrs.integrity import (
+    CorruptRunError,
+    check_rows,
+    check_run_metadata,
+    check_spectra,
+    run_identity,
+)
 from quadrs.parquet import atomic_create, read_frame, read_meta, write_frame
 from quadrs.results import MonteCarloResult, SpectrumSums
 from quadrs.scenario import Scenario

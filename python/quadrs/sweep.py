@@ -138,9 +138,7 @@ class SweepResult:
             "scenario": self.scenario.to_toml(),
             "interrupted": self.interrupted,
             "spectra": False,
-            "run": run_identity(
-                self.scenario, self.seed, self.controllers, False, extra=self.grid
-            ),
+            "run": run_identity(self.scenario, self.seed, self.controllers, False, extra=self.grid),
         }
 
     def to_parquet(self, path: str | Path) -> None:
@@ -154,7 +152,9 @@ class SweepResult:
         runs, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
-        scenario = check_run_metadata(meta, path, {"interrupted": bool, "grid": dict}, extra_key="grid")
+        scenario = check_run_metadata(
+            meta, path, {"interrupted": bool, "grid": dict}, extra_key="grid"
+        )
         grid = meta["grid"]
         if not all(isinstance(v, list) for v in grid.values()):
             raise CorruptRunError(f"{str(path)!r}: metadata 'grid' must map keys to lists")
