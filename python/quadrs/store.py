@@ -12,7 +12,8 @@ leaves either a whole part or none. The manifest is created exclusively: of two 
 at once on one directory, one proceeds and the other is refused. Every part is stamped with
 the run identity (:mod:`quadrs.integrity`) and checked on reading: a part from another run
 (another seed, scenario, controllers or version) is refused, never counted. Because a
-realisation's numbers depend only on (scenario, seed, index), resuming computes exactly the realisations no part holds yet.
+realisation's numbers depend only on (scenario, seed, index), resuming computes exactly the
+realisations no part holds yet.
 """
 
 from __future__ import annotations

@@ -456,7 +456,12 @@ impl Engine {
                     );
                     if !diverged_at[lane].is_nan() {
                         metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
-                        spectra.iter_mut().for_each(|amp| amp.fill(f64::NAN));
+                        // The flight may have stopped early: NaN over the whole bin grid.
+                        if want_spectra {
+                            for (amp, bins) in spectra.iter_mut().zip(self.spectrum_grid()) {
+                                *amp = vec![f64::NAN; bins.len()];
+                            }
+                        }
                     }
                     LaneResult {
                         metrics,
