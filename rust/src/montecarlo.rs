@@ -76,7 +76,8 @@ pub const POOLS_KEPT: usize = 2;
 /// ends (the batch holds an `Arc`), then its threads exit. So calling with many different
 /// `workers` values never accumulates threads.
 pub fn pool(workers: usize) -> Arc<rayon::ThreadPool> {
-    static POOLS: OnceLock<Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>>> = OnceLock::new();
+    type Pools = Vec<(usize, Arc<rayon::ThreadPool>)>;
+    static POOLS: OnceLock<Mutex<Pools>> = OnceLock::new();
     let workers = workers.max(1);
     let mut pools = POOLS
         .get_or_init(Default::default)
