@@ -142,3 +142,23 @@ def test_cli_scheduler_and_checkpoint(cluster, tmp_path) -> None:
     assert main([*args, "--checkpoint", str(tmp_path / "ck")]) == 2
     assert main([*args, "--checkpoint", str(tmp_path / "ck"), "--resume"]) == 0
     assert main([*args, "--scheduler", "tcp://127.0.0.1:1"]) == 2
+
+
+def test_concurrent_dask_calls_do_not_share_tasks(short: Scenario, cluster) -> None:
+    """Two calls on one client that differ only in controllers (or spectra) get their own
+    rows: every input of a chunk is in its task key."""
+    from dask.distributed import Client
+
+    from quadrs.distributed import run_on_dask
+
+    with Client(cluster) as client:
+        cfg, phases = short.to_json(), short.phase_names
+        pd_tasks = run_on_dask(client, cfg, phases, ("pd",), 0, [(0, 4), (4, 4)], True)
+        _, rows, _ = next(pd_tasks)  # submitted, and still held
+        smc = list(run_on_dask(client, cfg, phases, ("smc",), 0, [(0, 4), (4, 4)], True))
+        no_spectra = list(run_on_dask(client, cfg, phases, ("pd",), 0, [(0, 4), (4, 4)], False))
+        rest = list(pd_tasks)
+    assert set(rows["controller"]) == {"pd"}
+    assert all(set(r["controller"]) == {"smc"} for _, r, _ in smc)
+    assert all(s is None for _, _, s in no_spectra)
+    assert all(s is not None for _, _, s in rest)

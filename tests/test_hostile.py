@@ -157,3 +157,54 @@ def test_nan_cannot_enter_a_scenario(paper: Scenario) -> None:
             paper.override({key: math.nan})
     with pytest.raises(ScenarioError, match=r"trajectory\.waypoints\[1\]\[3\]"):
         paper.override({"trajectory.waypoints": [[0, 0, 0, 2, 0], [60, 0, 0, math.inf, 0]]})
+
+
+# -- the second round: dates, nesting, huge integers -------------------------------------------
+import datetime as _dt  # noqa: E402
+
+
+def nested(depth: int) -> list:
+    value: list = []
+    for _ in range(depth):
+        value = [value]
+    return value
+
+
+odd_values = st.one_of(
+    st.dates(),
+    st.times(),
+    st.datetimes(),
+    st.integers(min_value=2**63, max_value=2**80),
+    st.integers(min_value=-(2**80), max_value=-(2**63) - 1),
+    st.integers(min_value=1, max_value=60).map(nested),
+)
+
+
+@settings(max_examples=100, deadline=None)
+@given(data=st.data())
+def test_dates_nesting_and_huge_integers_name_their_key(
+    short: Scenario, data: st.DataObject
+) -> None:
+    key = data.draw(st.sampled_from(leaf_keys(short)), label="key")
+    value = data.draw(odd_values, label="value")
+    try:
+        short.override({key: value})
+    except ScenarioError as e:
+        assert key.split("[")[0].split(".")[0] in str(e), (key, str(e))
+    # the same value through a TOML file
+    text = f"v = {value.isoformat()}" if isinstance(value, _dt.date | _dt.time) else None
+    if text is not None:
+        with pytest.raises(ScenarioError, match="v"):
+            Scenario.from_toml_string(text)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    seed=st.integers(min_value=2**64, max_value=2**90) | st.integers(max_value=-1),
+    name=st.sampled_from(["seed", "runs", "workers", "first"]),
+)
+def test_out_of_range_integer_arguments_are_value_errors(
+    short: Scenario, seed: int, name: str
+) -> None:
+    with pytest.raises(ValueError, match=name):
+        quadrs.monte_carlo(short, **{"runs": 1, name: seed}, progress=False)

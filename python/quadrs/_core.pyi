@@ -35,6 +35,7 @@ def simulate(
     realisation: int = 0,
     record_every: int = 1,
     wind: npt.NDArray[np.float64] | None = None,
+    progress: Progress | None = None,
 ) -> dict[str, Any]: ...
 def stability(config_json: str, controller: str) -> dict[str, Any]: ...
 def linearize(

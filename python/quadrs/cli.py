@@ -1,8 +1,9 @@
 """``quadrs``: the command line.
 
-Exit status: 0 on success; 2 on bad input, with one line on stderr naming the key or file; 130
-on Ctrl-C, after saving what had finished. Set ``QUADRS_TRACEBACK=1`` to see the full
-traceback of an error instead of its one-line reason.
+Exit status: 0 on success; 1 if an output could not be written (the results are then saved
+to a recovery file whose path is printed); 2 on bad input, with one line on stderr naming the
+key or file; 130 on Ctrl-C and 143 on SIGTERM, after saving what had finished. Set
+``QUADRS_TRACEBACK=1`` to see the full traceback of an error instead of its one-line reason.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any, NoReturn, TextIO
 
 import pandas as pd
 
-EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
 
 class BadInput(ValueError):
@@ -550,17 +551,49 @@ def _check_positive(name: str, value: int | None, minimum: int = 1) -> None:
 
 
 def _write_atomic(frame: pd.DataFrame, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.partial")
+    from quadrs.parquet import atomic_write
+
     if path.suffix.lower() == ".csv":
-        frame.to_csv(tmp)
+        atomic_write(path, lambda f: f.write(frame.to_csv().encode()))
     else:
-        frame.to_parquet(tmp)
-    os.replace(tmp, path)
+        atomic_write(path, frame.to_parquet)
 
 
 def _saved(path: Path) -> None:
     print(f"wrote {path}", file=sys.stderr)
+
+
+def _check_outputs(*paths: Path | None) -> None:
+    """Before any work: each output file must be writable (not a directory, its directory
+    creatable and accepting a new file), so a long batch is never lost to a bad --out."""
+    from quadrs.parquet import check_writable
+
+    for path in paths:
+        if path is not None:
+            check_writable(path)
+
+
+def _save(write: Any, path: Path) -> bool:
+    """``write(path)``; if that fails (full disk, permissions), save to a fresh recovery
+    directory instead and say where. Returns True if ``path`` was written."""
+    import tempfile
+
+    try:
+        write(path)
+    except OSError as e:
+        reason = e.strerror or str(e)
+        try:
+            spare = Path(tempfile.mkdtemp(prefix="quadrs-recovered-")) / path.name
+            write(spare)
+        except OSError as e2:
+            print(f"quadrs: error: could not write {path} ({reason}) nor a recovery copy "
+                  f"({e2.strerror or e2})", file=sys.stderr)  # fmt: skip
+        else:
+            print(f"quadrs: error: could not write {path} ({reason}); the results were "
+                  f"saved to {spare} instead", file=sys.stderr)  # fmt: skip
+        return False
+    _saved(path)
+    return True
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -571,14 +604,15 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args)
     _check_suffix(args.trace, (".parquet", ".csv"), "--trace")
+    _check_outputs(args.trace)
     flight = simulate(scenario, args.controller, args.seed, realisation=args.realisation)
     print(f"{args.controller.upper()}, seed {args.seed}, realisation {args.realisation}")
     _print_frame(flight.metrics.set_index("phase"))
     if flight.diverged:
         print(f"warning: the flight diverged at t = {flight.diverged_at:g} s", file=sys.stderr)
-    if args.trace is not None:
-        _write_atomic(flight.trace, args.trace)
-        _saved(args.trace)
+    status = EXIT_OK
+    if args.trace is not None and not _save(lambda p: _write_atomic(flight.trace, p), args.trace):
+        status = EXIT_FAIL
     if args.plot is not None:
         d = args.plot
         files = plots.save(plots.altitude(flight), d / "altitude")
@@ -586,7 +620,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         files += plots.save(plots.spectra(flight), d / "spectra")
         files += plots.save(plots.gust_force(flight), d / "gust_force")
         print(f"wrote {len(files)} figure files to {d}", file=sys.stderr)
-    return EXIT_OK
+    return status
 
 
 def cmd_mc(args: argparse.Namespace) -> int:
@@ -604,6 +638,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
     if args.checkpoint is not None and not args.resume and args.checkpoint.exists():
         if any(args.checkpoint.iterdir()):
             raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
+    _check_outputs(args.out)
     with _dask_client(args.scheduler) as client:
         mc = monte_carlo(
             scenario,
@@ -618,17 +653,16 @@ def cmd_mc(args: argparse.Namespace) -> int:
             client=client,
             sampling=args.sampling,
         )
+    saved = True
     if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        mc.to_parquet(args.out)
-        _saved(args.out)
+        saved = _save(mc.to_parquet, args.out)
     if not mc.runs.empty:
         _print_dispersions(mc)
         _print_frame(table3(mc.summary()))
         _print_limits(mc, args)
     if args.plots is not None and not mc.runs.empty:
         _mc_plots(mc, args.plots, args.limit)
-    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK
+    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
 
 
 def _print_dispersions(mc: Any) -> None:
@@ -690,6 +724,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     _check_suffix(args.out, (".parquet",), "--out")
     _check_positive("--runs", args.runs)
     _check_positive("--workers", args.workers)
+    _check_outputs(args.out)
     with _dask_client(args.scheduler) as client:
         result = sweep(
             scenario,
@@ -701,15 +736,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             client=client,
         )
+    saved = True
     if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        result.to_parquet(args.out)
-        _saved(args.out)
+        saved = _save(result.to_parquet, args.out)
     if not result.runs.empty:
         _print_frame(result.compact())
     if args.plots is not None and not result.runs.empty:
         _sweep_plots(result, args.plots)
-    return EXIT_INTERRUPT if result.interrupted else EXIT_OK
+    return EXIT_INTERRUPT if result.interrupted else EXIT_OK if saved else EXIT_FAIL
 
 
 def _sweep_plots(result: Any, directory: Path) -> None:
@@ -919,7 +953,7 @@ def _one_line(text: str) -> str:
 def _bad_input_types() -> tuple[type[BaseException], ...]:
     """What counts as bad input: scenario errors (a ValueError), other ValueErrors from the
     API (which include pyarrow's ArrowInvalid) and files that cannot be read."""
-    return (ValueError, OSError)
+    return (ValueError, OSError, MemoryError)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -931,17 +965,41 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as e:  # --help, --version or a usage error
         return int(e.code) if isinstance(e.code, int) else EXIT_USAGE
     prog = f"quadrs {args.command}"
+    terminated: list[int] = []
     try:
-        with _terse_warnings():
-            return COMMANDS[args.command](args)
+        with _terse_warnings(), _sigterm_as_interrupt(terminated):
+            status = COMMANDS[args.command](args)
+        return EXIT_TERMINATED if terminated and status == EXIT_INTERRUPT else status
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPT
+        print(f"{prog}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPT
     except _bad_input_types() as e:
         if os.environ.get("QUADRS_TRACEBACK"):
             raise
         print(f"{prog}: error: {_describe(e)}", file=sys.stderr)
         return EXIT_USAGE
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt(terminated: list[int]) -> Iterator[None]:
+    """SIGTERM handled like Ctrl-C (cancel, save what finished), noted in ``terminated`` so
+    that the exit status is 143. Only on the main thread; the old handler is restored."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        terminated.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _describe(e: BaseException) -> str:

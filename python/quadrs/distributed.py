@@ -86,25 +86,13 @@ def run_on_dask(
 
     threads = worker_threads(client)
     toml = scenario.to_toml()
-    futures = [
-        client.submit(
-            run_chunk,
-            toml,
-            list(controllers),
-            seed,
-            first,
-            count,
-            threads,
-            spectra,
-            design,
-            # Every input of the chunk is in its key: equal keys mean equal rows.
-            key="quadrs-chunk-"
-            + tokenize(toml, list(controllers), seed, first, count, spectra, design),
-            pure=True,
-            retries=2,
-        )
-        for first, count in ranges
-    ]
+    futures = []
+    for first, count in ranges:
+        # Every input of the chunk is in its key: two calls that differ in anything (scenario,
+        # controllers, seed, range, threads, spectra, sampling design) never share a task.
+        args = (toml, list(controllers), seed, first, count, threads, spectra, design)
+        key = f"quadrs-chunk-{first}-{count}-{tokenize(_core.__version__, *args)}"
+        futures.append(client.submit(run_chunk, *args, key=key, pure=True, retries=2))
     sizes = {f.key: count for f, (_, count) in zip(futures, ranges, strict=True)}
     try:
         for future in as_completed(futures):

@@ -74,24 +74,30 @@ def simulate(
     the step starting at t = k * dt (the last row only shows in the trace). For deterministic
     inputs, e.g. a sinusoid to measure a frequency response (docs/design-loop.md).
     """
+    from quadrs.guard import check_int, run_cancellable
     from quadrs.stability import warn_before_running
 
     check_controller(controller)
-    if seed < 0 or realisation < 0:
-        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
+    seed = check_int("seed", seed)
+    realisation = check_int("realisation", realisation)
     scenario = scenario.realisation(seed, realisation)
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
-    if seed < 0 or realisation < 0:
-        raise ValueError(f"seed and realisation must be >= 0, got {seed}, {realisation}")
+    record_every = check_int("record_every", record_every, 1, 2**63 - 1)
     prescribed = None
     if wind is not None:
         prescribed = np.ascontiguousarray(wind, dtype=np.float64)
         if prescribed.ndim != 2 or prescribed.shape[1] != 3:
             raise ValueError(f"wind must have shape (steps + 1, 3), got {prescribed.shape}")
-    out = _core.simulate(
-        scenario.to_json(), controller, seed, realisation, record_every, prescribed
+    # The engine polls a cancel flag, so Ctrl-C stops even a long flight promptly.
+    progress = _core.Progress()
+    config_json = scenario.to_json()
+    out, _ = run_cancellable(
+        lambda: _core.simulate(
+            config_json, controller, seed, realisation, record_every, prescribed, progress
+        ),
+        progress,
     )
     raw = out["trace"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)

@@ -43,12 +43,14 @@ def gust_series(
         raise ValueError(f"component must be one of {COMPONENTS}, got {component!r}")
     if model not in MODELS:
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
-    for name, value in (("steps", steps), ("realisations", realisations)):
-        if int(value) != value or value < 0:
-            raise ValueError(f"{name} must be a whole number >= 0, got {value!r}")
-    if seed < 0 or first < 0:
-        raise ValueError(f"seed and first must be >= 0, got {seed}, {first}")
-    workers = default_workers() if workers is None else int(workers)
+    from quadrs.guard import I64_MAX, MAX_WORKERS, U64_MAX, check_int
+
+    steps = check_int("steps", steps, 0, I64_MAX)
+    realisations = check_int("realisations", realisations, 0, I64_MAX)
+    seed = check_int("seed", seed)
+    first = check_int("first", first, 0, U64_MAX - max(realisations - 1, 0))
+    workers = check_int("workers", default_workers() if workers is None else workers, 1,
+                        MAX_WORKERS)  # fmt: skip
     return _core.gust_series(
         model, component, sigma, length_scale, airspeed, dt, int(steps), int(realisations),
         seed, first, workers,

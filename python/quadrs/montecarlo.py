@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import operator
 import os
-import threading
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -17,6 +16,14 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.flight import check_controller
+from quadrs.guard import (
+    I64_MAX,
+    MAX_WORKERS,
+    check_int,
+    check_labels,
+    check_memory,
+    run_cancellable,
+)
 from quadrs.results import MonteCarloResult, SpectrumSums, runs_frame, sums_from_raw
 from quadrs.scenario import Scenario
 
@@ -25,10 +32,11 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["MonteCarloResult", "SpectrumSums", "default_workers", "monte_carlo", "run_range"]
 
-#: Seconds between progress polls (the main thread also answers Ctrl-C at this pace).
-POLL_SECONDS = 0.2
 #: Realisations the engine flies at once (its SIMD width).
 LANES = 4
+#: Memory (bytes) one row of ``runs`` takes while a batch is assembled: the engine's arrays,
+#: the tidy frame and the copies made concatenating and sorting it.
+ROW_BYTES = 400
 
 
 def default_workers() -> int:
@@ -80,52 +88,32 @@ def run_range(
     while this thread polls progress and turns Ctrl-C into a cancel. ``values``: the
     dispersed keys' values, one row per realisation; ``streams``: the gust stream each one
     flies (default its own index). Returns the engine's arrays and whether it was
-    interrupted."""
+    interrupted. A failing ``on_progress`` cancels the batch and re-raises (see
+    :func:`quadrs.guard.run_cancellable`)."""
     progress = _core.Progress()
-    box: dict[str, Any] = {}
-    finished = threading.Event()
+    config_json = scenario.to_json()
     keys, table = dispersion_arrays(values)
 
-    def work() -> None:
-        try:
-            box["out"] = _core.run_batch(
-                scenario.to_json(),
-                list(controllers),
-                seed,
-                first,
-                count,
-                workers,
-                spectra,
-                progress,
-                dispersion_keys=keys,
-                dispersion_values=table,
-                streams=streams,
-            )
-        except BaseException as e:  # re-raised on the calling thread
-            box["error"] = e
-        finally:
-            finished.set()
+    def work() -> dict[str, Any]:
+        return _core.run_batch(
+            config_json,
+            list(controllers),
+            seed,
+            first,
+            count,
+            workers,
+            spectra,
+            progress,
+            dispersion_keys=keys,
+            dispersion_values=table,
+            streams=streams,
+        )
 
-    # Poll an Event, not Thread.join: an interrupted join can mark a live thread as finished.
-    thread = threading.Thread(target=work, name="quadrs-batch", daemon=True)
-    interrupted = False
-    try:
-        thread.start()  # inside the try: Ctrl-C can land while start() waits
-        while not finished.wait(POLL_SECONDS):
-            if on_progress is not None:
-                on_progress(progress.done())
-    except KeyboardInterrupt:
-        progress.cancel()
-        interrupted = True
-        while thread.is_alive() and not finished.wait(POLL_SECONDS):
-            pass
-    if "error" in box:
-        raise box["error"]
-    if "out" not in box:  # interrupted before the batch began
-        raise KeyboardInterrupt
+    poll = None if on_progress is None else lambda: on_progress(progress.done())
+    out, interrupted = run_cancellable(work, progress, poll)
     if on_progress is not None:
         on_progress(progress.done())
-    return box["out"], interrupted
+    return out, interrupted
 
 
 def dispersion_arrays(values: pd.DataFrame | None) -> tuple[list[str], Any]:
@@ -198,15 +186,18 @@ def monte_carlo(
     controllers = tuple(check_controller(c) for c in controllers)
     if len(set(controllers)) != len(controllers) or not controllers:
         raise ValueError(f"controllers must be distinct and non-empty, got {controllers}")
-    if runs < 1:
-        raise ValueError(f"runs must be >= 1, got {runs}")
-    if seed < 0 or first < 0:
-        raise ValueError(f"seed and first must be >= 0, got {seed}, {first}")
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    if chunk is not None and chunk < 1:
-        raise ValueError(f"chunk must be >= 1, got {chunk}")
+    runs = check_int("runs", runs, 1, I64_MAX)
+    seed = check_int("seed", seed)
+    first = check_int("first", first, 0, I64_MAX)
+    check_labels(first, runs)
+    workers = check_int("workers", default_workers() if workers is None else workers, 1,
+                        MAX_WORKERS)  # fmt: skip
+    if chunk is not None:
+        chunk = check_int("chunk", chunk, 1, I64_MAX)
+    # The result table is held in memory: refuse up front what cannot fit, rather than fail
+    # (or be killed) after the work is done.
+    rows = runs * len(controllers) * len(scenario.phase_names)
+    check_memory(f"the result table of runs = {runs} ({rows} rows)", rows * ROW_BYTES)
     if resume and out is None:
         raise ValueError("resume=True needs out= (the directory of the run to continue)")
     from quadrs.dispersion import SAMPLINGS
@@ -223,10 +214,10 @@ def monte_carlo(
     store = RunStore(out) if out is not None else None
     if store is not None:
         if store.exists() and resume:
-            store.check_matches(scenario, seed, controllers, design.record())
+            store.check_matches(scenario, seed, controllers, spectra, design.record())
             todo = missing_ranges(first, runs, store.done_realisations())
         else:
-            store.create(scenario, seed, controllers, design.record())
+            store.create(scenario, seed, controllers, spectra, design.record())
     if client is not None:
         from quadrs.distributed import total_threads
 

@@ -18,6 +18,7 @@ import pandas as pd
 from quadrs import _core, plots
 from quadrs.flight import Flight, simulate
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
+from quadrs.parquet import atomic_write, atomic_write_bytes
 from quadrs.report import PAPER_TABLE3, ordering, paper_comparison, table3, to_markdown, toml_value
 from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
@@ -149,8 +150,7 @@ def sweep_outputs(result: SweepResult, out: Path) -> list[Path]:
 
 
 def _csv(frame: pd.DataFrame, path: Path, index: bool = True) -> Path:
-    frame.to_csv(path, index=index)
-    return path
+    return atomic_write(path, lambda f: f.write(frame.to_csv(index=index).encode()))
 
 
 def paper(
@@ -180,7 +180,7 @@ def paper(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     result = PaperOutput(out)
-    (out / "scenario.toml").write_text(scenario.to_toml())
+    atomic_write_bytes(out / "scenario.toml", scenario.to_toml().encode())
     result.files.append(out / "scenario.toml")
     try:
         flights, files = flight_figures(scenario, seed, out)
@@ -199,7 +199,8 @@ def paper(
             result.interrupted = True
             return result
         report = out / "report.md"
-        report.write_text(report_markdown(scenario, flights, result, runs, sweep_runs, seed))
+        text = report_markdown(scenario, flights, result, runs, sweep_runs, seed)
+        atomic_write_bytes(report, text.encode())
         result.files.append(report)
     except KeyboardInterrupt:
         result.interrupted = True

@@ -20,6 +20,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from quadrs.flight import Flight
+from quadrs.parquet import atomic_write
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
 FMAX = 10.0
@@ -73,7 +74,10 @@ def save(fig: Figure, path: str | Path, formats: Sequence[str] = FORMATS) -> lis
         for fmt in formats:
             target = path.with_suffix(f".{fmt}")
             meta = {"Date": None} if fmt == "svg" else None
-            fig.savefig(target, format=fmt, dpi=120, metadata=meta)
+            atomic_write(
+                target,
+                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),
+            )
             written.append(target)
     return written
 

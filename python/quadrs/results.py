@@ -12,6 +12,7 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.flight import METRIC_COLUMNS
+from quadrs.integrity import check_rows, check_run_metadata, check_spectra, run_identity
 from quadrs.parquet import read_frame, write_frame
 from quadrs.report import summarise
 from quadrs.scenario import Scenario
@@ -216,6 +217,13 @@ class MonteCarloResult:
             "interrupted": self.interrupted,
             "sampling": self.sampling,
             "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
+            "run": run_identity(
+                self.scenario,
+                self.seed,
+                self.controllers,
+                self.spectrum_sums is not None,
+                extra=self.sampling,
+            ),
         }
 
     def to_parquet(self, path: str | Path) -> None:
@@ -234,15 +242,23 @@ class MonteCarloResult:
         runs, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
+        # Types, required keys and the run identity: a foreign or edited file is refused.
+        scenario = check_run_metadata(
+            meta, path, {"interrupted": bool, "sampling": str}, extra_key="sampling"
+        )
+        controllers = tuple(meta["controllers"])
+        check_rows(runs, path, controllers, scenario.phase_names)
         spectra = meta.get("spectra")
+        if spectra is not None:
+            check_spectra(spectra, path, len(controllers), len(scenario.phase_names))
         return cls(
-            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
-            seed=int(meta["seed"]),
-            controllers=tuple(meta["controllers"]),
+            scenario=scenario,
+            seed=meta["seed"],
+            controllers=controllers,
             runs=runs,
             spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
-            interrupted=bool(meta.get("interrupted", False)),
-            sampling=str(meta.get("sampling", "random")),
+            interrupted=meta["interrupted"],
+            sampling=meta["sampling"],
         )
 
 

@@ -74,26 +74,81 @@ def _split_key(key: str) -> list[str | int]:
     return parts
 
 
-def _check_finite(value: Any, key: str) -> None:
-    """JSON has no NaN or infinity; every scenario number must be finite anyway."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise ScenarioError(f"{key} must be a finite number, got {value!r}")
-    if isinstance(value, Mapping):
-        for k, v in value.items():
-            _check_finite(v, f"{key}.{k}" if key else str(k))
-    elif isinstance(value, list | tuple):
-        for i, v in enumerate(value):
-            _check_finite(v, f"{key}[{i}]")
+#: Deepest nesting of tables and arrays a scenario may have (the presets use 3).
+MAX_DEPTH = 32
+#: Largest scenario file read (bytes): a binary or endless file is refused, not read forever.
+MAX_FILE_BYTES = 1 << 20
+#: Integers in a scenario lie in [-2**63, 2**63).
+_INT_LIMIT = 1 << 63
 
 
-def _plain(value: Any) -> Any:
-    """Tuples and numpy scalars -> plain TOML-able Python values."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):  # numpy scalar
-        return value.item()
+def _plain(value: Any, key: str = "") -> Any:
+    """Tuples and numpy scalars -> plain TOML-able Python values, checked on the way: only
+    tables, arrays, strings, booleans, finite numbers and integers within 64 bits, nested at
+    most MAX_DEPTH deep (dates, times and other objects are refused, naming the key). Walks
+    with an explicit stack, so no input can exhaust Python's recursion limit."""
+    root: list[Any] = [None]
+    stack: list[tuple[Any, str, Any, Any, int]] = [(value, key, root, 0, 0)]
+    while stack:
+        v, k, parent, slot, depth = stack.pop()
+        where = k or "scenario"
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"{where}: nested more than {MAX_DEPTH} levels deep")
+        if isinstance(v, Mapping):
+            table: dict[str, Any] = {}
+            parent[slot] = table
+            for kk, vv in v.items():
+                kk = str(kk)
+                table[kk] = None
+                stack.append((vv, f"{k}.{kk}" if k else kk, table, kk, depth + 1))
+            continue
+        if isinstance(v, list | tuple):
+            array: list[Any] = [None] * len(v)
+            parent[slot] = array
+            stack.extend((vv, f"{k}[{i}]", array, i, depth + 1) for i, vv in enumerate(v))
+            continue
+        if not isinstance(v, str | bytes) and hasattr(v, "item") and callable(v.item):
+            v = v.item()  # numpy scalar
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ScenarioError(f"{where} must be a finite number, got {v!r}")
+        if isinstance(v, int) and not isinstance(v, bool) and not -_INT_LIMIT <= v < _INT_LIMIT:
+            raise ScenarioError(f"{where} must be an integer within 64 bits, got {v}")
+        if not isinstance(v, bool | int | float | str):
+            raise ScenarioError(
+                f"{where}: a scenario holds numbers, booleans, strings, arrays and tables, "
+                f"got {type(v).__name__} {v!r}"
+            )
+        parent[slot] = v
+    return root[0]
+
+
+def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str, Any]:
+    """``data`` on top of the preset its ``base`` names, which may itself have a base: the
+    chain is followed to its end; a cycle is refused."""
+    data = dict(data)
+    base = data.pop(_BASE_KEY, None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise ScenarioError(f"base must name a preset, got {base!r}")
+    if base in chain:
+        raise ScenarioError(f"base: presets based on each other in a cycle: "
+                            f"{' -> '.join((*chain, base))}")  # fmt: skip
+    text = _preset_text(base)
+    try:
+        parent = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:  # pragma: no cover - shipped presets parse
+        raise ScenarioError(f"base: preset {base!r} is not valid TOML: {e}") from e
+    return _merge(_resolve_base(parent, (*chain, base)), data)
+
+
+def _frozen(value: Any) -> Any:
+    """A hashable image of a plain value that is equal exactly when the values are equal
+    (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
+    if isinstance(value, dict):
+        return frozenset((k, _frozen(v)) for k, v in value.items())
+    if isinstance(value, list):
+        return tuple(_frozen(v) for v in value)
     return value
 
 
@@ -116,7 +171,6 @@ class Scenario:
         data = _plain(data)
         if not isinstance(data, dict):
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
-        _check_finite(data, "")
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
 
@@ -137,19 +191,34 @@ class Scenario:
         give only what differs; otherwise it must be complete. Unknown keys are rejected."""
         path = Path(path)
         try:
-            text = path.read_text()
+            with path.open("rb") as f:
+                raw = f.read(MAX_FILE_BYTES + 1)
         except OSError as e:
             raise ScenarioError(f"scenario file {str(path)!r} cannot be read: {e.strerror}") from e
+        if len(raw) > MAX_FILE_BYTES:
+            raise ScenarioError(
+                f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
+            )
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise ScenarioError(
+                f"scenario file {str(path)!r} is not UTF-8 text (byte {e.start}): not a scenario"
+            ) from None
         return cls.from_toml_string(text, source=str(path))
 
     @classmethod
     def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
         """Parse TOML text. ``base`` may name a preset or, unlike in :meth:`from_dict`, another
         scenario file (``base = "tuned.toml"``, relative to ``source``'s directory)."""
+        if len(text) > MAX_FILE_BYTES:
+            raise ScenarioError(f"{source} is larger than {MAX_FILE_BYTES} characters")
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ScenarioError(f"{source} is not valid TOML: {e}") from e
+        except RecursionError:
+            raise ScenarioError(f"{source}: values nested too deeply") from None
         base = data.get(_BASE_KEY)
         if isinstance(base, str) and base.endswith(".toml") and base not in presets():
             path = Path(base)
@@ -164,19 +233,16 @@ class Scenario:
             finally:
                 _BASE_CHAIN.reset(token)
             del data[_BASE_KEY]
-            return cls(_merge(parent._data, data))
+            return cls(_merge(parent._data, _plain(data)))
         return cls.from_dict(data)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
         """From a nested mapping shaped like the TOML file (``base`` allowed)."""
-        data = dict(data)
-        base = data.pop(_BASE_KEY, None)
-        if base is not None:
-            if not isinstance(base, str):
-                raise ScenarioError(f"base must name a preset, got {base!r}")
-            data = _merge(cls.preset(base)._data, data)  # a preset may base on another
-        return cls(data)
+        data = _plain(data)
+        if not isinstance(data, dict):
+            raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        return cls(_resolve_base(data))
 
     # -- output -------------------------------------------------------------------------
     def to_toml(self) -> str:
@@ -215,9 +281,9 @@ class Scenario:
                 if value is None:
                     parent.pop(last, None)
                 else:
-                    parent[last] = _plain(value)
+                    parent[last] = _plain(value, key)
             elif isinstance(parent, list) and isinstance(last, int) and last < len(parent):
-                parent[last] = _plain(value)
+                parent[last] = _plain(value, key)
             else:
                 raise ScenarioError(f"{key}: unknown scenario key")
         return Scenario(data)
@@ -316,7 +382,9 @@ class Scenario:
         return isinstance(other, Scenario) and self._data == other._data
 
     def __hash__(self) -> int:
-        return hash(self.to_json())
+        # Agrees with __eq__: equal mappings give equal frozen images, whatever their key
+        # order or number types (1 == 1.0).
+        return hash(_frozen(self._data))
 
     def __repr__(self) -> str:
         p, g = self._data["payload"], self._data["gust"]

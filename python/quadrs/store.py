@@ -2,13 +2,18 @@
 
 Layout of ``DIR``::
 
-    DIR/_quadrs.json                 what the run is: scenario, seed, controllers, version
-    DIR/part-<lo>-<hi>-<id>.parquet  the rows of some finished realisations, with their
-                                     spectrum sums in the file's metadata
+    DIR/_quadrs.json                 what the run is: scenario, seed, controllers, version,
+                                     spectra on/off and the run identity they hash to
+    DIR/part-<lo>-<hi>-<id>.parquet  the rows of some finished realisations, with the run
+                                     identity and their spectrum sums in the file's metadata
 
 A part is written to a hidden temporary file and renamed into place, so a killed process
-leaves either a whole part or none. Because a realisation's numbers depend only on
-(scenario, seed, index), resuming computes exactly the realisations no part holds yet.
+leaves either a whole part or none. The manifest is created exclusively: of two runs started
+at once on one directory, one proceeds and the other is refused. Every part is stamped with
+the run identity (:mod:`quadrs.integrity`) and checked on reading: a part from another run
+(another seed, scenario, controllers or version) is refused, never counted. Because a
+realisation's numbers depend only on (scenario, seed, index), resuming computes exactly the
+realisations no part holds yet.
 """
 
 from __future__ import annotations
@@ -23,12 +28,19 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from quadrs import _core
-from quadrs.parquet import atomic_write_bytes, read_frame, write_frame
+from quadrs.integrity import (
+    CorruptRunError,
+    check_rows,
+    check_run_metadata,
+    check_spectra,
+    run_identity,
+)
+from quadrs.parquet import atomic_create, read_frame, read_meta, write_frame
 from quadrs.results import MonteCarloResult, SpectrumSums
 from quadrs.scenario import Scenario
 
 MANIFEST = "_quadrs.json"
-_SPECTRA_KEY = b"quadrs_spectra"
+_PART_KEY = b"quadrs_part"
 
 
 class RunStore:
@@ -36,6 +48,8 @@ class RunStore:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self._checked: dict[str, Any] | None = None  # the manifest, once validated
+        self._scenario = Scenario.paper()  # replaced by the manifest's on validation
 
     @property
     def manifest_path(self) -> Path:
@@ -49,10 +63,12 @@ class RunStore:
         scenario: Scenario,
         seed: int,
         controllers: tuple[str, ...],
+        spectra: bool = True,
         design: dict[str, Any] | None = None,
     ) -> None:
-        """Start a new run; refuses to overwrite an existing one. ``design``: how dispersed
-        values are drawn (``sampling``, and for lhs/sobol the batch ``first``, ``runs``)."""
+        """Start a new run; refuses to overwrite an existing one (FileExistsError), also when
+        another process creates one at the same moment. ``design``: how dispersed values are
+        drawn (``sampling``, and for lhs/sobol the batch ``first``, ``runs``)."""
         if self.exists() or self.parts():
             raise FileExistsError(
                 f"{self.path} already holds a run: resume it, or choose another output"
@@ -65,34 +81,56 @@ class RunStore:
             "seed": seed,
             "controllers": list(controllers),
             "scenario": scenario.to_toml(),
+            "spectra": bool(spectra),
             "design": design or {"sampling": "random"},
+            "run": run_identity(scenario, seed, controllers, spectra, extra=_design(design)),
         }
-        atomic_write_bytes(self.manifest_path, json.dumps(manifest, indent=1).encode())
+        try:
+            atomic_create(self.manifest_path, json.dumps(manifest, indent=1).encode())
+        except FileExistsError:
+            raise FileExistsError(
+                f"{self.path} already holds a run (another process just started one there)"
+            ) from None
+        self._checked = None
 
     def manifest(self) -> dict[str, Any]:
+        """The manifest, validated (types, keys and its run identity)."""
+        if self._checked is not None:
+            return self._checked
         try:
-            return json.loads(self.manifest_path.read_text())
+            text = self.manifest_path.read_text()
         except FileNotFoundError:
             raise FileNotFoundError(f"{self.path} is not a quadrs run (no {MANIFEST})") from None
+        try:
+            m = json.loads(text)
+        except ValueError:
+            raise CorruptRunError(f"{str(self.manifest_path)!r} is not valid JSON") from None
+        self._scenario = check_run_metadata(m, self.manifest_path, {"spectra": bool})
+        self._checked = m
+        return m
+
+    @property
+    def run(self) -> str:
+        """The run identity every part must carry."""
+        return str(self.manifest()["run"])
 
     def check_matches(
         self,
         scenario: Scenario,
         seed: int,
         controllers: tuple[str, ...],
+        spectra: bool = True,
         design: dict[str, Any] | None = None,
     ) -> None:
         """Resuming must continue the same experiment, or its rows would not belong together
         (a random-sampled run may be extended; a design (lhs, sobol) is fixed by its batch)."""
         m = self.manifest()
-        theirs = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
-        ours_design = design or {"sampling": "random"}
-        saved_design = m.get("design", {"sampling": "random"})
         for what, ours, saved in (
-            ("scenario", scenario, theirs),
+            ("scenario", scenario, self._scenario),
             ("seed", seed, m["seed"]),
             ("controllers", list(controllers), m["controllers"]),
-            ("sampling design", ours_design, saved_design),
+            ("spectra setting", bool(spectra), m["spectra"]),
+            ("sampling design", _design(design), _design(m.get("design"))),
         ):
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
@@ -103,7 +141,22 @@ class RunStore:
             return
         real = runs["realisation"]
         name = f"part-{real.min():09d}-{real.max():09d}-{uuid.uuid4().hex[:8]}.parquet"
-        write_frame(runs, self.path / name, _SPECTRA_KEY, spectra.to_json() if spectra else None)
+        meta = {"run": self.run, "spectra": spectra.to_json() if spectra else None}
+        write_frame(runs, self.path / name, _PART_KEY, meta)
+
+    def _part_meta(self, part: Path) -> dict[str, Any]:
+        """A part's metadata, refused unless it carries this run's identity."""
+        try:
+            meta = read_meta(part, _PART_KEY)
+        except (OSError, ValueError) as e:
+            raise CorruptRunError(f"{str(part)!r}: not a readable part ({e})") from None
+        if not isinstance(meta, dict) or meta.get("run") != self.run:
+            raise CorruptRunError(
+                f"{str(part)!r} does not belong to the run in {str(self.path)!r} (another "
+                "seed, scenario, controllers or quadrs version): remove it, or resume "
+                "into a fresh directory"
+            )
+        return meta
 
     def parts(self) -> list[Path]:
         """The finished parts (temporary files of interrupted writes are never read)."""
@@ -112,10 +165,16 @@ class RunStore:
     def load(self) -> tuple[pd.DataFrame | None, SpectrumSums | None]:
         """All rows so far (sorted by realisation, duplicates dropped) and the summed spectra."""
         frames, sums = [], None
+        m = self.manifest()
+        phases = self._scenario.phase_names
         for part in self.parts():
-            frame, raw = read_frame(part, _SPECTRA_KEY)
+            self._part_meta(part)
+            frame, meta = read_frame(part, _PART_KEY)
+            check_rows(frame, part, m["controllers"], phases)
             frames.append(frame)
+            raw = meta.get("spectra") if isinstance(meta, dict) else None
             if raw is not None:
+                check_spectra(raw, part, len(m["controllers"]), len(phases))
                 s = SpectrumSums.from_json(raw)
                 sums = s if sums is None else sums + s
         if not frames:
@@ -130,6 +189,7 @@ class RunStore:
     def done_realisations(self) -> set[int]:
         done: set[int] = set()
         for part in self.parts():
+            self._part_meta(part)
             col = pq.read_table(part, columns=["realisation"]).column("realisation")
             done.update(np.unique(col.to_numpy()).tolist())
         return done
@@ -138,13 +198,18 @@ class RunStore:
         m = self.manifest()
         runs, sums = self.load()
         controllers = tuple(m["controllers"])
-        scenario = Scenario.from_toml_string(m["scenario"], source=str(self.manifest_path))
+        scenario = self._scenario
         if runs is None:
             runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
         sampling = str(m.get("design", {}).get("sampling", "random"))
         return MonteCarloResult(
             scenario, int(m["seed"]), controllers, runs, sums, interrupted, sampling
         )
+
+
+def _design(design: dict[str, Any] | None) -> dict[str, Any]:
+    """A run's sampling design in one form (older manifests have none: random)."""
+    return dict(design) if design else {"sampling": "random"}
 
 
 def missing_ranges(first: int, runs: int, done: set[int]) -> list[tuple[int, int]]:

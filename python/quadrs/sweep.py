@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core
+from quadrs.integrity import CorruptRunError, check_run_metadata, run_identity
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
@@ -207,6 +208,8 @@ class SweepResult:
             "grid": self.grid,
             "scenario": self.scenario.to_toml(),
             "interrupted": self.interrupted,
+            "spectra": False,
+            "run": run_identity(self.scenario, self.seed, self.controllers, False, extra=self.grid),
         }
 
     def to_parquet(self, path: str | Path) -> None:
@@ -220,13 +223,19 @@ class SweepResult:
         runs, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+        scenario = check_run_metadata(
+            meta, path, {"interrupted": bool, "grid": dict}, extra_key="grid"
+        )
+        grid = meta["grid"]
+        if not all(isinstance(v, list) for v in grid.values()):
+            raise CorruptRunError(f"{str(path)!r}: metadata 'grid' must map keys to lists")
         return cls(
-            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
-            grid={k: list(v) for k, v in meta["grid"].items()},
-            seed=int(meta["seed"]),
+            scenario=scenario,
+            grid={k: list(v) for k, v in grid.items()},
+            seed=meta["seed"],
             controllers=tuple(meta["controllers"]),
             runs=runs,
-            interrupted=bool(meta.get("interrupted", False)),
+            interrupted=meta["interrupted"],
         )
 
 

@@ -225,6 +225,21 @@ pub struct Divergence {
     pub max_distance: f64,
     /// rad, a realisation whose roll or pitch exceeds this diverged.
     pub max_tilt: f64,
+    /// m/s, a realisation whose quadrotor or payload moves faster than this along any axis
+    /// diverged: catches a numerically unstable step (finite but absurd states) early.
+    #[serde(default = "default_max_speed")]
+    pub max_speed: f64,
+    /// rad/s, a realisation whose body rate p, q or r exceeds this diverged.
+    #[serde(default = "default_max_rate")]
+    pub max_rate: f64,
+}
+
+fn default_max_speed() -> f64 {
+    100.0
+}
+
+fn default_max_rate() -> f64 {
+    100.0
 }
 
 /// Most integration steps one flight may take (guards against hangs from a tiny dt).
@@ -362,6 +377,8 @@ impl Config {
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
         positive("divergence.max_distance", self.divergence.max_distance)?;
         positive("divergence.max_tilt", self.divergence.max_tilt)?;
+        positive("divergence.max_speed", self.divergence.max_speed)?;
+        positive("divergence.max_rate", self.divergence.max_rate)?;
         crate::dispersion::validate(self)
     }
 

@@ -149,9 +149,11 @@ pub struct Craft {
     smc: Smc,
     wind: WindField,
     x0: State<f64>,
-    /// m and rad: `divergence.max_distance`, `divergence.max_tilt`.
+    /// m, rad, m/s and rad/s: `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate`.
     max_distance: f64,
     max_tilt: f64,
+    max_speed: f64,
+    max_rate: f64,
 }
 
 impl Craft {
@@ -172,6 +174,8 @@ impl Craft {
             x0,
             max_distance: cfg.divergence.max_distance,
             max_tilt: cfg.divergence.max_tilt,
+            max_speed: cfg.divergence.max_speed,
+            max_rate: cfg.divergence.max_rate,
         })
     }
 }
@@ -267,6 +271,11 @@ impl Engine {
         }
         self.prescribed_wind = Some(wind);
         Ok(self)
+    }
+
+    /// Integration steps per spectrum sample.
+    pub fn decimation(&self) -> usize {
+        self.decimation
     }
 
     pub fn phase_count(&self) -> usize {
@@ -395,6 +404,8 @@ impl Engine {
         let mut alive = L::LANES;
         let max_dist = lane_value(|c| c.max_distance);
         let max_tilt = lane_value(|c| c.max_tilt);
+        let max_speed = lane_value(|c| c.max_speed);
+        let max_rate = lane_value(|c| c.max_rate);
         let mut segment = 0;
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
@@ -441,7 +452,8 @@ impl Engine {
             let accel_c = plant.payload_acceleration(&s, w[2]);
             acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2], accel_c);
             if let Some(tr) = trace.as_deref_mut() {
-                if k % tr.every == 0 {
+                // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
+                if k % tr.every == 0 && diverged_at[0].is_nan() {
                     tr.push(t, &s, &r, &u, &w, e_o, accel_c);
                 }
             }
@@ -456,7 +468,16 @@ impl Engine {
                 & s[ix::Z].abs().le_mask(max_dist)
                 & s[ix::ZC].abs().le_mask(max_dist)
                 & s[ix::PHI].abs().le_mask(max_tilt)
-                & s[ix::THETA].abs().le_mask(max_tilt);
+                & s[ix::THETA].abs().le_mask(max_tilt)
+                // A numerically unstable step gives finite but absurd speeds long before the
+                // positions run away: bound every velocity and body rate too.
+                & s[ix::VX].abs().le_mask(max_speed)
+                & s[ix::VY].abs().le_mask(max_speed)
+                & s[ix::VZ].abs().le_mask(max_speed)
+                & s[ix::VZC].abs().le_mask(max_speed)
+                & s[ix::P].abs().le_mask(max_rate)
+                & s[ix::Q].abs().le_mask(max_rate)
+                & s[ix::R].abs().le_mask(max_rate);
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
@@ -468,7 +489,7 @@ impl Engine {
                         }
                     }
                 }
-                if alive == 0 && trace.is_none() {
+                if alive == 0 {
                     break;
                 }
             }
@@ -491,7 +512,12 @@ impl Engine {
                     );
                     if !diverged_at[lane].is_nan() {
                         metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
-                        spectra.iter_mut().for_each(|amp| amp.fill(f64::NAN));
+                        // The flight may have stopped early: NaN over the whole bin grid.
+                        if want_spectra {
+                            for (amp, bins) in spectra.iter_mut().zip(self.spectrum_grid()) {
+                                *amp = vec![f64::NAN; bins.len()];
+                            }
+                        }
                     }
                     LaneResult {
                         metrics,

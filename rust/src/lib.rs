@@ -9,6 +9,7 @@ pub mod dispersion;
 pub mod gust;
 pub mod integrate;
 pub mod lane;
+pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
@@ -39,12 +40,13 @@ mod _core {
     use crate::dispersion::Dispersion;
     use crate::gust;
     use crate::integrate::{Engine, FlightRequest, Trace, TRACE_COLUMNS};
+    use crate::memory;
     use crate::metrics::{METRIC_NAMES, N_METRICS};
     use crate::model::STATE_NAMES;
     use crate::montecarlo::{pool, run_batch as batch, Batch};
     use numpy::ndarray::{Array1, Array2, Array4};
     use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
-    use pyo3::exceptions::PyValueError;
+    use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
     use pyo3::prelude::*;
     use pyo3::types::PyDict;
     use rustfft::FftPlanner;
@@ -60,6 +62,17 @@ mod _core {
         m.add("TRACE_COLUMNS", TRACE_COLUMNS.to_vec())?;
         m.add("STATE_NAMES", STATE_NAMES.to_vec())?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))
+    }
+
+    /// The spectrum samples every flight keeps (one per `1 / metrics.spectrum_rate`), for
+    /// `lanes` realisations on each of `threads` threads: must fit in memory.
+    fn flight_memory(e: &Engine, lanes: usize, threads: usize) -> Result<(), String> {
+        let samples = (e.steps / e.decimation() + 1) as u128;
+        memory::check(
+            "spectrum samples per flight (integrator.duration * metrics.spectrum_rate)",
+            samples * (lanes * threads) as u128,
+            8,
+        )
     }
 
     fn scenario_error(e: ConfigError) -> PyErr {
@@ -198,9 +211,12 @@ mod _core {
     }
 
     /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
-    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model.
+    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model. With
+    /// `progress`, the flight polls its cancel flag (`Progress.cancel()`) and raises
+    /// KeyboardInterrupt when cancelled.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None))]
+    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None))]
+    #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         py: Python<'py>,
         config_json: &str,
@@ -209,6 +225,7 @@ mod _core {
         realisation: u64,
         record_every: usize,
         wind: Option<PyReadonlyArray2<'py, f64>>,
+        progress: Option<&Bound<'py, Progress>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if record_every == 0 {
@@ -226,20 +243,31 @@ mod _core {
             let rows = w.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
             e = e.with_wind(rows).map_err(PyValueError::new_err)?;
         }
-        let (trace, res) = py.detach(|| {
+        let rows = (e.steps / record_every + 1) as u128;
+        memory::check(
+            "trace (integrator.duration / integrator.dt / record_every rows)",
+            rows * Trace::WIDTH as u128,
+            8,
+        )
+        .and_then(|()| flight_memory(&e, 1, 1))
+        .map_err(PyMemoryError::new_err)?;
+        let cancel = progress.map(|p| p.get().cancel.clone());
+        let flown = py.detach(|| {
             guarded("simulate", || {
                 let mut trace = Trace::new(record_every, e.steps);
                 let indices = [realisation];
                 let req = FlightRequest {
                     want_spectra: true,
+                    cancel: cancel.as_deref(),
                     ..FlightRequest::new(kind, seed, &indices)
                 };
-                let res = e
-                    .fly::<f64>(&req, Some(&mut trace), &mut FftPlanner::new())
-                    .expect("a flight without a cancel flag always finishes");
-                (trace, res.into_iter().next().expect("one lane"))
+                let res = e.fly::<f64>(&req, Some(&mut trace), &mut FftPlanner::new())?;
+                Some((trace, res.into_iter().next().expect("one lane")))
             })
         })?;
+        let Some((trace, res)) = flown else {
+            return Err(PyKeyboardInterrupt::new_err("simulate was cancelled"));
+        };
         let rows = trace.data.len() / Trace::WIDTH;
         let trace = Array2::from_shape_vec((rows, Trace::WIDTH), trace.data).expect("trace shape");
         let n_phase = res.metrics.len();
@@ -317,13 +345,17 @@ mod _core {
         }
         let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
             .map_err(PyValueError::new_err)?;
-        let mut out = Array2::<f64>::zeros((realisations, steps));
-        let buf = out.as_slice_mut().expect("a fresh array is contiguous");
+        let len = (realisations as u128) * (steps as u128);
+        let mut buf = usize::try_from(len)
+            .map_err(|_| format!("gust samples (steps * realisations): {len} values"))
+            .and_then(|len| memory::zeroed_vec("gust samples (steps * realisations)", len, 0.0))
+            .map_err(PyMemoryError::new_err)?;
         py.detach(|| {
             guarded("gust_series", || {
-                pool(workers).install(|| gust::fill_series(&filter, seed, first, steps, buf))
+                pool(workers).install(|| gust::fill_series(&filter, seed, first, steps, &mut buf))
             })
         })?;
+        let out = Array2::from_shape_vec((realisations, steps), buf).expect("shape");
         Ok(out.into_pyarray(py))
     }
 
@@ -399,6 +431,14 @@ mod _core {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
         let e = engine(config_json)?;
+        let row = kinds.len() * e.phase_count() * N_METRICS;
+        memory::check(
+            "batch results (runs * controllers * phases * metrics)",
+            count as u128 * (row + kinds.len() + 1) as u128,
+            8,
+        )
+        .and_then(|()| flight_memory(&e, crate::montecarlo::LANES, workers))
+        .map_err(PyMemoryError::new_err)?;
         let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
             (true, None) => None,
             (false, Some(v)) => {

@@ -9,7 +9,6 @@ use crate::integrate::{Craft, Engine, FlightRequest};
 use crate::metrics::N_METRICS;
 use rayon::prelude::*;
 use rustfft::FftPlanner;
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -71,26 +70,36 @@ pub struct BatchOutput {
     pub spectra: SpectrumSums,
 }
 
-/// One rayon pool per requested size, built once for the process and reused.
+/// Thread pools kept alive between calls (most recently used last).
+pub const POOLS_KEPT: usize = 2;
+
+/// A rayon pool of `workers` threads, reused across calls. Only the `POOLS_KEPT` most recently
+/// used sizes are kept: a pool evicted while a batch still runs on it lives until that batch
+/// ends (the batch holds an `Arc`), then its threads exit. So calling with many different
+/// `workers` values never accumulates threads.
 pub fn pool(workers: usize) -> Arc<rayon::ThreadPool> {
-    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
+    type Pools = Vec<(usize, Arc<rayon::ThreadPool>)>;
+    static POOLS: OnceLock<Mutex<Pools>> = OnceLock::new();
     let workers = workers.max(1);
     let mut pools = POOLS
         .get_or_init(Default::default)
         .lock()
         .unwrap_or_else(|e| e.into_inner());
-    pools
-        .entry(workers)
-        .or_insert_with(|| {
-            Arc::new(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(workers)
-                    .thread_name(|i| format!("quadrs-worker-{i}"))
-                    .build()
-                    .expect("thread pool"),
-            )
-        })
-        .clone()
+    if let Some(i) = pools.iter().position(|(n, _)| *n == workers) {
+        let entry = pools.remove(i);
+        pools.push(entry);
+    } else {
+        let built = rayon::ThreadPoolBuilder::new()
+            .num_threads(workers)
+            .thread_name(|i| format!("quadrs-worker-{i}"))
+            .build()
+            .expect("thread pool");
+        pools.push((workers, Arc::new(built)));
+        if pools.len() > POOLS_KEPT {
+            pools.remove(0);
+        }
+    }
+    pools.last().expect("just pushed").1.clone()
 }
 
 /// A batch: realisations `first..first + count` under every controller in `kinds`.
@@ -183,16 +192,22 @@ pub fn run_batch(
         .enumerate()
         .fold(
             || {
-                // Per thread: spectrum sums, FFT plans and the rows of the set in flight.
-                let buffers = (vec![f64::NAN; LANES * row], vec![f64::NAN; LANES * n_ctrl]);
+                // Per thread: spectrum sums, FFT plans and the rows and spectra of the set in
+                // flight.
+                let buffers = (
+                    vec![f64::NAN; LANES * row],
+                    vec![f64::NAN; LANES * n_ctrl],
+                    Vec::new(),
+                );
                 (
                     SpectrumSums::zeros(n_ctrl, &grid),
                     FftPlanner::new(),
                     buffers,
                 )
             },
-            |(mut spectra, mut planner, (mut set_metrics, mut set_diverged)),
+            |(mut spectra, mut planner, (mut set_metrics, mut set_diverged, mut set_spectra)),
              (set, ((out_metrics, out_diverged), out_done))| {
+                set_spectra.clear();
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
                 let rows: [usize; LANES] =
                     std::array::from_fn(|l| (set * LANES + l).min(count - 1));
@@ -210,7 +225,7 @@ pub fn run_batch(
                 let lanes = out_done.len();
                 for (c, &kind) in kinds.iter().enumerate() {
                     if cancel.load(Ordering::Relaxed) {
-                        return (spectra, planner, (set_metrics, set_diverged));
+                        return (spectra, planner, (set_metrics, set_diverged, set_spectra));
                     }
                     let req = FlightRequest {
                         want_spectra,
@@ -219,16 +234,16 @@ pub fn run_batch(
                         ..FlightRequest::new(kind, seed, &indices)
                     };
                     let Some(res) = engine.fly_set(&req, &mut planner) else {
-                        return (spectra, planner, (set_metrics, set_diverged));
+                        return (spectra, planner, (set_metrics, set_diverged, set_spectra));
                     };
-                    for (l, r) in res.iter().take(lanes).enumerate() {
+                    for (l, r) in res.into_iter().take(lanes).enumerate() {
                         set_diverged[l * n_ctrl + c] = r.diverged_at;
                         for (p, m) in r.metrics.iter().enumerate() {
                             let at = l * row + (c * n_phase + p) * N_METRICS;
                             set_metrics[at..at + N_METRICS].copy_from_slice(m);
                         }
                         if want_spectra && r.diverged_at.is_nan() {
-                            spectra.add(c, &r.spectra);
+                            set_spectra.push((c, r.spectra));
                         }
                     }
                 }
@@ -236,8 +251,13 @@ pub fn run_batch(
                 out_metrics.copy_from_slice(&set_metrics[..lanes * row]);
                 out_diverged.copy_from_slice(&set_diverged[..lanes * n_ctrl]);
                 out_done.fill(true);
+                // ... and only then are its spectra counted, so the spectrum counts always
+                // equal the finished, non-diverged realisations (a cancel mid-set adds none).
+                for (c, amp) in &set_spectra {
+                    spectra.add(*c, amp);
+                }
                 progress.fetch_add(lanes as u64, Ordering::Relaxed);
-                (spectra, planner, (set_metrics, set_diverged))
+                (spectra, planner, (set_metrics, set_diverged, set_spectra))
             },
         )
         .map(|(spectra, _, _)| spectra)
@@ -301,6 +321,50 @@ mod tests {
                 .map(|x| x.to_bits())
                 .collect::<Vec<_>>()
         );
+    }
+
+    /// The spectrum counts equal the finished, non-diverged realisations per controller, even
+    /// when a cancel lands between the controllers of a lane-set.
+    #[test]
+    fn spectra_count_only_published_sets() {
+        let engine = Engine::new(short()).unwrap();
+        let kinds = [ControllerKind::Pd, ControllerKind::Smc];
+        for _ in 0..3 {
+            let (p, c) = (AtomicU64::new(0), AtomicBool::new(false));
+            let out = std::thread::scope(|scope| {
+                // Cancel as soon as the first set is published: the second set is then (almost
+                // always) inside its PD flight, so its SMC flight never starts.
+                scope.spawn(|| {
+                    while p.load(Ordering::Relaxed) < LANES as u64 {
+                        std::hint::spin_loop();
+                    }
+                    c.store(true, Ordering::Relaxed);
+                });
+                {
+                    let b = Batch {
+                        want_spectra: true,
+                        ..Batch::new(&kinds, 3, 0, 3 * LANES)
+                    };
+                    pool(1).install(|| run_batch(&engine, &b, &p, &c))
+                }
+            });
+            for k in 0..kinds.len() {
+                let finished = (0..3 * LANES)
+                    .filter(|&i| out.done[i] && out.diverged_at[i * kinds.len() + k].is_nan())
+                    .count() as u64;
+                assert_eq!(out.spectra.count[k], finished, "controller {k}: {out:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn pools_are_bounded() {
+        let first = pool(3);
+        for w in 4..10 {
+            pool(w);
+        }
+        // Evicted from the cache: only our handle keeps the first pool alive.
+        assert_eq!(Arc::strong_count(&first), 1);
     }
 
     #[test]

@@ -1,0 +1,129 @@
+"""Guards shared by the entry points: argument ranges, memory budgets, and running engine calls
+so that Ctrl-C (or a failing progress callback) cancels them promptly.
+
+See docs/guarantees.md for what these promise.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from quadrs import _core
+
+T = TypeVar("T")
+
+#: Seconds between polls of a running engine call (the main thread answers Ctrl-C at this pace).
+POLL_SECONDS = 0.2
+#: Seeds and gust stream indices are unsigned 64-bit integers.
+U64_MAX = 2**64 - 1
+#: Realisation labels are stored as signed 64-bit integers (the ``realisation`` column).
+I64_MAX = 2**63 - 1
+#: Most worker threads one call may ask for.
+MAX_WORKERS = 4096
+
+
+def check_int(name: str, value: Any, low: int = 0, high: int = U64_MAX) -> int:
+    """``value`` as an int in [low, high], else ValueError naming ``name`` and the value."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            as_int = int(value)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"{name} must be a whole number, got {value!r}") from None
+        if as_int != value:
+            raise ValueError(f"{name} must be a whole number, got {value!r}")
+        value = as_int
+    if not low <= value <= high:
+        raise ValueError(f"{name} must be between {low} and {high}, got {value}")
+    return int(value)
+
+
+def check_labels(first: int, count: int) -> None:
+    """Realisations first .. first + count - 1 must all fit the int64 ``realisation`` column."""
+    if first + count - 1 > I64_MAX:
+        raise ValueError(
+            f"first + runs - 1 must be at most 2**63 - 1 (realisation labels are int64), "
+            f"got first = {first}, runs = {count}"
+        )
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available now (None where the platform does not say)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(what: str, nbytes: int) -> None:
+    """MemoryError naming ``what`` if ``nbytes`` exceed the memory available now."""
+    free = available_memory()
+    if free is not None and nbytes > free:
+        raise MemoryError(
+            f"{what} needs about {nbytes / 2**30:.3g} GiB, more than the "
+            f"{free / 2**30:.3g} GiB of memory available"
+        )
+
+
+def run_cancellable(
+    work: Callable[[], T],
+    progress: _core.Progress,
+    on_poll: Callable[[], None] | None = None,
+) -> tuple[T, bool]:
+    """Run ``work()`` (an engine call that releases the GIL and watches ``progress``'s cancel
+    flag) on a thread while this one polls every POLL_SECONDS, calling ``on_poll``.
+
+    Ctrl-C cancels the work and waits for it (further Ctrl-Cs meanwhile are ignored: the
+    cancel takes milliseconds); the result is then returned with ``interrupted=True``. If
+    ``on_poll`` raises (a broken progress bar or stderr), the work is cancelled too and the
+    error re-raised: nothing is left running in the background. Raises ``work``'s own error,
+    and KeyboardInterrupt if it was interrupted before producing anything."""
+    box: dict[str, Any] = {}
+    finished = threading.Event()
+
+    def run() -> None:
+        try:
+            box["out"] = work()
+        except BaseException as e:  # re-raised on the calling thread
+            box["error"] = e
+        finally:
+            finished.set()
+
+    def cancel_and_wait() -> None:
+        progress.cancel()
+        while True:
+            try:
+                # Poll an Event, not Thread.join: an interrupted join can mark a live thread
+                # as finished.
+                if not thread.is_alive() or finished.wait(POLL_SECONDS):
+                    return
+            except KeyboardInterrupt:
+                continue
+
+    thread = threading.Thread(target=run, name="quadrs-engine", daemon=True)
+    interrupted = False
+    try:
+        thread.start()  # inside the try: Ctrl-C can land while start() waits
+        while not finished.wait(POLL_SECONDS):
+            if on_poll is not None:
+                on_poll()
+    except KeyboardInterrupt:
+        interrupted = True
+        cancel_and_wait()
+    except BaseException:
+        cancel_and_wait()
+        raise
+    if "error" in box:
+        raise box["error"]
+    if "out" not in box:  # interrupted before the work began
+        raise KeyboardInterrupt
+    return box["out"], interrupted

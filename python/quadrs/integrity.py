@@ -1,0 +1,140 @@
+"""What a saved run is, and checks that what is read back belongs to it.
+
+A *run identity* is a hash of everything that determines a run's rows: the scenario (its
+values, not their spelling), the seed, the controllers, whether spectra were kept, and the
+quadrs version. Every file a run writes carries it; readers recompute it from the metadata and
+refuse a file (or a checkpoint part) whose identity does not match, so rows from another seed,
+scenario or version are never counted as ours, and edited metadata is caught.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from quadrs import _core
+from quadrs.scenario import Scenario
+
+CONTROLLERS = ("pd", "smc")
+
+
+class CorruptRunError(ValueError):
+    """A saved run (file, checkpoint part or manifest) is not what it claims to be: foreign,
+    edited, or written by another quadrs version. The message names the file."""
+
+
+def _canonical(value: Any) -> Any:
+    """Numbers as floats (``1`` and ``1.0`` are the same scenario value), tables sorted."""
+    if isinstance(value, Mapping):
+        return {str(k): _canonical(v) for k, v in sorted(value.items())}
+    if isinstance(value, list | tuple):
+        return [_canonical(v) for v in value]
+    if isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def run_identity(
+    scenario: Scenario,
+    seed: int,
+    controllers: Sequence[str],
+    spectra: bool,
+    version: str | None = None,
+    extra: Any = None,
+) -> str:
+    """The identity (hex SHA-256) of a run; see the module docstring. ``extra``: anything
+    else (JSON-able) that determines the rows, e.g. a sweep's grid."""
+    doc = {
+        "extra": _canonical(extra),
+        "scenario": _canonical(scenario.to_dict()),
+        "seed": int(seed),
+        "controllers": list(controllers),
+        "spectra": bool(spectra),
+        "version": _core.__version__ if version is None else version,
+    }
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def _fail(path: str | Path, what: str) -> CorruptRunError:
+    return CorruptRunError(f"{str(path)!r}: {what}; refusing to read it")
+
+
+def check_run_metadata(
+    meta: Any, path: str | Path, keys: Mapping[str, Any], extra_key: str | None = None
+) -> Scenario:
+    """Validate the common fields of a run's metadata (types, required keys, the run identity):
+    ``version`` (this quadrs), ``seed``, ``controllers``, ``scenario`` (TOML) and ``run``,
+    plus ``keys`` (name -> required type). Returns the scenario."""
+    if not isinstance(meta, dict):
+        raise _fail(path, f"its quadrs metadata is not a table, got {type(meta).__name__}")
+    required = {
+        "version": str,
+        "seed": int,
+        "controllers": list,
+        "scenario": str,
+        "run": str,
+        **keys,
+    }
+    for key, kind in required.items():
+        if key not in meta:
+            raise _fail(path, f"its metadata lacks {key!r}")
+        value = meta[key]
+        ok = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
+        if not ok:
+            raise _fail(
+                path, f"metadata {key!r} must be {kind.__name__}, got {type(value).__name__} "
+                f"{value!r}"
+            )  # fmt: skip
+    if meta["version"] != _core.__version__:
+        raise _fail(path, f"written by quadrs {meta['version']}, this is {_core.__version__}")
+    if not 0 <= meta["seed"] < 2**64:
+        raise _fail(path, f"metadata 'seed' out of range: {meta['seed']}")
+    ctrls = meta["controllers"]
+    if not ctrls or len(set(ctrls)) != len(ctrls) or any(c not in CONTROLLERS for c in ctrls):
+        raise _fail(path, f"metadata 'controllers' must be distinct names of {CONTROLLERS}, "
+                          f"got {ctrls!r}")  # fmt: skip
+    try:
+        scenario = Scenario.from_toml_string(meta["scenario"], source=str(path))
+    except ValueError as e:
+        raise _fail(path, f"its scenario is invalid ({e})") from None
+    spectra = meta.get("spectra", True)
+    has_spectra = spectra is not None and spectra is not False
+    extra = meta.get(extra_key) if extra_key else None
+    run = run_identity(scenario, meta["seed"], ctrls, has_spectra, extra=extra)
+    if meta["run"] != run:
+        raise _fail(path, "its run identity does not match its scenario, seed and controllers "
+                          "(edited metadata?)")  # fmt: skip
+    return scenario
+
+
+def check_spectra(raw: Any, path: str | Path, n_ctrl: int, n_phase: int) -> None:
+    """Spectrum sums shaped for ``n_ctrl`` controllers and ``n_phase`` phases."""
+    ok = isinstance(raw, dict) and all(
+        k in raw for k in ("frequencies", "total", "total_sq", "count")
+    )
+    ok = ok and isinstance(raw["count"], list) and len(raw["count"]) == n_ctrl
+    ok = ok and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in raw["count"])
+    ok = ok and all(
+        isinstance(raw[k], list) and len(raw[k]) == n_phase
+        for k in ("frequencies", "total", "total_sq")
+    )
+    if not ok:
+        raise _fail(path, "its spectrum sums are malformed")
+
+
+def check_rows(
+    runs: Any, path: str | Path, controllers: Sequence[str], phases: Sequence[str]
+) -> None:
+    """The rows hold the columns of a runs table, and only our controllers and phases."""
+    need = {"realisation", "controller", "phase", "diverged"}
+    missing = need - set(runs.columns)
+    if missing:
+        raise _fail(path, f"its rows lack the columns {sorted(missing)}")
+    bad_c = set(runs["controller"].astype(str)) - set(controllers)
+    bad_p = set(runs["phase"].astype(str)) - set(phases)
+    if bad_c or bad_p:
+        raise _fail(path, f"its rows name controllers {sorted(bad_c)} or phases {sorted(bad_p)} "
+                          "that its metadata does not")  # fmt: skip
