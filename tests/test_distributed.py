@@ -150,13 +150,14 @@ def test_concurrent_dask_calls_do_not_share_tasks(short: Scenario, cluster) -> N
     from dask.distributed import Client
 
     from quadrs.distributed import run_on_dask
+    from quadrs.montecarlo import Design
 
     with Client(cluster) as client:
-        cfg, phases = short.to_json(), short.phase_names
-        pd_tasks = run_on_dask(client, cfg, phases, ("pd",), 0, [(0, 4), (4, 4)], True)
+        ranges, d = [(0, 4), (4, 4)], Design()
+        pd_tasks = run_on_dask(client, short, ("pd",), 0, ranges, True, d)
         _, rows, _ = next(pd_tasks)  # submitted, and still held
-        smc = list(run_on_dask(client, cfg, phases, ("smc",), 0, [(0, 4), (4, 4)], True))
-        no_spectra = list(run_on_dask(client, cfg, phases, ("pd",), 0, [(0, 4), (4, 4)], False))
+        smc = list(run_on_dask(client, short, ("smc",), 0, ranges, True, d))
+        no_spectra = list(run_on_dask(client, short, ("pd",), 0, ranges, False, d))
         rest = list(pd_tasks)
     assert set(rows["controller"]) == {"pd"}
     assert all(set(r["controller"]) == {"smc"} for _, r, _ in smc)

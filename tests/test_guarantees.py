@@ -299,7 +299,7 @@ def test_single_flight_polls_its_cancel_flag(paper: Scenario) -> None:
     progress = _core.Progress()
     progress.cancel()
     with pytest.raises(KeyboardInterrupt):
-        _core.simulate(paper.to_json(), "pd", 0, 0, 1000, progress)
+        _core.simulate(paper.to_json(), "pd", 0, 0, 1000, progress=progress)
 
 
 def test_simulate_answers_ctrl_c(paper: Scenario) -> None:

@@ -105,7 +105,9 @@ class RunStore:
             m = json.loads(text)
         except ValueError:
             raise CorruptRunError(f"{str(self.manifest_path)!r} is not valid JSON") from None
-        self._scenario = check_run_metadata(m, self.manifest_path, {"spectra": bool})
+        self._scenario = check_run_metadata(
+            m, self.manifest_path, {"spectra": bool, "design": dict}, extra_key="design"
+        )
         self._checked = m
         return m
 

@@ -499,8 +499,8 @@ impl Config {
                 return Err(ConfigError::new(
                     &k_end,
                     format!(
-                        "{k_end} must be later than {k_start} by at least two steps (2 dt), got {:?} (start {:?})",
-                        ph.end, ph.start
+                        "{k_end} must be later than {k_start} by at least two steps (2 integrator.dt = {:?} s), got {:?} (start {:?})",
+                        2.0 * self.integrator.dt, ph.end, ph.start
                     ),
                 ));
             }
