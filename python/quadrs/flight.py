@@ -69,6 +69,7 @@ def simulate(
     from quadrs.stability import warn_before_running
 
     check_controller(controller)
+    # Loud only if the scenario excites an unstable mode (the flight will diverge).
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))

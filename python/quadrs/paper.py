@@ -16,16 +16,13 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core, plots
+from quadrs._paper_grid import FREQUENCIES, MASSES
 from quadrs.flight import Flight, simulate
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.report import PAPER_TABLE3, ordering, paper_comparison, table3, to_markdown, toml_value
 from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
 
-#: Natural frequencies (Hz) of the Fig. 13/14 sweep.
-FREQUENCIES: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
-#: Payload masses (kg) of Fig. 16: 1 %, 10 % and 20 % of the vehicle, as in the paper.
-MASSES: tuple[float, ...] = (0.022, 0.22, 0.44)
 SWEEP_KEY = "payload.natural_frequency"
 #: What the paper leaves unstated (MODEL.md section 5), and so what drives any difference.
 UNSTATED: tuple[tuple[str, str], ...] = (
