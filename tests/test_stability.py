@@ -247,6 +247,7 @@ def test_a_single_flight_that_excites_unstable_modes_warns_loudly_and_diverges(
     s = short.override({**changes, "integrator.duration": 12.0})
     with pytest.warns(StabilityWarning, match=f"EXCITES them \\({source}"):
         flight = quadrs.simulate(s, "smc", record_every=100)
+
     def drift(f: quadrs.Flight) -> float:  # m, the largest lateral excursion
         return float(np.hypot(f.trace["x"], f.trace["y"]).max())
 
