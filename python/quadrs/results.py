@@ -94,6 +94,16 @@ class MonteCarloResult:
     spectrum_sums: SpectrumSums | None = field(default=None, repr=False)
     interrupted: bool = False
 
+    def __repr__(self) -> str:
+        """A summary, not the tables: what ran, how many, how many diverged."""
+        n = len(self.realisations)
+        diverged = int(self.runs.groupby("realisation")["diverged"].any().sum()) if n else 0
+        note = ", interrupted" if self.interrupted else ""
+        return (
+            f"<MonteCarloResult {n} realisations x {'/'.join(self.controllers)}, seed "
+            f"{self.seed}, {diverged} diverged{note}; {self.scenario!r}>"
+        )
+
     @property
     def realisations(self) -> np.ndarray:
         """Indices of the realisations present, sorted."""
