@@ -617,7 +617,8 @@ mod tests {
         cfg.gust.end = cfg.gust.start + 1.0;
         assert!(lateral_sources(&cfg).is_empty());
         // each other source on its own
-        let cases: [(fn(&mut Config), &str); 4] = [
+        type Change = fn(&mut Config);
+        let cases: [(Change, &str); 4] = [
             (
                 |c| c.trajectory.waypoints[1][1] = 1.0,
                 "waypoints move in x/y",
