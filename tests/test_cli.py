@@ -138,8 +138,9 @@ def test_mc_writes_parquet_and_report_reprints_it(tmp_path, capsys) -> None:
     )
     printed = capsys.readouterr().out
     assert code == 0
-    for col in ["IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %", "P_ITAE %"]:
+    for col in ["IAE (m s)", "ITAE (m s²)", "PD", "SMC", "P = SMC/PD %", "paper P %", " ± "]:
         assert col in printed
+    assert max(len(line) for line in printed.splitlines()) <= 100  # fits a terminal
     mc = MonteCarloResult.read_parquet(out)
     assert list(mc.runs.columns) == RUN_COLUMNS
     assert len(mc.runs) == 4 * 2 * 3 and mc.seed == 1 and not mc.interrupted
@@ -150,6 +151,11 @@ def test_mc_writes_parquet_and_report_reprints_it(tmp_path, capsys) -> None:
     again = capsys.readouterr().out
     assert printed.strip() in again  # the very same table
     assert "4 realisations, seed 1" in again
+    assert main(["report", str(out), "--wide", "--no-paper"]) == 0
+    wide = capsys.readouterr().out
+    for col in ["IAE PD", "IAE SMC", "P_IAE %", "P_ITAE %"]:  # the one-row-per-phase form
+        assert col in wide
+    assert "paper" not in wide
     assert_figures(figs, ["distributions", "spectra"])
 
 
@@ -168,7 +174,7 @@ def test_mc_ctrl_c_saves_what_finished_and_exits_130(tmp_path, monkeypatch, caps
     assert main(["mc", *SHORT, "--runs", "50", "--out", str(out), "--no-progress"]) == 130
     saved = MonteCarloResult.read_parquet(out)
     assert saved.interrupted and len(saved.realisations) == 3
-    assert "P_IAE %" in capsys.readouterr().out
+    assert "P = SMC/PD %" in capsys.readouterr().out
 
 
 def test_keyboard_interrupt_anywhere_exits_130(monkeypatch, capsys) -> None:
@@ -183,8 +189,16 @@ def test_keyboard_interrupt_anywhere_exits_130(monkeypatch, capsys) -> None:
 
 
 def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:
-    """A real Ctrl-C (SIGINT) while the batch runs: exit 130 and the finished runs saved."""
+    """A real Ctrl-C (SIGINT) while the batch runs: exit 130 and the finished runs saved.
+    stderr is a pseudo-terminal, so the progress bar is drawn (it is not in a pipe)."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
     out = tmp_path / "runs.parquet"
+    master, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns
     proc = subprocess.Popen(
         [
             sys.executable,
@@ -199,24 +213,44 @@ def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:
             str(out),
         ],
         stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        stderr=terminal,
     )
+    os.close(terminal)
     try:
         seen = b""
         # wait for the progress bar to count at least one finished realisation
         while re.search(rb"quadrs mc.*\| *[1-9][0-9]*/100000", seen) is None:
-            ready, _, _ = select.select([proc.stderr], [], [], 60)
+            ready, _, _ = select.select([master], [], [], 60)
             assert ready, "no progress bar within 60 s"
-            chunk = os.read(proc.stderr.fileno(), 4096)
+            chunk = os.read(master, 4096)
             assert chunk, seen
             seen += chunk
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        proc.communicate(timeout=60)
     finally:
         proc.kill()
-    assert proc.returncode == 130, err
+        os.close(master)
+    assert proc.returncode == 130, seen
     saved = MonteCarloResult.read_parquet(out)
     assert saved.interrupted and 0 < len(saved.realisations) < 100000
+
+
+def test_no_progress_bar_unless_stderr_is_a_terminal(monkeypatch) -> None:
+    import quadrs.montecarlo as montecarlo
+
+    asked = []
+    real = montecarlo.monte_carlo
+
+    def spy(*args, **kwargs):
+        asked.append(kwargs["progress"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(montecarlo, "monte_carlo", spy)
+    assert main(["mc", *SHORT, "--runs", "1"]) == 0  # pytest's stderr is no terminal
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["mc", *SHORT, "--runs", "1"]) == 0
+    assert main(["mc", *SHORT, "--runs", "1", "--no-progress"]) == 0
+    assert asked == [False, True, False]
 
 
 # -- sweep ----------------------------------------------------------------------------------
@@ -306,7 +340,7 @@ def test_paper_writes_every_table_and_figure(tmp_path, capsys) -> None:
         ]
     )
     assert code == 0
-    assert "P_IAE %" in capsys.readouterr().out
+    assert "P = SMC/PD %" in capsys.readouterr().out
     assert_figures(out, PAPER_FIGURES)
     assert list(pd.read_csv(out / "table3.csv").columns) == TABLE3_COLUMNS
     summary = pd.read_csv(out / "summary.csv")
@@ -411,15 +445,16 @@ def test_scenario_keys_lists_every_key_with_a_value_set_accepts(capsys) -> None:
 
 
 def test_stability_prints_a_verdict_per_controller(capsys) -> None:
-    if not hasattr(quadrs, "stability"):
-        pytest.skip("quadrs.stability is not in this build yet")
-    assert main(["stability"]) == 0
+    # exit 1 on an unstable verdict (the paper's SMC), 0 when every verdict is stable
+    assert main(["stability"]) == 1
     out = capsys.readouterr().out
     assert "== PD ==" in out and "== SMC ==" in out
     for c in ("pd", "smc"):
         assert str(quadrs.stability(Scenario.paper(), controller=c)) in out
-    assert main(["stability", "--controller", "smc", "--poles"]) == 0
+    assert main(["stability", "--controller", "smc", "--poles"]) == 1
     assert "real" in capsys.readouterr().out
+    assert main(["stability", "--controller", "pd"]) == 0
+    assert main(["stability", "--preset", "paper_stable_lateral"]) == 0
 
 
 def test_every_option_is_explained() -> None:

@@ -189,7 +189,8 @@ def test_retuned_preset_is_stable_and_keeps_the_paper_elsewhere(paper: Scenario)
 
 
 def test_lateral_move_diverges_with_paper_smc_and_not_with_the_retune(paper: Scenario) -> None:
-    bad = quadrs.simulate(paper.override(MOVE_X), "smc", record_every=50)
+    with pytest.warns(StabilityWarning, match="EXCITES them"):  # loud, even for one flight
+        bad = quadrs.simulate(paper.override(MOVE_X), "smc", record_every=50)
     err = (bad.trace["x"] - bad.trace["x_ref"]).abs()
     assert bad.diverged or err.max() > 10.0
     good = quadrs.simulate(Scenario.preset("paper_stable_lateral").override(MOVE_X), "smc")
@@ -210,15 +211,16 @@ def mc_warnings(scenario: Scenario, controllers: tuple[str, ...]) -> list[str]:
 
 def test_monte_carlo_warns_on_excited_unstable_smc(short: Scenario) -> None:
     (msg,) = mc_warnings(short.override({"gust.components": ["vertical", "lateral"]}), ("smc",))
-    assert msg.startswith("SMC gains are UNSTABLE at hover")
-    assert "lateral x/pitch mode +1.31 ± 3.90j, excited by this scenario" in msg
-    assert "not excited" not in msg and "diverged" in msg
+    assert msg.startswith("SMC gains are UNSTABLE at hover and this scenario EXCITES them")
+    assert "(horizontal gust components): lateral x/pitch +1.31 ± 3.90j" in msg
+    assert "e-fold every 0.76 s" in msg  # 1 / 1.31
+    assert "does not excite" not in msg and "diverged" in msg
 
 
 def test_monte_carlo_warns_on_unexcited_unstable_smc(short: Scenario) -> None:
     (msg,) = mc_warnings(short, ("pd", "smc"))
-    assert msg.startswith("SMC gains are UNSTABLE at hover")
-    assert "not excited by this scenario" in msg
+    assert msg.startswith("SMC gains are UNSTABLE at hover in modes this scenario does not excite")
+    assert "\n" not in msg and len(msg) < 160  # one short line
 
 
 def test_monte_carlo_stays_quiet_for_stable_gains(short: Scenario) -> None:
@@ -228,3 +230,35 @@ def test_monte_carlo_stays_quiet_for_stable_gains(short: Scenario) -> None:
         {k: short[k] for k in (*keys, "gust.start", "gust.end")}
     )
     assert mc_warnings(retuned, ("pd", "smc")) == []
+
+
+@pytest.mark.parametrize(
+    ("changes", "source"),
+    [
+        ({"gust.components": ["vertical", "longitudinal"]}, "horizontal gust components"),
+        ({"trajectory.waypoints": [[0, 0, 0, 2, 0], [3, 0, 0.5, 2, 0]]}, "waypoints move"),
+        ({"initial.position": [0.05, 0.0, 0.0]}, "initial x/y off the first waypoint"),
+        ({"initial.attitude": [0.01, 0.0, 0.5]}, "initial roll/pitch"),
+    ],
+)
+def test_a_single_flight_that_excites_unstable_modes_warns_loudly_and_diverges(
+    short: Scenario, changes: dict, source: str
+) -> None:
+    s = short.override({**changes, "integrator.duration": 12.0})
+    with pytest.warns(StabilityWarning, match=f"EXCITES them \\({source}"):
+        flight = quadrs.simulate(s, "smc", record_every=100)
+
+    def drift(f: quadrs.Flight) -> float:  # m, the largest lateral excursion
+        return float(np.hypot(f.trace["x"], f.trace["y"]).max())
+
+    assert flight.diverged or drift(flight) > 2.0  # the warning was right: a runaway
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # PD is stable: no warning at all
+        steady = quadrs.simulate(s, "pd", record_every=100)
+    assert not steady.diverged and drift(steady) < 0.6
+
+
+def test_a_vertical_single_flight_does_not_warn_about_unexcited_modes(short: Scenario) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not quadrs.simulate(short, "smc", record_every=100).diverged

@@ -15,9 +15,10 @@ import sys
 import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, NoReturn, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
-import pandas as pd
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
@@ -101,7 +102,11 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
         help="comma-separated controllers to fly (default: pd,smc)",
     )
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help=out_help)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none anyway unless stderr is a terminal)",
+    )
     p.add_argument(
         "--scheduler",
         metavar="ADDRESS",
@@ -115,6 +120,23 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
         help="how the values of dispersed keys are drawn: independent per realisation "
         "(random), or a stratified design over the batch (lhs, sobol) (default: random)",
     )
+
+
+def _table_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--wide",
+        action="store_true",
+        help="print Table 3 in one wide row per phase with full intervals (about 190 columns)",
+    )
+    p.add_argument(
+        "--no-paper", action="store_true", help="leave the paper's own P values out of Table 3"
+    )
+
+
+def _print_table3(mc: Any, args: argparse.Namespace) -> None:
+    from quadrs.report import format_table3
+
+    print(format_table3(mc.summary(), wide=args.wide, paper=not args.no_paper))
 
 
 def _controllers(text: str) -> tuple[str, ...]:
@@ -136,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit status: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C (what "
         "finished is saved).",
     )
-    from quadrs import __version__
+    from quadrs._core import __version__
 
     parser.add_argument("--version", action="version", version=f"quadrs {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -196,6 +218,7 @@ def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         "ITAE in m s^2; P = 100 SMC/PD in percent).",
     )
     _batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
+    _table_options(p)
     p.add_argument("--plots", type=Path, metavar="DIR", help="write the batch's figures here")
     p.add_argument(
         "--checkpoint",
@@ -279,6 +302,7 @@ def _add_report(sub: Any) -> None:
     )
     p.add_argument("--plots", type=Path, metavar="DIR", help="write figures from the file here")
     _limit_options(p)
+    _table_options(p)
 
 
 def _limit_options(p: argparse.ArgumentParser) -> None:
@@ -338,7 +362,7 @@ def _print_limits(result: Any, args: argparse.Namespace) -> None:
 
 
 def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
-    from quadrs.paper import FREQUENCIES, MASSES
+    from quadrs._paper_grid import FREQUENCIES, MASSES
 
     p = sub.add_parser(
         "paper",
@@ -382,7 +406,12 @@ def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--workers", type=int, default=None, metavar="W", help="worker threads (default: all)"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _table_options(p)
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none anyway unless stderr is a terminal)",
+    )
 
 
 def _add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -527,6 +556,8 @@ def parse_distribution(text: str) -> dict[str, Any]:
 
 
 def _print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4) -> None:
+    import pandas as pd
+
     with pd.option_context(
         "display.width",
         250,
@@ -557,6 +588,11 @@ def _write_atomic(frame: pd.DataFrame, path: Path) -> None:
         atomic_write(path, lambda f: f.write(frame.to_csv().encode()))
     else:
         atomic_write(path, frame.to_parquet)
+
+
+def _progress(args: argparse.Namespace) -> bool:
+    """Progress bars on a terminal only: none in logs, pipes or CI output."""
+    return not args.no_progress and sys.stderr.isatty()
 
 
 def _saved(path: Path) -> None:
@@ -626,7 +662,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_mc(args: argparse.Namespace) -> int:
     """A Monte Carlo batch: Table 3, optional Parquet and figures; 130 if interrupted."""
     from quadrs.montecarlo import monte_carlo
-    from quadrs.report import table3
 
     scenario = load_scenario(args)
     _check_suffix(args.out, (".parquet",), "--out")
@@ -646,7 +681,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
             seed=args.seed,
             controllers=args.controllers,
             workers=args.workers,
-            progress=not args.no_progress,
+            progress=_progress(args),
             out=args.checkpoint,
             resume=args.resume,
             chunk=args.chunk,
@@ -658,7 +693,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
         saved = _save(mc.to_parquet, args.out)
     if not mc.runs.empty:
         _print_dispersions(mc)
-        _print_frame(table3(mc.summary()))
+        _print_table3(mc, args)
         _print_limits(mc, args)
     if args.plots is not None and not mc.runs.empty:
         _mc_plots(mc, args.plots, args.limit)
@@ -733,7 +768,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             seed=args.seed,
             controllers=args.controllers,
             workers=args.workers,
-            progress=not args.no_progress,
+            progress=_progress(args),
             client=client,
         )
     saved = True
@@ -759,7 +794,6 @@ def _sweep_plots(result: Any, directory: Path) -> None:
 def cmd_report(args: argparse.Namespace) -> int:
     """Reprint a saved batch's (or sweep's) summary; figures from it."""
     from quadrs.montecarlo import MonteCarloResult
-    from quadrs.report import table3
     from quadrs.sweep import SweepResult, is_sweep_file
 
     if args.file.is_dir():
@@ -779,7 +813,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         mc = MonteCarloResult.read_parquet(args.file)
         note = " (interrupted batch)" if mc.interrupted else ""
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
-        _print_frame(table3(mc.summary()))
+        _print_table3(mc, args)
         _print_limits(mc, args)
         if args.plots is not None:
             _mc_plots(mc, args.plots, args.limit)
@@ -844,7 +878,6 @@ def sensitivity_table(sa: Any, metric: str, phase: str | None) -> pd.DataFrame:
 def cmd_paper(args: argparse.Namespace) -> int:
     """Every table and figure of the paper, and report.md."""
     from quadrs.paper import paper
-    from quadrs.report import table3
 
     scenario = load_scenario(args)
     _check_positive("--runs", args.runs, 2)
@@ -856,13 +889,13 @@ def cmd_paper(args: argparse.Namespace) -> int:
         args.runs,
         args.seed,
         args.workers,
-        not args.no_progress,
+        _progress(args),
         sweep_runs=args.sweep_runs,
         frequencies=args.frequencies,
         masses=args.masses,
     )
     if result.mc is not None and not result.mc.runs.empty:
-        _print_frame(table3(result.mc.summary()))
+        _print_table3(result.mc, args)
     print(f"wrote {len(result.files)} files to {result.out}", file=sys.stderr)
     return EXIT_INTERRUPT if result.interrupted else EXIT_OK
 
@@ -880,14 +913,15 @@ def cmd_stability(args: argparse.Namespace) -> int:
         )
         return EXIT_FAIL
     controllers = ("pd", "smc") if args.controller == "both" else (args.controller,)
+    unstable = False
     for controller in controllers:
         report = check(scenario, controller=controller)
         print(f"== {controller.upper()} ==")
         print(str(report))
-        poles = getattr(report, "poles", None)
-        if args.poles and isinstance(poles, pd.DataFrame):
-            _print_frame(poles)
-    return EXIT_OK
+        if args.poles:
+            _print_frame(report.poles)
+        unstable |= report.verdict == "unstable"
+    return EXIT_FAIL if unstable else EXIT_OK
 
 
 def cmd_scenario(args: argparse.Namespace) -> int:
@@ -936,7 +970,7 @@ def _terse_warnings() -> Iterator[None]:
     seen: set[str] = set()
 
     def show(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> None:
-        text = _one_line(str(message))
+        text = _cli_words(_one_line(str(message)))
         if text not in seen:
             seen.add(text)
             print(f"quadrs: warning: {text}", file=sys.stderr)
@@ -944,6 +978,21 @@ def _terse_warnings() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.showwarning = show
         yield
+
+
+#: The library's words in warnings -> what a user of the command line types instead.
+CLI_WORDS = (
+    ("see quadrs.stability()", "see `quadrs stability`"),
+    ("resume=True continues it", "`quadrs mc --checkpoint DIR --resume` continues it"),
+    ("Scenario.preset('paper_stable_lateral')", "--preset paper_stable_lateral"),
+    ("runs.diverged", "the runs' diverged column"),
+)
+
+
+def _cli_words(text: str) -> str:
+    for api, cli in CLI_WORDS:
+        text = text.replace(api, cli)
+    return text
 
 
 def _one_line(text: str) -> str:

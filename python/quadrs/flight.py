@@ -25,7 +25,7 @@ def check_controller(name: str) -> str:
 def metrics_frame(phases: list[str], values: np.ndarray) -> pd.DataFrame:
     """Per-phase metrics (rows in phase order) as a DataFrame with a ``phase`` column."""
     frame = pd.DataFrame(values, columns=list(METRIC_COLUMNS))
-    frame.insert(0, "phase", pd.Categorical(phases, categories=phases, ordered=True))
+    frame.insert(0, "phase", pd.Series(phases, dtype=str))  # plain strings, as in mc.runs
     return frame
 
 
@@ -46,6 +46,16 @@ class Flight:
     trace: pd.DataFrame
     spectra: dict[str, pd.DataFrame] = field(repr=False)
     diverged_at: float = float("nan")
+
+    def __repr__(self) -> str:
+        """A summary, not the frames: controller, gust realisation, span, outcome."""
+        t = self.trace.index
+        span = f"{t[0]:g}-{t[-1]:g} s, {len(t)} trace rows" if len(t) else "no trace"
+        end = f"diverged at {self.diverged_at:g} s" if self.diverged else "did not diverge"
+        return (
+            f"<Flight {self.controller.upper()}, seed {self.seed}, realisation "
+            f"{self.realisation}, {span}, {end}; {self.scenario!r}>"
+        )
 
     @property
     def diverged(self) -> bool:
@@ -81,6 +91,7 @@ def simulate(
     seed = check_int("seed", seed)
     realisation = check_int("realisation", realisation)
     scenario = scenario.realisation(seed, realisation)
+    # Loud only if the scenario excites an unstable mode (the flight will diverge).
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
         record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core, plots
+from quadrs._paper_grid import FREQUENCIES, MASSES
 from quadrs.flight import Flight, simulate
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.parquet import atomic_write, atomic_write_bytes
@@ -23,10 +24,6 @@ from quadrs.report import PAPER_TABLE3, ordering, paper_comparison, table3, to_m
 from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
 
-#: Natural frequencies (Hz) of the Fig. 13/14 sweep.
-FREQUENCIES: tuple[float, ...] = (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
-#: Payload masses (kg) of Fig. 16: 1 %, 10 % and 20 % of the vehicle, as in the paper.
-MASSES: tuple[float, ...] = (0.022, 0.22, 0.44)
 SWEEP_KEY = "payload.natural_frequency"
 #: What the paper leaves unstated (MODEL.md section 5), and so what drives any difference.
 UNSTATED: tuple[tuple[str, str], ...] = (
@@ -244,6 +241,7 @@ def report_markdown(
     lines = [
         *_head(runs, sweep_runs, seed),
         *_table3_section(result.mc.summary(), flights, result.mc),
+        *_claims_section(result.mc.summary(), result.sweep, flights),
         *_choices_section(scenario, flights),
         *_stability_section(scenario),
         *_figures_section(result.files, result.out),
@@ -302,6 +300,135 @@ def _table3_section(
             "",
         ]
     return lines
+
+
+#: What the paper says about each index: SMC below PD in every phase (its Table 3, its spectra
+#: and, for peak |e_o|, its Figs. 13/14 at every natural frequency).
+CLAIMED: tuple[tuple[str, str], ...] = (
+    ("iae", "IAE (Table 3)"),
+    ("itae", "ITAE (Table 3)"),
+    ("max_abs", "peak |e_o| (Figs. 5, 9, 11, 13, 14)"),
+    ("rms", "RMS of e_o (Figs. 5, 9, 11)"),
+    ("peak_amplitude", "spectral peak (Figs. 6, 10, 12)"),
+)
+
+
+def claims(summary: pd.DataFrame) -> pd.DataFrame:
+    """Every index the paper comments on, per phase: P = 100 SMC/PD with its 95 % CI, our
+    verdict ("SMC lower", "SMC higher", "no clear difference") and whether it agrees with
+    the paper's claim that SMC is lower. ``summary``: a Monte Carlo summary, or a sweep's
+    (then one row per grid point as well)."""
+    keys = [n for n in summary.index.names if n not in ("metric", "phase")]
+    rows = []
+    for metric, what in CLAIMED:
+        if metric not in summary.index.get_level_values("metric"):
+            continue
+        part = summary.xs(metric, level="metric")
+        for idx, r in part.iterrows():
+            verdict = ordering_verdict(r)
+            point = dict(zip([*keys, "phase"], idx if keys else (idx,), strict=True))
+            rows.append(
+                {
+                    **point,
+                    "index": what,
+                    "P %": r["P"],
+                    "P low": r["P_ci_low"],
+                    "P high": r["P_ci_high"],
+                    "ours": verdict,
+                    "paper": "SMC lower",
+                    "agrees": {"SMC lower": "yes", "no clear difference": "undecided"}.get(
+                        verdict, "NO"
+                    ),
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def ordering_verdict(r: pd.Series) -> str:
+    """From one summary row: is SMC lower than PD (the CI of P below 100), higher, or not
+    clearly different?"""
+    if r["P_ci_high"] < 100:
+        return "SMC lower"
+    if r["P_ci_low"] > 100:
+        return "SMC higher"
+    if r["P_ci_low"] == r["P_ci_high"] == r["P"]:  # no gust in the phase: one exact value
+        return "SMC lower" if r["P"] < 100 else "SMC higher" if r["P"] > 100 else "equal"
+    return "no clear difference"
+
+
+def _claims_section(
+    summ: pd.DataFrame, sweep_result: SweepResult | None, flights: dict[str, Flight]
+) -> list[str]:
+    if "P" not in summ:
+        return []
+    table = claims(summ)
+    lines = [
+        "## Every claim of the paper, checked",
+        "",
+        "The paper finds SMC below PD for every index it shows, in every phase. Ours, per",
+        "index and phase (Monte Carlo, 95 % CI of P = 100 SMC/PD):",
+        "",
+        to_markdown(table, floatfmt=".1f", index=False),
+        "",
+    ]
+    against = table[table["agrees"] == "NO"]
+    n_sweep, against_sweep = 0, pd.DataFrame()
+    if sweep_result is not None and not sweep_result.runs.empty:
+        sw = claims(sweep_result.summary())
+        names = sweep_result.scenario.phase_names
+        ends = {names[0], names[-1]}  # Figs. 13/14: take-off and landing
+        sw = sw[sw["index"].str.startswith("peak |e_o|") & sw["phase"].isin(ends)]
+        n_sweep, against_sweep = len(sw), sw[sw["agrees"] == "NO"]
+        lines += [
+            "Peak |e_o| at every natural frequency of the sweep (Figs. 13/14; the paper: SMC",
+            "below PD at every frequency):",
+            "",
+            to_markdown(sw, floatfmt=".1f", index=False),
+            "",
+        ]
+    total = len(table) + n_sweep
+    bad = len(against) + len(against_sweep)
+    unsure = int((table["agrees"] == "undecided").sum())
+    if n_sweep:
+        unsure += int((sw["agrees"] == "undecided").sum())
+    lines.append(
+        f"**The paper's claim holds in {total - bad - unsure} of {total} comparisons, is "
+        f"contradicted in {bad}, and is undecided (the interval straddles 100 %) in {unsure}.**"
+    )
+    if bad:
+        where = [f"{r['index'].split(' (')[0]} in {r['phase']}" for _, r in against.iterrows()]
+        if len(against_sweep):
+            key = SWEEP_KEY
+            pts = sorted({f"{v:g}" for v in against_sweep[key]}, key=float)
+            where.append(f"peak |e_o| of the sweep at fn = {', '.join(pts)} Hz")
+        lines += ["", "Where our model contradicts the paper: " + "; ".join(where) + "."]
+        lines += ["", *_mechanism_lines(flights)]
+    return [*lines, ""]
+
+
+def _mechanism_lines(flights: dict[str, Flight]) -> list[str]:
+    """Why SMC's peaks can exceed PD's: its larger thrust step when the reference steps."""
+    if not {"pd", "smc"} <= set(flights):
+        return []
+    steps = {}
+    for c, f in flights.items():
+        if c in ("pd", "smc"):
+            u1 = f.trace["U1"].to_numpy(float)
+            steps[c] = float(u1[0] - np.median(u1[len(u1) // 4 : len(u1) // 2]))
+    ratio = steps["smc"] / steps["pd"] if steps["pd"] else math.nan
+    return [
+        "Why: at a reference step (take-off at t = 0, landing at the last waypoint) the SMC",
+        "commands a larger thrust step than the PD: in realisation 0, U1 jumps by "
+        f"{steps['smc']:.3g} N above hover with SMC against {steps['pd']:.3g} N with PD",
+        f"({ratio:.2f} times). Its sliding surface s = lambda e + edot saturates (sat(s) -> 1)",
+        "and adds eps + eta s on top of the error term, so the vehicle is jerked harder and the",
+        "spring-attached payload lags it further: a larger peak |e_o| right after the step, even",
+        "though the SMC then damps the oscillation faster (lower IAE/ITAE). The paper shows",
+        "one realisation, and its unstated trajectory (possibly smoothed) and attachment may",
+        "hide this. With `trajectory.interpolation = 'min_jerk'` there is no step, and in",
+        "realisation 0 at the paper's dt SMC's peak |e_o| is then no higher than PD's in any",
+        "phase (`quadrs run --controller pd --set trajectory.interpolation=min_jerk`, then smc).",
+    ]
 
 
 def _luck_lines(spread: pd.DataFrame) -> list[str]:

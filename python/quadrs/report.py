@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 #: The paper's Table 3 (one gust realisation, MATLAB): P = 100 * SMC / PD, per phase.
 PAPER_TABLE3 = pd.DataFrame(
@@ -38,6 +37,8 @@ def mean_ci(values: np.ndarray, confidence: float) -> tuple[int, float, float, f
     mean = float(values.mean())
     if n < 2:
         return n, mean, np.nan, np.nan
+    from scipy import stats  # imported here: it takes seconds, and most commands never need it
+
     half = stats.t.ppf(0.5 + confidence / 2, n - 1) * values.std(ddof=1) / np.sqrt(n)
     return n, mean, mean - half, mean + half
 
@@ -55,6 +56,8 @@ def ratio_ci(num: np.ndarray, den: np.ndarray, confidence: float) -> tuple[float
     if n < 2:
         return 100 * r, np.nan, np.nan
     se = (num - r * den).std(ddof=1) / (np.sqrt(n) * abs(den.mean()))
+    from scipy import stats
+
     half = stats.t.ppf(0.5 + confidence / 2, n - 1) * se
     return 100 * r, 100 * (r - half), 100 * (r + half)
 
@@ -122,6 +125,88 @@ def table3(summary: pd.DataFrame) -> pd.DataFrame:
     ]
     frame["diverged"] = any_part["diverged"].to_numpy()
     return frame
+
+
+def plus_minus(mean: float, lo: float, hi: float, sig: int = 2) -> str:
+    """``mean ± half-width`` of an interval, the half-width to ``sig`` significant figures and
+    the mean to the same decimal place (``0.0678 ± 0.0011``); the mean alone when the interval
+    is unknown. An asymmetric interval shows its larger half."""
+    if not np.isfinite(mean):
+        return "nan"
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"{mean:.4g}"
+    half = max(hi - mean, mean - lo, 0.0)
+    if half == 0.0 or half < 1e-12 * max(abs(mean), 1e-300):
+        return f"{mean:.4g} ± 0"
+    decimals = max(0, sig - 1 - int(np.floor(np.log10(half))))
+    return f"{mean:.{decimals}f} ± {half:.{decimals}f}"
+
+
+def table3_blocks(
+    summary: pd.DataFrame, metrics: Sequence[str] = ("iae", "itae"), paper: bool = True
+) -> dict[str, pd.DataFrame]:
+    """The compact Table 3: one block per metric, rows per phase, cells ``mean ± 95 % CI
+    half-width`` for each controller and for P = 100 SMC/PD (%), and (``paper``) the paper's
+    P beside it. Fits 80 columns; :func:`table3` is the wide form."""
+    blocks = {}
+    for metric in metrics:
+        part = summary.xs(metric, level="metric")
+        cols: dict[str, list[str]] = {}
+        for c in ("pd", "smc"):
+            if f"{c}_mean" in part:
+                cols[c.upper()] = [
+                    plus_minus(r[f"{c}_mean"], r[f"{c}_ci_low"], r[f"{c}_ci_high"])
+                    for _, r in part.iterrows()
+                ]
+        if "P" in part:
+            cols["P = SMC/PD %"] = [
+                plus_minus(r["P"], r["P_ci_low"], r["P_ci_high"]) for _, r in part.iterrows()
+            ]
+            ref = PAPER_TABLE3.get(f"P_{metric}")
+            if paper and ref is not None:
+                cols["paper P %"] = [
+                    "" if np.isnan(v) else f"{v:.2f}"
+                    for v in ref.reindex(part.index).to_numpy(float)
+                ]
+        blocks[metric] = pd.DataFrame(cols, index=part.index)
+    return blocks
+
+
+#: Units and names of the metrics, for tables and figures.
+METRIC_LABELS = {
+    "iae": ("IAE", "m s"),
+    "itae": ("ITAE", "m s²"),
+    "max_abs": ("peak |e_o|", "m"),
+    "rms": ("RMS e_o", "m"),
+    "tracking_rms": ("RMS altitude tracking error", "m"),
+    "peak_frequency": ("spectral peak frequency", "Hz"),
+    "peak_amplitude": ("spectral peak amplitude", "m"),
+    "max_accel": ("peak payload acceleration", "m/s²"),
+    "rms_accel": ("RMS payload acceleration", "m/s²"),
+}
+
+
+def format_table3(summary: pd.DataFrame, wide: bool = False, paper: bool = True) -> str:
+    """Table 3 as text for a terminal: by default IAE and ITAE as separate blocks that fit
+    100 columns (``mean ± 95 % CI half-width``); ``wide`` gives :func:`table3`'s one-row-per-
+    phase form with full intervals. ``paper``: show the paper's P (%) beside ours."""
+    if wide:
+        frame = table3(summary)
+        if not paper:
+            frame = frame[[c for c in frame.columns if not str(c).startswith("paper")]]
+        with pd.option_context("display.width", 250, "display.max_columns", None):
+            return frame.to_string()
+    lines = []
+    for metric, block in table3_blocks(summary, paper=paper).items():
+        name, unit = METRIC_LABELS[metric]
+        lines += [f"{name} ({unit}): mean ± 95% CI half-width", block.to_string(), ""]
+    part = summary.xs("iae", level="metric")
+    n = [int(r[[c for c in r.index if c.endswith("_n")]].min()) for _, r in part.iterrows()]
+    diverged = int(part["diverged"].max()) if "diverged" in part else 0
+    lines.append(f"n = {min(n)} realisations per controller and phase; diverged: {diverged}")
+    if paper and "P" in part:
+        lines.append("paper P: the paper's Table 3, from its one gust realisation")
+    return "\n".join(lines)
 
 
 #: The paper's spectral-peak ratio (percent, SMC/PD, read from its text: "about 35 %" in P1,

@@ -132,6 +132,16 @@ class MonteCarloResult:
             raise KeyError(f"realisation {realisation} is not in this result")
         return self.scenario.fixed({k: float(rows[k].iloc[0]) for k in self.dispersed_keys})
 
+    def __repr__(self) -> str:
+        """A summary, not the tables: what ran, how many, how many diverged."""
+        n = len(self.realisations)
+        diverged = int(self.runs.groupby("realisation")["diverged"].any().sum()) if n else 0
+        note = ", interrupted" if self.interrupted else ""
+        return (
+            f"<MonteCarloResult {n} realisations x {'/'.join(self.controllers)}, seed "
+            f"{self.seed}, {diverged} diverged{note}; {self.scenario!r}>"
+        )
+
     @property
     def realisations(self) -> np.ndarray:
         """Indices of the realisations present, sorted."""

@@ -12,6 +12,7 @@ import copy
 import json
 import math
 import re
+import sys
 from collections.abc import Iterator, Mapping
 from functools import cached_property
 from importlib import resources
@@ -19,7 +20,11 @@ from pathlib import Path
 from typing import Any
 
 import tomli_w
-import tomllib
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
+    import tomli as tomllib
 
 from quadrs import _core
 

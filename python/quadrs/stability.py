@@ -32,41 +32,70 @@ class StepSizeWarning(UserWarning):
     """``integrator.dt`` is too large for the fastest closed-loop mode (issued before running)."""
 
 
-#: Largest |pole| * dt considered safe. RK4 alone is stable up to about 2.8 (2.83 on the
-#: imaginary axis, 2.79 on the real one), but the controls are held over each step, which
-#: narrows the margin, and accuracy is poor long before that: at 1 a mode's per-step phase
-#: error is already ~0.5 %.
+#: Largest |pole| * dt considered safe for stability. RK4 alone is stable up to about 2.8
+#: (2.83 on the imaginary axis, 2.79 on the real one), but the controls are held over each step,
+#: which narrows the margin.
 STEP_LIMIT = 1.0
+#: Largest accuracy indicator (see :func:`step_error`) accepted without a warning. Holding the
+#: controls over a step delays them by dt/2 on average, a phase lag of |pole| dt / 2 at a mode;
+#: 0.05 rad corresponds, for the paper preset's fastest excited mode (the payload pair,
+#: |pole| ~ 13 1/s), to dt ~ 8 ms, where take-off (P1) IAE has moved by about 1 % from its
+#: dt -> 0 value (6 % at dt = 0.05 s; docs/stability.md).
+STEP_ACCURACY = 0.05
+
+
+def step_error(pole: complex, dt: float) -> float:
+    """Accuracy indicator of one step ``dt`` at a closed-loop ``pole`` (1/s): the larger of the
+    half-step lag of the held controls, |pole| dt / 2 (rad), and RK4's own relative error per
+    step, |R(z) exp(-z) - 1| with z = pole dt and R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24 (about
+    |z|^5 / 120; far smaller until |z| nears RK4's stability bound)."""
+    z = complex(pole) * dt
+    rk4 = 1 + z + z * z / 2 + z**3 / 6 + z**4 / 24
+    rk4_error = abs(rk4 * np.exp(-z) - 1) if abs(z) < 50 else math.inf
+    return max(abs(z) / 2, rk4_error)
 
 
 def step_size_warning(scenario: Scenario, reports: list[StabilityReport]) -> str:
-    """Why ``integrator.dt`` is too large for these controllers' fastest modes ("" if not)."""
+    """Why ``integrator.dt`` is too large for these controllers' fastest excited modes ("" if
+    it is fine): beyond RK4's stability margin (|pole| dt > :data:`STEP_LIMIT`), or accurate
+    to less than :data:`STEP_ACCURACY` (see :func:`step_error`). Modes the scenario does not
+    excite are ignored: their states stay exactly zero."""
     dt = float(scenario["integrator.dt"])
     worst = max(
-        ((float(np.hypot(r.real, r.imag)), r.mode, rep.controller)
-         for rep in reports for r in rep.poles.itertuples()),
-        default=(0.0, "", ""),
+        ((float(np.hypot(r.real, r.imag)), r.mode, rep.controller, complex(r.real, r.imag))
+         for rep in reports for r in rep.poles.itertuples() if r.excited),
+        default=(0.0, "", "", 0j),
+        key=lambda row: row[0],
     )  # fmt: skip
-    speed, mode, controller = worst
-    if speed * dt <= STEP_LIMIT:
+    speed, mode, controller, pole = worst
+    where = f"the {controller.upper()} closed loop's fastest excited mode ({mode}, |pole| = "
+    where += f"{speed:.4g} 1/s)"
+    if speed * dt > STEP_LIMIT:
+        return (
+            f"integrator.dt = {dt:g} s is too large for {where}: |pole| dt = {speed * dt:.3g} > "
+            f"{STEP_LIMIT:g}. RK4 with held controls may be inaccurate or go unstable (flagged "
+            f"as diverged); use integrator.dt <= {STEP_LIMIT / speed:.3g} s."
+        )
+    error = step_error(pole, dt)
+    if error <= STEP_ACCURACY:
         return ""
     return (
-        f"integrator.dt = {dt:g} s is too large for the {controller.upper()} closed loop's "
-        f"fastest mode ({mode}, |pole| = {speed:.4g} 1/s): |pole| dt = {speed * dt:.3g} > "
-        f"{STEP_LIMIT:g}. RK4 with held controls may be inaccurate or go unstable (flagged as "
-        f"diverged); use integrator.dt <= {STEP_LIMIT / speed:.3g} s."
+        f"integrator.dt = {dt:g} s is coarse for {where}: the controls held over a step lag it "
+        f"by {error:.2g} rad (> {STEP_ACCURACY:g}), so the metrics depend on dt by more than "
+        f"about 1 %; integrator.dt <= {2 * STEP_ACCURACY / speed:.2g} s keeps them within it."
     )
 
 
 def warn_before_running(
     scenario: Scenario, controllers: tuple[str, ...], *, gains: bool, stacklevel: int
 ) -> None:
-    """Warn about a step too large for the fastest mode and, with ``gains``, unstable gains."""
+    """Warn about a step too large for the fastest excited mode and about unstable gains:
+    loudly whenever the scenario excites an unstable mode (the flight will diverge), and, with
+    ``gains``, in one short line when it does not."""
     reports = [stability(scenario, c) for c in controllers]
-    if gains:
-        for report in reports:
-            if not report.stable:
-                warnings.warn(report.warning(), StabilityWarning, stacklevel=stacklevel + 1)
+    for report in reports:
+        if not report.stable and (gains or report.excited_unstable):
+            warnings.warn(report.warning(), StabilityWarning, stacklevel=stacklevel + 1)
     message = step_size_warning(scenario, reports)
     if message:
         warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
@@ -129,25 +158,33 @@ class StabilityReport:
             modes.append(f"{mode} mode {pole} (excited by this scenario: {said})")
         return f"{name}: {self.verdict.upper()}: " + "; ".join(modes)
 
+    @property
+    def excited_unstable(self) -> bool:
+        """True if this scenario excites a mode that is not asymptotically stable."""
+        return bool(self.unstable["excited"].any())
+
     def warning(self) -> str:
-        """The message of the :class:`StabilityWarning` for this report ("" if stable)."""
+        """The message of the :class:`StabilityWarning` for this report ("" if stable): one
+        short line when the scenario excites none of the unstable modes, a loud one (naming
+        what excites them and how fast they grow) when it does."""
         if self.stable:
             return ""
         modes = self._unstable_modes()
-        parts = [
-            f"{mode} mode {pole}, {'' if excited else 'not '}excited by this scenario"
-            for mode, pole, excited in modes
-        ]
-        if any(excited for _, _, excited in modes):
-            outlook = "Expect diverged realisations (flagged in runs.diverged)."
-        else:
-            outlook = (
-                "Nothing in this scenario moves the vehicle sideways, so x and y stay exactly"
-                " zero; any lateral disturbance would grow."
+        name = f"{self.controller.upper()} gains are {self.verdict.upper()} at hover"
+        if not any(excited for _, _, excited in modes):
+            poles = ", ".join(f"{mode} {pole}" for mode, pole, _ in modes)
+            return (
+                f"{name} in modes this scenario does not excite ({poles}); see quadrs.stability()."
             )
+        poles = ", ".join(f"{mode} {pole}" for mode, pole, excited in modes if excited)
+        growth = self.unstable[self.unstable["excited"]]["real"].max()
+        sources = ", ".join(self.lateral_sources)
+        by = f" ({sources})" if sources else ""
+        fast = f", the fastest growing e-fold every {1 / growth:.2g} s" if growth > 0 else ""
         return (
-            f"{self.controller.upper()} gains are {self.verdict.upper()} at hover: "
-            f"{'; '.join(parts)}. {outlook} See quadrs.stability()."
+            f"{name} and this scenario EXCITES them{by}: {poles}{fast}. Expect diverged "
+            "flights (flagged in runs.diverged); Scenario.preset('paper_stable_lateral') is a "
+            "stable retune; see quadrs.stability()."
         )
 
 

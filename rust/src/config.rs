@@ -154,6 +154,15 @@ pub struct Trajectory {
     pub interpolation: Interpolation,
     /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing.
     pub waypoints: Vec<[f64; 5]>,
+    /// s, min-jerk only: each move toward a waypoint starts at its time and lasts this long
+    /// (or up to the next waypoint's time if that comes sooner).
+    #[serde(default = "default_transition")]
+    pub transition: f64,
+}
+
+/// s, the default min-jerk move duration: a 2 m climb peaks at 0.75 m/s and 0.46 m/s^2.
+pub fn default_transition() -> f64 {
+    5.0
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -441,6 +450,13 @@ impl Config {
                     "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got {}",
                     w.len()
                 ),
+            ));
+        }
+        let tr = self.trajectory.transition;
+        if !(tr.is_finite() && tr >= 0.0) {
+            return Err(ConfigError::new(
+                "trajectory.transition",
+                format!("trajectory.transition must be a finite number >= 0 (s), got {tr:?}"),
             ));
         }
         for (i, row) in w.iter().enumerate() {

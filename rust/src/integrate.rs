@@ -511,11 +511,20 @@ impl Engine {
                         want_spectra.then_some(spectra.as_mut_slice()),
                     );
                     if !diverged_at[lane].is_nan() {
-                        metrics.iter_mut().for_each(|row| row.fill(f64::NAN));
-                        // The flight may have stopped early: NaN over the whole bin grid.
-                        if want_spectra {
-                            for (amp, bins) in spectra.iter_mut().zip(self.spectrum_grid()) {
-                                *amp = vec![f64::NAN; bins.len()];
+                        // Phases that ended before the first bad step are real; NaN the rest
+                        // (over the whole bin grid: the flight may have stopped early).
+                        let bad = (diverged_at[lane] / self.dt).round() as usize;
+                        let grid = if want_spectra {
+                            self.spectrum_grid()
+                        } else {
+                            Vec::new()
+                        };
+                        for (i, ph) in self.phases.iter().enumerate() {
+                            if ph.last >= bad {
+                                metrics[i].fill(f64::NAN);
+                                if let Some(amp) = spectra.get_mut(i) {
+                                    *amp = vec![f64::NAN; grid[i].len()];
+                                }
                             }
                         }
                     }
@@ -635,6 +644,46 @@ mod tests {
             (measured - expected).abs() < 1e-4,
             "{measured} Hz vs {expected} Hz"
         );
+    }
+
+    #[test]
+    fn a_flight_diverging_in_p2_keeps_p1_metrics() {
+        // The paper's SMC is laterally unstable: a lateral gust from 25 s sets it off in P2.
+        let mut cfg = paper();
+        cfg.integrator.dt = 1e-3;
+        cfg.gust
+            .components
+            .push(crate::config::GustComponent::Lateral);
+        let engine = Engine::new(cfg).unwrap();
+        let mut planner = FftPlanner::new();
+        let mut fly = |e: &Engine| {
+            e.fly::<f64>(ControllerKind::Smc, 3, &[0], true, None, None, &mut planner)
+                .unwrap()
+                .remove(0)
+        };
+        let r = fly(&engine);
+        assert!(
+            r.diverged_at > 25.0 && r.diverged_at < 50.0,
+            "{}",
+            r.diverged_at
+        );
+        // Before the gust the lateral component changes nothing: P1 equals the vertical-only
+        // flight's, exactly; the phases still open at the divergence are NaN.
+        let mut vertical = paper();
+        vertical.integrator.dt = 1e-3;
+        let v = fly(&Engine::new(vertical).unwrap());
+        assert!(v.diverged_at.is_nan());
+        assert_eq!(r.metrics[0], v.metrics[0]);
+        assert_eq!(r.spectra[0], v.spectra[0]);
+        assert!(r.metrics[0].iter().all(|x| x.is_finite()));
+        for i in 1..3 {
+            assert!(
+                r.metrics[i].iter().all(|x| x.is_nan()),
+                "{:?}",
+                r.metrics[i]
+            );
+            assert!(r.spectra[i].iter().all(|x| x.is_nan()));
+        }
     }
 
     fn hover_cfg() -> Config {

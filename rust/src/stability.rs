@@ -508,7 +508,7 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
         out.push("initial roll/pitch");
     }
     let g = &cfg.gust;
-    let blowing = g.enabled && g.end > g.start;
+    let blowing = g.enabled && g.end > g.start && g.start < cfg.integrator.duration;
     let horizontal = [GustComponent::Longitudinal, GustComponent::Lateral];
     if blowing && g.w20 > 0.0 && g.components.iter().any(|c| horizontal.contains(c)) {
         out.push("horizontal gust components");
@@ -760,6 +760,35 @@ mod tests {
             .filter(|p| p.verdict == Verdict::Unstable)
             .all(|p| p.excited));
         assert_eq!(a.lateral_sources, ["horizontal gust components"]);
+        // ... unless the gust blows only after the flight has ended
+        cfg.gust.start = cfg.integrator.duration + 1.0;
+        cfg.gust.end = cfg.gust.start + 1.0;
+        assert!(lateral_sources(&cfg).is_empty());
+        // each other source on its own
+        type Change = fn(&mut Config);
+        let cases: [(Change, &str); 4] = [
+            (
+                |c| c.trajectory.waypoints[1][1] = 1.0,
+                "waypoints move in x/y",
+            ),
+            (
+                |c| c.initial.position[1] = 0.1,
+                "initial x/y off the first waypoint",
+            ),
+            (|c| c.initial.attitude[0] = 0.01, "initial roll/pitch"),
+            (|c| c.gust.mean_wind[0] = 2.0, "horizontal mean wind"),
+        ];
+        for (change, source) in cases {
+            let mut cfg = paper();
+            change(&mut cfg);
+            let a = analyse(&cfg, ControllerKind::Smc);
+            assert_eq!(a.lateral_sources, [source]);
+            assert!(a
+                .poles
+                .iter()
+                .filter(|p| p.verdict == Verdict::Unstable)
+                .all(|p| p.excited));
+        }
     }
 
     /// Linearised SMC channel: v = K lambda e + (lambda + K) edot with K = eta + eps / gamma

@@ -21,13 +21,21 @@ pub(crate) const TIME_SLACK: f64 = 1e-9;
 pub struct Trajectory {
     waypoints: Vec<[f64; 5]>,
     interpolation: Interpolation,
+    /// Min-jerk only: where the reference starts, (t0, x, y, z, psi) of the initial state.
+    start: [f64; 5],
+    /// Min-jerk only: s, the duration of each move (shortened to the gap to the next waypoint).
+    transition: f64,
 }
 
 impl Trajectory {
     pub fn new(cfg: &Config) -> Self {
+        let w = &cfg.trajectory.waypoints;
+        let [x, y, z] = cfg.initial.position;
         Self {
-            waypoints: cfg.trajectory.waypoints.clone(),
+            waypoints: w.clone(),
             interpolation: cfg.trajectory.interpolation,
+            start: [w[0][0], x, y, z, cfg.initial.attitude[2]],
+            transition: cfg.trajectory.transition,
         }
     }
 
@@ -48,6 +56,12 @@ impl Trajectory {
 
     /// The reference at time `t`. `segment` caches the waypoint index reached so far: times are
     /// asked for in increasing order, so the lookup is O(1) per step.
+    ///
+    /// Step: the reference jumps to waypoint i's values at its time t_i. Min-jerk: at t_i the
+    /// reference *starts* a quintic move from the previous waypoint (from the initial state for
+    /// the first one) to waypoint i, lasting `transition` seconds or the gap to the next
+    /// waypoint if shorter, then holds it. A waypoint's time is thus when its move begins in
+    /// both modes, and min-jerk tends to step as the transition tends to zero.
     #[inline]
     pub fn at(&self, t: f64, segment: &mut usize) -> Reference {
         let w = &self.waypoints;
@@ -55,27 +69,38 @@ impl Trajectory {
             *segment += 1;
         }
         let i = *segment;
-        let hold = |row: &[f64; 5]| Reference {
-            pos: [row[1], row[2], row[3]],
-            psi: row[4],
-            ..Reference::default()
-        };
         match self.interpolation {
             Interpolation::Step => hold(&w[i]),
             Interpolation::MinJerk => {
-                if i + 1 >= w.len() || t < w[0][0] {
+                if t + TIME_SLACK < w[0][0] {
+                    return hold(&self.start);
+                }
+                let from = if i == 0 { &self.start } else { &w[i - 1] };
+                let span = match w.get(i + 1) {
+                    Some(next) => self.transition.min(next[0] - w[i][0]),
+                    None => self.transition,
+                };
+                if span <= 0.0 || t >= w[i][0] + span {
                     return hold(&w[i]);
                 }
-                min_jerk(&w[i], &w[i + 1], t)
+                min_jerk(from, &w[i], w[i][0], span, t)
             }
         }
     }
 }
 
-/// Quintic from `a` to `b` with zero velocity and acceleration at both ends.
-fn min_jerk(a: &[f64; 5], b: &[f64; 5], t: f64) -> Reference {
-    let span = b[0] - a[0];
-    let tau = ((t - a[0]) / span).clamp(0.0, 1.0);
+fn hold(row: &[f64; 5]) -> Reference {
+    Reference {
+        pos: [row[1], row[2], row[3]],
+        psi: row[4],
+        ..Reference::default()
+    }
+}
+
+/// Quintic from `a` to `b` (columns 1..5 of each) over [t0, t0 + span], with zero velocity and
+/// acceleration at both ends.
+fn min_jerk(a: &[f64; 5], b: &[f64; 5], t0: f64, span: f64, t: f64) -> Reference {
+    let tau = ((t - t0) / span).clamp(0.0, 1.0);
     let (t2, t3) = (tau * tau, tau * tau * tau);
     let shape = t3 * (10.0 - 15.0 * tau + 6.0 * t2);
     let dshape = 30.0 * t2 * (1.0 - 2.0 * tau + t2) / span;
@@ -146,7 +171,10 @@ mod tests {
     fn min_jerk_is_smooth_and_consistent() {
         let mut cfg = paper();
         cfg.trajectory.interpolation = Interpolation::MinJerk;
-        cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 0.0, 0.0], [4.0, 1.0, -2.0, 3.0, 0.4]];
+        cfg.trajectory.transition = 4.0;
+        cfg.initial.position = [0.0; 3];
+        cfg.initial.attitude = [0.0; 3];
+        cfg.trajectory.waypoints = vec![[0.0, 1.0, -2.0, 3.0, 0.4], [10.0, 1.0, -2.0, 0.0, 0.0]];
         let tr = Trajectory::new(&cfg);
         let mut seg = 0;
         let mid = tr.at(2.0, &mut seg);
@@ -157,16 +185,48 @@ mod tests {
         );
         // derivatives agree with finite differences of position
         let h = 1e-5;
-        let (mut s1, mut s2) = (0, 0);
-        let (a, b) = (tr.at(1.3 - h, &mut s1), tr.at(1.3 + h, &mut s2));
-        let c = tr.at(1.3, &mut 0);
-        for k in 0..3 {
-            assert!(((b.pos[k] - a.pos[k]) / (2.0 * h) - c.vel[k]).abs() < 1e-7);
-            assert!(((b.vel[k] - a.vel[k]) / (2.0 * h) - c.acc[k]).abs() < 1e-6);
+        for t in [1.3, 11.7] {
+            let (mut s1, mut s2) = (0, 0);
+            let (a, b) = (tr.at(t - h, &mut s1), tr.at(t + h, &mut s2));
+            let c = tr.at(t, &mut 0);
+            for k in 0..3 {
+                assert!(((b.pos[k] - a.pos[k]) / (2.0 * h) - c.vel[k]).abs() < 1e-7);
+                assert!(((b.vel[k] - a.vel[k]) / (2.0 * h) - c.acc[k]).abs() < 1e-6);
+            }
+            assert!(((b.psi - a.psi) / (2.0 * h) - c.psi_dot).abs() < 1e-7);
         }
-        let end = tr.at(5.0, &mut seg);
-        assert_eq!(end.pos, [1.0, -2.0, 3.0]);
+        // holds the first waypoint from the end of its move to the next waypoint's time
+        for t in [4.0, 7.0, 9.999] {
+            let r = tr.at(t, &mut seg);
+            assert_eq!(r.pos, [1.0, -2.0, 3.0]);
+            assert_eq!((r.vel, r.acc, r.psi), ([0.0; 3], [0.0; 3], 0.4));
+        }
+        // the landing move starts at the last waypoint's time and lasts the transition
+        let land = tr.at(12.0, &mut seg);
+        assert!((land.pos[2] - 1.5).abs() < 1e-12 && land.vel[2] < 0.0);
+        let end = tr.at(14.0, &mut seg);
+        assert_eq!(end.pos, [1.0, -2.0, 0.0]);
         assert_eq!(end.vel, [0.0; 3]);
+    }
+
+    #[test]
+    fn min_jerk_tends_to_step_and_never_overruns_the_next_waypoint() {
+        let mut cfg = paper();
+        let step = Trajectory::new(&cfg);
+        cfg.trajectory.interpolation = Interpolation::MinJerk;
+        cfg.trajectory.transition = 0.0;
+        let zero = Trajectory::new(&cfg);
+        for t in [0.0, 1.0, 59.9, 60.0, 65.0] {
+            assert_eq!(zero.at(t, &mut 0), step.at(t, &mut 0), "t = {t}");
+        }
+        // a transition longer than the gap ends at the next waypoint's time
+        cfg.trajectory.transition = 100.0;
+        let long = Trajectory::new(&cfg);
+        let r = long.at(60.0 - 1e-6, &mut 0);
+        assert!(
+            (r.pos[2] - 2.0).abs() < 1e-9 && r.vel[2].abs() < 1e-6,
+            "{r:?}"
+        );
     }
 
     #[test]
