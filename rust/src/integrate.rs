@@ -657,9 +657,11 @@ mod tests {
         let engine = Engine::new(cfg).unwrap();
         let mut planner = FftPlanner::new();
         let mut fly = |e: &Engine| {
-            e.fly::<f64>(ControllerKind::Smc, 3, &[0], true, None, None, &mut planner)
-                .unwrap()
-                .remove(0)
+            let req = FlightRequest {
+                want_spectra: true,
+                ..FlightRequest::new(ControllerKind::Smc, 3, &[0])
+            };
+            e.fly::<f64>(&req, None, &mut planner).unwrap().remove(0)
         };
         let r = fly(&engine);
         assert!(
