@@ -861,6 +861,8 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
 def sensitivity_table(sa: Any, metric: str, phase: str | None) -> pd.DataFrame:
     """Phase, controller, parameter, S1 ± and ST ±: largest total index first, fits 100
     columns."""
+    import pandas as pd
+
     t = sa.ranking(metric, phase)
     pm = lambda v, c: "" if pd.isna(v) else f"{v:5.2f} ± {c:4.2f}"  # noqa: E731
     out = pd.DataFrame(

@@ -23,8 +23,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import optimize as sopt
-from scipy import stats
 
 from quadrs import _core
 from quadrs.flight import check_controller
@@ -264,6 +262,8 @@ def optimize(
             callback(dict(row))
         return value
 
+    from scipy import optimize as sopt  # lazily: `quadrs --version` stays fast
+
     interrupted = False
     try:
         if method == "differential_evolution":
@@ -343,6 +343,8 @@ def _holdout(
     count: int,
     score: Callable[[MonteCarloResult], tuple[float, int, np.ndarray | None]],
 ) -> Holdout:
+    from scipy import stats
+
     value, diverged, values = score(mc)
     if values is not None:
         ok = values[np.isfinite(values)]
