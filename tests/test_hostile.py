@@ -211,3 +211,36 @@ def test_out_of_range_integer_arguments_are_value_errors(
 ) -> None:
     with pytest.raises(ValueError, match=name):
         quadrs.monte_carlo(short, **{"runs": 1, name: seed}, progress=False)
+
+
+DISTRIBUTIONS = ["uniform", "normal", "truncnorm", "lognormal", "triangular", "cauchy", 3, None]
+PARAMETERS = ["low", "high", "mean", "std", "mu", "sigma", "mode", "scale"]
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_any_dispersion_flies_or_names_its_key(short: Scenario, data: st.DataObject) -> None:
+    """A dispersion of any key with any parameters either flies (every realisation a finite
+    result or a flagged divergence) or is refused with a ScenarioError naming the key."""
+    key = data.draw(st.sampled_from([*leaf_keys(short), "payload.massive", "a[1"]), label="key")
+    spec: dict = {"dist": data.draw(st.sampled_from(DISTRIBUTIONS), label="dist")}
+    names = data.draw(st.lists(st.sampled_from(PARAMETERS), max_size=4, unique=True))
+    for name in names:
+        spec[name] = data.draw(numbers, label=name)
+    try:
+        s = short.override({"dispersions": {key: spec}})
+    except ScenarioError as e:
+        assert key.split("[")[0] in str(e) or "dispersions" in str(e), (key, str(e))
+        return
+    if s.steps > MAX_FLOWN_STEPS:
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            mc = quadrs.monte_carlo(s, runs=4, seed=1, progress=False, spectra=False)
+        except ScenarioError as e:  # a drawn value the scenario refuses: named
+            assert "realisation" in str(e) and key.split("[")[0].split(".")[0] in str(e), str(e)
+            return
+    ok = mc.runs[~mc.runs["diverged"]]
+    assert np.isfinite(ok[["iae", "itae", "max_abs", "rms"]].to_numpy()).all()
+    assert np.isfinite(mc.runs[key].to_numpy()).all()
