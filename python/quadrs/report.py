@@ -9,23 +9,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from quadrs import _core
+
 #: The paper's Table 3 (one gust realisation, MATLAB): P = 100 * SMC / PD, per phase.
 PAPER_TABLE3 = pd.DataFrame(
     {"P_iae": [35.40, 11.38, 48.25], "P_itae": [26.73, 13.76, 49.51]},
     index=pd.Index(["P1", "P2", "P3"], name="phase"),
 )
 
-_METRICS = (
-    "iae",
-    "itae",
-    "max_abs",
-    "rms",
-    "tracking_rms",
-    "peak_frequency",
-    "peak_amplitude",
-    "max_accel",
-    "rms_accel",
-)
+#: Metric names, from the engine (one list for the whole package).
+_METRICS = tuple(_core.METRIC_NAMES)
 
 
 def mean_ci(values: np.ndarray, confidence: float) -> tuple[int, float, float, float]:
