@@ -91,6 +91,20 @@ def test_sensitivity_round_trips_and_refuses_what_it_cannot_do(analysis, short, 
     back = quadrs.SensitivityResult.read_parquet(tmp_path / "sa.parquet")
     assert back.scenario == analysis.scenario and back.runs == 128
     np.testing.assert_array_equal(back.indices["ST"], analysis.indices["ST"])
+    # An edited file is refused, not believed.
+    import json
+
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(tmp_path / "sa.parquet")
+    meta = json.loads(table.schema.metadata[b"quadrs_sensitivity"])
+    meta["seed"] = 7
+    edited = table.replace_schema_metadata(
+        {**table.schema.metadata, b"quadrs_sensitivity": json.dumps(meta).encode()}
+    )
+    pq.write_table(edited, tmp_path / "edited.parquet")
+    with pytest.raises(ValueError, match="run identity"):
+        quadrs.SensitivityResult.read_parquet(tmp_path / "edited.parquet")
     with pytest.raises(quadrs.ScenarioError, match="dispersions"):
         quadrs.sensitivity(short, runs=8, progress=False)
     with pytest.raises(ValueError, match="power of two"):

@@ -95,14 +95,20 @@ class SensitivityResult:
         return t.sort_values(["phase", "controller", "ST"], ascending=[True, True, False])
 
     def metadata(self) -> dict[str, Any]:
+        """What produced the indices, with a run identity checked when read back."""
         from quadrs import _core
+        from quadrs.integrity import run_identity
 
+        controllers = [str(c) for c in pd.unique(self.indices["controller"])]
+        design = {"runs": self.runs, "parameters": list(self.parameters)}
         return {
             "version": _core.__version__,
             "seed": self.seed,
-            "runs": self.runs,
-            "parameters": list(self.parameters),
+            "controllers": controllers,
             "scenario": self.scenario.to_toml(),
+            "spectra": None,
+            "design": design,
+            "run": run_identity(self.scenario, self.seed, controllers, False, extra=design),
         }
 
     def to_parquet(self, path: str | Path) -> None:
@@ -114,19 +120,26 @@ class SensitivityResult:
     @classmethod
     def read_parquet(cls, path: str | Path) -> SensitivityResult:
         """Read a file written by :meth:`to_parquet` (its ``samples`` are not stored)."""
+        from quadrs.integrity import check_run_metadata
         from quadrs.parquet import read_frame
 
         indices, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} holds no quadrs sensitivity indices")
+        # Types, version and the run identity: a foreign or edited file is refused.
+        scenario = check_run_metadata(meta, path, {"design": dict}, extra_key="design")
         missing = set(INDEX_COLUMNS) - set(indices.columns)
         if missing:
             raise ValueError(f"{path} lacks the columns {sorted(missing)}")
+        design = meta["design"]
+        parameters = tuple(design.get("parameters", ()))
+        if not set(indices["parameter"]) <= set(parameters):
+            raise ValueError(f"{path}: its indices name parameters its metadata does not")
         return cls(
-            scenario=Scenario.from_toml_string(meta["scenario"], source=str(path)),
+            scenario=scenario,
             seed=int(meta["seed"]),
-            runs=int(meta["runs"]),
-            parameters=tuple(meta["parameters"]),
+            runs=int(design.get("runs", 0)),
+            parameters=parameters,
             indices=indices,
             samples=pd.DataFrame(),
         )
