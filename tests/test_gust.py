@@ -125,3 +125,38 @@ def test_gust_series_equals_the_flight_gust(paper: Scenario) -> None:
     sigma, length = quadrs.gust_scales(2.0, 10.0)["vertical"]
     w = quadrs.gust_series("vertical", sigma, length, 10.0, 0.01, len(inside), 1, 5, first=2)
     np.testing.assert_array_equal(inside.to_numpy(), w[0])
+
+
+def test_gust_psd_integrates_to_the_variance_and_matches_the_series() -> None:
+    """The formula integrates to sigma^2 and the generated series' Welch PSD follows it."""
+    from scipy.signal import welch
+
+    from quadrs.gust import gust_psd, gust_series
+
+    sigma, length, speed, dt = 1.3, 4.0, 8.0, 0.01
+    f = np.linspace(0.0, 2000.0, 400_001)
+    for model in ("dryden", "von_karman"):
+        realised, target = gust_psd(f, "vertical", sigma, length, speed, dt, model=model)
+        # Tails fall as f^-2 (Dryden) or f^-5/3 (von Karman): add the area beyond f[-1].
+        tail = 1.0 if model == "dryden" else 1.5
+        for psd in (target, realised):
+            area = np.trapezoid(psd, f) + tail * psd[-1] * f[-1]
+            assert abs(area / sigma**2 - 1.0) < 1e-3, (model, area)
+        if model == "dryden":
+            np.testing.assert_array_equal(realised, target)
+    x = gust_series("vertical", sigma, length, speed, dt, steps=2**14, realisations=64, seed=3)
+    fw, pxx = welch(x, fs=1.0 / dt, nperseg=1024, axis=-1)
+    mean = pxx.mean(axis=0)
+    realised, _ = gust_psd(fw, "vertical", sigma, length, speed, dt)
+    band = (fw > 0.05) & (fw < 10.0)
+    ratio = mean[band] / realised[band]
+    assert np.all(np.abs(ratio - 1.0) < 0.15), ratio
+
+
+def test_gust_psd_refuses_bad_frequency() -> None:
+    from quadrs.gust import gust_psd
+
+    with pytest.raises(ValueError, match="frequency"):
+        gust_psd([1.0, -2.0])
+    with pytest.raises(ValueError, match="frequency"):
+        gust_psd([1.0, float("nan")])

@@ -55,6 +55,15 @@ def run_batch(
     streams: npt.NDArray[np.uint64] | None = None,
 ) -> dict[str, Any]: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
+def gust_psd(
+    model: str,
+    component: str,
+    sigma: float,
+    length_scale: float,
+    airspeed: float,
+    dt: float,
+    frequency: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def gust_series(
     model: str,
     component: str,

@@ -303,24 +303,10 @@ mod _core {
         Ok(gust::low_altitude_scales(altitude, w20))
     }
 
-    /// `realisations` stationary series of one gust component, `steps` samples each, row r from
-    /// the random stream (seed, first + r).
-    #[pyfunction]
-    #[allow(clippy::too_many_arguments)]
-    fn gust_series<'py>(
-        py: Python<'py>,
+    fn gust_kind(
         model: &str,
         component: &str,
-        sigma: f64,
-        length_scale: f64,
-        airspeed: f64,
-        dt: f64,
-        steps: usize,
-        realisations: usize,
-        seed: u64,
-        first: u64,
-        workers: usize,
-    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    ) -> PyResult<(gust::TurbulenceModel, gust::Component)> {
         let model = match model {
             "dryden" => gust::TurbulenceModel::Dryden,
             "von_karman" => gust::TurbulenceModel::VonKarman,
@@ -340,6 +326,57 @@ mod _core {
                 )))
             }
         };
+        Ok((model, component))
+    }
+
+    /// One-sided spectra ((m/s)^2/Hz) of one gust component at `frequency` (Hz): the spectrum
+    /// the discretised forming filter realises (`filter`) and the formula it is built for
+    /// (`target`: the Dryden PSD, or the exact von Karman PSD of MIL-F-8785C).
+    #[pyfunction]
+    #[allow(clippy::too_many_arguments)]
+    fn gust_psd<'py>(
+        py: Python<'py>,
+        model: &str,
+        component: &str,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+        dt: f64,
+        frequency: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+        let (model, component) = gust_kind(model, component)?;
+        let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
+            .map_err(PyValueError::new_err)?;
+        let f = frequency.as_array();
+        if let Some(bad) = f.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return Err(PyValueError::new_err(format!(
+                "frequency must be finite and >= 0 Hz, got {bad:?}"
+            )));
+        }
+        let realised: Vec<f64> = f.iter().map(|&x| filter.psd(x)).collect();
+        let target: Vec<f64> = f.iter().map(|&x| filter.target_psd(x)).collect();
+        Ok((realised.into_pyarray(py), target.into_pyarray(py)))
+    }
+
+    /// `realisations` stationary series of one gust component, `steps` samples each, row r from
+    /// the random stream (seed, first + r).
+    #[pyfunction]
+    #[allow(clippy::too_many_arguments)]
+    fn gust_series<'py>(
+        py: Python<'py>,
+        model: &str,
+        component: &str,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+        dt: f64,
+        steps: usize,
+        realisations: usize,
+        seed: u64,
+        first: u64,
+        workers: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (model, component) = gust_kind(model, component)?;
         if workers == 0 {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
