@@ -303,6 +303,8 @@ mod _core {
         Ok(gust::low_altitude_scales(altitude, w20))
     }
 
+    type Array<'py> = Bound<'py, PyArray1<f64>>;
+
     fn gust_kind(
         model: &str,
         component: &str,
@@ -343,7 +345,7 @@ mod _core {
         airspeed: f64,
         dt: f64,
         frequency: PyReadonlyArray1<'py, f64>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    ) -> PyResult<(Array<'py>, Array<'py>)> {
         let (model, component) = gust_kind(model, component)?;
         let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
             .map_err(PyValueError::new_err)?;
