@@ -432,6 +432,23 @@ def test_scenario_from_file_with_base(tmp_path, capsys) -> None:
     assert Scenario.from_toml_string(capsys.readouterr().out)["payload.mass"] == 0.44
 
 
+def test_scenario_show_diff_prints_only_what_differs_from_the_base(tmp_path, capsys) -> None:
+    f = tmp_path / "mine.toml"
+    f.write_text('base = "paper_stable_lateral"\n[payload]\nmass = 0.44\n')
+    assert main(["scenario", "show", "--scenario", str(f), "--diff", "--set", "gust.w20=15"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0] == "# 2 key(s) differ from the preset 'paper_stable_lateral'"
+    assert [line.split(" = ")[0] for line in lines[1:]] == ["payload.mass", "gust.w20"]
+    assert lines[1].endswith("# paper_stable_lateral: 0.22")
+    # What --diff prints is what --set accepts back.
+    sets = [x for line in lines[1:] for x in ("--set", line.split("#")[0].replace(" ", ""))]
+    assert main(["scenario", "show", "--preset", "paper_stable_lateral", *sets]) == 0
+    shown = Scenario.from_toml_string(capsys.readouterr().out)
+    assert shown == Scenario.from_toml(f).override({"gust.w20": 15})
+    assert main(["scenario", "show", "--diff"]) == 0
+    assert capsys.readouterr().out.strip() == "# 0 key(s) differ from the preset 'paper'"
+
+
 def test_scenario_keys_lists_every_key_with_a_value_set_accepts(capsys) -> None:
     assert main(["scenario", "keys"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()

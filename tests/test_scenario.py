@@ -127,3 +127,52 @@ def test_parse_value_reads_toml_literals() -> None:
 def test_exported_names() -> None:
     for name in ("Scenario", "ScenarioError", "simulate", "monte_carlo", "MonteCarloResult"):
         assert hasattr(quadrs, name)
+
+
+def test_show_keeps_the_presets_layout_and_parses_back(paper: quadrs.Scenario) -> None:
+    """Unchanged: exactly the preset file. Changed: still that layout, the new values with the
+    preset's value in their comment, and it parses back to the same scenario."""
+    from importlib import resources
+
+    text = resources.files("quadrs").joinpath("presets", "paper.toml").read_text()
+    assert paper.to_toml(like="paper") == text
+    changed = paper.override(
+        {
+            "payload.mass": 0.3,
+            "payload.stiffness": 40.0,
+            "vehicle.inertia": [0.02, 0.0167, 0.0231],
+            "controller.thrust_max": 60.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 70.0}],
+            "dispersions": {"gust.w20": {"dist": "uniform", "low": 5.0, "high": 15.0}},
+        }
+    )
+    out = changed.to_toml(like="paper")
+    assert quadrs.Scenario.from_toml_string(out) == changed
+    lines = out.splitlines()
+    assert "mass = 0.3                            # kg (10 % of the vehicle); paper: 0.22" in lines
+    assert (
+        "inertia = [0.02, 0.0167, 0.0231]      # kg m^2, nominal Ixx, Iyy, Izz (Table 1); "
+        "paper: [0.0167, 0.0167, 0.0231]"
+    ) in lines
+    assert not any(line.startswith("natural_frequency") for line in lines)
+    assert "thrust_max = 60.0                     # paper: not set" in lines
+    # Compact arrays, as in the preset: no array spread one number per line.
+    assert not any(line.strip() in ("0.0,", "0.0167,") for line in lines)
+
+
+def test_differences_name_every_changed_key(paper: quadrs.Scenario) -> None:
+    changed = paper.override({"payload.mass": 0.3, "payload.stiffness": 40.0, "gust.w20": 10.0})
+    diff = changed.differences(paper)
+    assert diff == {
+        "payload.mass": (0.22, 0.3),
+        "payload.natural_frequency": (2.0, None),
+        "payload.stiffness": (None, 40.0),
+    }
+    assert paper.differences(paper) == {}
+    dispersed = paper.override({"dispersions": {"payload.mass": {"dist": "normal", "mean": 0.2,
+                                                                  "std": 0.01}}})  # fmt: skip
+    assert set(dispersed.differences(paper)) == {
+        'dispersions."payload.mass".dist',
+        'dispersions."payload.mass".mean',
+        'dispersions."payload.mass".std',
+    }

@@ -24,6 +24,46 @@ def test_reprs_summarise(short: Scenario) -> None:
     assert flight.metrics["phase"].dtype == mc.runs["phase"].dtype  # strings in both
 
 
+def test_every_result_repr_is_one_short_line(short: Scenario, tmp_path) -> None:
+    """Results summarise themselves instead of dumping their frames or matrices."""
+    import pandas as pd
+
+    from quadrs.optimize import OptimizeResult
+    from quadrs.paper import PaperOutput
+    from quadrs.sensitivity import SensitivityResult
+
+    sweep = quadrs.sweep(short, {"payload.mass": [0.1, 0.2]}, runs=2, controllers=("pd",),
+                         progress=False)  # fmt: skip
+    indices = pd.DataFrame({"controller": ["pd"], "phase": ["P2"], "metric": ["iae"],
+                            "parameter": ["payload.mass"], "S1": [0.4], "S1_conf": [0.1],
+                            "ST": [0.5], "ST_conf": [0.1]})  # fmt: skip
+    results = {
+        "SweepResult payload.mass x2 points": sweep,
+        "StabilityReport PD stable": quadrs.stability(short, "pd"),
+        "StabilityReport SMC unstable": quadrs.stability(short, "smc"),
+        "LinearModel PD at hover": quadrs.linearize(short, controller="pd"),
+        "SensitivityResult 1 parameters": SensitivityResult(
+            short, 0, 8, ("payload.mass",), indices, pd.DataFrame()
+        ),
+        "OptimizeResult controller.pd.kp[2]=1.5": OptimizeResult(
+            {"controller.pd.kp[2]": 1.5},
+            0.1,
+            short,
+            pd.DataFrame({"x": range(40)}),
+            None,
+            False,
+            "nelder-mead",
+            0,
+            8,
+        ),
+        "PaperOutput 0 files": PaperOutput(tmp_path),
+    }
+    for start, result in results.items():
+        text = repr(result)
+        assert text.startswith(f"<{start}"), text
+        assert "\n" not in text and len(text) < 250, text
+
+
 def test_step_warning_follows_accuracy_at_the_fastest_excited_mode(paper: Scenario) -> None:
     # the indicator: half-step lag of the held controls, or RK4's own error if larger
     assert step_error(-13j, 0.01) == pytest.approx(0.065)

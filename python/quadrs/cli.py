@@ -204,7 +204,8 @@ def _add_run(sub: Any, common: argparse.ArgumentParser) -> None:
         type=Path,
         metavar="FILE",
         help="write the time trace (t in s; states, references, controls, wind in m/s, e_o "
-        "in m) as .parquet or .csv",
+        "in m) as .parquet (with the scenario, seed, controller, realisation and version; "
+        "read it with quadrs.Flight.read_parquet) or plain .csv",
     )
 
 
@@ -481,16 +482,31 @@ def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
     p = sub.add_parser(
         "scenario",
         help="show a scenario, list its keys or the presets",
-        description="Inspect scenarios: `show` prints the full TOML (SI units), `keys` every "
-        "dotted key with its value, `presets` the shipped presets.",
+        description="Inspect scenarios: `show` prints the full TOML (SI units) laid out like "
+        "its preset, with the preset's comments and units, `keys` every dotted key with its "
+        "value, `presets` the shipped presets.",
     )
     ssub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
-    ssub.add_parser("show", parents=[common], help="print the scenario as TOML")
+    show = ssub.add_parser("show", parents=[common], help="print the scenario as TOML")
+    show.add_argument(
+        "--diff",
+        action="store_true",
+        help="print only the keys that differ from the preset the scenario starts from "
+        "(its `base`, else the --preset, else paper), as KEY = VALUE  # preset: OLD",
+    )
     ssub.add_parser("keys", parents=[common], help="list every dotted key = current value")
     ssub.add_parser("presets", help="list the shipped presets")
 
 
 # -- shared steps -----------------------------------------------------------------------------
+def _base_preset(args: argparse.Namespace) -> str:
+    """The preset the scenario starts from: its file's ``base``, else --preset, else paper."""
+    from quadrs.scenario import base_preset
+
+    found = base_preset(args.scenario) if args.scenario is not None else None
+    return found or args.preset or "paper"
+
+
 def load_scenario(args: argparse.Namespace) -> Any:
     """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once."""
     from quadrs.scenario import Scenario, parse_value
@@ -581,15 +597,6 @@ def _check_positive(name: str, value: int | None, minimum: int = 1) -> None:
         raise BadInput(f"{name} must be >= {minimum}, got {value}")
 
 
-def _write_atomic(frame: pd.DataFrame, path: Path) -> None:
-    from quadrs.parquet import atomic_write
-
-    if path.suffix.lower() == ".csv":
-        atomic_write(path, lambda f: f.write(frame.to_csv().encode()))
-    else:
-        atomic_write(path, frame.to_parquet)
-
-
 def _progress(args: argparse.Namespace) -> bool:
     """Progress bars on a terminal only: none in logs, pipes or CI output."""
     return not args.no_progress and sys.stderr.isatty()
@@ -647,7 +654,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     if flight.diverged:
         print(f"warning: the flight diverged at t = {flight.diverged_at:g} s", file=sys.stderr)
     status = EXIT_OK
-    if args.trace is not None and not _save(lambda p: _write_atomic(flight.trace, p), args.trace):
+
+    def write_trace(path: Path) -> None:
+        if path.suffix.lower() == ".csv":
+            flight.to_csv(path)
+        else:
+            flight.to_parquet(path)
+
+    if args.trace is not None and not _save(write_trace, args.trace):
         status = EXIT_FAIL
     if args.plot is not None:
         d = args.plot
@@ -929,14 +943,23 @@ def cmd_stability(args: argparse.Namespace) -> int:
 def cmd_scenario(args: argparse.Namespace) -> int:
     """Show a scenario as TOML, list its keys, or list the presets."""
     from quadrs.report import toml_value
-    from quadrs.scenario import presets
+    from quadrs.scenario import Scenario, presets
 
     if args.action == "presets":
         print("\n".join(presets()))
         return EXIT_OK
     scenario = load_scenario(args)
     if args.action == "show":
-        sys.stdout.write(scenario.to_toml())
+        base = _base_preset(args)
+        if not args.diff:
+            sys.stdout.write(scenario.to_toml(like=base))
+            return EXIT_OK
+        changes = scenario.differences(Scenario.preset(base))
+        print(f"# {len(changes)} key(s) differ from the preset {base!r}")
+        for key, (old, new) in changes.items():
+            was = f"{base}: {'not set' if old is None else toml_value(old)}"
+            line = f"# {key} not set" if new is None else f"{key} = {toml_value(new)}"
+            print(f"{line:<37} # {was}")
     else:
         for key in scenario.keys():
             print(f"{key} = {toml_value(scenario[key])}")

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +15,9 @@ from quadrs import _core
 from quadrs.scenario import Scenario
 
 CONTROLLERS = ("pd", "smc")
+#: Floats in CSV files: 12 significant digits, so 0.1 + 0.05 prints 0.15, not
+#: 0.15000000000000002 (far below any quantity's accuracy; Parquet keeps every bit).
+CSV_FLOAT = "%.12g"
 METRIC_COLUMNS: tuple[str, ...] = tuple(_core.METRIC_NAMES)
 TRACE_COLUMNS: tuple[str, ...] = tuple(_core.TRACE_COLUMNS)
 
@@ -20,6 +26,31 @@ def check_controller(name: str) -> str:
     if name not in CONTROLLERS:
         raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
     return name
+
+
+_META_KEY = b"quadrs"
+#: What a trace file records beside the run identity (name -> type), checked on read.
+_TRACE_META = {"realisation": int, "record_every": int, "controller": str, "metrics": list}
+
+
+class SpectraNotSaved(Mapping[str, pd.DataFrame]):
+    """``Flight.spectra`` of a flight read from a trace file: the spectra are computed from the
+    full-rate signal during the flight and are not saved; asking for one says how to get it."""
+
+    def __init__(self, flight: str) -> None:
+        self._flight = flight
+
+    def __getitem__(self, phase: str) -> pd.DataFrame:
+        raise KeyError(
+            f"spectra are not saved in trace files: fly {self._flight} again with "
+            f"quadrs.simulate to get them (phase {phase!r})"
+        )
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(())
+
+    def __len__(self) -> int:
+        return 0
 
 
 def metrics_frame(phases: list[str], values: np.ndarray) -> pd.DataFrame:
@@ -44,8 +75,10 @@ class Flight:
     realisation: int
     metrics: pd.DataFrame
     trace: pd.DataFrame
-    spectra: dict[str, pd.DataFrame] = field(repr=False)
+    spectra: Mapping[str, pd.DataFrame] = field(repr=False)
     diverged_at: float = float("nan")
+    #: The trace keeps every ``record_every``-th integration step.
+    record_every: int = 1
 
     def __repr__(self) -> str:
         """A summary, not the frames: controller, gust realisation, span, outcome."""
@@ -61,6 +94,86 @@ class Flight:
     def diverged(self) -> bool:
         """True if the state went non-finite or ran away (see ``divergence.*`` keys)."""
         return not np.isnan(self.diverged_at)
+
+    # -- files ----------------------------------------------------------------------------
+    def _extra(self) -> dict[str, Any]:
+        return {"realisation": self.realisation, "record_every": self.record_every}
+
+    def metadata(self) -> dict[str, Any]:
+        """What produced this flight (scenario, controller, seed, realisation, trace thinning,
+        quadrs version), its metrics and divergence time, and the run identity over them."""
+        from quadrs.integrity import run_identity
+
+        extra = self._extra()
+        return {
+            "kind": "flight",
+            "version": _core.__version__,
+            "seed": self.seed,
+            "controllers": [self.controller],
+            "controller": self.controller,
+            "realisation": self.realisation,
+            "record_every": self.record_every,
+            "scenario": self.scenario.to_toml(),
+            "spectra": False,
+            "trace": extra,
+            "diverged_at": None if np.isnan(self.diverged_at) else float(self.diverged_at),
+            "metrics": self.metrics[list(METRIC_COLUMNS)].to_numpy().tolist(),
+            "run": run_identity(self.scenario, self.seed, [self.controller], False, extra=extra),
+        }
+
+    def to_parquet(self, path: str | Path) -> None:
+        """Write the trace (indexed by ``t``, every trace column) with :meth:`metadata` in the
+        file; written to a temporary file, then renamed, so never half-written. The spectra
+        are not saved (see :class:`SpectraNotSaved`)."""
+        from quadrs.parquet import write_frame
+
+        write_frame(self.trace, path, _META_KEY, _json_safe(self.metadata()), index=True)
+
+    @classmethod
+    def read_parquet(cls, path: str | Path) -> Flight:
+        """Read a file written by :meth:`to_parquet`, refusing one that is foreign, edited or
+        from another quadrs version (:class:`quadrs.integrity.CorruptRunError`)."""
+        from quadrs.integrity import _fail, check_run_metadata
+        from quadrs.parquet import read_frame
+
+        frame, meta = read_frame(path, _META_KEY)
+        if not isinstance(meta, dict) or meta.get("kind") != "flight":
+            raise _fail(path, "it is not a quadrs flight trace (no flight metadata)")
+        scenario = check_run_metadata(meta, path, _TRACE_META, extra_key="trace")
+        if meta["trace"] != {k: meta[k] for k in ("realisation", "record_every")}:
+            raise _fail(path, "its trace fields disagree with its run identity (edited?)")
+        ctrl = meta["controller"]
+        if meta["controllers"] != [ctrl]:
+            raise _fail(path, f"its controller {ctrl!r} disagrees with {meta['controllers']!r}")
+        if frame.index.name != "t" or list(frame.columns) != list(TRACE_COLUMNS):
+            raise _fail(path, "its columns are not those of a quadrs trace")
+        phases = scenario.phase_names
+        values = np.asarray(meta["metrics"], dtype=np.float64)
+        if values.shape != (len(phases), len(METRIC_COLUMNS)):
+            raise _fail(path, f"its metrics have shape {values.shape}")
+        diverged = meta.get("diverged_at")
+        trace = frame
+        realisation = meta["realisation"]
+        return cls(
+            scenario=scenario,
+            controller=ctrl,
+            seed=meta["seed"],
+            realisation=realisation,
+            metrics=metrics_frame(phases, values),
+            trace=trace,
+            spectra=SpectraNotSaved(f"{ctrl} seed {meta['seed']} realisation {realisation}"),
+            diverged_at=float("nan") if diverged is None else float(diverged),
+            record_every=meta["record_every"],
+        )
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write the trace as plain CSV (header ``t,x,...``, values at 12 significant digits, so
+        0.1 + 0.05 prints 0.15). CSV has no place for metadata: :meth:`to_parquet` keeps what
+        produced the flight and checks it on reading."""
+        from quadrs.parquet import atomic_write
+
+        text = self.trace.to_csv(float_format=CSV_FLOAT)
+        atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def simulate(
@@ -127,4 +240,16 @@ def simulate(
         trace=trace,
         spectra=spectra,
         diverged_at=float(out["diverged_at"]),
+        record_every=record_every,
     )
+
+
+def _json_safe(value: Any) -> Any:
+    """NaN metrics (phases after a divergence) as JSON null; read back as NaN."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    return value

@@ -63,6 +63,13 @@ class LinearModel:
     wind: tuple[float, float, float]
     equilibrium: npt.NDArray[np.float64]
 
+    def __repr__(self) -> str:
+        """The sizes and names, not the matrices."""
+        return (
+            f"<LinearModel {self.controller.upper()} at hover: {len(self.state_names)} states, "
+            f"inputs {', '.join(self.input_names)}; outputs {', '.join(self.output_names)}>"
+        )
+
     def poles(self) -> npt.NDArray[np.complex128]:
         """Eigenvalues of A (1/s), sorted by real part, largest first."""
         ev = np.linalg.eigvals(self.A)

@@ -82,6 +82,15 @@ class OptimizeResult:
     seed: int
     runs: int
 
+    def __repr__(self) -> str:
+        """The best values and objective, not the history."""
+        best = ", ".join(f"{k}={v:.4g}" for k, v in self.best.items())
+        note = ", interrupted" if self.interrupted else ""
+        return (
+            f"<OptimizeResult {best}: objective {self.objective:.4g} after "
+            f"{len(self.history)} evaluations{note}>"
+        )
+
 
 def expand(values: Mapping[str, float]) -> dict[str, float]:
     """{key: value} with tied keys ("a,b": one value for both) split into one entry each."""

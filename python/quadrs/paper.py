@@ -60,6 +60,10 @@ class PaperOutput:
     mc: MonteCarloResult | None = None
     sweep: SweepResult | None = None
 
+    def __repr__(self) -> str:
+        note = ", interrupted" if self.interrupted else ""
+        return f"<PaperOutput {len(self.files)} files in {str(self.out)!r}{note}>"
+
 
 def _figure_name(kind: str, index: int, phase: str) -> str:
     numbers = {"oscillation": (5, 9, 11), "spectrum": (6, 10, 12)}[kind]
@@ -147,7 +151,10 @@ def sweep_outputs(result: SweepResult, out: Path) -> list[Path]:
 
 
 def _csv(frame: pd.DataFrame, path: Path, index: bool = True) -> Path:
-    return atomic_write(path, lambda f: f.write(frame.to_csv(index=index).encode()))
+    from quadrs.flight import CSV_FLOAT
+
+    text = frame.to_csv(index=index, float_format=CSV_FLOAT)
+    return atomic_write(path, lambda f: f.write(text.encode()))
 
 
 def paper(

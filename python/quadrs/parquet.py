@@ -131,9 +131,11 @@ def check_writable(path: str | Path) -> None:
         os.unlink(tmp)
 
 
-def write_frame(frame: pd.DataFrame, path: str | Path, key: bytes, meta: Any) -> None:
-    """``frame`` (without its index) to ``path`` with ``meta`` as JSON under ``key``."""
-    table = pa.Table.from_pandas(frame, preserve_index=False)
+def write_frame(
+    frame: pd.DataFrame, path: str | Path, key: bytes, meta: Any, index: bool = False
+) -> None:
+    """``frame`` (with its index if ``index``) to ``path`` with ``meta`` as JSON under ``key``."""
+    table = pa.Table.from_pandas(frame, preserve_index=index)
     schema_meta = dict(table.schema.metadata or {})
     schema_meta[key] = json.dumps(meta).encode()
     table = table.replace_schema_metadata(schema_meta)

@@ -41,6 +41,8 @@ _EXCLUSIVE = {
     "payload.stiffness": "payload.natural_frequency",
     "payload.natural_frequency": "payload.stiffness",
 }
+#: Column at which the presets start their end-of-line comments.
+_COMMENT_COLUMN = 38
 _SEGMENT = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?P<index>(\[\d+\])*)$")
 
 
@@ -54,6 +56,25 @@ def _preset_text(name: str) -> str:
     if name not in presets():
         raise ScenarioError(f"preset must be one of {presets()}, got {name!r}")
     return resources.files("quadrs").joinpath(_PRESET_DIR, f"{name}.toml").read_text()
+
+
+def base_preset(path: str | Path) -> str | None:
+    """The preset a scenario file starts from: its ``base`` if that names a preset, followed
+    through files that base on other files; None if there is none or the file is unreadable
+    (reading the scenario itself reports why)."""
+    path, seen = Path(path), set()
+    while path.resolve() not in seen:
+        seen.add(path.resolve())
+        try:
+            base = tomllib.loads(path.read_text(encoding="utf-8")).get(_BASE_KEY)
+        except (OSError, ValueError):
+            return None
+        if not isinstance(base, str):
+            return None
+        if base in presets():
+            return base
+        path = path.parent / base
+    return None
 
 
 def parse_value(text: str) -> Any:
@@ -168,6 +189,76 @@ def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _leaves(data: Mapping[str, Any], path: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
+    """Every value below nested tables by its path; arrays (of tables too) are one value."""
+    out: dict[tuple[str, ...], Any] = {}
+    for k, v in data.items():
+        if isinstance(v, Mapping):
+            out.update(_leaves(v, (*path, k)))
+        else:
+            out[(*path, k)] = v
+    return out
+
+
+def _differences(
+    data: Mapping[str, Any], base: Mapping[str, Any]
+) -> dict[tuple[str, ...], tuple[Any, Any]]:
+    mine, theirs = _leaves(data), _leaves(base)
+    return {
+        path: (theirs.get(path), mine.get(path))
+        for path in [*theirs, *(p for p in mine if p not in theirs)]
+        if mine.get(path) != theirs.get(path)
+    }
+
+
+def _dotted(path: tuple[str, ...]) -> str:
+    """A path as a dotted key, quoting parts that hold a dot (``dispersions."payload.mass"``)."""
+    return ".".join(json.dumps(p) if not _SEGMENT.match(p) else p for p in path)
+
+
+def _layout_like(scenario: Scenario, preset: str) -> str:
+    """``scenario`` written over the text of ``preset`` (see :meth:`Scenario.to_toml`)."""
+    import tomlkit
+    from tomlkit.items import Item
+
+    from quadrs.report import toml_value
+
+    doc = tomlkit.parse(_preset_text(preset))
+    base = Scenario.preset(preset)
+    added: set[int] = set()  # tables the preset lacks: their lines need no "preset: not set"
+    for parts, (old, new) in _differences(scenario._data, base._data).items():
+        node: Any = doc
+        for part in parts[:-1]:
+            if part not in node:
+                node[part] = tomlkit.table()
+                added.add(id(node[part]))
+            node = node[part]
+        fresh = id(node) in added
+        last = parts[-1]
+        if new is None:
+            del node[last]
+        elif isinstance(new, list) and new and all(isinstance(v, dict) for v in new):
+            tables = tomlkit.aot()
+            for row in new:
+                table = tomlkit.table()
+                table.update(row)
+                tables.append(table)
+            node[last] = tables
+        else:
+            item = tomlkit.item(new)
+            if not fresh:
+                held = node.get(last)
+                before = held.trivia.comment.lstrip("# ") if isinstance(held, Item) else ""
+                was = f"{preset}: {'not set' if old is None else toml_value(old)}"
+                item.comment(f"{before}; {was}" if before else was)
+                # The preset aligns its comments at one column: keep them aligned.
+                width = len(f"{last} = {item.as_string()}")
+                item.trivia.comment_ws = " " * max(1, _COMMENT_COLUMN - width)
+            node[last] = item
+    # A blank line before every table header, as in the presets.
+    return re.sub(r"(?<=[^\n])\n(?=\[)", "\n\n", tomlkit.dumps(doc))
+
+
 class Scenario:
     """A complete, validated scenario. Build one from a preset, a TOML file or a mapping;
     derive variants with :meth:`override`. Instances are immutable and compare by value."""
@@ -250,9 +341,21 @@ class Scenario:
         return cls(_resolve_base(data))
 
     # -- output -------------------------------------------------------------------------
-    def to_toml(self) -> str:
-        """The complete scenario as TOML; ``Scenario.from_toml_string(s.to_toml()) == s``."""
-        return tomli_w.dumps(self._data)
+    def to_toml(self, like: str | None = None) -> str:
+        """The complete scenario as TOML; ``Scenario.from_toml_string(s.to_toml()) == s``.
+
+        ``like``: a preset name whose layout, compact arrays, units and comments to keep;
+        values that differ from it carry the preset's value in their comment
+        (``mass = 0.3  # kg ...; paper: 0.22``). The result parses back to this scenario.
+        """
+        if like is None:
+            return tomli_w.dumps(self._data)
+        return _layout_like(self, like)
+
+    def differences(self, base: Scenario) -> dict[str, tuple[Any, Any]]:
+        """Dotted keys whose value differs from ``base``: key -> (base value, this value),
+        ``None`` where a side does not set the key. Arrays (and ``phases``) compare whole."""
+        return {_dotted(p): change for p, change in _differences(self._data, base._data).items()}
 
     def to_dict(self) -> dict[str, Any]:
         """A deep copy of the nested mapping."""

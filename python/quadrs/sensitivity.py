@@ -87,6 +87,18 @@ class SensitivityResult:
     indices: pd.DataFrame
     samples: pd.DataFrame = field(repr=False)
 
+    def __repr__(self) -> str:
+        """A summary, not the tables: the design and the most influential parameter."""
+        top = ""
+        if len(self.indices):
+            row = self.indices.loc[self.indices["ST"].idxmax()]
+            top = f"; largest ST {row['ST']:.2f}: {row['parameter']} ({row['controller']} " \
+                f"{row['phase']} {row['metric']})"  # fmt: skip
+        return (
+            f"<SensitivityResult {len(self.parameters)} parameters, {self.runs} runs, seed "
+            f"{self.seed}{top}>"
+        )
+
     def ranking(self, metric: str = "iae", phase: str | None = None) -> pd.DataFrame:
         """Parameters by total index (largest first) for one metric, per controller and phase."""
         t = self.indices[self.indices["metric"] == metric]

@@ -131,6 +131,12 @@ class StabilityReport:
     jacobian: np.ndarray = field(repr=False)
     residual: float = field(default=0.0, repr=False)
 
+    def __repr__(self) -> str:
+        """One line: the verdict and the least stable pole (``print`` gives the modes)."""
+        worst = self.poles.iloc[0] if len(self.poles) else None
+        pole = f", least stable {_pole(worst['real'], worst['imag'])}" if worst is not None else ""
+        return f"<StabilityReport {self.controller.upper()} {self.verdict}{pole}>"
+
     @property
     def unstable(self) -> pd.DataFrame:
         """The poles that are not asymptotically stable (unstable and marginal ones)."""

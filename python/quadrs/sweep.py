@@ -85,6 +85,17 @@ class SweepResult:
         """The swept keys, outermost first."""
         return list(self.grid)
 
+    def __repr__(self) -> str:
+        """A summary, not the tables: the grid, the batch at each point, what diverged."""
+        grid = ", ".join(f"{k} x{len(v)}" for k, v in self.grid.items())
+        n = int(self.runs["realisation"].nunique()) if len(self.runs) else 0
+        diverged = int(self.runs["diverged"].sum()) if "diverged" in self.runs else 0
+        note = ", interrupted" if self.interrupted else ""
+        return (
+            f"<SweepResult {grid} points, {n} realisations x {'/'.join(self.controllers)} each, "
+            f"seed {self.seed}, {diverged} diverged rows{note}; {self.scenario!r}>"
+        )
+
     @property
     def points(self) -> pd.DataFrame:
         """The grid, one row per point (values as they appear in ``runs``)."""
