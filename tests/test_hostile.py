@@ -118,6 +118,9 @@ def test_engine_json_is_checked_even_when_python_is_bypassed(paper: Scenario) ->
         {"payload.damping": 50.0, "payload.stiffness": 1e6, "integrator.dt": 1e-4},
     ],
 )
+# Some of these excite unstable or marginal modes on purpose (a lateral gust under the paper's
+# SMC, a near-zero payload frequency): the loud warning is right there, and not under test.
+@pytest.mark.filterwarnings("ignore::quadrs.stability.StabilityWarning")
 def test_extreme_but_legal_values(short: Scenario, changes: dict) -> None:
     s = short.override(changes)
     for controller in ("pd", "smc"):
