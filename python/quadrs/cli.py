@@ -668,6 +668,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         files = plots.save(plots.altitude(flight), d / "altitude")
         files += plots.save(plots.oscillation(flight), d / "oscillation")
         files += plots.save(plots.spectra(flight), d / "spectra")
+        files += plots.save(plots.psd(flight), d / "psd")
         files += plots.save(plots.gust_force(flight), d / "gust_force")
         print(f"wrote {len(files)} figure files to {d}", file=sys.stderr)
     return status
@@ -749,6 +750,7 @@ def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()
     files = plots.save(plots.distributions(mc.runs), directory / "distributions")
     if mc.spectra is not None:
         files += plots.save(plots.ensemble_spectra(mc.spectra), directory / "spectra")
+        files += plots.save(plots.ensemble_psd(mc.spectra), directory / "psd")
     for metric in dict.fromkeys([m for m, _ in limits] or ["max_accel"]):
         marks = [t for m, t in limits if m == metric]
         fig = plots.exceedance_curves(mc.runs, metric, marks)
@@ -801,7 +803,8 @@ def _sweep_plots(result: Any, directory: Path) -> None:
     summ = result.summary()
     files = plots.save(plots.sweep_metric(summ, "max_abs"), directory / "sweep_max_abs")
     files += plots.save(plots.sweep_metric(summ, "iae"), directory / "sweep_iae")
-    files += plots.save(plots.distributions(result.runs), directory / "distributions")
+    fig = plots.distributions(result.runs, by=result.keys)  # one box per grid point
+    files += plots.save(fig, directory / "distributions")
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
