@@ -18,6 +18,7 @@
 //! * Realisation `i` under master seed `s` draws from
 //!   `ChaCha8Rng::seed_from_u64(s)` with `set_stream(i)` ([`realisation_rng`]).
 
+use crate::config::{Config, ConfigError, GustComponent, GustModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -32,62 +33,6 @@ pub const METRES_PER_FOOT: f64 = 0.3048;
 /// pole decays at rate >= 0.46 V/L, and exp(-4600) underflows), and the cap keeps
 /// the matrix exponential and the closed forms away from overflow.
 const K_MAX: f64 = 1.0e4;
-
-/// Which spectrum the forming filters realise.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TurbulenceModel {
-    /// MIL-F-8785C Dryden (rational, exact).
-    Dryden,
-    /// von Karman, through the published 2nd/3rd-order rational approximants
-    /// (MIL-HDBK-1797; MATLAB "Von Karman Wind Turbulence Model (Continuous)").
-    VonKarman,
-}
-
-impl TurbulenceModel {
-    /// Human-readable name used in messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            TurbulenceModel::Dryden => "Dryden",
-            TurbulenceModel::VonKarman => "von Karman",
-        }
-    }
-}
-
-/// Gust velocity component, along the inertial axes: x (longitudinal),
-/// y (lateral), z (vertical, z up).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Component {
-    Longitudinal,
-    Lateral,
-    Vertical,
-}
-
-impl Component {
-    /// All components in the fixed draw order.
-    pub const ALL: [Component; 3] = [
-        Component::Longitudinal,
-        Component::Lateral,
-        Component::Vertical,
-    ];
-
-    /// Axis index: 0 (x), 1 (y), 2 (z).
-    pub fn index(self) -> usize {
-        match self {
-            Component::Longitudinal => 0,
-            Component::Lateral => 1,
-            Component::Vertical => 2,
-        }
-    }
-
-    /// Lower-case name used in messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Component::Longitudinal => "longitudinal",
-            Component::Lateral => "lateral",
-            Component::Vertical => "vertical",
-        }
-    }
-}
 
 /// Low-altitude MIL-F-8785C turbulence intensities and scale lengths.
 ///
@@ -108,7 +53,7 @@ impl Component {
 /// 1000 ft there is no blending into the medium/high-altitude model. Callers who
 /// want the standard's band can clamp the altitude themselves before calling.
 /// The formulas need `altitude_m > 0` and `w20 >= 0`; they are not checked here
-/// ([`WindField::new`] and [`GustFilter::new`] check what they use).
+/// (`Config::validate` checks the scenario's `gust.altitude` and `gust.w20`).
 pub fn low_altitude_scales(altitude_m: f64, w20: f64) -> ([f64; 3], [f64; 3]) {
     let h_ft = altitude_m / METRES_PER_FOOT;
     let d = 0.177 + 0.000823 * h_ft;
@@ -125,7 +70,7 @@ pub fn low_altitude_scales(altitude_m: f64, w20: f64) -> ([f64; 3], [f64; 3]) {
 /// `T = L/V` and `x = 2 pi f T`. This is the target the von Karman approximants
 /// of [`GustFilter`] are measured against.
 pub fn von_karman_psd_exact(
-    component: Component,
+    component: GustComponent,
     sigma: f64,
     length_scale: f64,
     airspeed: f64,
@@ -135,8 +80,8 @@ pub fn von_karman_psd_exact(
     let x = 2.0 * std::f64::consts::PI * f_hz.abs() * t;
     let y = (1.339 * x).powi(2);
     match component {
-        Component::Longitudinal => 4.0 * sigma * sigma * t / (1.0 + y).powf(5.0 / 6.0),
-        Component::Lateral | Component::Vertical => {
+        GustComponent::Longitudinal => 4.0 * sigma * sigma * t / (1.0 + y).powf(5.0 / 6.0),
+        GustComponent::Lateral | GustComponent::Vertical => {
             2.0 * sigma * sigma * t * (1.0 + 8.0 / 3.0 * y) / (1.0 + y).powf(11.0 / 6.0)
         }
     }
@@ -152,28 +97,28 @@ struct Rational {
     gain2: f64,
 }
 
-fn rational(model: TurbulenceModel, component: Component) -> Rational {
+fn rational(model: GustModel, component: GustComponent) -> Rational {
     let sqrt3 = 3.0_f64.sqrt();
     match (model, component) {
-        (TurbulenceModel::Dryden, Component::Longitudinal) => Rational {
+        (GustModel::Dryden, GustComponent::Longitudinal) => Rational {
             num: [1.0, 0.0, 0.0, 0.0],
             den: [1.0, 1.0, 0.0, 0.0],
             order: 1,
             gain2: 2.0,
         },
-        (TurbulenceModel::Dryden, _) => Rational {
+        (GustModel::Dryden, _) => Rational {
             num: [1.0, sqrt3, 0.0, 0.0],
             den: [1.0, 2.0, 1.0, 0.0],
             order: 2,
             gain2: 1.0,
         },
-        (TurbulenceModel::VonKarman, Component::Longitudinal) => Rational {
+        (GustModel::VonKarman, GustComponent::Longitudinal) => Rational {
             num: [1.0, 0.25, 0.0, 0.0],
             den: [1.0, 1.357, 0.1987, 0.0],
             order: 2,
             gain2: 2.0,
         },
-        (TurbulenceModel::VonKarman, _) => Rational {
+        (GustModel::VonKarman, _) => Rational {
             num: [1.0, 2.7478, 0.3398, 0.0],
             den: [1.0, 2.9958, 1.9754, 0.1539],
             order: 3,
@@ -402,8 +347,8 @@ fn check_non_negative(name: &str, v: f64) -> Result<(), String> {
 /// [`GustFilter::approximant_variance_ratio`] and docs/gust.md).
 #[derive(Clone, Copy, Debug)]
 pub struct GustFilter {
-    model: TurbulenceModel,
-    component: Component,
+    model: GustModel,
+    component: GustComponent,
     sigma: f64,
     length_scale: f64,
     airspeed: f64,
@@ -435,8 +380,8 @@ impl GustFilter {
     /// parameter and the value (e.g. `airspeed must be > 0 (the Dryden filters
     /// are singular at zero airspeed), got 0.0`).
     pub fn new(
-        model: TurbulenceModel,
-        component: Component,
+        model: GustModel,
+        component: GustComponent,
         sigma: f64,
         length_scale: f64,
         airspeed: f64,
@@ -459,8 +404,8 @@ impl GustFilter {
         }
         let r = rational(model, component);
         let mut f = match model {
-            TurbulenceModel::Dryden => Self::dryden_closed_form(component, k),
-            TurbulenceModel::VonKarman => Self::general(&r, k)?,
+            GustModel::Dryden => Self::dryden_closed_form(component, k),
+            GustModel::VonKarman => Self::general(&r, k)?,
         };
         f.model = model;
         f.component = component;
@@ -478,8 +423,8 @@ impl GustFilter {
 
     fn blank(order: usize) -> Self {
         GustFilter {
-            model: TurbulenceModel::Dryden,
-            component: Component::Vertical,
+            model: GustModel::Dryden,
+            component: GustComponent::Vertical,
             sigma: 0.0,
             length_scale: 1.0,
             airspeed: 1.0,
@@ -500,11 +445,11 @@ impl GustFilter {
     }
 
     /// MODEL.md's closed forms.
-    fn dryden_closed_form(component: Component, k: f64) -> Self {
+    fn dryden_closed_form(component: GustComponent, k: f64) -> Self {
         let k = k.min(K_MAX);
         let e = (-k).exp();
         match component {
-            Component::Longitudinal => {
+            GustComponent::Longitudinal => {
                 let mut f = Self::blank(1);
                 f.phi[(0, 0)] = e;
                 f.chol[(0, 0)] = (-(-2.0 * k).exp_m1()).sqrt();
@@ -513,7 +458,7 @@ impl GustFilter {
                 f.c[0] = 1.0;
                 f
             }
-            Component::Lateral | Component::Vertical => {
+            GustComponent::Lateral | GustComponent::Vertical => {
                 let mut f = Self::blank(2);
                 f.phi[(0, 0)] = e * (1.0 + k);
                 f.phi[(0, 1)] = e * k;
@@ -571,11 +516,11 @@ impl GustFilter {
         self.order
     }
 
-    pub fn model(&self) -> TurbulenceModel {
+    pub fn model(&self) -> GustModel {
         self.model
     }
 
-    pub fn component(&self) -> Component {
+    pub fn component(&self) -> GustComponent {
         self.component
     }
 
@@ -708,8 +653,8 @@ impl GustFilter {
     /// Dryden, the exact von Karman PSD ([`von_karman_psd_exact`]) for von Karman.
     pub fn target_psd(&self, f_hz: f64) -> f64 {
         match self.model {
-            TurbulenceModel::Dryden => self.psd(f_hz),
-            TurbulenceModel::VonKarman => von_karman_psd_exact(
+            GustModel::Dryden => self.psd(f_hz),
+            GustModel::VonKarman => von_karman_psd_exact(
                 self.component,
                 self.sigma,
                 self.length_scale,
@@ -727,9 +672,9 @@ impl GustFilter {
         let u = self.airspeed * tau.abs() / self.length_scale;
         let s2 = self.sigma * self.sigma;
         match (self.model, self.component) {
-            (TurbulenceModel::Dryden, Component::Longitudinal) => s2 * (-u).exp(),
-            (TurbulenceModel::Dryden, _) => s2 * (-u).exp() * (1.0 - 0.5 * u),
-            (TurbulenceModel::VonKarman, _) => {
+            (GustModel::Dryden, GustComponent::Longitudinal) => s2 * (-u).exp(),
+            (GustModel::Dryden, _) => s2 * (-u).exp() * (1.0 - 0.5 * u),
+            (GustModel::VonKarman, _) => {
                 if u.is_nan() {
                     return f64::NAN;
                 }
@@ -847,27 +792,6 @@ pub fn fill_series(
     });
 }
 
-/// Everything the flight needs to know about the gust.
-#[derive(Clone, Debug)]
-pub struct GustSpec {
-    /// Off: the wind is zero throughout (mean included).
-    pub enabled: bool,
-    pub model: TurbulenceModel,
-    /// Active gust components `[longitudinal, lateral, vertical]` (x, y, z).
-    pub components: [bool; 3],
-    /// m above ground (converted to feet for the scale formulas).
-    pub altitude: f64,
-    /// m/s, wind speed at 20 ft.
-    pub w20: f64,
-    /// m/s, the speed at which the frozen field is convected past the vehicle.
-    pub airspeed: f64,
-    /// m/s, inertial x, y, z, added inside the window.
-    pub mean_wind: [f64; 3],
-    /// s, window `[start, end)`.
-    pub start: f64,
-    pub end: f64,
-}
-
 /// The discretised wind field of a scenario: built once per batch, shared
 /// read-only by all threads. Per-realisation state lives in [`WindState`].
 #[derive(Clone, Debug)]
@@ -905,16 +829,18 @@ fn step_at_or_after(t: f64, dt: f64) -> u64 {
 }
 
 impl WindField {
-    /// Validate `spec`, compute the scales ([`low_altitude_scales`]) and
-    /// discretise the active components for the step `dt`.
+    /// Compute the scales ([`low_altitude_scales`]) of a validated scenario's gust
+    /// (`Config::validate` has checked every `gust` value, once for the whole engine) and
+    /// discretise the active components for the step `integrator.dt`.
     ///
     /// Step `n` (time `n dt`) is inside the window iff `start <= n dt < end`,
     /// times within 1e-9 steps of a grid point counting as on it (so a window
     /// [25, 40) s with dt = 2e-4 s is exactly steps 125000..200000).
-    /// When `spec.enabled` is false only `dt` is checked and the field is zero.
-    pub fn new(spec: &GustSpec, dt: f64) -> Result<Self, String> {
-        check_positive("integrator.dt", dt, "")?;
-        if !spec.enabled {
+    /// When `gust.enabled` is false the field is zero. Errs (key `gust`) only if a filter
+    /// cannot be discretised for this step (e.g. `airspeed * dt / length_scale` overflows).
+    pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+        let (g, dt) = (&cfg.gust, cfg.integrator.dt);
+        if !g.enabled {
             return Ok(WindField {
                 enabled: false,
                 filters: [None; 3],
@@ -924,39 +850,23 @@ impl WindField {
                 dt,
             });
         }
-        check_finite("gust.start", spec.start)?;
-        if spec.end.is_nan() || spec.end < spec.start {
-            return Err(format!(
-                "gust.end must not be before gust.start ({:?} s), got {:?}",
-                spec.start, spec.end
-            ));
-        }
-        check_positive("gust.altitude", spec.altitude, "")?;
-        check_non_negative("gust.w20", spec.w20)?;
-        let why = format!(
-            " (the {} filters are singular at zero airspeed)",
-            spec.model.name()
-        );
-        check_positive("gust.airspeed", spec.airspeed, &why)?;
-        for (i, m) in spec.mean_wind.iter().enumerate() {
-            check_finite(&format!("gust.mean_wind[{i}]"), *m)?;
-        }
-        let (sigma, length) = low_altitude_scales(spec.altitude, spec.w20);
+        let (sigma, length) = low_altitude_scales(g.altitude, g.w20);
         let mut filters = [None; 3];
-        for c in Component::ALL {
+        for c in GustComponent::ALL {
             let i = c.index();
-            if spec.components[i] {
-                let f = GustFilter::new(spec.model, c, sigma[i], length[i], spec.airspeed, dt)
-                    .map_err(|e| format!("gust ({} component): {e}", c.name()))?;
+            if g.components.contains(&c) {
+                let f = GustFilter::new(g.model, c, sigma[i], length[i], g.airspeed, dt).map_err(
+                    |e| ConfigError::new("gust", format!("gust ({} component): {e}", c.name())),
+                )?;
                 filters[i] = Some(f);
             }
         }
         Ok(WindField {
             enabled: true,
             filters,
-            mean: spec.mean_wind,
-            start_step: step_at_or_after(spec.start, dt),
-            end_step: step_at_or_after(spec.end, dt),
+            mean: g.mean_wind,
+            start_step: step_at_or_after(g.start, dt),
+            end_step: step_at_or_after(g.end, dt),
             dt,
         })
     }
@@ -1038,7 +948,7 @@ impl WindField {
     }
 
     /// The filter of a component, if active.
-    pub fn filter(&self, component: Component) -> Option<&GustFilter> {
+    pub fn filter(&self, component: GustComponent) -> Option<&GustFilter> {
         self.filters[component.index()].as_ref()
     }
 
@@ -1058,10 +968,10 @@ mod tests {
     use super::*;
 
     const KS: [f64; 4] = [0.01, 0.5, 2.0, 10.0];
-    const MODELS: [TurbulenceModel; 2] = [TurbulenceModel::Dryden, TurbulenceModel::VonKarman];
+    const MODELS: [GustModel; 2] = [GustModel::Dryden, GustModel::VonKarman];
 
     /// A filter with V dt / L = k (L = 2 m, V = 10 m/s).
-    fn filt(model: TurbulenceModel, c: Component, sigma: f64, k: f64) -> GustFilter {
+    fn filt(model: GustModel, c: GustComponent, sigma: f64, k: f64) -> GustFilter {
         let (l, v) = (2.0, 10.0);
         GustFilter::new(model, c, sigma, l, v, k * l / v).unwrap()
     }
@@ -1125,9 +1035,9 @@ mod tests {
         let mut a_l = Matrix3::zeros();
         a_l[(0, 0)] = -1.0;
         for k in KS {
-            for c in Component::ALL {
-                let f = filt(TurbulenceModel::Dryden, c, 1.0, k);
-                let a = if c == Component::Longitudinal {
+            for c in GustComponent::ALL {
+                let f = filt(GustModel::Dryden, c, 1.0, k);
+                let a = if c == GustComponent::Longitudinal {
                     a_l
                 } else {
                     a_v
@@ -1141,7 +1051,7 @@ mod tests {
                 // MODEL.md's closed form, literally.
                 let e = (-k).exp();
                 let phi = f.transition();
-                if c == Component::Longitudinal {
+                if c == GustComponent::Longitudinal {
                     assert!((phi[(0, 0)] - e).abs() < 1e-15);
                     assert!((f.noise_chol()[(0, 0)] - (1.0 - e * e).sqrt()).abs() < 1e-12);
                 } else {
@@ -1174,8 +1084,8 @@ mod tests {
 
     #[test]
     fn general_method_reproduces_dryden_closed_form() {
-        for c in [Component::Longitudinal, Component::Vertical] {
-            let r = rational(TurbulenceModel::Dryden, c);
+        for c in [GustComponent::Longitudinal, GustComponent::Vertical] {
+            let r = rational(GustModel::Dryden, c);
             let nz = normalise(&r).unwrap();
             assert!((nz.raw_variance_ratio - 1.0).abs() < 1e-12);
             for k in KS.iter().copied().chain([1e-4, 1e-6, 50.0]) {
@@ -1195,9 +1105,9 @@ mod tests {
 
     #[test]
     fn von_karman_phi_matches_independent_expm() {
-        for c in Component::ALL {
+        for c in GustComponent::ALL {
             for k in KS {
-                let f = filt(TurbulenceModel::VonKarman, c, 1.0, k);
+                let f = filt(GustModel::VonKarman, c, 1.0, k);
                 let mut want = expm_taylor(&(f.a * k));
                 for i in f.order()..3 {
                     want[(i, i)] = 0.0;
@@ -1205,7 +1115,7 @@ mod tests {
                 let err = max_abs(&(f.transition() - want));
                 assert!(err < 1e-12, "{c:?} k={k} err {err:e}");
                 // Semigroup: Phi(k)^2 = Phi(2k).
-                let f2 = filt(TurbulenceModel::VonKarman, c, 1.0, 2.0 * k);
+                let f2 = filt(GustModel::VonKarman, c, 1.0, 2.0 * k);
                 let sq = f.transition() * f.transition();
                 assert!(max_abs(&(sq - f2.transition())) < 1e-12);
             }
@@ -1215,7 +1125,7 @@ mod tests {
     #[test]
     fn stationary_covariance_is_identity() {
         for model in MODELS {
-            for c in Component::ALL {
+            for c in GustComponent::ALL {
                 for k in KS {
                     let f = filt(model, c, 1.0, k);
                     let n = f.order();
@@ -1251,14 +1161,14 @@ mod tests {
     #[test]
     fn discrete_autocorrelation_matches_formula() {
         let sigma = 1.7;
-        for c in Component::ALL {
+        for c in GustComponent::ALL {
             // (k, n) with n k = V tau / L in {0.5, 1, 2, 3, 5}.
             for (k, ns) in [
                 (0.5, [1usize, 2, 4, 6, 10]),
                 (0.25, [2, 4, 8, 12, 20]),
                 (0.1, [5, 10, 20, 30, 50]),
             ] {
-                let f = filt(TurbulenceModel::Dryden, c, sigma, k);
+                let f = filt(GustModel::Dryden, c, sigma, k);
                 for n in ns {
                     let u = n as f64 * k;
                     let mut m = Matrix3::identity();
@@ -1267,7 +1177,7 @@ mod tests {
                     }
                     let row = f.output_row();
                     let disc = (row.transpose() * m * row)[(0, 0)];
-                    let want = if c == Component::Longitudinal {
+                    let want = if c == GustComponent::Longitudinal {
                         sigma * sigma * (-u).exp()
                     } else {
                         sigma * sigma * (-u).exp() * (1.0 - u / 2.0)
@@ -1278,7 +1188,7 @@ mod tests {
                     assert!((f.autocorrelation(-tau) - want).abs() < 1e-12);
                 }
                 // Von Karman: the discrete model against the continuous one.
-                let f = filt(TurbulenceModel::VonKarman, c, sigma, k);
+                let f = filt(GustModel::VonKarman, c, sigma, k);
                 for n in ns {
                     let mut m = Matrix3::identity();
                     for _ in 0..n {
@@ -1315,12 +1225,12 @@ mod tests {
     fn psd_closed_forms_and_integral() {
         let sigma = 1.3;
         let pi = std::f64::consts::PI;
-        for c in Component::ALL {
-            let f = filt(TurbulenceModel::Dryden, c, sigma, 0.3);
+        for c in GustComponent::ALL {
+            let f = filt(GustModel::Dryden, c, sigma, 0.3);
             let t = f.length_scale() / f.airspeed();
             for fr in [0.0, 0.01, 0.3, 1.0, 7.0, 100.0] {
                 let x = 2.0 * pi * fr * t;
-                let want = if c == Component::Longitudinal {
+                let want = if c == GustComponent::Longitudinal {
                     4.0 * sigma * sigma * t / (1.0 + x * x)
                 } else {
                     2.0 * sigma * sigma * t * (1.0 + 3.0 * x * x) / (1.0 + x * x).powi(2)
@@ -1339,8 +1249,8 @@ mod tests {
         // Exact von Karman integrates to sigma^2 too, up to the rounding of
         // 1.339 (= Gamma(1/3) / (sqrt(pi) Gamma(5/6)) = 1.338985...): the
         // longitudinal variance is sigma^2 * 1.338985 / 1.339 = 0.999989 sigma^2.
-        for c in [Component::Longitudinal, Component::Vertical] {
-            let f = filt(TurbulenceModel::VonKarman, c, sigma, 0.3);
+        for c in [GustComponent::Longitudinal, GustComponent::Vertical] {
+            let f = filt(GustModel::VonKarman, c, sigma, 0.3);
             let v = psd_integral(&f, true) / (sigma * sigma);
             assert!((v - 0.999_989).abs() < 1e-5, "{c:?} exact: {v}");
         }
@@ -1349,8 +1259,8 @@ mod tests {
     /// Worst relative error of the published approximant |H|^2 (as published,
     /// no renormalisation) and of the generated PSD (renormalised to variance
     /// sigma^2) against the exact von Karman PSD, for omega L/V in [0.01, x_max].
-    fn von_karman_errors(c: Component, x_max: f64) -> (f64, f64) {
-        let f = filt(TurbulenceModel::VonKarman, c, 1.0, 0.1);
+    fn von_karman_errors(c: GustComponent, x_max: f64) -> (f64, f64) {
+        let f = filt(GustModel::VonKarman, c, 1.0, 0.1);
         let t = f.length_scale() / f.airspeed();
         let mut worst_raw = 0.0_f64;
         let mut worst_norm = 0.0_f64;
@@ -1371,13 +1281,8 @@ mod tests {
     #[test]
     fn von_karman_approximant_accuracy() {
         // The numbers quoted in docs/gust.md.
-        let lon = filt(
-            TurbulenceModel::VonKarman,
-            Component::Longitudinal,
-            1.0,
-            0.1,
-        );
-        let ver = filt(TurbulenceModel::VonKarman, Component::Vertical, 1.0, 0.1);
+        let lon = filt(GustModel::VonKarman, GustComponent::Longitudinal, 1.0, 0.1);
+        let ver = filt(GustModel::VonKarman, GustComponent::Vertical, 1.0, 0.1);
         let (rl, rv) = (
             lon.approximant_variance_ratio(),
             ver.approximant_variance_ratio(),
@@ -1386,8 +1291,8 @@ mod tests {
         assert!((rl - 0.968_714).abs() < 1e-6, "{rl}");
         assert!((rv - 0.962_336).abs() < 1e-6, "{rv}");
         for (c, band10, band100) in [
-            (Component::Longitudinal, (0.034, 0.062), (0.447, 0.429)),
-            (Component::Vertical, (0.046, 0.06), (0.364, 0.339)),
+            (GustComponent::Longitudinal, (0.034, 0.062), (0.447, 0.429)),
+            (GustComponent::Vertical, (0.046, 0.06), (0.364, 0.339)),
         ] {
             let e10 = von_karman_errors(c, 10.0);
             let e100 = von_karman_errors(c, 100.0);
@@ -1400,7 +1305,7 @@ mod tests {
     #[test]
     fn noise_factor_is_robust_for_extreme_steps() {
         for model in MODELS {
-            for c in Component::ALL {
+            for c in GustComponent::ALL {
                 for k in [1e-12, 1e-9, 1e-6, 1e-3, 1e3, 1e5, 1e12, 1e300] {
                     let f = filt(model, c, 1.0, k);
                     let phi = f.transition();
@@ -1420,7 +1325,7 @@ mod tests {
         // Tiny k, vertical Dryden: the cancellation-free Q keeps G exact:
         // G11^2 = Q11 = e^-2k S3(2k) ~ (2k)^3 / 6.
         let k = 1e-7;
-        let f = filt(TurbulenceModel::Dryden, Component::Vertical, 1.0, k);
+        let f = filt(GustModel::Dryden, GustComponent::Vertical, 1.0, k);
         let g11 = f.noise_chol()[(0, 0)];
         let x = 2.0 * k;
         assert!((g11 * g11 / (x * x * x / 6.0) - 1.0).abs() < 1e-6);
@@ -1455,7 +1360,7 @@ mod tests {
     #[test]
     fn streams_are_deterministic_per_seed_and_index() {
         for model in MODELS {
-            let f = filt(model, Component::Vertical, 1.0, 0.2);
+            let f = filt(model, GustComponent::Vertical, 1.0, 0.2);
             let a = serial_row(&f, 7, 3, 500);
             let b = serial_row(&f, 7, 3, 500);
             assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
@@ -1469,10 +1374,10 @@ mod tests {
     #[test]
     fn fill_series_is_independent_of_threads_and_splitting() {
         for (model, c) in [
-            (TurbulenceModel::Dryden, Component::Longitudinal),
-            (TurbulenceModel::Dryden, Component::Vertical),
-            (TurbulenceModel::VonKarman, Component::Longitudinal),
-            (TurbulenceModel::VonKarman, Component::Vertical),
+            (GustModel::Dryden, GustComponent::Longitudinal),
+            (GustModel::Dryden, GustComponent::Vertical),
+            (GustModel::VonKarman, GustComponent::Longitudinal),
+            (GustModel::VonKarman, GustComponent::Vertical),
         ] {
             let f = filt(model, c, 1.2, 0.05);
             let (rows, steps, seed) = (13, 257, 42);
@@ -1525,12 +1430,12 @@ mod tests {
         let sigma = 1.3;
         let mut cases = Vec::new();
         for k in KS {
-            cases.push((TurbulenceModel::Dryden, Component::Longitudinal, k));
-            cases.push((TurbulenceModel::Dryden, Component::Vertical, k));
+            cases.push((GustModel::Dryden, GustComponent::Longitudinal, k));
+            cases.push((GustModel::Dryden, GustComponent::Vertical, k));
         }
         for k in [0.5, 2.0] {
-            cases.push((TurbulenceModel::VonKarman, Component::Longitudinal, k));
-            cases.push((TurbulenceModel::VonKarman, Component::Vertical, k));
+            cases.push((GustModel::VonKarman, GustComponent::Longitudinal, k));
+            cases.push((GustModel::VonKarman, GustComponent::Vertical, k));
         }
         for (i, (model, c, k)) in cases.into_iter().enumerate() {
             let f = filt(model, c, sigma, k);
@@ -1551,27 +1456,37 @@ mod tests {
         }
     }
 
-    fn spec() -> GustSpec {
-        GustSpec {
-            enabled: true,
-            model: TurbulenceModel::Dryden,
-            components: [false, false, true],
-            altitude: 2.0,
-            w20: 10.0,
-            airspeed: 10.0,
-            mean_wind: [0.0; 3],
-            start: 1.0,
-            end: 2.0,
-        }
+    /// The paper preset's gust with a short window: vertical Dryden, h = 2 m, W20 = 10 m/s,
+    /// V = 10 m/s, [1, 2) s.
+    fn spec() -> Config {
+        let mut cfg = crate::config::tests::paper();
+        cfg.gust.enabled = true;
+        cfg.gust.model = GustModel::Dryden;
+        cfg.gust.components = vec![GustComponent::Vertical];
+        cfg.gust.altitude = 2.0;
+        cfg.gust.w20 = 10.0;
+        cfg.gust.airspeed = 10.0;
+        cfg.gust.mean_wind = [0.0; 3];
+        cfg.gust.start = 1.0;
+        cfg.gust.end = 2.0;
+        cfg
+    }
+
+    /// `s`'s wind field for the step `dt`.
+    fn field(s: &Config, dt: f64) -> WindField {
+        let mut cfg = s.clone();
+        cfg.integrator.dt = dt;
+        WindField::new(&cfg).unwrap()
     }
 
     #[test]
     fn wind_field_window_mean_and_disable() {
+        use GustComponent::*;
         let dt = 0.01;
         let mut s = spec();
-        s.components = [true, false, true];
-        s.mean_wind = [1.0, -2.0, 0.5];
-        let wf = WindField::new(&s, dt).unwrap();
+        s.gust.components = vec![Longitudinal, Vertical];
+        s.gust.mean_wind = [1.0, -2.0, 0.5];
+        let wf = field(&s, dt);
         assert_eq!((wf.start_step(), wf.end_step()), (100, 200));
         let mut st = wf.realisation(3, 9);
         let mut inside = Vec::new();
@@ -1579,9 +1494,9 @@ mod tests {
             let w = wf.sample(&mut st, step);
             if (100..200).contains(&step) {
                 assert!(wf.is_active(step));
-                assert_ne!(w[0], s.mean_wind[0]);
-                assert_eq!(w[1], s.mean_wind[1]); // lateral off: mean only
-                assert_ne!(w[2], s.mean_wind[2]);
+                assert_ne!(w[0], s.gust.mean_wind[0]);
+                assert_eq!(w[1], s.gust.mean_wind[1]); // lateral off: mean only
+                assert_ne!(w[2], s.gust.mean_wind[2]);
                 inside.push(w);
             } else {
                 assert_eq!(w, [0.0; 3], "step {step}");
@@ -1589,13 +1504,13 @@ mod tests {
             }
         }
         // Gust inside = mean + the filters' outputs, and the vertical has sigma_z = 1.
-        let fz = wf.filter(Component::Vertical).unwrap();
+        let fz = wf.filter(Vertical).unwrap();
         assert!((fz.sigma() - 1.0).abs() < 1e-15 && fz.length_scale() == 2.0);
-        assert!(wf.filter(Component::Lateral).is_none());
+        assert!(wf.filter(Lateral).is_none());
         // Disabled: zero throughout, no matter the rest.
-        s.enabled = false;
-        s.airspeed = 0.0;
-        let wf = WindField::new(&s, dt).unwrap();
+        s.gust.enabled = false;
+        s.gust.airspeed = 0.0;
+        let wf = field(&s, dt);
         let mut st = wf.realisation(3, 9);
         for step in 0..300u64 {
             assert_eq!(wf.sample(&mut st, step), [0.0; 3]);
@@ -1605,20 +1520,20 @@ mod tests {
     #[test]
     fn window_boundaries_snap_to_the_step_grid() {
         let mut s = spec();
-        s.start = 25.0;
-        s.end = 40.0;
-        let wf = WindField::new(&s, 2e-4).unwrap();
+        s.gust.start = 25.0;
+        s.gust.end = 40.0;
+        let wf = field(&s, 2e-4);
         assert_eq!((wf.start_step(), wf.end_step()), (125_000, 200_000));
-        s.start = 0.1;
-        s.end = 0.3;
-        let wf = WindField::new(&s, 0.1).unwrap();
+        s.gust.start = 0.1;
+        s.gust.end = 0.3;
+        let wf = field(&s, 0.1);
         assert_eq!((wf.start_step(), wf.end_step()), (1, 3));
-        s.start = 0.15;
-        let wf = WindField::new(&s, 0.1).unwrap();
+        s.gust.start = 0.15;
+        let wf = field(&s, 0.1);
         assert_eq!(wf.start_step(), 2);
-        s.start = 0.0;
-        s.end = f64::INFINITY;
-        let wf = WindField::new(&s, 0.1).unwrap();
+        s.gust.start = 0.0;
+        s.gust.end = f64::INFINITY;
+        let wf = field(&s, 0.1);
         assert_eq!((wf.start_step(), wf.end_step()), (0, u64::MAX));
     }
 
@@ -1627,13 +1542,13 @@ mod tests {
         let dt = 0.01;
         for model in MODELS {
             let mut s = spec();
-            s.model = model;
-            s.components = [true, true, true];
-            s.mean_wind = [0.3, 0.0, -0.1];
-            let a = WindField::new(&s, dt).unwrap();
-            s.start += 37.0 * dt;
-            s.end += 37.0 * dt;
-            let b = WindField::new(&s, dt).unwrap();
+            s.gust.model = model;
+            s.gust.components = GustComponent::ALL.to_vec();
+            s.gust.mean_wind = [0.3, 0.0, -0.1];
+            let a = field(&s, dt);
+            s.gust.start += 37.0 * dt;
+            s.gust.end += 37.0 * dt;
+            let b = field(&s, dt);
             assert_eq!(b.start_step(), a.start_step() + 37);
             let mut sa = a.realisation(11, 2);
             let mut sb = b.realisation(11, 2);
@@ -1648,10 +1563,8 @@ mod tests {
 
     #[test]
     fn single_component_field_equals_fill_series_row() {
-        let dt = 0.01;
-        let s = spec();
-        let wf = WindField::new(&s, dt).unwrap();
-        let f = *wf.filter(Component::Vertical).unwrap();
+        let wf = field(&spec(), 0.01);
+        let f = *wf.filter(GustComponent::Vertical).unwrap();
         let steps = (wf.end_step() - wf.start_step()) as usize;
         let mut rows = vec![0.0; 4 * steps];
         fill_series(&f, 5, 0, steps, &mut rows);
@@ -1668,10 +1581,9 @@ mod tests {
 
     #[test]
     fn skipped_and_repeated_steps_are_consistent() {
-        let dt = 0.01;
         let mut s = spec();
-        s.components = [true, true, true];
-        let wf = WindField::new(&s, dt).unwrap();
+        s.gust.components = GustComponent::ALL.to_vec();
+        let wf = field(&s, 0.01);
         let mut every = wf.realisation(1, 1);
         let all: Vec<[f64; 3]> = (0..200).map(|n| wf.sample(&mut every, n)).collect();
         let mut sparse = wf.realisation(1, 1);
@@ -1682,8 +1594,8 @@ mod tests {
 
     #[test]
     fn bad_input_is_rejected_with_the_parameter_named() {
-        let d = TurbulenceModel::Dryden;
-        let v = Component::Vertical;
+        let d = GustModel::Dryden;
+        let v = GustComponent::Vertical;
         let e = GustFilter::new(d, v, 1.0, 2.0, 0.0, 0.01).unwrap_err();
         assert_eq!(
             e,
@@ -1702,43 +1614,18 @@ mod tests {
         let e = GustFilter::new(d, v, 1.0, 1e300, 1e-300, 1e-300).unwrap_err();
         assert!(e.starts_with("airspeed * dt / length_scale"), "{e}");
         assert!(GustFilter::new(d, v, 0.0, 2.0, 10.0, 0.01).is_ok());
-
+        // The scenario's gust values are checked once, by `Config::validate` (config.rs
+        // tests); what no value check can see (a step too small for the scale) names `gust`.
         let mut s = spec();
-        s.airspeed = 0.0;
-        let e = WindField::new(&s, 0.01).unwrap_err();
-        assert_eq!(
-            e,
-            "gust.airspeed must be > 0 (the Dryden filters are singular at zero airspeed), got 0.0"
-        );
-        s.model = TurbulenceModel::VonKarman;
-        let e = WindField::new(&s, 0.01).unwrap_err();
-        assert!(e.contains("von Karman filters are singular"));
-        let mut s = spec();
-        s.altitude = -1.0;
-        assert_eq!(
-            WindField::new(&s, 0.01).unwrap_err(),
-            "gust.altitude must be > 0, got -1.0"
-        );
-        let mut s = spec();
-        s.w20 = -3.0;
-        assert_eq!(
-            WindField::new(&s, 0.01).unwrap_err(),
-            "gust.w20 must be >= 0, got -3.0"
-        );
-        let mut s = spec();
-        s.end = 0.5;
-        assert!(WindField::new(&s, 0.01)
-            .unwrap_err()
-            .starts_with("gust.end must not be before gust.start"));
-        let mut s = spec();
-        s.mean_wind[1] = f64::NAN;
-        assert_eq!(
-            WindField::new(&s, 0.01).unwrap_err(),
-            "gust.mean_wind[1] must be finite, got NaN"
-        );
-        assert_eq!(
-            WindField::new(&spec(), 0.0).unwrap_err(),
-            "integrator.dt must be > 0, got 0.0"
+        s.gust.altitude = 1e300;
+        s.gust.airspeed = 1e-300;
+        assert!(s.validate().is_ok());
+        let e = WindField::new(&s).unwrap_err();
+        assert_eq!(e.key, "gust");
+        assert!(
+            e.message
+                .starts_with("gust (vertical component): airspeed * dt / length_scale"),
+            "{e}"
         );
     }
 }

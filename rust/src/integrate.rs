@@ -3,7 +3,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
-use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
+use crate::gust::{WindField, WindState};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::F64x4Avx;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
@@ -160,11 +160,7 @@ impl Craft {
     /// The craft of a validated config (`Config::validate` has run).
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
         let plant = Plant::new(cfg);
-        let wind =
-            WindField::new(&gust_spec(cfg), cfg.integrator.dt).map_err(|message| ConfigError {
-                key: "gust".into(),
-                message,
-            })?;
+        let wind = WindField::new(cfg)?;
         let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
         Ok(Self {
             plant,
@@ -536,31 +532,6 @@ impl Engine {
                 })
                 .collect(),
         )
-    }
-}
-
-/// The gust module's view of the scenario.
-pub fn gust_spec(cfg: &Config) -> GustSpec {
-    use crate::config::{GustComponent, GustModel};
-    let g = &cfg.gust;
-    let has = |c: GustComponent| g.components.contains(&c);
-    GustSpec {
-        enabled: g.enabled,
-        model: match g.model {
-            GustModel::Dryden => TurbulenceModel::Dryden,
-            GustModel::VonKarman => TurbulenceModel::VonKarman,
-        },
-        components: [
-            has(GustComponent::Longitudinal),
-            has(GustComponent::Lateral),
-            has(GustComponent::Vertical),
-        ],
-        altitude: g.altitude,
-        w20: g.w20,
-        airspeed: g.airspeed,
-        mean_wind: g.mean_wind,
-        start: g.start,
-        end: g.end,
     }
 }
 
