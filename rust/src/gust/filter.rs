@@ -206,7 +206,7 @@ fn check_non_negative(name: &str, v: f64) -> Result<(), String> {
 /// longitudinal 2, von Karman lateral/vertical 3. Matrices are padded with zeros
 /// to 3x3. Fixed-size storage, no heap, `Copy`.
 ///
-/// Dryden uses MODEL.md's closed forms (`k = V dt / L`, `E = exp(-k)`):
+/// Dryden uses the closed forms of docs/model.md section 4 (`k = V dt / L`, `E = exp(-k)`):
 /// longitudinal `Phi = E`, `G = sqrt(1 - E^2)`, `c = 1`; lateral/vertical
 /// `Phi = E [[1+k, k], [-k, 1-k]]`, `G = chol(I - Phi Phi^T)` (entries of
 /// `I - Phi Phi^T` evaluated without cancellation), `c = (1/2, sqrt3/2)`.
@@ -314,7 +314,7 @@ impl GustFilter {
         }
     }
 
-    /// MODEL.md's closed forms.
+    /// The closed forms of docs/model.md section 4.
     fn dryden_closed_form(component: GustComponent, k: f64) -> Self {
         let k = k.min(K_MAX);
         let e = (-k).exp();
@@ -664,7 +664,7 @@ pub(super) mod tests {
                     expm[(i, i)] = 0.0;
                 }
                 assert!(max_abs(&(f.transition() - expm)) < 1e-12, "{c:?} k={k}");
-                // MODEL.md's closed form, literally.
+                // docs/model.md's closed form, literally.
                 let e = (-k).exp();
                 let phi = f.transition();
                 if c == GustComponent::Longitudinal {

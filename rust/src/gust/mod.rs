@@ -1,4 +1,4 @@
-//! Continuous turbulence (MODEL.md section 4): MIL-F-8785C low-altitude Dryden
+//! Continuous turbulence (docs/model.md section 4): MIL-F-8785C low-altitude Dryden
 //! forming filters (and the usual rational von Karman approximants), discretised
 //! *exactly* for the integration step, with a filter state normalised to unit
 //! stationary covariance.
