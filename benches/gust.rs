@@ -8,29 +8,26 @@
 //! normals per step); `outside`: 75,000 steps before the window (zeros). Throughput is in
 //! samples (`elem/s`).
 
-use _core::gust::{GustSpec, TurbulenceModel, WindField};
+use _core::config::Config;
+use _core::gust::WindField;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use std::time::Duration;
 
 const DT: f64 = 2e-4;
 
-fn paper_gust() -> GustSpec {
-    GustSpec {
-        enabled: true,
-        model: TurbulenceModel::Dryden,
-        components: [false, false, true],
-        altitude: 2.0,
-        w20: 10.0,
-        airspeed: 10.0,
-        mean_wind: [0.0; 3],
-        start: 25.0,
-        end: 40.0,
-    }
+/// The paper preset, whose gust and step the numbers above describe.
+fn paper() -> Config {
+    let text = include_str!("../python/quadrs/presets/paper.toml");
+    let value: serde_json::Value = toml::from_str(text).expect("paper.toml parses");
+    let cfg = Config::from_json(&value.to_string()).expect("paper preset is valid");
+    assert_eq!(cfg.integrator.dt, DT);
+    assert_eq!((cfg.gust.start, cfg.gust.end), (25.0, 40.0));
+    cfg
 }
 
 fn gust(c: &mut Criterion) {
-    let field = WindField::new(&paper_gust(), DT).unwrap();
+    let field = WindField::new(&paper()).unwrap();
     let first = (25.0 / DT).round() as u64;
     let n = ((40.0 - 25.0) / DT).round() as u64;
     let mut g = c.benchmark_group("gust");

@@ -82,7 +82,8 @@ def main() -> None:
     scenario = quadrs.Scenario.preset(args.preset)
     if args.dt is not None:
         scenario = scenario.override({"integrator.dt": args.dt})
-    # The paper's SMC gains are unstable laterally (MODEL.md section 2); the warning is noise here.
+    # The paper's SMC gains are unstable laterally (docs/model.md section 8): the warning
+    # is noise here.
     warnings.simplefilter("ignore")
     per_run = 2 * scenario.steps  # paired PD + SMC
 

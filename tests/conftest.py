@@ -27,3 +27,19 @@ def paper() -> quadrs.Scenario:
 def short(paper: quadrs.Scenario) -> quadrs.Scenario:
     """Take-off, gust, landing in 6 s at dt = 2 ms."""
     return paper.override(SHORT)
+
+
+@pytest.fixture(scope="session")
+def still_hover(paper: quadrs.Scenario) -> quadrs.Scenario:
+    """5 s of hover at 2 m in still air (no gust), dt = 1 ms: nothing should move."""
+    return paper.override(
+        {
+            "gust.enabled": False,
+            "initial.position": [0.0, 0.0, 2.0],
+            "initial.attitude": [0.0, 0.0, 0.0],
+            "trajectory.waypoints": [[0, 0, 0, 2.0, 0.0], [5, 0, 0, 2.0, 0.0]],
+            "integrator.duration": 5.0,
+            "integrator.dt": 0.001,
+            "phases": [{"name": "all", "start": 0.0, "end": 5.0}],
+        }
+    )

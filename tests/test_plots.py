@@ -7,7 +7,6 @@ from types import SimpleNamespace
 
 import matplotlib.image
 import numpy as np
-import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 from matplotlib.text import Text
@@ -84,12 +83,6 @@ def test_spectra_limited_to_fmax(flights, tmp_path) -> None:
         sp = f.spectra["P2"]
         np.testing.assert_allclose(line.get_ydata(), sp[sp["frequency"] <= 5.0]["amplitude"])
     assert_images(tmp_path / "sp")
-
-
-def test_drag_force_formula() -> None:
-    trace = pd.DataFrame({"vz": [1.0, 0.0, -2.0], "wind_z": [0.0, 1.0, 0.0]})
-    f = plots.drag_force(trace, air_density=1.2, drag_area=0.5)
-    np.testing.assert_allclose(f, [-0.3, 0.3, 1.2])
 
 
 def test_gust_force_from_the_trace(flights, short, tmp_path) -> None:

@@ -50,18 +50,8 @@ def test_max_accel_is_the_peak_of_the_recomputed_acceleration(
         assert m["rms_accel"] == pytest.approx(math.sqrt(mean_sq), rel=1e-9)
 
 
-def test_acceleration_is_zero_in_a_hover_without_gust(paper: Scenario) -> None:
-    s = paper.override(
-        {
-            "gust.enabled": False,
-            "initial.position": [0.0, 0.0, 2.0],
-            "initial.attitude": [0.0, 0.0, 0.0],
-            "trajectory.waypoints": [[0, 0, 0, 2.0, 0.0], [5, 0, 0, 2.0, 0.0]],
-            "integrator.duration": 5.0,
-            "integrator.dt": 0.001,
-            "phases": [{"name": "all", "start": 0.0, "end": 5.0}],
-        }
-    )
+def test_acceleration_is_zero_in_a_hover_without_gust(still_hover: Scenario) -> None:
+    s = still_hover
     for controller in ("pd", "smc"):
         f = quadrs.simulate(s, controller, record_every=50)
         assert abs(f.metrics["max_accel"].iloc[0]) < 1e-9

@@ -65,8 +65,10 @@ class Flight:
     """One simulated flight.
 
     ``metrics``: one row per phase (``phase`` and the metric columns). ``trace``: indexed by
-    time ``t`` (s): states, references, controls, wind and ``e_o``. ``spectra``: per phase, the
-    amplitude spectrum of e_o (``frequency`` in Hz, ``amplitude`` in m).
+    time ``t`` (s): states, references, controls, wind, ``e_o``, the payload's acceleration
+    ``accel_c`` (m/s^2) and the vertical drag on the quadrotor ``drag_z`` (N, the force the
+    engine's dynamics use). ``spectra``: per phase, the amplitude spectrum of e_o
+    (``frequency`` in Hz, ``amplitude`` in m).
     """
 
     scenario: Scenario

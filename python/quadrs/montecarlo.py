@@ -206,7 +206,7 @@ def monte_carlo(
         raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
     design = Design(sampling, first, runs)
 
-    # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6)
+    # Say so before a long batch starts on gains that cannot hold hover (docs/model.md section 8)
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 

@@ -26,7 +26,8 @@ from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
 
 SWEEP_KEY = "payload.natural_frequency"
-#: What the paper leaves unstated (MODEL.md section 5), and so what drives any difference.
+#: What the paper leaves unstated (our choice for each: docs/model.md), and so what drives
+#: any difference.
 UNSTATED: tuple[tuple[str, str], ...] = (
     ("payload.mass", "attached mass mc (kg): not given for Table 3"),
     ("payload.natural_frequency", "attachment natural frequency fn (Hz): kc not given"),
@@ -559,20 +560,20 @@ def _choices_section(scenario: Scenario, flights: dict[str, Flight]) -> list[str
     lines = [
         "## Why our numbers differ from the paper's",
         "",
-        "MODEL.md asks for the paper's ordering (SMC below PD in every phase), not its",
+        "Our specification asks for the paper's ordering (SMC below PD in every phase), not its",
         "numbers. Reasons the numbers differ:",
         "",
         "- The paper reports **one** gust realisation; ours is a mean over many, with its",
         "  interval. The percentile table above shows how far a single realisation can land.",
         "- The paper does not state the attached mass mc, the stiffness kc, its trajectory,",
-        "  or its gust and drag settings (MODEL.md section 5). Our choices, from the",
+        "  or its gust and drag settings (docs/model.md). Our choices, from the",
         "  scenario (`presets/paper.toml` unless overridden):",
         "",
         to_markdown(pd.DataFrame(rows), index=False),
         "",
         f"- kc = {scenario.stiffness:.4g} N/m; hover offset d0 = mc g / kc = "
         f"{scenario.hover_offset:.4g} m (e_o is measured from it).",
-        "- The paper's equations are read as MODEL.md fixes them (exact attitude inversion,",
+        "- The paper's equations are read as docs/model.md fixes them (exact attitude inversion,",
         "  drag on both bodies at all times, fixed-step RK4 with controls held over a step,",
         "  feedback-linearising SMC torques with nominal inertias).",
     ]

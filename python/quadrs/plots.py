@@ -431,24 +431,16 @@ def psd(
     return _finish(fig, path)
 
 
-def drag_force(trace: pd.DataFrame, air_density: float, drag_area: float) -> pd.Series:
-    """Vertical drag force on the quadrotor (N): Fdz = -1/2 rho CdA (vz - wind_z)|vz - wind_z|
-    (MODEL.md section 1), from a flight trace."""
-    rel = trace["vz"] - trace["wind_z"]
-    return (-0.5 * air_density * drag_area * rel * rel.abs()).rename("Fdz")
-
-
 def gust_force(flights: Flights, path: str | Path | None = None) -> Figure:
     """The gust (paper Fig. 15): vertical wind ``wind_z`` (m/s) and the drag force it exerts
-    on the quadrotor, Fdz (N), with rho = ``gust.air_density`` and CdA = ``vehicle.drag_area``
-    of each flight's scenario. Zoomed on the gust window when the gust is on."""
+    on the quadrotor, Fdz (N): the trace's ``drag_z``, the force the engine's dynamics use
+    (docs/model.md section 1). Zoomed on the gust window when the gust is on."""
     named = _named(flights)
     fig = new_figure(2, 1)
     ax_w, ax_f = _axes(fig)
     for i, (label, flight) in enumerate(named.items()):
-        s = flight.scenario
         tr = _around_gust(flight)
-        force = drag_force(tr, float(s["gust.air_density"]), float(s["vehicle.drag_area"]))
+        force = tr["drag_z"]
         if i == 0:
             ax_w.plot(tr.index, tr["wind_z"], color="black", lw=1.0, label="wind_z")
         ax_f.plot(force.index, force.to_numpy(), lw=1.0, **_style(label, i))

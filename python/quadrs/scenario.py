@@ -273,7 +273,8 @@ class Scenario:
     # -- construction -------------------------------------------------------------------
     @classmethod
     def paper(cls) -> Scenario:
-        """The paper preset of MODEL.md (vertical flight, vertical Dryden gust, Table 2 gains)."""
+        """The paper preset of docs/model.md (vertical flight, vertical Dryden gust, Table 2
+        gains)."""
         return cls.preset("paper")
 
     @classmethod

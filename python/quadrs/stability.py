@@ -1,4 +1,4 @@
-"""Is this gain set stable? Closed-loop poles of the model linearised at hover (MODEL.md §6).
+"""Is this gain set stable? Closed-loop poles of the model linearised at hover (docs/model.md §8).
 
 The engine linearises ds/dt = f(s, u(s, r)) at the hover equilibrium (reference at the first
 waypoint, psi = 0, zero wind; continuous time) and finds its 14 poles; see docs/stability.md.

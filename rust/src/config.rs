@@ -22,7 +22,7 @@ impl fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {}
 
 impl ConfigError {
-    fn new(key: impl Into<String>, message: impl Into<String>) -> Self {
+    pub(crate) fn new(key: impl Into<String>, message: impl Into<String>) -> Self {
         Self {
             key: key.into(),
             message: message.into(),
@@ -175,19 +175,109 @@ pub struct Phase {
     pub end: f64,
 }
 
+/// Which spectrum the gust's forming filters realise (`gust.model`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GustModel {
+    /// MIL-F-8785C Dryden (rational, exact).
     Dryden,
+    /// von Karman, through the published 2nd/3rd-order rational approximants
+    /// (MIL-HDBK-1797; MATLAB "Von Karman Wind Turbulence Model (Continuous)").
     VonKarman,
 }
 
+impl GustModel {
+    pub const ALL: [GustModel; 2] = [GustModel::Dryden, GustModel::VonKarman];
+
+    /// Human-readable name used in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            GustModel::Dryden => "Dryden",
+            GustModel::VonKarman => "von Karman",
+        }
+    }
+
+    /// The scenario's spelling (what serde reads and writes).
+    pub fn key(self) -> &'static str {
+        match self {
+            GustModel::Dryden => "dryden",
+            GustModel::VonKarman => "von_karman",
+        }
+    }
+}
+
+/// Gust velocity component, along the inertial axes: x (longitudinal), y (lateral),
+/// z (vertical, z up) (`gust.components`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GustComponent {
     Longitudinal,
     Lateral,
     Vertical,
+}
+
+impl GustComponent {
+    /// All components in the fixed draw order.
+    pub const ALL: [GustComponent; 3] = [
+        GustComponent::Longitudinal,
+        GustComponent::Lateral,
+        GustComponent::Vertical,
+    ];
+
+    /// Axis index: 0 (x), 1 (y), 2 (z).
+    pub fn index(self) -> usize {
+        match self {
+            GustComponent::Longitudinal => 0,
+            GustComponent::Lateral => 1,
+            GustComponent::Vertical => 2,
+        }
+    }
+
+    /// Lower-case name used in messages; also the scenario's spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            GustComponent::Longitudinal => "longitudinal",
+            GustComponent::Lateral => "lateral",
+            GustComponent::Vertical => "vertical",
+        }
+    }
+}
+
+/// `'a', 'b' or 'c'`.
+fn one_of(keys: &[&str]) -> String {
+    let quoted: Vec<String> = keys.iter().map(|k| format!("'{k}'")).collect();
+    match quoted.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    }
+}
+
+impl std::str::FromStr for GustModel {
+    type Err = String;
+
+    /// From the scenario's spelling (`"dryden"`, `"von_karman"`).
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL.into_iter().find(|m| m.key() == s).ok_or_else(|| {
+            let keys: Vec<&str> = Self::ALL.iter().map(|m| m.key()).collect();
+            format!("model must be {}, got {s:?}", one_of(&keys))
+        })
+    }
+}
+
+impl std::str::FromStr for GustComponent {
+    type Err = String;
+
+    /// From the scenario's spelling (`"longitudinal"`, `"lateral"`, `"vertical"`).
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                let keys: Vec<&str> = Self::ALL.iter().map(|c| c.name()).collect();
+                format!("component must be {}, got {s:?}", one_of(&keys))
+            })
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -543,7 +633,8 @@ impl Config {
             return Err(ConfigError::new(
                 "gust.airspeed",
                 format!(
-                    "gust.airspeed must be > 0 (the Dryden filters are singular at zero airspeed), got {:?}",
+                    "gust.airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
+                    g.model.name(),
                     g.airspeed
                 ),
             ));
@@ -662,5 +753,72 @@ pub(crate) mod tests {
         assert_eq!(e.key, "vehicle.mass");
         let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();
         assert!(e.message.contains("exactly one"), "{e}");
+    }
+
+    #[test]
+    fn gust_words_are_one_vocabulary() {
+        // serde's spelling, `key`/`name` and `FromStr` agree, so the scenario, the messages
+        // and `gust_series` all read the same words.
+        for m in GustModel::ALL {
+            assert_eq!(serde_json::to_value(m).unwrap(), m.key());
+            assert_eq!(m.key().parse::<GustModel>(), Ok(m));
+        }
+        for c in GustComponent::ALL {
+            assert_eq!(serde_json::to_value(c).unwrap(), c.name());
+            assert_eq!(c.name().parse::<GustComponent>(), Ok(c));
+            assert_eq!(GustComponent::ALL[c.index()], c);
+        }
+        assert_eq!(
+            "karman".parse::<GustModel>().unwrap_err(),
+            "model must be 'dryden' or 'von_karman', got \"karman\""
+        );
+        assert_eq!(
+            "up".parse::<GustComponent>().unwrap_err(),
+            "component must be 'longitudinal', 'lateral' or 'vertical', got \"up\""
+        );
+        let e = with(|v| v["gust"]["model"] = "karman".into()).unwrap_err();
+        assert_eq!(e.key, "gust.model");
+    }
+
+    #[test]
+    fn gust_values_name_their_key() {
+        let bad = |edit: fn(&mut Config)| {
+            let mut c = paper();
+            edit(&mut c);
+            c.validate().unwrap_err()
+        };
+        let e = bad(|c| c.gust.airspeed = 0.0);
+        assert_eq!(e.key, "gust.airspeed");
+        assert_eq!(
+            e.message,
+            "gust.airspeed must be > 0 (the Dryden filters are singular at zero airspeed), got 0.0"
+        );
+        let e = bad(|c| {
+            c.gust.model = GustModel::VonKarman;
+            c.gust.airspeed = 0.0;
+        });
+        assert!(e.message.contains("von Karman filters are singular"), "{e}");
+        let e = bad(|c| c.gust.altitude = -1.0);
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            ("gust.altitude", "gust.altitude must be > 0, got -1.0")
+        );
+        let e = bad(|c| c.gust.w20 = -3.0);
+        assert_eq!(e.message, "gust.w20 must be >= 0, got -3.0");
+        let e = bad(|c| c.gust.end = 10.0);
+        assert_eq!(e.key, "gust.end");
+        assert!(e
+            .message
+            .starts_with("gust.end must not be before gust.start"));
+        let e = bad(|c| c.gust.mean_wind[1] = f64::NAN);
+        assert_eq!(e.key, "gust.mean_wind[1]");
+        let e = bad(|c| c.gust.components = vec![GustComponent::Lateral; 2]);
+        assert_eq!(e.message, "gust.components lists Lateral twice");
+        // A disabled gust is still checked: the scenario is one set of rules.
+        let e = bad(|c| {
+            c.gust.enabled = false;
+            c.gust.w20 = -3.0;
+        });
+        assert_eq!(e.key, "gust.w20");
     }
 }

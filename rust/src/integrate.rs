@@ -3,7 +3,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
-use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
+use crate::gust::{WindField, WindState};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::F64x4Avx;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
@@ -59,7 +59,7 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
 }
 
 /// Trace columns after `t`, in order.
-pub const TRACE_COLUMNS: [&str; 27] = [
+pub const TRACE_COLUMNS: [&str; 28] = [
     "x",
     "y",
     "z",
@@ -87,6 +87,7 @@ pub const TRACE_COLUMNS: [&str; 27] = [
     "wind_z",
     "e_o",
     "accel_c",
+    "drag_z",
 ];
 
 /// Rows of (t, TRACE_COLUMNS...) every `every` steps, for lane 0 of a flight.
@@ -106,26 +107,32 @@ impl Trace {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn push<L: Lane>(
-        &mut self,
-        t: f64,
-        s: &State<L>,
-        r: &Reference,
-        u: &Inputs<L>,
-        w: &[L; 3],
-        e_o: L,
-        accel_c: L,
-    ) {
-        self.data.push(t);
-        self.data.extend(s.iter().map(|x| x.lane(0)));
+    fn push<L: Lane>(&mut self, row: &TraceRow<L>) {
+        self.data.push(row.t);
+        self.data.extend(row.s.iter().map(|x| x.lane(0)));
+        let r = row.r;
         self.data
-            .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, u.u1.lane(0)]);
+            .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, row.u.u1.lane(0)]);
         self.data
-            .extend(u.tau.iter().chain(w.iter()).map(|x| x.lane(0)));
-        self.data.push(e_o.lane(0));
-        self.data.push(accel_c.lane(0));
+            .extend(row.u.tau.iter().chain(row.w.iter()).map(|x| x.lane(0)));
+        for x in [row.e_o, row.accel_c, row.drag_z] {
+            self.data.push(x.lane(0));
+        }
     }
+}
+
+/// One trace row: lane 0 of the flight at time `t` (columns as `TRACE_COLUMNS`).
+struct TraceRow<'a, L> {
+    t: f64,
+    s: &'a State<L>,
+    r: &'a Reference,
+    u: &'a Inputs<L>,
+    /// The wind held over the step starting at `t`.
+    w: &'a [L; 3],
+    e_o: L,
+    accel_c: L,
+    /// N, the vertical drag on the quadrotor the derivative uses at `s` in `w`.
+    drag_z: L,
 }
 
 /// What one realisation of one controller produced.
@@ -160,11 +167,7 @@ impl Craft {
     /// The craft of a validated config (`Config::validate` has run).
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
         let plant = Plant::new(cfg);
-        let wind =
-            WindField::new(&gust_spec(cfg), cfg.integrator.dt).map_err(|message| ConfigError {
-                key: "gust".into(),
-                message,
-            })?;
+        let wind = WindField::new(cfg)?;
         let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
         Ok(Self {
             plant,
@@ -454,7 +457,16 @@ impl Engine {
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && diverged_at[0].is_nan() {
-                    tr.push(t, &s, &r, &u, &w, e_o, accel_c);
+                    tr.push(&TraceRow {
+                        t,
+                        s: &s,
+                        r: &r,
+                        u: &u,
+                        w: &w,
+                        e_o,
+                        accel_c,
+                        drag_z: plant.vertical_drag(&s, w[2]),
+                    });
                 }
             }
             if k == self.steps {
@@ -536,31 +548,6 @@ impl Engine {
                 })
                 .collect(),
         )
-    }
-}
-
-/// The gust module's view of the scenario.
-pub fn gust_spec(cfg: &Config) -> GustSpec {
-    use crate::config::{GustComponent, GustModel};
-    let g = &cfg.gust;
-    let has = |c: GustComponent| g.components.contains(&c);
-    GustSpec {
-        enabled: g.enabled,
-        model: match g.model {
-            GustModel::Dryden => TurbulenceModel::Dryden,
-            GustModel::VonKarman => TurbulenceModel::VonKarman,
-        },
-        components: [
-            has(GustComponent::Longitudinal),
-            has(GustComponent::Lateral),
-            has(GustComponent::Vertical),
-        ],
-        altitude: g.altitude,
-        w20: g.w20,
-        airspeed: g.airspeed,
-        mean_wind: g.mean_wind,
-        start: g.start,
-        end: g.end,
     }
 }
 
@@ -776,6 +763,69 @@ mod tests {
                     .iter()
                     .all(|l| l.diverged_at.is_nan() && l.metrics[0][0] > 0.0));
             }
+        }
+    }
+
+    /// Column `name` of a trace row (`row[0]` is t).
+    fn col(row: &[f64], name: &str) -> f64 {
+        row[1 + TRACE_COLUMNS.iter().position(|c| *c == name).unwrap()]
+    }
+
+    #[test]
+    fn drag_z_is_the_drag_the_dynamics_feel() {
+        // A gusty stretch of the paper flight: vz and wind_z both move.
+        let mut cfg = paper();
+        cfg.integrator.dt = 1e-3;
+        cfg.integrator.duration = 28.0;
+        cfg.phases.truncate(1);
+        let engine = Engine::new(cfg.clone()).unwrap();
+        let mut tr = Trace::new(7, engine.steps);
+        let req = FlightRequest::new(ControllerKind::Pd, 5, &[0]);
+        engine
+            .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
+            .unwrap();
+        let plant = engine.plant();
+        let mut no_drag = Plant::new(&cfg);
+        no_drag.drag_quad = 0.0;
+        let (mut gusty, mut worst) = (0, 0.0_f64);
+        for row in tr.data.chunks(Trace::WIDTH) {
+            let s: State<f64> = state_from_fn(|i| row[1 + i]);
+            let u = Inputs {
+                u1: col(row, "U1"),
+                tau: [
+                    col(row, "tau_phi"),
+                    col(row, "tau_theta"),
+                    col(row, "tau_psi"),
+                ],
+            };
+            let w = [col(row, "wind_x"), col(row, "wind_y"), col(row, "wind_z")];
+            let drag_z = col(row, "drag_z");
+            // The force the derivative adds to m az, recovered from two derivatives.
+            let felt = (plant.derivative(&s, &u, &w)[ix::VZ]
+                - no_drag.derivative(&s, &u, &w)[ix::VZ])
+                * plant.m;
+            worst = worst.max((felt - drag_z).abs());
+            // ... and the formula by hand, from the trace's own columns.
+            let rel = col(row, "vz") - w[2];
+            let k = 0.5 * cfg.gust.air_density * cfg.vehicle.drag_area;
+            assert_eq!(drag_z, rel * rel.abs() * -k, "t = {}", row[0]);
+            gusty += usize::from(w[2] != 0.0 && drag_z.abs() > 1e-3);
+        }
+        assert!(worst < 1e-12, "{worst:e}");
+        assert!(gusty > 100, "the gust must load the drag: {gusty} rows");
+    }
+
+    #[test]
+    fn drag_z_vanishes_at_hover_without_wind() {
+        let engine = Engine::new(hover_cfg()).unwrap();
+        let mut tr = Trace::new(100, engine.steps);
+        let req = FlightRequest::new(ControllerKind::Pd, 0, &[0]);
+        engine
+            .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
+            .unwrap();
+        for row in tr.data.chunks(Trace::WIDTH) {
+            assert_eq!(col(row, "wind_z"), 0.0);
+            assert!(col(row, "drag_z").abs() < 1e-15, "{row:?}");
         }
     }
 }

@@ -35,7 +35,7 @@ pyo3::create_exception!(
 #[pymodule]
 mod _core {
     use super::{EngineError, ScenarioError};
-    use crate::config::{Config, ConfigError};
+    use crate::config::{Config, ConfigError, GustComponent, GustModel};
     use crate::control::ControllerKind;
     use crate::dispersion::Dispersion;
     use crate::gust;
@@ -305,30 +305,20 @@ mod _core {
 
     type Array<'py> = Bound<'py, PyArray1<f64>>;
 
-    fn gust_kind(
+    /// The forming filter `gust_psd` and `gust_series` use, its model and component read
+    /// through the scenario's own words (`GustModel`, `GustComponent`).
+    fn gust_filter(
         model: &str,
         component: &str,
-    ) -> PyResult<(gust::TurbulenceModel, gust::Component)> {
-        let model = match model {
-            "dryden" => gust::TurbulenceModel::Dryden,
-            "von_karman" => gust::TurbulenceModel::VonKarman,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "model must be 'dryden' or 'von_karman', got {other:?}"
-                )))
-            }
-        };
-        let component = match component {
-            "longitudinal" => gust::Component::Longitudinal,
-            "lateral" => gust::Component::Lateral,
-            "vertical" => gust::Component::Vertical,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "component must be 'longitudinal', 'lateral' or 'vertical', got {other:?}"
-                )))
-            }
-        };
-        Ok((model, component))
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+        dt: f64,
+    ) -> PyResult<gust::GustFilter> {
+        let model: GustModel = model.parse().map_err(PyValueError::new_err)?;
+        let component: GustComponent = component.parse().map_err(PyValueError::new_err)?;
+        gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
+            .map_err(PyValueError::new_err)
     }
 
     /// One-sided spectra ((m/s)^2/Hz) of one gust component at `frequency` (Hz): the spectrum
@@ -346,9 +336,7 @@ mod _core {
         dt: f64,
         frequency: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<(Array<'py>, Array<'py>)> {
-        let (model, component) = gust_kind(model, component)?;
-        let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
-            .map_err(PyValueError::new_err)?;
+        let filter = gust_filter(model, component, sigma, length_scale, airspeed, dt)?;
         let f = frequency.as_array();
         if let Some(bad) = f.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
             return Err(PyValueError::new_err(format!(
@@ -378,12 +366,10 @@ mod _core {
         first: u64,
         workers: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (model, component) = gust_kind(model, component)?;
+        let filter = gust_filter(model, component, sigma, length_scale, airspeed, dt)?;
         if workers == 0 {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
-        let filter = gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
-            .map_err(PyValueError::new_err)?;
         let len = (realisations as u128) * (steps as u128);
         let mut buf = usize::try_from(len)
             .map_err(|_| format!("gust samples (steps * realisations): {len} values"))

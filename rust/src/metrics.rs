@@ -1,4 +1,4 @@
-//! Per-phase indices of the relative oscillation e_o, accumulated online (MODEL.md section 5),
+//! Per-phase indices of the relative oscillation e_o, accumulated online (docs/model.md section 5),
 //! and of the payload's vertical inertial acceleration (`max_accel`, `rms_accel`: what a
 //! fragile cargo feels; docs/risk.md).
 //!

@@ -1,4 +1,4 @@
-//! The plant: quadrotor plus a payload on a vertical spring (MODEL.md section 1).
+//! The plant: quadrotor plus a payload on a vertical spring (docs/model.md section 1).
 //!
 //! State `s = [x, y, z, phi, theta, psi, zc, vx, vy, vz, p, q, r, vzc]`, z up; `p, q, r` are
 //! the Euler-angle rates (the paper's near-hover form).
@@ -263,7 +263,7 @@ impl<P: Copy> Plant<P> {
     }
 
     /// The payload's vertical inertial acceleration d2zc/dt2 (m/s^2) at state `s` with vertical
-    /// wind `wind_z` (m/s): its equation of motion, mc azc = -mc g + Fs + Fdzc (MODEL.md
+    /// wind `wind_z` (m/s): its equation of motion, mc azc = -mc g + Fs + Fdzc (docs/model.md
     /// section 1), the very expression the derivative uses; zero at hover.
     #[inline(always)]
     pub fn payload_acceleration<L: Lane>(&self, s: &State<L>, wind_z: L) -> L
@@ -280,6 +280,17 @@ impl<P: Copy> Plant<P> {
     {
         let fdzc = drag(self.drag_payload.get(), s[ix::VZC], wind_z);
         (spring + fdzc) * self.inv_mc.get() - self.g.get()
+    }
+
+    /// The vertical drag force on the quadrotor (N) at state `s` in vertical wind `wind_z`
+    /// (m/s): Fdz = -1/2 rho CdA (vz - wind_z) |vz - wind_z| (docs/model.md section 1), the
+    /// very term the derivative uses (and the trace's `drag_z`).
+    #[inline(always)]
+    pub fn vertical_drag<L: Lane>(&self, s: &State<L>, wind_z: L) -> L
+    where
+        P: Param<L>,
+    {
+        drag(self.drag_quad.get(), s[ix::VZ], wind_z)
     }
 
     /// ds/dt for inputs `u` and wind `w` (m/s, inertial), both held over the step.
@@ -316,7 +327,7 @@ impl<P: Copy> Plant<P> {
         let drag_lateral: L = self.drag_lateral.get();
         let fdx = drag(drag_lateral, s[VX], w[0]);
         let fdy = drag(drag_lateral, s[VY], w[1]);
-        let fdz = drag(self.drag_quad.get(), s[VZ], w[2]);
+        let fdz = self.vertical_drag(s, w[2]);
         let spring = self.spring_force(s);
 
         let (inv_m_lateral, g): (L, L) = (self.inv_m_lateral.get(), self.g.get());

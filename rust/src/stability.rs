@@ -1,4 +1,4 @@
-//! "Is this gain set stable?" (MODEL.md section 6): closed-loop poles at hover.
+//! "Is this gain set stable?" (docs/model.md section 8): closed-loop poles at hover.
 //!
 //! The closed loop ds/dt = f(s, u(s, r)) is linearised at a hover equilibrium: reference at the
 //! first waypoint's position with psi_ref = 0 and zero velocity and acceleration, state at rest

@@ -1,4 +1,4 @@
-//! Reference trajectory from waypoints, and the flight's named phases (MODEL.md section 3).
+//! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
 use crate::config::{Config, Interpolation};
 

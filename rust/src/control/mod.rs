@@ -1,4 +1,4 @@
-//! Cascade controllers (MODEL.md section 2): an outer loop gives the thrust U1 and virtual
+//! Cascade controllers (docs/model.md section 2): an outer loop gives the thrust U1 and virtual
 //! inputs Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop.
 
 mod pd;

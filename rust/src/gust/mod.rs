@@ -1,0 +1,30 @@
+//! Continuous turbulence (docs/model.md section 4): MIL-F-8785C low-altitude Dryden
+//! forming filters (and the usual rational von Karman approximants), discretised
+//! *exactly* for the integration step, with a filter state normalised to unit
+//! stationary covariance.
+//!
+//! Conventions (derivations in `docs/gust.md`):
+//!
+//! * Everything here is SI: metres, seconds, m/s. The standard's low-altitude
+//!   scale formulas take the altitude in feet; [`low_altitude_scales`] converts.
+//! * A filter of order `n` (1 to 3) is held as `x' = Phi x + G n`, `w = sigma c.x`,
+//!   with `n` a vector of `n` independent standard normals, `Phi = expm(A dt)`,
+//!   `G G^T = I - Phi Phi^T` and `|c| = 1`. The state's stationary covariance is
+//!   the identity, so the output variance is exactly `sigma^2` at any step size,
+//!   and a stationary state is just `n` standard normals.
+//! * Normals are drawn with `rand_distr::StandardNormal` in a fixed order: per
+//!   step, components longitudinal, lateral, vertical, each `order()` normals
+//!   (state index order).
+//! * Realisation `i` under master seed `s` draws from
+//!   `ChaCha8Rng::seed_from_u64(s)` with `set_stream(i)` ([`realisation_rng`]).
+//!
+//! Layout: [`spectra`] (the scales and spectra), [`filter`] (the exactly discretised
+//! forming filter), [`wind`] (the wind field a flight samples and stationary series).
+
+pub mod filter;
+pub mod spectra;
+pub mod wind;
+
+pub use filter::GustFilter;
+pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
+pub use wind::{fill_series, realisation_rng, WindField, WindState};
