@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import matplotlib.image
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 from matplotlib.text import Text
@@ -332,8 +333,7 @@ def _fake_dispersed(mc) -> SimpleNamespace:
 
 
 def figure_makers(flights, mc, swept, short) -> dict:
-    """Every public plot function except gust_force (another change owns it): name ->
-    (number of panels, callable taking ax=)."""
+    """Every public plot function: name -> (number of panels, callable taking ax=)."""
     masses = {
         (comp, m): quadrs.simulate(
             short.override({"payload.mass": m, "controller.mass_compensation": comp}), "smc"
@@ -344,6 +344,7 @@ def figure_makers(flights, mc, swept, short) -> dict:
     summ = swept.summary()
     return {
         "altitude": (2, lambda ax=None: plots.altitude(flights, ax=ax)),
+        "gust_force": (2, lambda ax=None: plots.gust_force(flights, ax=ax)),
         "oscillation": (3, lambda ax=None: plots.oscillation(flights, ax=ax)),
         "spectra": (1, lambda ax=None: plots.spectra(flights, ["P2"], ax=ax)),
         "psd": (3, lambda ax=None: plots.psd(flights, ax=ax)),

@@ -431,22 +431,23 @@ def psd(
     return _finish(fig, path)
 
 
-def gust_force(flights: Flights, path: str | Path | None = None) -> Figure:
-    """The gust (paper Fig. 15): vertical wind ``wind_z`` (m/s) and the drag force it exerts
-    on the quadrotor, Fdz (N): the trace's ``drag_z``, the force the engine's dynamics use
+def gust_force(flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None) -> Figure:
+    """The gust (paper Fig. 15): vertical wind velocity (m/s) and the vertical drag force it
+    exerts on the quadrotor (N): the trace's ``drag_z``, the force the engine's dynamics use
     (docs/model.md section 1). Zoomed on the gust window when the gust is on."""
     named = _named(flights)
-    fig = new_figure(2, 1)
-    ax_w, ax_f = _axes(fig)
+    fig, (ax_w, ax_f) = _panels(ax, 2)
     for i, (label, flight) in enumerate(named.items()):
         tr = _around_gust(flight)
         force = tr["drag_z"]
         if i == 0:
-            ax_w.plot(tr.index, tr["wind_z"], color="black", lw=1.0, label="wind_z")
+            ax_w.plot(tr.index, tr["wind_z"], color="black", lw=1.0, label="vertical wind")
         ax_f.plot(force.index, force.to_numpy(), lw=1.0, **_style(label, i))
-    ax_w.set(xlabel="t (s)", ylabel="wind_z (m/s)", title="vertical gust velocity")
-    ax_f.set(xlabel="t (s)", ylabel="Fdz (N)", title="drag force on the quadrotor")
-    ax_f.legend(loc="best", fontsize="small")
+    ax_w.set(xlabel="time (s)", ylabel="vertical wind (m/s)", title="vertical gust velocity")
+    ax_f.set(xlabel="time (s)", ylabel="vertical drag force (N)",
+             title="drag force on the quadrotor")  # fmt: skip
+    _legend(ax_w)
+    _legend(ax_f)
     return _finish(fig, path)
 
 
