@@ -9,17 +9,21 @@ import numpy.typing as npt
 import pandas as pd
 
 from quadrs import _core
+from quadrs.guard import CONTROLLERS, check_controller, check_int, run_cancellable
 from quadrs.scenario import Scenario
+from quadrs.stability import warn_before_running
 
-CONTROLLERS = ("pd", "smc")
+__all__ = [
+    "CONTROLLERS",
+    "METRIC_COLUMNS",
+    "TRACE_COLUMNS",
+    "Flight",
+    "check_controller",
+    "simulate",
+]
+
 METRIC_COLUMNS: tuple[str, ...] = tuple(_core.METRIC_NAMES)
 TRACE_COLUMNS: tuple[str, ...] = tuple(_core.TRACE_COLUMNS)
-
-
-def check_controller(name: str) -> str:
-    if name not in CONTROLLERS:
-        raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
-    return name
 
 
 def metrics_frame(phases: list[str], values: np.ndarray) -> pd.DataFrame:
@@ -84,9 +88,6 @@ def simulate(
     the step starting at t = k * dt (the last row only shows in the trace). For deterministic
     inputs, e.g. a sinusoid to measure a frequency response (docs/design-loop.md).
     """
-    from quadrs.guard import check_int, run_cancellable
-    from quadrs.stability import warn_before_running
-
     check_controller(controller)
     seed = check_int("seed", seed)
     realisation = check_int("realisation", realisation)
