@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Install everything the tests need into .venv, then run every check: Rust format, lints and
-# unit tests; the Python package built with maturin; ruff, the stub check and pytest; then the
-# package built, installed and smoke-tested on the lowest supported and the newest installed
-# Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
+# unit tests; the Python package built with maturin; ruff, mypy, the stub check and pytest;
+# then the package built, installed and smoke-tested on the lowest supported and the newest
+# installed Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,6 +16,7 @@ cargo test --release -q
 
 .venv/bin/ruff check python tests benches examples
 .venv/bin/ruff format --check python tests benches examples
+.venv/bin/python -m mypy python/quadrs
 .venv/bin/python -m mypy.stubtest quadrs._core --allowlist tests/stubtest-allowlist.txt
 .venv/bin/python -m pytest -q "$@"
 if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then

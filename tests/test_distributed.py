@@ -155,11 +155,11 @@ def test_concurrent_dask_calls_do_not_share_tasks(short: Scenario, cluster) -> N
     with Client(cluster) as client:
         ranges, d = [(0, 4), (4, 4)], Design()
         pd_tasks = run_on_dask(client, short, ("pd",), 0, ranges, True, d)
-        _, rows, _ = next(pd_tasks)  # submitted, and still held
+        rows = next(pd_tasks).runs  # submitted, and still held
         smc = list(run_on_dask(client, short, ("smc",), 0, ranges, True, d))
         no_spectra = list(run_on_dask(client, short, ("pd",), 0, ranges, False, d))
         rest = list(pd_tasks)
     assert set(rows["controller"]) == {"pd"}
-    assert all(set(r["controller"]) == {"smc"} for _, r, _ in smc)
-    assert all(s is None for _, _, s in no_spectra)
-    assert all(s is not None for _, _, s in rest)
+    assert all(set(c.runs["controller"]) == {"smc"} for c in smc)
+    assert all(c.spectra is None for c in no_spectra)
+    assert all(c.spectra is not None for c in rest)

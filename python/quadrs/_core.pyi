@@ -1,6 +1,10 @@
-"""Typed stub of the Rust extension (checked against it by mypy.stubtest)."""
+"""Typed stub of the Rust extension (checked against it by mypy.stubtest).
 
-from typing import Any, final
+The engine's results are plain dicts; their keys and types are spelled out below as
+TypedDicts (they exist only for the type checker), read off rust/src/lib.rs.
+"""
+
+from typing import TypedDict, final
 
 import numpy as np
 import numpy.typing as npt
@@ -9,9 +13,78 @@ __version__: str
 METRIC_NAMES: list[str]
 TRACE_COLUMNS: list[str]
 STATE_NAMES: list[str]
+CONTROLLER_NAMES: list[str]
+
+_Floats = npt.NDArray[np.float64]
+
+class Description(TypedDict):
+    """:func:`describe`: quantities derived from a validated scenario."""
+
+    stiffness: float
+    hover_offset: float
+    steps: int
+    phases: list[str]
+    spectrum_frequencies: list[_Floats]
+
+class StabilityResult(TypedDict):
+    """:func:`stability`: the closed-loop poles at hover (one entry each, least stable
+    first) and the verdict."""
+
+    real: _Floats
+    imag: _Floats
+    mode: list[str]
+    dominant: list[str]
+    status: list[str]
+    excited: npt.NDArray[np.bool_]
+    verdict: str
+    stable: bool
+    lateral_sources: list[str]
+    equilibrium: _Floats
+    residual: float
+    jacobian: _Floats
+    tolerance: float
+
+class LinearizeResult(TypedDict):
+    """:func:`linearize`: the closed loop at hover as a state-space model."""
+
+    A: _Floats
+    B: _Floats
+    C: _Floats
+    D: _Floats
+    state_names: list[str]
+    input_names: list[str]
+    output_names: list[str]
+    equilibrium: _Floats
+    residual: float
+
+class SimulateResult(TypedDict):
+    """:func:`simulate`: trace (rows, 1 + len(TRACE_COLUMNS)), time first; metrics
+    (phases, len(METRIC_NAMES)); per phase the amplitude spectrum."""
+
+    trace: _Floats
+    metrics: _Floats
+    diverged_at: float
+    spectra: list[_Floats]
+
+class _BatchSpectra(TypedDict, total=False):
+    # present only when spectra were asked for: per phase (controllers, bins) sums
+    spectrum_sum: list[_Floats]
+    spectrum_sum_sq: list[_Floats]
+    spectrum_count: list[int]
+
+class BatchResult(_BatchSpectra):
+    """:func:`run_batch`: metrics (count, controllers, phases, len(METRIC_NAMES)),
+    diverged_at (count, controllers; NaN if not), done (count,), and with spectra the sums."""
+
+    metrics: _Floats
+    diverged_at: _Floats
+    done: npt.NDArray[np.bool_]
 
 class ScenarioError(ValueError):
     """A scenario value is invalid; the message names the key and the value."""
+
+    #: The dotted scenario key at fault (None when the error names no single key).
+    key: str | None
 
 class EngineError(RuntimeError):
     """The engine failed internally (a bug): the message says where."""
@@ -26,7 +99,7 @@ class Progress:
     def cancelled(self) -> bool: ...
 
 def _panic_for_tests(message: str, in_pool: bool) -> None: ...
-def describe(config_json: str) -> dict[str, Any]: ...
+def describe(config_json: str) -> Description: ...
 def simd_path() -> str: ...
 def simulate(
     config_json: str,
@@ -36,11 +109,11 @@ def simulate(
     record_every: int = 1,
     wind: npt.NDArray[np.float64] | None = None,
     progress: Progress | None = None,
-) -> dict[str, Any]: ...
-def stability(config_json: str, controller: str) -> dict[str, Any]: ...
+) -> SimulateResult: ...
+def stability(config_json: str, controller: str) -> StabilityResult: ...
 def linearize(
     config_json: str, controller: str, wind: tuple[float, float, float] | list[float]
-) -> dict[str, Any]: ...
+) -> LinearizeResult: ...
 def run_batch(
     config_json: str,
     controllers: list[str],
@@ -53,7 +126,7 @@ def run_batch(
     dispersion_keys: list[str] = ...,
     dispersion_values: npt.NDArray[np.float64] | None = None,
     streams: npt.NDArray[np.uint64] | None = None,
-) -> dict[str, Any]: ...
+) -> BatchResult: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
 def gust_psd(
     model: str,

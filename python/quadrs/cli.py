@@ -97,9 +97,9 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
     p.add_argument(
         "--controllers",
         type=_controllers,
-        default=("pd", "smc"),
+        default=_controller_names(),
         metavar="LIST",
-        help="comma-separated controllers to fly (default: pd,smc)",
+        help=f"comma-separated controllers to fly (default: {','.join(_controller_names())})",
     )
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help=out_help)
     p.add_argument(
@@ -139,11 +139,19 @@ def _print_table3(mc: Any, args: argparse.Namespace) -> None:
     print(format_table3(mc.summary(), wide=args.wide, paper=not args.no_paper))
 
 
+def _controller_names() -> tuple[str, ...]:
+    """The engine's controllers (the package's one list, quadrs.guard.CONTROLLERS)."""
+    from quadrs.guard import CONTROLLERS
+
+    return CONTROLLERS
+
+
 def _controllers(text: str) -> tuple[str, ...]:
     names = tuple(c.strip() for c in text.split(",") if c.strip())
-    bad = [c for c in names if c not in ("pd", "smc")]
+    known = _controller_names()
+    bad = [c for c in names if c not in known]
     if bad or not names:
-        raise argparse.ArgumentTypeError(f"controllers are pd and/or smc, got {text!r}")
+        raise argparse.ArgumentTypeError(f"controllers are {' and/or '.join(known)}, got {text!r}")
     return names
 
 
@@ -188,7 +196,7 @@ def _add_run(sub: Any, common: argparse.ArgumentParser) -> None:
         "acceleration (max_accel, rms_accel in m/s^2).",
     )
     p.add_argument(
-        "--controller", choices=("pd", "smc"), default="smc", help="controller (default: smc)"
+        "--controller", choices=_controller_names(), default="smc", help="controller (default: smc)"
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
     p.add_argument(
@@ -425,7 +433,7 @@ def _add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--controller",
-        choices=("pd", "smc", "both"),
+        choices=(*_controller_names(), "both"),
         default="both",
         help="controller (default: both)",
     )
@@ -460,9 +468,9 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controllers",
         type=_controllers,
-        default=("pd", "smc"),
+        default=_controller_names(),
         metavar="LIST",
-        help="comma-separated controllers (default: pd,smc)",
+        help=f"comma-separated controllers (default: {','.join(_controller_names())})",
     )
     p.add_argument(
         "--metric", default="iae", metavar="NAME", help="metric to rank by (default: iae)"
@@ -931,7 +939,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_FAIL
-    controllers = ("pd", "smc") if args.controller == "both" else (args.controller,)
+    controllers = _controller_names() if args.controller == "both" else (args.controller,)
     unstable = False
     for controller in controllers:
         report = check(scenario, controller=controller)
@@ -987,7 +995,8 @@ def _design(name: str, args: argparse.Namespace) -> int:
     """``tune`` and ``linearize`` live in quadrs.cli_design."""
     from quadrs import cli_design
 
-    return int(getattr(cli_design, name)(args))
+    # It gets the scenario loader rather than importing this module (no import cycle).
+    return int(getattr(cli_design, name)(args, load_scenario))
 
 
 # -- entry point ------------------------------------------------------------------------------

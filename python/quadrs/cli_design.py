@@ -9,8 +9,11 @@ import argparse
 import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from quadrs.guard import CONTROLLERS
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
 
@@ -46,7 +49,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         "file that bases on the input and holds the tuned values (see docs/design-loop.md).",
     )
     p.add_argument(
-        "--controller", choices=("pd", "smc"), default="smc", help="controller (default: smc)"
+        "--controller", choices=CONTROLLERS, default="smc", help="controller (default: smc)"
     )
     p.add_argument(
         "--param",
@@ -116,7 +119,7 @@ def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
         "gust-to-e_o transmissibility of each controller, optionally plot it.",
     )
     p.add_argument(
-        "--controller", choices=("pd", "smc", "both"), default="both", help="(default: both)"
+        "--controller", choices=(*CONTROLLERS, "both"), default="both", help="(default: both)"
     )
     p.add_argument(
         "--wind",
@@ -171,9 +174,13 @@ def _tuned_toml(args: argparse.Namespace, out: Path, best: dict[str, float], tun
     return "\n".join(lines) + "\n"
 
 
-def cmd_tune(args: argparse.Namespace) -> int:
-    from quadrs.cli import load_scenario
+#: How the command line turns its options into a scenario (quadrs.cli.load_scenario).
+LoadScenario = Callable[[argparse.Namespace], Any]
+
+
+def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.optimize import optimize
+    from quadrs.parquet import atomic_write_bytes, atomic_write_frame
     from quadrs.scenario import Scenario
 
     if args.out.suffix != ".toml":
@@ -221,16 +228,13 @@ def cmd_tune(args: argparse.Namespace) -> int:
               "or gave a non-finite objective): nothing written", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
     text = _tuned_toml(args, args.out, result.best, result.scenario)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_name(args.out.name + ".part")
-    tmp.write_text(text)
-    os.replace(tmp, args.out)
+    atomic_write_bytes(args.out, text.encode())
     # The file must give back exactly the tuned scenario.
     if Scenario.from_toml(args.out) != result.scenario:  # pragma: no cover - a bug if it fires
         raise RuntimeError(f"{args.out} does not reproduce the tuned scenario")
     print(f"wrote {args.out}", file=sys.stderr)
     if args.history is not None:
-        h.to_csv(args.history, index=False)
+        atomic_write_frame(h, args.history, index=False)
         print(f"wrote {args.history}", file=sys.stderr)
     if result.interrupted:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
@@ -238,17 +242,16 @@ def cmd_tune(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def cmd_linearize(args: argparse.Namespace) -> int:
+def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     import numpy as np
 
-    from quadrs.cli import load_scenario
     from quadrs.linear import OUTPUT_NAMES, equivalent_wind, linearize
 
     scenario = load_scenario(args)
     wind = equivalent_wind(scenario) if args.wind is None else args.wind
     if not math.isfinite(wind):
         raise ValueError(f"--wind must be finite, got {wind}")
-    controllers = ("pd", "smc") if args.controller == "both" else (args.controller,)
+    controllers = CONTROLLERS if args.controller == "both" else (args.controller,)
     models = {}
     for c in controllers:
         lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, wind))

@@ -8,18 +8,15 @@ extra (``pip install quadrs[dask]``): nothing here imports it at module level.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING, Any
-
-import pandas as pd
+from collections.abc import Generator, Sequence
+from typing import TYPE_CHECKING
 
 from quadrs import _core
+from quadrs.chunk import Chunk, Design, fly_chunk
+from quadrs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
-
-    from quadrs.montecarlo import Design
-    from quadrs.scenario import Scenario
 
 
 def run_chunk(
@@ -31,31 +28,11 @@ def run_chunk(
     workers: int,
     spectra: bool,
     design: Design,
-) -> tuple[pd.DataFrame, dict[str, Any] | None]:
-    """One chunk on whichever machine runs it: the tidy rows and the spectrum sums (JSON).
-    Its dispersed values are drawn here, from the same (seed, design) as a local run."""
-    from quadrs.montecarlo import dispersion_arrays
-    from quadrs.results import runs_frame, sums_from_raw
-    from quadrs.scenario import Scenario
-
+) -> Chunk:
+    """One chunk on whichever machine runs it: the very record a local run makes of it
+    (:func:`quadrs.chunk.fly_chunk`), dispersed values drawn from the same (seed, design)."""
     scenario = Scenario.from_toml_string(scenario_toml)
-    config_json = scenario.to_json()
-    values = design.values(scenario, seed, first, count)
-    keys, table = dispersion_arrays(values)
-    raw = _core.run_batch(
-        config_json,
-        list(controllers),
-        seed,
-        first,
-        count,
-        workers,
-        spectra,
-        dispersion_keys=keys,
-        dispersion_values=table,
-    )
-    sums = sums_from_raw(raw, config_json)
-    rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
-    return rows, sums.to_json() if sums else None
+    return fly_chunk(scenario, controllers, seed, first, count, workers, spectra, design)
 
 
 def worker_threads(client: Client) -> int:
@@ -78,8 +55,8 @@ def run_on_dask(
     ranges: Sequence[tuple[int, int]],
     spectra: bool,
     design: Design,
-) -> Iterator[tuple[int, pd.DataFrame, dict[str, Any] | None]]:
-    """Submit one task per (first, count) range; yield (count, rows, sums) as tasks finish.
+) -> Generator[Chunk, None, None]:
+    """Submit one task per (first, count) range; yield each chunk's record as it finishes.
     Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
     from dask.base import tokenize
     from dask.distributed import as_completed
@@ -93,10 +70,8 @@ def run_on_dask(
         args = (toml, list(controllers), seed, first, count, threads, spectra, design)
         key = f"quadrs-chunk-{first}-{count}-{tokenize(_core.__version__, *args)}"
         futures.append(client.submit(run_chunk, *args, key=key, pure=True, retries=2))
-    sizes = {f.key: count for f, (_, count) in zip(futures, ranges, strict=True)}
     try:
         for future in as_completed(futures):
-            rows, sums = future.result()
-            yield sizes[future.key], rows, sums
+            yield future.result()
     finally:
         client.cancel([f for f in futures if not f.done()])

@@ -12,20 +12,22 @@ import numpy.typing as npt
 import pandas as pd
 
 from quadrs import _core
+from quadrs.guard import CONTROLLERS, check_controller, check_int, run_cancellable
+from quadrs.integrity import RunRecord, _fail
 from quadrs.scenario import Scenario
+from quadrs.stability import warn_before_running
 
-CONTROLLERS = ("pd", "smc")
-#: Floats in CSV files: 12 significant digits, so 0.1 + 0.05 prints 0.15, not
-#: 0.15000000000000002 (far below any quantity's accuracy; Parquet keeps every bit).
-CSV_FLOAT = "%.12g"
+__all__ = [
+    "CONTROLLERS",
+    "METRIC_COLUMNS",
+    "TRACE_COLUMNS",
+    "Flight",
+    "check_controller",
+    "simulate",
+]
+
 METRIC_COLUMNS: tuple[str, ...] = tuple(_core.METRIC_NAMES)
 TRACE_COLUMNS: tuple[str, ...] = tuple(_core.TRACE_COLUMNS)
-
-
-def check_controller(name: str) -> str:
-    if name not in CONTROLLERS:
-        raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
-    return name
 
 
 _META_KEY = b"quadrs"
@@ -98,30 +100,23 @@ class Flight:
         return not np.isnan(self.diverged_at)
 
     # -- files ----------------------------------------------------------------------------
-    def _extra(self) -> dict[str, Any]:
-        return {"realisation": self.realisation, "record_every": self.record_every}
+    def record(self) -> RunRecord:
+        """The run record of this flight: scenario, seed, controller, and under ``trace`` the
+        realisation and the trace thinning."""
+        extra = {"realisation": self.realisation, "record_every": self.record_every}
+        return RunRecord(self.scenario, self.seed, (self.controller,), False, "trace", extra)
 
     def metadata(self) -> dict[str, Any]:
         """What produced this flight (scenario, controller, seed, realisation, trace thinning,
         quadrs version), its metrics and divergence time, and the run identity over them."""
-        from quadrs.integrity import run_identity
-
-        extra = self._extra()
-        return {
-            "kind": "flight",
-            "version": _core.__version__,
-            "seed": self.seed,
-            "controllers": [self.controller],
-            "controller": self.controller,
-            "realisation": self.realisation,
-            "record_every": self.record_every,
-            "scenario": self.scenario.to_toml(),
-            "spectra": False,
-            "trace": extra,
-            "diverged_at": None if np.isnan(self.diverged_at) else float(self.diverged_at),
-            "metrics": self.metrics[list(METRIC_COLUMNS)].to_numpy().tolist(),
-            "run": run_identity(self.scenario, self.seed, [self.controller], False, extra=extra),
-        }
+        return self.record().metadata(
+            kind="flight",
+            controller=self.controller,
+            realisation=self.realisation,
+            record_every=self.record_every,
+            diverged_at=None if np.isnan(self.diverged_at) else float(self.diverged_at),
+            metrics=self.metrics[list(METRIC_COLUMNS)].to_numpy().tolist(),
+        )
 
     def to_parquet(self, path: str | Path) -> None:
         """Write the trace (indexed by ``t``, every trace column) with :meth:`metadata` in the
@@ -135,13 +130,12 @@ class Flight:
     def read_parquet(cls, path: str | Path) -> Flight:
         """Read a file written by :meth:`to_parquet`, refusing one that is foreign, edited or
         from another quadrs version (:class:`quadrs.integrity.CorruptRunError`)."""
-        from quadrs.integrity import _fail, check_run_metadata
         from quadrs.parquet import read_frame
 
         frame, meta = read_frame(path, _META_KEY)
         if not isinstance(meta, dict) or meta.get("kind") != "flight":
             raise _fail(path, "it is not a quadrs flight trace (no flight metadata)")
-        scenario = check_run_metadata(meta, path, _TRACE_META, extra_key="trace")
+        scenario = RunRecord.read(meta, path, "trace", _TRACE_META).scenario
         if meta["trace"] != {k: meta[k] for k in ("realisation", "record_every")}:
             raise _fail(path, "its trace fields disagree with its run identity (edited?)")
         ctrl = meta["controller"]
@@ -172,10 +166,9 @@ class Flight:
         """Write the trace as plain CSV (header ``t,x,...``, values at 12 significant digits, so
         0.1 + 0.05 prints 0.15). CSV has no place for metadata: :meth:`to_parquet` keeps what
         produced the flight and checks it on reading."""
-        from quadrs.parquet import atomic_write
+        from quadrs.parquet import atomic_write_frame
 
-        text = self.trace.to_csv(float_format=CSV_FLOAT)
-        atomic_write(path, lambda f: f.write(text.encode()))
+        atomic_write_frame(self.trace, path)
 
 
 def simulate(
@@ -199,9 +192,6 @@ def simulate(
     the step starting at t = k * dt (the last row only shows in the trace). For deterministic
     inputs, e.g. a sinusoid to measure a frequency response (docs/design-loop.md).
     """
-    from quadrs.guard import check_int, run_cancellable
-    from quadrs.stability import warn_before_running
-
     check_controller(controller)
     seed = check_int("seed", seed)
     realisation = check_int("realisation", realisation)

@@ -23,6 +23,15 @@ U64_MAX = 2**64 - 1
 I64_MAX = 2**63 - 1
 #: Most worker threads one call may ask for.
 MAX_WORKERS = 4096
+#: The controllers the engine flies, by name (its list: one vocabulary for the package).
+CONTROLLERS: tuple[str, ...] = tuple(_core.CONTROLLER_NAMES)
+
+
+def check_controller(name: str) -> str:
+    """``name`` if the engine has such a controller, else ValueError naming the choices."""
+    if name not in CONTROLLERS:
+        raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
+    return name
 
 
 def check_int(name: str, value: Any, low: int = 0, high: int = U64_MAX) -> int:
@@ -38,6 +47,14 @@ def check_int(name: str, value: Any, low: int = 0, high: int = U64_MAX) -> int:
     if not low <= value <= high:
         raise ValueError(f"{name} must be between {low} and {high}, got {value}")
     return int(value)
+
+
+def default_workers() -> int:
+    """Cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def check_labels(first: int, count: int) -> None:

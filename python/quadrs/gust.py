@@ -6,7 +6,7 @@ import numpy as np
 import numpy.typing as npt
 
 from quadrs import _core
-from quadrs.montecarlo import default_workers
+from quadrs.guard import default_workers
 
 COMPONENTS = ("longitudinal", "lateral", "vertical")
 MODELS = ("dryden", "von_karman")

@@ -12,13 +12,13 @@ from __future__ import annotations
 import hashlib
 import json
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from quadrs import _core
+from quadrs.guard import CONTROLLERS
 from quadrs.scenario import Scenario
-
-CONTROLLERS = ("pd", "smc")
 
 
 class CorruptRunError(ValueError):
@@ -56,6 +56,62 @@ def run_identity(
         "version": _core.__version__ if version is None else version,
     }
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """What a saved run is, the one form every file of a run stores it in: the scenario, the
+    master seed, the controllers, whether spectra were kept, ``extra`` (whatever else fixes
+    the rows: a batch's sampling, a checkpoint's design, a sweep's grid), stored under
+    ``extra_key``, and the quadrs version. Together they hash to :attr:`run`."""
+
+    scenario: Scenario
+    seed: int
+    controllers: tuple[str, ...]
+    spectra: bool
+    extra_key: str
+    extra: Any = None
+    version: str = field(default=_core.__version__)
+
+    @property
+    def run(self) -> str:
+        """The run identity (see :func:`run_identity`)."""
+        return run_identity(
+            self.scenario, self.seed, self.controllers, self.spectra, self.version, self.extra
+        )
+
+    def metadata(self, **fields: Any) -> dict[str, Any]:
+        """The record as JSON-able file metadata, with ``fields`` (e.g. ``interrupted``) added
+        or, for ``spectra``, replaced by what the file holds of them."""
+        return {
+            "version": self.version,
+            "seed": self.seed,
+            "controllers": list(self.controllers),
+            "scenario": self.scenario.to_toml(),
+            "spectra": self.spectra,
+            self.extra_key: self.extra,
+            **fields,
+            "run": self.run,
+        }
+
+    @classmethod
+    def read(
+        cls, meta: Any, path: str | Path, extra_key: str, keys: Mapping[str, Any] | None = None
+    ) -> RunRecord:
+        """The record of a file's metadata, validated (types, this quadrs version, the run
+        identity, plus ``keys``: name -> required type); CorruptRunError naming ``path``
+        otherwise."""
+        scenario = check_run_metadata(meta, path, keys or {}, extra_key=extra_key)
+        spectra = meta.get("spectra", True)
+        return cls(
+            scenario=scenario,
+            seed=meta["seed"],
+            controllers=tuple(meta["controllers"]),
+            spectra=spectra is not None and spectra is not False,
+            extra_key=extra_key,
+            extra=meta.get(extra_key),
+            version=meta["version"],
+        )
 
 
 def _fail(path: str | Path, what: str) -> CorruptRunError:

@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from quadrs import _core
-from quadrs.flight import check_controller
+from quadrs.guard import check_controller
 from quadrs.scenario import Scenario
 
 #: Every input :func:`linearize` accepts (m/s, inertial, z up).
@@ -70,7 +70,7 @@ class LinearModel:
             f"inputs {', '.join(self.input_names)}; outputs {', '.join(self.output_names)}>"
         )
 
-    def poles(self) -> npt.NDArray[np.complex128]:
+    def poles(self) -> npt.NDArray[np.inexact[Any]]:
         """Eigenvalues of A (1/s), sorted by real part, largest first."""
         ev = np.linalg.eigvals(self.A)
         return ev[np.lexsort((-ev.imag, -ev.real))]

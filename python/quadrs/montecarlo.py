@@ -4,123 +4,45 @@ from __future__ import annotations
 
 import functools
 import operator
-import os
 import warnings
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Generator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import pandas as pd
 
-from quadrs import _core
-from quadrs.flight import check_controller
+from quadrs.chunk import Chunk, Design, SpectrumSums, fly_chunk, run_range
 from quadrs.guard import (
     I64_MAX,
     MAX_WORKERS,
+    check_controller,
     check_int,
     check_labels,
     check_memory,
-    run_cancellable,
+    default_workers,
 )
-from quadrs.results import MonteCarloResult, SpectrumSums, runs_frame, sums_from_raw
+from quadrs.results import MonteCarloResult
 from quadrs.scenario import Scenario
+from quadrs.stability import warn_before_running
+from quadrs.store import RunStore, missing_ranges
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
 
-__all__ = ["MonteCarloResult", "SpectrumSums", "default_workers", "monte_carlo", "run_range"]
+__all__ = [
+    "Design",
+    "MonteCarloResult",
+    "SpectrumSums",
+    "default_workers",
+    "monte_carlo",
+    "run_range",
+]
 
 #: Realisations the engine flies at once (its SIMD width).
 LANES = 4
 #: Memory (bytes) one row of ``runs`` takes while a batch is assembled: the engine's arrays,
 #: the tidy frame and the copies made concatenating and sorting it.
 ROW_BYTES = 400
-
-
-def default_workers() -> int:
-    """Cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
-@dataclass(frozen=True)
-class Design:
-    """How a batch's dispersed values are drawn: the sampling scheme and, for the designs
-    (lhs, sobol), the batch they stratify (``runs`` realisations from ``first``)."""
-
-    sampling: str = "random"
-    first: int = 0
-    runs: int = 1
-
-    def record(self) -> dict[str, Any]:
-        """What fixes the values, for a checkpoint's manifest: a random-sampled run may be
-        extended, a design is tied to its batch."""
-        if self.sampling == "random":
-            return {"sampling": "random"}
-        return {"sampling": self.sampling, "first": self.first, "runs": self.runs}
-
-    def values(self, scenario: Scenario, seed: int, first: int, count: int) -> pd.DataFrame:
-        """The dispersed values of realisations first..first+count (no columns if fixed)."""
-        from quadrs.dispersion import draw
-
-        return draw(
-            scenario, seed, first, count, runs=self.runs, sampling=self.sampling, offset=self.first
-        )
-
-
-def run_range(
-    scenario: Scenario,
-    controllers: Sequence[str],
-    seed: int,
-    first: int,
-    count: int,
-    workers: int,
-    spectra: bool = True,
-    on_progress: Callable[[int], None] | None = None,
-    values: pd.DataFrame | None = None,
-    streams: np.ndarray | None = None,
-) -> tuple[dict[str, Any], bool]:
-    """Run realisations first..first+count in the engine (GIL released, on a worker thread)
-    while this thread polls progress and turns Ctrl-C into a cancel. ``values``: the
-    dispersed keys' values, one row per realisation; ``streams``: the gust stream each one
-    flies (default its own index). Returns the engine's arrays and whether it was
-    interrupted. A failing ``on_progress`` cancels the batch and re-raises (see
-    :func:`quadrs.guard.run_cancellable`)."""
-    progress = _core.Progress()
-    config_json = scenario.to_json()
-    keys, table = dispersion_arrays(values)
-
-    def work() -> dict[str, Any]:
-        return _core.run_batch(
-            config_json,
-            list(controllers),
-            seed,
-            first,
-            count,
-            workers,
-            spectra,
-            progress,
-            dispersion_keys=keys,
-            dispersion_values=table,
-            streams=streams,
-        )
-
-    poll = None if on_progress is None else lambda: on_progress(progress.done())
-    out, interrupted = run_cancellable(work, progress, poll)
-    if on_progress is not None:
-        on_progress(progress.done())
-    return out, interrupted
-
-
-def dispersion_arrays(values: pd.DataFrame | None) -> tuple[list[str], Any]:
-    """The engine's form of a values table: its keys and a C-contiguous (rows, keys) array."""
-    if values is None or values.shape[1] == 0:
-        return [], None
-    return list(values.columns), np.ascontiguousarray(values.to_numpy(dtype=np.float64))
 
 
 def default_chunk(runs: int, threads: int, checkpointing: bool, distributed: bool) -> int:
@@ -180,9 +102,6 @@ def monte_carlo(
     """
     from tqdm.auto import tqdm
 
-    from quadrs.stability import warn_before_running
-    from quadrs.store import RunStore, missing_ranges
-
     controllers = tuple(check_controller(c) for c in controllers)
     if len(set(controllers)) != len(controllers) or not controllers:
         raise ValueError(f"controllers must be distinct and non-empty, got {controllers}")
@@ -226,19 +145,17 @@ def monte_carlo(
         threads = workers
     size = chunk or default_chunk(runs, threads, store is not None, client is not None)
     ranges = split_ranges(todo, size)
-    config_json, phases = scenario.to_json(), scenario.phase_names
-    parts: list[tuple[Any, SpectrumSums | None]] = []
-    pending: list[tuple[Any, SpectrumSums | None]] = []
+    parts: list[Chunk] = []
+    pending: list[Chunk] = []
 
     def flush() -> None:
         """Hand finished chunks to the store (or the in-memory list). An item leaves `pending`
         only once written, so a Ctrl-C landing mid-write is retried from `finally`."""
         while pending:
-            rows, sums = pending[0]
             if store is not None:
-                store.write_part(rows, sums)
+                store.write_part(pending[0])
             else:
-                parts.append((rows, sums))
+                parts.append(pending[0])
             pending.pop(0)
 
     remaining = sum(c for _, c in ranges)
@@ -252,41 +169,25 @@ def monte_carlo(
     )
     interrupted = False
     try:
+        chunks: Generator[Chunk, None, None]
         if client is None:
-            for f, c in ranges:
-                base = bar.n
-                values = design.values(scenario, seed, f, c)
-                raw, interrupted = run_range(
-                    scenario,
-                    controllers,
-                    seed,
-                    f,
-                    c,
-                    workers,
-                    spectra,
-                    on_progress=lambda done, base=base: bar.update(base + done - bar.n),
-                    values=values,
-                )
-                pending.append(
-                    (
-                        runs_frame(raw, controllers, phases, f, values),
-                        sums_from_raw(raw, config_json),
-                    )
-                )
-                flush()
-                if interrupted:
-                    break
+            chunks = _local_chunks(scenario, controllers, seed, ranges, workers, spectra, design,
+                                   bar)  # fmt: skip
         else:
             from quadrs.distributed import run_on_dask
 
-            tasks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design)
-            try:
-                for count, rows, sums in tasks:
-                    pending.append((rows, SpectrumSums.from_json(sums) if sums else None))
-                    flush()
-                    bar.update(count)
-            finally:
-                tasks.close()
+            chunks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design)
+        try:
+            for done in chunks:
+                pending.append(done)
+                flush()
+                if client is not None:
+                    bar.update(done.count)
+                if done.interrupted:
+                    interrupted = True
+                    break
+        finally:
+            chunks.close()
     except KeyboardInterrupt:
         # Between chunks (inside one, run_range already turned Ctrl-C into a cancel).
         interrupted = True
@@ -301,12 +202,12 @@ def monte_carlo(
             stacklevel=2,
         )
     if store is not None:
-        return store.result(interrupted)
-    frames = [rows for rows, _ in parts]
+        return MonteCarloResult.from_store(store, interrupted)
+    frames = [part.runs for part in parts]
     table = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
     if len(frames) > 1:
         table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
-    sums = [s for _, s in parts if s is not None]
+    sums = [part.spectra for part in parts if part.spectra is not None]
     return MonteCarloResult(
         scenario=scenario,
         seed=seed,
@@ -316,3 +217,32 @@ def monte_carlo(
         interrupted=interrupted,
         sampling=sampling,
     )
+
+
+def _local_chunks(
+    scenario: Scenario,
+    controllers: Sequence[str],
+    seed: int,
+    ranges: Sequence[tuple[int, int]],
+    workers: int,
+    spectra: bool,
+    design: Design,
+    bar: Any,
+) -> Generator[Chunk, None, None]:
+    """The chunks flown here, one after the other, moving ``bar`` as realisations finish."""
+
+    def advance(base: int) -> Callable[[int], None]:
+        return lambda done: bar.update(base + done - bar.n)
+
+    for first, count in ranges:
+        yield fly_chunk(
+            scenario,
+            controllers,
+            seed,
+            first,
+            count,
+            workers,
+            spectra,
+            design,
+            on_progress=advance(bar.n),
+        )

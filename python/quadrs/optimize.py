@@ -25,10 +25,10 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core
-from quadrs.flight import check_controller
+from quadrs.guard import check_controller
 from quadrs.montecarlo import monte_carlo
 from quadrs.results import MonteCarloResult
-from quadrs.scenario import Scenario, ScenarioError
+from quadrs.scenario import Scenario, scenario_error
 
 METHODS = ("differential_evolution", "nelder-mead")
 #: Offset of the held-out seed from the tuning seed.
@@ -105,15 +105,21 @@ def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> 
             try:
                 value = scenario[one.strip()]
             except KeyError:
-                raise ScenarioError(f"{one.strip()}: unknown scenario key") from None
+                raise scenario_error(f"{one.strip()}: unknown scenario key", one.strip()) from None
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise ScenarioError(f"{one} must be a numeric scenario key to tune, got {value!r}")
+                raise scenario_error(
+                    f"{one} must be a numeric scenario key to tune, got {value!r}", one.strip()
+                )
         try:
             low, high = (float(b) for b in bounds)
         except (TypeError, ValueError):
-            raise ScenarioError(f"{key}: bounds must be (low, high), got {bounds!r}") from None
+            raise scenario_error(
+                f"{key}: bounds must be (low, high), got {bounds!r}", key
+            ) from None
         if not (math.isfinite(low) and math.isfinite(high) and low < high):
-            raise ScenarioError(f"{key}: bounds must be finite with low < high, got {bounds!r}")
+            raise scenario_error(
+                f"{key}: bounds must be finite with low < high, got {bounds!r}", key
+            )
         for b in (low, high):
             scenario.override(expand({key: b}))  # ScenarioError naming the key if out of its domain
 

@@ -20,7 +20,7 @@ from quadrs import _core, plots
 from quadrs._paper_grid import FREQUENCIES, MASSES
 from quadrs.flight import Flight, simulate
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
-from quadrs.parquet import atomic_write, atomic_write_bytes
+from quadrs.parquet import atomic_write_bytes, atomic_write_frame
 from quadrs.report import PAPER_TABLE3, ordering, paper_comparison, table3, to_markdown, toml_value
 from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
@@ -190,10 +190,7 @@ def sweep_outputs(result: SweepResult, out: Path) -> list[Path]:
 
 
 def _csv(frame: pd.DataFrame, path: Path, index: bool = True) -> Path:
-    from quadrs.flight import CSV_FLOAT
-
-    text = frame.to_csv(index=index, float_format=CSV_FLOAT)
-    return atomic_write(path, lambda f: f.write(text.encode()))
+    return atomic_write_frame(frame, path, index)
 
 
 def paper(

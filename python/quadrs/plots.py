@@ -130,7 +130,7 @@ def save(fig: Figure, path: str | Path, formats: Sequence[str] = FORMATS) -> lis
             meta = {"Date": None} if fmt == "svg" else None
             atomic_write(
                 target,
-                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),
+                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),  # type: ignore[misc]
             )
             written.append(target)
     return written

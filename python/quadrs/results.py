@@ -2,81 +2,23 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from quadrs import _core
-from quadrs.flight import METRIC_COLUMNS
-from quadrs.integrity import check_rows, check_run_metadata, check_spectra, run_identity
-from quadrs.parquet import read_frame, write_frame
+from quadrs.chunk import SpectrumSums, load_spectra, runs_frame, save_spectra, spectra_file
+from quadrs.integrity import RunRecord, check_rows
+from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
 from quadrs.scenario import Scenario
+from quadrs.store import RunStore
+
+__all__ = ["MonteCarloResult", "SpectrumSums", "runs_frame"]
 
 _META_KEY = b"quadrs"
-
-
-@dataclass
-class SpectrumSums:
-    """Ensemble sums of amplitude spectra, per phase an array (n_controllers, bins): they add
-    exactly across chunks and machines, and give the mean and spread."""
-
-    frequencies: list[np.ndarray]
-    total: list[np.ndarray]
-    total_sq: list[np.ndarray]
-    count: np.ndarray  # per controller
-
-    def __add__(self, other: SpectrumSums) -> SpectrumSums:
-        return SpectrumSums(
-            self.frequencies,
-            [a + b for a, b in zip(self.total, other.total, strict=True)],
-            [a + b for a, b in zip(self.total_sq, other.total_sq, strict=True)],
-            self.count + other.count,
-        )
-
-    def frame(self, controllers: Sequence[str], phases: Sequence[str]) -> pd.DataFrame:
-        """Tidy: controller, phase, frequency (Hz), mean and std of the amplitude (m), n."""
-        parts = []
-        for p, phase in enumerate(phases):
-            for c, ctrl in enumerate(controllers):
-                n = int(self.count[c])
-                mean = self.total[p][c] / max(n, 1)
-                var = np.maximum(self.total_sq[p][c] / max(n, 1) - mean**2, 0.0)
-                std = np.sqrt(var * n / (n - 1)) if n > 1 else np.full_like(mean, np.nan)
-                parts.append(
-                    pd.DataFrame(
-                        {
-                            "controller": ctrl,
-                            "phase": phase,
-                            "frequency": self.frequencies[p],
-                            "mean": mean if n else np.full_like(mean, np.nan),
-                            "std": std,
-                            "n": n,
-                        }
-                    )
-                )
-        return pd.concat(parts, ignore_index=True)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "frequencies": [f.tolist() for f in self.frequencies],
-            "total": [t.tolist() for t in self.total],
-            "total_sq": [t.tolist() for t in self.total_sq],
-            "count": self.count.tolist(),
-        }
-
-    @classmethod
-    def from_json(cls, d: dict[str, Any]) -> SpectrumSums:
-        return cls(
-            [np.asarray(f) for f in d["frequencies"]],
-            [np.asarray(t) for t in d["total"]],
-            [np.asarray(t) for t in d["total_sq"]],
-            np.asarray(d["count"], dtype=np.int64),
-        )
 
 
 @dataclass
@@ -218,105 +160,72 @@ class MonteCarloResult:
         return risk.quantile_table(self.runs, metric, q, self.controllers, phases, confidence)
 
     # -- persistence ----------------------------------------------------------------------
-    def metadata(self) -> dict[str, Any]:
-        return {
-            "version": _core.__version__,
-            "seed": self.seed,
-            "controllers": list(self.controllers),
-            "scenario": self.scenario.to_toml(),
-            "interrupted": self.interrupted,
-            "sampling": self.sampling,
-            "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
-            "run": run_identity(
-                self.scenario,
-                self.seed,
-                self.controllers,
-                self.spectrum_sums is not None,
-                extra=self.sampling,
-            ),
-        }
+    @property
+    def record(self) -> RunRecord:
+        """What this run is, as its files record it (the sampling fixes the dispersed values)."""
+        return RunRecord(
+            self.scenario,
+            self.seed,
+            self.controllers,
+            self.spectrum_sums is not None,
+            "sampling",
+            self.sampling,
+        )
 
     def to_parquet(self, path: str | Path) -> None:
-        """Write ``runs`` with the scenario, seed, controllers, spectra and quadrs version in
-        the file's metadata (written to a temporary file, then renamed: never half-written)."""
-        write_frame(self.runs, path, _META_KEY, self.metadata())
+        """Write ``runs`` with the scenario, seed, controllers and quadrs version in the file's
+        metadata, and the ensemble spectra as a table beside it (``<name>.spectra-<hash>.parquet``,
+        named in the metadata with its hash). Each file is written to a temporary file, then
+        renamed: never half-written; an overwritten result keeps its own table until then."""
+        path = Path(path)
+        record = self.record
+        old = None
+        with contextlib.suppress(OSError, ValueError):
+            meta = read_meta(path, _META_KEY) if path.is_file() else None
+            old = spectra_file(meta.get("spectra")) if isinstance(meta, dict) else None
+        stem = f"{path.stem}.spectra"
+        spectra = None
+        if self.spectrum_sums is not None:
+            spectra = save_spectra(self.spectrum_sums, path, stem, record)
+        write_frame(self.runs, path, _META_KEY,
+                    record.metadata(interrupted=self.interrupted, spectra=spectra))  # fmt: skip
+        # The replaced file's own table is now unreferenced (a copy's, named after another
+        # file, is left alone).
+        if old is not None and old != spectra_file(spectra) and old.startswith(f"{stem}-"):
+            if Path(old).name == old:
+                with contextlib.suppress(OSError):
+                    (path.parent / old).unlink()
+
+    @classmethod
+    def from_store(cls, store: RunStore, interrupted: bool = False) -> MonteCarloResult:
+        """Everything a run directory (``monte_carlo(..., out=DIR)``) holds so far."""
+        record = store.record
+        runs, sums = store.load()
+        if runs is None:
+            runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
+        sampling = str(record.extra.get("sampling", "random"))
+        return cls(record.scenario, record.seed, record.controllers, runs, sums, interrupted,
+                   sampling)  # fmt: skip
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> MonteCarloResult:
-        """Read a file written by :meth:`to_parquet`, or a run directory written by
+        """Read a file written by :meth:`to_parquet` (also one written by an earlier quadrs
+        that kept the spectra in the metadata), or a run directory written by
         ``monte_carlo(..., out=DIR)`` (complete or not)."""
         if Path(path).is_dir():
-            from quadrs.store import RunStore  # the store builds on this module
-
-            return RunStore(path).result()
+            return cls.from_store(RunStore(path))
         runs, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
         # Types, required keys and the run identity: a foreign or edited file is refused.
-        scenario = check_run_metadata(
-            meta, path, {"interrupted": bool, "sampling": str}, extra_key="sampling"
-        )
-        controllers = tuple(meta["controllers"])
-        check_rows(runs, path, controllers, scenario.phase_names)
-        spectra = meta.get("spectra")
-        if spectra is not None:
-            check_spectra(spectra, path, len(controllers), len(scenario.phase_names))
+        record = RunRecord.read(meta, path, "sampling", {"interrupted": bool, "sampling": str})
+        check_rows(runs, path, record.controllers, record.scenario.phase_names)
         return cls(
-            scenario=scenario,
-            seed=meta["seed"],
-            controllers=controllers,
+            scenario=record.scenario,
+            seed=record.seed,
+            controllers=record.controllers,
             runs=runs,
-            spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
+            spectrum_sums=load_spectra(meta.get("spectra"), path, record),
             interrupted=meta["interrupted"],
             sampling=meta["sampling"],
         )
-
-
-def runs_frame(
-    raw: dict[str, Any],
-    controllers: Sequence[str],
-    phases: Sequence[str],
-    first: int,
-    values: pd.DataFrame | None = None,
-) -> pd.DataFrame:
-    """The engine's arrays -> the tidy table (finished realisations only), with a column per
-    dispersed key holding the value each realisation flew (``values``, one row each)."""
-    metrics = raw["metrics"]  # (count, n_ctrl, n_phase, n_metric)
-    done = np.asarray(raw["done"], dtype=bool)
-    count, n_ctrl, n_phase, _ = metrics.shape
-    real = first + np.arange(count)
-    shape = (count, n_ctrl, n_phase)
-    diverged_at = np.broadcast_to(raw["diverged_at"][:, :, None], shape)
-    keep = np.broadcast_to(done[:, None, None], shape).reshape(-1)
-    frame = pd.DataFrame(
-        {
-            "realisation": np.broadcast_to(real[:, None, None], shape).reshape(-1),
-            "controller": np.broadcast_to(np.asarray(controllers)[None, :, None], shape).reshape(
-                -1
-            ),
-            "phase": np.broadcast_to(np.asarray(phases)[None, None, :], shape).reshape(-1),
-        }
-    )
-    for k, name in enumerate(METRIC_COLUMNS):
-        frame[name] = metrics[..., k].reshape(-1)
-    frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
-    frame["diverged_at"] = diverged_at.reshape(-1)
-    frame["realisation"] = frame["realisation"].astype(np.int64)
-    if values is not None:
-        for key in values.columns:
-            column = values[key].to_numpy(dtype=np.float64)
-            frame[key] = np.broadcast_to(column[:, None, None], shape).reshape(-1)
-    return frame[keep].reset_index(drop=True)
-
-
-def sums_from_raw(raw: dict[str, Any], config_json: str) -> SpectrumSums | None:
-    """The engine's spectrum arrays -> SpectrumSums (None when spectra were not asked for)."""
-    if "spectrum_sum" not in raw:
-        return None
-    freqs = _core.describe(config_json)["spectrum_frequencies"]
-    return SpectrumSums(
-        list(freqs),
-        list(raw["spectrum_sum"]),
-        list(raw["spectrum_sum_sq"]),
-        np.asarray(raw["spectrum_count"], dtype=np.int64),
-    )

@@ -30,6 +30,15 @@ from quadrs import _core
 
 ScenarioError = _core.ScenarioError
 
+
+def scenario_error(message: str, key: str | None) -> ScenarioError:
+    """A :class:`ScenarioError` whose ``key`` attribute names the dotted key at fault (as
+    the engine's own do), None when no single key is."""
+    error = ScenarioError(message)
+    error.key = key
+    return error
+
+
 _PRESET_DIR = "presets"
 _BASE_KEY = "base"
 #: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
@@ -55,7 +64,7 @@ def presets() -> list[str]:
 def _preset_text(name: str) -> str:
     if name not in presets():
         raise ScenarioError(f"preset must be one of {presets()}, got {name!r}")
-    return resources.files("quadrs").joinpath(_PRESET_DIR, f"{name}.toml").read_text()
+    return resources.files("quadrs").joinpath(_PRESET_DIR).joinpath(f"{name}.toml").read_text()
 
 
 def base_preset(path: str | Path) -> str | None:
@@ -89,12 +98,12 @@ def parse_value(text: str) -> Any:
 def _split_key(key: str) -> list[str | int]:
     """``"phases[1].end"`` -> ["phases", 1, "end"]."""
     if not isinstance(key, str) or not key:
-        raise ScenarioError(f"scenario keys are dotted strings, got {key!r}")
+        raise scenario_error(f"scenario keys are dotted strings, got {key!r}", None)
     parts: list[str | int] = []
     for segment in key.split("."):
         m = _SEGMENT.match(segment)
         if m is None:
-            raise ScenarioError(f"{key}: not a valid dotted key (segment {segment!r})")
+            raise scenario_error(f"{key}: not a valid dotted key (segment {segment!r})", key)
         parts.append(m["name"])
         parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", m["index"]))
     return parts
@@ -119,7 +128,7 @@ def _plain(value: Any, key: str = "") -> Any:
         v, k, parent, slot, depth = stack.pop()
         where = k or "scenario"
         if depth > MAX_DEPTH:
-            raise ScenarioError(f"{where}: nested more than {MAX_DEPTH} levels deep")
+            raise scenario_error(f"{where}: nested more than {MAX_DEPTH} levels deep", k or None)
         if isinstance(v, Mapping):
             table: dict[str, Any] = {}
             parent[slot] = table
@@ -136,13 +145,14 @@ def _plain(value: Any, key: str = "") -> Any:
         if not isinstance(v, str | bytes) and hasattr(v, "item") and callable(v.item):
             v = v.item()  # numpy scalar
         if isinstance(v, float) and not math.isfinite(v):
-            raise ScenarioError(f"{where} must be a finite number, got {v!r}")
+            raise scenario_error(f"{where} must be a finite number, got {v!r}", k or None)
         if isinstance(v, int) and not isinstance(v, bool) and not -_INT_LIMIT <= v < _INT_LIMIT:
-            raise ScenarioError(f"{where} must be an integer within 64 bits, got {v}")
+            raise scenario_error(f"{where} must be an integer within 64 bits, got {v}", k or None)
         if not isinstance(v, bool | int | float | str):
-            raise ScenarioError(
+            raise scenario_error(
                 f"{where}: a scenario holds numbers, booleans, strings, arrays and tables, "
-                f"got {type(v).__name__} {v!r}"
+                f"got {type(v).__name__} {v!r}",
+                k or None,
             )
         parent[slot] = v
     return root[0]
@@ -156,15 +166,15 @@ def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str
     if base is None:
         return data
     if not isinstance(base, str):
-        raise ScenarioError(f"base must name a preset, got {base!r}")
+        raise scenario_error(f"base must name a preset, got {base!r}", "base")
     if base in chain:
-        raise ScenarioError(f"base: presets based on each other in a cycle: "
-                            f"{' -> '.join((*chain, base))}")  # fmt: skip
+        raise scenario_error(f"base: presets based on each other in a cycle: "
+                             f"{' -> '.join((*chain, base))}", "base")  # fmt: skip
     text = _preset_text(base)
     try:
         parent = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:  # pragma: no cover - shipped presets parse
-        raise ScenarioError(f"base: preset {base!r} is not valid TOML: {e}") from e
+        raise scenario_error(f"base: preset {base!r} is not valid TOML: {e}", "base") from e
     return _merge(_resolve_base(parent, (*chain, base)), data)
 
 
@@ -193,10 +203,11 @@ def _leaves(data: Mapping[str, Any], path: tuple[str, ...] = ()) -> dict[tuple[s
     """Every value below nested tables by its path; arrays (of tables too) are one value."""
     out: dict[tuple[str, ...], Any] = {}
     for k, v in data.items():
+        here = (*path, k)
         if isinstance(v, Mapping):
-            out.update(_leaves(v, (*path, k)))
+            out.update(_leaves(v, here))
         else:
-            out[(*path, k)] = v
+            out[here] = v
     return out
 
 
@@ -323,7 +334,9 @@ class Scenario:
                 path = Path(source).parent / path
             chain = _BASE_CHAIN.get()
             if path.resolve() in chain:
-                raise ScenarioError(f"base = {base!r} in {source}: a scenario file bases on itself")
+                raise scenario_error(
+                    f"base = {base!r} in {source}: a scenario file bases on itself", "base"
+                )
             token = _BASE_CHAIN.set((*chain, path.resolve()))
             try:
                 parent = cls.from_toml(path)
@@ -384,7 +397,7 @@ class Scenario:
                     parent = parent[part]
                 except (KeyError, IndexError, TypeError):
                     where = key if i == len(parts) - 2 else ".".join(map(str, parts[: i + 1]))
-                    raise ScenarioError(f"{key}: unknown scenario key ({where})") from None
+                    raise scenario_error(f"{key}: unknown scenario key ({where})", key) from None
             last = parts[-1]
             if isinstance(parent, dict) and isinstance(last, str):
                 if value is None:
@@ -394,7 +407,7 @@ class Scenario:
             elif isinstance(parent, list) and isinstance(last, int) and last < len(parent):
                 parent[last] = _plain(value, key)
             else:
-                raise ScenarioError(f"{key}: unknown scenario key")
+                raise scenario_error(f"{key}: unknown scenario key", key)
         return Scenario(data)
 
     # -- uncertain parameters -----------------------------------------------------------
@@ -460,7 +473,7 @@ class Scenario:
         return walk(self._data, "")
 
     @cached_property
-    def _derived(self) -> dict[str, Any]:
+    def _derived(self) -> _core.Description:
         return _core.describe(self.to_json())
 
     @property

@@ -23,7 +23,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from quadrs.scenario import Scenario, ScenarioError
+from quadrs.integrity import RunRecord
+from quadrs.parquet import read_frame, write_frame
+from quadrs.scenario import Scenario, scenario_error
 
 __all__ = ["GUST_FACTOR", "SensitivityResult", "sensitivity", "sobol_design", "sobol_indices"]
 
@@ -108,38 +110,22 @@ class SensitivityResult:
 
     def metadata(self) -> dict[str, Any]:
         """What produced the indices, with a run identity checked when read back."""
-        from quadrs import _core
-        from quadrs.integrity import run_identity
-
-        controllers = [str(c) for c in pd.unique(self.indices["controller"])]
+        controllers = tuple(str(c) for c in pd.unique(self.indices["controller"]))
         design = {"runs": self.runs, "parameters": list(self.parameters)}
-        return {
-            "version": _core.__version__,
-            "seed": self.seed,
-            "controllers": controllers,
-            "scenario": self.scenario.to_toml(),
-            "spectra": None,
-            "design": design,
-            "run": run_identity(self.scenario, self.seed, controllers, False, extra=design),
-        }
+        return RunRecord(self.scenario, self.seed, controllers, False, "design", design).metadata()
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``indices`` with what produced them in the file's metadata (atomically)."""
-        from quadrs.parquet import write_frame
-
         write_frame(self.indices, path, _META_KEY, self.metadata())
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> SensitivityResult:
         """Read a file written by :meth:`to_parquet` (its ``samples`` are not stored)."""
-        from quadrs.integrity import check_run_metadata
-        from quadrs.parquet import read_frame
-
         indices, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} holds no quadrs sensitivity indices")
         # Types, version and the run identity: a foreign or edited file is refused.
-        scenario = check_run_metadata(meta, path, {"design": dict}, extra_key="design")
+        scenario = RunRecord.read(meta, path, "design", {"design": dict}).scenario
         missing = set(INDEX_COLUMNS) - set(indices.columns)
         if missing:
             raise ValueError(f"{path} lacks the columns {sorted(missing)}")
@@ -176,15 +162,16 @@ def sensitivity(
     ``N * (k + 2)`` realisations per controller for k factors. The intervals shrink like
     1/sqrt(N): 256 gives about +/- 0.05 on a dominant key.
     """
+    from quadrs.chunk import run_range, runs_frame
     from quadrs.dispersion import dispersed_keys, distribution
-    from quadrs.flight import METRIC_COLUMNS, check_controller
-    from quadrs.montecarlo import default_workers, run_range
-    from quadrs.results import runs_frame
+    from quadrs.flight import METRIC_COLUMNS
+    from quadrs.guard import check_controller, default_workers
 
     keys = dispersed_keys(scenario)
     if not keys:
-        raise ScenarioError(
-            "sensitivity needs uncertain parameters: give the scenario a [dispersions] table"
+        raise scenario_error(
+            "sensitivity needs uncertain parameters: give the scenario a [dispersions] table",
+            "dispersions",
         )
     if runs < 2 or runs & (runs - 1):
         raise ValueError(f"runs must be a power of two >= 2 (Saltelli's design), got {runs}")

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core
-from quadrs.flight import check_controller
+from quadrs.guard import check_controller
 from quadrs.scenario import Scenario
 
 POLE_COLUMNS = ("real", "imag", "frequency_hz", "damping", "mode", "dominant", "status", "excited")

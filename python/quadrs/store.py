@@ -5,7 +5,9 @@ Layout of ``DIR``::
     DIR/_quadrs.json                 what the run is: scenario, seed, controllers, version,
                                      spectra on/off and the run identity they hash to
     DIR/part-<lo>-<hi>-<id>.parquet  the rows of some finished realisations, with the run
-                                     identity and their spectrum sums in the file's metadata
+                                     identity in the file's metadata and the name, hash and
+                                     counts of their spectrum table
+    DIR/spectra-<lo>-<hi>-<hash>.parquet  that table (:func:`quadrs.chunk.save_spectra`)
 
 A part is written to a hidden temporary file and renamed into place, so a killed process
 leaves either a whole part or none. The manifest is created exclusively: of two runs started
@@ -27,16 +29,9 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from quadrs import _core
-from quadrs.integrity import (
-    CorruptRunError,
-    check_rows,
-    check_run_metadata,
-    check_spectra,
-    run_identity,
-)
+from quadrs.chunk import Chunk, SpectrumSums, load_spectra, save_spectra
+from quadrs.integrity import CorruptRunError, RunRecord, check_rows
 from quadrs.parquet import atomic_create, read_frame, read_meta, write_frame
-from quadrs.results import MonteCarloResult, SpectrumSums
 from quadrs.scenario import Scenario
 
 MANIFEST = "_quadrs.json"
@@ -49,7 +44,7 @@ class RunStore:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         self._checked: dict[str, Any] | None = None  # the manifest, once validated
-        self._scenario = Scenario.paper()  # replaced by the manifest's on validation
+        self._record: RunRecord | None = None  # what it says, once validated
 
     @property
     def manifest_path(self) -> Path:
@@ -76,15 +71,9 @@ class RunStore:
         self.path.mkdir(parents=True, exist_ok=True)
         for leftover in self.path.glob(".*.partial"):  # a write cut short by a kill
             leftover.unlink()
-        manifest = {
-            "version": _core.__version__,
-            "seed": seed,
-            "controllers": list(controllers),
-            "scenario": scenario.to_toml(),
-            "spectra": bool(spectra),
-            "design": design or {"sampling": "random"},
-            "run": run_identity(scenario, seed, controllers, spectra, extra=_design(design)),
-        }
+        record = RunRecord(scenario, seed, tuple(controllers), bool(spectra), "design",
+                           _design(design))  # fmt: skip
+        manifest = record.metadata()
         try:
             atomic_create(self.manifest_path, json.dumps(manifest, indent=1).encode())
         except FileExistsError:
@@ -105,11 +94,17 @@ class RunStore:
             m = json.loads(text)
         except ValueError:
             raise CorruptRunError(f"{str(self.manifest_path)!r} is not valid JSON") from None
-        self._scenario = check_run_metadata(
-            m, self.manifest_path, {"spectra": bool, "design": dict}, extra_key="design"
-        )
+        self._record = RunRecord.read(m, self.manifest_path, "design",
+                                      {"spectra": bool, "design": dict})  # fmt: skip
         self._checked = m
         return m
+
+    @property
+    def record(self) -> RunRecord:
+        """What the run is (from the validated manifest)."""
+        self.manifest()
+        assert self._record is not None
+        return self._record
 
     @property
     def run(self) -> str:
@@ -128,7 +123,7 @@ class RunStore:
         (a random-sampled run may be extended; a design (lhs, sobol) is fixed by its batch)."""
         m = self.manifest()
         for what, ours, saved in (
-            ("scenario", scenario, self._scenario),
+            ("scenario", scenario, self.record.scenario),
             ("seed", seed, m["seed"]),
             ("controllers", list(controllers), m["controllers"]),
             ("spectra setting", bool(spectra), m["spectra"]),
@@ -137,14 +132,19 @@ class RunStore:
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
 
-    def write_part(self, runs: pd.DataFrame, spectra: SpectrumSums | None) -> None:
-        """Append the rows of finished realisations (no-op for an empty frame)."""
+    def write_part(self, chunk: Chunk) -> None:
+        """Append the rows of a chunk's finished realisations (no-op if none finished): its
+        spectrum table first, then the part that names it, so a part is never without it."""
+        runs = chunk.runs
         if runs.empty:
             return
         real = runs["realisation"]
-        name = f"part-{real.min():09d}-{real.max():09d}-{uuid.uuid4().hex[:8]}.parquet"
-        meta = {"run": self.run, "spectra": spectra.to_json() if spectra else None}
-        write_frame(runs, self.path / name, _PART_KEY, meta)
+        span = f"{real.min():09d}-{real.max():09d}"
+        part = self.path / f"part-{span}-{uuid.uuid4().hex[:8]}.parquet"
+        spectra = None
+        if chunk.spectra is not None:
+            spectra = save_spectra(chunk.spectra, part, f"spectra-{span}", self.record)
+        write_frame(runs, part, _PART_KEY, {"run": self.run, "spectra": spectra})
 
     def _part_meta(self, part: Path) -> dict[str, Any]:
         """A part's metadata, refused unless it carries this run's identity."""
@@ -166,18 +166,17 @@ class RunStore:
 
     def load(self) -> tuple[pd.DataFrame | None, SpectrumSums | None]:
         """All rows so far (sorted by realisation, duplicates dropped) and the summed spectra."""
-        frames, sums = [], None
-        m = self.manifest()
-        phases = self._scenario.phase_names
+        frames: list[pd.DataFrame] = []
+        sums: SpectrumSums | None = None
+        record = self.record
         for part in self.parts():
             self._part_meta(part)
             frame, meta = read_frame(part, _PART_KEY)
-            check_rows(frame, part, m["controllers"], phases)
+            check_rows(frame, part, record.controllers, record.scenario.phase_names)
             frames.append(frame)
             raw = meta.get("spectra") if isinstance(meta, dict) else None
-            if raw is not None:
-                check_spectra(raw, part, len(m["controllers"]), len(phases))
-                s = SpectrumSums.from_json(raw)
+            s = load_spectra(raw, part, record)
+            if s is not None:
                 sums = s if sums is None else sums + s
         if not frames:
             return None, sums
@@ -195,18 +194,6 @@ class RunStore:
             col = pq.read_table(part, columns=["realisation"]).column("realisation")
             done.update(np.unique(col.to_numpy()).tolist())
         return done
-
-    def result(self, interrupted: bool = False) -> MonteCarloResult:
-        m = self.manifest()
-        runs, sums = self.load()
-        controllers = tuple(m["controllers"])
-        scenario = self._scenario
-        if runs is None:
-            runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
-        sampling = str(m.get("design", {}).get("sampling", "random"))
-        return MonteCarloResult(
-            scenario, int(m["seed"]), controllers, runs, sums, interrupted, sampling
-        )
 
 
 def _design(design: dict[str, Any] | None) -> dict[str, Any]:

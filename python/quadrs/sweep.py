@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from quadrs import _core
-from quadrs.integrity import CorruptRunError, check_run_metadata, run_identity
+from quadrs.integrity import CorruptRunError, RunRecord
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
@@ -211,17 +210,13 @@ class SweepResult:
         return frame
 
     # -- persistence ----------------------------------------------------------------------
+    @property
+    def record(self) -> RunRecord:
+        """What this sweep is, as its file records it (the grid fixes its rows too)."""
+        return RunRecord(self.scenario, self.seed, self.controllers, False, "grid", self.grid)
+
     def metadata(self) -> dict[str, Any]:
-        return {
-            "version": _core.__version__,
-            "seed": self.seed,
-            "controllers": list(self.controllers),
-            "grid": self.grid,
-            "scenario": self.scenario.to_toml(),
-            "interrupted": self.interrupted,
-            "spectra": False,
-            "run": run_identity(self.scenario, self.seed, self.controllers, False, extra=self.grid),
-        }
+        return self.record.metadata(interrupted=self.interrupted)
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the base scenario, grid, seed and quadrs version in the file's
@@ -234,17 +229,15 @@ class SweepResult:
         runs, meta = read_frame(path, _META_KEY)
         if meta is None:
             raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
-        scenario = check_run_metadata(
-            meta, path, {"interrupted": bool, "grid": dict}, extra_key="grid"
-        )
+        record = RunRecord.read(meta, path, "grid", {"interrupted": bool, "grid": dict})
         grid = meta["grid"]
         if not all(isinstance(v, list) for v in grid.values()):
             raise CorruptRunError(f"{str(path)!r}: metadata 'grid' must map keys to lists")
         return cls(
-            scenario=scenario,
+            scenario=record.scenario,
             grid={k: list(v) for k, v in grid.items()},
-            seed=meta["seed"],
-            controllers=tuple(meta["controllers"]),
+            seed=record.seed,
+            controllers=record.controllers,
             runs=runs,
             interrupted=meta["interrupted"],
         )

@@ -56,9 +56,16 @@ mod _core {
 
     #[pymodule_init]
     fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
-        m.add("ScenarioError", m.py().get_type::<ScenarioError>())?;
+        let scenario_error = m.py().get_type::<ScenarioError>();
+        // `key`: the dotted scenario key at fault (None unless the raiser names one).
+        scenario_error.setattr("key", m.py().None())?;
+        m.add("ScenarioError", scenario_error)?;
         m.add("EngineError", m.py().get_type::<EngineError>())?;
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        m.add(
+            "CONTROLLER_NAMES",
+            ControllerKind::ALL.map(ControllerKind::name).to_vec(),
+        )?;
         m.add("TRACE_COLUMNS", TRACE_COLUMNS.to_vec())?;
         m.add("STATE_NAMES", STATE_NAMES.to_vec())?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))
@@ -75,8 +82,15 @@ mod _core {
         )
     }
 
+    /// ScenarioError with the message, and the offending dotted key as its `key` attribute.
     fn scenario_error(e: ConfigError) -> PyErr {
-        ScenarioError::new_err(e.message)
+        Python::attach(|py| {
+            let err = ScenarioError::new_err(e.message);
+            match err.value(py).setattr("key", e.key) {
+                Ok(()) => err,
+                Err(failed) => failed,
+            }
+        })
     }
 
     fn engine(config_json: &str) -> PyResult<Engine> {

@@ -38,6 +38,9 @@ pub enum ControllerKind {
 }
 
 impl ControllerKind {
+    /// Every controller, in the order the Python layer lists them.
+    pub const ALL: [Self; 2] = [Self::Pd, Self::Smc];
+
     pub fn parse(name: &str) -> Result<Self, String> {
         match name {
             "pd" => Ok(Self::Pd),

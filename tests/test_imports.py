@@ -1,0 +1,119 @@
+"""The package's import graph has no cycles, lazy (in-function) imports included.
+
+Every module under python/quadrs is parsed with ``ast``; each ``import quadrs...`` and
+``from quadrs... import ...`` anywhere in it (module level, in functions, in try/except)
+becomes an edge, except those under ``if TYPE_CHECKING:``, which never run. A cycle is
+reported as the chain of modules that closes it.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = "quadrs"
+ROOT = Path(__file__).resolve().parent.parent / "python" / PACKAGE
+
+
+def module_names() -> dict[str, Path]:
+    """Module name -> source; a compiled module (the engine) by its stub, a leaf."""
+    names = {}
+    for path in sorted([*ROOT.rglob("*.py"), *ROOT.rglob("*.pyi")]):
+        parts = path.relative_to(ROOT.parent).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        names.setdefault(".".join(parts), path)
+    return names
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _runtime_nodes(tree: ast.AST):
+    """Every node except the bodies of ``if TYPE_CHECKING:`` blocks."""
+    stack = [tree]
+    while stack:
+        node = stack.pop()
+        yield node
+        if isinstance(node, ast.If) and _is_type_checking(node.test):
+            stack.extend(node.orelse)
+            continue
+        stack.extend(ast.iter_child_nodes(node))
+
+
+def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The package modules `name` imports when it runs (any depth, any function)."""
+    if path.suffix == ".pyi":
+        return set()
+    is_package = path.name == "__init__.py"
+    found: set[str] = set()
+    for node in _runtime_nodes(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = name.split(".")
+                anchor = anchor if is_package else anchor[:-1]
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join([*anchor, base] if base else anchor)
+            # `from quadrs import plots` imports the submodule; `from quadrs import Flight`
+            # imports the package itself
+            targets = [
+                f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base
+                for alias in node.names
+            ]
+        else:
+            continue
+        for target in targets:
+            # `import quadrs.results.x` means the longest known module on that path
+            while target and target not in modules:
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                found.add(target)
+    return found
+
+
+def import_graph() -> dict[str, set[str]]:
+    modules = module_names()
+    return {name: imports_of(name, path, modules) for name, path in modules.items()}
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle as [a, b, ..., a], or None when the graph is acyclic (iterative DFS)."""
+    state: dict[str, int] = {}  # 1 on the current path, 2 finished
+    for start in sorted(graph):
+        if start in state:
+            continue
+        path = [start]
+        iters = [iter(sorted(graph[start]))]
+        state[start] = 1
+        while path:
+            nxt = next(iters[-1], None)
+            if nxt is None:
+                state[path.pop()] = 2
+                iters.pop()
+            elif state.get(nxt) == 1:
+                return [*path[path.index(nxt) :], nxt]
+            elif nxt not in state:
+                state[nxt] = 1
+                path.append(nxt)
+                iters.append(iter(sorted(graph.get(nxt, ()))))
+    return None
+
+
+def test_the_walker_sees_lazy_imports_and_finds_cycles():
+    graph = import_graph()
+    assert "quadrs.flight" in graph and "quadrs.scenario" in graph["quadrs.flight"]
+    # cli imports its commands' modules inside functions only
+    assert "quadrs.sweep" in graph["quadrs.cli"]
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_no_import_cycles():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
