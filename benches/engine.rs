@@ -13,7 +13,7 @@
 use _core::config::Config;
 use _core::control::ControllerKind;
 use _core::integrate::{Engine, FlightRequest, SET_LANES};
-use _core::simd::Isa;
+use _core::lane::isa::Isa;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rustfft::FftPlanner;
 use std::hint::black_box;

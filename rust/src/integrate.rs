@@ -4,12 +4,12 @@
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
+use crate::lane::isa::Isa;
 #[cfg(target_arch = "x86_64")]
 use crate::lane::F64x4Avx;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
-use crate::simd::Isa;
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -13,7 +13,6 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
-pub mod simd;
 pub mod stability;
 pub mod trajectory;
 
@@ -114,7 +113,7 @@ mod _core {
     /// bit-identical results.
     #[pyfunction]
     fn simd_path() -> &'static str {
-        crate::simd::Isa::active().name()
+        crate::lane::isa::Isa::active().name()
     }
 
     #[pyfunction]

@@ -378,7 +378,7 @@ mod tests {
 
     #[test]
     fn a_dispersed_row_equals_the_single_flight_of_its_drawn_scenario() {
-        use crate::simd::Isa;
+        use crate::lane::isa::Isa;
         let cfg = short();
         let keys: Vec<String> = [
             "payload.mass",

@@ -3,7 +3,7 @@
 //! The flight loop (`Engine::fly`) is compiled twice from the same source: for baseline x86-64
 //! (SSE2, what every wheel must run on) and with AVX2 enabled (`#[target_feature]`), and the
 //! best one the CPU supports is used. FMA is deliberately not used: every lane operation stays a
-//! single IEEE-754 operation, so both builds give bit-identical results (see `lane.rs`), and a
+//! single IEEE-754 operation, so both builds give bit-identical results (see `lane/mod.rs`), and a
 //! realisation's numbers do not depend on the machine that flew it.
 //!
 //! `QUADRS_SIMD=baseline` (or `avx2`) in the environment forces a path, for benchmarks and
