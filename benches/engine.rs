@@ -5,14 +5,15 @@
 //! Throughput is reported in realisation-steps (one RK4 step of one realisation under one
 //! controller): `elem/s` in criterion's output. Benches:
 //! - `single_flight/scalar`: `Engine::fly::<f64>`, one realisation (the `simulate` path);
-//! - `lane_set/<isa>`: `Engine::fly_set`, four realisations at once (the Monte Carlo path),
-//!   once per instruction set this CPU supports (`baseline` = SSE2, `avx2`).
+//! - `lane_set/<isa>`: `Engine::fly_set`, one lane-set at once (the Monte Carlo path: four
+//!   realisations, eight on `avx512`), once per instruction set this CPU supports (`baseline` =
+//!   SSE2, `avx2`, `avx512`); the ones it cannot run are named and skipped.
 //!
 //! Both controllers are flown in turn (PD then SMC), as a paired realisation is.
 
 use _core::config::Config;
 use _core::control::ControllerKind;
-use _core::integrate::{Engine, FlightRequest, SET_LANES};
+use _core::integrate::{Engine, FlightRequest};
 use _core::lane::isa::Isa;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rustfft::FftPlanner;
@@ -54,15 +55,17 @@ fn lane_set(c: &mut Criterion) {
     let mut planner = FftPlanner::new();
     let mut g = c.benchmark_group("lane_set");
     g.sample_size(10).measurement_time(Duration::from_secs(4));
-    g.throughput(Throughput::Elements(
-        (KINDS.len() * SET_LANES * engine.steps) as u64,
-    ));
-    for isa in [Isa::Baseline, Isa::Avx2] {
+    for isa in Isa::ALL {
         if !isa.supported() {
+            eprintln!("lane_set/{}: skipped, this CPU cannot run it", isa.name());
             continue;
         }
         engine.isa = isa;
-        let indices: Vec<u64> = (0..SET_LANES as u64).collect();
+        let lanes = engine.set_lanes();
+        g.throughput(Throughput::Elements(
+            (KINDS.len() * lanes * engine.steps) as u64,
+        ));
+        let indices: Vec<u64> = (0..lanes as u64).collect();
         g.bench_with_input(
             BenchmarkId::from_parameter(isa.name()),
             &indices,

@@ -5,9 +5,9 @@ use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
 use crate::lane::isa::Isa;
-#[cfg(target_arch = "x86_64")]
-use crate::lane::F64x4Avx;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
+#[cfg(target_arch = "x86_64")]
+use crate::lane::{F64x4Avx, F64x8Avx512};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
@@ -222,18 +222,21 @@ pub struct Engine {
     prescribed_wind: Option<Vec<[f64; 3]>>,
 }
 
-/// Most lanes a `Lane` type may carry (sizes the per-step wind buffer).
-const MAX_LANES: usize = 8;
-
-/// Realisations per lane-set of the batch path (`Engine::fly_set`).
-pub const SET_LANES: usize = 4;
+/// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
+pub const MAX_LANES: usize = 8;
 
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
 impl Engine {
+    /// The engine of a scenario, on the instruction set `Isa::active()` picks (an error
+    /// under key `QUADRS_SIMD` if that variable forces a path this CPU cannot run).
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        let isa = Isa::active().map_err(|message| ConfigError {
+            key: crate::lane::isa::ENV.into(),
+            message,
+        })?;
         let dt = cfg.integrator.dt;
         let steps = cfg.steps();
         let decimation = ((1.0 / (cfg.metrics.spectrum_rate * dt)).round() as usize).max(1);
@@ -245,7 +248,7 @@ impl Engine {
             dt,
             decimation,
             cfg,
-            isa: Isa::active(),
+            isa,
             prescribed_wind: None,
         })
     }
@@ -287,9 +290,53 @@ impl Engine {
         crate::metrics::spectrum_grid(&self.phases, self.dt, self.decimation, self.steps)
     }
 
+    /// Realisations per lane-set of the batch path (`fly_set`): the widest vector of
+    /// `self.isa` (8 with AVX-512, else 4).
+    pub fn set_lanes(&self) -> usize {
+        self.isa.set_lanes()
+    }
+
     /// Fly `req.indices` (one per lane of `L`) on lane type `L`, with a trace of lane 0 if
     /// asked. Returns None if cancelled.
     pub fn fly<L: KernelOps>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        self.fly_on::<L>(req, trace, planner)
+    }
+
+    /// Fly `set_lanes()` realisations at once on the widest SIMD lane type of this engine's
+    /// instruction set (`self.isa`): the batch path. Every path gives bit-identical numbers.
+    pub fn fly_set(
+        &self,
+        req: &FlightRequest,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert_eq!(
+            req.indices.len(),
+            self.set_lanes(),
+            "one realisation index per lane"
+        );
+        // The intrinsic lane types below are only ever flown by `fly_on`, which enters the loop
+        // compiled for (and checked to run on) `self.isa`.
+        match self.isa {
+            Isa::Baseline => self.fly_on::<F64x4>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => self.fly_on::<F64x4Avx>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => self.fly_on::<F64x8Avx512>(req, None, planner),
+            #[cfg(not(target_arch = "x86_64"))]
+            Isa::Avx2 | Isa::Avx512 => unreachable!("{:?} off x86-64", self.isa),
+        }
+    }
+
+    /// The one instruction-set dispatch: fly on lane type `L` inside the flight loop compiled
+    /// for `self.isa` (`fly_any` and everything it inlines, the whole model, controller and
+    /// integrator, becomes VEX or EVEX code). Refuses, rather than risks an illegal
+    /// instruction, a path the CPU cannot run.
+    fn fly_on<L: KernelOps>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -301,44 +348,44 @@ impl Engine {
             "one realisation index per lane"
         );
         assert!(L::LANES <= MAX_LANES);
+        assert!(
+            self.isa.supported(),
+            "the {} path does not run on this CPU",
+            self.isa.name()
+        );
         #[cfg(target_arch = "x86_64")]
-        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.fly_avx2::<L>(req, trace, planner) };
+        match self.isa {
+            // SAFETY (both): the CPU supports the path (asserted just above).
+            Isa::Avx2 => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
+            Isa::Avx512 => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
+            Isa::Baseline => {}
         }
         self.fly_any::<L>(req, trace, planner)
     }
 
-    /// Fly `SET_LANES` realisations at once on the fastest SIMD path this engine may use
-    /// (`self.isa`): the batch path. Every path gives bit-identical numbers.
-    pub fn fly_set(
-        &self,
-        req: &FlightRequest,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        assert_eq!(
-            req.indices.len(),
-            SET_LANES,
-            "one realisation index per lane"
-        );
-        #[cfg(target_arch = "x86_64")]
-        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
-            // SAFETY: the CPU supports AVX2 (checked just above); F64x4Avx values exist only
-            // inside this call.
-            return unsafe { self.fly_avx2::<F64x4Avx>(req, None, planner) };
-        }
-        self.fly_any::<F64x4>(req, None, planner)
-    }
-
-    /// The flight loop compiled with AVX2 enabled: `fly_any` and everything it inlines (the
-    /// whole model, controller and integrator) become VEX code, 256-bit with `F64x4Avx`.
-    /// No FMA: see `simd.rs`.
+    /// `fly_any` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn fly_avx2<L: KernelOps>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        self.fly_any::<L>(req, trace, planner)
+    }
+
+    /// `fly_any` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in the
+    /// default mode: the lane operations never fuse, whatever the enabled features.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F and AVX-512DQ.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512dq")]
+    unsafe fn fly_avx512<L: KernelOps>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -747,23 +794,32 @@ mod tests {
         };
         for kind in [ControllerKind::Pd, ControllerKind::Smc] {
             let mut runs = Vec::new();
-            for isa in [Isa::Baseline, Isa::Avx2] {
+            // Realisations 3..11: two lane-sets of four, or one of eight (AVX-512).
+            let indices: Vec<u64> = (3..3 + MAX_LANES as u64).collect();
+            for isa in Isa::ALL {
                 if !isa.supported() {
+                    eprintln!("skipped the {} path: this CPU cannot run it", isa.name());
                     continue;
                 }
                 engine.isa = isa;
-                let req = FlightRequest::new(kind, 7, &[3, 4, 5, 6]);
-                runs.push(engine.fly_set(&req, &mut planner).unwrap());
-                runs.push(engine.fly::<F64x4>(&req, None, &mut planner).unwrap());
-                let scalar: Vec<LaneResult> = [3u64, 4, 5, 6]
-                    .iter()
-                    .map(|&i| {
-                        let req = FlightRequest::new(kind, 7, std::slice::from_ref(&i));
-                        let r = engine.fly::<f64>(&req, None, &mut planner);
-                        r.unwrap().remove(0)
-                    })
-                    .collect();
-                runs.push(scalar);
+                let flown = |f: &mut dyn FnMut(&FlightRequest) -> Vec<LaneResult>, n| {
+                    let sets = indices.chunks(n);
+                    sets.flat_map(|set| f(&FlightRequest::new(kind, 7, set)))
+                        .collect::<Vec<_>>()
+                };
+                let set_lanes = engine.set_lanes();
+                runs.push(flown(
+                    &mut |req| engine.fly_set(req, &mut planner).unwrap(),
+                    set_lanes,
+                ));
+                runs.push(flown(
+                    &mut |req| engine.fly::<F64x4>(req, None, &mut planner).unwrap(),
+                    4,
+                ));
+                runs.push(flown(
+                    &mut |req| engine.fly::<f64>(req, None, &mut planner).unwrap(),
+                    1,
+                ));
             }
             // Bit-identical across lane types, packings and instruction sets (no FMA anywhere).
             for r in &runs[1..] {

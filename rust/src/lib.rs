@@ -78,7 +78,14 @@ mod _core {
         ScenarioError::new_err(e.message)
     }
 
+    /// The instruction set new engines use: an error (RuntimeError) if QUADRS_SIMD forces one
+    /// this CPU cannot run or names none.
+    fn isa() -> PyResult<crate::lane::isa::Isa> {
+        crate::lane::isa::Isa::active().map_err(pyo3::exceptions::PyRuntimeError::new_err)
+    }
+
     fn engine(config_json: &str) -> PyResult<Engine> {
+        isa()?;
         let cfg = Config::from_json(config_json).map_err(scenario_error)?;
         Engine::new(cfg).map_err(scenario_error)
     }
@@ -108,12 +115,12 @@ mod _core {
     }
 
     /// Validate a scenario; return the quantities derived from it.
-    /// The instruction set the engine's hot loop uses on this machine ("avx2" or "baseline"),
-    /// chosen at run time (QUADRS_SIMD=baseline forces the portable one). Every path gives
-    /// bit-identical results.
+    /// The instruction set the engine's hot loop uses on this machine ("avx512", "avx2" or
+    /// "baseline"), chosen at run time; QUADRS_SIMD=baseline|avx2|avx512 forces one (an error
+    /// if this CPU cannot run it). Every path gives bit-identical results in the default mode.
     #[pyfunction]
-    fn simd_path() -> &'static str {
-        crate::lane::isa::Isa::active().name()
+    fn simd_path() -> PyResult<&'static str> {
+        isa().map(|i| i.name())
     }
 
     #[pyfunction]
@@ -475,7 +482,7 @@ mod _core {
             count as u128 * (row + kinds.len() + 1) as u128,
             8,
         )
-        .and_then(|()| flight_memory(&e, crate::montecarlo::LANES, workers))
+        .and_then(|()| flight_memory(&e, e.set_lanes(), workers))
         .map_err(PyMemoryError::new_err)?;
         let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
             (true, None) => None,

@@ -4,11 +4,14 @@
 //!
 //! - `F64x4`: four realisations in two SSE2 registers (SSE2 is part of every x86-64 CPU).
 //! - `F64x4Avx` (crate-private): the same four lanes in one AVX register.
+//! - `F64x8Avx512` (crate-private): eight lanes in one AVX-512 register.
 //!
-//! Every operation of `F64x4Avx` executes AVX/AVX2 instructions: values of it may only exist on
-//! a CPU that has AVX2 (the engine creates them only inside its flight loop compiled with
-//! `#[target_feature(enable = "avx2")]`, entered after a run-time check). All `unsafe` blocks
-//! the template expands to rely on that invariant (for `F64x4`: on SSE2 being baseline). For
+//! Every operation of `F64x4Avx` executes AVX/AVX2 instructions, every one of `F64x8Avx512`
+//! AVX-512F/DQ instructions: values of them may only exist on a CPU that has those (the engine
+//! creates them only inside its flight loop compiled with the matching
+//! `#[target_feature(enable = ...)]`, entered after a run-time check: `Engine::fly_on`). All
+//! `unsafe` blocks the template expands to rely on that invariant (for `F64x4`: on SSE2 being
+//! baseline). For
 //! speed every method is `#[inline(always)]`, so that it lands in the target-feature-compiled
 //! flight loop; an operation left out of line there would still be correct, only slow.
 
@@ -263,6 +266,47 @@ mod avx2 {
     }
 }
 
+/// The irregular AVX-512 operations; callers guarantee AVX-512F and DQ. Comparisons give a
+/// bit mask (`__mmask8`); the kernels' masks are vectors, converted by `vector` and `mask`
+/// (both AVX-512DQ), which keeps the template, and so the arithmetic, identical to AVX2's.
+mod avx512 {
+    use std::arch::x86_64::*;
+
+    #[inline(always)]
+    unsafe fn vector(k: __mmask8) -> __m512d {
+        _mm512_castsi512_pd(_mm512_movm_epi64(k))
+    }
+    /// The sign bit of each lane: what `_mm256_blendv_pd` reads of its mask.
+    #[inline(always)]
+    unsafe fn mask(m: __m512d) -> __mmask8 {
+        _mm512_movepi64_mask(_mm512_castpd_si512(m))
+    }
+    #[inline(always)]
+    pub unsafe fn cmp<const P: i32>(a: __m512d, b: __m512d) -> __m512d {
+        vector(_mm512_cmp_pd_mask::<P>(a, b))
+    }
+    #[inline(always)]
+    pub unsafe fn select(m: __m512d, a: __m512d, b: __m512d) -> __m512d {
+        _mm512_mask_blend_pd(mask(m), b, a)
+    }
+    #[inline(always)]
+    pub unsafe fn add_epi64(a: __m512d, b: __m512d) -> __m512d {
+        _mm512_castsi512_pd(_mm512_add_epi64(
+            _mm512_castpd_si512(a),
+            _mm512_castpd_si512(b),
+        ))
+    }
+    #[inline(always)]
+    pub unsafe fn shl62(a: __m512d) -> __m512d {
+        _mm512_castsi512_pd(_mm512_slli_epi64::<62>(_mm512_castpd_si512(a)))
+    }
+    /// Bit `i` set where lane `i` has `a <= b` (false for NaN).
+    #[inline(always)]
+    pub unsafe fn le_bits(a: __m512d, b: __m512d) -> u32 {
+        _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a, b) as u32
+    }
+}
+
 x86_lane! {
     /// Four realisations in two SSE2 registers (baseline x86-64).
     pub struct F64x4([__m128d; regs [0, 1], 2 per register]);
@@ -288,4 +332,19 @@ x86_lane! {
     cmp_ne = _mm256_cmp_pd::<_CMP_NEQ_UQ>,
     select = avx2::select, add_epi64 = avx2::add_epi64, shl62 = avx2::shl62,
     le_bits = avx2::le_bits,
+}
+
+x86_lane! {
+    /// Eight realisations in one AVX-512 register: needs AVX-512F and DQ (see the module
+    /// documentation).
+    pub(crate) struct F64x8Avx512([__m512d; regs [0], 8 per register]);
+    lanes = [0, 1, 2, 3, 4, 5, 6, 7];
+    set1 = _mm512_set1_pd, load = _mm512_loadu_pd, store = _mm512_storeu_pd,
+    add = _mm512_add_pd, sub = _mm512_sub_pd, mul = _mm512_mul_pd, div = _mm512_div_pd,
+    sqrt = _mm512_sqrt_pd, max = _mm512_max_pd, min = _mm512_min_pd,
+    and = _mm512_and_pd, xor = _mm512_xor_pd,
+    cmp_le = avx512::cmp::<_CMP_LE_OQ>, cmp_ge = avx512::cmp::<_CMP_GE_OQ>,
+    cmp_ne = avx512::cmp::<_CMP_NEQ_UQ>,
+    select = avx512::select, add_epi64 = avx512::add_epi64, shl62 = avx512::shl62,
+    le_bits = avx512::le_bits,
 }
