@@ -19,6 +19,8 @@ from quadrs import _core
 from quadrs.scenario import Scenario
 
 CONTROLLERS = ("pd", "smc")
+#: The engine's arithmetic modes: "exact" (default) and "fused" (fused multiply-adds).
+ARITHMETIC = ("exact", "fused")
 
 
 class CorruptRunError(ValueError):
@@ -44,9 +46,14 @@ def run_identity(
     spectra: bool,
     version: str | None = None,
     extra: Any = None,
+    arithmetic: str = "exact",
 ) -> str:
     """The identity (hex SHA-256) of a run; see the module docstring. ``extra``: anything
-    else (JSON-able) that determines the rows, e.g. a sweep's grid."""
+    else (JSON-able) that determines the rows, e.g. a sweep's grid. ``arithmetic``: "exact"
+    (the default mode, bit-identical on every machine) or "fused" (``monte_carlo(fused=True)``);
+    only a fused run hashes it, so the identities of exact runs are what they always were."""
+    if arithmetic not in ARITHMETIC:
+        raise ValueError(f"arithmetic must be one of {ARITHMETIC}, got {arithmetic!r}")
     doc = {
         "extra": _canonical(extra),
         "scenario": _canonical(scenario.to_dict()),
@@ -55,6 +62,8 @@ def run_identity(
         "spectra": bool(spectra),
         "version": _core.__version__ if version is None else version,
     }
+    if arithmetic != "exact":
+        doc["arithmetic"] = arithmetic
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
@@ -103,7 +112,11 @@ def check_run_metadata(
     spectra = meta.get("spectra", True)
     has_spectra = spectra is not None and spectra is not False
     extra = meta.get(extra_key) if extra_key else None
-    run = run_identity(scenario, meta["seed"], ctrls, has_spectra, extra=extra)
+    arithmetic = meta.get("arithmetic", "exact")
+    if arithmetic not in ARITHMETIC:
+        raise _fail(path, f"metadata 'arithmetic' must be one of {ARITHMETIC}, got {arithmetic!r}")
+    run = run_identity(scenario, meta["seed"], ctrls, has_spectra, extra=extra,
+                       arithmetic=arithmetic)  # fmt: skip
     if meta["run"] != run:
         raise _fail(path, "its run identity does not match its scenario, seed and controllers "
                           "(edited metadata?)")  # fmt: skip

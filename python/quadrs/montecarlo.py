@@ -83,6 +83,7 @@ def run_range(
     on_progress: Callable[[int], None] | None = None,
     values: pd.DataFrame | None = None,
     streams: np.ndarray | None = None,
+    fused: bool = False,
 ) -> tuple[dict[str, Any], bool]:
     """Run realisations first..first+count in the engine (GIL released, on a worker thread)
     while this thread polls progress and turns Ctrl-C into a cancel. ``values``: the
@@ -107,6 +108,7 @@ def run_range(
             dispersion_keys=keys,
             dispersion_values=table,
             streams=streams,
+            fused=fused,
         )
 
     poll = None if on_progress is None else lambda: on_progress(progress.done())
@@ -156,6 +158,7 @@ def monte_carlo(
     chunk: int | None = None,
     client: Client | None = None,
     sampling: str = "random",
+    fused: bool = False,
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
@@ -177,6 +180,13 @@ def monte_carlo(
     realisation i depend only on (seed, i)), ``"lhs"`` or ``"sobol"`` (one stratified design
     over the batch's ``runs`` realisations from (seed, runs)). Every controller of a
     realisation flies the same values and the same gust; see docs/dispersions.md.
+
+    ``fused=True``: the opt-in fused mode, faster on CPUs with FMA (AVX2+FMA or AVX-512): the
+    engine fuses multiply-adds, so its numbers differ from the default mode's in the last
+    digits (about 1e-12 relative on the paper preset) and are not bit-identical across
+    instruction sets. The result says so (``result.arithmetic == "fused"``, also in saved
+    metadata and the run identity). Not yet with ``out=`` or ``client=``. See
+    docs/performance.md.
     """
     from tqdm.auto import tqdm
 
@@ -205,6 +215,13 @@ def monte_carlo(
     if sampling not in SAMPLINGS:
         raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
     design = Design(sampling, first, runs)
+    if not isinstance(fused, bool):
+        raise ValueError(f"fused must be True or False, got {fused!r}")
+    if fused and (out is not None or client is not None):
+        raise ValueError(
+            "fused=True is not supported with out= or client= (checkpointed and Dask runs "
+            "record only the default arithmetic); drop one of them"
+        )
 
     # Say so before a long batch starts on gains that cannot hold hover (MODEL.md section 6)
     # or on a step too coarse for the fastest mode.
@@ -266,6 +283,7 @@ def monte_carlo(
                     spectra,
                     on_progress=lambda done, base=base: bar.update(base + done - bar.n),
                     values=values,
+                    fused=fused,
                 )
                 pending.append(
                     (
@@ -315,4 +333,5 @@ def monte_carlo(
         spectrum_sums=functools.reduce(operator.add, sums) if sums else None,
         interrupted=interrupted,
         sampling=sampling,
+        arithmetic="fused" if fused else "exact",
     )

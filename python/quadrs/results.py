@@ -96,6 +96,9 @@ class MonteCarloResult:
     interrupted: bool = False
     #: How the dispersed values were drawn ("random", "lhs", "sobol").
     sampling: str = "random"
+    #: The engine's arithmetic: "exact" (default; bit-identical on every machine) or "fused"
+    #: (``monte_carlo(fused=True)``: fused multiply-adds, faster, not bit-identical).
+    arithmetic: str = "exact"
 
     @property
     def dispersed_keys(self) -> list[str]:
@@ -226,6 +229,7 @@ class MonteCarloResult:
             "scenario": self.scenario.to_toml(),
             "interrupted": self.interrupted,
             "sampling": self.sampling,
+            "arithmetic": self.arithmetic,
             "spectra": self.spectrum_sums.to_json() if self.spectrum_sums else None,
             "run": run_identity(
                 self.scenario,
@@ -233,6 +237,7 @@ class MonteCarloResult:
                 self.controllers,
                 self.spectrum_sums is not None,
                 extra=self.sampling,
+                arithmetic=self.arithmetic,
             ),
         }
 
@@ -269,6 +274,7 @@ class MonteCarloResult:
             spectrum_sums=SpectrumSums.from_json(spectra) if spectra else None,
             interrupted=meta["interrupted"],
             sampling=meta["sampling"],
+            arithmetic=meta.get("arithmetic", "exact"),
         )
 
 

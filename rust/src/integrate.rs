@@ -7,7 +7,7 @@ use crate::gust::{GustSpec, TurbulenceModel, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
 #[cfg(target_arch = "x86_64")]
-use crate::lane::{F64x4Avx, F64x8Avx512};
+use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
@@ -41,7 +41,7 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
     fn stage<L: Lane>(base: &State<L>, k: &State<L>, h: f64) -> State<L> {
         state_from_fn(
             #[inline(always)]
-            |i| base[i] + k[i] * h,
+            |i| k[i].mul_add(L::splat(h), base[i]),
         )
     }
     let k1 = plant.derivative_with(s, trig, u, w);
@@ -54,7 +54,7 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
     let h6 = dt / 6.0;
     state_from_fn(
         #[inline(always)]
-        |i| s[i] + (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]) * h6,
+        |i| (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]).mul_add(L::splat(h6), s[i]),
     )
 }
 
@@ -218,12 +218,37 @@ pub struct Engine {
     decimation: usize,
     /// The instruction set the flight loop runs on (`Isa::active()` unless set otherwise).
     pub isa: Isa,
+    /// The opt-in fused mode (`with_fused`): the batch path fuses multiply-adds. Off by
+    /// default; its numbers are not bit-identical to the default mode's, nor across
+    /// instruction sets. Single flights (`fly::<f64>`) never fuse.
+    pub fused: bool,
     /// A wind prescribed step by step (`with_wind`), flown instead of the gust model.
     prescribed_wind: Option<Vec<[f64; 3]>>,
 }
 
 /// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
 pub const MAX_LANES: usize = 8;
+
+/// `fly_any` compiled with target features: one `unsafe fn $name` per (name, features).
+/// Safety of each: the CPU must support the features.
+macro_rules! flight_loop_for {
+    ($($(#[$doc:meta])* $name:ident, $features:literal;)+) => {$(
+        $(#[$doc])*
+        ///
+        /// # Safety
+        #[doc = concat!("The CPU must support ", $features, ".")]
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name<L: KernelOps>(
+            &self,
+            req: &FlightRequest,
+            trace: Option<&mut Trace>,
+            planner: &mut FftPlanner<f64>,
+        ) -> Option<Vec<LaneResult>> {
+            self.fly_any::<L>(req, trace, planner)
+        }
+    )+};
+}
 
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
@@ -249,6 +274,7 @@ impl Engine {
             decimation,
             cfg,
             isa,
+            fused: false,
             prescribed_wind: None,
         })
     }
@@ -273,6 +299,20 @@ impl Engine {
             return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
         }
         self.prescribed_wind = Some(wind);
+        Ok(self)
+    }
+
+    /// The fused mode on or off (see `fused`): an error if this engine's instruction set has
+    /// no fused multiply-add on this CPU (the baseline path never has).
+    pub fn with_fused(mut self, fused: bool) -> Result<Self, String> {
+        if fused && !self.isa.fused_supported() {
+            return Err(format!(
+                "fused=True needs fused multiply-add on vectors (AVX2 with FMA, or AVX-512): \
+                 the {} path on this CPU has none",
+                self.isa.name()
+            ));
+        }
+        self.fused = fused;
         Ok(self)
     }
 
@@ -321,14 +361,18 @@ impl Engine {
         );
         // The intrinsic lane types below are only ever flown by `fly_on`, which enters the loop
         // compiled for (and checked to run on) `self.isa`.
-        match self.isa {
-            Isa::Baseline => self.fly_on::<F64x4>(req, None, planner),
+        match (self.isa, self.fused) {
+            (Isa::Baseline, _) => self.fly_on::<F64x4>(req, None, planner),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => self.fly_on::<F64x4Avx>(req, None, planner),
+            (Isa::Avx2, false) => self.fly_on::<F64x4Avx>(req, None, planner),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => self.fly_on::<F64x8Avx512>(req, None, planner),
+            (Isa::Avx2, true) => self.fly_on::<F64x4Fma>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, false) => self.fly_on::<F64x8Avx512>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, true) => self.fly_on::<F64x8Fma512>(req, None, planner),
             #[cfg(not(target_arch = "x86_64"))]
-            Isa::Avx2 | Isa::Avx512 => unreachable!("{:?} off x86-64", self.isa),
+            (Isa::Avx2 | Isa::Avx512, _) => unreachable!("{:?} off x86-64", self.isa),
         }
     }
 
@@ -349,49 +393,31 @@ impl Engine {
         );
         assert!(L::LANES <= MAX_LANES);
         assert!(
-            self.isa.supported(),
-            "the {} path does not run on this CPU",
-            self.isa.name()
+            self.isa.supported() && (!self.fused || self.isa.fused_supported()),
+            "the {} path{} does not run on this CPU",
+            self.isa.name(),
+            if self.fused { " (fused)" } else { "" }
         );
         #[cfg(target_arch = "x86_64")]
-        match self.isa {
-            // SAFETY (both): the CPU supports the path (asserted just above).
-            Isa::Avx2 => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
-            Isa::Avx512 => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
-            Isa::Baseline => {}
+        match (self.isa, self.fused) {
+            // SAFETY (all three): the CPU supports the path (asserted just above).
+            (Isa::Avx2, false) => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
+            (Isa::Avx2, true) => return unsafe { self.fly_avx2_fma::<L>(req, trace, planner) },
+            (Isa::Avx512, _) => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
+            (Isa::Baseline, _) => {}
         }
         self.fly_any::<L>(req, trace, planner)
     }
 
-    /// `fly_any` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn fly_avx2<L: KernelOps>(
-        &self,
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        self.fly_any::<L>(req, trace, planner)
-    }
-
-    /// `fly_any` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in the
-    /// default mode: the lane operations never fuse, whatever the enabled features.
-    ///
-    /// # Safety
-    /// The CPU must support AVX-512F and AVX-512DQ.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512dq")]
-    unsafe fn fly_avx512<L: KernelOps>(
-        &self,
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        self.fly_any::<L>(req, trace, planner)
+    flight_loop_for! {
+        /// `fly_any` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
+        fly_avx2, "avx2";
+        /// `fly_any` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
+        /// `Lane::mul_add` of `F64x4Fma` fuses; Rust never contracts the other operations).
+        fly_avx2_fma, "avx2,fma";
+        /// `fly_any` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
+        /// the default mode: the lane operations never fuse, whatever the enabled features.
+        fly_avx512, "avx512f,avx512dq";
     }
 
     /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
@@ -832,6 +858,49 @@ mod tests {
                     .iter()
                     .all(|l| l.diverged_at.is_nan() && l.metrics[0][0] > 0.0));
             }
+        }
+    }
+
+    /// The fused mode: refused where the path has no FMA; elsewhere close to the default
+    /// mode (last digits), yet not identical (the fusing happened).
+    #[test]
+    fn fused_mode_is_close_to_the_default_and_refused_without_fma() {
+        let mut cfg = paper();
+        cfg.integrator.duration = 10.0;
+        cfg.integrator.dt = 1e-3;
+        cfg.gust.start = 1.0;
+        cfg.gust.end = 9.0;
+        cfg.phases.truncate(1);
+        cfg.phases[0].end = 10.0;
+        let mut planner = FftPlanner::new();
+        for isa in Isa::ALL {
+            let mut engine = Engine::new(cfg.clone()).unwrap();
+            engine.isa = isa;
+            if !isa.fused_supported() {
+                let e = engine.with_fused(true).err().expect("refused");
+                assert!(e.contains("fused") && e.contains(isa.name()), "{e}");
+                eprintln!(
+                    "skipped the fused {} path: this CPU cannot run it",
+                    isa.name()
+                );
+                continue;
+            }
+            let indices: Vec<u64> = (0..engine.set_lanes() as u64).collect();
+            let req = FlightRequest::new(ControllerKind::Pd, 1, &indices);
+            let exact = engine.fly_set(&req, &mut planner).unwrap();
+            let engine = engine.with_fused(true).unwrap();
+            let fused = engine.fly_set(&req, &mut planner).unwrap();
+            let (mut worst, mut differ) = (0.0f64, false);
+            for (a, b) in exact.iter().zip(&fused) {
+                for (x, y) in a.metrics[0].iter().zip(&b.metrics[0]) {
+                    worst = worst.max((x - y).abs() / x.abs().max(1e-300));
+                    differ |= x.to_bits() != y.to_bits();
+                }
+            }
+            assert!(
+                worst < 1e-8 && differ,
+                "{isa:?}: worst relative difference {worst}"
+            );
         }
     }
 }

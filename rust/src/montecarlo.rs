@@ -1,6 +1,7 @@
-//! The batch: realisations in parallel, four or eight per SIMD lane-set (`Engine::set_lanes`), every controller flown through
-//! the same gust (common random numbers). Only per-phase metrics and running spectrum sums are
-//! kept, so memory does not grow with the number of realisations beyond the result table.
+//! The batch: realisations in parallel, one SIMD lane-set at a time (four realisations, eight
+//! on AVX-512: `Engine::set_lanes`), every controller flown through the same gust (common
+//! random numbers). Only per-phase metrics and running spectrum sums are kept, so memory does
+//! not grow with the number of realisations beyond the result table.
 
 use crate::config::ConfigError;
 use crate::control::ControllerKind;

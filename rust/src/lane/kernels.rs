@@ -1,6 +1,7 @@
 //! Branch-free sin/cos and asin over any `Lane`. The algorithms and constants are those of
 //! `wide` 1.7 (after Agner Fog's vector class library, from Cephes), evaluated in the same
-//! order without FMA, so batches give exactly what they gave with `wide::f64x4` before.
+//! order without FMA, so batches give exactly what they gave with `wide::f64x4` before. Their
+//! products-plus-sums are `Lane::mul_add`: fused in the fused mode only.
 #![allow(clippy::excessive_precision)] // the published Cephes digits, kept as published
 
 use super::KernelOps;
@@ -33,12 +34,18 @@ const ROUND: f64 = 6_755_399_441_055_744.0;
 pub const SIN_COS_LIMIT: f64 = 1.0e9;
 const SIGN: f64 = -0.0;
 
+/// `a * b + c` as `Lane::mul_add` (fused only in the fused mode).
+#[inline(always)]
+fn madd<L: KernelOps>(a: L, b: f64, c: f64) -> L {
+    a.mul_add(L::splat(b), L::splat(c))
+}
+
 /// `c0 + c1 x + ... + c5 x^5`, in wide's `polynomial_5!` order.
 #[inline(always)]
 fn poly5<L: KernelOps>(x: L, c: [f64; 6]) -> L {
     let x2 = x * x;
     let x4 = x2 * x2;
-    (x * c[3] + c[2]) * x2 + ((x * c[5] + c[4]) * x4 + (x * c[1] + c[0]))
+    madd(x, c[3], c[2]).mul_add(x2, madd(x, c[5], c[4]).mul_add(x4, madd(x, c[1], c[0])))
 }
 
 /// (sin x, cos x), within about 1 ulp for |x| <= SIN_COS_LIMIT; NaN beyond, and for
@@ -46,15 +53,20 @@ fn poly5<L: KernelOps>(x: L, c: [f64; 6]) -> L {
 #[inline(always)]
 pub fn sin_cos<L: KernelOps>(x: L) -> (L, L) {
     let xa = x.abs();
-    let t = xa * (2.0 / std::f64::consts::PI) + ROUND;
+    let t = madd(xa, 2.0 / std::f64::consts::PI, ROUND);
     let y = t - ROUND;
-    let r = ((xa - y * DP1) - y * DP2) - y * DP3;
+    // xa - y DP1 - y DP2 - y DP3 (negation is exact: a - b y is b (-y) + a)
+    let ny = -y;
+    let r = ny.mul_add(
+        L::splat(DP3),
+        ny.mul_add(L::splat(DP2), ny.mul_add(L::splat(DP1), xa)),
+    );
 
     let r2 = r * r;
     let s = poly5(r2, [P0SIN, P1SIN, P2SIN, P3SIN, P4SIN, P5SIN]);
     let c = poly5(r2, [P0COS, P1COS, P2COS, P3COS, P4COS, P5COS]);
-    let s = (r * r2) * s + r;
-    let c = (r2 * r2) * c + (L::splat(1.0) - r2 * 0.5);
+    let s = (r * r2).mul_add(s, r);
+    let c = (r2 * r2).mul_add(c, L::splat(1.0) - r2 * 0.5);
 
     // Quadrant y: odd swaps sin and cos (y / 2 is then not an integer).
     let half = y * 0.5;
@@ -118,8 +130,8 @@ pub fn asin<L: KernelOps>(x: L) -> L {
     let y1 = vx / wx * x1;
 
     let xb = (x1 + x1).sqrt();
-    let z1 = xb * y1 + xb;
-    let z2 = xa * y1 + xa;
+    let z1 = xb.mul_add(y1, xb);
+    let z2 = xa.mul_add(y1, xa);
     let a = L::select(big, L::splat(std::f64::consts::FRAC_PI_2) - z1, z2);
     a.xor_bits(x.and_bits(L::splat(SIGN)))
 }

@@ -23,7 +23,8 @@
 //!
 //! Reproducibility: every lane operation is a single IEEE-754 operation (add, sub, mul, div,
 //! sqrt, compare, select, bit operations) and nothing is fused (Rust never contracts
-//! `a * b + c` into an FMA and this crate never calls `mul_add`), so a lane's result is
+//! `a * b + c` into an FMA, and `Lane::mul_add` is a multiply then an add on every lane type but
+//! the opt-in fused mode's `F64x4Fma`/`F64x8Fma512`), so in the default mode a lane's result is
 //! bit-for-bit the same whatever the lane type, the packing of realisations into lanes, the
 //! instruction set chosen at run time or the machine. The transcendental functions are our
 //! own branch-free kernels (`kernels::sin_cos`, `kernels::asin`) written once over these
@@ -67,6 +68,14 @@ pub trait Lane:
     fn max(self, other: Self) -> Self;
     /// Lane-wise `if self < other { self } else { other }` (x86 `minpd` semantics).
     fn min(self, other: Self) -> Self;
+    /// `self * a + b`: two roundings (exactly what the operators give) on every lane type
+    /// except the fused mode's (`F64x4Fma`, `F64x8Fma512`), where it is one fused multiply-add.
+    /// The hot code writes its products-plus-sums this way so that the fused mode can fuse
+    /// them; in the default mode the bits are those of `self * a + b`.
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        self * a + b
+    }
 
     /// Lane `i` is `f(i)`.
     #[inline(always)]
@@ -299,7 +308,7 @@ mod x86;
 #[cfg(target_arch = "x86_64")]
 pub use x86::F64x4;
 #[cfg(target_arch = "x86_64")]
-pub(crate) use x86::{F64x4Avx, F64x8Avx512};
+pub(crate) use x86::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 
 #[cfg(not(target_arch = "x86_64"))]
 pub use portable::F64x4;

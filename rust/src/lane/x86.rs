@@ -5,9 +5,12 @@
 //! - `F64x4`: four realisations in two SSE2 registers (SSE2 is part of every x86-64 CPU).
 //! - `F64x4Avx` (crate-private): the same four lanes in one AVX register.
 //! - `F64x8Avx512` (crate-private): eight lanes in one AVX-512 register.
+//! - `F64x4Fma`, `F64x8Fma512` (crate-private): the same as `F64x4Avx` and `F64x8Avx512` but
+//!   with `Lane::mul_add` one fused multiply-add: the opt-in fused mode (needs FMA beside AVX2;
+//!   part of AVX-512F). Not bit-identical to the others.
 //!
 //! Every operation of `F64x4Avx` executes AVX/AVX2 instructions, every one of `F64x8Avx512`
-//! AVX-512F/DQ instructions: values of them may only exist on a CPU that has those (the engine
+//! AVX-512F/DQ instructions (and the `Fma` types FMA): values of them may only exist on a CPU that has those (the engine
 //! creates them only inside its flight loop compiled with the matching
 //! `#[target_feature(enable = ...)]`, entered after a run-time check: `Engine::fly_on`). All
 //! `unsafe` blocks the template expands to rely on that invariant (for `F64x4`: on SSE2 being
@@ -37,6 +40,18 @@ macro_rules! per_reg {
 /// irregular ones (bit-pattern integer ops, select, the comparison bit mask) are the small
 /// functions of the `sse2`/`avx2` modules below, with the same meaning everywhere.
 macro_rules! x86_lane {
+    // A type and its fused twin (`fused NAME = FMA intrinsic;`): the same template twice, the
+    // twin's `Lane::mul_add` one fused multiply-add.
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $ty:ident $regs:tt;
+        $(#[$fmeta:meta])*
+        fused $fty:ident = $fma:expr;
+        $($rest:tt)*
+    ) => {
+        x86_lane! { $(#[$meta])* $vis struct $ty $regs; $($rest)* }
+        x86_lane! { $(#[$fmeta])* $vis struct $fty $regs; $($rest)* fma = $fma, }
+    };
     (@count [$($r:tt),+]) => {
         [$($r),+].len()
     };
@@ -70,6 +85,7 @@ macro_rules! x86_lane {
         cmp_le = $le:expr, cmp_ge = $ge:expr, cmp_ne = $ne:expr,
         select = $select:expr, add_epi64 = $add64:expr, shl62 = $shl62:expr,
         le_bits = $le_bits:expr,
+        $(fma = $fma:expr,)?
     ) => {
         $(#[$meta])*
         #[derive(Clone, Copy, Debug)]
@@ -178,6 +194,13 @@ macro_rules! x86_lane {
                 });
                 bits
             }
+            $(
+                /// One fused multiply-add (one rounding): the fused mode.
+                #[inline(always)]
+                fn mul_add(self, a: Self, b: Self) -> Self {
+                    x86_lane!(@op $regs $fma; self.0, a.0, b.0)
+                }
+            )?
         }
 
         impl KernelOps for $ty {
@@ -323,6 +346,8 @@ x86_lane! {
 x86_lane! {
     /// Four realisations in one AVX register: needs AVX2 (see the module documentation).
     pub(crate) struct F64x4Avx([__m256d; regs [0], 4 per register]);
+    /// `F64x4Avx` with fused multiply-adds (the fused mode): needs AVX2 and FMA.
+    fused F64x4Fma = _mm256_fmadd_pd;
     lanes = [0, 1, 2, 3];
     set1 = _mm256_set1_pd, load = _mm256_loadu_pd, store = _mm256_storeu_pd,
     add = _mm256_add_pd, sub = _mm256_sub_pd, mul = _mm256_mul_pd, div = _mm256_div_pd,
@@ -338,6 +363,8 @@ x86_lane! {
     /// Eight realisations in one AVX-512 register: needs AVX-512F and DQ (see the module
     /// documentation).
     pub(crate) struct F64x8Avx512([__m512d; regs [0], 8 per register]);
+    /// `F64x8Avx512` with fused multiply-adds (the fused mode): needs AVX-512F and DQ.
+    fused F64x8Fma512 = _mm512_fmadd_pd;
     lanes = [0, 1, 2, 3, 4, 5, 6, 7];
     set1 = _mm512_set1_pd, load = _mm512_loadu_pd, store = _mm512_storeu_pd,
     add = _mm512_add_pd, sub = _mm512_sub_pd, mul = _mm512_mul_pd, div = _mm512_div_pd,
