@@ -33,6 +33,8 @@ const ROUND: f64 = 6_755_399_441_055_744.0;
 /// flight's divergence check then flags (no real flight turns a billion radians).
 pub const SIN_COS_LIMIT: f64 = 1.0e9;
 const SIGN: f64 = -0.0;
+/// Below pi/4 (by a margin far beyond rounding): |x| * 2/pi + ROUND then rounds to quadrant 0.
+const QUARTER_PI_BELOW: f64 = 0.785;
 
 /// `a * b + c` as `Lane::mul_add` (fused only in the fused mode).
 #[inline(always)]
@@ -53,6 +55,17 @@ fn poly5<L: KernelOps>(x: L, c: [f64; 6]) -> L {
 #[inline(always)]
 pub fn sin_cos<L: KernelOps>(x: L) -> (L, L) {
     let xa = x.abs();
+    // The fused mode's shortcut: where every lane has |x| < pi/4 (the quadrant is 0), the
+    // reduction, quadrant swap and cosine sign below do nothing; skip them. The numbers are
+    // those of the full kernel (in the same mode), only cheaper.
+    if L::FUSED && xa.le_mask(L::splat(QUARTER_PI_BELOW)) == L::ALL {
+        let r2 = xa * xa;
+        let s = poly5(r2, [P0SIN, P1SIN, P2SIN, P3SIN, P4SIN, P5SIN]);
+        let c = poly5(r2, [P0COS, P1COS, P2COS, P3COS, P4COS, P5COS]);
+        let s = (xa * r2).mul_add(s, xa);
+        let c = (r2 * r2).mul_add(c, L::splat(1.0) - r2 * 0.5);
+        return (s.xor_bits(x.and_bits(L::splat(SIGN))), c);
+    }
     let t = madd(xa, 2.0 / std::f64::consts::PI, ROUND);
     let y = t - ROUND;
     // xa - y DP1 - y DP2 - y DP3 (negation is exact: a - b y is b (-y) + a)
@@ -85,6 +98,8 @@ pub fn sin_cos<L: KernelOps>(x: L) -> (L, L) {
     (L::select(ok, sin, nan), L::select(ok, cos, nan))
 }
 
+/// Below the 0.625 at which `asin` switches approximations (`le_mask` is `<=`).
+const ASIN_SPLIT_BELOW: f64 = f64::from_bits(0.625f64.to_bits() - 1);
 const R4ASIN: f64 = 2.967_721_961_301_243_206_100E-3;
 const R3ASIN: f64 = -5.634_242_780_008_963_776_856E-1;
 const R2ASIN: f64 = 6.968_710_824_104_713_396_794E0;
@@ -114,6 +129,22 @@ const Q0ASIN: f64 = -4.918_853_881_490_881_290_097E1;
 #[inline(always)]
 pub fn asin<L: KernelOps>(x: L) -> L {
     let xa = x.abs();
+    // The fused mode's shortcut: where every lane has |x| < 0.625 only the second rational
+    // approximation is selected below; evaluate just that one (same numbers, fewer operations).
+    if L::FUSED && xa.le_mask(L::splat(ASIN_SPLIT_BELOW)) == L::ALL {
+        let c = L::splat;
+        let x1 = xa * xa;
+        let x2 = x1 * x1;
+        let x3 = x2 * x1;
+        let x4 = x2 * x2;
+        let x5 = x4 * x1;
+        let px = (madd(x3, P3ASIN, P0ASIN) + x4.mul_add(c(P4ASIN), x1 * P1ASIN))
+            + x5.mul_add(c(P5ASIN), x2 * P2ASIN);
+        let qx = (x4.mul_add(c(Q4ASIN), x5) + x3.mul_add(c(Q3ASIN), x1 * Q1ASIN))
+            + madd(x2, Q2ASIN, Q0ASIN);
+        let y1 = px / qx * x1;
+        return xa.mul_add(y1, xa).xor_bits(x.and_bits(L::splat(SIGN)));
+    }
     let big = xa.cmp_ge(L::splat(0.625));
     let x1 = L::select(big, L::splat(1.0) - xa, xa * xa);
     let x2 = x1 * x1;

@@ -51,6 +51,9 @@ pub trait Lane:
 {
     /// How many realisations one value carries (at most 32).
     const LANES: usize;
+    /// The fused mode's lane types: `mul_add` fuses, and the kernels may take shortcuts
+    /// (`kernels`) that the default mode does not.
+    const FUSED: bool = false;
     /// `le_mask` of a value whose lanes all pass.
     const ALL: u32 = if Self::LANES >= 32 {
         u32::MAX
@@ -420,6 +423,54 @@ mod tests {
             unsafe { avx512() };
         } else {
             eprintln!("skipped F64x8Avx512: this CPU lacks AVX-512F/DQ");
+        }
+    }
+
+    /// The fused mode's kernels (FMA, and shortcuts where all lanes are in range) are as
+    /// accurate as the default ones, on both sides of each shortcut's bound.
+    fn fused_kernels_are_accurate<L: KernelOps>() {
+        assert!(L::FUSED);
+        for (lo, hi) in [(-0.78, 0.78), (-3.0, 3.0), (-0.62, 0.62), (-1.0, 1.0)] {
+            let mut x = lo;
+            while x <= hi {
+                let v = L::from_fn(|i| x + (hi - lo) * 1e-3 * i as f64);
+                let (s, c) = v.sin_cos();
+                let a = (v * (1.0 / hi.max(1.0))).asin();
+                for i in 0..L::LANES {
+                    let xi = v.lane(i);
+                    let err = (s.lane(i) - xi.sin()).abs().max((c.lane(i) - xi.cos()).abs());
+                    assert!(err <= 2.0 * f64::EPSILON, "sin/cos {xi}: {err}");
+                    let ai = xi * (1.0 / hi.max(1.0));
+                    if ai.abs() <= 1.0 {
+                        assert!(ulps(a.lane(i), ai.asin()) <= 2.0, "asin {ai}");
+                    }
+                }
+                x += (hi - lo) / 997.0;
+            }
+        }
+    }
+
+    #[test]
+    fn fused_kernels_stay_accurate() {
+        #[cfg(target_arch = "x86_64")]
+        if isa::Isa::Avx2.fused_supported() {
+            // SAFETY: AVX2 and FMA are available (checked above).
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn avx2() {
+                fused_kernels_are_accurate::<F64x4Fma>();
+            }
+            unsafe { avx2() };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if isa::Isa::Avx512.fused_supported() {
+            // SAFETY: AVX-512F and DQ are available (checked above).
+            #[target_feature(enable = "avx512f,avx512dq")]
+            unsafe fn avx512() {
+                fused_kernels_are_accurate::<F64x8Fma512>();
+            }
+            unsafe { avx512() };
+        } else {
+            eprintln!("skipped F64x8Fma512: this CPU lacks AVX-512F/DQ");
         }
     }
 

@@ -195,6 +195,10 @@ macro_rules! x86_lane {
                 bits
             }
             $(
+                const FUSED: bool = {
+                    let _ = stringify!($fma);
+                    true
+                };
                 /// One fused multiply-add (one rounding): the fused mode.
                 #[inline(always)]
                 fn mul_add(self, a: Self, b: Self) -> Self {
