@@ -32,7 +32,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = ["MonteCarloResult", "SpectrumSums", "default_workers", "monte_carlo", "run_range"]
 
-#: Realisations the engine flies at once (its SIMD width).
+#: Realisations the engine flies at once on its AVX2 and SSE2 paths; chunks are rounded to
+#: this (the AVX-512 path flies 8: a chunk then may end in one half-filled lane-set).
 LANES = 4
 #: Memory (bytes) one row of ``runs`` takes while a batch is assembled: the engine's arrays,
 #: the tidy frame and the copies made concatenating and sorting it.
