@@ -438,7 +438,9 @@ mod tests {
                 let a = (v * (1.0 / hi.max(1.0))).asin();
                 for i in 0..L::LANES {
                     let xi = v.lane(i);
-                    let err = (s.lane(i) - xi.sin()).abs().max((c.lane(i) - xi.cos()).abs());
+                    let err = (s.lane(i) - xi.sin())
+                        .abs()
+                        .max((c.lane(i) - xi.cos()).abs());
                     assert!(err <= 2.0 * f64::EPSILON, "sin/cos {xi}: {err}");
                     let ai = xi * (1.0 / hi.max(1.0));
                     if ai.abs() <= 1.0 {
