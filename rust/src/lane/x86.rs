@@ -10,13 +10,13 @@
 //!   part of AVX-512F). Not bit-identical to the others.
 //!
 //! Every operation of `F64x4Avx` executes AVX/AVX2 instructions, every one of `F64x8Avx512`
-//! AVX-512F/DQ instructions (and the `Fma` types FMA): values of them may only exist on a CPU that has those (the engine
-//! creates them only inside its flight loop compiled with the matching
-//! `#[target_feature(enable = ...)]`, entered after a run-time check: `Engine::fly_on`). All
-//! `unsafe` blocks the template expands to rely on that invariant (for `F64x4`: on SSE2 being
-//! baseline). For
-//! speed every method is `#[inline(always)]`, so that it lands in the target-feature-compiled
-//! flight loop; an operation left out of line there would still be correct, only slow.
+//! AVX-512F/DQ instructions (and those of the `Fma` types FMA): values of them may only exist
+//! on a CPU that has those. The engine creates them only inside its flight loop compiled with
+//! the matching `#[target_feature(enable = ...)]`, entered after a run-time check
+//! (`Engine::fly_on`). All `unsafe` blocks the template expands to rely on that invariant (for
+//! `F64x4`: on SSE2 being baseline). For speed every method is `#[inline(always)]`, so that it
+//! lands in the target-feature-compiled flight loop; an operation left out of line there would
+//! still be correct, only slow.
 
 use super::{kernels, KernelOps, Lane, Param};
 use std::arch::x86_64::*;
@@ -37,8 +37,9 @@ macro_rules! per_reg {
 
 /// One lane type: `$ty` holds `regs.len()` registers of type `$reg`, `$per` f64 each; lane `i`
 /// is element `i % $per` of register `i / $per`. The intrinsics are named per type; the
-/// irregular ones (bit-pattern integer ops, select, the comparison bit mask) are the small
-/// functions of the `sse2`/`avx2` modules below, with the same meaning everywhere.
+/// irregular ones (bit-pattern integer ops, select, the comparison bit mask; AVX-512's
+/// comparisons) are the small functions of the `sse2`/`avx2`/`avx512` modules below, with the
+/// same meaning everywhere.
 macro_rules! x86_lane {
     // A type and its fused twin (`fused NAME = FMA intrinsic;`): the same template twice, the
     // twin's `Lane::mul_add` one fused multiply-add.
@@ -113,8 +114,9 @@ macro_rules! x86_lane {
                 // SAFETY: the type's instruction set is available; `a` holds `$per` f64 at
                 // each register's offset.
                 #[allow(unused_unsafe)]
-                let r = unsafe { Self(x86_lane!(@map_reg $regs, |r| $load(a.as_ptr().add(r * $per)))) };
-                r
+                let regs =
+                    unsafe { x86_lane!(@map_reg $regs, |r| $load(a.as_ptr().add(r * $per))) };
+                Self(regs)
             }
             #[inline(always)]
             fn add_(self, o: Self) -> Self {
