@@ -5,15 +5,17 @@
 //! Throughput is reported in realisation-steps (one RK4 step of one realisation under one
 //! controller): `elem/s` in criterion's output. Benches:
 //! - `single_flight/scalar`: `Engine::fly::<f64>`, one realisation (the `simulate` path);
-//! - `lane_set/<isa>`: `Engine::fly_set`, four realisations at once (the Monte Carlo path),
-//!   once per instruction set this CPU supports (`baseline` = SSE2, `avx2`).
+//! - `lane_set/<isa>`: `Engine::fly_set`, one lane-set at once (the Monte Carlo path: four
+//!   realisations, eight on `avx512`), once per instruction set this CPU supports (`baseline` =
+//!   SSE2, `avx2`, `avx512`) and, with `+fused`, in the opt-in fused mode where the path has
+//!   FMA; the ones this CPU cannot run are named and skipped.
 //!
 //! Both controllers are flown in turn (PD then SMC), as a paired realisation is.
 
 use _core::config::Config;
 use _core::control::ControllerKind;
-use _core::integrate::{Engine, FlightRequest, SET_LANES};
-use _core::simd::Isa;
+use _core::integrate::{Engine, FlightRequest};
+use _core::lane::isa::Isa;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rustfft::FftPlanner;
 use std::hint::black_box;
@@ -54,31 +56,38 @@ fn lane_set(c: &mut Criterion) {
     let mut planner = FftPlanner::new();
     let mut g = c.benchmark_group("lane_set");
     g.sample_size(10).measurement_time(Duration::from_secs(4));
-    g.throughput(Throughput::Elements(
-        (KINDS.len() * SET_LANES * engine.steps) as u64,
-    ));
-    for isa in [Isa::Baseline, Isa::Avx2] {
-        if !isa.supported() {
+    let paths = Isa::ALL
+        .into_iter()
+        .flat_map(|isa| [(isa, false), (isa, true)]);
+    for (isa, fused) in paths {
+        let name = format!("{}{}", isa.name(), if fused { "+fused" } else { "" });
+        if !isa.supported() || (fused && !isa.fused_supported()) {
+            if !fused {
+                eprintln!("lane_set/{name}: skipped, this CPU cannot run it");
+            } else if isa.supported() {
+                eprintln!("lane_set/{name}: skipped, no fused multiply-add on this path");
+            }
             continue;
         }
         engine.isa = isa;
-        let indices: Vec<u64> = (0..SET_LANES as u64).collect();
-        g.bench_with_input(
-            BenchmarkId::from_parameter(isa.name()),
-            &indices,
-            |b, idx| {
-                b.iter(|| {
-                    for kind in KINDS {
-                        let req = FlightRequest {
-                            want_spectra: true,
-                            ..FlightRequest::new(kind, 1, black_box(idx))
-                        };
-                        let r = engine.fly_set(&req, &mut planner);
-                        black_box(r);
-                    }
-                })
-            },
-        );
+        engine.fused = fused;
+        let lanes = engine.set_lanes();
+        g.throughput(Throughput::Elements(
+            (KINDS.len() * lanes * engine.steps) as u64,
+        ));
+        let indices: Vec<u64> = (0..lanes as u64).collect();
+        g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
+            b.iter(|| {
+                for kind in KINDS {
+                    let req = FlightRequest {
+                        want_spectra: true,
+                        ..FlightRequest::new(kind, 1, black_box(idx))
+                    };
+                    let r = engine.fly_set(&req, &mut planner);
+                    black_box(r);
+                }
+            })
+        });
     }
     g.finish();
 }

@@ -3,6 +3,7 @@
     python benches/throughput.py               # 1 worker, all workers, then 1,000 paired runs
     python benches/throughput.py --runs 100    # quicker: the long run with 100 realisations
     python benches/throughput.py --dispersions # dispersed against fixed parameters, paired
+    python benches/throughput.py --paths       # every SIMD path and the fused mode, paired
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -18,6 +19,8 @@ import argparse
 import os
 import platform
 import statistics
+import subprocess
+import sys
 import time
 import warnings
 
@@ -53,9 +56,23 @@ DISPERSIONS = {
 }
 
 
-def timed(scenario: quadrs.Scenario, runs: int, workers: int, seed: int) -> float:
+#: The paths ``--paths`` compares: (name, QUADRS_SIMD, fused). A path this CPU cannot run is
+#: reported as skipped (the engine refuses it by name).
+PATHS = [
+    ("baseline", "baseline", False),
+    ("avx2", "avx2", False),
+    ("avx512", "avx512", False),
+    ("fused", "auto", True),
+]
+
+
+def timed(
+    scenario: quadrs.Scenario, runs: int, workers: int, seed: int, fused: bool = False
+) -> float:
     t0 = time.perf_counter()
-    res = quadrs.monte_carlo(scenario, runs=runs, workers=workers, progress=False, seed=seed)
+    res = quadrs.monte_carlo(
+        scenario, runs=runs, workers=workers, progress=False, seed=seed, fused=fused
+    )
     dt = time.perf_counter() - t0
     assert res.runs["realisation"].nunique() == runs
     return dt
@@ -73,6 +90,12 @@ def main() -> None:
     ap.add_argument("--dt", type=float, default=None, help="override integrator.dt (s)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
+        "--paths",
+        action="store_true",
+        help="time every SIMD path (QUADRS_SIMD) and the fused mode in turn, 1 worker",
+    )
+    ap.add_argument("--one-path", choices=[p[0] for p in PATHS], help=argparse.SUPPRESS)
+    ap.add_argument(
         "--dispersions",
         action="store_true",
         help="time a batch with four dispersed keys against the fixed one, alternately",
@@ -86,6 +109,12 @@ def main() -> None:
     # is noise here.
     warnings.simplefilter("ignore")
     per_run = 2 * scenario.steps  # paired PD + SMC
+    if args.one_path:
+        fused = dict((p[0], p[2]) for p in PATHS)[args.one_path]
+        timed(scenario, 4, 1, args.seed, fused)  # warm-up
+        wall = timed(scenario, args.sample_runs, 1, args.seed, fused)
+        print(f"{_core.simd_path()} {args.sample_runs * per_run / wall}")
+        return
 
     print(f"machine: {cpu_model()}, {os.cpu_count()} CPUs, python {platform.python_version()}")
     print(f"quadrs {quadrs.__version__}, SIMD path: {_core.simd_path()}")
@@ -95,6 +124,9 @@ def main() -> None:
     )
     print(f"load average before: {load()}")
 
+    if args.paths:
+        compare_paths(args)
+        return
     timed(scenario, 4, 1, args.seed)  # warm-up: thread pool, page faults
     if args.dispersions:
         compare_dispersed(scenario, args)
@@ -139,6 +171,45 @@ def compare_dispersed(scenario: quadrs.Scenario, args: argparse.Namespace) -> No
         f"{statistics.median(fixed_rates) / 1e6:.2f} M realisation-steps/s; dispersed/fixed "
         f"throughput {statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
     )
+    print(f"load average after: {load()}")
+
+
+def compare_paths(args: argparse.Namespace) -> None:
+    """Every path in turn (one process each, as QUADRS_SIMD is read once per process), round
+    after round, with each round's rates relative to that round's avx2 rate (or baseline's),
+    so that the ratios hold on a noisy machine."""
+    rates: dict[str, list[float]] = {}
+    skipped: dict[str, str] = {}
+    for _ in range(args.repeat):
+        for name, simd, _fused in PATHS:
+            if name in skipped:
+                continue
+            cmd = [sys.executable, __file__, "--one-path", name, "--preset", args.preset]
+            cmd += ["--sample-runs", str(args.sample_runs), "--seed", str(args.seed)]
+            if args.dt is not None:
+                cmd += ["--dt", str(args.dt)]
+            env = {**os.environ, "QUADRS_SIMD": simd}
+            run = subprocess.run(cmd, env=env, capture_output=True, text=True)
+            if run.returncode != 0:
+                skipped[name] = (run.stderr.strip().splitlines() or ["failed"])[-1]
+                continue
+            path, rate = run.stdout.split()[-2:]
+            rates.setdefault(name, []).append(float(rate))
+            if name == "fused":
+                skipped.setdefault("_fused_path", path)
+    ref = "avx2" if "avx2" in rates else "baseline"
+    print(f"1 worker, {args.sample_runs} paired runs per timing, {args.repeat} rounds:")
+    for name, samples in rates.items():
+        ratios = [r / b for r, b in zip(samples, rates[ref], strict=True)]
+        on = f" (on {skipped['_fused_path']})" if name == "fused" else ""
+        print(
+            f"  {name:8s}{on}: {statistics.median(samples) / 1e6:.2f} M realisation-steps/s "
+            f"[{min(samples) / 1e6:.2f}, {max(samples) / 1e6:.2f}], {ref} = 1: "
+            f"{statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
+        )
+    for name, why in skipped.items():
+        if not name.startswith("_"):
+            print(f"  {name:8s}: skipped ({why})")
     print(f"load average after: {load()}")
 
 

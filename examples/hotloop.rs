@@ -2,7 +2,7 @@
 //!
 //!     cargo run --release --example hotloop -- MODE DURATION_S [CTRL] [RUNS]
 //!
-//! MODE: `scalar` (Engine::fly::<f64>), `simd` (one f64x4 lane-set), `batch` (run_batch on
+//! MODE: `scalar` (Engine::fly::<f64>), `simd` (one lane-set of the active path), `batch` (run_batch on
 //! the global pool), `metrics` (print full-precision metrics of a few realisations, scalar and
 //! SIMD, to compare physics before and after a change; `metrics-lateral` the same off the
 //! vertical line, with all gust components). CTRL: pd | smc (default pd).
@@ -36,6 +36,11 @@ fn main() {
     let duration: f64 = args.get(2).map_or(70.0, |s| s.parse().expect("duration"));
     let kind = ControllerKind::parse(args.get(3).map_or("pd", |s| s.as_str())).expect("ctrl");
     let runs: usize = args.get(4).map_or(4, |s| s.parse().expect("runs"));
+    // One lane-set of the engine's path (QUADRS_SIMD): four realisations, eight on AVX-512.
+    let set: Vec<u64> = (0.._core::lane::isa::Isa::active()
+        .expect("QUADRS_SIMD")
+        .set_lanes() as u64)
+        .collect();
     let mut cfg = paper(duration);
     if mode == "metrics-lateral" {
         // Off the paper's vertical line: lateral offsets, all three gust components, and the
@@ -66,13 +71,13 @@ fn main() {
         }
         "simd" => {
             let r = engine
-                .fly_set(&FlightRequest::new(kind, 1, &[0, 1, 2, 3]), &mut planner)
+                .fly_set(&FlightRequest::new(kind, 1, &set), &mut planner)
                 .unwrap();
             println!(
                 "iae {:?}",
                 r[0].metrics.iter().map(|m| m[0]).collect::<Vec<_>>()
             );
-            4 * engine.steps
+            set.len() * engine.steps
         }
         "batch" => {
             let (p, c) = (AtomicU64::new(0), AtomicBool::new(false));
@@ -95,7 +100,7 @@ fn main() {
                     .fly_set(
                         &FlightRequest {
                             want_spectra: true,
-                            ..FlightRequest::new(kind, 11, &[0, 1, 2, 3])
+                            ..FlightRequest::new(kind, 11, &set)
                         },
                         &mut planner,
                     )

@@ -43,3 +43,19 @@ def still_hover(paper: quadrs.Scenario) -> quadrs.Scenario:
             "phases": [{"name": "all", "start": 0.0, "end": 5.0}],
         }
     )
+
+
+def pytest_report_header() -> list[str]:
+    """Which engine path this machine runs (the cross-path tests skip what it cannot)."""
+    import os
+
+    flags = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            words = next((line for line in f if line.startswith("flags")), "").split()
+        flags = " ".join(w for w in ("avx2", "fma", "avx512f", "avx512dq") if w in words)
+    except OSError:
+        pass
+    forced = os.environ.get("QUADRS_SIMD")
+    note = f", QUADRS_SIMD={forced}" if forced else ""
+    return [f"quadrs engine path: {quadrs._core.simd_path()}{note}; CPU flags: {flags or '?'}"]

@@ -218,3 +218,29 @@ def test_ctrl_c_returns_finished_realisations(paper: Scenario, tmp_path) -> None
 def test_bad_arguments(short: Scenario, kwargs: dict, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         quadrs.monte_carlo(short, progress=False, **kwargs)
+
+
+def test_fused_mode_is_close_recorded_and_refused_where_it_cannot_run(
+    short: Scenario, tmp_path
+) -> None:
+    from quadrs import _core
+
+    if _core.simd_path() == "baseline":
+        with pytest.raises(ValueError, match="fused=True needs fused multiply-add"):
+            quadrs.monte_carlo(short, runs=4, progress=False, fused=True)
+        pytest.skip("the baseline path has no fused mode")
+    exact = quadrs.monte_carlo(short, runs=8, seed=2, progress=False)
+    fused = quadrs.monte_carlo(short, runs=8, seed=2, progress=False, fused=True)
+    assert (exact.arithmetic, fused.arithmetic) == ("exact", "fused")
+    cols = list(_core.METRIC_NAMES)
+    a, b = exact.runs[cols].to_numpy(), fused.runs[cols].to_numpy()
+    # Fused multiply-adds change the last digits only; they do change them.
+    np.testing.assert_allclose(b, a, rtol=1e-8, atol=1e-14)
+    assert not np.array_equal(a, b)
+    # The mode is in the saved metadata and the run identity (an exact run's is unchanged).
+    fused.to_parquet(tmp_path / "f.parquet")
+    back = MonteCarloResult.read_parquet(tmp_path / "f.parquet")
+    assert back.arithmetic == "fused"
+    assert fused.metadata()["run"] != exact.metadata()["run"]
+    with pytest.raises(ValueError, match="out= or client="):
+        quadrs.monte_carlo(short, runs=4, progress=False, fused=True, out=tmp_path / "d")

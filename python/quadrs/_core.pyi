@@ -126,6 +126,7 @@ def run_batch(
     dispersion_keys: list[str] = ...,
     dispersion_values: npt.NDArray[np.float64] | None = None,
     streams: npt.NDArray[np.uint64] | None = None,
+    fused: bool = False,
 ) -> BatchResult: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
 def gust_psd(

@@ -207,11 +207,13 @@ def run_range(
     on_progress: Callable[[int], None] | None = None,
     values: pd.DataFrame | None = None,
     streams: npt.NDArray[np.uint64] | None = None,
+    fused: bool = False,
 ) -> tuple[_core.BatchResult, bool]:
     """Run realisations first..first+count in the engine (GIL released, on a worker thread)
     while this thread polls progress and turns Ctrl-C into a cancel. ``values``: the
     dispersed keys' values, one row per realisation; ``streams``: the gust stream each one
-    flies (default its own index). Returns the engine's arrays and whether it was
+    flies (default its own index); ``fused``: the opt-in fused arithmetic (not bit-identical
+    across instruction sets). Returns the engine's arrays and whether it was
     interrupted. A failing ``on_progress`` cancels the batch and re-raises (see
     :func:`quadrs.guard.run_cancellable`)."""
     progress = _core.Progress()
@@ -231,6 +233,7 @@ def run_range(
             dispersion_keys=keys,
             dispersion_values=table,
             streams=streams,
+            fused=fused,
         )
 
     def poll() -> None:
@@ -261,13 +264,15 @@ def fly_chunk(
     spectra: bool,
     design: Design,
     on_progress: Callable[[int], None] | None = None,
+    fused: bool = False,
 ) -> Chunk:
     """Fly one chunk (its dispersed values drawn from (seed, design), so on any machine the
     same) and return its record."""
     values = design.values(scenario, seed, first, count)
     raw, interrupted = run_range(
-        scenario, controllers, seed, first, count, workers, spectra, on_progress, values
-    )
+        scenario, controllers, seed, first, count, workers, spectra, on_progress, values,
+        fused=fused,
+    )  # fmt: skip
     rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
     return Chunk(first, count, rows, spectrum_sums(raw, scenario), interrupted)
 

@@ -20,6 +20,9 @@ from quadrs import _core
 from quadrs.guard import CONTROLLERS
 from quadrs.scenario import Scenario
 
+#: The engine's arithmetic modes: "exact" (default) and "fused" (fused multiply-adds).
+ARITHMETIC = ("exact", "fused")
+
 
 class CorruptRunError(ValueError):
     """A saved run (file, checkpoint part or manifest) is not what it claims to be: foreign,
@@ -44,9 +47,14 @@ def run_identity(
     spectra: bool,
     version: str | None = None,
     extra: Any = None,
+    arithmetic: str = "exact",
 ) -> str:
     """The identity (hex SHA-256) of a run; see the module docstring. ``extra``: anything
-    else (JSON-able) that determines the rows, e.g. a sweep's grid."""
+    else (JSON-able) that determines the rows, e.g. a sweep's grid. ``arithmetic``: "exact"
+    (the default mode, bit-identical on every machine) or "fused" (``monte_carlo(fused=True)``);
+    only a fused run hashes it, so the identities of exact runs are what they always were."""
+    if arithmetic not in ARITHMETIC:
+        raise ValueError(f"arithmetic must be one of {ARITHMETIC}, got {arithmetic!r}")
     doc = {
         "extra": _canonical(extra),
         "scenario": _canonical(scenario.to_dict()),
@@ -55,6 +63,8 @@ def run_identity(
         "spectra": bool(spectra),
         "version": _core.__version__ if version is None else version,
     }
+    if arithmetic != "exact":
+        doc["arithmetic"] = arithmetic
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
@@ -63,7 +73,8 @@ class RunRecord:
     """What a saved run is, the one form every file of a run stores it in: the scenario, the
     master seed, the controllers, whether spectra were kept, ``extra`` (whatever else fixes
     the rows: a batch's sampling, a checkpoint's design, a sweep's grid), stored under
-    ``extra_key``, and the quadrs version. Together they hash to :attr:`run`."""
+    ``extra_key``, the quadrs version and the arithmetic mode. Together they hash to
+    :attr:`run`."""
 
     scenario: Scenario
     seed: int
@@ -72,13 +83,16 @@ class RunRecord:
     extra_key: str
     extra: Any = None
     version: str = field(default=_core.__version__)
+    #: "exact" (the default mode) or "fused" (``monte_carlo(fused=True)``).
+    arithmetic: str = "exact"
 
     @property
     def run(self) -> str:
         """The run identity (see :func:`run_identity`)."""
         return run_identity(
-            self.scenario, self.seed, self.controllers, self.spectra, self.version, self.extra
-        )
+            self.scenario, self.seed, self.controllers, self.spectra, self.version, self.extra,
+            self.arithmetic,
+        )  # fmt: skip
 
     def metadata(self, **fields: Any) -> dict[str, Any]:
         """The record as JSON-able file metadata, with ``fields`` (e.g. ``interrupted``) added
@@ -89,6 +103,7 @@ class RunRecord:
             "controllers": list(self.controllers),
             "scenario": self.scenario.to_toml(),
             "spectra": self.spectra,
+            "arithmetic": self.arithmetic,
             self.extra_key: self.extra,
             **fields,
             "run": self.run,
@@ -111,6 +126,7 @@ class RunRecord:
             extra_key=extra_key,
             extra=meta.get(extra_key),
             version=meta["version"],
+            arithmetic=meta.get("arithmetic", "exact"),
         )
 
 
@@ -159,7 +175,11 @@ def check_run_metadata(
     spectra = meta.get("spectra", True)
     has_spectra = spectra is not None and spectra is not False
     extra = meta.get(extra_key) if extra_key else None
-    run = run_identity(scenario, meta["seed"], ctrls, has_spectra, extra=extra)
+    arithmetic = meta.get("arithmetic", "exact")
+    if arithmetic not in ARITHMETIC:
+        raise _fail(path, f"metadata 'arithmetic' must be one of {ARITHMETIC}, got {arithmetic!r}")
+    run = run_identity(scenario, meta["seed"], ctrls, has_spectra, extra=extra,
+                       arithmetic=arithmetic)  # fmt: skip
     if meta["run"] != run:
         raise _fail(path, "its run identity does not match its scenario, seed and controllers "
                           "(edited metadata?)")  # fmt: skip

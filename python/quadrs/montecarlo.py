@@ -38,8 +38,9 @@ __all__ = [
     "run_range",
 ]
 
-#: Realisations the engine flies at once (its SIMD width).
-LANES = 4
+#: Chunks are rounded to whole lane-sets: 8 realisations fill one AVX-512 set or two AVX2 and
+#: SSE2 ones, so no path flies a half-empty set at a chunk's end (results never depend on it).
+LANES = 8
 #: Memory (bytes) one row of ``runs`` takes while a batch is assembled: the engine's arrays,
 #: the tidy frame and the copies made concatenating and sorting it.
 ROW_BYTES = 400
@@ -78,6 +79,7 @@ def monte_carlo(
     chunk: int | None = None,
     client: Client | None = None,
     sampling: str = "random",
+    fused: bool = False,
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
@@ -99,6 +101,13 @@ def monte_carlo(
     realisation i depend only on (seed, i)), ``"lhs"`` or ``"sobol"`` (one stratified design
     over the batch's ``runs`` realisations from (seed, runs)). Every controller of a
     realisation flies the same values and the same gust; see docs/dispersions.md.
+
+    ``fused=True``: the opt-in fused mode, faster on CPUs with FMA (AVX2+FMA or AVX-512): the
+    engine fuses multiply-adds, so its numbers differ from the default mode's in the last
+    digits (about 1e-12 relative on the paper preset) and are not bit-identical across
+    instruction sets. The result says so (``result.arithmetic == "fused"``, also in saved
+    metadata and the run identity). Not yet with ``out=`` or ``client=``. See
+    docs/performance.md.
     """
     from tqdm.auto import tqdm
 
@@ -124,6 +133,13 @@ def monte_carlo(
     if sampling not in SAMPLINGS:
         raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
     design = Design(sampling, first, runs)
+    if not isinstance(fused, bool):
+        raise ValueError(f"fused must be True or False, got {fused!r}")
+    if fused and (out is not None or client is not None):
+        raise ValueError(
+            "fused=True is not supported with out= or client= (checkpointed and Dask runs "
+            "record only the default arithmetic); drop one of them"
+        )
 
     # Say so before a long batch starts on gains that cannot hold hover (docs/model.md section 8)
     # or on a step too coarse for the fastest mode.
@@ -172,7 +188,7 @@ def monte_carlo(
         chunks: Generator[Chunk, None, None]
         if client is None:
             chunks = _local_chunks(scenario, controllers, seed, ranges, workers, spectra, design,
-                                   bar)  # fmt: skip
+                                   bar, fused)  # fmt: skip
         else:
             from quadrs.distributed import run_on_dask
 
@@ -216,6 +232,7 @@ def monte_carlo(
         spectrum_sums=functools.reduce(operator.add, sums) if sums else None,
         interrupted=interrupted,
         sampling=sampling,
+        arithmetic="fused" if fused else "exact",
     )
 
 
@@ -228,6 +245,7 @@ def _local_chunks(
     spectra: bool,
     design: Design,
     bar: Any,
+    fused: bool = False,
 ) -> Generator[Chunk, None, None]:
     """The chunks flown here, one after the other, moving ``bar`` as realisations finish."""
 
@@ -245,4 +263,5 @@ def _local_chunks(
             spectra,
             design,
             on_progress=advance(bar.n),
+            fused=fused,
         )

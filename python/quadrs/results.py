@@ -38,6 +38,9 @@ class MonteCarloResult:
     interrupted: bool = False
     #: How the dispersed values were drawn ("random", "lhs", "sobol").
     sampling: str = "random"
+    #: The engine's arithmetic: "exact" (default; bit-identical on every machine) or "fused"
+    #: (``monte_carlo(fused=True)``: fused multiply-adds, faster, not bit-identical).
+    arithmetic: str = "exact"
 
     @property
     def dispersed_keys(self) -> list[str]:
@@ -170,6 +173,7 @@ class MonteCarloResult:
             self.spectrum_sums is not None,
             "sampling",
             self.sampling,
+            arithmetic=self.arithmetic,
         )
 
     def to_parquet(self, path: str | Path) -> None:
@@ -228,4 +232,5 @@ class MonteCarloResult:
             spectrum_sums=load_spectra(meta.get("spectra"), path, record),
             interrupted=meta["interrupted"],
             sampling=meta["sampling"],
+            arithmetic=meta.get("arithmetic", "exact"),
         )

@@ -4,12 +4,12 @@
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{WindField, WindState};
-#[cfg(target_arch = "x86_64")]
-use crate::lane::F64x4Avx;
+use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane, Param};
+#[cfg(target_arch = "x86_64")]
+use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
 use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
-use crate::simd::Isa;
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,7 +41,7 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
     fn stage<L: Lane>(base: &State<L>, k: &State<L>, h: f64) -> State<L> {
         state_from_fn(
             #[inline(always)]
-            |i| base[i] + k[i] * h,
+            |i| k[i].mul_add(L::splat(h), base[i]),
         )
     }
     let k1 = plant.derivative_with(s, trig, u, w);
@@ -54,7 +54,7 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
     let h6 = dt / 6.0;
     state_from_fn(
         #[inline(always)]
-        |i| s[i] + (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]) * h6,
+        |i| (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]).mul_add(L::splat(h6), s[i]),
     )
 }
 
@@ -221,22 +221,50 @@ pub struct Engine {
     decimation: usize,
     /// The instruction set the flight loop runs on (`Isa::active()` unless set otherwise).
     pub isa: Isa,
+    /// The opt-in fused mode (`with_fused`): the batch path fuses multiply-adds. Off by
+    /// default; its numbers are not bit-identical to the default mode's, nor across
+    /// instruction sets. Single flights (`fly::<f64>`) never fuse.
+    pub fused: bool,
     /// A wind prescribed step by step (`with_wind`), flown instead of the gust model.
     prescribed_wind: Option<Vec<[f64; 3]>>,
 }
 
-/// Most lanes a `Lane` type may carry (sizes the per-step wind buffer).
-const MAX_LANES: usize = 8;
+/// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
+pub const MAX_LANES: usize = 8;
 
-/// Realisations per lane-set of the batch path (`Engine::fly_set`).
-pub const SET_LANES: usize = 4;
+/// `fly_any` compiled with target features: one `unsafe fn $name` per (name, features).
+/// Safety of each: the CPU must support the features.
+macro_rules! flight_loop_for {
+    ($($(#[$doc:meta])* $name:ident, $features:literal;)+) => {$(
+        $(#[$doc])*
+        ///
+        /// # Safety
+        #[doc = concat!("The CPU must support ", $features, ".")]
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name<L: KernelOps>(
+            &self,
+            req: &FlightRequest,
+            trace: Option<&mut Trace>,
+            planner: &mut FftPlanner<f64>,
+        ) -> Option<Vec<LaneResult>> {
+            self.fly_any::<L>(req, trace, planner)
+        }
+    )+};
+}
 
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
 impl Engine {
+    /// The engine of a scenario, on the instruction set `Isa::active()` picks (an error
+    /// under key `QUADRS_SIMD` if that variable forces a path this CPU cannot run).
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        let isa = Isa::active().map_err(|message| ConfigError {
+            key: crate::lane::isa::ENV.into(),
+            message,
+        })?;
         let dt = cfg.integrator.dt;
         let steps = cfg.steps();
         let decimation = ((1.0 / (cfg.metrics.spectrum_rate * dt)).round() as usize).max(1);
@@ -248,7 +276,8 @@ impl Engine {
             dt,
             decimation,
             cfg,
-            isa: Isa::active(),
+            isa,
+            fused: false,
             prescribed_wind: None,
         })
     }
@@ -276,6 +305,20 @@ impl Engine {
         Ok(self)
     }
 
+    /// The fused mode on or off (see `fused`): an error if this engine's instruction set has
+    /// no fused multiply-add on this CPU (the baseline path never has).
+    pub fn with_fused(mut self, fused: bool) -> Result<Self, String> {
+        if fused && !self.isa.fused_supported() {
+            return Err(format!(
+                "fused=True needs fused multiply-add on vectors (AVX2 with FMA, or AVX-512): \
+                 the {} path on this CPU has none",
+                self.isa.name()
+            ));
+        }
+        self.fused = fused;
+        Ok(self)
+    }
+
     /// Integration steps per spectrum sample.
     pub fn decimation(&self) -> usize {
         self.decimation
@@ -290,9 +333,57 @@ impl Engine {
         crate::metrics::spectrum_grid(&self.phases, self.dt, self.decimation, self.steps)
     }
 
+    /// Realisations per lane-set of the batch path (`fly_set`): the widest vector of
+    /// `self.isa` (8 with AVX-512, else 4).
+    pub fn set_lanes(&self) -> usize {
+        self.isa.set_lanes()
+    }
+
     /// Fly `req.indices` (one per lane of `L`) on lane type `L`, with a trace of lane 0 if
     /// asked. Returns None if cancelled.
     pub fn fly<L: KernelOps>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        self.fly_on::<L>(req, trace, planner)
+    }
+
+    /// Fly `set_lanes()` realisations at once on the widest SIMD lane type of this engine's
+    /// instruction set (`self.isa`): the batch path. Every path gives bit-identical numbers.
+    pub fn fly_set(
+        &self,
+        req: &FlightRequest,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert_eq!(
+            req.indices.len(),
+            self.set_lanes(),
+            "one realisation index per lane"
+        );
+        // The intrinsic lane types below are only ever flown by `fly_on`, which enters the loop
+        // compiled for (and checked to run on) `self.isa`.
+        match (self.isa, self.fused) {
+            (Isa::Baseline, _) => self.fly_on::<F64x4>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx2, false) => self.fly_on::<F64x4Avx>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx2, true) => self.fly_on::<F64x4Fma>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, false) => self.fly_on::<F64x8Avx512>(req, None, planner),
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, true) => self.fly_on::<F64x8Fma512>(req, None, planner),
+            #[cfg(not(target_arch = "x86_64"))]
+            (Isa::Avx2 | Isa::Avx512, _) => unreachable!("{:?} off x86-64", self.isa),
+        }
+    }
+
+    /// The one instruction-set dispatch: fly on lane type `L` inside the flight loop compiled
+    /// for `self.isa` (`fly_any` and everything it inlines, the whole model, controller and
+    /// integrator, becomes VEX or EVEX code). Refuses, rather than risks an illegal
+    /// instruction, a path the CPU cannot run.
+    fn fly_on<L: KernelOps>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -304,50 +395,32 @@ impl Engine {
             "one realisation index per lane"
         );
         assert!(L::LANES <= MAX_LANES);
-        #[cfg(target_arch = "x86_64")]
-        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.fly_avx2::<L>(req, trace, planner) };
-        }
-        self.fly_any::<L>(req, trace, planner)
-    }
-
-    /// Fly `SET_LANES` realisations at once on the fastest SIMD path this engine may use
-    /// (`self.isa`): the batch path. Every path gives bit-identical numbers.
-    pub fn fly_set(
-        &self,
-        req: &FlightRequest,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        assert_eq!(
-            req.indices.len(),
-            SET_LANES,
-            "one realisation index per lane"
+        assert!(
+            self.isa.supported() && (!self.fused || self.isa.fused_supported()),
+            "the {} path{} does not run on this CPU",
+            self.isa.name(),
+            if self.fused { " (fused)" } else { "" }
         );
         #[cfg(target_arch = "x86_64")]
-        if self.isa == Isa::Avx2 && Isa::Avx2.supported() {
-            // SAFETY: the CPU supports AVX2 (checked just above); F64x4Avx values exist only
-            // inside this call.
-            return unsafe { self.fly_avx2::<F64x4Avx>(req, None, planner) };
+        match (self.isa, self.fused) {
+            // SAFETY (all three): the CPU supports the path (asserted just above).
+            (Isa::Avx2, false) => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
+            (Isa::Avx2, true) => return unsafe { self.fly_avx2_fma::<L>(req, trace, planner) },
+            (Isa::Avx512, _) => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
+            (Isa::Baseline, _) => {}
         }
-        self.fly_any::<F64x4>(req, None, planner)
+        self.fly_any::<L>(req, trace, planner)
     }
 
-    /// The flight loop compiled with AVX2 enabled: `fly_any` and everything it inlines (the
-    /// whole model, controller and integrator) become VEX code, 256-bit with `F64x4Avx`.
-    /// No FMA: see `simd.rs`.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn fly_avx2<L: KernelOps>(
-        &self,
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        self.fly_any::<L>(req, trace, planner)
+    flight_loop_for! {
+        /// `fly_any` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
+        fly_avx2, "avx2";
+        /// `fly_any` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
+        /// `Lane::mul_add` of `F64x4Fma` fuses; Rust never contracts the other operations).
+        fly_avx2_fma, "avx2,fma";
+        /// `fly_any` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
+        /// the default mode: the lane operations never fuse, whatever the enabled features.
+        fly_avx512, "avx512f,avx512dq";
     }
 
     /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
@@ -734,23 +807,32 @@ mod tests {
         };
         for kind in [ControllerKind::Pd, ControllerKind::Smc] {
             let mut runs = Vec::new();
-            for isa in [Isa::Baseline, Isa::Avx2] {
+            // Realisations 3..11: two lane-sets of four, or one of eight (AVX-512).
+            let indices: Vec<u64> = (3..3 + MAX_LANES as u64).collect();
+            for isa in Isa::ALL {
                 if !isa.supported() {
+                    eprintln!("skipped the {} path: this CPU cannot run it", isa.name());
                     continue;
                 }
                 engine.isa = isa;
-                let req = FlightRequest::new(kind, 7, &[3, 4, 5, 6]);
-                runs.push(engine.fly_set(&req, &mut planner).unwrap());
-                runs.push(engine.fly::<F64x4>(&req, None, &mut planner).unwrap());
-                let scalar: Vec<LaneResult> = [3u64, 4, 5, 6]
-                    .iter()
-                    .map(|&i| {
-                        let req = FlightRequest::new(kind, 7, std::slice::from_ref(&i));
-                        let r = engine.fly::<f64>(&req, None, &mut planner);
-                        r.unwrap().remove(0)
-                    })
-                    .collect();
-                runs.push(scalar);
+                let flown = |f: &mut dyn FnMut(&FlightRequest) -> Vec<LaneResult>, n| {
+                    let sets = indices.chunks(n);
+                    sets.flat_map(|set| f(&FlightRequest::new(kind, 7, set)))
+                        .collect::<Vec<_>>()
+                };
+                let set_lanes = engine.set_lanes();
+                runs.push(flown(
+                    &mut |req| engine.fly_set(req, &mut planner).unwrap(),
+                    set_lanes,
+                ));
+                runs.push(flown(
+                    &mut |req| engine.fly::<F64x4>(req, None, &mut planner).unwrap(),
+                    4,
+                ));
+                runs.push(flown(
+                    &mut |req| engine.fly::<f64>(req, None, &mut planner).unwrap(),
+                    1,
+                ));
             }
             // Bit-identical across lane types, packings and instruction sets (no FMA anywhere).
             for r in &runs[1..] {
@@ -826,6 +908,49 @@ mod tests {
         for row in tr.data.chunks(Trace::WIDTH) {
             assert_eq!(col(row, "wind_z"), 0.0);
             assert!(col(row, "drag_z").abs() < 1e-15, "{row:?}");
+        }
+    }
+
+    /// The fused mode: refused where the path has no FMA; elsewhere close to the default
+    /// mode (last digits), yet not identical (the fusing happened).
+    #[test]
+    fn fused_mode_is_close_to_the_default_and_refused_without_fma() {
+        let mut cfg = paper();
+        cfg.integrator.duration = 10.0;
+        cfg.integrator.dt = 1e-3;
+        cfg.gust.start = 1.0;
+        cfg.gust.end = 9.0;
+        cfg.phases.truncate(1);
+        cfg.phases[0].end = 10.0;
+        let mut planner = FftPlanner::new();
+        for isa in Isa::ALL {
+            let mut engine = Engine::new(cfg.clone()).unwrap();
+            engine.isa = isa;
+            if !isa.fused_supported() {
+                let e = engine.with_fused(true).err().expect("refused");
+                assert!(e.contains("fused") && e.contains(isa.name()), "{e}");
+                eprintln!(
+                    "skipped the fused {} path: this CPU cannot run it",
+                    isa.name()
+                );
+                continue;
+            }
+            let indices: Vec<u64> = (0..engine.set_lanes() as u64).collect();
+            let req = FlightRequest::new(ControllerKind::Pd, 1, &indices);
+            let exact = engine.fly_set(&req, &mut planner).unwrap();
+            let engine = engine.with_fused(true).unwrap();
+            let fused = engine.fly_set(&req, &mut planner).unwrap();
+            let (mut worst, mut differ) = (0.0f64, false);
+            for (a, b) in exact.iter().zip(&fused) {
+                for (x, y) in a.metrics[0].iter().zip(&b.metrics[0]) {
+                    worst = worst.max((x - y).abs() / x.abs().max(1e-300));
+                    differ |= x.to_bits() != y.to_bits();
+                }
+            }
+            assert!(
+                worst < 1e-8 && differ,
+                "{isa:?}: worst relative difference {worst}"
+            );
         }
     }
 }

@@ -13,7 +13,6 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
-pub mod simd;
 pub mod stability;
 pub mod trajectory;
 
@@ -93,7 +92,14 @@ mod _core {
         })
     }
 
+    /// The instruction set new engines use: an error (RuntimeError) if QUADRS_SIMD forces one
+    /// this CPU cannot run or names none.
+    fn isa() -> PyResult<crate::lane::isa::Isa> {
+        crate::lane::isa::Isa::active().map_err(pyo3::exceptions::PyRuntimeError::new_err)
+    }
+
     fn engine(config_json: &str) -> PyResult<Engine> {
+        isa()?;
         let cfg = Config::from_json(config_json).map_err(scenario_error)?;
         Engine::new(cfg).map_err(scenario_error)
     }
@@ -123,12 +129,12 @@ mod _core {
     }
 
     /// Validate a scenario; return the quantities derived from it.
-    /// The instruction set the engine's hot loop uses on this machine ("avx2" or "baseline"),
-    /// chosen at run time (QUADRS_SIMD=baseline forces the portable one). Every path gives
-    /// bit-identical results.
+    /// The instruction set the engine's hot loop uses on this machine ("avx512", "avx2" or
+    /// "baseline"), chosen at run time; QUADRS_SIMD=baseline|avx2|avx512 forces one (an error
+    /// if this CPU cannot run it). Every path gives bit-identical results in the default mode.
     #[pyfunction]
-    fn simd_path() -> &'static str {
-        crate::simd::Isa::active().name()
+    fn simd_path() -> PyResult<&'static str> {
+        isa().map(|i| i.name())
     }
 
     #[pyfunction]
@@ -445,8 +451,9 @@ mod _core {
     /// Realisations first..first+count of every controller, on `workers` threads. With
     /// `dispersion_keys`, row j of `dispersion_values` (count, keys) holds the values
     /// realisation first + j flies; `streams` (count,) overrides each one's gust stream.
+    /// `fused`: the opt-in fused mode (fused multiply-adds; not bit-identical to the default).
     #[pyfunction]
-    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None, dispersion_keys=Vec::new(), dispersion_values=None, streams=None))]
+    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None, dispersion_keys=Vec::new(), dispersion_values=None, streams=None, fused=false))]
     #[allow(clippy::too_many_arguments)]
     fn run_batch<'py>(
         py: Python<'py>,
@@ -461,6 +468,7 @@ mod _core {
         dispersion_keys: Vec<String>,
         dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
         streams: Option<PyReadonlyArray1<'py, u64>>,
+        fused: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kinds = self::controllers(&controllers)?;
         if count == 0 {
@@ -469,14 +477,16 @@ mod _core {
         if workers == 0 {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
-        let e = engine(config_json)?;
+        let e = engine(config_json)?
+            .with_fused(fused)
+            .map_err(PyValueError::new_err)?;
         let row = kinds.len() * e.phase_count() * N_METRICS;
         memory::check(
             "batch results (runs * controllers * phases * metrics)",
             count as u128 * (row + kinds.len() + 1) as u128,
             8,
         )
-        .and_then(|()| flight_memory(&e, crate::montecarlo::LANES, workers))
+        .and_then(|()| flight_memory(&e, e.set_lanes(), workers))
         .map_err(PyMemoryError::new_err)?;
         let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
             (true, None) => None,

@@ -259,7 +259,7 @@ impl<P: Copy> Plant<P> {
     where
         P: Param<L>,
     {
-        (s[ix::Z] - s[ix::ZC]) * self.kc.get() + (s[ix::VZ] - s[ix::VZC]) * self.cc.get()
+        (s[ix::Z] - s[ix::ZC]).mul_add(self.kc.get(), (s[ix::VZ] - s[ix::VZC]) * self.cc.get())
     }
 
     /// The payload's vertical inertial acceleration d2zc/dt2 (m/s^2) at state `s` with vertical
@@ -331,9 +331,13 @@ impl<P: Copy> Plant<P> {
         let spring = self.spring_force(s);
 
         let (inv_m_lateral, g): (L, L) = (self.inv_m_lateral.get(), self.g.get());
-        let ax = ((cphi * sth * cpsi + spsi * sphi) * u.u1 + fdx) * inv_m_lateral;
-        let ay = ((cphi * sth * spsi - sphi * cpsi) * u.u1 + fdy) * inv_m_lateral;
-        let az = (cphi * cth * u.u1 - spring + fdz) * self.inv_m.get() - g;
+        // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
+        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly.
+        let cs = cphi * sth;
+        let ax = cs.mul_add(cpsi, spsi * sphi).mul_add(u.u1, fdx) * inv_m_lateral;
+        let ay = cs.mul_add(spsi, -(sphi * cpsi)).mul_add(u.u1, fdy) * inv_m_lateral;
+        let az = (cphi * cth).mul_add(u.u1, -spring) + fdz;
+        let az = az * self.inv_m.get() - g;
         let azc = self.payload_acceleration_with(s, spring, w[2]);
 
         // Destructured, not `array::map`: everything here must inline into the flight loop.
@@ -341,9 +345,9 @@ impl<P: Copy> Plant<P> {
         let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
         let [inv_ixx, inv_iyy, inv_izz] = self.inv_inertia;
         let (inv_ixx, inv_iyy, inv_izz): (L, L, L) = (inv_ixx.get(), inv_iyy.get(), inv_izz.get());
-        let pdot = (s[Q] * s[R] * (iyy - izz) + u.tau[0]) * inv_ixx;
-        let qdot = (s[P] * s[R] * (izz - ixx) + u.tau[1]) * inv_iyy;
-        let rdot = (s[P] * s[Q] * (ixx - iyy) + u.tau[2]) * inv_izz;
+        let pdot = (s[Q] * s[R]).mul_add(iyy - izz, u.tau[0]) * inv_ixx;
+        let qdot = (s[P] * s[R]).mul_add(izz - ixx, u.tau[1]) * inv_iyy;
+        let rdot = (s[P] * s[Q]).mul_add(ixx - iyy, u.tau[2]) * inv_izz;
 
         [
             s[VX], s[VY], s[VZ], s[P], s[Q], s[R], s[VZC], ax, ay, az, pdot, qdot, rdot, azc,

@@ -1,6 +1,7 @@
-//! The batch: realisations in parallel, four per SIMD lane-set, every controller flown through
-//! the same gust (common random numbers). Only per-phase metrics and running spectrum sums are
-//! kept, so memory does not grow with the number of realisations beyond the result table.
+//! The batch: realisations in parallel, one SIMD lane-set at a time (four realisations, eight
+//! on AVX-512: `Engine::set_lanes`), every controller flown through the same gust (common
+//! random numbers). Only per-phase metrics and running spectrum sums are kept, so memory does
+//! not grow with the number of realisations beyond the result table.
 
 use crate::config::ConfigError;
 use crate::control::ControllerKind;
@@ -11,9 +12,6 @@ use rayon::prelude::*;
 use rustfft::FftPlanner;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
-
-/// Realisations per lane-set (the SIMD width).
-pub const LANES: usize = crate::integrate::SET_LANES;
 
 /// Ensemble sums of amplitude spectra: per controller, per phase, per bin.
 #[derive(Clone, Debug, Default)]
@@ -182,21 +180,22 @@ pub fn run_batch(
     let mut metrics = vec![f64::NAN; count * row];
     let mut diverged_at = vec![f64::NAN; count * n_ctrl];
     let mut done = vec![false; count];
+    let lanes_per_set = engine.set_lanes();
 
     // Each lane-set writes its rows straight into the output (disjoint chunks): nothing per set
     // is kept on the heap, so memory is the output arrays plus a few buffers per thread.
     let spectra = metrics
-        .par_chunks_mut(LANES * row)
-        .zip(diverged_at.par_chunks_mut(LANES * n_ctrl))
-        .zip(done.par_chunks_mut(LANES))
+        .par_chunks_mut(lanes_per_set * row)
+        .zip(diverged_at.par_chunks_mut(lanes_per_set * n_ctrl))
+        .zip(done.par_chunks_mut(lanes_per_set))
         .enumerate()
         .fold(
             || {
                 // Per thread: spectrum sums, FFT plans and the rows and spectra of the set in
                 // flight.
                 let buffers = (
-                    vec![f64::NAN; LANES * row],
-                    vec![f64::NAN; LANES * n_ctrl],
+                    vec![f64::NAN; lanes_per_set * row],
+                    vec![f64::NAN; lanes_per_set * n_ctrl],
                     Vec::new(),
                 );
                 (
@@ -209,12 +208,16 @@ pub fn run_batch(
              (set, ((out_metrics, out_diverged), out_done))| {
                 set_spectra.clear();
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
-                let rows: [usize; LANES] =
-                    std::array::from_fn(|l| (set * LANES + l).min(count - 1));
-                let indices: [u64; LANES] = rows.map(|j| match batch.streams {
-                    Some(s) => s[j],
-                    None => first + j as u64,
-                });
+                let rows: Vec<usize> = (0..lanes_per_set)
+                    .map(|l| (set * lanes_per_set + l).min(count - 1))
+                    .collect();
+                let indices: Vec<u64> = rows
+                    .iter()
+                    .map(|&j| match batch.streams {
+                        Some(s) => s[j],
+                        None => first + j as u64,
+                    })
+                    .collect();
                 // A dispersed batch builds each lane's craft (its own vehicle) once per set.
                 let crafts: Option<Vec<Craft>> = batch.dispersion.map(|d| {
                     rows.iter()
@@ -335,7 +338,7 @@ mod tests {
                 // Cancel as soon as the first set is published: the second set is then (almost
                 // always) inside its PD flight, so its SMC flight never starts.
                 scope.spawn(|| {
-                    while p.load(Ordering::Relaxed) < LANES as u64 {
+                    while p.load(Ordering::Relaxed) < engine.set_lanes() as u64 {
                         std::hint::spin_loop();
                     }
                     c.store(true, Ordering::Relaxed);
@@ -343,13 +346,13 @@ mod tests {
                 {
                     let b = Batch {
                         want_spectra: true,
-                        ..Batch::new(&kinds, 3, 0, 3 * LANES)
+                        ..Batch::new(&kinds, 3, 0, 3 * engine.set_lanes())
                     };
                     pool(1).install(|| run_batch(&engine, &b, &p, &c))
                 }
             });
             for k in 0..kinds.len() {
-                let finished = (0..3 * LANES)
+                let finished = (0..3 * engine.set_lanes())
                     .filter(|&i| out.done[i] && out.diverged_at[i * kinds.len() + k].is_nan())
                     .count() as u64;
                 assert_eq!(out.spectra.count[k], finished, "controller {k}: {out:?}");
@@ -378,7 +381,7 @@ mod tests {
 
     #[test]
     fn a_dispersed_row_equals_the_single_flight_of_its_drawn_scenario() {
-        use crate::simd::Isa;
+        use crate::lane::isa::Isa;
         let cfg = short();
         let keys: Vec<String> = [
             "payload.mass",
@@ -413,8 +416,9 @@ mod tests {
         b.check().unwrap();
         let mut engine = Engine::new(cfg).unwrap();
         let mut planner = FftPlanner::new();
-        for isa in [Isa::Baseline, Isa::Avx2] {
+        for isa in Isa::ALL {
             if !isa.supported() {
+                eprintln!("skipped the {} path: this CPU cannot run it", isa.name());
                 continue;
             }
             engine.isa = isa;

@@ -1,0 +1,168 @@
+//! Branch-free sin/cos and asin over any `Lane`. The algorithms and constants are those of
+//! `wide` 1.7 (after Agner Fog's vector class library, from Cephes), evaluated in the same
+//! order without FMA, so batches give exactly what they gave with `wide::f64x4` before. Their
+//! products-plus-sums are `Lane::mul_add`: fused in the fused mode only.
+#![allow(clippy::excessive_precision)] // the published Cephes digits, kept as published
+
+use super::KernelOps;
+
+const P0SIN: f64 = -1.666_666_666_666_663_072_95E-1;
+const P1SIN: f64 = 8.333_333_333_322_118_588_78E-3;
+const P2SIN: f64 = -1.984_126_982_958_953_859_96E-4;
+const P3SIN: f64 = 2.755_731_362_138_572_452_13E-6;
+const P4SIN: f64 = -2.505_074_776_285_780_728_66E-8;
+const P5SIN: f64 = 1.589_623_015_765_465_680_60E-10;
+
+const P0COS: f64 = 4.166_666_666_666_659_292_18E-2;
+const P1COS: f64 = -1.388_888_888_887_305_641_16E-3;
+const P2COS: f64 = 2.480_158_728_885_170_453_48E-5;
+const P3COS: f64 = -2.755_731_417_929_673_881_12E-7;
+const P4COS: f64 = 2.087_570_084_197_473_167_78E-9;
+const P5COS: f64 = -1.135_853_652_138_768_173_00E-11;
+
+/// pi/2 in three parts (Cody-Waite); DP1 has 25 significant bits, so y * DP1 is exact for
+/// y < 2^28.
+const DP1: f64 = 7.853_981_554_508_209_228_515_625E-1 * 2.0;
+const DP2: f64 = 7.946_627_356_147_928_367_14E-9 * 2.0;
+const DP3: f64 = 3.061_616_997_868_382_943_07E-17 * 2.0;
+
+/// 1.5 * 2^52: `x + ROUND - ROUND` rounds x (0 <= x < 2^51) to the nearest integer, ties
+/// to even, and leaves that integer in the low mantissa bits of `x + ROUND`.
+const ROUND: f64 = 6_755_399_441_055_744.0;
+/// Beyond this |x| (rad) the reduction loses accuracy: sin and cos return NaN, which the
+/// flight's divergence check then flags (no real flight turns a billion radians).
+pub const SIN_COS_LIMIT: f64 = 1.0e9;
+const SIGN: f64 = -0.0;
+/// Below pi/4 (by a margin far beyond rounding): |x| * 2/pi + ROUND then rounds to quadrant 0.
+const QUARTER_PI_BELOW: f64 = 0.785;
+
+/// `a * b + c` as `Lane::mul_add` (fused only in the fused mode).
+#[inline(always)]
+fn madd<L: KernelOps>(a: L, b: f64, c: f64) -> L {
+    a.mul_add(L::splat(b), L::splat(c))
+}
+
+/// `c0 + c1 x + ... + c5 x^5`, in wide's `polynomial_5!` order.
+#[inline(always)]
+fn poly5<L: KernelOps>(x: L, c: [f64; 6]) -> L {
+    let x2 = x * x;
+    let x4 = x2 * x2;
+    madd(x, c[3], c[2]).mul_add(x2, madd(x, c[5], c[4]).mul_add(x4, madd(x, c[1], c[0])))
+}
+
+/// (sin x, cos x), within about 1 ulp for |x| <= SIN_COS_LIMIT; NaN beyond, and for
+/// non-finite x.
+#[inline(always)]
+pub fn sin_cos<L: KernelOps>(x: L) -> (L, L) {
+    let xa = x.abs();
+    // The fused mode's shortcut: where every lane has |x| < pi/4 (the quadrant is 0), the
+    // reduction, quadrant swap and cosine sign below do nothing; skip them. The numbers are
+    // those of the full kernel (in the same mode), only cheaper.
+    if L::FUSED && xa.le_mask(L::splat(QUARTER_PI_BELOW)) == L::ALL {
+        let r2 = xa * xa;
+        let s = poly5(r2, [P0SIN, P1SIN, P2SIN, P3SIN, P4SIN, P5SIN]);
+        let c = poly5(r2, [P0COS, P1COS, P2COS, P3COS, P4COS, P5COS]);
+        let s = (xa * r2).mul_add(s, xa);
+        let c = (r2 * r2).mul_add(c, L::splat(1.0) - r2 * 0.5);
+        return (s.xor_bits(x.and_bits(L::splat(SIGN))), c);
+    }
+    let t = madd(xa, 2.0 / std::f64::consts::PI, ROUND);
+    let y = t - ROUND;
+    // xa - y DP1 - y DP2 - y DP3 (negation is exact: a - b y is b (-y) + a)
+    let ny = -y;
+    let r = ny.mul_add(
+        L::splat(DP3),
+        ny.mul_add(L::splat(DP2), ny.mul_add(L::splat(DP1), xa)),
+    );
+
+    let r2 = r * r;
+    let s = poly5(r2, [P0SIN, P1SIN, P2SIN, P3SIN, P4SIN, P5SIN]);
+    let c = poly5(r2, [P0COS, P1COS, P2COS, P3COS, P4COS, P5COS]);
+    let s = (r * r2).mul_add(s, r);
+    let c = (r2 * r2).mul_add(c, L::splat(1.0) - r2 * 0.5);
+
+    // Quadrant y: odd swaps sin and cos (y / 2 is then not an integer).
+    let half = y * 0.5;
+    let odd = ((half + ROUND) - ROUND).cmp_ne(half);
+    let sin = L::select(odd, c, s);
+    let cos = L::select(odd, s, c);
+    // Signs from the quadrant's low two bits, held in the low bits of t.
+    let sign = L::splat(SIGN);
+    let sin = sin.xor_bits(t.shl62_bits().xor_bits(x).and_bits(sign));
+    let one = L::splat(f64::from_bits(1));
+    let two = L::splat(f64::from_bits(2));
+    let cos = cos.xor_bits(t.add_bits(one).and_bits(two).shl62_bits());
+
+    let ok = xa.cmp_le(L::splat(SIN_COS_LIMIT));
+    let nan = L::splat(f64::NAN);
+    (L::select(ok, sin, nan), L::select(ok, cos, nan))
+}
+
+/// Below the 0.625 at which `asin` switches approximations (`le_mask` is `<=`).
+const ASIN_SPLIT_BELOW: f64 = f64::from_bits(0.625f64.to_bits() - 1);
+const R4ASIN: f64 = 2.967_721_961_301_243_206_100E-3;
+const R3ASIN: f64 = -5.634_242_780_008_963_776_856E-1;
+const R2ASIN: f64 = 6.968_710_824_104_713_396_794E0;
+const R1ASIN: f64 = -2.556_901_049_652_824_852_289E1;
+const R0ASIN: f64 = 2.853_665_548_261_061_424_989E1;
+
+const S3ASIN: f64 = -2.194_779_531_642_920_639_778E1;
+const S2ASIN: f64 = 1.470_656_354_026_814_941_758E2;
+const S1ASIN: f64 = -3.838_770_957_603_691_357_202E2;
+const S0ASIN: f64 = 3.424_398_657_913_078_477_438E2;
+
+const P5ASIN: f64 = 4.253_011_369_004_428_248_960E-3;
+const P4ASIN: f64 = -6.019_598_008_014_123_785_661E-1;
+const P3ASIN: f64 = 5.444_622_390_564_711_410_273E0;
+const P2ASIN: f64 = -1.626_247_967_210_700_244_449E1;
+const P1ASIN: f64 = 1.956_261_983_317_594_739_197E1;
+const P0ASIN: f64 = -8.198_089_802_484_824_371_615E0;
+
+const Q4ASIN: f64 = -1.474_091_372_988_853_791_896E1;
+const Q3ASIN: f64 = 7.049_610_280_856_842_141_659E1;
+const Q2ASIN: f64 = -1.471_791_292_232_726_029_859E2;
+const Q1ASIN: f64 = 1.395_105_614_657_485_689_735E2;
+const Q0ASIN: f64 = -4.918_853_881_490_881_290_097E1;
+
+/// asin x for x in [-1, 1] (NaN outside): two rational approximations joined at
+/// |x| = 0.625, both evaluated and one selected (no branch).
+#[inline(always)]
+pub fn asin<L: KernelOps>(x: L) -> L {
+    let xa = x.abs();
+    // The fused mode's shortcut: where every lane has |x| < 0.625 only the second rational
+    // approximation is selected below; evaluate just that one (same numbers, fewer operations).
+    if L::FUSED && xa.le_mask(L::splat(ASIN_SPLIT_BELOW)) == L::ALL {
+        let c = L::splat;
+        let x1 = xa * xa;
+        let x2 = x1 * x1;
+        let x3 = x2 * x1;
+        let x4 = x2 * x2;
+        let x5 = x4 * x1;
+        let px = (madd(x3, P3ASIN, P0ASIN) + x4.mul_add(c(P4ASIN), x1 * P1ASIN))
+            + x5.mul_add(c(P5ASIN), x2 * P2ASIN);
+        let qx = (x4.mul_add(c(Q4ASIN), x5) + x3.mul_add(c(Q3ASIN), x1 * Q1ASIN))
+            + madd(x2, Q2ASIN, Q0ASIN);
+        let y1 = px / qx * x1;
+        return xa.mul_add(y1, xa).xor_bits(x.and_bits(L::splat(SIGN)));
+    }
+    let big = xa.cmp_ge(L::splat(0.625));
+    let x1 = L::select(big, L::splat(1.0) - xa, xa * xa);
+    let x2 = x1 * x1;
+    let x3 = x2 * x1;
+    let x4 = x2 * x2;
+    let x5 = x4 * x1;
+
+    let rx = (x3 * R3ASIN + x2 * R2ASIN) + (x4 * R4ASIN + (x1 * R1ASIN + R0ASIN));
+    let sx = (x3 * S3ASIN + x4) + (x2 * S2ASIN + (x1 * S1ASIN + S0ASIN));
+    let px = ((x3 * P3ASIN + P0ASIN) + (x4 * P4ASIN + x1 * P1ASIN)) + (x5 * P5ASIN + x2 * P2ASIN);
+    let qx = ((x4 * Q4ASIN + x5) + (x3 * Q3ASIN + x1 * Q1ASIN)) + (x2 * Q2ASIN + Q0ASIN);
+    let vx = L::select(big, rx, px);
+    let wx = L::select(big, sx, qx);
+    let y1 = vx / wx * x1;
+
+    let xb = (x1 + x1).sqrt();
+    let z1 = xb.mul_add(y1, xb);
+    let z2 = xa.mul_add(y1, xa);
+    let a = L::select(big, L::splat(std::f64::consts::FRAC_PI_2) - z1, z2);
+    a.xor_bits(x.and_bits(L::splat(SIGN)))
+}

@@ -1,0 +1,145 @@
+//! Four lanes as a plain array, operation by operation (LLVM vectorises what it can): the lane
+//! type off x86-64. Also compiled, and tested, on x86-64 test builds.
+
+use super::{kernels, KernelOps, Lane, Param};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
+
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub struct F64x4(pub [f64; 4]);
+
+macro_rules! each {
+    (|$x:ident| $e:expr, $a:expr) => {{
+        let a = $a.0;
+        let f = |$x: f64| $e;
+        F64x4([f(a[0]), f(a[1]), f(a[2]), f(a[3])])
+    }};
+    (|$x:ident, $y:ident| $e:expr, $a:expr, $b:expr) => {{
+        let (a, b) = ($a.0, $b.0);
+        let f = |$x: f64, $y: f64| $e;
+        F64x4([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
+    }};
+}
+
+impl F64x4 {
+    #[inline(always)]
+    pub fn to_array(self) -> [f64; 4] {
+        self.0
+    }
+    #[inline(always)]
+    pub fn from_array(a: [f64; 4]) -> Self {
+        Self(a)
+    }
+    #[inline(always)]
+    fn add_(self, o: Self) -> Self {
+        each!(|x, y| x + y, self, o)
+    }
+    #[inline(always)]
+    fn sub_(self, o: Self) -> Self {
+        each!(|x, y| x - y, self, o)
+    }
+    #[inline(always)]
+    fn mul_(self, o: Self) -> Self {
+        each!(|x, y| x * y, self, o)
+    }
+    #[inline(always)]
+    fn div_(self, o: Self) -> Self {
+        each!(|x, y| x / y, self, o)
+    }
+}
+
+lane_ops!(F64x4);
+
+impl Lane for F64x4 {
+    const LANES: usize = 4;
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Self([x; 4])
+    }
+    #[inline(always)]
+    fn from_fn(mut f: impl FnMut(usize) -> f64) -> Self {
+        Self([f(0), f(1), f(2), f(3)])
+    }
+    #[inline(always)]
+    fn lane(self, i: usize) -> f64 {
+        self.0[i]
+    }
+    #[inline(always)]
+    fn set_lane(&mut self, i: usize, x: f64) {
+        self.0[i] = x;
+    }
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        kernels::sin_cos(self)
+    }
+    #[inline(always)]
+    fn asin(self) -> Self {
+        kernels::asin(self)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        each!(|x| x.abs(), self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        each!(|x| x.sqrt(), self)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        each!(|x, y| Lane::max(x, y), self, o)
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        each!(|x, y| Lane::min(x, y), self, o)
+    }
+    #[inline(always)]
+    fn le_mask(self, bound: Self) -> u32 {
+        let (a, b) = (self.0, bound.0);
+        (a[0] <= b[0]) as u32
+            | ((a[1] <= b[1]) as u32) << 1
+            | ((a[2] <= b[2]) as u32) << 2
+            | ((a[3] <= b[3]) as u32) << 3
+    }
+}
+
+impl KernelOps for F64x4 {
+    #[inline(always)]
+    fn cmp_le(self, o: Self) -> Self {
+        each!(|x, y| KernelOps::cmp_le(x, y), self, o)
+    }
+    #[inline(always)]
+    fn cmp_ge(self, o: Self) -> Self {
+        each!(|x, y| KernelOps::cmp_ge(x, y), self, o)
+    }
+    #[inline(always)]
+    fn cmp_ne(self, o: Self) -> Self {
+        each!(|x, y| KernelOps::cmp_ne(x, y), self, o)
+    }
+    #[inline(always)]
+    fn select(m: Self, a: Self, b: Self) -> Self {
+        let (m, a, b) = (m.0, a.0, b.0);
+        let f = <f64 as KernelOps>::select;
+        Self([
+            f(m[0], a[0], b[0]),
+            f(m[1], a[1], b[1]),
+            f(m[2], a[2], b[2]),
+            f(m[3], a[3], b[3]),
+        ])
+    }
+    #[inline(always)]
+    fn and_bits(self, o: Self) -> Self {
+        each!(|x, y| x.and_bits(y), self, o)
+    }
+    #[inline(always)]
+    fn xor_bits(self, o: Self) -> Self {
+        each!(|x, y| x.xor_bits(y), self, o)
+    }
+    #[inline(always)]
+    fn add_bits(self, o: Self) -> Self {
+        each!(|x, y| x.add_bits(y), self, o)
+    }
+    #[inline(always)]
+    fn shl62_bits(self) -> Self {
+        each!(|x| x.shl62_bits(), self)
+    }
+}
