@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -175,6 +176,11 @@ class MonteCarloResult:
             self.sampling,
             arithmetic=self.arithmetic,
         )
+
+    def metadata(self) -> dict[str, Any]:
+        """What produced this result (scenario, seed, controllers, sampling, arithmetic, quadrs
+        version) and its run identity, as its saved file records them."""
+        return self.record.metadata(interrupted=self.interrupted)
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the scenario, seed, controllers and quadrs version in the file's
