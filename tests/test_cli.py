@@ -615,3 +615,18 @@ def test_to_markdown_and_toml_value() -> None:
     ]
     for value in [True, 3, 0.1, "min_jerk", [[0.0, 1], [2, 3]], {"name": "P1", "end": 2.0}]:
         assert parse_value(toml_value(value)) == value
+
+
+def test_mc_fused_is_recorded_or_refused_in_cli_words(tmp_path, capsys) -> None:
+    out = tmp_path / "f.parquet"
+    code = main(["mc", *SHORT, "--runs", "4", "--controllers", "pd", "--fused", "--out", str(out)])
+    if quadrs._core.simd_path() == "baseline":  # no FMA: refused, in the CLI's words
+        assert code == 2
+        one_error_line(capsys.readouterr().err, "--fused needs")
+        return
+    assert code == 0
+    assert quadrs.MonteCarloResult.read_parquet(out).arithmetic == "fused"
+    capsys.readouterr()
+    code = main(["mc", *SHORT, "--runs", "4", "--fused", "--checkpoint", str(tmp_path / "c")])
+    assert code == 2
+    one_error_line(capsys.readouterr().err, "--fused is not supported with --checkpoint")

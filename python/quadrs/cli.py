@@ -249,6 +249,12 @@ def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         help="realisations per chunk (default: about 1/20 of the runs when checkpointing, "
         "4 tasks per thread on Dask, else all at once)",
     )
+    p.add_argument(
+        "--fused",
+        action="store_true",
+        help="fused multiply-adds: faster, equal to the default to about 1e-12 but not bit for "
+        "bit, and not across instruction sets (docs/performance.md); recorded in --out",
+    )
     _limit_options(p)
 
 
@@ -710,6 +716,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
             chunk=args.chunk,
             client=client,
             sampling=args.sampling,
+            fused=args.fused,
         )
     saved = True
     if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
@@ -1023,6 +1030,11 @@ CLI_WORDS = (
     ("resume=True continues it", "`quadrs mc --checkpoint DIR --resume` continues it"),
     ("Scenario.preset('paper_stable_lateral')", "--preset paper_stable_lateral"),
     ("runs.diverged", "the runs' diverged column"),
+    (
+        "fused=True is not supported with out= or client=",
+        "--fused is not supported with --checkpoint or --scheduler",
+    ),
+    ("fused=True needs", "--fused needs"),
 )
 
 
@@ -1062,7 +1074,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _bad_input_types() as e:
         if os.environ.get("QUADRS_TRACEBACK"):
             raise
-        print(f"{prog}: error: {_describe(e)}", file=sys.stderr)
+        print(f"{prog}: error: {_cli_words(_describe(e))}", file=sys.stderr)
         return EXIT_USAGE
 
 
