@@ -617,7 +617,7 @@ def test_to_markdown_and_toml_value() -> None:
         assert parse_value(toml_value(value)) == value
 
 
-def test_mc_fused_is_recorded_or_refused_in_cli_words(tmp_path, capsys) -> None:
+def test_mc_fused_is_recorded_and_kept_on_resume(tmp_path, capsys) -> None:
     out = tmp_path / "f.parquet"
     code = main(["mc", *SHORT, "--runs", "4", "--controllers", "pd", "--fused", "--out", str(out)])
     if quadrs._core.simd_path() == "baseline":  # no FMA: refused, in the CLI's words
@@ -626,7 +626,10 @@ def test_mc_fused_is_recorded_or_refused_in_cli_words(tmp_path, capsys) -> None:
         return
     assert code == 0
     assert quadrs.MonteCarloResult.read_parquet(out).arithmetic == "fused"
+    ckpt = tmp_path / "c"
+    assert main(["mc", *SHORT, "--runs", "4", "--fused", "--checkpoint", str(ckpt)]) == 0
+    assert quadrs.MonteCarloResult.read_parquet(ckpt).arithmetic == "fused"
     capsys.readouterr()
-    code = main(["mc", *SHORT, "--runs", "4", "--fused", "--checkpoint", str(tmp_path / "c")])
-    assert code == 2
-    one_error_line(capsys.readouterr().err, "--fused is not supported with --checkpoint")
+    code = main(["mc", *SHORT, "--runs", "8", "--checkpoint", str(ckpt), "--resume"])
+    assert code == 2  # the checkpoint is fused: resuming it exactly would mix the modes
+    one_error_line(capsys.readouterr().err, "arithmetic")

@@ -126,6 +126,23 @@ def test_dask_local_cluster_equals_local_run(short: Scenario, cluster) -> None:
     pd.testing.assert_frame_equal(swept.runs, local_sweep.runs)
 
 
+def test_dask_fused_run_equals_local_fused_run(short: Scenario, cluster) -> None:
+    """The fused mode reaches the workers (and their task keys): on one machine's CPU its
+    chunks are the local fused run's, and differ from the exact run's."""
+    from dask.distributed import Client
+
+    if quadrs._core.simd_path() == "baseline":
+        pytest.skip("the baseline path has no fused mode")
+    with Client(cluster) as client:
+        exact = quadrs.monte_carlo(short, runs=8, seed=6, progress=False, client=client, chunk=4)
+        fused = quadrs.monte_carlo(short, runs=8, seed=6, progress=False, client=client, chunk=4,
+                                   fused=True)  # fmt: skip
+    local = quadrs.monte_carlo(short, runs=8, seed=6, progress=False, fused=True)
+    assert (exact.arithmetic, fused.arithmetic) == ("exact", "fused")
+    pd.testing.assert_frame_equal(fused.runs, local.runs)
+    assert not exact.runs.equals(fused.runs)
+
+
 def test_cli_scheduler_and_checkpoint(cluster, tmp_path) -> None:
     from quadrs.cli import main
 

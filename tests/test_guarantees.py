@@ -43,6 +43,7 @@ def run_cli(*args: str, capsys) -> tuple[int, str, str]:
 
 
 # -- silent wrong results ---------------------------------------------------------------------
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_checkpoint_refuses_a_foreign_part(tiny: Scenario, tmp_path: Path, capsys) -> None:
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     quadrs.monte_carlo(tiny, runs=4, seed=1, progress=False, out=ours)
@@ -72,6 +73,7 @@ def test_two_runs_cannot_both_create_one_checkpoint(
     assert RunStore(tmp_path).manifest()["seed"] == 1
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_report_refuses_tampered_metadata(tiny: Scenario, tmp_path: Path, capsys) -> None:
     mc = quadrs.monte_carlo(tiny, runs=4, seed=0, progress=False)
     path = tmp_path / "runs.parquet"
@@ -100,6 +102,7 @@ def test_diverged_trace_stops_at_divergence(tiny: Scenario) -> None:
     assert len(f.trace) == round(f.diverged_at / 0.002)
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_unstable_step_is_flagged_by_the_speed_bound(tiny: Scenario) -> None:
     """SMC eta = 200 at dt = 10 ms: the step is unstable, vertical speeds reach ~1e3 m/s while
     positions stay within max_distance."""
@@ -203,6 +206,7 @@ def test_integers_beyond_64_bits_are_bad_input(args: list[str], capsys) -> None:
     assert args[1].lstrip("-") in err
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_first_near_2_63_keeps_labels_non_negative(tiny: Scenario) -> None:
     with pytest.raises(ValueError, match="first \\+ runs - 1"):
         quadrs.monte_carlo(tiny, runs=8, first=2**63 - 4, progress=False)
@@ -330,6 +334,7 @@ def test_thread_pools_are_bounded() -> None:
 
 
 # -- security ---------------------------------------------------------------------------------
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_a_planted_symlink_is_not_followed(tiny: Scenario, tmp_path: Path) -> None:
     victim = tmp_path / "victim.txt"
     victim.write_text("precious")

@@ -118,6 +118,7 @@ def test_flight_gust_starts_at_the_window(paper: Scenario) -> None:
     assert (on[["wind_x", "wind_y"]] == 0).all().all()
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 def test_gust_series_equals_the_flight_gust(paper: Scenario) -> None:
     s = paper.override({"integrator.dt": 0.01, "gust.start": 20.0, "gust.end": 30.0})
     trace = quadrs.simulate(s, "pd", seed=5, realisation=2, record_every=1).trace

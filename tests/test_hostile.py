@@ -146,6 +146,7 @@ def test_stiff_spring_warns_before_running_and_is_flagged(short: Scenario) -> No
         quadrs.simulate(short, "pd")  # the default attachment is fine at this dt
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse dt on purpose
 @pytest.mark.parametrize("in_pool", [False, True])
 def test_rust_panic_becomes_an_exception(in_pool: bool) -> None:
     with pytest.raises(EngineError, match="boom"):

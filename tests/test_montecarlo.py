@@ -242,5 +242,16 @@ def test_fused_mode_is_close_recorded_and_refused_where_it_cannot_run(
     back = MonteCarloResult.read_parquet(tmp_path / "f.parquet")
     assert back.arithmetic == "fused"
     assert fused.metadata()["run"] != exact.metadata()["run"]
-    with pytest.raises(ValueError, match="out= or client="):
-        quadrs.monte_carlo(short, runs=4, progress=False, fused=True, out=tmp_path / "d")
+    # A checkpoint records the mode: its rows are the in-memory run's, it reads back fused,
+    # and resuming it in the other mode is refused (rows of two modes never mix).
+    saved = quadrs.monte_carlo(short, runs=8, seed=2, progress=False, fused=True, chunk=4,
+                               out=tmp_path / "d")  # fmt: skip
+    assert saved.arithmetic == "fused"
+    pd.testing.assert_frame_equal(saved.runs, fused.runs)
+    assert MonteCarloResult.read_parquet(tmp_path / "d").arithmetic == "fused"
+    with pytest.raises(ValueError, match="arithmetic"):
+        quadrs.monte_carlo(short, runs=12, seed=2, progress=False, out=tmp_path / "d",
+                           resume=True)  # fmt: skip
+    more = quadrs.monte_carlo(short, runs=12, seed=2, progress=False, fused=True,
+                              out=tmp_path / "d", resume=True)  # fmt: skip
+    assert more.arithmetic == "fused" and more.runs["realisation"].nunique() == 12

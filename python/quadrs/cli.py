@@ -253,7 +253,8 @@ def _add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         "--fused",
         action="store_true",
         help="fused multiply-adds: faster, equal to the default to about 1e-12 but not bit for "
-        "bit, and not across instruction sets (docs/performance.md); recorded in --out",
+        "bit, and not across instruction sets (docs/performance.md); recorded in --out and "
+        "--checkpoint",
     )
     _limit_options(p)
 

@@ -28,11 +28,13 @@ def run_chunk(
     workers: int,
     spectra: bool,
     design: Design,
+    fused: bool = False,
 ) -> Chunk:
     """One chunk on whichever machine runs it: the very record a local run makes of it
     (:func:`quadrs.chunk.fly_chunk`), dispersed values drawn from the same (seed, design)."""
     scenario = Scenario.from_toml_string(scenario_toml)
-    return fly_chunk(scenario, controllers, seed, first, count, workers, spectra, design)
+    return fly_chunk(scenario, controllers, seed, first, count, workers, spectra, design,
+                     fused=fused)  # fmt: skip
 
 
 def worker_threads(client: Client) -> int:
@@ -55,6 +57,7 @@ def run_on_dask(
     ranges: Sequence[tuple[int, int]],
     spectra: bool,
     design: Design,
+    fused: bool = False,
 ) -> Generator[Chunk, None, None]:
     """Submit one task per (first, count) range; yield each chunk's record as it finishes.
     Closing the iterator early (Ctrl-C) cancels the tasks not yet finished."""
@@ -66,8 +69,10 @@ def run_on_dask(
     futures = []
     for first, count in ranges:
         # Every input of the chunk is in its key: two calls that differ in anything (scenario,
-        # controllers, seed, range, threads, spectra, sampling design) never share a task.
-        args = (toml, list(controllers), seed, first, count, threads, spectra, design)
+        # controllers, seed, range, threads, spectra, sampling design, arithmetic) never share
+        # a task. Fused chunks may run on workers with other instruction sets: fused numbers
+        # are not bit-identical across them (docs/performance.md).
+        args = (toml, list(controllers), seed, first, count, threads, spectra, design, fused)
         key = f"quadrs-chunk-{first}-{count}-{tokenize(_core.__version__, *args)}"
         futures.append(client.submit(run_chunk, *args, key=key, pure=True, retries=2))
     try:

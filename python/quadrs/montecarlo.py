@@ -106,8 +106,8 @@ def monte_carlo(
     engine fuses multiply-adds, so its numbers differ from the default mode's in the last
     digits (about 1e-12 relative on the paper preset) and are not bit-identical across
     instruction sets. The result says so (``result.arithmetic == "fused"``, also in saved
-    metadata and the run identity). Not yet with ``out=`` or ``client=``. See
-    docs/performance.md.
+    metadata, a checkpoint's manifest and the run identity, so a resumed run keeps its mode; on
+    Dask each worker fuses on its own instruction set). See docs/performance.md.
     """
     from tqdm.auto import tqdm
 
@@ -135,11 +135,7 @@ def monte_carlo(
     design = Design(sampling, first, runs)
     if not isinstance(fused, bool):
         raise ValueError(f"fused must be True or False, got {fused!r}")
-    if fused and (out is not None or client is not None):
-        raise ValueError(
-            "fused=True is not supported with out= or client= (checkpointed and Dask runs "
-            "record only the default arithmetic); drop one of them"
-        )
+    arithmetic = "fused" if fused else "exact"
 
     # Say so before a long batch starts on gains that cannot hold hover (docs/model.md section 8)
     # or on a step too coarse for the fastest mode.
@@ -149,10 +145,10 @@ def monte_carlo(
     store = RunStore(out) if out is not None else None
     if store is not None:
         if store.exists() and resume:
-            store.check_matches(scenario, seed, controllers, spectra, design.record())
+            store.check_matches(scenario, seed, controllers, spectra, design.record(), arithmetic)
             todo = missing_ranges(first, runs, store.done_realisations())
         else:
-            store.create(scenario, seed, controllers, spectra, design.record())
+            store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
     if client is not None:
         from quadrs.distributed import total_threads
 
@@ -192,7 +188,8 @@ def monte_carlo(
         else:
             from quadrs.distributed import run_on_dask
 
-            chunks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design)
+            chunks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design,
+                                 fused)  # fmt: skip
         try:
             for done in chunks:
                 pending.append(done)
@@ -232,7 +229,7 @@ def monte_carlo(
         spectrum_sums=functools.reduce(operator.add, sums) if sums else None,
         interrupted=interrupted,
         sampling=sampling,
-        arithmetic="fused" if fused else "exact",
+        arithmetic=arithmetic,
     )
 
 

@@ -215,7 +215,7 @@ class MonteCarloResult:
             runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
         sampling = str(record.extra.get("sampling", "random"))
         return cls(record.scenario, record.seed, record.controllers, runs, sums, interrupted,
-                   sampling)  # fmt: skip
+                   sampling, arithmetic=record.arithmetic)  # fmt: skip
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> MonteCarloResult:

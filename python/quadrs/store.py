@@ -60,6 +60,7 @@ class RunStore:
         controllers: tuple[str, ...],
         spectra: bool = True,
         design: dict[str, Any] | None = None,
+        arithmetic: str = "exact",
     ) -> None:
         """Start a new run; refuses to overwrite an existing one (FileExistsError), also when
         another process creates one at the same moment. ``design``: how dispersed values are
@@ -72,7 +73,7 @@ class RunStore:
         for leftover in self.path.glob(".*.partial"):  # a write cut short by a kill
             leftover.unlink()
         record = RunRecord(scenario, seed, tuple(controllers), bool(spectra), "design",
-                           _design(design))  # fmt: skip
+                           _design(design), arithmetic=arithmetic)  # fmt: skip
         manifest = record.metadata()
         try:
             atomic_create(self.manifest_path, json.dumps(manifest, indent=1).encode())
@@ -118,6 +119,7 @@ class RunStore:
         controllers: tuple[str, ...],
         spectra: bool = True,
         design: dict[str, Any] | None = None,
+        arithmetic: str = "exact",
     ) -> None:
         """Resuming must continue the same experiment, or its rows would not belong together
         (a random-sampled run may be extended; a design (lhs, sobol) is fixed by its batch)."""
@@ -128,6 +130,7 @@ class RunStore:
             ("controllers", list(controllers), m["controllers"]),
             ("spectra setting", bool(spectra), m["spectra"]),
             ("sampling design", _design(design), _design(m.get("design"))),
+            ("arithmetic (fused or exact)", arithmetic, self.record.arithmetic),
         ):
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
