@@ -60,4 +60,17 @@ def test_every_supported_path_gives_the_same_bits() -> None:
 def test_a_path_that_is_none_is_refused_by_name(value: str) -> None:
     out = run(value)
     assert out.returncode != 0
-    assert "RuntimeError" in out.stderr and f'QUADRS_SIMD="{value}"' in out.stderr, out.stderr
+    assert "ValueError" in out.stderr and f'QUADRS_SIMD="{value}"' in out.stderr, out.stderr
+
+
+def test_the_cli_refuses_a_bad_path_in_one_line() -> None:
+    """A bad QUADRS_SIMD is bad input: exit 2 and one line naming it, no traceback."""
+    env = {**os.environ, "QUADRS_SIMD": "avx9"}
+    out = subprocess.run(
+        [sys.executable, "-m", "quadrs.cli", "mc", "--runs", "4"],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'QUADRS_SIMD="avx9"' in lines[0], out.stderr
+    assert "Traceback" not in out.stderr

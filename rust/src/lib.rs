@@ -92,10 +92,10 @@ mod _core {
         })
     }
 
-    /// The instruction set new engines use: an error (RuntimeError) if QUADRS_SIMD forces one
-    /// this CPU cannot run or names none.
+    /// The instruction set new engines use: an error (ValueError: a bad setting, so the CLI's
+    /// exit 2) if QUADRS_SIMD forces one this CPU cannot run or names none.
     fn isa() -> PyResult<crate::lane::isa::Isa> {
-        crate::lane::isa::Isa::active().map_err(pyo3::exceptions::PyRuntimeError::new_err)
+        crate::lane::isa::Isa::active().map_err(PyValueError::new_err)
     }
 
     fn engine(config_json: &str) -> PyResult<Engine> {
@@ -128,7 +128,6 @@ mod _core {
         })
     }
 
-    /// Validate a scenario; return the quantities derived from it.
     /// The instruction set the engine's hot loop uses on this machine ("avx512", "avx2" or
     /// "baseline"), chosen at run time; QUADRS_SIMD=baseline|avx2|avx512 forces one (an error
     /// if this CPU cannot run it). Every path gives bit-identical results in the default mode.
@@ -137,6 +136,7 @@ mod _core {
         isa().map(|i| i.name())
     }
 
+    /// Validate a scenario; return the quantities derived from it.
     #[pyfunction]
     fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
         let e = engine(config_json)?;
