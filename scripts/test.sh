@@ -18,6 +18,8 @@ cargo test --release -q
 .venv/bin/ruff format --check python tests benches examples
 .venv/bin/python -m mypy python/quadrs
 .venv/bin/python -m mypy.stubtest quadrs._core --allowlist tests/stubtest-allowlist.txt
+# Which engine path this machine runs: the cross-path tests run every path it supports.
+.venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 .venv/bin/python -m pytest -q "$@"
 if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
     bash scripts/other_pythons.sh
