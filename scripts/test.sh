@@ -14,8 +14,8 @@ cargo fmt --check
 cargo clippy --all-targets -q -- -D warnings
 cargo test --release -q
 
-.venv/bin/ruff check python tests benches examples
-.venv/bin/ruff format --check python tests benches examples
+.venv/bin/ruff check python tests benches examples scripts
+.venv/bin/ruff format --check python tests benches examples scripts
 .venv/bin/python -m mypy python/quadrs
 .venv/bin/python -m mypy.stubtest quadrs._core --allowlist tests/stubtest-allowlist.txt
 # Which engine path this machine runs: the cross-path tests run every path it supports.

@@ -1,0 +1,36 @@
+"""The paper model's numbers do not change by one bit (docs/model.md, "Paper model unchanged").
+
+tests/data/paper_bits.json holds a digest of every output of a fixed set of paper-model cases
+(traces, metrics, Monte Carlo rows fixed and dispersed, spectra, gust series, linearisations,
+poles), written by ``scripts/paper_bits.py --write`` before the third round's model-seams
+redesign. Any change of any bit of any of those numbers fails here, naming the output.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+spec = importlib.util.spec_from_file_location("paper_bits", ROOT / "scripts" / "paper_bits.py")
+assert spec and spec.loader
+paper_bits = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(paper_bits)
+
+
+def test_paper_model_numbers_are_bit_identical_to_the_recorded_ones():
+    want = json.loads((ROOT / "tests" / "data" / "paper_bits.json").read_text())
+    got = paper_bits.compute()
+    assert paper_bits.compare(want, got) == []
+
+
+def test_the_comparison_can_fail():
+    want = json.loads((ROOT / "tests" / "data" / "paper_bits.json").read_text())
+    tampered = {case: dict(d) for case, d in want.items()}
+    tampered["paper.pd"]["trace.z"] = "0" * 32
+    del tampered["gust"]["gust.dryden.vertical"]
+    assert sorted(paper_bits.compare(want, tampered)) == [
+        "gust: gust.dryden.vertical missing",
+        "paper.pd: trace.z changed",
+    ]
