@@ -38,6 +38,9 @@ pub struct Config {
     pub environment: Environment,
     pub initial: Initial,
     pub controller: ControllerConfig,
+    /// How the controller's thrust and torques reach the airframe (docs/model.md section 8).
+    #[serde(default)]
+    pub actuator: ActuatorConfig,
     pub trajectory: Trajectory,
     pub phases: Vec<Phase>,
     pub gust: Gust,
@@ -66,9 +69,37 @@ pub struct Vehicle {
     pub lateral_drag_area: f64,
 }
 
+/// Which payload model flies (`payload.model`, docs/model.md sections 1 and 7).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PayloadModelName {
+    /// A point mass on a vertical spring (the paper's).
+    #[default]
+    Spring,
+}
+
+/// Which actuator model flies (`actuator.model`, docs/model.md section 8).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActuatorModelName {
+    /// The controller's thrust and torques act at once, without limit (the paper's).
+    #[default]
+    Ideal,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorConfig {
+    #[serde(default)]
+    pub model: ActuatorModelName,
+}
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Payload {
+    /// The payload model (default "spring").
+    #[serde(default)]
+    pub model: PayloadModelName,
     /// kg.
     pub mass: f64,
     /// Hz, fn with kc = mc (2 pi fn)^2. Exactly one of this and `stiffness`.
@@ -383,6 +414,11 @@ impl Config {
     /// Number of RK4 steps of a flight: the duration rounded to the nearest whole step.
     pub fn steps(&self) -> usize {
         (self.integrator.duration / self.integrator.dt).round() as usize
+    }
+
+    /// Integration steps per spectrum sample (`metrics.spectrum_rate`).
+    pub fn decimation(&self) -> usize {
+        ((1.0 / (self.metrics.spectrum_rate * self.integrator.dt)).round() as usize).max(1)
     }
 
     /// Check every value; the first problem found is returned with its key.

@@ -1,56 +1,55 @@
 //! The flight loop: classical RK4 with controls and wind sampled at the start of each step and
-//! held over its four stages (a digital controller at 1/dt Hz), metrics taken online.
+//! held over its four stages (a digital controller at 1/dt Hz), metrics taken online. The loop
+//! knows no model's details: the vehicle (`model::Vehicle`) gives the derivative and the
+//! payload's outputs, the layout gives the state names and runaway bounds.
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::gust::{WindField, WindState};
 use crate::lane::isa::Isa;
-use crate::lane::{F64x4, KernelOps, Lane, Param};
+use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, N_METRICS};
-use crate::model::{ix, state_from_fn, Inputs, Plant, State, Trig};
+use crate::model::{
+    dispatch, state_from_fn, state_vars, Actuator, ActuatorModel, Bound, Inputs, Parts, Payload,
+    State, StateVar, Trig, Vehicle, VehicleVisitor,
+};
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
+use std::marker::PhantomData;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// One RK4 step of the plant with inputs and wind held.
+/// One RK4 step of the vehicle with the actuator command and wind held; `trig` are the sines
+/// and cosines of `s`'s angles (the controller needed them too). The later stages get theirs
+/// from these by angle addition (`Trig::advanced`).
 #[inline(always)]
-pub fn rk4_step<L: KernelOps, P: Param<L>>(
-    plant: &Plant<P>,
-    s: &State<L>,
-    u: &Inputs<L>,
-    w: &[L; 3],
-    dt: f64,
-) -> State<L> {
-    rk4_step_with(plant, s, &Trig::of(s), u, w, dt)
-}
-
-/// `rk4_step` with the sines and cosines of `s`'s angles already at hand (the controller needed
-/// them too). The later stages get theirs from these by angle addition (`Trig::advanced`).
-#[inline(always)]
-pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
-    plant: &Plant<P>,
-    s: &State<L>,
+pub fn rk4_step<L: KernelOps, Pay, Act, const N: usize>(
+    vehicle: &Vehicle<L, Pay, Act>,
+    s: &State<L, N>,
     trig: &Trig<L>,
-    u: &Inputs<L>,
+    cmd: &Act::Command,
     w: &[L; 3],
     dt: f64,
-) -> State<L> {
+) -> State<L, N>
+where
+    Pay: crate::model::PayloadModel<L>,
+    Act: ActuatorModel<L>,
+{
     #[inline(always)]
-    fn stage<L: Lane>(base: &State<L>, k: &State<L>, h: f64) -> State<L> {
+    fn stage<L: Lane, const N: usize>(base: &State<L, N>, k: &State<L, N>, h: f64) -> State<L, N> {
         state_from_fn(
             #[inline(always)]
             |i| k[i].mul_add(L::splat(h), base[i]),
         )
     }
-    let k1 = plant.derivative_with(s, trig, u, w);
+    let k1 = vehicle.derivative(s, trig, cmd, w);
     let s2 = stage(s, &k1, 0.5 * dt);
-    let k2 = plant.derivative_with(&s2, &trig.advanced(&k1, 0.5 * dt, &s2), u, w);
+    let k2 = vehicle.derivative(&s2, &trig.advanced(&k1, 0.5 * dt, &s2), cmd, w);
     let s3 = stage(s, &k2, 0.5 * dt);
-    let k3 = plant.derivative_with(&s3, &trig.advanced(&k2, 0.5 * dt, &s3), u, w);
+    let k3 = vehicle.derivative(&s3, &trig.advanced(&k2, 0.5 * dt, &s3), cmd, w);
     let s4 = stage(s, &k3, dt);
-    let k4 = plant.derivative_with(&s4, &trig.advanced(&k3, dt, &s4), u, w);
+    let k4 = vehicle.derivative(&s4, &trig.advanced(&k3, dt, &s4), cmd, w);
     let h6 = dt / 6.0;
     state_from_fn(
         #[inline(always)]
@@ -58,22 +57,8 @@ pub fn rk4_step_with<L: KernelOps, P: Param<L>>(
     )
 }
 
-/// Trace columns after `t`, in order.
-pub const TRACE_COLUMNS: [&str; 28] = [
-    "x",
-    "y",
-    "z",
-    "phi",
-    "theta",
-    "psi",
-    "zc",
-    "vx",
-    "vy",
-    "vz",
-    "p",
-    "q",
-    "r",
-    "vzc",
+/// Trace columns after the states (whose names come from the layout), in order.
+pub const SIGNAL_COLUMNS: [&str; 14] = [
     "x_ref",
     "y_ref",
     "z_ref",
@@ -90,24 +75,36 @@ pub const TRACE_COLUMNS: [&str; 28] = [
     "drag_z",
 ];
 
-/// Rows of (t, TRACE_COLUMNS...) every `every` steps, for lane 0 of a flight.
+/// Every trace column after `t`: the states of `vars`, then `SIGNAL_COLUMNS`.
+pub fn trace_columns(vars: &[StateVar]) -> Vec<&'static str> {
+    vars.iter()
+        .map(|v| v.name)
+        .chain(SIGNAL_COLUMNS)
+        .collect()
+}
+
+/// Rows of (t, trace columns...) every `every` steps, for lane 0 of a flight.
 pub struct Trace {
     pub every: usize,
+    /// Values per row (t included).
+    pub width: usize,
     pub data: Vec<f64>,
 }
 
 impl Trace {
-    pub const WIDTH: usize = TRACE_COLUMNS.len() + 1;
-
-    pub fn new(every: usize, steps: usize) -> Self {
+    /// A trace of a flight of `steps` steps of a vehicle with `states` states.
+    pub fn new(every: usize, steps: usize, states: usize) -> Self {
         let every = every.max(1);
+        let width = 1 + states + SIGNAL_COLUMNS.len();
         Self {
             every,
-            data: Vec::with_capacity((steps / every + 1) * Self::WIDTH),
+            width,
+            data: Vec::with_capacity((steps / every + 1) * width),
         }
     }
 
-    fn push<L: Lane>(&mut self, row: &TraceRow<L>) {
+    fn push<L: Lane, const N: usize>(&mut self, row: &TraceRow<L, N>) {
+        debug_assert_eq!(self.width, 1 + N + SIGNAL_COLUMNS.len());
         self.data.push(row.t);
         self.data.extend(row.s.iter().map(|x| x.lane(0)));
         let r = row.r;
@@ -121,11 +118,12 @@ impl Trace {
     }
 }
 
-/// One trace row: lane 0 of the flight at time `t` (columns as `TRACE_COLUMNS`).
-struct TraceRow<'a, L> {
+/// One trace row: lane 0 of the flight at time `t` (columns as `trace_columns`).
+struct TraceRow<'a, L, const N: usize> {
     t: f64,
-    s: &'a State<L>,
+    s: &'a State<L, N>,
     r: &'a Reference,
+    /// The controller's command held over the step starting at `t`.
     u: &'a Inputs<L>,
     /// The wind held over the step starting at `t`.
     w: &'a [L; 3],
@@ -135,6 +133,79 @@ struct TraceRow<'a, L> {
     drag_z: L,
 }
 
+/// Why a flight ended (docs/model.md section 11): it ran to the end, or a state went
+/// non-finite or past its runaway bound (`divergence.*`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum ExitStatus {
+    Ok = 0,
+    NonFinite = 1,
+    Distance = 2,
+    Tilt = 3,
+    Speed = 4,
+    Rate = 5,
+}
+
+impl ExitStatus {
+    pub const ALL: [Self; 6] = [
+        Self::Ok,
+        Self::NonFinite,
+        Self::Distance,
+        Self::Tilt,
+        Self::Speed,
+        Self::Rate,
+    ];
+
+    /// The public name (`mc.runs["status"]`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::NonFinite => "non_finite",
+            Self::Distance => "distance",
+            Self::Tilt => "tilt",
+            Self::Speed => "speed",
+            Self::Rate => "rate",
+        }
+    }
+
+    /// What happened, in a sentence.
+    pub fn message(self) -> &'static str {
+        match self {
+            Self::Ok => "the flight ran to the end",
+            Self::NonFinite => "a state became infinite or NaN",
+            Self::Distance => "a position went past divergence.max_distance",
+            Self::Tilt => "roll or pitch went past divergence.max_tilt",
+            Self::Speed => "a velocity went past divergence.max_speed",
+            Self::Rate => "a body rate went past divergence.max_rate",
+        }
+    }
+
+    fn of(bound: Bound) -> Self {
+        match bound {
+            Bound::Distance => Self::Distance,
+            Bound::Tilt => Self::Tilt,
+            Bound::Speed => Self::Speed,
+            Bound::Rate => Self::Rate,
+        }
+    }
+}
+
+/// Why the state `s` (one lane's values) failed its checks: non-finite first, then the first
+/// bound exceeded in the order of `Bound`.
+fn classify(vars: &[StateVar], s: &[f64], limits: &[f64; 4]) -> ExitStatus {
+    if s.iter().any(|x| !x.is_finite()) {
+        return ExitStatus::NonFinite;
+    }
+    [Bound::Distance, Bound::Tilt, Bound::Speed, Bound::Rate]
+        .into_iter()
+        .find(|&b| {
+            vars.iter()
+                .zip(s)
+                .any(|(v, x)| v.bound == Some(b) && x.abs() > limits[b as usize])
+        })
+        .map_or(ExitStatus::NonFinite, ExitStatus::of)
+}
+
 /// What one realisation of one controller produced.
 #[derive(Clone, Debug)]
 pub struct LaneResult {
@@ -142,6 +213,8 @@ pub struct LaneResult {
     pub metrics: Vec<[f64; N_METRICS]>,
     /// Time (s) at which the state went non-finite or ran away; NaN if it never did.
     pub diverged_at: f64,
+    /// Why the flight ended.
+    pub status: ExitStatus,
     /// Amplitude spectrum of e_o per phase (empty unless asked for).
     pub spectra: Vec<Vec<f64>>,
 }
@@ -151,36 +224,50 @@ pub struct LaneResult {
 /// scenario has one (`Engine::craft`); a dispersed batch builds one per realisation and the
 /// flight loop carries them one per lane.
 pub struct Craft {
-    pub plant: Plant,
+    pub parts: Parts,
     pd: Pd,
     smc: Smc,
     wind: WindField,
-    x0: State<f64>,
-    /// m, rad, m/s and rad/s: `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate`.
-    max_distance: f64,
-    max_tilt: f64,
-    max_speed: f64,
-    max_rate: f64,
+    /// The initial state (the layout's order).
+    pub x0: Vec<f64>,
+    /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
+    /// the order of `Bound`.
+    limits: [f64; 4],
 }
 
 impl Craft {
     /// The craft of a validated config (`Config::validate` has run).
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
-        let plant = Plant::new(cfg);
+        let parts = Parts::new(cfg);
         let wind = WindField::new(cfg)?;
-        let x0 = plant.rest_state(cfg.initial.position, cfg.initial.attitude);
+        let x0 = initial_state(&parts, cfg);
+        let d = &cfg.divergence;
         Ok(Self {
-            plant,
+            parts,
             pd: Pd::new(cfg),
             smc: Smc::new(cfg),
             wind,
             x0,
-            max_distance: cfg.divergence.max_distance,
-            max_tilt: cfg.divergence.max_tilt,
-            max_speed: cfg.divergence.max_speed,
-            max_rate: cfg.divergence.max_rate,
+            limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
         })
     }
+}
+
+/// The state a flight of `cfg` starts from: at rest at `initial.*`, payload and actuators at
+/// hover.
+pub fn initial_state(parts: &Parts, cfg: &Config) -> Vec<f64> {
+    struct Rest<'a>(&'a Parts, &'a Config);
+    impl VehicleVisitor for Rest<'_> {
+        type Output = Vec<f64>;
+        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
+            let Rest(parts, cfg) = self;
+            let s: State<f64, N> = parts
+                .vehicle::<Pay, Act>()
+                .rest_state(cfg.initial.position, cfg.initial.attitude);
+            s.to_vec()
+        }
+    }
+    dispatch(cfg.payload.model, cfg.actuator.model, Rest(parts, cfg))
 }
 
 /// One request to the flight loop: which law, which realisations (one per lane) and, for a
@@ -214,6 +301,8 @@ pub struct Engine {
     pub cfg: Config,
     /// The scenario's own vehicle (every realisation's, unless dispersed).
     pub craft: Craft,
+    /// The states, in order (names, axes, runaway bounds).
+    pub vars: Vec<StateVar>,
     trajectory: Trajectory,
     phases: Vec<PhaseSteps>,
     pub steps: usize,
@@ -267,9 +356,10 @@ impl Engine {
         })?;
         let dt = cfg.integrator.dt;
         let steps = cfg.steps();
-        let decimation = ((1.0 / (cfg.metrics.spectrum_rate * dt)).round() as usize).max(1);
+        let decimation = cfg.decimation();
         Ok(Self {
             craft: Craft::new(&cfg)?,
+            vars: state_vars(cfg.payload.model, cfg.actuator.model),
             trajectory: Trajectory::new(&cfg),
             phases: phase_steps(&cfg),
             steps,
@@ -282,9 +372,14 @@ impl Engine {
         })
     }
 
-    /// The scenario's own plant.
-    pub fn plant(&self) -> &Plant {
-        &self.craft.plant
+    /// Trace columns after `t`.
+    pub fn trace_columns(&self) -> Vec<&'static str> {
+        trace_columns(&self.vars)
+    }
+
+    /// An empty trace for one flight, a row every `every` steps.
+    pub fn trace(&self, every: usize) -> Trace {
+        Trace::new(every, self.steps, self.vars.len())
     }
 
     /// Fly the wind `wind` (m/s, inertial [x, y, z]; row k held over step k, one row per step
@@ -423,9 +518,43 @@ impl Engine {
         fly_avx512, "avx512f,avx512dq";
     }
 
-    /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
+    /// Fly on the vehicle kinds of the scenario (`model::dispatch`).
     #[inline(always)]
     fn fly_any<L: KernelOps>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        struct Fly<'e, 'r, 't, L> {
+            engine: &'e Engine,
+            req: &'r FlightRequest<'r>,
+            trace: Option<&'t mut Trace>,
+            planner: &'t mut FftPlanner<f64>,
+            lanes: PhantomData<L>,
+        }
+        impl<L: KernelOps> VehicleVisitor for Fly<'_, '_, '_, L> {
+            type Output = Option<Vec<LaneResult>>;
+            #[inline(always)]
+            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+                self.engine
+                    .fly_vehicle::<L, Pay, Act, N>(self.req, self.trace, self.planner)
+            }
+        }
+        let cfg = &self.cfg;
+        let fly = Fly {
+            engine: self,
+            req,
+            trace,
+            planner,
+            lanes: PhantomData::<L>,
+        };
+        dispatch(cfg.payload.model, cfg.actuator.model, fly)
+    }
+
+    /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
+    #[inline(always)]
+    fn fly_vehicle<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -439,34 +568,41 @@ impl Engine {
             }
             None => &own[..L::LANES],
         };
-        let plants: Vec<&Plant> = crafts.iter().map(|c| &c.plant).collect();
-        let plant = Plant::gather::<L>(&plants);
+        let parts: Vec<&Parts> = crafts.iter().map(|c| &c.parts).collect();
+        let vehicle = Parts::gather::<L, Pay, Act>(&parts);
         match req.kind {
             ControllerKind::Pd => {
                 let each: Vec<&Pd> = crafts.iter().map(|c| &c.pd).collect();
                 let ctrl = Pd::gather::<L>(&each);
-                self.fly_loop::<L, _>(&plant, &ctrl, crafts, req, trace, planner)
+                self.fly_loop::<L, _, _, _, N>(&vehicle, &ctrl, crafts, req, trace, planner)
             }
             ControllerKind::Smc => {
                 let each: Vec<&Smc> = crafts.iter().map(|c| &c.smc).collect();
                 let ctrl = Smc::gather::<L>(&each);
-                self.fly_loop::<L, _>(&plant, &ctrl, crafts, req, trace, planner)
+                self.fly_loop::<L, _, _, _, N>(&vehicle, &ctrl, crafts, req, trace, planner)
             }
         }
     }
 
     #[inline(always)]
-    fn fly_loop<L: KernelOps, C: Control<L>>(
+    #[allow(clippy::too_many_arguments)]
+    fn fly_loop<L, Pay, Act, C, const N: usize>(
         &self,
-        plant: &Plant<L>,
+        vehicle: &Vehicle<L, Pay, Act>,
         ctrl: &C,
         crafts: &[&Craft],
         req: &FlightRequest,
         mut trace: Option<&mut Trace>,
         planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        let lane_value = |f: fn(&Craft) -> f64| L::from_fn(|l| f(crafts[l]));
-        let x0: State<L> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
+    ) -> Option<Vec<LaneResult>>
+    where
+        L: KernelOps,
+        Pay: crate::model::PayloadModel<L>,
+        Act: ActuatorModel<L>,
+        C: Control<L>,
+    {
+        assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
         let mut s = x0;
         let mut winds: Vec<WindState> = req
             .indices
@@ -477,15 +613,20 @@ impl Engine {
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; MAX_LANES];
+        let mut status = [ExitStatus::Ok; MAX_LANES];
         let mut alive = L::LANES;
-        let max_dist = lane_value(|c| c.max_distance);
-        let max_tilt = lane_value(|c| c.max_tilt);
-        let max_speed = lane_value(|c| c.max_speed);
-        let max_rate = lane_value(|c| c.max_rate);
+        // Each state's runaway bound per lane (infinite where it has none: then only a
+        // non-finite value ends the flight). NaN compares false, so the masks also catch
+        // non-finite states.
+        let limit: State<L, N> = state_from_fn(|i| {
+            L::from_fn(|l| match self.vars[i].bound {
+                Some(b) => crafts[l].limits[b as usize],
+                None => f64::INFINITY,
+            })
+        });
         let mut segment = 0;
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
-        let d0 = lane_value(|c| c.plant.hover_offset());
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
         // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
         let windy = || crafts.iter().filter(|c| c.wind.enabled());
@@ -500,7 +641,8 @@ impl Engine {
                 ref_changes = self.trajectory.next_change(segment);
             }
             let trig = Trig::of(&s);
-            let u = ctrl.control_with(&s, &trig, &r);
+            let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);
+            let cmd = vehicle.actuator.command(&u);
             // Outside the gust window `sample` returns zeros without touching the state, so the
             // per-lane calls are skipped where no lane's window is open (most of a flight).
             if let Some(prescribed) = &self.prescribed_wind {
@@ -524,9 +666,9 @@ impl Engine {
                 wind_of(&wind_lanes, 1),
                 wind_of(&wind_lanes, 2),
             ];
-            let e_o = s[ix::ZC] - s[ix::Z] + d0;
-            let accel_c = plant.payload_acceleration(&s, w[2]);
-            acc.sample(k, t, e_o, s[ix::Z] * -1.0 + r.pos[2], accel_c);
+            let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
+            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+            acc.sample(k, t, out.e_o, rigid.pos[2] * -1.0 + r.pos[2], out.accel_z);
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && diverged_at[0].is_nan() {
@@ -536,38 +678,28 @@ impl Engine {
                         r: &r,
                         u: &u,
                         w: &w,
-                        e_o,
-                        accel_c,
-                        drag_z: plant.vertical_drag(&s, w[2]),
+                        e_o: out.e_o,
+                        accel_c: out.accel_z,
+                        drag_z: vehicle.body.vertical_drag(rigid.vel[2], w[2]),
                     });
                 }
             }
             if k == self.steps {
                 break;
             }
-            s = rk4_step_with(plant, &s, &trig, &u, &w, self.dt);
+            s = rk4_step(vehicle, &s, &trig, &cmd, &w, self.dt);
 
-            // Divergence: NaN compares false, so the masks also catch non-finite states.
-            let ok = s[ix::X].abs().le_mask(max_dist)
-                & s[ix::Y].abs().le_mask(max_dist)
-                & s[ix::Z].abs().le_mask(max_dist)
-                & s[ix::ZC].abs().le_mask(max_dist)
-                & s[ix::PHI].abs().le_mask(max_tilt)
-                & s[ix::THETA].abs().le_mask(max_tilt)
-                // A numerically unstable step gives finite but absurd speeds long before the
-                // positions run away: bound every velocity and body rate too.
-                & s[ix::VX].abs().le_mask(max_speed)
-                & s[ix::VY].abs().le_mask(max_speed)
-                & s[ix::VZ].abs().le_mask(max_speed)
-                & s[ix::VZC].abs().le_mask(max_speed)
-                & s[ix::P].abs().le_mask(max_rate)
-                & s[ix::Q].abs().le_mask(max_rate)
-                & s[ix::R].abs().le_mask(max_rate);
+            let mut ok = L::ALL;
+            for i in 0..N {
+                ok &= s[i].abs().le_mask(limit[i]);
+            }
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
                         *at = t + self.dt;
                         alive -= 1;
+                        let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
+                        status[lane] = classify(&self.vars, &values, &crafts[lane].limits);
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
                         for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
                             x.set_lane(lane, *x0);
@@ -616,6 +748,7 @@ impl Engine {
                     LaneResult {
                         metrics,
                         diverged_at: diverged_at[lane],
+                        status: status[lane],
                         spectra,
                     }
                 })

@@ -38,10 +38,10 @@ mod _core {
     use crate::control::ControllerKind;
     use crate::dispersion::Dispersion;
     use crate::gust;
-    use crate::integrate::{Engine, FlightRequest, Trace, TRACE_COLUMNS};
+    use crate::integrate::{trace_columns, Engine, ExitStatus, FlightRequest};
     use crate::memory;
     use crate::metrics::{METRIC_NAMES, N_METRICS};
-    use crate::model::STATE_NAMES;
+    use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
     use crate::montecarlo::{pool, run_batch as batch, Batch};
     use numpy::ndarray::{Array1, Array2, Array4};
     use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
@@ -65,8 +65,19 @@ mod _core {
             "CONTROLLER_NAMES",
             ControllerKind::ALL.map(ControllerKind::name).to_vec(),
         )?;
-        m.add("TRACE_COLUMNS", TRACE_COLUMNS.to_vec())?;
-        m.add("STATE_NAMES", STATE_NAMES.to_vec())?;
+        // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
+        // description (`describe`) and its flights.
+        let vars = state_vars(PayloadKind::default(), ActuatorKind::default());
+        m.add("TRACE_COLUMNS", trace_columns(&vars))?;
+        m.add(
+            "STATE_NAMES",
+            vars.iter().map(|v| v.name).collect::<Vec<_>>(),
+        )?;
+        m.add("EXIT_STATUSES", ExitStatus::ALL.map(ExitStatus::name).to_vec())?;
+        m.add(
+            "EXIT_MESSAGES",
+            ExitStatus::ALL.map(ExitStatus::message).to_vec(),
+        )?;
         m.add("__version__", env!("CARGO_PKG_VERSION"))
     }
 
@@ -136,27 +147,38 @@ mod _core {
         isa().map(|i| i.name())
     }
 
-    /// Validate a scenario; return the quantities derived from it.
+    /// Validate a scenario; return the quantities derived from it. Cheap: builds no engine (no
+    /// gust filters).
     #[pyfunction]
     fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
-        let e = engine(config_json)?;
+        isa()?;
+        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
         let d = PyDict::new(py);
-        d.set_item("stiffness", e.plant().kc)?;
-        d.set_item("hover_offset", e.plant().hover_offset())?;
-        d.set_item("steps", e.steps)?;
+        d.set_item("stiffness", cfg.stiffness())?;
+        let hover_offset = match AnyPayload::new(&cfg) {
+            AnyPayload::Spring(p) => p.hover_offset,
+        };
+        d.set_item("hover_offset", hover_offset)?;
+        d.set_item("steps", cfg.steps())?;
         d.set_item(
             "phases",
-            e.cfg
-                .phases
-                .iter()
-                .map(|p| p.name.clone())
-                .collect::<Vec<_>>(),
+            cfg.phases.iter().map(|p| p.name.clone()).collect::<Vec<_>>(),
         )?;
-        let grids: Vec<Bound<'py, PyArray1<f64>>> = e
-            .spectrum_grid()
-            .into_iter()
-            .map(|g| g.into_pyarray(py))
-            .collect();
+        let vars = state_vars(cfg.payload.model, cfg.actuator.model);
+        d.set_item(
+            "state_names",
+            vars.iter().map(|v| v.name).collect::<Vec<_>>(),
+        )?;
+        d.set_item("trace_columns", trace_columns(&vars))?;
+        let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
+            &crate::trajectory::phase_steps(&cfg),
+            cfg.integrator.dt,
+            cfg.decimation(),
+            cfg.steps(),
+        )
+        .into_iter()
+        .map(|g| g.into_pyarray(py))
+        .collect();
         d.set_item("spectrum_frequencies", grids)?;
         Ok(d)
     }
@@ -204,7 +226,7 @@ mod _core {
         controller: &str,
         wind: [f64; 3],
     ) -> PyResult<Bound<'py, PyDict>> {
-        use crate::stability::{linearise, INPUT_NAMES, OUTPUT_NAMES};
+        use crate::stability::{linearise, INPUT_NAMES};
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if let Some(w) = wind.iter().find(|w| !w.is_finite()) {
             return Err(PyValueError::new_err(format!(
@@ -222,10 +244,10 @@ mod _core {
         d.set_item("B", dense(nx, nu, &|i, j| l.b[(i, j)]).into_pyarray(py))?;
         d.set_item("C", dense(ny, nx, &|i, j| l.c[(i, j)]).into_pyarray(py))?;
         d.set_item("D", dense(ny, nu, &|i, j| l.d[(i, j)]).into_pyarray(py))?;
-        d.set_item("state_names", STATE_NAMES.to_vec())?;
+        d.set_item("state_names", l.states.clone())?;
         d.set_item("input_names", INPUT_NAMES.to_vec())?;
-        d.set_item("output_names", OUTPUT_NAMES.to_vec())?;
-        d.set_item("equilibrium", l.equilibrium.to_vec().into_pyarray(py))?;
+        d.set_item("output_names", l.outputs.clone())?;
+        d.set_item("equilibrium", l.equilibrium.clone().into_pyarray(py))?;
         d.set_item("residual", l.residual)?;
         Ok(d)
     }
@@ -264,9 +286,10 @@ mod _core {
             e = e.with_wind(rows).map_err(PyValueError::new_err)?;
         }
         let rows = (e.steps / record_every + 1) as u128;
+        let width = 1 + e.trace_columns().len();
         memory::check(
             "trace (integrator.duration / integrator.dt / record_every rows)",
-            rows * Trace::WIDTH as u128,
+            rows * width as u128,
             8,
         )
         .and_then(|()| flight_memory(&e, 1, 1))
@@ -274,7 +297,7 @@ mod _core {
         let cancel = progress.map(|p| p.get().cancel.clone());
         let flown = py.detach(|| {
             guarded("simulate", || {
-                let mut trace = Trace::new(record_every, e.steps);
+                let mut trace = e.trace(record_every);
                 let indices = [realisation];
                 let req = FlightRequest {
                     want_spectra: true,
@@ -288,8 +311,8 @@ mod _core {
         let Some((trace, res)) = flown else {
             return Err(PyKeyboardInterrupt::new_err("simulate was cancelled"));
         };
-        let rows = trace.data.len() / Trace::WIDTH;
-        let trace = Array2::from_shape_vec((rows, Trace::WIDTH), trace.data).expect("trace shape");
+        let rows = trace.data.len() / width;
+        let trace = Array2::from_shape_vec((rows, width), trace.data).expect("trace shape");
         let n_phase = res.metrics.len();
         let metrics =
             Array2::from_shape_vec((n_phase, N_METRICS), res.metrics.concat()).expect("shape");
@@ -297,6 +320,8 @@ mod _core {
         d.set_item("trace", trace.into_pyarray(py))?;
         d.set_item("metrics", metrics.into_pyarray(py))?;
         d.set_item("diverged_at", res.diverged_at)?;
+        d.set_item("status", res.status.name())?;
+        d.set_item("trace_columns", e.trace_columns())?;
         let spectra: Vec<_> = res
             .spectra
             .into_iter()
@@ -542,6 +567,8 @@ mod _core {
         d.set_item("metrics", metrics.into_pyarray(py))?;
         let diverged = Array2::from_shape_vec((count, n_ctrl), out.diverged_at).expect("shape");
         d.set_item("diverged_at", diverged.into_pyarray(py))?;
+        let status = Array2::from_shape_vec((count, n_ctrl), out.status).expect("shape");
+        d.set_item("status", status.into_pyarray(py))?;
         d.set_item("done", Array1::from_vec(out.done).into_pyarray(py))?;
         if spectra {
             // Per phase: (n_ctrl, bins) arrays of the ensemble sum and sum of squares.

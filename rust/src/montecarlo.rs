@@ -6,7 +6,7 @@
 use crate::config::ConfigError;
 use crate::control::ControllerKind;
 use crate::dispersion::Dispersion;
-use crate::integrate::{Craft, Engine, FlightRequest};
+use crate::integrate::{Craft, Engine, ExitStatus, FlightRequest};
 use crate::metrics::N_METRICS;
 use rayon::prelude::*;
 use rustfft::FftPlanner;
@@ -63,6 +63,8 @@ pub struct BatchOutput {
     pub metrics: Vec<f64>,
     /// (count, n_ctrl): time of divergence, NaN if none.
     pub diverged_at: Vec<f64>,
+    /// (count, n_ctrl): why each flight ended (`ExitStatus as u8`; `Ok` if not done).
+    pub status: Vec<u8>,
     /// (count,): the realisation finished (false only after a cancel).
     pub done: Vec<bool>,
     pub spectra: SpectrumSums,
@@ -179,6 +181,7 @@ pub fn run_batch(
     let grid = engine.spectrum_grid();
     let mut metrics = vec![f64::NAN; count * row];
     let mut diverged_at = vec![f64::NAN; count * n_ctrl];
+    let mut status = vec![ExitStatus::Ok as u8; count * n_ctrl];
     let mut done = vec![false; count];
     let lanes_per_set = engine.set_lanes();
 
@@ -187,7 +190,11 @@ pub fn run_batch(
     let spectra = metrics
         .par_chunks_mut(lanes_per_set * row)
         .zip(diverged_at.par_chunks_mut(lanes_per_set * n_ctrl))
-        .zip(done.par_chunks_mut(lanes_per_set))
+        .zip(
+            status
+                .par_chunks_mut(lanes_per_set * n_ctrl)
+                .zip(done.par_chunks_mut(lanes_per_set)),
+        )
         .enumerate()
         .fold(
             || {
@@ -195,7 +202,7 @@ pub fn run_batch(
                 // flight.
                 let buffers = (
                     vec![f64::NAN; lanes_per_set * row],
-                    vec![f64::NAN; lanes_per_set * n_ctrl],
+                    vec![(f64::NAN, ExitStatus::Ok as u8); lanes_per_set * n_ctrl],
                     Vec::new(),
                 );
                 (
@@ -205,7 +212,7 @@ pub fn run_batch(
                 )
             },
             |(mut spectra, mut planner, (mut set_metrics, mut set_diverged, mut set_spectra)),
-             (set, ((out_metrics, out_diverged), out_done))| {
+             (set, ((out_metrics, out_diverged), (out_status, out_done)))| {
                 set_spectra.clear();
                 // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
                 let rows: Vec<usize> = (0..lanes_per_set)
@@ -240,7 +247,7 @@ pub fn run_batch(
                         return (spectra, planner, (set_metrics, set_diverged, set_spectra));
                     };
                     for (l, r) in res.into_iter().take(lanes).enumerate() {
-                        set_diverged[l * n_ctrl + c] = r.diverged_at;
+                        set_diverged[l * n_ctrl + c] = (r.diverged_at, r.status as u8);
                         for (p, m) in r.metrics.iter().enumerate() {
                             let at = l * row + (c * n_phase + p) * N_METRICS;
                             set_metrics[at..at + N_METRICS].copy_from_slice(m);
@@ -252,7 +259,13 @@ pub fn run_batch(
                 }
                 // Only a finished set is published (a cancelled one stays NaN, not done).
                 out_metrics.copy_from_slice(&set_metrics[..lanes * row]);
-                out_diverged.copy_from_slice(&set_diverged[..lanes * n_ctrl]);
+                for ((d, s), &(at, why)) in out_diverged
+                    .iter_mut()
+                    .zip(out_status.iter_mut())
+                    .zip(&set_diverged[..lanes * n_ctrl])
+                {
+                    (*d, *s) = (at, why);
+                }
                 out_done.fill(true);
                 // ... and only then are its spectra counted, so the spectrum counts always
                 // equal the finished, non-diverged realisations (a cancel mid-set adds none).
@@ -269,6 +282,7 @@ pub fn run_batch(
     BatchOutput {
         metrics,
         diverged_at,
+        status,
         done,
         spectra,
     }

@@ -11,7 +11,7 @@
 //!   roll and pitch gains the lateral poles are the same at any yaw; with unequal ones, other
 //!   yaws mix the two channels and shift the poles somewhat.
 //!
-//! The Jacobian is exact (to rounding): `Plant::derivative` composed with `Control::control` is
+//! The Jacobian is exact (to rounding): `Vehicle::derivative` composed with `Control::control` is
 //! evaluated on forward-mode dual numbers, the same code the flights run (both are generic over
 //! `Lane`), one column per seeded state. Unlike finite differences this needs no step size,
 //! which matters at the kinks of sat(s) and v|v| (smooth at the origin, but their second
@@ -25,9 +25,12 @@
 use crate::config::{Config, GustComponent};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::lane::{dual::Dual, Lane};
-use crate::model::{ix, Inputs, Plant, State, NX, STATE_NAMES};
+use crate::model::{
+    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State,
+    StateVar, Trig, Vehicle, VehicleVisitor,
+};
 use crate::trajectory::Reference;
-use nalgebra::{Complex, DMatrix, SMatrix, SVector, Schur, SVD};
+use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
 
 /// Real parts within this (1/s) of zero are "marginal", e.g. a position with no feedback. Not
 /// smaller: a position with neither gain is a double integrator, a defective zero eigenvalue
@@ -35,7 +38,8 @@ use nalgebra::{Complex, DMatrix, SMatrix, SVector, Schur, SVD};
 /// time of 1e6 s is no instability for a flight.
 pub const TOLERANCE: f64 = 1e-6;
 
-pub type Jacobian = SMatrix<f64, NX, NX>;
+/// d f / d s, one row and column per state of the scenario's layout.
+pub type Jacobian = DMatrix<f64>;
 
 /// Mode labels, by the group of states that carries most of a pole's eigenvector.
 pub const MODE_LATERAL_X: &str = "lateral x/pitch";
@@ -43,18 +47,7 @@ pub const MODE_LATERAL_Y: &str = "lateral y/roll";
 pub const MODE_VERTICAL: &str = "vertical";
 pub const MODE_PAYLOAD: &str = "payload";
 pub const MODE_YAW: &str = "yaw";
-
-/// The states whose motion a lateral disturbance drives.
-const LATERAL_STATES: [usize; 8] = [
-    ix::X,
-    ix::Y,
-    ix::PHI,
-    ix::THETA,
-    ix::VX,
-    ix::VY,
-    ix::P,
-    ix::Q,
-];
+pub const MODE_ACTUATOR: &str = "actuator";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
@@ -103,7 +96,7 @@ pub struct Pole {
 pub struct Analysis {
     pub controller: ControllerKind,
     /// The closed-loop hover equilibrium the model was linearised at.
-    pub equilibrium: State<f64>,
+    pub equilibrium: Vec<f64>,
     /// |f(equilibrium)|: zero unless the closed loop has no hover equilibrium (e.g. no
     /// altitude gain without mass compensation), in which case the reference point is used.
     pub residual: f64,
@@ -115,27 +108,137 @@ pub struct Analysis {
     pub lateral_sources: Vec<&'static str>,
 }
 
-/// Closed-loop poles of `kind` at hover for the scenario `cfg`.
-pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
-    match kind {
-        ControllerKind::Pd => analyse_with(cfg, kind, &Pd::new(cfg)),
-        ControllerKind::Smc => analyse_with(cfg, kind, &Smc::new(cfg)),
+/// Inputs of the linear model: the wind components (m/s, inertial, z up).
+pub const NU: usize = 3;
+pub const INPUT_NAMES: [&str; NU] = ["wind_x", "wind_y", "wind_z"];
+
+/// Outputs of the linear model after the states: e_o (m), the controls (N, N m) and the
+/// payload's vertical inertial acceleration `azc` (m/s^2; the only output the wind drives
+/// directly, through the payload's drag).
+pub const SIGNAL_OUTPUTS: [&str; 6] = ["e_o", "U1", "tau_phi", "tau_theta", "tau_psi", "azc"];
+
+/// Every output of the linear model: the states of `vars`, then `SIGNAL_OUTPUTS`.
+pub fn output_names(vars: &[StateVar]) -> Vec<&'static str> {
+    vars.iter().map(|v| v.name).chain(SIGNAL_OUTPUTS).collect()
+}
+
+/// The closed loop ds/dt = f(s, u(s, r), w) and its outputs y, as functions of the state and
+/// a steady wind, on plain numbers and on dual numbers (for exact derivatives). Built for one
+/// scenario's vehicle kinds and one controller (`closed_loop`).
+pub trait ClosedLoop {
+    /// The states, in order.
+    fn vars(&self) -> &[StateVar];
+    /// (f, y) at `s` in wind `w`.
+    fn eval(&self, s: &[f64], w: &[f64; 3]) -> (Vec<f64>, Vec<f64>);
+    fn eval_dual(&self, s: &[Dual], w: &[Dual; 3]) -> (Vec<Dual>, Vec<Dual>);
+    /// At rest at the reference position (zero angles), payload and actuators at hover.
+    fn rest(&self) -> Vec<f64>;
+}
+
+struct Loop<Pay: Payload, Act: Actuator, C, const N: usize> {
+    vars: Vec<StateVar>,
+    plain: Vehicle<f64, Pay::At<f64>, Act::At<f64>>,
+    dual: Vehicle<Dual, Pay::At<Dual>, Act::At<Dual>>,
+    ctrl: C,
+    r: Reference,
+}
+
+impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<Pay, Act, C, N> {
+    fn signals<L: Lane>(
+        v: &Vehicle<L, Pay::At<L>, Act::At<L>>,
+        ctrl: &C,
+        r: &Reference,
+        s: &[L],
+        w: &[L; 3],
+    ) -> (Vec<L>, Vec<L>)
+    where
+        f64: crate::lane::Param<L>,
+    {
+        let s: State<L, N> = s.try_into().expect("one value per state");
+        let u = ctrl.control(&Vehicle::<L, Pay::At<L>, Act::At<L>>::rigid(&s), r);
+        let cmd = v.actuator.command(&u);
+        let trig = Trig::of(&s);
+        let f = v.derivative(&s, &trig, &cmd, w);
+        let out = v.payload_outputs(&s, &trig, u.u1, w);
+        let mut y = s.to_vec();
+        y.extend([out.e_o, u.u1, u.tau[0], u.tau[1], u.tau[2], out.accel_z]);
+        (f.to_vec(), y)
     }
 }
 
-fn analyse_with<C: Control>(cfg: &Config, kind: ControllerKind, ctrl: &C) -> Analysis {
+impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> ClosedLoop for Loop<Pay, Act, C, N> {
+    fn vars(&self) -> &[StateVar] {
+        &self.vars
+    }
+    fn eval(&self, s: &[f64], w: &[f64; 3]) -> (Vec<f64>, Vec<f64>) {
+        Self::signals(&self.plain, &self.ctrl, &self.r, s, w)
+    }
+    fn eval_dual(&self, s: &[Dual], w: &[Dual; 3]) -> (Vec<Dual>, Vec<Dual>) {
+        Self::signals(&self.dual, &self.ctrl, &self.r, s, w)
+    }
+    fn rest(&self) -> Vec<f64> {
+        let s: State<f64, N> = self.plain.rest_state(self.r.pos, [0.0; 3]);
+        s.to_vec()
+    }
+}
+
+/// The closed loop of `kind` for the scenario `cfg`, about the reference `r`.
+pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn ClosedLoop> {
+    struct Build<'a>(&'a Config, ControllerKind, Reference);
+    impl VehicleVisitor for Build<'_> {
+        type Output = Box<dyn ClosedLoop>;
+        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Box<dyn ClosedLoop> {
+            let Build(cfg, kind, r) = self;
+            let parts = Parts::new(cfg);
+            let vars = crate::model::state_vars(cfg.payload.model, cfg.actuator.model);
+            fn boxed<Pay: Payload, Act: Actuator, C: Control + 'static, const N: usize>(
+                parts: &Parts,
+                vars: Vec<StateVar>,
+                ctrl: C,
+                r: Reference,
+            ) -> Box<dyn ClosedLoop> {
+                Box::new(Loop::<Pay, Act, C, N> {
+                    vars,
+                    plain: parts.vehicle::<Pay, Act>(),
+                    dual: Parts::gather::<Dual, Pay, Act>(&[parts]),
+                    ctrl,
+                    r,
+                })
+            }
+            match kind {
+                ControllerKind::Pd => boxed::<Pay, Act, _, N>(&parts, vars, Pd::new(cfg), r),
+                ControllerKind::Smc => boxed::<Pay, Act, _, N>(&parts, vars, Smc::new(cfg), r),
+            }
+        }
+    }
+    dispatch(cfg.payload.model, cfg.actuator.model, Build(cfg, kind, r))
+}
+
+/// The hover reference: the first waypoint's position, psi_ref = 0, no motion.
+fn hover_reference(cfg: &Config) -> Reference {
+    let wp = cfg.trajectory.waypoints[0];
+    Reference {
+        pos: [wp[1], wp[2], wp[3]],
+        ..Reference::default()
+    }
+}
+
+/// Closed-loop poles of `kind` at hover for the scenario `cfg`.
+pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
     // The same linearisation `linearise` returns, in still air: A is the Jacobian.
+    let cl = closed_loop(cfg, kind, hover_reference(cfg));
     let Linearisation {
         equilibrium,
         residual,
         a: jacobian,
         ..
-    } = linearise_with(cfg, ctrl, [0.0; 3]);
+    } = linearise_loop(&*cl, [0.0; 3]);
     let sources = lateral_sources(cfg);
-    let mut poles = Vec::with_capacity(NX);
+    let vars = cl.vars();
+    let mut poles = Vec::with_capacity(vars.len());
     for block in blocks(&jacobian) {
         for (lambda, v) in eigen(&jacobian, &block) {
-            poles.push(describe(lambda, &block, &v, !sources.is_empty()));
+            poles.push(describe(vars, lambda, &block, &v, !sources.is_empty()));
         }
     }
     poles.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
@@ -151,173 +254,85 @@ fn analyse_with<C: Control>(cfg: &Config, kind: ControllerKind, ctrl: &C) -> Ana
     }
 }
 
-/// The closed-loop vector field at state `s` (controls recomputed from `s`, zero wind).
-#[cfg(test)]
-fn closed_loop<L: Lane, C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    s: &State<L>,
-) -> State<L> {
-    closed_loop_in(plant, ctrl, r, s, &[L::splat(0.0); 3])
-}
-
-/// The closed-loop vector field at state `s` in the steady wind `w` (m/s, inertial).
-fn closed_loop_in<L: Lane, C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    s: &State<L>,
-    w: &[L; 3],
-) -> State<L> {
-    let u: Inputs<L> = ctrl.control(s, r);
-    plant.derivative(s, &u, w)
-}
-
-/// Inputs of the linear model: the wind components (m/s, inertial, z up).
-pub const NU: usize = 3;
-pub const INPUT_NAMES: [&str; NU] = ["wind_x", "wind_y", "wind_z"];
-
-/// Outputs of the linear model: every state, then e_o (m), the controls (N, N m) and the
-/// payload's vertical inertial acceleration `azc` = d(vzc)/dt (m/s^2; the only output the wind
-/// drives directly, through the payload's drag).
-pub const NY: usize = NX + 6;
-pub const OUTPUT_NAMES: [&str; NY] = [
-    "x",
-    "y",
-    "z",
-    "phi",
-    "theta",
-    "psi",
-    "zc",
-    "vx",
-    "vy",
-    "vz",
-    "p",
-    "q",
-    "r",
-    "vzc",
-    "e_o",
-    "U1",
-    "tau_phi",
-    "tau_theta",
-    "tau_psi",
-    "azc",
-];
-
 /// The closed loop linearised at hover in a steady wind: deviations from the equilibrium obey
 /// ds/dt = A ds + B dw, dy = C ds + D dw, with dw the wind's deviation from `wind`.
 #[derive(Clone, Debug)]
 pub struct Linearisation {
     pub wind: [f64; 3],
-    pub equilibrium: State<f64>,
+    pub equilibrium: Vec<f64>,
     /// |f(equilibrium)| (see [`Analysis::residual`]).
     pub residual: f64,
     pub a: Jacobian,
-    pub b: SMatrix<f64, NX, NU>,
-    pub c: SMatrix<f64, NY, NX>,
-    pub d: SMatrix<f64, NY, NU>,
+    pub b: DMatrix<f64>,
+    pub c: DMatrix<f64>,
+    pub d: DMatrix<f64>,
+    /// Names of the rows of C and D (`output_names`).
+    pub outputs: Vec<&'static str>,
+    /// Names of the states.
+    pub states: Vec<&'static str>,
 }
 
 /// The closed loop of `kind` linearised at hover in the steady wind `wind` (m/s): A, B, C, D,
 /// exact (dual numbers). In still air A is [`Analysis::jacobian`] and B = 0: drag is quadratic
 /// in the relative velocity, so a small wind change acts only at second order there.
 pub fn linearise(cfg: &Config, kind: ControllerKind, wind: [f64; 3]) -> Linearisation {
-    match kind {
-        ControllerKind::Pd => linearise_with(cfg, &Pd::new(cfg), wind),
-        ControllerKind::Smc => linearise_with(cfg, &Smc::new(cfg), wind),
-    }
+    linearise_loop(&*closed_loop(cfg, kind, hover_reference(cfg)), wind)
 }
 
-/// The closed-loop derivative and the outputs (in `OUTPUT_NAMES` order) at `s` in wind `w`.
-fn signals<L: Lane, C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    s: &State<L>,
-    w: &[L; 3],
-) -> (State<L>, [L; NY]) {
-    let u: Inputs<L> = ctrl.control(s, r);
-    let f = plant.derivative(s, &u, w);
-    let mut y = [L::splat(0.0); NY];
-    y[..NX].copy_from_slice(s);
-    y[NX] = plant.relative_oscillation(s);
-    y[NX + 1] = u.u1;
-    y[NX + 2..NX + 5].copy_from_slice(&u.tau);
-    y[NX + 5] = f[ix::VZC];
-    (f, y)
-}
-
-fn linearise_with<C: Control>(cfg: &Config, ctrl: &C, wind: [f64; 3]) -> Linearisation {
-    let plant = Plant::new(cfg);
-    let wp = cfg.trajectory.waypoints[0];
-    let r = Reference {
-        pos: [wp[1], wp[2], wp[3]],
-        ..Reference::default()
-    };
-    let (equilibrium, residual) = equilibrium(&plant, ctrl, &r, &wind);
+fn linearise_loop(cl: &dyn ClosedLoop, wind: [f64; 3]) -> Linearisation {
+    let nx = cl.vars().len();
+    let (equilibrium, residual) = equilibrium(cl, &wind);
+    let ny = cl.eval(&equilibrium, &wind).1.len();
     let mut lin = Linearisation {
         wind,
         equilibrium,
         residual,
-        a: Jacobian::zeros(),
-        b: SMatrix::zeros(),
-        c: SMatrix::zeros(),
-        d: SMatrix::zeros(),
+        a: DMatrix::zeros(nx, nx),
+        b: DMatrix::zeros(nx, NU),
+        c: DMatrix::zeros(ny, nx),
+        d: DMatrix::zeros(ny, NU),
+        outputs: output_names(cl.vars()),
+        states: cl.vars().iter().map(|v| v.name).collect(),
     };
     // One dual-number pass per column: seeded on state j, then on wind component j.
-    for j in 0..NX + NU {
-        let mut s: State<Dual> = equilibrium.map(Dual::constant);
+    for j in 0..nx + NU {
+        let mut s: Vec<Dual> = lin.equilibrium.iter().map(|&x| Dual::constant(x)).collect();
         let mut w: [Dual; NU] = wind.map(Dual::constant);
-        if j < NX {
+        if j < nx {
             s[j].d = 1.0;
         } else {
-            w[j - NX].d = 1.0;
+            w[j - nx].d = 1.0;
         }
-        let (f, y) = signals(&plant, ctrl, &r, &s, &w);
+        let (f, y) = cl.eval_dual(&s, &w);
         for (i, fi) in f.iter().enumerate() {
-            if j < NX {
+            if j < nx {
                 lin.a[(i, j)] = fi.d;
             } else {
-                lin.b[(i, j - NX)] = fi.d;
+                lin.b[(i, j - nx)] = fi.d;
             }
         }
         for (i, yi) in y.iter().enumerate() {
-            if j < NX {
+            if j < nx {
                 lin.c[(i, j)] = yi.d;
             } else {
-                lin.d[(i, j - NX)] = yi.d;
+                lin.d[(i, j - nx)] = yi.d;
             }
         }
     }
     lin
 }
 
-/// d f / d s at `s`, exact: column j carries the derivative seeded on state j.
-pub fn closed_loop_jacobian<C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    s: &State<f64>,
-) -> Jacobian {
-    closed_loop_jacobian_in(plant, ctrl, r, s, &[0.0; 3])
-}
-
-/// [`closed_loop_jacobian`] in the steady wind `w`.
-fn closed_loop_jacobian_in<C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    s: &State<f64>,
-    w: &[f64; 3],
-) -> Jacobian {
-    let mut jac = Jacobian::zeros();
+/// d f / d s at `s` in the steady wind `w`, exact: column j carries the derivative seeded on
+/// state j.
+pub fn closed_loop_jacobian(cl: &dyn ClosedLoop, s: &[f64], w: &[f64; 3]) -> Jacobian {
+    let n = s.len();
+    let mut jac = Jacobian::zeros(n, n);
     let w = w.map(Dual::constant);
-    for j in 0..NX {
-        let mut sd: State<Dual> = s.map(Dual::constant);
+    for j in 0..n {
+        let mut sd: Vec<Dual> = s.iter().map(|&x| Dual::constant(x)).collect();
         sd[j].d = 1.0;
-        let f = closed_loop_in(plant, ctrl, r, &sd, &w);
-        for i in 0..NX {
+        let (f, _) = cl.eval_dual(&sd, &w);
+        for i in 0..n {
             jac[(i, j)] = f[i].d;
         }
     }
@@ -328,32 +343,28 @@ fn closed_loop_jacobian_in<C: Control>(
 /// millimetres of altitude droop without. The pseudo-inverse lets it step past the directions
 /// with no feedback (a position with zero gains), where any point is an equilibrium.
 /// In a steady wind `w` the drag moves the equilibrium a little (no integral action).
-fn equilibrium<C: Control>(
-    plant: &Plant,
-    ctrl: &C,
-    r: &Reference,
-    w: &[f64; 3],
-) -> (State<f64>, f64) {
-    let start = plant.rest_state(r.pos, [0.0; 3]);
-    let norm = |f: &State<f64>| f.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let mut s = start;
-    let mut res = norm(&closed_loop_in(plant, ctrl, r, &s, w));
+fn equilibrium(cl: &dyn ClosedLoop, w: &[f64; 3]) -> (Vec<f64>, f64) {
+    let start = cl.rest();
+    let norm = |f: &[f64]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let f_at = |s: &[f64]| cl.eval(s, w).0;
+    let mut s = start.clone();
+    let mut res = norm(&f_at(&s));
     for _ in 0..50 {
         if res < 1e-13 {
             break;
         }
-        let f = SVector::<f64, NX>::from(closed_loop_in(plant, ctrl, r, &s, w));
-        let jac = closed_loop_jacobian_in(plant, ctrl, r, &s, w);
+        let f = DVector::from_vec(f_at(&s));
+        let jac = closed_loop_jacobian(cl, &s, w);
         // Bounded SVD: the plain one never returns on a non-finite Jacobian.
         let svd = SVD::try_new(jac, true, true, f64::EPSILON, MAX_ITERATIONS);
         let Some(Ok(step)) = svd.map(|svd| svd.solve(&f, 1e-12)) else {
             break;
         };
-        let mut next = s;
+        let mut next = s.clone();
         for (x, d) in next.iter_mut().zip(step.iter()) {
             *x -= d;
         }
-        let next_res = norm(&closed_loop_in(plant, ctrl, r, &next, w));
+        let next_res = norm(&f_at(&next));
         // Stop when Newton no longer helps (or produced NaN).
         if next_res.is_nan() || next_res >= res {
             break;
@@ -364,20 +375,22 @@ fn equilibrium<C: Control>(
         (s, res)
     } else {
         // No hover equilibrium (e.g. a steady climb or sink): report at the reference point.
-        (start, norm(&closed_loop_in(plant, ctrl, r, &start, w)))
+        let r = norm(&f_at(&start));
+        (start, r)
     }
 }
 
 /// Groups of states that the Jacobian couples (connected components of its sparsity graph).
 fn blocks(jac: &Jacobian) -> Vec<Vec<usize>> {
+    let n = jac.nrows();
     let scale = jac.amax().max(1.0);
-    let mut group: [usize; NX] = std::array::from_fn(|i| i);
+    let mut group: Vec<usize> = (0..n).collect();
     // Label propagation: each state takes the smallest label it is coupled to, until stable.
     let mut changed = true;
     while changed {
         changed = false;
-        for i in 0..NX {
-            for j in 0..NX {
+        for i in 0..n {
+            for j in 0..n {
                 let coupled =
                     jac[(i, j)].abs() > 1e-12 * scale || jac[(j, i)].abs() > 1e-12 * scale;
                 if coupled && group[j] < group[i] {
@@ -388,8 +401,8 @@ fn blocks(jac: &Jacobian) -> Vec<Vec<usize>> {
         }
     }
     let mut out: Vec<Vec<usize>> = Vec::new();
-    for label in 0..NX {
-        let members: Vec<usize> = (0..NX).filter(|&i| group[i] == label).collect();
+    for label in 0..n {
+        let members: Vec<usize> = (0..n).filter(|&i| group[i] == label).collect();
         if !members.is_empty() {
             out.push(members);
         }
@@ -440,43 +453,56 @@ fn eigen(jac: &Jacobian, block: &[usize]) -> Vec<(Complex<f64>, Vec<Complex<f64>
         .collect()
 }
 
+/// Indices of the states of `vars` that satisfy `keep`, in order.
+fn states_where(vars: &[StateVar], keep: impl Fn(&StateVar) -> bool) -> Vec<usize> {
+    (0..vars.len()).filter(|&i| keep(&vars[i])).collect()
+}
+
 fn describe(
+    vars: &[StateVar],
     lambda: Complex<f64>,
     block: &[usize],
     v: &[Complex<f64>],
     lateral_source: bool,
 ) -> Pole {
-    let mut full = [Complex::new(0.0, 0.0); NX];
+    let mut full = vec![Complex::new(0.0, 0.0); vars.len()];
     for (&i, c) in block.iter().zip(v) {
         full[i] = *c;
     }
-    let mag = full.map(|c| c.norm());
+    let mag: Vec<f64> = full.iter().map(|c| c.norm()).collect();
     let total = mag
         .iter()
         .map(|a| a * a)
         .sum::<f64>()
         .max(f64::MIN_POSITIVE);
     let share = |states: &[usize]| states.iter().map(|&i| mag[i] * mag[i]).sum::<f64>() / total;
-    let lateral_share = share(&LATERAL_STATES);
+    let on = |axes: &[Axis]| states_where(vars, |s| axes.contains(&s.axis));
+    let lateral_share = share(&states_where(vars, |s| s.axis.lateral()));
     let groups = [
-        (MODE_LATERAL_X, share(&[ix::X, ix::THETA, ix::VX, ix::Q])),
-        (MODE_LATERAL_Y, share(&[ix::Y, ix::PHI, ix::VY, ix::P])),
-        (MODE_VERTICAL, share(&[ix::Z, ix::ZC, ix::VZ, ix::VZC])),
-        (MODE_YAW, share(&[ix::PSI, ix::R])),
+        (MODE_LATERAL_X, share(&on(&[Axis::X, Axis::Pitch]))),
+        (MODE_LATERAL_Y, share(&on(&[Axis::Y, Axis::Roll]))),
+        (MODE_VERTICAL, share(&on(&[Axis::Z]))),
+        (MODE_YAW, share(&on(&[Axis::Yaw]))),
+        (MODE_ACTUATOR, share(&states_where(vars, |s| s.part == Part::Actuator))),
     ];
     let mut mode = groups
         .iter()
         .max_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("four groups")
+        .expect("five groups")
         .0;
     // The payload mode moves the payload against the quadrotor; the vertical modes carry both
-    // together (the spring barely stretches).
-    if mode == MODE_VERTICAL && (full[ix::ZC] - full[ix::Z]).norm() > full[ix::Z].norm() {
-        mode = MODE_PAYLOAD;
+    // together (the attachment barely stretches).
+    let payload_z = states_where(vars, |s| s.part == Part::Payload && s.axis == Axis::Z);
+    if mode == MODE_VERTICAL {
+        if let Some(&zc) = payload_z.first() {
+            if (full[zc] - full[ix::Z]).norm() > full[ix::Z].norm() {
+                mode = MODE_PAYLOAD;
+            }
+        }
     }
-    let dominant = (0..NX)
+    let dominant = (0..vars.len())
         .max_by(|&a, &b| mag[a].total_cmp(&mag[b]))
-        .map_or("", |i| STATE_NAMES[i]);
+        .map_or("", |i| vars[i].name);
     Pole {
         re: lambda.re,
         im: lambda.im,

@@ -9,7 +9,7 @@ pub use smc::Smc;
 
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{ix, Inputs, State, Trig};
+use crate::model::{Inputs, Rigid, Trig};
 use crate::trajectory::Reference;
 
 /// A control law: inputs for the state `s` and reference `r`, computed once per step. Its
@@ -17,16 +17,16 @@ use crate::trajectory::Reference;
 pub trait Control<P = f64>: Sync {
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
     where
         P: Param<L>;
 
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &State<L>, r: &Reference) -> Inputs<L>
+    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference) -> Inputs<L>
     where
         P: Param<L>,
     {
-        self.control_with(s, &Trig::of(s), r)
+        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r)
     }
 }
 
@@ -158,16 +158,16 @@ impl<P: Copy> Shared<P> {
 
 /// Position errors e = desired - actual and their rates, as the laws use them.
 #[inline(always)]
-fn position_errors<L: Lane>(s: &State<L>, r: &Reference) -> ([L; 3], [L; 3]) {
+fn position_errors<L: Lane>(s: &Rigid<L>, r: &Reference) -> ([L; 3], [L; 3]) {
     let e = [
-        L::splat(r.pos[0]) - s[ix::X],
-        L::splat(r.pos[1]) - s[ix::Y],
-        L::splat(r.pos[2]) - s[ix::Z],
+        L::splat(r.pos[0]) - s.pos[0],
+        L::splat(r.pos[1]) - s.pos[1],
+        L::splat(r.pos[2]) - s.pos[2],
     ];
     let ed = [
-        L::splat(r.vel[0]) - s[ix::VX],
-        L::splat(r.vel[1]) - s[ix::VY],
-        L::splat(r.vel[2]) - s[ix::VZ],
+        L::splat(r.vel[0]) - s.vel[0],
+        L::splat(r.vel[1]) - s.vel[1],
+        L::splat(r.vel[2]) - s.vel[2],
     ];
     (e, ed)
 }
@@ -176,12 +176,19 @@ fn position_errors<L: Lane>(s: &State<L>, r: &Reference) -> ([L; 3], [L; 3]) {
 mod tests {
     use super::*;
     use crate::config::tests::paper;
-    use crate::model::Plant;
+
+    /// At rest at `pos` with yaw `psi`.
+    pub(crate) fn at_rest(pos: [f64; 3], psi: f64) -> Rigid<f64> {
+        Rigid {
+            pos,
+            att: [0.0, 0.0, psi],
+            vel: [0.0; 3],
+            rate: [0.0; 3],
+        }
+    }
 
     fn hover_inputs<C: Control>(c: &C) -> Inputs<f64> {
-        let cfg = paper();
-        let plant = Plant::new(&cfg);
-        let s = plant.rest_state([0.0, 0.0, 2.0], [0.0, 0.0, 0.3]);
+        let s = at_rest([0.0, 0.0, 2.0], 0.3);
         let r = Reference {
             pos: [0.0, 0.0, 2.0],
             psi: 0.3,

@@ -3,7 +3,7 @@
 use super::{position_errors, Control, Shared};
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{ix, Inputs, State, Trig};
+use crate::model::{Inputs, Rigid, Trig};
 use crate::trajectory::Reference;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Pd::gather`).
@@ -46,7 +46,7 @@ impl Pd {
 
 impl<P: Copy + Sync> Control<P> for Pd<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -69,9 +69,9 @@ impl<P: Copy + Sync> Control<P> for Pd<P> {
         let (kp0, kp1, kp2): (L, L, L) = (kp0.get(), kp1.get(), kp2.get());
         let (kd0, kd1, kd2): (L, L, L) = (kd0.get(), kd1.get(), kd2.get());
         let tau = [
-            (phi_d - s[ix::PHI]) * kp0 - s[ix::P] * kd0,
-            (theta_d - s[ix::THETA]) * kp1 - s[ix::Q] * kd1,
-            (L::splat(r.psi) - s[ix::PSI]) * kp2 + (L::splat(r.psi_dot) - s[ix::R]) * kd2,
+            (phi_d - s.att[0]) * kp0 - s.rate[0] * kd0,
+            (theta_d - s.att[1]) * kp1 - s.rate[1] * kd1,
+            (L::splat(r.psi) - s.att[2]) * kp2 + (L::splat(r.psi_dot) - s.rate[2]) * kd2,
         ];
         Inputs { u1, tau }
     }
@@ -86,8 +86,8 @@ mod tests {
     fn altitude_error_raises_thrust_by_kp() {
         let cfg = paper();
         let pd = Pd::new(&cfg);
-        let mut s = [0.0; crate::model::NX];
-        s[ix::Z] = 1.9;
+        let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
+        s.pos[2] = 1.9;
         let r = Reference {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()

@@ -3,7 +3,7 @@
 use super::{position_errors, Control, Shared};
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{ix, Inputs, State, Trig};
+use crate::model::{Inputs, Rigid, Trig};
 use crate::trajectory::Reference;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Smc::gather`).
@@ -71,7 +71,7 @@ impl<P: Copy> Smc<P> {
 
 impl<P: Copy + Sync> Control<P> for Smc<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &State<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -94,15 +94,15 @@ impl<P: Copy + Sync> Control<P> for Smc<P> {
         let [ep0, ep1, ep2] = self.epsilon_attitude;
         let [ixx, iyy, izz] = sh.inertia;
         let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
-        let (p, q, rr) = (s[ix::P], s[ix::Q], s[ix::R]);
+        let (p, q, rr) = (s.rate[0], s.rate[1], s.rate[2]);
         // Roll and pitch: desired rates and accelerations are zero (commanded by the outer loop).
-        let v_phi = self.reach(la0, et0, ep0, phi_d - s[ix::PHI], -p);
-        let v_theta = self.reach(la1, et1, ep1, theta_d - s[ix::THETA], -q);
+        let v_phi = self.reach(la0, et0, ep0, phi_d - s.att[0], -p);
+        let v_theta = self.reach(la1, et1, ep1, theta_d - s.att[1], -q);
         let v_psi = self.reach(
             la2,
             et2,
             ep2,
-            L::splat(r.psi) - s[ix::PSI],
+            L::splat(r.psi) - s.att[2],
             L::splat(r.psi_dot) - rr,
         ) + r.psi_ddot;
         let tau = [
@@ -123,9 +123,9 @@ mod tests {
     fn sliding_surface_law_by_hand() {
         let cfg = paper();
         let smc = Smc::new(&cfg);
-        let mut s = [0.0; crate::model::NX];
-        s[ix::Z] = 1.9;
-        s[ix::VZ] = 0.05;
+        let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
+        s.pos[2] = 1.9;
+        s.vel[2] = 0.05;
         let r = Reference {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()

@@ -1,0 +1,57 @@
+//! Ideal actuators (docs/model.md section 2): the controller's thrust and torques act on the
+//! airframe at once and without limit. No states.
+
+use super::{Actuator, ActuatorModel, AnyActuator};
+use crate::config::Config;
+use crate::lane::Lane;
+use crate::model::layout::StateVar;
+use crate::model::{Inputs, State};
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Ideal;
+
+impl Actuator for Ideal {
+    type At<L: Lane> = Ideal;
+    const VARS: &'static [StateVar] = &[];
+
+    fn new(_cfg: &Config) -> Self {
+        Ideal
+    }
+
+    fn gather<L: Lane>(_each: &[&Self]) -> Ideal {
+        Ideal
+    }
+
+    fn of(any: &AnyActuator) -> &Self {
+        match any {
+            AnyActuator::Ideal(a) => a,
+        }
+    }
+}
+
+impl<L: Lane> ActuatorModel<L> for Ideal {
+    const STATES: usize = 0;
+    type Command = Inputs<L>;
+
+    #[inline(always)]
+    fn command(&self, u: &Inputs<L>) -> Inputs<L> {
+        *u
+    }
+
+    #[inline(always)]
+    fn inputs<const N: usize>(&self, cmd: &Inputs<L>, _s: &State<L, N>, _at: usize) -> Inputs<L> {
+        *cmd
+    }
+
+    #[inline(always)]
+    fn derivative<const N: usize>(
+        &self,
+        _cmd: &Inputs<L>,
+        _s: &State<L, N>,
+        _at: usize,
+        _ds: &mut State<L, N>,
+    ) {
+    }
+
+    fn rest<const N: usize>(&self, _s: &mut State<L, N>, _at: usize) {}
+}

@@ -1,0 +1,76 @@
+//! Actuator models (`actuator.model`, docs/model.md sections 2 and 8): how the controller's
+//! total thrust and torques reach the airframe. Each kind is one file implementing `Actuator`
+//! (its parameters, built once from the scenario and gathered one vehicle per lane) and
+//! `ActuatorModel` (its command, held over a step, its states' dynamics and the thrust and
+//! torques the plant feels). To add a kind: a file beside `ideal.rs`, a variant of
+//! `AnyActuator` and of `config::ActuatorModelName`, and its lines in `model::dispatch`.
+
+mod ideal;
+
+pub use ideal::Ideal;
+
+use super::layout::StateVar;
+use super::{Inputs, State};
+use crate::config::{ActuatorModelName, Config};
+use crate::lane::Lane;
+
+/// An actuator's dynamics, with parameters of lane type `L`.
+pub trait ActuatorModel<L: Lane>: Sync {
+    /// The actuator's own states (after the payload's velocities).
+    const STATES: usize;
+    /// What the actuator is told at the start of a step and holds over its four RK4 stages.
+    type Command: Copy;
+
+    /// The held command for the controller's thrust and torques `u`.
+    fn command(&self, u: &Inputs<L>) -> Self::Command;
+
+    /// The thrust and torques the airframe feels at state `s` (actuator states from `at`).
+    fn inputs<const N: usize>(&self, cmd: &Self::Command, s: &State<L, N>, at: usize)
+        -> Inputs<L>;
+
+    /// Write the actuator states' derivatives (`ds[at..at + STATES]`).
+    fn derivative<const N: usize>(
+        &self,
+        cmd: &Self::Command,
+        s: &State<L, N>,
+        at: usize,
+        ds: &mut State<L, N>,
+    );
+
+    /// Put the actuator states at hover (`s[at..at + STATES]`).
+    fn rest<const N: usize>(&self, s: &mut State<L, N>, at: usize);
+}
+
+/// An actuator kind's parameters for one vehicle, resolved once from the scenario.
+pub trait Actuator: Clone + Sync + Send + Sized + 'static {
+    type At<L: Lane>: ActuatorModel<L>;
+    /// The kind's states (`STATES` of them).
+    const VARS: &'static [StateVar];
+
+    fn new(cfg: &Config) -> Self;
+    fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
+    fn of(any: &AnyActuator) -> &Self;
+}
+
+/// Every actuator kind's parameters: the one place the kinds are listed.
+#[derive(Clone, Debug)]
+pub enum AnyActuator {
+    Ideal(Ideal),
+}
+
+impl AnyActuator {
+    pub fn new(cfg: &Config) -> Self {
+        match cfg.actuator.model {
+            ActuatorModelName::Ideal => Self::Ideal(Ideal::new(cfg)),
+        }
+    }
+
+    pub fn name(&self) -> ActuatorModelName {
+        match self {
+            Self::Ideal(_) => ActuatorModelName::Ideal,
+        }
+    }
+}
+
+/// The kind of a scenario's actuators, for `model::dispatch`.
+pub type ActuatorKind = ActuatorModelName;

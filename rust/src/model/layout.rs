@@ -1,0 +1,161 @@
+//! The state vector's layout, defined once: which state sits where, its name, the axis it moves
+//! along (stability's mode labels) and the runaway bound that ends a flight when it is exceeded
+//! (the divergence checks). Trace columns, stability outputs, `linearize`'s names and the
+//! divergence checks are all derived from `Layout::vars`.
+
+use super::ix;
+
+/// The runaway bound a state is held to (`divergence.*`): a flight whose state exceeds it ends
+/// with the matching `ExitStatus`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bound {
+    /// |position| <= `divergence.max_distance`.
+    Distance,
+    /// |roll|, |pitch| <= `divergence.max_tilt`.
+    Tilt,
+    /// |velocity| <= `divergence.max_speed`.
+    Speed,
+    /// |body rate| <= `divergence.max_rate`.
+    Rate,
+}
+
+/// The direction a state moves the vehicle in, for naming a linear mode by the states that
+/// carry it (`stability::describe`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+    Roll,
+    Pitch,
+    Yaw,
+    /// Not a motion of the airframe or the load (e.g. a rotor speed).
+    Other,
+}
+
+impl Axis {
+    /// Lateral motion: what a horizontal disturbance drives.
+    pub fn lateral(self) -> bool {
+        matches!(self, Axis::X | Axis::Y | Axis::Roll | Axis::Pitch)
+    }
+}
+
+/// Which body a state belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    Vehicle,
+    Payload,
+    Actuator,
+}
+
+/// One state: its name (the trace column), what it measures, and its runaway bound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StateVar {
+    pub name: &'static str,
+    pub axis: Axis,
+    pub bound: Option<Bound>,
+    pub part: Part,
+}
+
+impl StateVar {
+    pub const fn new(name: &'static str, axis: Axis, bound: Option<Bound>, part: Part) -> Self {
+        Self {
+            name,
+            axis,
+            bound,
+            part,
+        }
+    }
+}
+
+const fn vehicle(name: &'static str, axis: Axis, bound: Option<Bound>) -> StateVar {
+    StateVar::new(name, axis, bound, Part::Vehicle)
+}
+
+/// The quadrotor's positions and angles.
+pub const VEHICLE_POSITIONS: [StateVar; 6] = [
+    vehicle("x", Axis::X, Some(Bound::Distance)),
+    vehicle("y", Axis::Y, Some(Bound::Distance)),
+    vehicle("z", Axis::Z, Some(Bound::Distance)),
+    vehicle("phi", Axis::Roll, Some(Bound::Tilt)),
+    vehicle("theta", Axis::Pitch, Some(Bound::Tilt)),
+    // Yaw is free: a turn is no runaway.
+    vehicle("psi", Axis::Yaw, None),
+];
+
+/// The quadrotor's velocities and Euler-angle rates.
+pub const VEHICLE_VELOCITIES: [StateVar; 6] = [
+    vehicle("vx", Axis::X, Some(Bound::Speed)),
+    vehicle("vy", Axis::Y, Some(Bound::Speed)),
+    vehicle("vz", Axis::Z, Some(Bound::Speed)),
+    vehicle("p", Axis::Roll, Some(Bound::Rate)),
+    vehicle("q", Axis::Pitch, Some(Bound::Rate)),
+    vehicle("r", Axis::Yaw, Some(Bound::Rate)),
+];
+
+/// Where each part's states sit: `[vehicle positions and angles (6), payload positions (dof),
+/// vehicle velocities and rates (6), payload velocities (dof), actuator states]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// The payload's degrees of freedom (1 for the vertical spring, 3 for the cable).
+    pub payload_dof: usize,
+    /// The actuator's states (0 ideal, 4 rotors).
+    pub actuator_states: usize,
+}
+
+impl Layout {
+    pub const fn new(payload_dof: usize, actuator_states: usize) -> Self {
+        Self {
+            payload_dof,
+            actuator_states,
+        }
+    }
+
+    /// Number of states.
+    pub const fn len(self) -> usize {
+        12 + 2 * self.payload_dof + self.actuator_states
+    }
+
+    pub const fn is_empty(self) -> bool {
+        false
+    }
+
+    /// Index of the payload's first position.
+    pub const fn payload(self) -> usize {
+        ix::PAYLOAD
+    }
+
+    /// Index of vx (then vy, vz, p, q, r).
+    pub const fn vel(self) -> usize {
+        6 + self.payload_dof
+    }
+
+    /// Index of the payload's first velocity.
+    pub const fn payload_vel(self) -> usize {
+        12 + self.payload_dof
+    }
+
+    /// Index of the actuator's first state.
+    pub const fn actuator(self) -> usize {
+        12 + 2 * self.payload_dof
+    }
+
+    /// Every state in order, from the payload's and the actuator's own lists.
+    pub fn vars(
+        self,
+        payload_positions: &[StateVar],
+        payload_velocities: &[StateVar],
+        actuator: &[StateVar],
+    ) -> Vec<StateVar> {
+        assert_eq!(payload_positions.len(), self.payload_dof);
+        assert_eq!(payload_velocities.len(), self.payload_dof);
+        assert_eq!(actuator.len(), self.actuator_states);
+        let mut out = Vec::with_capacity(self.len());
+        out.extend_from_slice(&VEHICLE_POSITIONS);
+        out.extend_from_slice(payload_positions);
+        out.extend_from_slice(&VEHICLE_VELOCITIES);
+        out.extend_from_slice(payload_velocities);
+        out.extend_from_slice(actuator);
+        out
+    }
+}

@@ -1,0 +1,322 @@
+//! The plant (docs/model.md sections 1, 7, 8): a rigid quadrotor (`body`), a payload model
+//! (`payload`: how the load hangs and pulls) and an actuator model (`actuator`: how the
+//! controller's thrust and torques reach the airframe). Each family is one trait with one
+//! dispatch point (`PayloadKind`, `ActuatorKind`); each kind is one file.
+//!
+//! The state vector is laid out once, here (`Layout`): the quadrotor's positions and angles,
+//! the payload's positions, the quadrotor's velocities and rates, the payload's velocities,
+//! then the actuator's states. For the vertical spring this is the paper's
+//! `[x, y, z, phi, theta, psi, zc, vx, vy, vz, p, q, r, vzc]`. State names, trace columns,
+//! stability outputs and divergence checks all derive from `Layout::vars`.
+
+pub mod actuator;
+pub mod body;
+pub mod layout;
+pub mod payload;
+
+pub use actuator::{Actuator, ActuatorKind, ActuatorModel, AnyActuator};
+pub use body::Body;
+pub use layout::{Axis, Bound, Layout, Part, StateVar};
+pub use payload::{AnyPayload, Payload, PayloadKind, PayloadModel, PayloadOutputs};
+
+use crate::lane::{KernelOps, Lane};
+
+/// The quadrotor's own states, first in every layout: positions and angles (6), and after the
+/// payload's positions, velocities and rates (6).
+pub mod ix {
+    pub const X: usize = 0;
+    pub const Y: usize = 1;
+    pub const Z: usize = 2;
+    pub const PHI: usize = 3;
+    pub const THETA: usize = 4;
+    pub const PSI: usize = 5;
+    /// The payload's positions start here.
+    pub const PAYLOAD: usize = 6;
+}
+
+/// A state vector of `N` values (N from the models' `Layout`).
+pub type State<L, const N: usize> = [L; N];
+
+/// `[f(0), f(1), ..., f(N - 1)]`, always inlined (`std::array::from_fn` is not guaranteed to
+/// be, and an out-of-line copy would be compiled without the flight loop's target features:
+/// see `lane/isa.rs`).
+#[inline(always)]
+pub fn state_from_fn<L: Copy, const N: usize>(mut f: impl FnMut(usize) -> L) -> [L; N] {
+    let first = f(0);
+    let mut out = [first; N];
+    let mut i = 1;
+    while i < N {
+        out[i] = f(i);
+        i += 1;
+    }
+    out
+}
+
+/// Total thrust and body torques, as the controller commands them or as the plant feels them.
+#[derive(Clone, Copy, Debug)]
+pub struct Inputs<L> {
+    pub u1: L,
+    pub tau: [L; 3],
+}
+
+/// The quadrotor's rigid-body state, as the controllers read it (a view of the state vector).
+#[derive(Clone, Copy, Debug)]
+pub struct Rigid<L> {
+    pub pos: [L; 3],
+    /// Roll, pitch, yaw.
+    pub att: [L; 3],
+    pub vel: [L; 3],
+    /// Euler-angle rates p, q, r.
+    pub rate: [L; 3],
+}
+
+/// Sines and cosines of the Euler angles of one state: computed once per RK4 stage and shared
+/// by the controller and the first stage of the step.
+#[derive(Clone, Copy, Debug)]
+pub struct Trig<L> {
+    pub sphi: L,
+    pub cphi: L,
+    pub sth: L,
+    pub cth: L,
+    pub spsi: L,
+    pub cpsi: L,
+}
+
+impl<L: Lane> Trig<L> {
+    #[inline(always)]
+    pub fn of<const N: usize>(s: &State<L, N>) -> Self {
+        Self::of_angles(s[ix::PHI], s[ix::THETA], s[ix::PSI])
+    }
+
+    #[inline(always)]
+    pub fn of_angles(phi: L, theta: L, psi: L) -> Self {
+        let (sphi, cphi) = phi.sin_cos();
+        let (sth, cth) = theta.sin_cos();
+        let (spsi, cpsi) = psi.sin_cos();
+        Self {
+            sphi,
+            cphi,
+            sth,
+            cth,
+            spsi,
+            cpsi,
+        }
+    }
+}
+
+/// Turns of at most this (rad) within one RK4 stage take the angle-addition path of
+/// `Trig::advanced`; its series are then exact to well below an ulp (the first omitted terms
+/// are d^9/9! and d^10/10!, under 2e-18 relative at 0.03 rad).
+pub const SMALL_TURN: f64 = 0.03;
+
+/// (sin d, cos d) for |d| <= SMALL_TURN: Taylor series to d^7 and d^8.
+#[inline(always)]
+fn sin_cos_small<L: Lane>(d: L) -> (L, L) {
+    let d2 = d * d;
+    let s = d + d * d2 * ((d2 * (-1.0 / 5040.0) + 1.0 / 120.0) * d2 + (-1.0 / 6.0));
+    let c = (((d2 * (1.0 / 40320.0) + (-1.0 / 720.0)) * d2 + 1.0 / 24.0) * d2 + (-0.5)) * d2 + 1.0;
+    (s, c)
+}
+
+impl<L: KernelOps> Trig<L> {
+    /// The sines and cosines at the angles `angle + k[angle] h` (an RK4 stage state `at`),
+    /// from those at `angle` (`self`) by the angle-addition formulas: a few multiplications
+    /// instead of three full sin/cos. A lane whose turn |k h| exceeds `SMALL_TURN` (never in
+    /// the paper preset: that is 150 rad/s at dt = 2e-4 s) gets the full kernels at `at`
+    /// instead; the choice is per lane, so a lane's numbers never depend on its neighbours.
+    #[inline(always)]
+    pub fn advanced<const N: usize>(&self, k: &State<L, N>, h: f64, at: &State<L, N>) -> Self {
+        let small = L::splat(SMALL_TURN);
+        #[inline(always)]
+        fn turn<L: KernelOps>(s0: L, c0: L, d: L) -> (L, L) {
+            let (sd, cd) = sin_cos_small(d);
+            (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
+        }
+        let (dphi, dth, dpsi) = (k[ix::PHI] * h, k[ix::THETA] * h, k[ix::PSI] * h);
+        let (sphi, cphi) = turn(self.sphi, self.cphi, dphi);
+        let (sth, cth) = turn(self.sth, self.cth, dth);
+        let (spsi, cpsi) = turn(self.spsi, self.cpsi, dpsi);
+        let t = Self {
+            sphi,
+            cphi,
+            sth,
+            cth,
+            spsi,
+            cpsi,
+        };
+        let ok = dphi.abs().le_mask(small) & dth.abs().le_mask(small) & dpsi.abs().le_mask(small);
+        if ok == L::ALL {
+            return t;
+        }
+        let full = Self::of(at);
+        let pick = |d: L, a: L, b: L| L::select(d.abs().cmp_le(small), a, b);
+        Self {
+            sphi: pick(dphi, t.sphi, full.sphi),
+            cphi: pick(dphi, t.cphi, full.cphi),
+            sth: pick(dth, t.sth, full.sth),
+            cth: pick(dth, t.cth, full.cth),
+            spsi: pick(dpsi, t.spsi, full.spsi),
+            cpsi: pick(dpsi, t.cpsi, full.cpsi),
+        }
+    }
+}
+
+/// One vehicle: the rigid quadrotor, its payload and its actuators, with parameters of type
+/// `L` (an `f64` for one vehicle, a lane type for one vehicle per lane, dual numbers for the
+/// linearisation). `N` states in the order of `Layout::of::<Pay, Act>()`.
+#[derive(Clone, Debug)]
+pub struct Vehicle<L, Pay, Act> {
+    pub body: Body<L>,
+    pub payload: Pay,
+    pub actuator: Act,
+}
+
+impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> {
+    /// Where each part's states sit in the state vector.
+    pub const LAYOUT: Layout = Layout::new(Pay::DOF, Act::STATES);
+
+    /// The quadrotor's rigid-body state within `s`.
+    #[inline(always)]
+    pub fn rigid<const N: usize>(s: &State<L, N>) -> Rigid<L> {
+        let v = Self::LAYOUT.vel();
+        Rigid {
+            pos: [s[ix::X], s[ix::Y], s[ix::Z]],
+            att: [s[ix::PHI], s[ix::THETA], s[ix::PSI]],
+            vel: [s[v], s[v + 1], s[v + 2]],
+            rate: [s[v + 3], s[v + 4], s[v + 5]],
+        }
+    }
+
+    /// ds/dt with the actuator's command `cmd` and the wind `w` (m/s, inertial) held over the
+    /// step; `trig` are the sines and cosines of `s`'s angles.
+    #[inline(always)]
+    pub fn derivative<const N: usize>(
+        &self,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        cmd: &Act::Command,
+        w: &[L; 3],
+    ) -> State<L, N> {
+        const { assert!(N == Layout::new(Pay::DOF, Act::STATES).len()) };
+        let lay = Self::LAYOUT;
+        let u = self.actuator.inputs(cmd, s, lay.actuator());
+        let mut ds = [s[0]; N];
+        // Kinematics: positions move with the velocities, angles with the rates.
+        let (v, pv) = (lay.vel(), lay.payload_vel());
+        for i in 0..3 {
+            ds[i] = s[v + i];
+            ds[ix::PHI + i] = s[v + 3 + i];
+        }
+        for i in 0..Pay::DOF {
+            ds[ix::PAYLOAD + i] = s[pv + i];
+        }
+        let torque = self.payload.accelerations(&self.body, s, trig, u.u1, w, &mut ds);
+        let rdot = self.body.rotation(&Self::rigid(s).rate, &u.tau, &torque);
+        ds[v + 3..v + 6].copy_from_slice(&rdot);
+        self.actuator.derivative(cmd, s, lay.actuator(), &mut ds);
+        ds
+    }
+
+    /// Everything the flight loop records about the payload at `s` in wind `w`.
+    #[inline(always)]
+    pub fn payload_outputs<const N: usize>(
+        &self,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+    ) -> PayloadOutputs<L> {
+        self.payload.outputs(&self.body, s, trig, u1, w)
+    }
+}
+
+impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>> Vehicle<f64, Pay, Act> {
+    /// A state at rest at `position` and `attitude`, payload and actuators at their hover
+    /// equilibria.
+    pub fn rest_state<const N: usize>(
+        &self,
+        position: [f64; 3],
+        attitude: [f64; 3],
+    ) -> State<f64, N> {
+        let mut s = [0.0; N];
+        s[..3].copy_from_slice(&position);
+        s[ix::PHI..ix::PHI + 3].copy_from_slice(&attitude);
+        let lay = Self::LAYOUT;
+        self.payload.rest(&self.body, &mut s, lay);
+        self.actuator.rest(&mut s, lay.actuator());
+        s
+    }
+}
+
+/// Work to do on a vehicle whose payload and actuator kinds are known at compile time: the
+/// flight loop, the linearisation, the state names. `N` is the number of states.
+pub trait VehicleVisitor {
+    type Output;
+    fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output;
+}
+
+/// The one dispatch point from the scenario's model names to the code compiled for them. A
+/// new kind adds one line per combination here (its `N` is checked at compile time against
+/// the kinds' `Layout`, by `Vehicle::derivative`).
+pub fn dispatch<V: VehicleVisitor>(payload: PayloadKind, actuator: ActuatorKind, v: V) -> V::Output {
+    use actuator::Ideal;
+    use payload::Spring;
+    match (payload, actuator) {
+        (PayloadKind::Spring, ActuatorKind::Ideal) => v.visit::<Spring, Ideal, 14>(),
+    }
+}
+
+/// Every state of a vehicle with these kinds, in order.
+pub fn state_vars(payload: PayloadKind, actuator: ActuatorKind) -> Vec<StateVar> {
+    struct Vars;
+    impl VehicleVisitor for Vars {
+        type Output = Vec<StateVar>;
+        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<StateVar> {
+            let lay = Layout::new(Pay::POSITIONS.len(), Act::VARS.len());
+            assert_eq!(lay.len(), N, "model::dispatch gives the wrong state count");
+            lay.vars(Pay::POSITIONS, Pay::VELOCITIES, Act::VARS)
+        }
+    }
+    dispatch(payload, actuator, Vars)
+}
+
+/// One vehicle's parameters, all kinds, resolved once from a validated scenario: what may
+/// differ between the realisations of a dispersed batch.
+#[derive(Clone, Debug)]
+pub struct Parts {
+    pub body: Body,
+    pub payload: AnyPayload,
+    pub actuator: AnyActuator,
+}
+
+impl Parts {
+    pub fn new(cfg: &crate::config::Config) -> Self {
+        Self {
+            body: Body::new(cfg),
+            payload: AnyPayload::new(cfg),
+            actuator: AnyActuator::new(cfg),
+        }
+    }
+
+    /// The vehicle with kinds `Pay`, `Act`, one per lane of `L` (`each[l]` in lane `l`).
+    pub fn gather<L: Lane, Pay: Payload, Act: Actuator>(
+        each: &[&Parts],
+    ) -> Vehicle<L, Pay::At<L>, Act::At<L>> {
+        let bodies: Vec<&Body> = each.iter().map(|p| &p.body).collect();
+        let payloads: Vec<&Pay> = each.iter().map(|p| Pay::of(&p.payload)).collect();
+        let actuators: Vec<&Act> = each.iter().map(|p| Act::of(&p.actuator)).collect();
+        Vehicle {
+            body: Body::gather(&bodies),
+            payload: Pay::gather(&payloads),
+            actuator: Act::gather(&actuators),
+        }
+    }
+
+    /// This one vehicle (`f64` parameters).
+    pub fn vehicle<Pay: Payload, Act: Actuator>(&self) -> Vehicle<f64, Pay::At<f64>, Act::At<f64>> {
+        Self::gather::<f64, Pay, Act>(&[self])
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,102 @@
+//! Payload models (`payload.model`, docs/model.md sections 1 and 7): how the load hangs below
+//! the quadrotor, moves and pulls on it. Each kind is one file implementing two traits:
+//! `Payload` (its parameters, built once from the scenario and gathered one vehicle per lane)
+//! and `PayloadModel` (its dynamics and outputs, with parameters of any lane type). To add a
+//! kind: a file beside `spring.rs`, a variant of `AnyPayload` and of `config::PayloadModelName`,
+//! and its lines in `model::dispatch` (docs/architecture.md).
+
+mod spring;
+
+pub use spring::Spring;
+
+use super::body::Body;
+use super::layout::StateVar;
+use super::{Layout, State, Trig};
+use crate::config::{Config, PayloadModelName};
+use crate::lane::Lane;
+
+/// What the flight loop records about the payload at one instant.
+#[derive(Clone, Copy, Debug)]
+pub struct PayloadOutputs<L> {
+    /// m, the vertical relative oscillation: the payload's height relative to its attachment,
+    /// minus that at hover (0 at hover; the paper's e_o).
+    pub e_o: L,
+    /// m/s^2, the payload's vertical inertial acceleration (0 at hover).
+    pub accel_z: L,
+    /// N, the force the attachment carries (the spring force Fs, or the cable tension).
+    pub tension: L,
+    /// rad, the attachment's angle from the vertical (0 for the vertical spring).
+    pub swing: L,
+}
+
+/// A payload's dynamics, with parameters of lane type `L`.
+pub trait PayloadModel<L: Lane>: Sync {
+    /// Degrees of freedom: the payload has this many positions (after the quadrotor's angles)
+    /// and as many velocities (after the quadrotor's rates).
+    const DOF: usize;
+
+    /// Write the quadrotor's translational accelerations (`ds[vx..vx + 3]`) and the payload's
+    /// (`ds[payload_vel..]`) for total thrust `u1` and wind `w` (m/s, inertial); return the
+    /// torque the payload applies to the quadrotor (body axes), if it applies one.
+    fn accelerations<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> Option<[L; 3]>;
+
+    /// What the loop records (`PayloadOutputs`) at `s`.
+    fn outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+    ) -> PayloadOutputs<L>;
+
+    /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest).
+    fn rest<const N: usize>(&self, body: &Body<L>, s: &mut State<L, N>, layout: Layout);
+}
+
+/// A payload kind's parameters for one vehicle, resolved once from the scenario.
+pub trait Payload: Clone + Sync + Send + Sized + 'static {
+    /// The same parameters, one vehicle per lane of `L`.
+    type At<L: Lane>: PayloadModel<L>;
+    /// The kind's states: positions, then velocities (`DOF` each).
+    const POSITIONS: &'static [StateVar];
+    const VELOCITIES: &'static [StateVar];
+
+    fn new(cfg: &Config) -> Self;
+    /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
+    fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
+    /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
+    fn of(any: &AnyPayload) -> &Self;
+}
+
+/// Every payload kind's parameters: the one place the kinds are listed.
+#[derive(Clone, Debug)]
+pub enum AnyPayload {
+    Spring(Spring),
+}
+
+impl AnyPayload {
+    pub fn new(cfg: &Config) -> Self {
+        match cfg.payload.model {
+            PayloadModelName::Spring => Self::Spring(Spring::new(cfg)),
+        }
+    }
+
+    /// The kind's name in the scenario (`payload.model`).
+    pub fn name(&self) -> PayloadModelName {
+        match self {
+            Self::Spring(_) => PayloadModelName::Spring,
+        }
+    }
+}
+
+/// The kind of a scenario's payload, for `model::dispatch`.
+pub type PayloadKind = PayloadModelName;

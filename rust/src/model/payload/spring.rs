@@ -1,0 +1,157 @@
+//! The paper's payload (docs/model.md section 1): a point mass on a vertical spring and damper
+//! of zero rest length. It moves only vertically; laterally it travels with the quadrotor, so
+//! the lateral mass is m + mc. One degree of freedom: `zc`, `vzc`.
+
+use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
+use crate::config::Config;
+use crate::lane::Lane;
+use crate::model::body::{drag, Body};
+use crate::model::layout::{Axis, Bound, Part, StateVar};
+use crate::model::{ix, Layout, State, Trig};
+
+/// Spring payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Spring<L = f64> {
+    /// kg.
+    pub mc: L,
+    /// N/m and N s/m.
+    pub kc: L,
+    pub cc: L,
+    /// 1/2 rho CdA of the payload (vertical).
+    pub drag_payload: L,
+    /// m, the static stretch at hover d0 = mc g / kc.
+    pub hover_offset: L,
+    /// 1 / (m + mc) and 1 / mc, computed once.
+    inv_m_lateral: L,
+    inv_mc: L,
+}
+
+const LAYOUT: Layout = Layout::new(1, 0);
+const ZC: usize = ix::PAYLOAD;
+const VX: usize = LAYOUT.vel();
+const VY: usize = VX + 1;
+const VZ: usize = VX + 2;
+const VZC: usize = LAYOUT.payload_vel();
+
+impl Payload for Spring {
+    type At<L: Lane> = Spring<L>;
+    const POSITIONS: &'static [StateVar] = &[StateVar::new(
+        "zc",
+        Axis::Z,
+        Some(Bound::Distance),
+        Part::Payload,
+    )];
+    const VELOCITIES: &'static [StateVar] = &[StateVar::new(
+        "vzc",
+        Axis::Z,
+        Some(Bound::Speed),
+        Part::Payload,
+    )];
+
+    fn new(cfg: &Config) -> Self {
+        let (m, mc) = (cfg.vehicle.mass, cfg.payload.mass);
+        let kc = cfg.stiffness();
+        Self {
+            mc,
+            kc,
+            cc: cfg.payload.damping,
+            drag_payload: 0.5 * cfg.gust.air_density * cfg.payload.drag_area,
+            hover_offset: mc * cfg.environment.gravity / kc,
+            inv_m_lateral: 1.0 / (m + mc),
+            inv_mc: 1.0 / mc,
+        }
+    }
+
+    fn gather<L: Lane>(each: &[&Self]) -> Spring<L> {
+        let at = |f: fn(&Spring) -> f64| L::from_fn(|l| f(each[l]));
+        Spring {
+            mc: at(|p| p.mc),
+            kc: at(|p| p.kc),
+            cc: at(|p| p.cc),
+            drag_payload: at(|p| p.drag_payload),
+            hover_offset: at(|p| p.hover_offset),
+            inv_m_lateral: at(|p| p.inv_m_lateral),
+            inv_mc: at(|p| p.inv_mc),
+        }
+    }
+
+    fn of(any: &AnyPayload) -> &Self {
+        match any {
+            AnyPayload::Spring(p) => p,
+        }
+    }
+}
+
+impl<L: Lane> Spring<L> {
+    /// Spring and damper force Fs = kc (z - zc) + cc (vz - vzc) (N, pulls the payload up).
+    #[inline(always)]
+    fn force<const N: usize>(&self, s: &State<L, N>) -> L {
+        (s[ix::Z] - s[ZC]).mul_add(self.kc, (s[VZ] - s[VZC]) * self.cc)
+    }
+
+    /// mc azc = -mc g + Fs + Fdzc: the payload's vertical inertial acceleration.
+    #[inline(always)]
+    fn acceleration<const N: usize>(&self, body: &Body<L>, s: &State<L, N>, spring: L, wz: L) -> L {
+        let fdzc = drag(self.drag_payload, s[VZC], wz);
+        (spring + fdzc) * self.inv_mc - body.g
+    }
+}
+
+impl<L: Lane> PayloadModel<L> for Spring<L> {
+    const DOF: usize = 1;
+
+    #[inline(always)]
+    fn accelerations<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> Option<[L; 3]> {
+        let Trig {
+            sphi,
+            cphi,
+            sth,
+            cth,
+            spsi,
+            cpsi,
+        } = *trig;
+        let fdx = drag(body.drag_lateral, s[VX], w[0]);
+        let fdy = drag(body.drag_lateral, s[VY], w[1]);
+        let fdz = body.vertical_drag(s[VZ], w[2]);
+        let spring = self.force(s);
+        // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
+        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly.
+        let cs = cphi * sth;
+        ds[VX] = cs.mul_add(cpsi, spsi * sphi).mul_add(u1, fdx) * self.inv_m_lateral;
+        ds[VY] = cs.mul_add(spsi, -(sphi * cpsi)).mul_add(u1, fdy) * self.inv_m_lateral;
+        let az = (cphi * cth).mul_add(u1, -spring) + fdz;
+        ds[VZ] = az * body.inv_m - body.g;
+        ds[VZC] = self.acceleration(body, s, spring, w[2]);
+        None
+    }
+
+    #[inline(always)]
+    fn outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        _trig: &Trig<L>,
+        _u1: L,
+        w: &[L; 3],
+    ) -> PayloadOutputs<L> {
+        let spring = self.force(s);
+        PayloadOutputs {
+            e_o: s[ZC] - s[ix::Z] + self.hover_offset,
+            accel_z: self.acceleration(body, s, spring, w[2]),
+            tension: spring,
+            swing: L::splat(0.0),
+        }
+    }
+
+    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+        s[ZC] = s[ix::Z] - self.hover_offset;
+    }
+}
