@@ -77,10 +77,7 @@ pub const SIGNAL_COLUMNS: [&str; 14] = [
 
 /// Every trace column after `t`: the states of `vars`, then `SIGNAL_COLUMNS`.
 pub fn trace_columns(vars: &[StateVar]) -> Vec<&'static str> {
-    vars.iter()
-        .map(|v| v.name)
-        .chain(SIGNAL_COLUMNS)
-        .collect()
+    vars.iter().map(|v| v.name).chain(SIGNAL_COLUMNS).collect()
 }
 
 /// Rows of (t, trace columns...) every `every` steps, for lane 0 of a flight.
@@ -761,27 +758,40 @@ impl Engine {
 mod tests {
     use super::*;
     use crate::config::tests::paper;
-    use crate::model::NX;
+    use crate::model::actuator::Ideal;
+    use crate::model::paper_ix::{self as ix, NX};
+    use crate::model::payload::Spring;
+    use crate::model::PaperVehicle;
+
+    fn paper_vehicle(cfg: &Config) -> PaperVehicle {
+        Parts::new(cfg).vehicle::<Spring, Ideal>()
+    }
+
+    fn step(v: &PaperVehicle, s: &State<f64, NX>, u: &Inputs<f64>, dt: f64) -> State<f64, NX> {
+        rk4_step(v, s, &Trig::of(s), u, &[0.0; 3], dt)
+    }
 
     /// Free two-body oscillation: thrust = total weight, no control, payload displaced by a.
     fn free_oscillation_error(dt: f64, t_end: f64) -> f64 {
         let mut cfg = paper();
         cfg.gust.air_density = 0.0; // no drag: the analytic solution is undamped
-        let plant = Plant::new(&cfg);
+        let plant = paper_vehicle(&cfg);
         let a = 0.05;
-        let mut s = plant.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
+        let mut s: State<f64, NX> = plant.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
         s[ix::ZC] -= a;
         let u = Inputs {
-            u1: (plant.m + plant.mc) * plant.g,
+            u1: (plant.body.m + plant.payload.mc) * plant.body.g,
             tau: [0.0; 3],
         };
-        let omega = (plant.kc * (plant.m + plant.mc) / (plant.m * plant.mc)).sqrt();
+        let omega = (plant.payload.kc * (plant.body.m + plant.payload.mc)
+            / (plant.body.m * plant.payload.mc))
+            .sqrt();
         let n = (t_end / dt).round() as usize;
         for _ in 0..n {
-            s = rk4_step(&plant, &s, &u, &[0.0; 3], dt);
+            s = step(&plant, &s, &u, dt);
         }
         // Relative coordinate r = z - zc oscillates about d0 with amplitude a.
-        let exact = plant.hover_offset() + a * (omega * n as f64 * dt).cos();
+        let exact = plant.payload.hover_offset + a * (omega * n as f64 * dt).cos();
         (s[ix::Z] - s[ix::ZC] - exact).abs()
     }
 
@@ -806,19 +816,19 @@ mod tests {
         // Count zero crossings of r - d0 over 10 s at fine dt, drag off.
         let mut cfg = paper();
         cfg.gust.air_density = 0.0;
-        let plant = Plant::new(&cfg);
-        let mut s = plant.rest_state([0.0; 3], [0.0; 3]);
+        let plant = paper_vehicle(&cfg);
+        let mut s: State<f64, NX> = plant.rest_state([0.0; 3], [0.0; 3]);
         s[ix::ZC] -= 0.01;
         let u = Inputs {
-            u1: (plant.m + plant.mc) * plant.g,
+            u1: (plant.body.m + plant.payload.mc) * plant.body.g,
             tau: [0.0; 3],
         };
         let dt = 1e-4;
-        let d0 = plant.hover_offset();
+        let d0 = plant.payload.hover_offset;
         let (mut crossings, mut first, mut last) = (0usize, f64::NAN, f64::NAN);
         let mut prev = s[ix::Z] - s[ix::ZC] - d0;
         for k in 1..=100_000 {
-            s = rk4_step(&plant, &s, &u, &[0.0; 3], dt);
+            s = step(&plant, &s, &u, dt);
             let cur = s[ix::Z] - s[ix::ZC] - d0;
             if prev.signum() != cur.signum() {
                 let tc = (k as f64 - cur / (cur - prev)) * dt;
@@ -897,7 +907,7 @@ mod tests {
     fn hover_equilibrium_holds_for_both_laws() {
         let engine = Engine::new(hover_cfg()).unwrap();
         for kind in [ControllerKind::Pd, ControllerKind::Smc] {
-            let mut tr = Trace::new(1000, engine.steps);
+            let mut tr = engine.trace(1000);
             engine
                 .fly::<f64>(
                     &FlightRequest::new(kind, 0, &[0]),
@@ -905,8 +915,8 @@ mod tests {
                     &mut FftPlanner::new(),
                 )
                 .unwrap();
-            let x0 = engine.craft.x0;
-            for row in tr.data.chunks(Trace::WIDTH) {
+            let x0 = &engine.craft.x0;
+            for row in tr.data.chunks(tr.width) {
                 for i in 0..NX {
                     assert!(
                         (row[1 + i] - x0[i]).abs() < 1e-9,
@@ -983,7 +993,11 @@ mod tests {
 
     /// Column `name` of a trace row (`row[0]` is t).
     fn col(row: &[f64], name: &str) -> f64 {
-        row[1 + TRACE_COLUMNS.iter().position(|c| *c == name).unwrap()]
+        let columns = trace_columns(&crate::model::state_vars(
+            Default::default(),
+            Default::default(),
+        ));
+        row[1 + columns.iter().position(|c| *c == name).unwrap()]
     }
 
     #[test]
@@ -994,17 +1008,17 @@ mod tests {
         cfg.integrator.duration = 28.0;
         cfg.phases.truncate(1);
         let engine = Engine::new(cfg.clone()).unwrap();
-        let mut tr = Trace::new(7, engine.steps);
+        let mut tr = engine.trace(7);
         let req = FlightRequest::new(ControllerKind::Pd, 5, &[0]);
         engine
             .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
             .unwrap();
-        let plant = engine.plant();
-        let mut no_drag = Plant::new(&cfg);
-        no_drag.drag_quad = 0.0;
+        let plant = paper_vehicle(&cfg);
+        let mut no_drag = paper_vehicle(&cfg);
+        no_drag.body.drag_quad = 0.0;
         let (mut gusty, mut worst) = (0, 0.0_f64);
-        for row in tr.data.chunks(Trace::WIDTH) {
-            let s: State<f64> = state_from_fn(|i| row[1 + i]);
+        for row in tr.data.chunks(tr.width) {
+            let s: State<f64, NX> = state_from_fn(|i| row[1 + i]);
             let u = Inputs {
                 u1: col(row, "U1"),
                 tau: [
@@ -1016,9 +1030,10 @@ mod tests {
             let w = [col(row, "wind_x"), col(row, "wind_y"), col(row, "wind_z")];
             let drag_z = col(row, "drag_z");
             // The force the derivative adds to m az, recovered from two derivatives.
-            let felt = (plant.derivative(&s, &u, &w)[ix::VZ]
-                - no_drag.derivative(&s, &u, &w)[ix::VZ])
-                * plant.m;
+            let trig = Trig::of(&s);
+            let felt = (plant.derivative(&s, &trig, &u, &w)[ix::VZ]
+                - no_drag.derivative(&s, &trig, &u, &w)[ix::VZ])
+                * plant.body.m;
             worst = worst.max((felt - drag_z).abs());
             // ... and the formula by hand, from the trace's own columns.
             let rel = col(row, "vz") - w[2];
@@ -1033,12 +1048,12 @@ mod tests {
     #[test]
     fn drag_z_vanishes_at_hover_without_wind() {
         let engine = Engine::new(hover_cfg()).unwrap();
-        let mut tr = Trace::new(100, engine.steps);
+        let mut tr = engine.trace(100);
         let req = FlightRequest::new(ControllerKind::Pd, 0, &[0]);
         engine
             .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
             .unwrap();
-        for row in tr.data.chunks(Trace::WIDTH) {
+        for row in tr.data.chunks(tr.width) {
             assert_eq!(col(row, "wind_z"), 0.0);
             assert!(col(row, "drag_z").abs() < 1e-15, "{row:?}");
         }

@@ -73,7 +73,10 @@ mod _core {
             "STATE_NAMES",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
         )?;
-        m.add("EXIT_STATUSES", ExitStatus::ALL.map(ExitStatus::name).to_vec())?;
+        m.add(
+            "EXIT_STATUSES",
+            ExitStatus::ALL.map(ExitStatus::name).to_vec(),
+        )?;
         m.add(
             "EXIT_MESSAGES",
             ExitStatus::ALL.map(ExitStatus::message).to_vec(),
@@ -162,7 +165,10 @@ mod _core {
         d.set_item("steps", cfg.steps())?;
         d.set_item(
             "phases",
-            cfg.phases.iter().map(|p| p.name.clone()).collect::<Vec<_>>(),
+            cfg.phases
+                .iter()
+                .map(|p| p.name.clone())
+                .collect::<Vec<_>>(),
         )?;
         let vars = state_vars(cfg.payload.model, cfg.actuator.model);
         d.set_item(

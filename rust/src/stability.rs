@@ -26,8 +26,8 @@ use crate::config::{Config, GustComponent};
 use crate::control::{Control, ControllerKind, Pd, Smc};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
-    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State,
-    StateVar, Trig, Vehicle, VehicleVisitor,
+    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State, StateVar, Trig,
+    Vehicle, VehicleVisitor,
 };
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
@@ -483,7 +483,10 @@ fn describe(
         (MODE_LATERAL_Y, share(&on(&[Axis::Y, Axis::Roll]))),
         (MODE_VERTICAL, share(&on(&[Axis::Z]))),
         (MODE_YAW, share(&on(&[Axis::Yaw]))),
-        (MODE_ACTUATOR, share(&states_where(vars, |s| s.part == Part::Actuator))),
+        (
+            MODE_ACTUATOR,
+            share(&states_where(vars, |s| s.part == Part::Actuator)),
+        ),
     ];
     let mut mode = groups
         .iter()
@@ -548,6 +551,16 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
 mod tests {
     use super::*;
     use crate::config::tests::paper;
+    use crate::model::actuator::Ideal;
+    use crate::model::paper_ix::{self as ix, NX};
+    use crate::model::payload::Spring;
+
+    /// Rows of C and D (the paper layout).
+    const NY: usize = NX + SIGNAL_OUTPUTS.len();
+
+    fn paper_vehicle(cfg: &Config) -> crate::model::PaperVehicle {
+        Parts::new(cfg).vehicle::<Spring, Ideal>()
+    }
 
     fn poles_of(a: &Analysis, mode: &str) -> Vec<Complex<f64>> {
         a.poles
@@ -787,35 +800,33 @@ mod tests {
     #[test]
     fn jacobian_matches_analytic_entries_and_finite_differences() {
         let cfg = paper();
-        let plant = Plant::new(&cfg);
-        let smc = Smc::new(&cfg);
+        let plant = paper_vehicle(&cfg);
         let r = Reference {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
-        let s0 = plant.rest_state(r.pos, [0.0; 3]);
-        let jac = closed_loop_jacobian(&plant, &smc, &r, &s0);
+        let cl = closed_loop(&cfg, ControllerKind::Smc, r);
+        let s0 = cl.rest();
+        let jac = closed_loop_jacobian(&*cl, &s0, &[0.0; 3]);
         // d(ax)/d(theta) = U1 / (m + mc) = g at hover; d(ay)/d(phi) = -g.
         assert!((jac[(ix::VX, ix::THETA)] - 9.81).abs() < 1e-12);
         assert!((jac[(ix::VY, ix::PHI)] + 9.81).abs() < 1e-12);
         // d(azc)/d(z) = kc / mc; d(az)/d(zc) = kc / m.
-        assert!((jac[(ix::VZC, ix::Z)] - plant.kc / plant.mc).abs() < 1e-9);
-        assert!((jac[(ix::VZ, ix::ZC)] - plant.kc / plant.m).abs() < 1e-9);
+        let (kc, m, mc) = (plant.payload.kc, plant.body.m, plant.payload.mc);
+        assert!((jac[(ix::VZC, ix::Z)] - kc / mc).abs() < 1e-9);
+        assert!((jac[(ix::VZ, ix::ZC)] - kc / m).abs() < 1e-9);
         // Off hover (every channel away from its kinks), central differences agree.
         let mut s = s0;
         for (i, x) in s.iter_mut().enumerate() {
             *x += 0.01 * (i as f64 + 1.0).sin();
         }
-        let jac = closed_loop_jacobian(&plant, &smc, &r, &s);
+        let jac = closed_loop_jacobian(&*cl, &s, &[0.0; 3]);
         let h = 1e-6;
         for j in 0..NX {
-            let (mut up, mut down) = (s, s);
+            let (mut up, mut down) = (s.clone(), s.clone());
             up[j] += h;
             down[j] -= h;
-            let (fu, fd) = (
-                closed_loop(&plant, &smc, &r, &up),
-                closed_loop(&plant, &smc, &r, &down),
-            );
+            let (fu, fd) = (cl.eval(&up, &[0.0; 3]).0, cl.eval(&down, &[0.0; 3]).0);
             for i in 0..NX {
                 let fdiff = (fu[i] - fd[i]) / (2.0 * h);
                 assert!(
@@ -834,8 +845,9 @@ mod tests {
             let a = analyse(&cfg, kind);
             let l = linearise(&cfg, kind, [0.0; 3]);
             assert_eq!(a.jacobian, l.a);
-            assert_eq!(l.b, SMatrix::<f64, NX, NU>::zeros());
-            assert_eq!(l.d, SMatrix::<f64, NY, NU>::zeros());
+            assert_eq!(l.b, DMatrix::<f64>::zeros(NX, NU));
+            assert_eq!(l.d, DMatrix::<f64>::zeros(NY, NU));
+            assert_eq!(l.c.nrows(), NY);
             // Outputs: the states themselves, then e_o = zc - z + d0.
             for i in 0..NX {
                 for j in 0..NX {
@@ -858,30 +870,26 @@ mod tests {
         let w0 = [0.7, -0.4, 1.5];
         let l = linearise(&cfg, ControllerKind::Smc, w0);
         assert!(l.residual < 1e-10, "{}", l.residual);
-        let plant = Plant::new(&cfg);
+        let plant = paper_vehicle(&cfg);
+        let (m, mc) = (plant.body.m, plant.payload.mc);
         // At the equilibrium the bodies are at rest, so the relative speed is |w0|:
         // d/dw of -k (v - w)|v - w| is 2 k |w0|, with k = rho CdA / 2.
-        let bz = 2.0 * plant.drag_quad * w0[2].abs() / plant.m;
+        let bz = 2.0 * plant.body.drag_quad * w0[2].abs() / m;
         assert!((l.b[(ix::VZ, 2)] - bz).abs() < 1e-12 * bz);
-        let bzc = 2.0 * plant.drag_payload * w0[2].abs() / plant.mc;
+        let bzc = 2.0 * plant.payload.drag_payload * w0[2].abs() / mc;
         assert!((l.b[(ix::VZC, 2)] - bzc).abs() < 1e-12 * bzc);
         assert!((l.d[(NY - 1, 2)] - bzc).abs() < 1e-12 * bzc);
-        let bx = 2.0 * plant.drag_lateral * w0[0].abs() / (plant.m + plant.mc);
+        let bx = 2.0 * plant.body.drag_lateral * w0[0].abs() / (m + mc);
         assert!((l.b[(ix::VX, 0)] - bx).abs() < 1e-12 * bx);
         // B and D by central differences of the same closed loop.
-        let smc = Smc::new(&cfg);
-        let wp = cfg.trajectory.waypoints[0];
-        let r = Reference {
-            pos: [wp[1], wp[2], wp[3]],
-            ..Reference::default()
-        };
+        let cl = closed_loop(&cfg, ControllerKind::Smc, hover_reference(&cfg));
         let h = 1e-6;
         for j in 0..NU {
             let (mut up, mut down) = (w0, w0);
             up[j] += h;
             down[j] -= h;
-            let (fu, yu) = signals(&plant, &smc, &r, &l.equilibrium, &up);
-            let (fd, yd) = signals(&plant, &smc, &r, &l.equilibrium, &down);
+            let (fu, yu) = cl.eval(&l.equilibrium, &up);
+            let (fd, yd) = cl.eval(&l.equilibrium, &down);
             for i in 0..NX {
                 let fdiff = (fu[i] - fd[i]) / (2.0 * h);
                 assert!((fdiff - l.b[(i, j)]).abs() < 1e-6 * fdiff.abs().max(1.0));

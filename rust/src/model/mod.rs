@@ -34,6 +34,25 @@ pub mod ix {
     pub const PAYLOAD: usize = 6;
 }
 
+/// Indices of the paper's layout (vertical spring, ideal actuators), for tests and examples;
+/// the engine itself reads indices from `Layout`.
+pub mod paper_ix {
+    pub use super::ix::*;
+    pub const ZC: usize = 6;
+    pub const VX: usize = 7;
+    pub const VY: usize = 8;
+    pub const VZ: usize = 9;
+    pub const P: usize = 10;
+    pub const Q: usize = 11;
+    pub const R: usize = 12;
+    pub const VZC: usize = 13;
+    /// Number of states.
+    pub const NX: usize = 14;
+}
+
+/// The paper's vehicle (vertical spring, ideal actuators) with `f64` parameters.
+pub type PaperVehicle = Vehicle<f64, payload::Spring, actuator::Ideal>;
+
 /// A state vector of `N` values (N from the models' `Layout`).
 pub type State<L, const N: usize> = [L; N];
 
@@ -207,10 +226,10 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
             ds[i] = s[v + i];
             ds[ix::PHI + i] = s[v + 3 + i];
         }
-        for i in 0..Pay::DOF {
-            ds[ix::PAYLOAD + i] = s[pv + i];
-        }
-        let torque = self.payload.accelerations(&self.body, s, trig, u.u1, w, &mut ds);
+        ds[ix::PAYLOAD..ix::PAYLOAD + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
+        let torque = self
+            .payload
+            .accelerations(&self.body, s, trig, u.u1, w, &mut ds);
         let rdot = self.body.rotation(&Self::rigid(s).rate, &u.tau, &torque);
         ds[v + 3..v + 6].copy_from_slice(&rdot);
         self.actuator.derivative(cmd, s, lay.actuator(), &mut ds);
@@ -258,7 +277,11 @@ pub trait VehicleVisitor {
 /// The one dispatch point from the scenario's model names to the code compiled for them. A
 /// new kind adds one line per combination here (its `N` is checked at compile time against
 /// the kinds' `Layout`, by `Vehicle::derivative`).
-pub fn dispatch<V: VehicleVisitor>(payload: PayloadKind, actuator: ActuatorKind, v: V) -> V::Output {
+pub fn dispatch<V: VehicleVisitor>(
+    payload: PayloadKind,
+    actuator: ActuatorKind,
+    v: V,
+) -> V::Output {
     use actuator::Ideal;
     use payload::Spring;
     match (payload, actuator) {

@@ -33,7 +33,11 @@ fn the_paper_layout_is_the_papers_state_vector() {
     assert_eq!(Paper::LAYOUT.len(), NX);
     // Every state but yaw has a runaway bound; positions, angles, speeds and rates each theirs.
     let vars = state_vars(PayloadKind::Spring, ActuatorKind::Ideal);
-    let bounded: Vec<_> = vars.iter().filter(|v| v.bound.is_none()).map(|v| v.name).collect();
+    let bounded: Vec<_> = vars
+        .iter()
+        .filter(|v| v.bound.is_none())
+        .map(|v| v.name)
+        .collect();
     assert_eq!(bounded, ["psi"]);
     assert_eq!(vars[6].bound, Some(Bound::Distance));
     assert_eq!(vars[13].bound, Some(Bound::Speed));
@@ -89,14 +93,15 @@ fn drag_opposes_relative_velocity() {
 #[test]
 fn gathered_lanes_fly_their_own_vehicle() {
     use crate::lane::F64x4;
-    let mut cfgs = vec![paper(), paper(), paper(), paper()];
+    let mut cfgs = [paper(), paper(), paper(), paper()];
     cfgs[1].payload.mass = 0.4;
     cfgs[2].vehicle.inertia[0] = 0.03;
     cfgs[3].gust.air_density = 0.9;
     let parts: Vec<Parts> = cfgs.iter().map(Parts::new).collect();
     let refs: Vec<&Parts> = parts.iter().collect();
     let lanes = Parts::gather::<F64x4, payload::Spring, actuator::Ideal>(&refs);
-    let mut s: State<f64, NX> = paper_vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
+    let mut s: State<f64, NX> =
+        paper_vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
     s[13] = 0.2;
     s[10] = 0.4;
     let sl: State<F64x4, NX> = state_from_fn(|i| F64x4::splat(s[i]));
@@ -113,7 +118,11 @@ fn gathered_lanes_fly_their_own_vehicle() {
     for (l, p) in parts.iter().enumerate() {
         let want = derivative(&p.vehicle::<payload::Spring, actuator::Ideal>(), &s, &u, &w);
         for i in 0..NX {
-            assert_eq!(got[i].lane(l).to_bits(), want[i].to_bits(), "lane {l} state {i}");
+            assert_eq!(
+                got[i].lane(l).to_bits(),
+                want[i].to_bits(),
+                "lane {l} state {i}"
+            );
         }
     }
 }
@@ -166,11 +175,8 @@ fn advanced_trig_matches_direct_evaluation() {
     k[ix::PSI] = F64x4::from_fn(|i| if i == 2 { 0.5 / h } else { 1e-3 / h });
     let at: State<F64x4, NX> = state_from_fn(|i| s[i] + k[i] * h);
     let got = Trig::of(&s).advanced(&k, h, &at);
-    let alone = Trig::of(&s.map(|x| x.lane(0))).advanced(
-        &k.map(|x| x.lane(0)),
-        h,
-        &at.map(|x| x.lane(0)),
-    );
+    let alone =
+        Trig::of(&s.map(|x| x.lane(0))).advanced(&k.map(|x| x.lane(0)), h, &at.map(|x| x.lane(0)));
     assert_eq!(got.spsi.lane(0).to_bits(), alone.spsi.to_bits());
     assert_eq!(
         got.spsi.lane(2).to_bits(),

@@ -25,8 +25,7 @@ pub trait ActuatorModel<L: Lane>: Sync {
     fn command(&self, u: &Inputs<L>) -> Self::Command;
 
     /// The thrust and torques the airframe feels at state `s` (actuator states from `at`).
-    fn inputs<const N: usize>(&self, cmd: &Self::Command, s: &State<L, N>, at: usize)
-        -> Inputs<L>;
+    fn inputs<const N: usize>(&self, cmd: &Self::Command, s: &State<L, N>, at: usize) -> Inputs<L>;
 
     /// Write the actuator states' derivatives (`ds[at..at + STATES]`).
     fn derivative<const N: usize>(
