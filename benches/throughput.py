@@ -4,6 +4,8 @@
     python benches/throughput.py --runs 100    # quicker: the long run with 100 realisations
     python benches/throughput.py --dispersions # dispersed against fixed parameters, paired
     python benches/throughput.py --paths       # every SIMD path and the fused mode, paired
+    python benches/throughput.py --short       # per-flight tax: 0.2 s flights against 4 s ones,
+                                               # and dispersed 0.2 s flights against fixed ones
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -88,6 +90,12 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=default_workers(), help="all workers")
     ap.add_argument("--preset", default="paper", help="scenario preset")
     ap.add_argument("--dt", type=float, default=None, help="override integrator.dt (s)")
+    ap.add_argument("--duration", type=float, default=None, help="override integrator.duration (s)")
+    ap.add_argument(
+        "--short",
+        action="store_true",
+        help="0.2 s flights against 4 s ones, fixed and dispersed, alternately (1 worker)",
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
         "--paths",
@@ -105,6 +113,8 @@ def main() -> None:
     scenario = quadrs.Scenario.preset(args.preset)
     if args.dt is not None:
         scenario = scenario.override({"integrator.dt": args.dt})
+    if args.duration is not None:
+        scenario = lasting(scenario, args.duration)
     # The paper's SMC gains are unstable laterally (docs/model.md section 8): the warning
     # is noise here.
     warnings.simplefilter("ignore")
@@ -130,6 +140,9 @@ def main() -> None:
     timed(scenario, 4, 1, args.seed)  # warm-up: thread pool, page faults
     if args.dispersions:
         compare_dispersed(scenario, args)
+        return
+    if args.short:
+        compare_short(scenario, args)
         return
     rates = {}
     for workers in sorted({1, args.workers}):
@@ -171,6 +184,45 @@ def compare_dispersed(scenario: quadrs.Scenario, args: argparse.Namespace) -> No
         f"{statistics.median(fixed_rates) / 1e6:.2f} M realisation-steps/s; dispersed/fixed "
         f"throughput {statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
     )
+    print(f"load average after: {load()}")
+
+
+def lasting(scenario: quadrs.Scenario, duration: float) -> quadrs.Scenario:
+    """``scenario`` cut to ``duration`` s, one phase, the gust on throughout."""
+    return scenario.override(
+        {
+            "integrator.duration": duration,
+            "gust.start": 0.0,
+            "gust.end": duration,
+            "phases": [{"name": "all", "start": 0.0, "end": duration}],
+        }
+    )
+
+
+def compare_short(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
+    """The per-flight tax: short (0.2 s) flights against long (4 s) ones, and dispersed
+    short flights against fixed short ones, in turn (A B C A B C ...), one worker, each ratio
+    in steps per second taken round by round."""
+    short, long = lasting(scenario, 0.2), lasting(scenario, 4.0)
+    dispersed = short.override({"dispersions": DISPERSIONS})
+    no_gust_keys = {k: v for k, v in DISPERSIONS.items() if not k.startswith("gust.")}
+    dispersed_plain = short.override({"dispersions": no_gust_keys})
+    runs_long = args.sample_runs
+    runs_short = runs_long * 20  # the same number of steps
+    cases = {"long": (long, runs_long), "short": (short, runs_short)}
+    cases["dispersed"] = (dispersed, runs_short)
+    cases["dispersed, no gust key"] = (dispersed_plain, runs_short)
+    rates: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(args.repeat):
+        for name, (s, runs) in cases.items():
+            rates[name].append(runs * 2 * s.steps / timed(s, runs, 1, args.seed))
+    print(f"1 worker, {args.repeat} rounds, {runs_long} x 4 s and {runs_short} x 0.2 s flights:")
+    for name, samples in rates.items():
+        ref = "long" if name == "short" else "short"
+        ratios = [a / b for a, b in zip(samples, rates[ref], strict=True)]
+        vs = "" if name == "long" else f"; / {ref}: {statistics.median(ratios):.3f}"
+        vs += f" [{min(ratios):.3f}, {max(ratios):.3f}]" if name != "long" else ""
+        print(f"  {name:24s}: {statistics.median(samples) / 1e6:.2f} M realisation-steps/s{vs}")
     print(f"load average after: {load()}")
 
 

@@ -11,8 +11,12 @@ import numpy.typing as npt
 
 __version__: str
 METRIC_NAMES: list[str]
+#: The paper layout's (vertical spring, ideal actuators); a scenario's own are in `describe`.
 TRACE_COLUMNS: list[str]
 STATE_NAMES: list[str]
+#: Why a flight ended: `status` codes index these names and sentences.
+EXIT_STATUSES: list[str]
+EXIT_MESSAGES: list[str]
 CONTROLLER_NAMES: list[str]
 
 _Floats = npt.NDArray[np.float64]
@@ -24,6 +28,8 @@ class Description(TypedDict):
     hover_offset: float
     steps: int
     phases: list[str]
+    state_names: list[str]
+    trace_columns: list[str]
     spectrum_frequencies: list[_Floats]
 
 class StabilityResult(TypedDict):
@@ -64,6 +70,8 @@ class SimulateResult(TypedDict):
     trace: _Floats
     metrics: _Floats
     diverged_at: float
+    status: str
+    trace_columns: list[str]
     spectra: list[_Floats]
 
 class _BatchSpectra(TypedDict, total=False):
@@ -78,6 +86,7 @@ class BatchResult(_BatchSpectra):
 
     metrics: _Floats
     diverged_at: _Floats
+    status: npt.NDArray[np.uint8]
     done: npt.NDArray[np.bool_]
 
 class ScenarioError(ValueError):
@@ -108,6 +117,23 @@ def simulate(
     realisation: int = 0,
     record_every: int = 1,
     wind: npt.NDArray[np.float64] | None = None,
+    progress: Progress | None = None,
+    xi: npt.NDArray[np.float64] | None = None,
+) -> SimulateResult: ...
+def innovations_dimension(config_json: str) -> int: ...
+def innovations(config_json: str, seed: int, realisation: int) -> _Floats: ...
+def run_innovations(
+    config_json: str,
+    controller: str,
+    xi: npt.NDArray[np.float64],
+    progress: Progress | None = None,
+    workers: int | None = None,
+) -> _Floats: ...
+def simulate_innovations(
+    config_json: str,
+    controller: str,
+    xi_row: npt.NDArray[np.float64],
+    record_every: int = 1,
     progress: Progress | None = None,
 ) -> SimulateResult: ...
 def stability(config_json: str, controller: str) -> StabilityResult: ...

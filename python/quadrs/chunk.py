@@ -306,6 +306,8 @@ def runs_frame(
         frame[name] = metrics[..., k].reshape(-1)
     frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
     frame["diverged_at"] = diverged_at.reshape(-1)
+    status = np.broadcast_to(np.asarray(raw["status"])[:, :, None], shape).reshape(-1)
+    frame["status"] = np.asarray(_core.EXIT_STATUSES, dtype=object)[status]
     frame["realisation"] = frame["realisation"].astype(np.int64)
     if values is not None:
         for key in values.columns:

@@ -83,12 +83,19 @@ class Flight:
     diverged_at: float = float("nan")
     #: The trace keeps every ``record_every``-th integration step.
     record_every: int = 1
+    #: Why the flight ended: "ok", or what ran away ("non_finite", "distance", "tilt",
+    #: "speed", "rate"; ``_core.EXIT_MESSAGES`` says each in a sentence).
+    status: str = "ok"
 
     def __repr__(self) -> str:
         """A summary, not the frames: controller, gust realisation, span, outcome."""
         t = self.trace.index
         span = f"{t[0]:g}-{t[-1]:g} s, {len(t)} trace rows" if len(t) else "no trace"
-        end = f"diverged at {self.diverged_at:g} s" if self.diverged else "did not diverge"
+        end = (
+            f"diverged at {self.diverged_at:g} s ({self.status})"
+            if self.diverged
+            else "did not diverge"
+        )
         return (
             f"<Flight {self.controller.upper()}, seed {self.seed}, realisation "
             f"{self.realisation}, {span}, {end}; {self.scenario!r}>"
@@ -115,6 +122,7 @@ class Flight:
             realisation=self.realisation,
             record_every=self.record_every,
             diverged_at=None if np.isnan(self.diverged_at) else float(self.diverged_at),
+            status=self.status,
             metrics=self.metrics[list(METRIC_COLUMNS)].to_numpy().tolist(),
         )
 
@@ -141,13 +149,16 @@ class Flight:
         ctrl = meta["controller"]
         if meta["controllers"] != [ctrl]:
             raise _fail(path, f"its controller {ctrl!r} disagrees with {meta['controllers']!r}")
-        if frame.index.name != "t" or list(frame.columns) != list(TRACE_COLUMNS):
+        if frame.index.name != "t" or list(frame.columns) != scenario.trace_columns:
             raise _fail(path, "its columns are not those of a quadrs trace")
         phases = scenario.phase_names
         values = np.asarray(meta["metrics"], dtype=np.float64)
         if values.shape != (len(phases), len(METRIC_COLUMNS)):
             raise _fail(path, f"its metrics have shape {values.shape}")
         diverged = meta.get("diverged_at")
+        status = meta.get("status", "ok" if diverged is None else "non_finite")
+        if status not in _core.EXIT_STATUSES or (status == "ok") != (diverged is None):
+            raise _fail(path, f"its status {status!r} disagrees with its divergence time")
         trace = frame
         realisation = meta["realisation"]
         return cls(
@@ -160,6 +171,7 @@ class Flight:
             spectra=SpectraNotSaved(f"{ctrl} seed {meta['seed']} realisation {realisation}"),
             diverged_at=float("nan") if diverged is None else float(diverged),
             record_every=meta["record_every"],
+            status=status,
         )
 
     def to_csv(self, path: str | Path) -> None:
@@ -216,7 +228,8 @@ def simulate(
         progress,
     )
     raw = out["trace"]
-    trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=TRACE_COLUMNS)
+    columns = out["trace_columns"]
+    trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=columns)
     phases = scenario.phase_names
     freqs = scenario.spectrum_frequencies
     spectra = {
@@ -233,6 +246,7 @@ def simulate(
         spectra=spectra,
         diverged_at=float(out["diverged_at"]),
         record_every=record_every,
+        status=out["status"],
     )
 
 

@@ -30,8 +30,9 @@ from quadrs.scenario import Scenario
 
 #: Every input :func:`linearize` accepts (m/s, inertial, z up).
 INPUT_NAMES: tuple[str, ...] = ("wind_x", "wind_y", "wind_z")
-#: Every output: the 14 states, e_o (m), the controls U1 (N) and tau_* (N m), and ``azc``,
-#: the payload's vertical inertial acceleration d(vzc)/dt (m/s^2).
+#: Every output of the paper's vehicle: its 14 states, e_o (m), the controls U1 (N) and
+#: tau_* (N m), and ``azc``, the payload's vertical inertial acceleration d(vzc)/dt (m/s^2).
+#: Another payload or actuator model has its own states first (``scenario.state_names``).
 OUTPUT_NAMES: tuple[str, ...] = (
     *_core.STATE_NAMES,
     "e_o",
@@ -138,10 +139,11 @@ def linearize(
     w = tuple(float(x) for x in wind)
     if len(w) != 3:
         raise ValueError(f"wind must have 3 components (x, y, z), got {wind!r}")
-    rows = _select(outputs, OUTPUT_NAMES, "outputs")
+    names = (*scenario.state_names, *OUTPUT_NAMES[len(_core.STATE_NAMES) :])
+    rows = _select(outputs, names, "outputs")
     cols = _select(inputs, INPUT_NAMES, "inputs")
     raw = _core.linearize(scenario.to_json(), controller, list(w))
-    assert tuple(raw["output_names"]) == OUTPUT_NAMES
+    assert tuple(raw["output_names"]) == names
     return LinearModel(
         A=raw["A"],
         B=raw["B"][:, cols],
@@ -149,7 +151,7 @@ def linearize(
         D=raw["D"][np.ix_(rows, cols)],
         state_names=tuple(raw["state_names"]),
         input_names=tuple(INPUT_NAMES[c] for c in cols),
-        output_names=tuple(OUTPUT_NAMES[r] for r in rows),
+        output_names=tuple(names[r] for r in rows),
         controller=controller,
         wind=(w[0], w[1], w[2]),
         equilibrium=raw["equilibrium"],

@@ -492,6 +492,16 @@ class Scenario:
         return int(self._derived["steps"])
 
     @property
+    def state_names(self) -> list[str]:
+        """The states of this scenario's vehicle, in the engine's order."""
+        return list(self._derived["state_names"])
+
+    @property
+    def trace_columns(self) -> list[str]:
+        """The columns of a flight's trace (after the time index)."""
+        return list(self._derived["trace_columns"])
+
+    @property
     def phase_names(self) -> list[str]:
         return list(self._derived["phases"])
 

@@ -235,8 +235,17 @@ pub struct Craft {
 impl Craft {
     /// The craft of a validated config (`Config::validate` has run).
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+        Self::with_wind_of(cfg, None)
+    }
+
+    /// The craft of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
+    /// step: its discretised filters are reused rather than rebuilt).
+    pub fn with_wind_of(cfg: &Config, other: Option<&Craft>) -> Result<Self, ConfigError> {
         let parts = Parts::new(cfg);
-        let wind = WindField::new(cfg)?;
+        let wind = match other {
+            Some(c) => c.wind.clone(),
+            None => WindField::new(cfg)?,
+        };
         let x0 = initial_state(&parts, cfg);
         let d = &cfg.divergence;
         Ok(Self {
@@ -247,6 +256,13 @@ impl Craft {
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
         })
+    }
+}
+
+impl Craft {
+    /// The gust field.
+    pub fn wind(&self) -> &WindField {
+        &self.wind
     }
 }
 
@@ -277,6 +293,9 @@ pub struct FlightRequest<'a> {
     pub crafts: Option<&'a [&'a Craft]>,
     pub want_spectra: bool,
     pub cancel: Option<&'a AtomicBool>,
+    /// Per lane, the turbulence's innovations to fly instead of the seeded stream of
+    /// (`seed`, index): a flight as a function of its standard normals (rare events).
+    pub innovations: Option<&'a [&'a [f64]]>,
 }
 
 impl<'a> FlightRequest<'a> {
@@ -289,6 +308,7 @@ impl<'a> FlightRequest<'a> {
             crafts: None,
             want_spectra: false,
             cancel: None,
+            innovations: None,
         }
     }
 }
@@ -367,6 +387,16 @@ impl Engine {
             fused: false,
             prescribed_wind: None,
         })
+    }
+
+    /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
+    pub fn innovations(&self) -> usize {
+        self.craft.wind().innovations(self.steps)
+    }
+
+    /// The innovations realisation `index` of `seed` draws.
+    pub fn innovations_of(&self, seed: u64, index: u64) -> Vec<f64> {
+        self.craft.wind().innovations_of(seed, index, self.steps)
     }
 
     /// Trace columns after `t`.
@@ -601,12 +631,21 @@ impl Engine {
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
         let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
         let mut s = x0;
-        let mut winds: Vec<WindState> = req
-            .indices
-            .iter()
-            .zip(crafts)
-            .map(|(&i, c)| c.wind.realisation(req.seed, i))
-            .collect();
+        let mut winds: Vec<WindState> = match req.innovations {
+            Some(xi) => {
+                assert_eq!(xi.len(), L::LANES, "one row of innovations per lane");
+                xi.iter()
+                    .zip(crafts)
+                    .map(|(x, c)| c.wind.given(x))
+                    .collect()
+            }
+            None => req
+                .indices
+                .iter()
+                .zip(crafts)
+                .map(|(&i, c)| c.wind.realisation(req.seed, i))
+                .collect(),
+        };
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; MAX_LANES];
@@ -889,6 +928,65 @@ mod tests {
             );
             assert!(r.spectra[i].iter().all(|x| x.is_nan()));
         }
+    }
+
+    /// Each runaway bound, broken alone, ends the flight with its own status; a state that
+    /// overflows is `non_finite`; a flight within every bound is `ok`.
+    #[test]
+    fn exit_status_names_what_ended_the_flight() {
+        let fly = |edit: &dyn Fn(&mut Config)| {
+            let mut cfg = paper();
+            cfg.integrator.dt = 1e-3;
+            cfg.integrator.duration = 10.0;
+            cfg.phases.truncate(1);
+            cfg.phases[0].end = 10.0;
+            cfg.gust.enabled = false;
+            cfg.initial.attitude = [0.02, -0.01, 0.5];
+            edit(&mut cfg);
+            let engine = Engine::new(cfg).unwrap();
+            let req = FlightRequest::new(ControllerKind::Pd, 0, &[0]);
+            let r = engine
+                .fly::<f64>(&req, None, &mut FftPlanner::new())
+                .unwrap()
+                .remove(0);
+            (r.status, r.diverged_at)
+        };
+        assert_eq!(fly(&|_| {}).0, ExitStatus::Ok);
+        assert!(fly(&|_| {}).1.is_nan());
+        for (status, edit) in [
+            (
+                ExitStatus::Distance,
+                &(|c: &mut Config| c.divergence.max_distance = 0.5) as &dyn Fn(&mut Config),
+            ),
+            (ExitStatus::Tilt, &|c: &mut Config| {
+                c.divergence.max_tilt = 0.015
+            }),
+            (ExitStatus::Speed, &|c: &mut Config| {
+                c.divergence.max_speed = 0.05
+            }),
+            (ExitStatus::Rate, &|c: &mut Config| {
+                c.divergence.max_rate = 0.01
+            }),
+            (ExitStatus::NonFinite, &|c: &mut Config| {
+                c.controller.pd.kp[2] = 1e308
+            }),
+        ] {
+            let (got, at) = fly(edit);
+            assert_eq!(got, status, "diverged at {at}");
+            assert!(at > 0.0 && at <= 10.0, "{status:?} at {at}");
+        }
+        // The classification itself: non-finite first, then the bounds in order.
+        let vars = crate::model::state_vars(Default::default(), Default::default());
+        let limits = [1.0, 1.0, 1.0, 1.0];
+        let mut s = vec![0.0; vars.len()];
+        s[ix::ZC] = -2.0;
+        assert_eq!(classify(&vars, &s, &limits), ExitStatus::Distance);
+        s[ix::ZC] = 0.0;
+        s[ix::VZ] = 2.0;
+        s[ix::P] = 2.0;
+        assert_eq!(classify(&vars, &s, &limits), ExitStatus::Speed);
+        s[ix::PSI] = f64::NAN;
+        assert_eq!(classify(&vars, &s, &limits), ExitStatus::NonFinite);
     }
 
     fn hover_cfg() -> Config {

@@ -259,11 +259,12 @@ mod _core {
     }
 
     /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
-    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model. With
-    /// `progress`, the flight polls its cancel flag (`Progress.cancel()`) and raises
-    /// KeyboardInterrupt when cancelled.
+    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model; with `xi`
+    /// (`innovations_dimension` values) the turbulence is driven by those standard normals
+    /// instead of the seeded stream. With `progress`, the flight polls its cancel flag
+    /// (`Progress.cancel()`) and raises KeyboardInterrupt when cancelled.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None))]
+    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None))]
     #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         py: Python<'py>,
@@ -274,6 +275,7 @@ mod _core {
         record_every: usize,
         wind: Option<PyReadonlyArray2<'py, f64>>,
         progress: Option<&Bound<'py, Progress>>,
+        xi: Option<PyReadonlyArray1<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if record_every == 0 {
@@ -301,13 +303,19 @@ mod _core {
         .and_then(|()| flight_memory(&e, 1, 1))
         .map_err(PyMemoryError::new_err)?;
         let cancel = progress.map(|p| p.get().cancel.clone());
+        let xi: Option<Vec<f64>> = xi.map(|x| x.as_array().iter().copied().collect());
+        if let Some(x) = &xi {
+            check_innovations(&e, x.len())?;
+        }
         let flown = py.detach(|| {
             guarded("simulate", || {
                 let mut trace = e.trace(record_every);
                 let indices = [realisation];
+                let rows: Option<[&[f64]; 1]> = xi.as_deref().map(|x| [x]);
                 let req = FlightRequest {
                     want_spectra: true,
                     cancel: cancel.as_deref(),
+                    innovations: rows.as_ref().map(|r| &r[..]),
                     ..FlightRequest::new(kind, seed, &indices)
                 };
                 let res = e.fly::<f64>(&req, Some(&mut trace), &mut FftPlanner::new())?;
@@ -335,6 +343,145 @@ mod _core {
             .collect();
         d.set_item("spectra", spectra)?;
         Ok(d)
+    }
+
+    /// xi must hold exactly the engine's innovations per flight.
+    fn check_innovations(e: &Engine, len: usize) -> PyResult<()> {
+        let want = e.innovations();
+        if len != want {
+            return Err(PyValueError::new_err(format!(
+                "xi must hold {want} standard normals per flight (innovations_dimension), got {len}"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Standard normals one flight's turbulence draws: its onset's stationary state and every
+    /// later step of the gust window, per active component (docs/rare-events.md).
+    #[pyfunction]
+    fn innovations_dimension(config_json: &str) -> PyResult<usize> {
+        Ok(engine(config_json)?.innovations())
+    }
+
+    /// The innovations realisation `realisation` of `seed` draws: `simulate(..., xi=these)`
+    /// flies the seeded flight, bit for bit.
+    #[pyfunction]
+    fn innovations<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        seed: u64,
+        realisation: u64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let e = engine(config_json)?;
+        memory::check("innovations", e.innovations() as u128, 8).map_err(PyMemoryError::new_err)?;
+        Ok(e.innovations_of(seed, realisation).into_pyarray(py))
+    }
+
+    /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
+    /// lane-sets on `workers` threads: metrics (N, phases, metrics), NaN after a divergence.
+    #[pyfunction]
+    #[pyo3(signature = (config_json, controller, xi, progress=None, workers=None))]
+    fn run_innovations<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controller: &str,
+        xi: PyReadonlyArray2<'py, f64>,
+        progress: Option<&Bound<'py, Progress>>,
+        workers: Option<usize>,
+    ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
+        use numpy::ndarray::Array3;
+        use rayon::prelude::*;
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        let e = engine(config_json)?;
+        let xi = xi.as_array();
+        let (n, dim) = (xi.nrows(), xi.ncols());
+        check_innovations(&e, dim)?;
+        let workers =
+            workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+        if workers == 0 {
+            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
+        }
+        let rows: Vec<&[f64]> = match xi.as_slice() {
+            Some(flat) if dim > 0 => flat.chunks(dim).collect(),
+            Some(_) => vec![&[][..]; n],
+            None => return Err(PyValueError::new_err("xi must be C-contiguous")),
+        };
+        let n_phase = e.phase_count();
+        let row = n_phase * N_METRICS;
+        let mut metrics = vec![f64::NAN; n * row];
+        let (done, cancel) = match progress {
+            Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
+            None => (
+                Arc::new(AtomicU64::new(0)),
+                Arc::new(AtomicBool::new(false)),
+            ),
+        };
+        let lanes = e.set_lanes();
+        let finished = py.detach(|| {
+            guarded("run_innovations", || {
+                pool(workers).install(|| {
+                    metrics
+                        .par_chunks_mut(lanes * row)
+                        .enumerate()
+                        .map_init(FftPlanner::new, |planner, (set, out)| {
+                            // Pad the last lane-set by repeating its final row.
+                            let mine: Vec<&[f64]> = (0..lanes)
+                                .map(|l| rows[(set * lanes + l).min(n - 1)])
+                                .collect();
+                            let indices: Vec<u64> = (0..lanes as u64).collect();
+                            let req = FlightRequest {
+                                cancel: Some(&cancel),
+                                innovations: Some(&mine),
+                                ..FlightRequest::new(kind, 0, &indices)
+                            };
+                            let Some(res) = e.fly_set(&req, planner) else {
+                                return false;
+                            };
+                            for (l, r) in res.iter().take(out.len() / row).enumerate() {
+                                for (p, m) in r.metrics.iter().enumerate() {
+                                    let at = l * row + p * N_METRICS;
+                                    out[at..at + N_METRICS].copy_from_slice(m);
+                                }
+                            }
+                            done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
+                            true
+                        })
+                        .all(|ok| ok)
+                })
+            })
+        })?;
+        if !finished {
+            return Err(PyKeyboardInterrupt::new_err(
+                "run_innovations was cancelled",
+            ));
+        }
+        Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
+            .expect("shape")
+            .into_pyarray(py))
+    }
+
+    /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`).
+    #[pyfunction]
+    #[pyo3(signature = (config_json, controller, xi_row, record_every=1, progress=None))]
+    fn simulate_innovations<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        controller: &str,
+        xi_row: PyReadonlyArray1<'py, f64>,
+        record_every: usize,
+        progress: Option<&Bound<'py, Progress>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        simulate(
+            py,
+            config_json,
+            controller,
+            0,
+            0,
+            record_every,
+            None,
+            progress,
+            Some(xi_row),
+        )
     }
 
     /// Low-altitude MIL-F-8785C intensities (m/s) and scale lengths (m) for

@@ -225,10 +225,15 @@ pub fn run_batch(
                         None => first + j as u64,
                     })
                     .collect();
-                // A dispersed batch builds each lane's craft (its own vehicle) once per set.
+                // A dispersed batch builds each lane's craft (its own vehicle) once per set,
+                // reusing the scenario's gust filters unless a gust key is dispersed.
                 let crafts: Option<Vec<Craft>> = batch.dispersion.map(|d| {
+                    let wind = (!d.touches_wind()).then_some(&engine.craft);
                     rows.iter()
-                        .map(|&j| d.craft(j, first).expect("checked by Batch::check"))
+                        .map(|&j| {
+                            let cfg = d.config(j, first).expect("checked by Batch::check");
+                            Craft::with_wind_of(&cfg, wind).expect("checked by Batch::check")
+                        })
                         .collect()
                 });
                 let craft_refs: Option<Vec<&Craft>> = crafts.as_ref().map(|c| c.iter().collect());

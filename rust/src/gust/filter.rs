@@ -429,10 +429,10 @@ impl GustFilter {
 
     /// Draw a state from the stationary distribution (unit covariance, so just
     /// `order()` standard normals; the rest zero).
-    pub fn stationary_state(&self, rng: &mut ChaCha8Rng) -> [f64; 3] {
+    pub fn stationary_state(&self, rng: &mut impl Normals) -> [f64; 3] {
         let mut x = [0.0; 3];
         for v in x.iter_mut().take(self.order) {
-            *v = rng.sample(StandardNormal);
+            *v = rng.normal();
         }
         x
     }
@@ -445,7 +445,7 @@ impl GustFilter {
 
     /// Advance the state one step with `order()` fresh normals from `rng`.
     #[inline]
-    pub fn advance(&self, state: &mut [f64; 3], rng: &mut ChaCha8Rng) {
+    pub fn advance(&self, state: &mut [f64; 3], rng: &mut impl Normals) {
         match self.order {
             1 => {
                 let (phi, g, _) = self.fixed::<1>();
@@ -574,17 +574,30 @@ fn discretise(nz: &Normalised, k: f64) -> (DMatrix<f64>, DMatrix<f64>) {
     (phi, q)
 }
 
+/// Where the forming filters' unit normals come from: a realisation's seeded stream, or
+/// innovations given explicitly (`WindState`). Both hand them out in the same order.
+pub trait Normals {
+    fn normal(&mut self) -> f64;
+}
+
+impl Normals for ChaCha8Rng {
+    #[inline(always)]
+    fn normal(&mut self) -> f64 {
+        self.sample(StandardNormal)
+    }
+}
+
 #[inline(always)]
 #[allow(clippy::needless_range_loop)]
 pub(super) fn step_fixed<const N: usize>(
     phi: &[[f64; N]; N],
     g: &[[f64; N]; N],
     x: &mut [f64; 3],
-    rng: &mut ChaCha8Rng,
+    rng: &mut impl Normals,
 ) {
     let mut n = [0.0; N];
     for v in n.iter_mut() {
-        *v = rng.sample(StandardNormal);
+        *v = rng.normal();
     }
     let mut y = [0.0; N];
     for i in 0..N {

@@ -27,4 +27,4 @@ pub mod wind;
 
 pub use filter::GustFilter;
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
-pub use wind::{fill_series, realisation_rng, WindField, WindState};
+pub use wind::{fill_series, realisation_rng, Source, WindField, WindState};

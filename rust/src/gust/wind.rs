@@ -1,7 +1,7 @@
 //! The wind a flight sees (`WindField`: the scenario's components inside the gust window, one
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
-use super::filter::{step_fixed, GustFilter};
+use super::filter::{step_fixed, GustFilter, Normals};
 use super::spectra::low_altitude_scales;
 use crate::config::{Config, ConfigError, GustComponent};
 use rand::SeedableRng;
@@ -85,11 +85,39 @@ pub struct WindField {
     dt: f64,
 }
 
-/// Per-realisation wind state: the realisation's random stream, the filter
-/// states, and whether the gust has started. Fixed size, no heap.
+/// The unit normals of one flight's turbulence: its seeded stream, or innovations given
+/// explicitly (`xi`, consumed in the order the stream would have been: the onset's
+/// stationary draws, then each step's, components in the fixed order). Past the end of `xi`
+/// (a flight longer than `WindField::innovations` promised) the draws are NaN, which ends
+/// the flight as non-finite rather than inventing numbers.
+// The seeded stream is the common case and lives on the stack, with the filter states (no
+// heap per flight): the size difference is the point.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
-pub struct WindState {
-    rng: ChaCha8Rng,
+pub enum Source<'a> {
+    Seeded(ChaCha8Rng),
+    Given { xi: &'a [f64], next: usize },
+}
+
+impl Normals for Source<'_> {
+    #[inline(always)]
+    fn normal(&mut self) -> f64 {
+        match self {
+            Source::Seeded(rng) => rng.normal(),
+            Source::Given { xi, next } => {
+                let x = xi.get(*next).copied().unwrap_or(f64::NAN);
+                *next += 1;
+                x
+            }
+        }
+    }
+}
+
+/// Per-realisation wind state: the realisation's normals, the filter states, and whether the
+/// gust has started. Fixed size, no heap.
+#[derive(Clone, Debug)]
+pub struct WindState<'a> {
+    rng: Source<'a>,
     x: [[f64; 3]; 3],
     started: bool,
     /// The step the filter states belong to (valid once started).
@@ -155,9 +183,9 @@ impl WindField {
     /// Fresh per-realisation state: `rng = realisation_rng(seed, index)`; the
     /// filter states are drawn from their stationary distributions lazily at
     /// gust onset, so they do not depend on the length of the pre-gust flight.
-    pub fn realisation(&self, seed: u64, index: u64) -> WindState {
+    pub fn realisation(&self, seed: u64, index: u64) -> WindState<'static> {
         WindState {
-            rng: realisation_rng(seed, index),
+            rng: Source::Seeded(realisation_rng(seed, index)),
             x: [[0.0; 3]; 3],
             started: false,
             step: 0,
@@ -178,7 +206,7 @@ impl WindField {
     /// is not rewound (it returns the current value). No allocation, and no
     /// random draws outside the window.
     #[inline]
-    pub fn sample(&self, state: &mut WindState, step: u64) -> [f64; 3] {
+    pub fn sample(&self, state: &mut WindState<'_>, step: u64) -> [f64; 3] {
         if !self.enabled || step < self.start_step || step >= self.end_step {
             return [0.0; 3];
         }
@@ -206,6 +234,37 @@ impl WindField {
             }
         }
         w
+    }
+
+    /// A realisation driven by the innovations `xi` instead of a seeded stream: the same
+    /// flight as `realisation(seed, index)` when `xi` is `innovations_of(seed, index, ..)`.
+    pub fn given<'a>(&self, xi: &'a [f64]) -> WindState<'a> {
+        WindState {
+            rng: Source::Given { xi, next: 0 },
+            x: [[0.0; 3]; 3],
+            started: false,
+            step: 0,
+        }
+    }
+
+    /// How many unit normals a flight of `steps` steps draws (its innovations): the active
+    /// components' orders, at the onset and at every later step of the window up to the last
+    /// step of the flight. Zero when the gust is off.
+    pub fn innovations(&self, steps: usize) -> usize {
+        if !self.enabled {
+            return 0;
+        }
+        let per_step: usize = self.filters.iter().flatten().map(|f| f.order()).sum();
+        let last = (steps as u64).min(self.end_step.saturating_sub(1));
+        let sampled = (last + 1).saturating_sub(self.start_step) as usize;
+        per_step * sampled
+    }
+
+    /// The innovations realisation `index` of `seed` draws in a flight of `steps` steps:
+    /// `given` with them flies exactly the seeded flight.
+    pub fn innovations_of(&self, seed: u64, index: u64, steps: usize) -> Vec<f64> {
+        let mut rng = realisation_rng(seed, index);
+        (0..self.innovations(steps)).map(|_| rng.normal()).collect()
     }
 
     /// Whether the wind is on at all.

@@ -2,7 +2,10 @@
 //! JSON the Python layer sends, then validated here so that every entry point of the engine
 //! guards itself. Field names mirror the TOML keys, so an error names the user's key.
 
-use crate::dispersion::Dispersions;
+pub mod dispersions;
+pub mod keys;
+
+pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -514,7 +517,7 @@ impl Config {
         positive("divergence.max_tilt", self.divergence.max_tilt)?;
         positive("divergence.max_speed", self.divergence.max_speed)?;
         positive("divergence.max_rate", self.divergence.max_rate)?;
-        crate::dispersion::validate(self)
+        dispersions::validate(self)
     }
 
     fn validate_controller(&self) -> Result<(), ConfigError> {
@@ -729,7 +732,7 @@ pub(crate) mod tests {
     use super::*;
 
     /// The paper preset exactly as the Python package ships it.
-    pub(crate) const PAPER_TOML: &str = include_str!("../../python/quadrs/presets/paper.toml");
+    pub(crate) const PAPER_TOML: &str = include_str!("../../../python/quadrs/presets/paper.toml");
 
     pub(crate) fn paper_value() -> serde_json::Value {
         toml::from_str(PAPER_TOML).expect("paper.toml parses")
