@@ -95,7 +95,7 @@ impl Shared {
         }
     }
 
-    /// One vehicle per lane (see `Plant::gather`).
+    /// One vehicle per lane (see `Parts::gather`).
     pub fn gather<L: Lane>(each: &[&Shared]) -> Shared<L> {
         let at = |f: fn(&Shared) -> f64| L::from_fn(|l| f(each[l]));
         Shared {

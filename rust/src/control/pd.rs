@@ -29,7 +29,7 @@ impl Pd {
         }
     }
 
-    /// One vehicle per lane (see `Plant::gather`).
+    /// One vehicle per lane (see `Parts::gather`).
     pub fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
         let at3 =
             |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i])) };

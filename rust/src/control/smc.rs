@@ -36,7 +36,7 @@ impl Smc {
         }
     }
 
-    /// One vehicle per lane (see `Plant::gather`).
+    /// One vehicle per lane (see `Parts::gather`).
     pub fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
         let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] {
             [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
