@@ -116,7 +116,7 @@ class RareEventResult:
         """level, threshold (the cut the level set; the target on the last), conditional_p,
         acceptance_rate (NaN on level 0), flights, above (samples above the cut), gamma (the
         chains' correlation factor), cov (of conditional_p), sigma (the proposal's step)."""
-        rows = [dataclasses.astuple(level) for level in self.run.levels]
+        rows = [dataclasses.asdict(level) for level in self.run.levels]
         return pd.DataFrame(rows, columns=list(LEVEL_COLUMNS))
 
     @property

@@ -58,7 +58,7 @@ def engine_function(name: str) -> Callable[..., Any]:
             f"xi, quadrs._core.{name}) is not built yet (issue 25); rare_event(limit_state=...) "
             f"runs the same algorithm on a function of standard normals"
         )
-    return fn  # type: ignore[no-any-return]
+    return fn
 
 
 class ScenarioModel:
@@ -146,8 +146,9 @@ class ScenarioModel:
         phases = self.scenario.phase_names
         spectra = {
             name: pd.DataFrame({"frequency": f, "amplitude": a})
-            for name, f, a in zip(phases, self.scenario.spectrum_frequencies, out["spectra"],
-                                  strict=True)  # fmt: skip
+            for name, f, a in zip(
+                phases, self.scenario.spectrum_frequencies, out["spectra"], strict=True
+            )
         }
         return Flight(
             scenario=self.scenario,

@@ -18,8 +18,8 @@ See docs/rare-events.md for the method, its assumptions and its cost.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -97,7 +97,6 @@ class SubsetRun:
     p0: float
     seed: int
     max_levels: int
-    extra: dict[str, object] = field(default_factory=dict)
 
     @property
     def reached(self) -> bool:
@@ -181,6 +180,15 @@ class _Best:
         self.filled = min(size, self.filled + len(values))
 
 
+_Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _none(dimension: int) -> _Arrays:
+    """No failure samples: (xi, values, copies, chain, step), all empty."""
+    ints = np.empty(0, dtype=np.int64)
+    return np.empty((0, dimension)), np.empty(0), ints, ints, ints
+
+
 class _Failures:
     """The failure samples of the level in progress: each chain state once, with ``copies``,
     the number of the level's samples that are that state (a chain that stays repeats it)."""
@@ -201,9 +209,10 @@ class _Failures:
         holds the samples' indices and no state is held)."""
         k = len(values)
         if k:
-            self.xi.append(xi.copy())
-            self.values.append(values.copy())
-            self.chain.append(chain.copy())
+            # Callers pass fresh arrays (boolean-indexed), kept as they are.
+            self.xi.append(xi)
+            self.values.append(values)
+            self.chain.append(chain)
             self.step.append(np.full(k, step))
             index = np.arange(self.count, self.count + k)
             self.copies[index] = 1
@@ -215,11 +224,10 @@ class _Failures:
         """``chains`` stayed in their failure state: one more copy of each."""
         self.copies[self.record_of[chains]] += 1
 
-    def arrays(self, dimension: int) -> tuple[np.ndarray, ...]:
+    def arrays(self, dimension: int) -> _Arrays:
         """(xi, values, copies, chain, step) of the records."""
         if not self.values:
-            ints = np.empty(0, dtype=np.int64)
-            return np.empty((0, dimension)), np.empty(0), ints, ints, ints
+            return _none(dimension)
         return (
             np.concatenate(self.xi),
             np.concatenate(self.values),
@@ -229,13 +237,17 @@ class _Failures:
         )
 
 
-def chain_gamma(indicator: np.ndarray) -> float:
+def chain_gamma(indicator: np.ndarray, groups: np.ndarray | None = None) -> float:
     """Au & Beck's correlation factor gamma of an estimate that averages ``indicator``
-    (shape (L, chains): sample l of each chain), from the chains' lag-k autocovariance:
-    gamma = 2 sum_{k=1}^{L-1} (1 - k/L) rho(k)."""
+    (shape (L, chains): sample l of each chain): Var = p (1 - p) / N * (1 + gamma).
+
+    Along each chain, from the pooled lag-k autocovariance R(k):
+    gamma = 2 sum_{k=1}^{L-1} (1 - k/L) R(k) / R(0). Chains in the same ``groups`` entry
+    (started from copies of one state) add their cross-covariance, estimated from the
+    products of their sums' deviations (Au & Beck's chains are independent: no such term)."""
     steps, chains = indicator.shape
     total = steps * chains
-    p = indicator.mean()
+    p = float(indicator.mean())
     r0 = p * (1.0 - p)
     if r0 <= 0.0:
         return 0.0
@@ -244,7 +256,18 @@ def chain_gamma(indicator: np.ndarray) -> float:
     for k in range(1, steps):
         rk = float((ind[:-k] * ind[k:]).sum()) / (total - k * chains) - p * p
         gamma += 2.0 * (1.0 - k / steps) * rk / r0
+    if groups is not None:
+        dev = ind.sum(axis=0) - steps * p  # each chain's sum, centred
+        by_group = np.bincount(groups, weights=dev)
+        # sum over ordered pairs of distinct chains in a group = (sum)^2 - sum of squares
+        cross = float((by_group**2).sum() - (dev**2).sum())
+        gamma += cross / (total * r0)
     return gamma
+
+
+def _groups(seed_values: np.ndarray) -> np.ndarray:
+    """Chains whose seeds have the same value (copies of one state) share a group number."""
+    return np.unique(seed_values, return_inverse=True)[1].ravel()
 
 
 def _cut(values: np.ndarray, seeds: int) -> tuple[float, int]:
@@ -309,11 +332,11 @@ def subset_simulation(
         raise ValueError(f"threshold must be finite, got {threshold!r}")
     length = round(1.0 / p0)
     seeds = per_level // length
-    # States, candidates, the running best and the concatenation in _Best.offer; failures of
-    # a non-final level are fewer than `seeds`.
+    # States, candidates and a product of them, the running best, a non-final level's
+    # failures (fewer than `seeds`).
     check_memory(
         f"subset simulation in {dimension} dimensions with {seeds} chains",
-        6 * seeds * dimension * _F8,
+        5 * seeds * dimension * _F8,
     )
 
     rng = np.random.default_rng(seed)
@@ -339,7 +362,7 @@ def subset_simulation(
                 hit = v > threshold
                 failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
         else:
-            state = seeds_xi
+            state = seeds_xi  # the previous level's best: ours to move in place
             value = seeds_val.copy()
             cut = levels[-1].threshold
             sigma = spread
@@ -348,13 +371,17 @@ def subset_simulation(
             best.offer(state, value)
             hit = value > threshold
             failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
+            candidate = np.empty_like(state)
             for step in range(1, length):
-                candidate = rho * state + sigma * rng.standard_normal((seeds, dimension))
+                # In place: no temporary of the chains' size beyond the candidate itself.
+                rng.standard_normal(out=candidate)
+                candidate *= sigma
+                candidate += rho * state
                 v = evaluate(candidate)
                 move = v > cut
                 accepted += int(move.sum())
-                state = np.where(move[:, None], candidate, state)
-                value = np.where(move, v, value)
+                state[move] = candidate[move]
+                value[move] = v[move]
                 values[step] = value
                 best.offer(state, value)
                 # A chain's failure state is recorded when reached, then its copies counted.
@@ -370,22 +397,37 @@ def subset_simulation(
         # The last level's fraction is of the threshold itself (when anything crossed it).
         cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds)
         p = above / per_level
-        gamma = chain_gamma(values > cut) if level else 0.0
+        # Chains started from copies of one state (a repeated chain state among the seeds)
+        # are correlated with each other, not only along themselves: group them by seed.
+        gamma = chain_gamma(values > cut, _groups(values[0])) if level else 0.0
         cov_level = math.sqrt((1.0 - p) / (per_level * p) * (1.0 + gamma))
         flights = per_level if level == 0 else seeds * (length - 1)
         levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level,
                             spread if level else math.nan))  # fmt: skip
         if last:
-            if n_fail > 0:
+            found = n_fail > 0
+            if found:
                 cov2 += cov_level**2
-                product *= p
-                fx, fv, fc, fch, fst = failures.arrays(dimension)
-                return SubsetRun(product, math.sqrt(cov2), None, levels, evaluate.count, fx, fv,
-                                 fc, fch, fst, closest, dimension, threshold, per_level, p0,
-                                 seed, max_levels)  # fmt: skip
-            empty = _Failures(0, 0).arrays(dimension)
-            return SubsetRun(None, None, product * p, levels, evaluate.count, *empty, closest,
-                             dimension, threshold, per_level, p0, seed, max_levels)  # fmt: skip
+            fx, fv, fc, fch, fst = failures.arrays(dimension) if found else _none(dimension)
+            return SubsetRun(
+                probability=product * p if found else None,
+                cov=math.sqrt(cov2) if found else None,
+                upper_bound=None if found else product * p,
+                levels=levels,
+                flights=evaluate.count,
+                failure_xi=fx,
+                failure_values=fv,
+                failure_copies=fc,
+                failure_chain=fch,
+                failure_step=fst,
+                closest=closest,
+                dimension=dimension,
+                threshold=threshold,
+                per_level=per_level,
+                p0=p0,
+                seed=seed,
+                max_levels=max_levels,
+            )
         cov2 += cov_level**2
         product *= p
         if level:
@@ -406,17 +448,3 @@ def lognormal_interval(
     z = float(norm.ppf(0.5 + confidence / 2))
     s = _lognormal_s(cov)
     return probability * math.exp(-z * s), probability * math.exp(z * s)
-
-
-def paired_runs(
-    models: Mapping[str, Model], dimension: int, threshold: float, **settings: object
-) -> dict[str, SubsetRun]:
-    """One run per model on the same seed: level 0 flies the very same samples for every model
-    and the chains draw the same proposal normals (common random numbers), so the runs differ
-    only where the models do."""
-    if not models:
-        raise ValueError("the paired models must be a non-empty mapping of name -> model")
-    return {
-        name: subset_simulation(model, dimension, threshold, name=name, **settings)  # type: ignore[arg-type]
-        for name, model in models.items()
-    }
