@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import tracemalloc
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,10 @@ from scipy.stats import binom, chi2, norm
 
 import quadrs
 from quadrs import _core
+from quadrs.integrity import CorruptRunError
+from quadrs.parquet import read_frame, write_frame
 from quadrs.rare import RareEventComparison, RareEventResult
+from quadrs.rare.scenario_model import ScenarioModel
 from quadrs.rare.subset import chain_gamma, subset_simulation
 
 N_DIM = 1000
@@ -339,3 +343,62 @@ def test_scenario_run_waits_for_the_engine_interface() -> None:
     with pytest.raises(NotImplementedError, match="issue 25"):
         quadrs.rare_event(quadrs.Scenario.paper(), controller="pd", metric="max_accel",
                           phase="P2", threshold=8.0, per_level=100)  # fmt: skip
+
+
+def test_saved_result_reads_back_whole(tmp_path: Path) -> None:
+    r = quadrs.rare_event(limit_state=linear, dimension=40, threshold=3.0, per_level=200, seed=4)
+    assert isinstance(r, RareEventResult) and r.probability is not None
+    path = tmp_path / "rare.parquet"
+    r.to_parquet(path)
+    back = RareEventResult.read_parquet(path)
+    assert back.probability == r.probability and back.cov == r.cov
+    assert back.interval == r.interval and back.flights == r.flights
+    assert back.levels.equals(r.levels)
+    assert back.failures.equals(r.failures)
+    assert np.array_equal(back.xi, r.xi)  # bit for bit
+    with pytest.raises(ValueError, match="limit_state function"):
+        back.flight(0)
+    # No failure found: still None after the round trip, not 0 or NaN.
+    none = quadrs.rare_event(limit_state=lambda x: np.tanh(linear(x)), dimension=10,
+                             threshold=1.0, per_level=100, max_levels=2)  # fmt: skip
+    assert isinstance(none, RareEventResult)
+    none.to_parquet(path)
+    again = RareEventResult.read_parquet(path)
+    assert again.probability is None and again.upper_bound == none.upper_bound
+    assert again.xi.shape == (0, 10)
+
+
+def test_saved_scenario_run_keeps_its_model_and_refuses_edits(
+    tmp_path: Path,
+) -> None:
+    """A scenario run's file carries its run identity; read back, its model is the scenario's,
+    so flight(k) re-flies; an edited file is refused. (The run itself is of a limit state:
+    the engine cannot fly innovations yet; the file only records what produced it.)"""
+    s = quadrs.Scenario.paper()
+    run = subset_simulation(linear, 30, 2.5, per_level=100, seed=1)
+    r = RareEventResult(run, value_name="max_accel_P2",
+                        model=ScenarioModel(s, "smc", "max_accel", "P2"))  # fmt: skip
+    path = tmp_path / "scenario.parquet"
+    r.to_parquet(path)
+    back = RareEventResult.read_parquet(path)
+    assert isinstance(back.model, ScenarioModel)
+    assert (back.model.scenario, back.model.controller, back.model.metric, back.model.phase) == (
+        s,
+        "smc",
+        "max_accel",
+        "P2",
+    )
+    assert back.probability == r.probability and np.array_equal(back.xi, r.xi)
+    frame, meta = read_frame(path, b"quadrs")
+    assert isinstance(meta, dict)
+    meta["threshold"] = 9.0
+    write_frame(frame, path, b"quadrs", meta)
+    with pytest.raises(CorruptRunError, match="disagree"):
+        RareEventResult.read_parquet(path)
+    meta["rare_event"]["threshold"] = 9.0
+    write_frame(frame, path, b"quadrs", meta)
+    with pytest.raises(CorruptRunError, match="run identity"):
+        RareEventResult.read_parquet(path)
+    write_frame(frame, path, b"quadrs", {"kind": "flight"})
+    with pytest.raises(CorruptRunError, match="not a quadrs rare-event result"):
+        RareEventResult.read_parquet(path)

@@ -7,18 +7,34 @@ import html
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-from quadrs.rare.subset import SubsetRun, lognormal_interval
+from quadrs.rare.subset import Level, SubsetRun, lognormal_interval
 
 if TYPE_CHECKING:  # pragma: no cover
     from quadrs.flight import Flight
     from quadrs.rare.scenario_model import RareEventModel
 
 __all__ = ["RareEventComparison", "RareEventResult"]
+
+_META_KEY = b"quadrs"
+#: What a saved result records (name -> type), checked on reading.
+_FIELDS: dict[str, Any] = {
+    "value_name": str,
+    "method": str,
+    "threshold": float,
+    "per_level": int,
+    "p0": float,
+    "max_levels": int,
+    "dimension": int,
+    "flights": int,
+    "closest": float,
+    "levels": list,
+}
 
 #: Columns of ``RareEventResult.levels``.
 LEVEL_COLUMNS = ("level", "threshold", "conditional_p", "acceptance_rate", "flights", "above",
@@ -153,6 +169,125 @@ class RareEventResult:
             )
         return self.model.fly(self.run.failure_xi[int(k)])
 
+    # -- files ----------------------------------------------------------------------------
+    def metadata(self) -> dict[str, Any]:
+        """What produced this result and what it found, as its saved file records them. A
+        scenario run carries the run record (scenario, seed, controller, and under
+        ``rare_event`` the metric, phase and settings) and its run identity."""
+        run = self.run
+        fields: dict[str, Any] = {
+            "kind": "rare_event",
+            "value_name": self.value_name,
+            "method": self.method,
+            "threshold": run.threshold,
+            "per_level": run.per_level,
+            "p0": run.p0,
+            "max_levels": run.max_levels,
+            "dimension": run.dimension,
+            "flights": run.flights,
+            "closest": run.closest,
+            "probability": run.probability,
+            "cov": run.cov,
+            "upper_bound": run.upper_bound,
+            "levels": [dataclasses.asdict(level) for level in run.levels],
+        }
+        record = self._record()
+        if record is None:
+            from quadrs import _core
+
+            return {"version": _core.__version__, "seed": run.seed, **fields}
+        return record.metadata(**fields)
+
+    def _record(self) -> Any:
+        from quadrs.rare.scenario_model import ScenarioModel
+
+        model = self.model
+        if not isinstance(model, ScenarioModel):
+            return None
+        from quadrs.integrity import RunRecord
+
+        run = self.run
+        extra = {"metric": model.metric, "phase": model.phase, "threshold": run.threshold,
+                 "per_level": run.per_level, "p0": run.p0, "max_levels": run.max_levels,
+                 "method": self.method}  # fmt: skip
+        return RunRecord(model.scenario, run.seed, (model.controller,), False, "rare_event", extra)
+
+    def to_parquet(self, path: str | Path) -> None:
+        """Write :attr:`failures` with each sample's standard normals (column ``xi``) and
+        :meth:`metadata` (the estimate, the levels, the settings); written to a temporary
+        file, then renamed, so never half-written."""
+        from quadrs.parquet import write_frame
+
+        frame = self.failures
+        frame["xi"] = list(self.run.failure_xi)
+        write_frame(frame, path, _META_KEY, _json_safe(self.metadata()))
+
+    @classmethod
+    def read_parquet(cls, path: str | Path) -> RareEventResult:
+        """Read a file written by :meth:`to_parquet`. A scenario run's file must match its
+        run identity (else :class:`quadrs.integrity.CorruptRunError`) and comes back with its
+        model, so ``flight(k)`` re-flies its failures."""
+        from quadrs.integrity import RunRecord, _fail
+        from quadrs.parquet import read_frame
+
+        frame, meta = read_frame(path, _META_KEY)
+        if not isinstance(meta, dict) or meta.get("kind") != "rare_event":
+            raise _fail(path, "it is not a quadrs rare-event result (no rare_event metadata)")
+        for key, kind in {**_FIELDS, "seed": int, "version": str}.items():
+            value = meta.get(key)
+            ok = isinstance(value, kind) or (kind is float and isinstance(value, int))
+            ok = ok or (key == "closest" and value is None)  # +inf (a diverged flight)
+            if not ok or (kind is int and isinstance(value, bool)):
+                raise _fail(path, f"metadata {key!r} must be {kind.__name__}, got {value!r}")
+        model = None
+        if "scenario" in meta:
+            from quadrs.rare.scenario_model import ScenarioModel
+
+            record = RunRecord.read(meta, path, "rare_event")
+            extra = record.extra if isinstance(record.extra, dict) else {}
+            if extra.get("threshold") != meta["threshold"] or len(record.controllers) != 1:
+                raise _fail(path, "its settings disagree with its run identity (edited?)")
+            try:
+                model = ScenarioModel(record.scenario, record.controllers[0], extra["metric"],
+                                      extra["phase"])  # fmt: skip
+            except (KeyError, ValueError) as e:
+                raise _fail(path, f"its scenario run is invalid ({e})") from None
+        else:
+            from quadrs import _core
+
+            if meta["version"] != _core.__version__:
+                raise _fail(path, f"written by quadrs {meta['version']}, this is "
+                                  f"{_core.__version__}")  # fmt: skip
+        try:
+            levels = [Level(**{k: _nan(v) for k, v in row.items()}) for row in meta["levels"]]
+            n = len(frame)
+            dimension = meta["dimension"]
+            xi = np.stack(frame["xi"].to_numpy()) if n else np.empty((0, dimension))
+            if xi.shape != (n, dimension):
+                raise ValueError(f"xi has shape {xi.shape}, not ({n}, {dimension})")
+            run = SubsetRun(
+                probability=_number(meta.get("probability")),
+                cov=_number(meta.get("cov")),
+                upper_bound=_number(meta.get("upper_bound")),
+                levels=levels,
+                flights=meta["flights"],
+                failure_xi=xi.astype(np.float64),
+                failure_values=frame[meta["value_name"]].to_numpy(np.float64),
+                failure_copies=frame["copies"].to_numpy(np.int64),
+                failure_chain=frame["chain"].to_numpy(np.int64),
+                failure_step=frame["step"].to_numpy(np.int64),
+                closest=math.inf if meta["closest"] is None else float(meta["closest"]),
+                dimension=dimension,
+                threshold=float(meta["threshold"]),
+                per_level=meta["per_level"],
+                p0=float(meta["p0"]),
+                seed=meta["seed"],
+                max_levels=meta["max_levels"],
+            )
+        except (KeyError, TypeError, ValueError) as e:
+            raise _fail(path, f"its rare-event tables are malformed ({e})") from None
+        return cls(run, value_name=meta["value_name"], method=meta["method"], model=model)
+
     # -- display --------------------------------------------------------------------------
     def _headline(self) -> str:
         run = self.run
@@ -220,3 +355,28 @@ class RareEventComparison:
             for k, v in self.results.items()
         )
         return f"<RareEventComparison {parts}>"
+
+
+def _json_safe(value: Any) -> Any:
+    """NaN and infinities as JSON null (read back by :func:`_nan` as NaN)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    return value
+
+
+def _nan(value: Any) -> Any:
+    """JSON null back as NaN for level fields; other values as they are."""
+    return math.nan if value is None else value
+
+
+def _number(value: Any) -> float | None:
+    """An optional number of the metadata (None stays None: nothing was found)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"expected a number or null, got {value!r}")
+    return float(value)
