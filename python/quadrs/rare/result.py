@@ -216,6 +216,7 @@ class RareEventResult:
         """Write :attr:`failures` with each sample's standard normals (column ``xi``) and
         :meth:`metadata` (the estimate, the levels, the settings); written to a temporary
         file, then renamed, so never half-written."""
+        from quadrs.flight import _json_safe
         from quadrs.parquet import write_frame
 
         frame = self.failures
@@ -355,17 +356,6 @@ class RareEventComparison:
             for k, v in self.results.items()
         )
         return f"<RareEventComparison {parts}>"
-
-
-def _json_safe(value: Any) -> Any:
-    """NaN and infinities as JSON null (read back by :func:`_nan` as NaN)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, list):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    return value
 
 
 def _nan(value: Any) -> Any:
