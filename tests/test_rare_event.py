@@ -320,6 +320,9 @@ def test_flight_of_a_limit_state_result_says_it_has_none() -> None:
         ({"metric": None}, "metric= and phase="),
         ({"dimension": 10}, "dimension is set by the scenario"),
         ({"limit_state": linear}, "not both"),
+        ({"seed": -1}, "seed"),
+        ({"threshold": float("nan")}, "threshold"),
+        ({"p0": 0.3}, "p0"),
     ],
 )
 def test_scenario_arguments_are_checked(kwargs: dict[str, object], match: str) -> None:

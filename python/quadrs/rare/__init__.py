@@ -13,9 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from quadrs.guard import check_int
 from quadrs.rare.result import RareEventComparison, RareEventResult
 from quadrs.rare.scenario_model import RareEventModel, ScenarioModel
-from quadrs.rare.subset import Model, check_settings, subset_simulation
+from quadrs.rare.subset import Model, check_settings, check_threshold, subset_simulation
 from quadrs.scenario import Scenario
 
 __all__ = ["METHODS", "RareEventComparison", "RareEventResult", "rare_event"]
@@ -65,9 +66,11 @@ def rare_event(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if threshold is None:
         raise ValueError("threshold is required: rare_event estimates P(value > threshold)")
+    # Every argument is checked before anything flies.
+    threshold = check_threshold(threshold)
     settings: dict[str, Any] = {"per_level": per_level, "p0": p0, "max_levels": max_levels}
     settings["per_level"], settings["p0"], settings["max_levels"] = check_settings(**settings)
-    settings["seed"] = seed
+    settings["seed"] = check_int("seed", seed)
 
     if limit_state is not None:
         if scenario is not None:

@@ -33,6 +33,7 @@ __all__ = [
     "Model",
     "SubsetRun",
     "check_settings",
+    "check_threshold",
     "subset_simulation",
 ]
 
@@ -132,6 +133,15 @@ def check_settings(per_level: object, p0: object, max_levels: object) -> tuple[i
         max_levels = max(1, math.ceil(math.log(SMALLEST_PROBABILITY) / math.log(p0)))
     max_levels = check_int("max_levels", max_levels, 1, 1000)
     return per_level, p0, max_levels
+
+
+def check_threshold(threshold: object) -> float:
+    """``threshold`` as a finite float, else ValueError naming it."""
+    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.floating):
+        raise ValueError(f"threshold must be a number, got {threshold!r}")
+    if not math.isfinite(threshold):
+        raise ValueError(f"threshold must be finite, got {threshold!r}")
+    return float(threshold)
 
 
 class _Evaluator:
@@ -325,11 +335,7 @@ def subset_simulation(
     per_level, p0, max_levels = check_settings(per_level, p0, max_levels)
     dimension = check_int("dimension", dimension, 1, 2**40)
     seed = check_int("seed", seed)
-    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.floating):
-        raise ValueError(f"threshold must be a number, got {threshold!r}")
-    threshold = float(threshold)
-    if not math.isfinite(threshold):
-        raise ValueError(f"threshold must be finite, got {threshold!r}")
+    threshold = check_threshold(threshold)
     length = round(1.0 / p0)
     seeds = per_level // length
     # States, candidates and a product of them, the running best, a non-final level's
