@@ -243,10 +243,14 @@ def test_no_failure_found_is_an_upper_bound_not_a_zero() -> None:
     assert r.flights == 200 + 2 * 180
 
 
-def test_a_model_whose_values_do_not_vary_is_refused() -> None:
-    with pytest.raises(ValueError, match="do not vary"):
+def test_a_model_with_an_atom_is_refused_naming_the_threshold() -> None:
+    with pytest.raises(ValueError, match=r"100 of 100 samples .* threshold = 1\.0"):
         quadrs.rare_event(limit_state=lambda x: np.zeros(len(x)), dimension=5, threshold=1.0,
                           per_level=100)  # fmt: skip
+    # A metric that saturates below the threshold: the chains pile up at the cap.
+    with pytest.raises(ValueError, match=r"atom: .* threshold = 2\.0"):
+        quadrs.rare_event(limit_state=lambda x: np.minimum(linear(x), 1.0), dimension=5,
+                          threshold=2.0, per_level=100)  # fmt: skip
 
 
 def test_chain_gamma_of_independent_and_frozen_chains() -> None:

@@ -280,18 +280,20 @@ def _groups(seed_values: np.ndarray) -> np.ndarray:
     return np.unique(seed_values, return_inverse=True)[1].ravel()
 
 
-def _cut(values: np.ndarray, seeds: int) -> tuple[float, int]:
+def _cut(values: np.ndarray, seeds: int, threshold: float) -> tuple[float, int]:
     """The level's cut between the ``seeds``-th largest value and the next smaller distinct
     one, and how many values lie above it (``seeds``, or more where repeated chain states tie
-    at the cut). ValueError if every value is the same."""
+    at the cut). ValueError if no value lies below the ``seeds``-th largest (an atom)."""
     ordered = np.sort(values)[::-1]
     w = ordered[seeds - 1]
     lower = ordered[ordered < w]
     if len(lower) == 0:
+        tied = int((values == w).sum())
         raise ValueError(
-            f"the model's values do not vary: the top {len(values) - seeds + 1} of "
-            f"{len(values)} samples share the value {w!r}, so no level above it can be cut "
-            f"(a metric with an atom, e.g. one that is 0 for most flights, or a constant model)"
+            f"the model's values have an atom: {tied} of {len(values)} samples of a level share "
+            f"the value {w!r}, so no level can be cut there on the way to threshold = "
+            f"{threshold!r} (a constant model; a metric that is 0 for most flights; one that "
+            f"saturates below the threshold, which it can then never exceed)"
         )
     below = lower[0]
     cut = 0.5 * (w + below) if np.isfinite(w) else np.nextafter(below, np.inf)
@@ -401,7 +403,7 @@ def subset_simulation(
         rate = accepted / (seeds * (length - 1)) if level else math.nan
         last = n_fail >= seeds or level == max_levels - 1
         # The last level's fraction is of the threshold itself (when anything crossed it).
-        cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds)
+        cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds, threshold)
         p = above / per_level
         # Chains started from copies of one state (a repeated chain state among the seeds)
         # are correlated with each other, not only along themselves: group them by seed.
