@@ -9,6 +9,7 @@ from quadrs.gust import gust_scales, gust_series
 from quadrs.linear import LinearModel, linearize
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.optimize import OptimizeResult, optimize
+from quadrs.rare import RareEventComparison, RareEventResult, rare_event
 from quadrs.scenario import Scenario
 from quadrs.sensitivity import SensitivityResult, sensitivity
 from quadrs.stability import StabilityReport, StabilityWarning, StepSizeWarning, stability
@@ -20,6 +21,8 @@ __all__ = [
     "LinearModel",
     "MonteCarloResult",
     "OptimizeResult",
+    "RareEventComparison",
+    "RareEventResult",
     "Scenario",
     "ScenarioError",
     "SensitivityResult",
@@ -32,6 +35,7 @@ __all__ = [
     "linearize",
     "monte_carlo",
     "optimize",
+    "rare_event",
     "sensitivity",
     "simulate",
     "stability",

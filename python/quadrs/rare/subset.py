@@ -1,0 +1,458 @@
+"""Subset simulation (Au & Beck 2001) with a preconditioned Crank-Nicolson conditional sampler
+whose step is adapted as in Papaioannou et al. (2015), on any batched model of standard
+normals. Independent of the engine.
+
+A *model* maps an (N, n) array of independent standard normals to N values; failure is
+``value > threshold``. Every call the sampler makes has ``p0 * per_level`` rows (the chains'
+candidates of one step; level 0 is drawn in blocks of the same size), so a model that flies
+flights can fly each call as one batch.
+
+Memory stays bounded by a few times ``p0 * per_level * n`` numbers: the chains' states, their
+candidates and the running best ``p0 * per_level`` samples of the level (the next level's
+seeds), plus the failure samples of the level in progress (the final level's are kept).
+Every evaluation's value is kept only until its level's statistics are done.
+
+See docs/rare-events.md for the method, its assumptions and its cost.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from quadrs.guard import check_int, check_memory
+
+__all__ = [
+    "MIN_SEEDS",
+    "TARGET_ACCEPTANCE",
+    "Level",
+    "Model",
+    "SubsetRun",
+    "check_settings",
+    "check_threshold",
+    "subset_simulation",
+]
+
+#: A batched model: (N, n) standard normals -> (N,) values (failure: value > threshold).
+Model = Callable[[np.ndarray], npt.ArrayLike]
+
+#: The acceptance rate the proposal's step is steered to (Papaioannou et al. 2015: 0.44).
+TARGET_ACCEPTANCE = 0.44
+#: The proposal's step sigma on the first conditional level (Papaioannou et al.: 0.6).
+INITIAL_SPREAD = 0.6
+#: Fewest chains (seeds) per level: with fewer, the chains' correlation (and so the coefficient
+#: of variation) is too poorly estimated to trust.
+MIN_SEEDS = 10
+#: Default deepest level: enough levels to reach probabilities of about 1e-12.
+SMALLEST_PROBABILITY = 1e-12
+#: Bytes one float64 takes.
+_F8 = 8
+
+
+@dataclass(frozen=True)
+class Level:
+    """One level of a run. ``threshold``: the cut this level's samples set (the target
+    threshold on the last level); ``conditional_p``: the fraction of the level's samples above
+    it (``above`` of ``per_level``); ``acceptance_rate``: of the chains' moves (NaN on level 0,
+    plain Monte Carlo); ``flights``: model evaluations spent on the level; ``gamma``: the
+    chains' correlation factor of Au & Beck; ``cov``: the coefficient of variation of
+    ``conditional_p``; ``sigma``: the proposal's step (NaN on level 0)."""
+
+    level: int
+    threshold: float
+    conditional_p: float
+    above: int
+    acceptance_rate: float
+    flights: int
+    gamma: float
+    cov: float
+    sigma: float
+
+
+@dataclass
+class SubsetRun:
+    """What one run of :func:`subset_simulation` found (see :class:`RareEventResult` for the
+    user-facing form). ``probability``/``cov`` are None when no failure was found; then
+    ``upper_bound`` is the estimated probability of the highest level reached, which the
+    failure probability does not exceed. Failure samples are those of the last level, each
+    chain state once (``copies``: how many of the level's samples it stands for)."""
+
+    probability: float | None
+    cov: float | None
+    upper_bound: float | None
+    levels: list[Level]
+    flights: int
+    failure_xi: np.ndarray
+    failure_values: np.ndarray
+    failure_copies: np.ndarray
+    failure_chain: np.ndarray
+    failure_step: np.ndarray
+    closest: float
+    dimension: int
+    threshold: float
+    per_level: int
+    p0: float
+    seed: int
+    max_levels: int
+
+    @property
+    def reached(self) -> bool:
+        """True if samples above the threshold were found (the estimate is then a number)."""
+        return self.probability is not None
+
+
+def check_settings(per_level: object, p0: object, max_levels: object) -> tuple[int, float, int]:
+    """(per_level, p0, max_levels) checked: p0 = 1/L for a whole number L >= 2 (chains of equal
+    length L), p0 * per_level a whole number of at least MIN_SEEDS chains; ValueError naming
+    the argument otherwise. ``max_levels`` None: enough levels to reach about 1e-12."""
+    if isinstance(p0, bool) or not isinstance(p0, int | float) or not 0 < p0 <= 0.5:
+        raise ValueError(f"p0 must be a number in (0, 0.5], got {p0!r}")
+    p0 = float(p0)
+    length = round(1.0 / p0)
+    if abs(length * p0 - 1.0) > 1e-12:
+        raise ValueError(
+            f"p0 must be 1/L for a whole number L (each seed starts a chain of L samples), "
+            f"got {p0!r}; e.g. 0.1, 0.2, 0.25 or 0.5"
+        )
+    per_level = check_int("per_level", per_level, 1, 2**40)
+    if per_level % length:
+        raise ValueError(
+            f"per_level must be a multiple of 1/p0 = {length} (p0 * per_level seeds, whole), "
+            f"got per_level = {per_level}"
+        )
+    if per_level // length < MIN_SEEDS:
+        raise ValueError(
+            f"per_level = {per_level} with p0 = {p0} gives {per_level // length} seeds per level; "
+            f"at least {MIN_SEEDS} are needed: raise per_level to {MIN_SEEDS * length} or more"
+        )
+    if max_levels is None:
+        max_levels = max(1, math.ceil(math.log(SMALLEST_PROBABILITY) / math.log(p0)))
+    max_levels = check_int("max_levels", max_levels, 1, 1000)
+    return per_level, p0, max_levels
+
+
+def check_threshold(threshold: object) -> float:
+    """``threshold`` as a finite float, else ValueError naming it."""
+    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.floating):
+        raise ValueError(f"threshold must be a number, got {threshold!r}")
+    if not math.isfinite(threshold):
+        raise ValueError(f"threshold must be finite, got {threshold!r}")
+    return float(threshold)
+
+
+class _Evaluator:
+    """Calls the model on a block, checks what it returns, counts the evaluations."""
+
+    def __init__(self, model: Model, name: str) -> None:
+        self.model = model
+        self.name = name
+        self.count = 0
+
+    def __call__(self, xi: np.ndarray) -> np.ndarray:
+        values = np.asarray(self.model(xi), dtype=np.float64)
+        if values.shape != (xi.shape[0],):
+            raise ValueError(
+                f"{self.name} must return one value per row: shape ({xi.shape[0]},) for input "
+                f"{xi.shape}, got {values.shape}"
+            )
+        bad = np.isnan(values)
+        if bad.any():
+            raise ValueError(
+                f"{self.name} returned NaN for {int(bad.sum())} of {len(values)} rows (e.g. row "
+                f"{int(np.argmax(bad))}); it must return a number (or +-inf) for every row"
+            )
+        self.count += len(values)
+        return values
+
+
+class _Best:
+    """The ``size`` samples of largest value seen in a level so far (ties: earliest first)."""
+
+    def __init__(self, size: int, dimension: int) -> None:
+        self.xi = np.empty((size, dimension))
+        self.values = np.full(size, -np.inf)
+        self.filled = 0
+
+    def offer(self, xi: np.ndarray, values: np.ndarray) -> None:
+        size = len(self.values)
+        pool = np.concatenate([self.values[: self.filled], values])
+        # Stable order of -value: equal values keep the earlier one first.
+        keep = np.argsort(-pool, kind="stable")[:size]
+        old = keep[keep < self.filled]
+        new = keep[keep >= self.filled] - self.filled
+        free = np.setdiff1d(np.arange(size), old)[: len(new)]
+        self.xi[free] = xi[new]
+        self.values[free] = values[new]
+        self.filled = min(size, self.filled + len(values))
+
+
+_Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _none(dimension: int) -> _Arrays:
+    """No failure samples: (xi, values, copies, chain, step), all empty."""
+    ints = np.empty(0, dtype=np.int64)
+    return np.empty((0, dimension)), np.empty(0), ints, ints, ints
+
+
+class _Failures:
+    """The failure samples of the level in progress: each chain state once, with ``copies``,
+    the number of the level's samples that are that state (a chain that stays repeats it)."""
+
+    def __init__(self, chains: int, capacity: int) -> None:
+        self.xi: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+        self.chain: list[np.ndarray] = []
+        self.step: list[np.ndarray] = []
+        self.copies = np.zeros(capacity, dtype=np.int64)
+        self.count = 0
+        self.record_of = np.full(chains, -1)  # each chain's latest record
+
+    def add(
+        self, xi: np.ndarray, values: np.ndarray, chain: np.ndarray, step: int, track: bool = True
+    ) -> None:
+        """New failure states of chains ``chain`` (``track=False`` on level 0, where ``chain``
+        holds the samples' indices and no state is held)."""
+        k = len(values)
+        if k:
+            # Callers pass fresh arrays (boolean-indexed), kept as they are.
+            self.xi.append(xi)
+            self.values.append(values)
+            self.chain.append(chain)
+            self.step.append(np.full(k, step))
+            index = np.arange(self.count, self.count + k)
+            self.copies[index] = 1
+            if track:
+                self.record_of[chain] = index
+            self.count += k
+
+    def hold(self, chains: np.ndarray) -> None:
+        """``chains`` stayed in their failure state: one more copy of each."""
+        self.copies[self.record_of[chains]] += 1
+
+    def arrays(self, dimension: int) -> _Arrays:
+        """(xi, values, copies, chain, step) of the records."""
+        if not self.values:
+            return _none(dimension)
+        return (
+            np.concatenate(self.xi),
+            np.concatenate(self.values),
+            self.copies[: self.count].copy(),
+            np.concatenate(self.chain).astype(np.int64),
+            np.concatenate(self.step).astype(np.int64),
+        )
+
+
+def chain_gamma(indicator: np.ndarray, groups: np.ndarray | None = None) -> float:
+    """Au & Beck's correlation factor gamma of an estimate that averages ``indicator``
+    (shape (L, chains): sample l of each chain): Var = p (1 - p) / N * (1 + gamma).
+
+    Along each chain, from the pooled lag-k autocovariance R(k):
+    gamma = 2 sum_{k=1}^{L-1} (1 - k/L) R(k) / R(0). Chains in the same ``groups`` entry
+    (started from copies of one state) add their cross-covariance, estimated from the
+    products of their sums' deviations (Au & Beck's chains are independent: no such term)."""
+    steps, chains = indicator.shape
+    total = steps * chains
+    p = float(indicator.mean())
+    r0 = p * (1.0 - p)
+    if r0 <= 0.0:
+        return 0.0
+    ind = indicator.astype(np.float64)
+    gamma = 0.0
+    for k in range(1, steps):
+        rk = float((ind[:-k] * ind[k:]).sum()) / (total - k * chains) - p * p
+        gamma += 2.0 * (1.0 - k / steps) * rk / r0
+    if groups is not None:
+        dev = ind.sum(axis=0) - steps * p  # each chain's sum, centred
+        by_group = np.bincount(groups, weights=dev)
+        # sum over ordered pairs of distinct chains in a group = (sum)^2 - sum of squares
+        cross = float((by_group**2).sum() - (dev**2).sum())
+        gamma += cross / (total * r0)
+    return gamma
+
+
+def _groups(seed_values: np.ndarray) -> np.ndarray:
+    """Chains whose seeds have the same value (copies of one state) share a group number."""
+    return np.unique(seed_values, return_inverse=True)[1].ravel()
+
+
+def _cut(values: np.ndarray, seeds: int, threshold: float) -> tuple[float, int]:
+    """The level's cut between the ``seeds``-th largest value and the next smaller distinct
+    one, and how many values lie above it (``seeds``, or more where repeated chain states tie
+    at the cut). ValueError if no value lies below the ``seeds``-th largest (an atom)."""
+    ordered = np.sort(values)[::-1]
+    w = ordered[seeds - 1]
+    lower = ordered[ordered < w]
+    if len(lower) == 0:
+        tied = int((values == w).sum())
+        raise ValueError(
+            f"the model's values have an atom: {tied} of {len(values)} samples of a level share "
+            f"the value {w!r}, so no level can be cut there on the way to threshold = "
+            f"{threshold!r} (a constant model; a metric that is 0 for most flights; one that "
+            f"saturates below the threshold, which it can then never exceed)"
+        )
+    below = lower[0]
+    cut = 0.5 * (w + below) if np.isfinite(w) else np.nextafter(below, np.inf)
+    if not np.isfinite(cut):  # w = +inf and below = +-huge: any number between works
+        cut = below
+    return float(cut), int((values > cut).sum())
+
+
+def _lognormal_s(cov: float) -> float:
+    return math.sqrt(math.log1p(cov * cov))
+
+
+def subset_simulation(
+    model: Model,
+    dimension: int,
+    threshold: float,
+    *,
+    per_level: int = 1000,
+    p0: float = 0.1,
+    seed: int = 0,
+    max_levels: int | None = None,
+    name: str = "the model",
+) -> SubsetRun:
+    """Estimate P(model(xi) > threshold) for xi ~ N(0, I_dimension) by subset simulation.
+
+    Level 0 is plain Monte Carlo with ``per_level`` samples. Each later level starts
+    ``p0 * per_level`` Markov chains from the previous level's best samples (the seeds, each
+    the first sample of its chain) and moves them ``1/p0 - 1`` steps by preconditioned
+    Crank-Nicolson: candidate = sqrt(1 - sigma^2) x + sigma z, z ~ N(0, I), kept if its value
+    lies above the level's cut, else the chain repeats its state. The candidate of a standard
+    normal x is exactly standard normal in any dimension, so only the cut rejects and the
+    acceptance does not collapse as the dimension grows. sigma is the same for every chain and
+    every step of a level (so the kernel leaves the level's conditional law invariant) and is
+    steered between levels towards TARGET_ACCEPTANCE. It is deliberately the same in every
+    component: scaling it by the seeds' per-component spread (Papaioannou et al.'s aCS) makes
+    the kernel depend on the states it starts from, which in 1000 dimensions with 100 seeds
+    biases a sum-of-squares tail low by a factor of five (docs/rare-events.md).
+
+    Evaluations: ``per_level + (levels - 1) * per_level * (1 - p0)``, exactly.
+    """
+    per_level, p0, max_levels = check_settings(per_level, p0, max_levels)
+    dimension = check_int("dimension", dimension, 1, 2**40)
+    seed = check_int("seed", seed)
+    threshold = check_threshold(threshold)
+    length = round(1.0 / p0)
+    seeds = per_level // length
+    # States, candidates and a product of them, the running best, a non-final level's
+    # failures (fewer than `seeds`).
+    check_memory(
+        f"subset simulation in {dimension} dimensions with {seeds} chains",
+        5 * seeds * dimension * _F8,
+    )
+
+    rng = np.random.default_rng(seed)
+    evaluate = _Evaluator(model, name)
+    levels: list[Level] = []
+    spread = INITIAL_SPREAD
+    seeds_xi = np.empty((0, dimension))
+    seeds_val = np.empty(0)
+    cov2 = 0.0
+    product = 1.0
+    closest = -math.inf
+    for level in range(max_levels):
+        best = _Best(seeds, dimension)
+        failures = _Failures(seeds, per_level)
+        values = np.empty((length, seeds))  # sample l of chain c (level 0: block l, row c)
+        accepted = 0
+        if level == 0:
+            for block in range(length):
+                xi = rng.standard_normal((seeds, dimension))
+                v = evaluate(xi)
+                values[block] = v
+                best.offer(xi, v)
+                hit = v > threshold
+                failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
+        else:
+            state = seeds_xi  # the previous level's best: ours to move in place
+            value = seeds_val.copy()
+            cut = levels[-1].threshold
+            sigma = spread
+            rho = math.sqrt(1.0 - sigma * sigma)
+            values[0] = value
+            best.offer(state, value)
+            hit = value > threshold
+            failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
+            candidate = np.empty_like(state)
+            for step in range(1, length):
+                # In place: no temporary of the chains' size beyond the candidate itself.
+                rng.standard_normal(out=candidate)
+                candidate *= sigma
+                candidate += rho * state
+                v = evaluate(candidate)
+                move = v > cut
+                accepted += int(move.sum())
+                state[move] = candidate[move]
+                value[move] = v[move]
+                values[step] = value
+                best.offer(state, value)
+                # A chain's failure state is recorded when reached, then its copies counted.
+                new = move & (value > threshold)
+                held = ~move & (value > threshold)
+                failures.add(state[new], value[new], np.flatnonzero(new), step)
+                failures.hold(np.flatnonzero(held))
+        flat = values.ravel()
+        closest = max(closest, float(flat.max()))
+        n_fail = int((flat > threshold).sum())
+        rate = accepted / (seeds * (length - 1)) if level else math.nan
+        last = n_fail >= seeds or level == max_levels - 1
+        # The last level's fraction is of the threshold itself (when anything crossed it).
+        cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds, threshold)
+        p = above / per_level
+        # Chains started from copies of one state (a repeated chain state among the seeds)
+        # are correlated with each other, not only along themselves: group them by seed.
+        gamma = chain_gamma(values > cut, _groups(values[0])) if level else 0.0
+        cov_level = math.sqrt((1.0 - p) / (per_level * p) * (1.0 + gamma))
+        flights = per_level if level == 0 else seeds * (length - 1)
+        levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level,
+                            spread if level else math.nan))  # fmt: skip
+        if last:
+            found = n_fail > 0
+            if found:
+                cov2 += cov_level**2
+            fx, fv, fc, fch, fst = failures.arrays(dimension) if found else _none(dimension)
+            return SubsetRun(
+                probability=product * p if found else None,
+                cov=math.sqrt(cov2) if found else None,
+                upper_bound=None if found else product * p,
+                levels=levels,
+                flights=evaluate.count,
+                failure_xi=fx,
+                failure_values=fv,
+                failure_copies=fc,
+                failure_chain=fch,
+                failure_step=fst,
+                closest=closest,
+                dimension=dimension,
+                threshold=threshold,
+                per_level=per_level,
+                p0=p0,
+                seed=seed,
+                max_levels=max_levels,
+            )
+        cov2 += cov_level**2
+        product *= p
+        if level:
+            # Steer the step towards the target acceptance (Papaioannou et al.'s rule, applied
+            # once per level so that every chain of a level moves by the same kernel).
+            spread = min(spread * math.exp(rate - TARGET_ACCEPTANCE), 1.0)
+        seeds_xi, seeds_val = best.xi, best.values
+    raise AssertionError("unreachable: the last level returns")  # pragma: no cover
+
+
+def lognormal_interval(
+    probability: float, cov: float, confidence: float = 0.95
+) -> tuple[float, float]:
+    """The interval P * exp(-+ z s), s^2 = log(1 + cov^2): P taken as lognormal with the
+    estimated coefficient of variation (a product of level fractions is skewed to the right)."""
+    from scipy.stats import norm
+
+    z = float(norm.ppf(0.5 + confidence / 2))
+    s = _lognormal_s(cov)
+    return probability * math.exp(-z * s), probability * math.exp(z * s)
