@@ -23,7 +23,7 @@ from quadrs.sweep import SweepResult
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel"]  # fmt: skip
-RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at"]
+RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at", "status"]
 TABLE3_COLUMNS = [
     "phase", "IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %",
     "ITAE PD", "ITAE SMC", "P_ITAE %", "paper P_ITAE %", "n", "diverged",

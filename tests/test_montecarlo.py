@@ -22,7 +22,8 @@ def test_runs_table_layout(short: Scenario) -> None:
     mc = quadrs.monte_carlo(short, runs=6, seed=1, workers=2, progress=False)
     r = mc.runs
     assert list(r.columns) == ["realisation", "controller", "phase", *METRICS, "diverged",
-                               "diverged_at"]  # fmt: skip
+                               "diverged_at", "status"]  # fmt: skip
+    assert ((r["status"] == "ok") == ~r["diverged"]).all()
     assert len(r) == 6 * 2 * 3
     assert sorted(r["realisation"].unique()) == list(range(6))
     assert set(r["controller"]) == {"pd", "smc"}
