@@ -88,6 +88,12 @@ class MonteCarloResult:
             f"{self.seed}, {diverged} diverged{note}; {self.scenario!r}>"
         )
 
+    def _repr_html_(self) -> str:
+        """In a notebook: Table 3 (IAE and ITAE) with its counts, as HTML."""
+        from quadrs.display import monte_carlo
+
+        return monte_carlo(self)
+
     @property
     def realisations(self) -> np.ndarray:
         """Indices of the realisations present, sorted."""
