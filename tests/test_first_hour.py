@@ -420,10 +420,22 @@ def test_results_display_as_html_tables(short: Scenario) -> None:
     flight = quadrs.simulate(short, "pd")
     sw = quadrs.sweep(short, {"gust.w20": [5.0, 10.0]}, runs=2, progress=False)
     report = quadrs.stability(short, "smc")
-    for obj in (mc, flight, sw, report):
+    tuned = quadrs.optimize(
+        short, "pd", {"controller.pd.kd[2]": (1.0, 3.0)}, runs=2, method="nelder-mead", maxiter=2
+    )
+    sa = quadrs.sensitivity(
+        short.override(
+            {"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.2, "high": 0.25}}}
+        ),
+        runs=4,
+        controllers=("pd",),
+    )
+    for obj in (mc, flight, sw, report, tuned, sa):
         html = obj._repr_html_()
         assert "<table" in html and "&lt;" in html  # the escaped repr heads it
     assert f"{flight.metrics['iae'].iloc[0]:.4g}" in flight._repr_html_()
     iae = mc.summary().loc[("iae", "P1"), "pd_mean"]
     assert f"{iae:.2g}"[:3] in mc._repr_html_()
     assert "lateral x/pitch" in report._repr_html_()
+    assert "untuned (tuning seed)" in tuned._repr_html_() and "P3" in tuned._repr_html_()
+    assert "payload.mass" in sa._repr_html_()
