@@ -710,9 +710,8 @@ def sweep_metric(
                 _errorline(a, sub, keys[0], ctrl, style, sub_label)
         # The long label wrapped to fit beside one panel: unwrapped it overlaps its neighbours'.
         ylabel = textwrap.fill(_unit(metric), 28)
-        title = f"{_short(metric)}, {phase}: mean and 95% CI"
-        a.set(xlabel=_unit(keys[0]), ylabel=ylabel, title=title)
-        _legend(a)
+        a.set(xlabel=_unit(keys[0]), ylabel=ylabel, title=f"{_short(metric)}, {phase}")
+        _legend(a, title="mean and 95% CI", title_fontsize="small")
     return _finish(fig, path)
 
 
