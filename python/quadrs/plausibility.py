@@ -21,6 +21,7 @@ import math
 import warnings
 from typing import Any
 
+from quadrs._core import ScenarioError
 from quadrs.units import unit
 
 
@@ -105,12 +106,11 @@ def findings(data: dict[str, Any]) -> list[str]:
 def check(data: dict[str, Any]) -> None:
     """Refuse what cannot fly (:class:`~quadrs.ScenarioError` naming the keys, with the
     numbers); warn once per implausible value (:class:`PlausibilityWarning`)."""
-    from quadrs.scenario import scenario_error
-
     refused = refusals(data)
     if refused:
-        keys = ", ".join(k for k, _ in refused)
-        raise scenario_error("; ".join(m for _, m in refused), keys)
+        error = ScenarioError("; ".join(m for _, m in refused))
+        error.key = ", ".join(k for k, _ in refused)  # as the engine's errors name theirs
+        raise error
     for message in findings(data):
         # Attributed to this line, not the caller's: Python's default filter then shows each
         # message once per session, however many scenarios (a sweep's points) repeat it.

@@ -108,9 +108,7 @@ def shows_paper(scenario: Any) -> bool:
     """Whether the paper's own Table 3 applies to runs of ``scenario``: the paper preset,
     flown at any integrator step (any other change, even one that keeps the phase names
     P1-P3, makes the paper's numbers a different problem's)."""
-    from quadrs.scenario import Scenario
-
-    return set(scenario.differences(Scenario.paper())) <= {"integrator.dt"}
+    return set(scenario.differences(type(scenario).paper())) <= {"integrator.dt"}
 
 
 #: Under the Table-3 heading when the paper's P is shown: why ours differs, and where it says
