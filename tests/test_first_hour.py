@@ -91,36 +91,25 @@ def test_the_cli_prints_the_note_as_a_note_and_keeps_the_loud_warning(
 
 
 # -- 2. require_stable judges the modes the scenario excites ----------------------------------
+def tune_altitude_gain(scenario: Scenario) -> quadrs.OptimizeResult:
+    """A few evaluations of the SMC's altitude gain lambda_z (a vertical, stable mode)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the loud warning where the lateral modes are excited
+        return quadrs.optimize(scenario, "smc", {"controller.smc.lambda[2]": (2.5, 4.0)}, runs=2,
+                               method="nelder-mead", maxiter=3)  # fmt: skip
+
+
 def test_require_stable_ignores_modes_the_flight_does_not_excite(short: Scenario) -> None:
     """The paper's SMC is unstable laterally, which vertical flights never excite: tuning a
     vertical gain must fly candidates, not reject every one."""
-    result = quadrs.optimize(
-        short,
-        "smc",
-        {"controller.smc.lambda[2]": (2.5, 4.0)},
-        runs=2,
-        method="nelder-mead",
-        maxiter=3,
-    )
-    h = result.history
+    h = tune_altitude_gain(short).history
     assert h["flown"].all() and not h["penalised"].any()
     assert not h["stable"].any()  # unstable in some mode, all the same
     assert (h["unstable_modes"] == "").all()
 
 
 def test_a_rejection_names_the_excited_mode(short: Scenario) -> None:
-    s = short.override({"gust.components": ["vertical", "lateral"]})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = quadrs.optimize(
-            s,
-            "smc",
-            {"controller.smc.lambda[2]": (2.5, 4.0)},
-            runs=2,
-            method="nelder-mead",
-            maxiter=2,
-        )
-    h = result.history
+    h = tune_altitude_gain(short.override({"gust.components": ["vertical", "lateral"]})).history
     assert not h["flown"].any() and h["penalised"].all()
     assert h["unstable_modes"].str.contains("SMC lateral x/pitch +1.31 ± 3.90j", regex=False).all()
 
@@ -129,22 +118,11 @@ def test_tune_names_the_mode_that_rejected_every_candidate(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], short: Scenario
 ) -> None:
     s = scenario_file(tmp_path, short.override({"gust.components": ["vertical", "lateral"]}))
-    code, out, err = cli(
-        capsys,
-        "tune",
-        "--scenario",
-        s,
-        "--param",
-        "controller.smc.lambda[2]=2.5:4",
-        "--runs",
-        "2",
-        "--method",
-        "nelder-mead",
-        "--maxiter",
-        "2",
-        "--out",
-        str(tmp_path / "t.toml"),
+    args = (
+        f"tune --scenario {s} --param controller.smc.lambda[2]=2.5:4 --runs 2 --method"
+        f" nelder-mead --maxiter 2 --out {tmp_path / 't.toml'}"
     )
+    code, out, err = cli(capsys, *args.split())
     assert code == 1
     assert "lateral x/pitch" in out and "lateral x/pitch" in err
 
@@ -293,28 +271,12 @@ def test_tune_reports_the_untuned_objective_and_every_phase(short: Scenario) -> 
 def test_tune_prints_untuned_and_the_phases_table(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], short: Scenario
 ) -> None:
-    code, out, _ = cli(
-        capsys,
-        "tune",
-        "--scenario",
-        scenario_file(tmp_path, short),
-        "--controller",
-        "pd",
-        "--param",
-        "controller.pd.kd[2]=0.5:4",
-        "--objective",
-        "max_accel",
-        "--phase",
-        "P2",
-        "--runs",
-        "2",
-        "--method",
-        "nelder-mead",
-        "--maxiter",
-        "3",
-        "--out",
-        str(tmp_path / "t.toml"),
+    args = (
+        f"tune --scenario {scenario_file(tmp_path, short)} --controller pd --param"
+        f" controller.pd.kd[2]=0.5:4 --objective max_accel --phase P2 --runs 2 --method"
+        f" nelder-mead --maxiter 3 --out {tmp_path / 't.toml'}"
     )
+    code, out, _ = cli(capsys, *args.split())
     assert code == 0
     assert re.search(r"objective \(max_accel over P2, seed 0\): \S+ \(untuned: \S+\)", out)
     assert "max_accel per phase, untuned -> tuned" in out and "in objective" in out
@@ -323,20 +285,11 @@ def test_tune_prints_untuned_and_the_phases_table(
 def test_sweep_takes_limit(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], short: Scenario
 ) -> None:
-    code, out, _ = cli(
-        capsys,
-        "sweep",
-        "--scenario",
-        scenario_file(tmp_path, short),
-        "--param",
-        "gust.w20",
-        "--values",
-        "5,10",
-        "--runs",
-        "3",
-        "--limit",
-        "max_accel=1.0",
+    args = (
+        f"sweep --scenario {scenario_file(tmp_path, short)} --param gust.w20 --values"
+        f" 5,10 --runs 3 --limit max_accel=1.0"
     )
+    code, out, _ = cli(capsys, *args.split())
     assert code == 0 and "P(metric > threshold)" in out and "gust.w20" in out
 
 
@@ -356,18 +309,11 @@ def test_the_paper_column_is_for_the_paper_preset_only(
 def test_sensitivity_draws_no_progress_bar_into_a_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], short: Scenario
 ) -> None:
-    code, _, err = cli(
-        capsys,
-        "sensitivity",
-        "--scenario",
-        scenario_file(tmp_path, short),
-        "--runs",
-        "4",
-        "--disperse",
-        "payload.mass=uniform(0.2,0.25)",
-        "--controllers",
-        "pd",
+    args = (
+        f"sensitivity --scenario {scenario_file(tmp_path, short)} --runs 4 --disperse"
+        f" payload.mass=uniform(0.2,0.25) --controllers pd"
     )
+    code, _, err = cli(capsys, *args.split())
     assert code == 0 and "quadrs sensitivity" not in err and "%|" not in err
 
 
