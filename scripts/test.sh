@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install everything the tests need into .venv, then run every check: Rust format, lints and
-# unit tests; the Python package built with maturin; ruff, mypy, the stub check and pytest;
+# unit tests; the Python package built with maturin; ruff, mypy, the stub check, the
+# documentation site (mkdocs build --strict: warnings are errors) and pytest;
 # then the package built, installed and smoke-tested on the lowest supported and the newest
 # installed Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
 set -euo pipefail
@@ -8,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e '.[test,dask]'
+.venv/bin/python -m pip install -q -e '.[test,dask,docs]'
 
 cargo fmt --check
 cargo clippy --all-targets -q -- -D warnings
@@ -18,6 +19,8 @@ cargo test --release -q
 .venv/bin/ruff format --check python tests benches examples scripts
 .venv/bin/python -m mypy python/quadrs
 .venv/bin/python -m mypy.stubtest quadrs._core --allowlist tests/stubtest-allowlist.txt
+# The documentation site, warnings as errors (about 10 s): broken links, bad docstrings.
+NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mktemp -d)"
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 .venv/bin/python -m pytest -q "$@"

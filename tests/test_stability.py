@@ -219,7 +219,7 @@ def test_monte_carlo_warns_on_excited_unstable_smc(short: Scenario) -> None:
 
 def test_monte_carlo_warns_on_unexcited_unstable_smc(short: Scenario) -> None:
     (msg,) = mc_warnings(short, ("pd", "smc"))
-    assert msg.startswith("SMC gains are UNSTABLE at hover in modes this scenario does not excite")
+    assert msg.startswith("SMC: unstable at hover only in modes this flight does not excite")
     assert "\n" not in msg and len(msg) < 160  # one short line
 
 

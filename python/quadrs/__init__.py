@@ -9,10 +9,17 @@ from quadrs.gust import gust_scales, gust_series
 from quadrs.linear import LinearModel, linearize
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.optimize import OptimizeResult, optimize
+from quadrs.plausibility import PlausibilityWarning
 from quadrs.rare import RareEventComparison, RareEventResult, rare_event
 from quadrs.scenario import Scenario
 from quadrs.sensitivity import SensitivityResult, sensitivity
-from quadrs.stability import StabilityReport, StabilityWarning, StepSizeWarning, stability
+from quadrs.stability import (
+    StabilityNote,
+    StabilityReport,
+    StabilityWarning,
+    StepSizeWarning,
+    stability,
+)
 from quadrs.sweep import sweep
 
 __all__ = [
@@ -21,11 +28,13 @@ __all__ = [
     "LinearModel",
     "MonteCarloResult",
     "OptimizeResult",
+    "PlausibilityWarning",
     "RareEventComparison",
     "RareEventResult",
     "Scenario",
     "ScenarioError",
     "SensitivityResult",
+    "StabilityNote",
     "StabilityReport",
     "StabilityWarning",
     "StepSizeWarning",

@@ -62,7 +62,7 @@ def _scenario_options() -> argparse.ArgumentParser:
         help="override one dotted key, repeatable; VALUE in TOML syntax and SI units, e.g. "
         "payload.mass=0.44 (kg), gust.w20=15 (m/s), payload.natural_frequency=4 (Hz), "
         "integrator.duration=10 (s), 'trajectory.interpolation=\"min_jerk\"'; "
-        "`quadrs scenario keys` lists every key with its value",
+        "`quadrs scenario keys` lists every key with its value and unit",
     )
     g.add_argument(
         "--disperse",
@@ -129,14 +129,18 @@ def _table_options(p: argparse.ArgumentParser) -> None:
         help="print Table 3 in one wide row per phase with full intervals (about 190 columns)",
     )
     p.add_argument(
-        "--no-paper", action="store_true", help="leave the paper's own P values out of Table 3"
+        "--no-paper",
+        action="store_true",
+        help="leave the paper's own P values out of Table 3 (they are shown for the paper "
+        "preset only)",
     )
 
 
 def _print_table3(mc: Any, args: argparse.Namespace) -> None:
-    from quadrs.report import format_table3
+    from quadrs.report import format_table3, shows_paper
 
-    print(format_table3(mc.summary(), wide=args.wide, paper=not args.no_paper))
+    paper = not args.no_paper and shows_paper(mc.scenario)  # the paper's P: its own problem only
+    print(format_table3(mc.summary(), wide=args.wide, paper=paper))
 
 
 def _controller_names() -> tuple[str, ...]:
@@ -286,6 +290,7 @@ def _add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument("--values2", type=_values, metavar="V1,V2,...", help="values of --param2")
     _batch_options(p, 100, "write the tidy runs table of every point (swept keys as columns)")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write the sweep's figures here")
+    _limit_options(p)
 
 
 def _values(text: str) -> list[Any]:
@@ -330,7 +335,7 @@ def _limit_options(p: argparse.ArgumentParser) -> None:
         default=[],
         help="print P(METRIC > THRESHOLD) per controller and phase with its exact 95%% "
         "interval and the runs needed for a chosen width, e.g. max_accel=2.0 (m/s^2); "
-        "repeatable; diverged runs count as exceeding",
+        "repeatable; a run counts as exceeding in the phase it diverged in and later ones",
     )
     p.add_argument(
         "--half-width",
@@ -368,8 +373,8 @@ def _print_limits(result: Any, args: argparse.Namespace) -> None:
     if not args.limit:
         return
     print(
-        "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; diverged runs count as "
-        "exceeding:"
+        "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; a diverged run counts as "
+        "exceeding from the phase it diverged in:"
     )
     _print_frame(limits_table(result, args.limit, args.half_width / 100))
     if {"pd", "smc"} <= set(result.controllers):
@@ -458,7 +463,7 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
         help="which uncertain parameter matters most: Sobol' indices",
         description="Fly a Saltelli design over the scenario's dispersed keys (--disperse or "
         "a [dispersions] table) and the gust realisation, and print each key's first-order "
-        "(S1) and total (ST) Sobol' index of one metric with 95%% intervals, largest first.",
+        "(S1) and total (ST) Sobol' index of one metric with 95% intervals, largest first.",
     )
     p.add_argument(
         "--runs",
@@ -490,7 +495,11 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help="write every index here")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write index bar charts here")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none anyway unless stderr is a terminal)",
+    )
 
 
 def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -499,7 +508,7 @@ def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
         help="show a scenario, list its keys or the presets",
         description="Inspect scenarios: `show` prints the full TOML (SI units) laid out like "
         "its preset, with the preset's comments and units, `keys` every dotted key with its "
-        "value, `presets` the shipped presets.",
+        "value and unit, `presets` the shipped presets.",
     )
     ssub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     show = ssub.add_parser("show", parents=[common], help="print the scenario as TOML")
@@ -509,7 +518,7 @@ def _add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
         help="print only the keys that differ from the preset the scenario starts from "
         "(its `base`, else the --preset, else paper), as KEY = VALUE  # preset: OLD",
     )
-    ssub.add_parser("keys", parents=[common], help="list every dotted key = current value")
+    ssub.add_parser("keys", parents=[common], help="list every dotted key = current value  # unit")
     ssub.add_parser("presets", help="list the shipped presets")
 
 
@@ -808,6 +817,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         saved = _save(result.to_parquet, args.out)
     if not result.runs.empty:
         _print_frame(result.compact())
+        _print_limits(result, args)
     if args.plots is not None and not result.runs.empty:
         _sweep_plots(result, args.plots)
     return EXIT_INTERRUPT if result.interrupted else EXIT_OK if saved else EXIT_FAIL
@@ -871,7 +881,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         seed=args.seed,
         controllers=args.controllers,
         workers=args.workers,
-        progress=not args.no_progress,
+        progress=_progress(args),
         gust=not args.no_gust_factor,
     )
     if args.out is not None:
@@ -980,8 +990,15 @@ def cmd_scenario(args: argparse.Namespace) -> int:
             line = f"# {key} not set" if new is None else f"{key} = {toml_value(new)}"
             print(f"{line:<37} # {was}")
     else:
-        for key in scenario.keys():
-            print(f"{key} = {toml_value(scenario[key])}")
+        from quadrs.units import unit
+
+        lines = [(f"{key} = {toml_value(scenario[key])}", key) for key in scenario.keys()]
+        width = min(max(len(line) for line, _ in lines), 60)
+        for line, key in lines:
+            try:
+                print(f"{line:<{width}}  # {unit(key)}")
+            except KeyError:  # a key the units table does not know (the engine refuses those)
+                print(line)
     return EXIT_OK
 
 
@@ -1018,7 +1035,8 @@ def _terse_warnings() -> Iterator[None]:
         text = _cli_words(_one_line(str(message)))
         if text not in seen:
             seen.add(text)
-            print(f"quadrs: warning: {text}", file=sys.stderr)
+            kind = "note" if category.__name__ == "StabilityNote" else "warning"  # calm: harmless
+            print(f"quadrs: {kind}: {text}", file=sys.stderr)
 
     with warnings.catch_warnings():
         warnings.showwarning = show

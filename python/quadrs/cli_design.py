@@ -45,7 +45,8 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         help="tune gains or calibrate parameters against a Monte Carlo objective",
         description="Minimise the mean over --runs gust realisations (the same ones for every "
         "candidate) of --objective summed over --phase, over the --param keys within their "
-        "bounds. Candidates not stable at hover are rejected before flying. Writes a scenario "
+        "bounds. Candidates unstable at hover in a mode the flight excites are rejected before "
+        "flying (the mode is named). Writes a scenario "
         "file that bases on the input and holds the tuned values (see docs/design-loop.md).",
     )
     p.add_argument(
@@ -211,21 +212,27 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         popsize=args.popsize,
     )
     h = result.history
+    rejected = h["unstable_modes"].astype(bool) & ~h["flown"]
+    modes = ", ".join(dict.fromkeys("; ".join(h.loc[rejected, "unstable_modes"]).split("; ")))
+    why = f": {modes}" if rejected.any() else ""
     print(
-        f"{len(h)} evaluations ({int((~h['stable']).sum())} unstable at hover, "
-        f"{int(h['penalised'].sum())} penalised){' - interrupted' if result.interrupted else ''}"
+        f"{len(h)} evaluations ({int(rejected.sum())} rejected as unstable at hover in a mode "
+        f"the flight excites{why}; {int(h['penalised'].sum())} penalised)"
+        f"{' - interrupted' if result.interrupted else ''}"
     )
     for key, value in result.best.items():
         print(f"{key} = {value:.6g}")
     print(f"objective ({args.objective} over {', '.join(phases)}, seed {args.seed}): "
-          f"{result.objective:.6g}")  # fmt: skip
+          f"{result.objective:.6g} (untuned: {result.baseline:.6g})")  # fmt: skip
     if result.holdout is not None:
         ho = result.holdout
         print(f"held out (seed {ho.seed}, {ho.runs} runs): {ho.objective:.6g} "
               f"[95% CI {ho.low:.6g}, {ho.high:.6g}]")  # fmt: skip
+    _print_phase_effects(result.phase_effects, args.objective, phases)
     if bool(h.loc[h["objective"].idxmin(), "penalised"]):
-        print("quadrs tune: no admissible candidate (every one was unstable at hover, diverged "
-              "or gave a non-finite objective): nothing written", file=sys.stderr)  # fmt: skip
+        print("quadrs tune: no admissible candidate (every one was unstable at hover in a mode "
+              f"the flight excites{why}, diverged or gave a non-finite objective): nothing "
+              "written", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
     text = _tuned_toml(args, args.out, result.best, result.scenario)
     atomic_write_bytes(args.out, text.encode())
@@ -240,6 +247,22 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
         return EXIT_INTERRUPT
     return EXIT_OK
+
+
+def _print_phase_effects(effects: Any, metric: str, tuned: tuple[str, ...]) -> None:
+    """Every phase's mean ``metric`` untuned and tuned (same gusts): a phase outside the
+    objective that the tuning made worse shows, and is named on stderr."""
+    if effects is None:
+        return
+    print(f"\n{metric} per phase, untuned -> tuned (same gusts; worse: the paired 95% interval "
+          "of the change lies above 0):")  # fmt: skip
+    table = effects[["untuned", "tuned", "change_pct", "worse"]].copy()
+    table["in objective"] = [p in tuned for p in table.index]
+    print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    hurt = [p for p, r in effects.iterrows() if r["worse"] and p not in tuned]
+    if hurt:
+        print(f"quadrs tune: note: the tuned values raise {metric} in {', '.join(hurt)}, "
+              "outside the objective", file=sys.stderr)  # fmt: skip
 
 
 def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:

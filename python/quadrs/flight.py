@@ -101,6 +101,12 @@ class Flight:
             f"{self.realisation}, {span}, {end}; {self.scenario!r}>"
         )
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the per-phase metrics as an HTML table."""
+        from quadrs.display import render
+
+        return render(repr(self), [("metrics per phase", self.metrics.set_index("phase"))])
+
     @property
     def diverged(self) -> bool:
         """True if the state went non-finite or ran away (see ``divergence.*`` keys)."""

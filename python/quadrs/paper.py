@@ -21,7 +21,15 @@ from quadrs._paper_grid import FREQUENCIES, MASSES
 from quadrs.flight import Flight, simulate
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
 from quadrs.parquet import atomic_write_bytes, atomic_write_frame
-from quadrs.report import PAPER_TABLE3, ordering, paper_comparison, table3, to_markdown, toml_value
+from quadrs.report import (
+    PAPER_TABLE3,
+    ordering,
+    paper_comparison,
+    phase_diverged,
+    table3,
+    to_markdown,
+    toml_value,
+)
 from quadrs.scenario import Scenario
 from quadrs.sweep import SweepResult, sweep
 
@@ -532,8 +540,9 @@ def _single_p(flights: dict[str, Flight]) -> str | None:
 
 
 def p_per_realisation(runs: pd.DataFrame, metric: str) -> pd.DataFrame:
-    """Per realisation and phase, P = 100 SMC/PD of ``metric`` (non-diverged pairs only)."""
-    ok = runs[~runs["diverged"].astype(bool)]
+    """Per realisation and phase, P = 100 SMC/PD of ``metric`` (pairs that both flew through
+    the phase: see :func:`quadrs.report.phase_diverged`)."""
+    ok = runs[~phase_diverged(runs)]
     wide = ok.pivot_table(index=["phase", "realisation"], columns="controller", values=metric)
     return (100 * wide["smc"] / wide["pd"]).rename("P").reset_index()
 

@@ -31,6 +31,8 @@ from matplotlib.patches import Patch
 
 from quadrs.flight import Flight
 from quadrs.parquet import atomic_write
+from quadrs.report import phase_diverged
+from quadrs.units import UNITS as KEY_UNITS
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
 FMAX = 10.0
@@ -50,18 +52,8 @@ UNITS = {
     "peak_amplitude": "m",
     "max_accel": "m/s²",
     "rms_accel": "m/s²",
-    "payload.natural_frequency": "Hz",
-    "payload.stiffness": "N/m",
-    "payload.mass": "kg",
-    "payload.damping": "N s/m",
-    "payload.drag_area": "m²",
-    "gust.w20": "m/s",
-    "gust.airspeed": "m/s",
-    "gust.altitude": "m",
-    "gust.air_density": "kg/m³",
-    "vehicle.mass": "kg",
-    "vehicle.drag_area": "m²",
-    "integrator.dt": "s",
+    # every scenario key, from the package's one table of them (quadrs.units)
+    **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
 }
 #: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
 #: labels a metric or key through these (a key not listed shows as itself).
@@ -616,7 +608,7 @@ def distributions(
     for key in keys:
         if key not in runs.columns:
             raise ValueError(f"by: {key!r} is not a column of the runs")
-    ok = runs[~runs["diverged"].astype(bool)]
+    ok = runs[~phase_diverged(runs)]
     phases = [str(p) for p in pd.unique(runs["phase"])]
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
     colors = [_style(k, i)["color"] for i, k in enumerate(ctrls)]
@@ -633,7 +625,8 @@ def distributions(
                 here = _at(ok, keys, tuple(point))
                 for i, ctrl in enumerate(ctrls):
                     data.append(_finite(here, phase, ctrl, metric))
-                    pos.append(j + 1 + (i - (len(ctrls) - 1) / 2) * step)
+                    # Grouped by grid point in a sweep; else one box per controller, on its tick.
+                    pos.append(j + 1 + (i - (len(ctrls) - 1) / 2) * step if keys else i + 1)
                     cols.append(colors[i])
             _dist(a, data, kind, cols, pos, 0.85 * step if keys else 0.5)
             if keys:
@@ -715,9 +708,10 @@ def sweep_metric(
                 if len(keys) > 1:
                     style["color"] = _CYCLE[j % len(_CYCLE)]
                 _errorline(a, sub, keys[0], ctrl, style, sub_label)
-        ylabel = f"{_unit(metric)},\nmean and 95% CI"
+        # The long label wrapped to fit beside one panel: unwrapped it overlaps its neighbours'.
+        ylabel = textwrap.fill(_unit(metric), 28)
         a.set(xlabel=_unit(keys[0]), ylabel=ylabel, title=f"{_short(metric)}, {phase}")
-        _legend(a)
+        _legend(a, title="mean and 95% CI", title_fontsize="small")
     return _finish(fig, path)
 
 
@@ -784,7 +778,7 @@ def exceedance_curves(
     for a, phase in zip(axes, phases, strict=True):
         for i, ctrl in enumerate(ctrls):
             sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
-            div = sel["diverged"].to_numpy(bool)
+            div = phase_diverged(sel)
             curve = survival_curve(sel[metric].to_numpy(float), div, confidence)
             if curve.empty:
                 continue
@@ -842,7 +836,7 @@ def dispersion_scatter(
             a = grid[r, c]
             for i, ctrl in enumerate(mc.controllers):
                 sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
-                ok = ~sel["diverged"].astype(bool)
+                ok = ~phase_diverged(sel)
                 style = _style(ctrl, i)
                 a.scatter(
                     sel.loc[ok, key],

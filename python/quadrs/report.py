@@ -55,39 +55,75 @@ def ratio_ci(num: np.ndarray, den: np.ndarray, confidence: float) -> tuple[float
     return 100 * r, 100 * (r - half), 100 * (r + half)
 
 
+def phase_diverged(runs: pd.DataFrame) -> np.ndarray:
+    """Per row of a runs table: did the flight diverge before this phase ended? The engine
+    keeps the metrics of the phases that ended before a flight diverged (the flight up to then
+    is what it is, whatever came later) and gives NaN for the phase in progress and the later
+    ones; those rows are the diverged ones of their phase."""
+    diverged = runs["diverged"].to_numpy(bool)
+    columns = [m for m in _METRICS if m in runs]
+    if not columns:
+        return diverged
+    return diverged & runs[columns].isna().all(axis=1).to_numpy()
+
+
 def summarise(
     runs: pd.DataFrame,
     controllers: Sequence[str],
     phases: Sequence[str],
     confidence: float = 0.95,
 ) -> pd.DataFrame:
-    """Rows (metric, phase); per controller ``{c}_mean, {c}_ci_low, {c}_ci_high, {c}_n``;
-    with both PD and SMC, ``P, P_ci_low, P_ci_high`` (P = 100 SMC / PD, paired);
-    ``diverged``: realisations in which any controller diverged."""
+    """Rows (metric, phase); per controller ``{c}_mean, {c}_ci_low, {c}_ci_high, {c}_n``
+    (the realisations in the mean) and ``{c}_diverged`` (realisations whose flight diverged
+    before the phase ended, see :func:`phase_diverged`); with both PD and SMC,
+    ``P, P_ci_low, P_ci_high`` (P = 100 SMC / PD, over the realisations both flew through
+    the phase); ``diverged``: realisations in which any controller diverged by the phase's
+    end."""
     if not 0 < confidence < 1:
         raise ValueError(f"confidence must be in (0, 1), got {confidence}")
     rows = []
+    gone = pd.Series(phase_diverged(runs), index=runs.index)
     for metric in [m for m in _METRICS if m in runs]:  # files from older versions lack some
         for phase in phases:
             sel = runs[runs["phase"] == phase]
             wide = sel.pivot(index="realisation", columns="controller", values=metric)
+            lost = gone[sel.index]
             row: dict[str, object] = {"metric": metric, "phase": phase}
             for c in controllers:
                 n, mean, lo, hi = mean_ci(wide[c].to_numpy(float), confidence)
-                row.update({f"{c}_mean": mean, f"{c}_ci_low": lo, f"{c}_ci_high": hi, f"{c}_n": n})
+                mine = lost[(sel["controller"] == c).to_numpy()]
+                row.update({f"{c}_mean": mean, f"{c}_ci_low": lo, f"{c}_ci_high": hi, f"{c}_n": n,
+                            f"{c}_diverged": int(mine.sum())})  # fmt: skip
             if "pd" in controllers and "smc" in controllers:
                 p, lo, hi = ratio_ci(
                     wide["smc"].to_numpy(float), wide["pd"].to_numpy(float), confidence
                 )
                 row.update({"P": p, "P_ci_low": lo, "P_ci_high": hi})
-            row["diverged"] = int(sel.groupby("realisation")["diverged"].any().sum())
+            row["diverged"] = int(lost.groupby(sel["realisation"].to_numpy()).any().sum())
             rows.append(row)
     return pd.DataFrame(rows).set_index(["metric", "phase"])
 
 
-def table3(summary: pd.DataFrame) -> pd.DataFrame:
+def shows_paper(scenario: Any) -> bool:
+    """Whether the paper's own Table 3 applies to runs of ``scenario``: the paper preset,
+    flown at any integrator step (any other change, even one that keeps the phase names
+    P1-P3, makes the paper's numbers a different problem's)."""
+    return set(scenario.differences(type(scenario).paper())) <= {"integrator.dt"}
+
+
+#: Under the Table-3 heading when the paper's P is shown: why ours differs, and where it says
+#: so at length.
+PAPER_NOTE = (
+    "Our P is not the paper's: the paper flew one gust with unstated payload, spring, drag and\n"
+    "gust values, and no setting of them reproduces its P2 (see docs/paper-calibration.md)."
+)
+
+
+def table3(summary: pd.DataFrame, paper: bool = True) -> pd.DataFrame:
     """The paper's Table 3 layout: per phase, IAE and ITAE of PD and SMC and P, as text
-    ``mean [low, high]``, beside the paper's own P."""
+    ``mean [low, high]``, beside the paper's own P (``paper``); ``n``: the fewest realisations
+    in a mean of the phase; ``diverged``: realisations in which any controller diverged by the
+    phase's end."""
 
     def fmt(mean: float, lo: float, hi: float, digits: int) -> str:
         if np.isnan(lo):
@@ -107,10 +143,11 @@ def table3(summary: pd.DataFrame) -> pd.DataFrame:
             out[f"P_{metric.upper()} %"] = [
                 fmt(r["P"], r["P_ci_low"], r["P_ci_high"], 1) for _, r in part.iterrows()
             ]
-            paper = PAPER_TABLE3[f"P_{metric}"].reindex(part.index)
-            out[f"paper P_{metric.upper()} %"] = [
-                "" if np.isnan(v) else f"{v:.2f}" for v in paper.to_numpy(float)
-            ]
+            if paper:
+                ref = PAPER_TABLE3[f"P_{metric}"].reindex(part.index)
+                out[f"paper P_{metric.upper()} %"] = [
+                    "" if np.isnan(v) else f"{v:.2f}" for v in ref.to_numpy(float)
+                ]
     any_part = summary.xs("iae", level="metric")
     frame = pd.DataFrame(out, index=any_part.index)
     frame["n"] = [
@@ -183,23 +220,47 @@ def format_table3(summary: pd.DataFrame, wide: bool = False, paper: bool = True)
     """Table 3 as text for a terminal: by default IAE and ITAE as separate blocks that fit
     100 columns (``mean ± 95 % CI half-width``); ``wide`` gives :func:`table3`'s one-row-per-
     phase form with full intervals. ``paper``: show the paper's P (%) beside ours."""
+    paper = paper and "P" in summary
+    lines = ["Table 3 (Geronel et al. 2023) with the paper's P beside ours", PAPER_NOTE, ""]
+    lines = lines if paper else []
     if wide:
-        frame = table3(summary)
-        if not paper:
-            frame = frame[[c for c in frame.columns if not str(c).startswith("paper")]]
         with pd.option_context("display.width", 250, "display.max_columns", None):
-            return frame.to_string()
-    lines = []
+            return "\n".join([*lines, table3(summary, paper).to_string(), *counts(summary)])
     for metric, block in table3_blocks(summary, paper=paper).items():
         name, unit = METRIC_LABELS[metric]
         lines += [f"{name} ({unit}): mean ± 95% CI half-width", block.to_string(), ""]
-    part = summary.xs("iae", level="metric")
-    n = [int(r[[c for c in r.index if c.endswith("_n")]].min()) for _, r in part.iterrows()]
-    diverged = int(part["diverged"].max()) if "diverged" in part else 0
-    lines.append(f"n = {min(n)} realisations per controller and phase; diverged: {diverged}")
-    if paper and "P" in part:
-        lines.append("paper P: the paper's Table 3, from its one gust realisation")
-    return "\n".join(lines)
+    return "\n".join([*lines, *counts(summary)])
+
+
+def counts(summary: pd.DataFrame) -> list[str]:
+    """The footer of a Table-3 summary: realisations in the means and diverged ones, per
+    controller and phase (one line when every controller and phase has the same)."""
+    part = summary.xs(summary.index.get_level_values("metric")[0], level="metric")
+    ctrls = [str(c)[:-2] for c in part.columns if str(c).endswith("_n")]
+
+    def per_phase(column: str) -> str:
+        values = part[column].astype(int)
+        if values.nunique() == 1:
+            return f"{values.iloc[0]} in every phase"
+        return ", ".join(f"{phase} {v}" for phase, v in values.items())
+
+    n = {int(v) for c in ctrls for v in part[f"{c}_n"]}
+    if len(n) == 1:
+        lines = [f"n = {n.pop()} realisations per controller and phase"]
+    else:
+        ns = "; ".join(f"{c.upper()} {per_phase(f'{c}_n')}" for c in ctrls)
+        lines = [f"n (realisations in the means): {ns}"]
+    if not all(f"{c}_diverged" in part for c in ctrls):  # a summary from an older version
+        lines[0] += f"; diverged: {int(part['diverged'].max())}"
+    elif not any(part[f"{c}_diverged"].any() for c in ctrls):
+        lines[0] += "; none diverged"
+    else:
+        div = "; ".join(f"{c.upper()} {per_phase(f'{c}_diverged')}" for c in ctrls)
+        lines += [
+            f"diverged by the phase's end (left out of its means and of P): {div}",
+            "A phase that ended before its flight diverged keeps its metrics (docs/model.md §6).",
+        ]
+    return lines
 
 
 #: The paper's spectral-peak ratio (percent, SMC/PD, read from its text: "about 35 %" in P1,

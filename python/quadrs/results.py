@@ -27,7 +27,9 @@ class MonteCarloResult:
     """Everything a batch produced.
 
     ``runs``: one row per (realisation, controller, phase) with the metric columns,
-    ``diverged`` and ``diverged_at`` (s, NaN if it did not). Diverged rows keep NaN metrics.
+    ``diverged`` and ``diverged_at`` (s, NaN if it did not), on every row of the flight. The
+    phases that ended before a flight diverged keep their metrics; the one in progress and
+    the later ones are NaN (:func:`quadrs.report.phase_diverged`, docs/model.md section 6).
     ``interrupted``: the batch was stopped (Ctrl-C) and ``runs`` holds what had finished.
     """
 
@@ -88,6 +90,12 @@ class MonteCarloResult:
             f"{self.seed}, {diverged} diverged{note}; {self.scenario!r}>"
         )
 
+    def _repr_html_(self) -> str:
+        """In a notebook: Table 3 (IAE and ITAE) with its counts, as HTML."""
+        from quadrs.display import monte_carlo
+
+        return monte_carlo(self)
+
     @property
     def realisations(self) -> np.ndarray:
         """Indices of the realisations present, sorted."""
@@ -126,7 +134,8 @@ class MonteCarloResult:
         """P(metric > threshold) per controller and phase with an exact (Clopper-Pearson)
         interval, the counts behind it and ``runs_needed`` for an interval half-width of
         ``half_width`` (default 0.01: +-1 percentage point; with ``relative``, a fraction of the
-        probability). Diverged realisations count as exceedances (column ``diverged``).
+        probability). Diverged realisations count as exceedances (column ``diverged``) from
+        the phase in which they diverged on.
 
         ``paired=True``: instead, per phase, P(a exceeds) - P(b exceeds) for ``controllers =
         (a, b)`` on the same gusts, with Newcombe's paired interval and McNemar's exact test.

@@ -14,7 +14,9 @@ per controller and phase of a tidy runs table, and :class:`quadrs.MonteCarloResu
   McNemar test (``binomtest`` on the discordant pairs) as its p-value.
 
 Diverged realisations: a flight that diverged certainly shook its cargo, so it counts as an
-exceedance of every threshold, and as +inf when a quantile is taken. The tables report how many
+exceedance of every threshold, and as +inf when a quantile is taken, in the phase in which it
+diverged and the later ones; a phase that ended before the divergence keeps its own value
+(:func:`quadrs.report.phase_diverged`). The tables report how many
 there were (column ``diverged``); nothing is dropped silently. Rows that did not diverge but
 whose metric is undefined (NaN: e.g. a spectral peak of a phase too short for a spectrum) are
 left out of ``n`` and counted in ``undefined``.
@@ -32,6 +34,7 @@ import pandas as pd
 from scipy import optimize, stats
 
 from quadrs import _core
+from quadrs.report import phase_diverged
 
 #: Default target half-width of the exceedance interval for "runs needed": 1 percentage point.
 HALF_WIDTH = 0.01
@@ -307,7 +310,7 @@ def exceedance_table(
             e = exceedance_stats(
                 sel[metric].to_numpy(float),
                 threshold,
-                sel["diverged"].to_numpy(bool),
+                phase_diverged(sel),
                 confidence,
             )
             need = runs_needed(e.probability, half_width, confidence, relative) if e.n else math.nan
@@ -349,9 +352,7 @@ def exceedance_difference_table(
         hits = {}
         for c in (a, b):
             sel = _phase_rows(runs, phase, c)
-            hit, defined = exceeds(
-                sel[metric].to_numpy(float), threshold, sel["diverged"].to_numpy(bool)
-            )
+            hit, defined = exceeds(sel[metric].to_numpy(float), threshold, phase_diverged(sel))
             real = sel["realisation"].to_numpy()
             hits[c] = pd.Series(hit[defined], index=real[defined])
         common = hits[a].index.intersection(hits[b].index)
@@ -382,7 +383,7 @@ def exceedance_difference_table(
 def _with_divergence(sel: pd.DataFrame, metric: str) -> np.ndarray:
     """The metric with diverged runs as +inf (NaN kept for undefined ones)."""
     x = sel[metric].to_numpy(float).copy()
-    x[sel["diverged"].to_numpy(bool)] = np.inf
+    x[phase_diverged(sel)] = np.inf
     return x
 
 
@@ -409,7 +410,7 @@ def quantile_table(
                     "metric": metric,
                     "q": float(q),
                     "n": n,
-                    "diverged": int(sel["diverged"].sum()),
+                    "diverged": int(phase_diverged(sel).sum()),
                     "quantile": est,
                     "ci_low": lo,
                     "ci_high": hi,

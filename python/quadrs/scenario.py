@@ -26,7 +26,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
     import tomli as tomllib
 
-from quadrs import _core
+from quadrs import _core, plausibility
 
 ScenarioError = _core.ScenarioError
 
@@ -280,6 +280,7 @@ class Scenario:
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
+        plausibility.check(data)  # and one that can fly; implausible values warn
 
     # -- construction -------------------------------------------------------------------
     @classmethod

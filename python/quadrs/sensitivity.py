@@ -101,6 +101,13 @@ class SensitivityResult:
             f"{self.seed}{top}>"
         )
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the IAE ranking (largest total index first), as HTML."""
+        from quadrs.display import render
+
+        table = self.ranking("iae").set_index(["phase", "controller", "parameter"])
+        return render(repr(self), [("Sobol' indices of iae (± : 95% half-width)", table)])
+
     def ranking(self, metric: str = "iae", phase: str | None = None) -> pd.DataFrame:
         """Parameters by total index (largest first) for one metric, per controller and phase."""
         t = self.indices[self.indices["metric"] == metric]

@@ -28,6 +28,11 @@ class StabilityWarning(UserWarning):
     """A gain set is not asymptotically stable at hover (issued before a Monte Carlo run)."""
 
 
+class StabilityNote(StabilityWarning):
+    """A gain set is unstable at hover only in modes the scenario does not excite: those
+    states stay exactly zero, so the flight is unaffected (a note, not an alarm)."""
+
+
 class StepSizeWarning(UserWarning):
     """``integrator.dt`` is too large for the fastest closed-loop mode (issued before running)."""
 
@@ -95,7 +100,8 @@ def warn_before_running(
     reports = [stability(scenario, c) for c in controllers]
     for report in reports:
         if not report.stable and (gains or report.excited_unstable):
-            warnings.warn(report.warning(), StabilityWarning, stacklevel=stacklevel + 1)
+            category = StabilityWarning if report.excited_unstable else StabilityNote
+            warnings.warn(report.warning(), category, stacklevel=stacklevel + 1)
     message = step_size_warning(scenario, reports)
     if message:
         warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
@@ -137,6 +143,12 @@ class StabilityReport:
         pole = f", least stable {_pole(worst['real'], worst['imag'])}" if worst is not None else ""
         return f"<StabilityReport {self.controller.upper()} {self.verdict}{pole}>"
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the verdict and the poles, as HTML."""
+        from quadrs.display import stability
+
+        return stability(self)
+
     @property
     def unstable(self) -> pd.DataFrame:
         """The poles that are not asymptotically stable (unstable and marginal ones)."""
@@ -169,18 +181,30 @@ class StabilityReport:
         """True if this scenario excites a mode that is not asymptotically stable."""
         return bool(self.unstable["excited"].any())
 
+    @property
+    def excited_poles(self) -> pd.DataFrame:
+        """The poles of the modes this scenario excites (the ones its flights can show)."""
+        return self.poles[self.poles["excited"]]
+
+    def excited_unstable_modes(self) -> list[str]:
+        """``"mode pole"`` for each mode that this scenario excites and that is not
+        asymptotically stable, e.g. ``["lateral x/pitch +1.31 ± 3.90j"]`` (a pair once)."""
+        return [f"{mode} {pole}" for mode, pole, excited in self._unstable_modes() if excited]
+
     def warning(self) -> str:
         """The message of the :class:`StabilityWarning` for this report ("" if stable): one
-        short line when the scenario excites none of the unstable modes, a loud one (naming
-        what excites them and how fast they grow) when it does."""
+        short, calm line (a :class:`StabilityNote`) when the scenario excites none of the
+        unstable modes, a loud one (naming what excites them and how fast they grow) when it
+        does."""
         if self.stable:
             return ""
         modes = self._unstable_modes()
         name = f"{self.controller.upper()} gains are {self.verdict.upper()} at hover"
         if not any(excited for _, _, excited in modes):
-            poles = ", ".join(f"{mode} {pole}" for mode, pole, _ in modes)
+            names = ", ".join(dict.fromkeys(mode for mode, _, _ in modes))
             return (
-                f"{name} in modes this scenario does not excite ({poles}); see quadrs.stability()."
+                f"{self.controller.upper()}: unstable at hover only in modes this flight does "
+                f"not excite ({names}): no effect here."
             )
         poles = ", ".join(f"{mode} {pole}" for mode, pole, excited in modes if excited)
         growth = self.unstable[self.unstable["excited"]]["real"].max()

@@ -95,6 +95,15 @@ class SweepResult:
             f"seed {self.seed}, {diverged} diverged rows{note}; {self.scenario!r}>"
         )
 
+    def _repr_html_(self) -> str:
+        """In a notebook: the compact summary per grid point and phase, as HTML."""
+        from quadrs.display import render
+
+        if self.runs.empty:
+            return render(repr(self), [], ["no grid point finished"])
+        return render(repr(self), [("mean IAE and ITAE per controller, P = 100 SMC/PD (%)",
+                                    self.compact())])  # fmt: skip
+
     @property
     def points(self) -> pd.DataFrame:
         """The grid, one row per point (values as they appear in ``runs``)."""
