@@ -147,3 +147,74 @@ def test_the_engine_has_no_module_cycle():
     assert "config" in graph["integrate"]  # the walker sees `crate::` paths
     cycle = find_cycle(graph)
     assert cycle is None, "engine module cycle: " + " -> ".join(cycle or [])
+
+
+#: Modules that only present results (tables, figures, notebook display, the command line).
+PRESENTATION = {
+    "quadrs.report",
+    "quadrs.plots",
+    "quadrs.paper",
+    "quadrs._paper_grid",
+    "quadrs.display",
+    "quadrs.cli",
+    "quadrs.cli_design",
+}
+#: The core: scenarios, engine calls, results, storage and integrity.
+CORE = {
+    "quadrs.scenario",
+    "quadrs.flight",
+    "quadrs.montecarlo",
+    "quadrs.chunk",
+    "quadrs.results",
+    "quadrs.summary",
+    "quadrs.store",
+    "quadrs.integrity",
+    "quadrs.parquet",
+    "quadrs.dispersion",
+    "quadrs.guard",
+    "quadrs.gust",
+    "quadrs.linear",
+    "quadrs.stability",
+}
+
+
+def reachable(graph: dict[str, set[str]], start: str) -> set[str]:
+    seen: set[str] = set()
+    stack = [start]
+    while stack:
+        for nxt in graph.get(stack.pop(), ()):
+            if nxt not in seen:
+                seen.add(nxt)
+                stack.append(nxt)
+    return seen
+
+
+def display_imports_outside_repr_html(path: Path) -> list[int]:
+    """Lines where ``path`` imports quadrs.display other than inside a ``_repr_html_``."""
+    tree = ast.parse(path.read_text())
+    allowed: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef) and node.name == "_repr_html_":
+            allowed.update(id(n) for n in ast.walk(node))
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("display"):
+            if id(node) not in allowed:
+                bad.append(node.lineno)
+    return bad
+
+
+def test_the_core_imports_no_presentation_module():
+    """The core never imports tables, figures or the command line, lazily or not. The one hook
+    is the notebook display: Jupyter looks for ``_repr_html_`` on the result's class, so a
+    result type may import ``quadrs.display`` inside that method, and nowhere else."""
+    graph = import_graph()
+    assert CORE <= set(graph) and PRESENTATION <= set(graph)
+    modules = module_names()
+    core_graph = {m: deps - {"quadrs.display"} for m, deps in graph.items()}
+    for module in sorted(CORE):
+        bad = reachable(core_graph, module) & PRESENTATION
+        assert not bad, f"{module} imports presentation modules {sorted(bad)}"
+        lines = display_imports_outside_repr_html(modules[module])
+        assert not lines, f"{module} imports quadrs.display outside _repr_html_ (lines {lines})"
+    assert reachable({"a": {"b"}, "b": {"c"}}, "a") == {"b", "c"}

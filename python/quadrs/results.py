@@ -13,9 +13,9 @@ import pandas as pd
 from quadrs.chunk import SpectrumSums, load_spectra, runs_frame, save_spectra, spectra_file
 from quadrs.integrity import RunRecord, check_rows
 from quadrs.parquet import read_frame, read_meta, write_frame
-from quadrs.report import summarise
 from quadrs.scenario import Scenario
 from quadrs.store import RunStore
+from quadrs.summary import summarise
 
 __all__ = ["MonteCarloResult", "SpectrumSums", "runs_frame"]
 

@@ -34,7 +34,7 @@ import pandas as pd
 from scipy import optimize, stats
 
 from quadrs import _core
-from quadrs.report import phase_diverged
+from quadrs.summary import phase_diverged
 
 #: Default target half-width of the exceedance interval for "runs needed": 1 percentage point.
 HALF_WIDTH = 0.01

@@ -232,8 +232,6 @@ def _layout_like(scenario: Scenario, preset: str) -> str:
     import tomlkit
     from tomlkit.items import Item
 
-    from quadrs.report import toml_value
-
     doc = tomlkit.parse(_preset_text(preset))
     base = Scenario.preset(preset)
     added: set[int] = set()  # tables the preset lacks: their lines need no "preset: not set"
@@ -268,6 +266,21 @@ def _layout_like(scenario: Scenario, preset: str) -> str:
             node[last] = item
     # A blank line before every table header, as in the presets.
     return re.sub(r"(?<=[^\n])\n(?=\[)", "\n\n", tomlkit.dumps(doc))
+
+
+def toml_value(value: Any) -> str:
+    """``value`` in TOML syntax on one line (what ``quadrs --set KEY=VALUE`` accepts back)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return json.dumps(str(value))
 
 
 class Scenario:

@@ -19,8 +19,8 @@ import pandas as pd
 from quadrs.integrity import CorruptRunError, RunRecord
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
-from quadrs.report import summarise
 from quadrs.scenario import Scenario
+from quadrs.summary import summarise
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
