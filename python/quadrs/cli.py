@@ -136,7 +136,7 @@ def _table_options(p: argparse.ArgumentParser) -> None:
 def _print_table3(mc: Any, args: argparse.Namespace) -> None:
     from quadrs.report import format_table3
 
-    print(format_table3(mc.summary(), wide=args.wide, paper=not args.no_paper))
+    print(terminal_text(format_table3(mc.summary(), wide=args.wide, paper=not args.no_paper)))
 
 
 def _controller_names() -> tuple[str, ...]:
@@ -599,7 +599,7 @@ def _print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4
         "display.float_format",
         lambda v: f"{v:.{digits}g}",
     ):
-        print(frame.to_string(), file=out or sys.stdout)
+        print(terminal_text(frame.to_string()), file=out or sys.stdout)
 
 
 def _check_suffix(path: Path | None, allowed: Sequence[str], option: str) -> None:
@@ -631,7 +631,7 @@ def _check_outputs(*paths: Path | None) -> None:
             check_writable(path)
 
 
-def _save(write: Any, path: Path) -> bool:
+def save(write: Any, path: Path) -> bool:
     """``write(path)``; if that fails (full disk, permissions), save to a fresh recovery
     directory instead and say where. Returns True if ``path`` was written."""
     import tempfile
@@ -652,6 +652,9 @@ def _save(write: Any, path: Path) -> bool:
         return False
     _saved(path)
     return True
+
+
+_save = save
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -834,9 +837,9 @@ def cmd_report(args: argparse.Namespace) -> int:
 
         if not RunStore(args.file).exists():
             raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
-    elif not args.file.is_file():
+    elif not args.file.exists():
         raise BadInput(f"{str(args.file)!r}: no such file")
-    if args.file.is_file() and is_sweep_file(args.file):
+    if not args.file.is_dir() and is_sweep_file(args.file):
         result = SweepResult.read_parquet(args.file)
         _print_frame(result.compact())
         _print_limits(result, args)
@@ -846,6 +849,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         mc = MonteCarloResult.read_parquet(args.file)
         note = " (interrupted batch)" if mc.interrupted else ""
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
+        if mc.runs.empty:  # a run stopped before its first realisation finished
+            return EXIT_OK
         _print_table3(mc, args)
         _print_limits(mc, args)
         if args.plots is not None:
@@ -856,15 +861,20 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_sensitivity(args: argparse.Namespace) -> int:
     """Sobol' indices of the dispersed keys: a compact ranking, optional Parquet and bars."""
     from quadrs.flight import METRIC_COLUMNS
+    from quadrs.guard import MAX_WORKERS, check_int
     from quadrs.sensitivity import sensitivity
 
     scenario = load_scenario(args)
     _check_suffix(args.out, (".parquet",), "--out")
     _check_positive("--workers", args.workers)
+    check_int("--seed", args.seed)
+    if args.workers is not None:
+        check_int("--workers", args.workers, 1, MAX_WORKERS)
     if args.metric not in METRIC_COLUMNS:
         raise BadInput(f"--metric {args.metric!r}: one of {', '.join(METRIC_COLUMNS)}")
     if args.phase is not None and args.phase not in scenario.phase_names:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+    _check_outputs(args.out)
     sa = sensitivity(
         scenario,
         runs=args.runs,
@@ -874,10 +884,9 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         gust=not args.no_gust_factor,
     )
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        sa.to_parquet(args.out)
-        _saved(args.out)
+    status = EXIT_OK
+    if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
+        status = EXIT_FAIL
     print(
         f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "
         f"flights per controller; ± half-width of the 95% interval)"
@@ -888,7 +897,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
 
         files = plots.save(plots.sobol_bars(sa, args.metric), args.plots / f"sobol_{args.metric}")
         print(f"wrote {len(files)} figure files to {args.plots}", file=sys.stderr)
-    return EXIT_OK
+    return status
 
 
 def sensitivity_table(sa: Any, metric: str, phase: str | None) -> pd.DataFrame:
@@ -1018,7 +1027,7 @@ def _terse_warnings() -> Iterator[None]:
         text = _cli_words(_one_line(str(message)))
         if text not in seen:
             seen.add(text)
-            print(f"quadrs: warning: {text}", file=sys.stderr)
+            print(terminal_text(f"quadrs: warning: {text}"), file=sys.stderr)
 
     with warnings.catch_warnings():
         warnings.showwarning = show
@@ -1043,6 +1052,20 @@ def _cli_words(text: str) -> str:
     for api, cli in CLI_WORDS:
         text = text.replace(api, cli)
     return text
+
+
+def terminal_text(text: str) -> str:
+    """``text`` safe to show on a terminal: control characters (escape sequences, backspaces,
+    carriage returns, bidirectional overrides; all but newline and tab) as ``\\xNN``/``\\uNNNN``
+    escapes, so a scenario string (a phase name, a key) cannot drive the terminal."""
+    import unicodedata
+
+    def safe(c: str) -> str:
+        if c in "\n\t" or unicodedata.category(c) not in ("Cc", "Cf"):
+            return c
+        return repr(c)[1:-1] if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
+
+    return "".join(safe(c) for c in text) if not text.isprintable() else text
 
 
 def _one_line(text: str) -> str:
@@ -1075,7 +1098,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _bad_input_types() as e:
         if os.environ.get("QUADRS_TRACEBACK"):
             raise
-        print(f"{prog}: error: {_cli_words(_describe(e))}", file=sys.stderr)
+        print(terminal_text(f"{prog}: error: {_cli_words(_describe(e))}"), file=sys.stderr)
         return EXIT_USAGE
 
 

@@ -140,8 +140,19 @@ def linearize(
         raise ValueError(f"wind must have 3 components (x, y, z), got {wind!r}")
     rows = _select(outputs, OUTPUT_NAMES, "outputs")
     cols = _select(inputs, INPUT_NAMES, "inputs")
+    if not all(math.isfinite(x) for x in w):
+        raise ValueError(f"wind must be finite, got {wind!r}")
     raw = _core.linearize(scenario.to_json(), controller, list(w))
     assert tuple(raw["output_names"]) == OUTPUT_NAMES
+    bad = [m for m in ("A", "B", "C", "D") if not np.all(np.isfinite(raw[m]))]
+    if bad or not np.all(np.isfinite(raw["equilibrium"])):
+        # No trim exists (the thrust cannot balance such a wind) or its slopes overflow:
+        # say so, naming the input, rather than hand back inf/NaN matrices.
+        raise ValueError(
+            f"wind = {list(w)} m/s: the closed loop of {controller} has no finite "
+            f"linearisation about it ({', '.join(bad) or 'the equilibrium'} not finite); "
+            "choose a smaller wind"
+        )
     return LinearModel(
         A=raw["A"],
         B=raw["B"][:, cols],

@@ -20,7 +20,7 @@ from quadrs.integrity import CorruptRunError, RunRecord
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
-from quadrs.scenario import Scenario
+from quadrs.scenario import Scenario, design_keys
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
@@ -226,9 +226,13 @@ class SweepResult:
     @classmethod
     def read_parquet(cls, path: str | Path) -> SweepResult:
         """Read a file written by :meth:`to_parquet`."""
-        runs, meta = read_frame(path, _META_KEY)
-        if meta is None:
-            raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+
+        def validate(meta: Any) -> None:
+            if meta is None:
+                raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+            RunRecord.read(meta, path, "grid", {"interrupted": bool, "grid": dict})
+
+        runs, meta = read_frame(path, _META_KEY, validate=validate)
         record = RunRecord.read(meta, path, "grid", {"interrupted": bool, "grid": dict})
         grid = meta["grid"]
         if not all(isinstance(v, list) for v in grid.values()):
@@ -274,8 +278,10 @@ def sweep(
     ``client``: a ``dask.distributed.Client``; each point's realisations then run as chunks
     on the cluster (see :func:`quadrs.monte_carlo`), with results identical to a local sweep.
     """
-    grid = check_grid(grid)
-    points = grid_points(grid)
+    checked = check_grid(grid)
+    keys = design_keys(scenario, checked, "grid")
+    swept = dict(zip(keys, checked.values(), strict=True))
+    points = grid_points(swept)
     scenarios = [scenario.override(p) for p in points]  # validate all before running any
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
@@ -295,7 +301,7 @@ def sweep(
                 client=client,
             )
             frame = mc.runs
-            for k in reversed(list(grid)):
+            for k in reversed(list(swept)):
                 frame.insert(0, k, column_value(point[k]))
             parts.append(frame)
             bar.update(1)
@@ -306,8 +312,8 @@ def sweep(
         interrupted = True
     finally:
         bar.close()
-    table = pd.concat(parts, ignore_index=True) if parts else _empty_runs(grid, controllers)
-    return SweepResult(scenario, grid, seed, tuple(controllers), table, interrupted)
+    table = pd.concat(parts, ignore_index=True) if parts else _empty_runs(swept, controllers)
+    return SweepResult(scenario, swept, seed, tuple(controllers), table, interrupted)
 
 
 def _points_bar(total: int, progress: bool) -> Any:
