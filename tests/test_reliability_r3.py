@@ -115,6 +115,20 @@ def test_two_spellings_of_one_key_are_one_key(tiny: Scenario) -> None:
         quadrs.sweep(tiny, {"controller.pd.kp[2]": [1.0], "controller.pd.kp[002]": [2.0]}, runs=1)
 
 
+def test_disperse_on_the_command_line_replaces_a_files_dispersion_of_the_same_key(
+    tmp_path: Path, capsys
+) -> None:
+    src = tmp_path / "s.toml"
+    src.write_text('base = "paper"\n[dispersions]\n"controller.pd.kp[2]" = '
+                   '{dist = "uniform", low = 1.0, high = 2.0}\n')  # fmt: skip
+    code, out, err = run_cli("scenario", "show", "--scenario", str(src), "--disperse",
+                             "controller.pd.kp[02]=uniform(3,4)", capsys=capsys)  # fmt: skip
+    assert code == 0, err
+    assert Scenario.from_toml_string(out).dispersions == {
+        "controller.pd.kp[2]": {"dist": "uniform", "low": 3, "high": 4}
+    }
+
+
 # -- a design-loop key is not also dispersed, nor given twice ---------------------------------
 def test_tuned_or_swept_keys_cannot_be_dispersed_or_repeated(
     tiny: Scenario, tmp_path: Path, capsys, monkeypatch
@@ -458,3 +472,23 @@ def test_control_characters_in_scenario_strings_are_escaped(tmp_path: Path, caps
     assert "\\x1b]0;owned" in out
     code, _, err = run_cli("run", "--set", "gust.w20\x1b[2J=3", capsys=capsys)
     assert code == 2 and "\x1b" not in err and "\\x1b" in one_line(err)
+
+
+# -- figures: one without data does not cost the others ---------------------------------------
+def test_mc_plots_of_an_all_diverged_batch_draw_what_they_can(tmp_path: Path, capsys) -> None:
+    code, _, err = run_cli("mc", *TINY_CLI, "--runs", "4", "--no-progress", "--controllers",
+                           "pd", "--set", "divergence.max_speed=0.01", "--plots",
+                           str(tmp_path), capsys=capsys)  # fmt: skip
+    assert code == 0, err
+    assert (tmp_path / "exceedance_max_accel.png").is_file(), err
+    assert "Traceback" not in err and "error" not in err
+
+
+def test_tune_of_a_dispersed_scenario_writes_its_dispersions(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "tuned.toml"
+    code, _, err = run_cli("tune", *TINY_CLI, "--disperse", "payload.mass=uniform(0.15,0.3)",
+                           "--param", "controller.pd.kp[2]=4:8", "--controller", "pd", "--phase",
+                           "P1", "--runs", "2", "--maxiter", "1", "--popsize", "2", "--method",
+                           "nelder-mead", "--out", str(out), capsys=capsys)  # fmt: skip
+    assert code == 0, err
+    assert list(Scenario.from_toml(out).dispersions) == ["payload.mass"]

@@ -20,9 +20,9 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.flight import METRIC_COLUMNS
-from quadrs.guard import run_cancellable
+from quadrs.guard import deferred_signals, run_cancellable
 from quadrs.integrity import CorruptRunError, RunRecord
-from quadrs.parquet import deferred_signals, frame_bytes, read_frame
+from quadrs.parquet import frame_bytes, read_frame
 from quadrs.scenario import Scenario
 
 __all__ = [

@@ -524,7 +524,7 @@ def _base_preset(args: argparse.Namespace) -> str:
 
 def load_scenario(args: argparse.Namespace) -> Any:
     """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once."""
-    from quadrs.scenario import Scenario, parse_value
+    from quadrs.scenario import Scenario, canonical_key, parse_value
 
     if args.scenario is not None and args.preset is not None:
         raise BadInput("--preset and --scenario: give one or the other")
@@ -547,7 +547,7 @@ def load_scenario(args: argparse.Namespace) -> Any:
             key, sep, spec = item.partition("=")
             if not sep or not key.strip():
                 raise BadInput(f"--disperse {item!r}: expected KEY=DIST(ARGS)")
-            table[key.strip()] = parse_distribution(spec)
+            table[canonical_key(key.strip())] = parse_distribution(spec)  # replaces the base's
         changes["dispersions"] = table
     return base.override(changes) if changes else base
 
@@ -617,44 +617,18 @@ def _progress(args: argparse.Namespace) -> bool:
     return not args.no_progress and sys.stderr.isatty()
 
 
-def _saved(path: Path) -> None:
-    print(f"wrote {path}", file=sys.stderr)
-
-
 def _check_outputs(*paths: Path | None) -> None:
-    """Before any work: each output file must be writable (not a directory, its directory
-    creatable and accepting a new file), so a long batch is never lost to a bad --out."""
-    from quadrs.parquet import check_writable
+    """Before any work: the outputs can be written (:func:`quadrs.saving.check_outputs`)."""
+    from quadrs.saving import check_outputs
 
-    for path in paths:
-        if path is not None:
-            check_writable(path)
+    check_outputs(*paths)
 
 
-def save(write: Any, path: Path) -> bool:
-    """``write(path)``; if that fails (full disk, permissions), save to a fresh recovery
-    directory instead and say where. Returns True if ``path`` was written."""
-    import tempfile
+def _save(write: Any, path: Path) -> bool:
+    """``write(path)``, or a recovery copy named on stderr (:func:`quadrs.saving.save`)."""
+    from quadrs.saving import save
 
-    try:
-        write(path)
-    except OSError as e:
-        reason = e.strerror or str(e)
-        try:
-            spare = Path(tempfile.mkdtemp(prefix="quadrs-recovered-")) / path.name
-            write(spare)
-        except OSError as e2:
-            print(f"quadrs: error: could not write {path} ({reason}) nor a recovery copy "
-                  f"({e2.strerror or e2})", file=sys.stderr)  # fmt: skip
-        else:
-            print(f"quadrs: error: could not write {path} ({reason}); the results were "
-                  f"saved to {spare} instead", file=sys.stderr)  # fmt: skip
-        return False
-    _saved(path)
-    return True
-
-
-_save = save
+    return save(write, path)
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -766,16 +740,25 @@ def _dask_client(address: str | None) -> Iterator[Any]:
 def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
     from quadrs import plots
 
-    files = plots.save(plots.distributions(mc.runs), directory / "distributions")
+    figures: list[tuple[str, Any]] = [("distributions", lambda: plots.distributions(mc.runs))]
     if mc.spectra is not None:
-        files += plots.save(plots.ensemble_spectra(mc.spectra), directory / "spectra")
-        files += plots.save(plots.ensemble_psd(mc.spectra), directory / "psd")
+        figures += [("spectra", lambda: plots.ensemble_spectra(mc.spectra)),
+                    ("psd", lambda: plots.ensemble_psd(mc.spectra))]  # fmt: skip
     for metric in dict.fromkeys([m for m, _ in limits] or ["max_accel"]):
         marks = [t for m, t in limits if m == metric]
-        fig = plots.exceedance_curves(mc.runs, metric, marks)
-        files += plots.save(fig, directory / f"exceedance_{metric}")
+        curves = lambda m=metric, t=marks: plots.exceedance_curves(mc.runs, m, t)  # noqa: E731
+        figures.append((f"exceedance_{metric}", curves))
     if mc.dispersed_keys:
-        files += plots.save(plots.dispersion_scatter(mc, "iae"), directory / "dispersion_iae")
+        figures.append(("dispersion_iae", lambda: plots.dispersion_scatter(mc, "iae")))
+    files: list[Path] = []
+    for name, make in figures:
+        # One figure without data to draw (every flight diverged: nothing on a log scale)
+        # must not cost the others.
+        try:
+            files += plots.save(make(), directory / name)
+        except ValueError as e:
+            print(terminal_text(f"quadrs: warning: figure {name} not drawn ({_one_line(str(e))})"),
+                  file=sys.stderr)  # fmt: skip
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
@@ -885,7 +868,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         gust=not args.no_gust_factor,
     )
     status = EXIT_OK
-    if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
+    if args.out is not None and not _save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
         status = EXIT_FAIL
     print(
         f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "

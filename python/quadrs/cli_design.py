@@ -255,8 +255,8 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
 
 
 def _save_text(write: Callable[[Path], object], path: Path) -> bool:
-    """The command line's saving with a recovery copy (quadrs.cli.save)."""
-    from quadrs.cli import save
+    """The command line's saving with a recovery copy (quadrs.saving.save)."""
+    from quadrs.saving import save
 
     return save(write, path)
 

@@ -21,8 +21,8 @@ from quadrs.guard import (
     check_labels,
     check_memory,
     default_workers,
+    deferred_signals,
 )
-from quadrs.parquet import deferred_signals
 from quadrs.results import MonteCarloResult, empty_runs
 from quadrs.scenario import Scenario
 from quadrs.stability import warn_before_running
@@ -261,7 +261,9 @@ def _fly(
         else:
             table = pd.concat(frames, ignore_index=True)
             table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
-        sums = [part.spectra for part in parts if part.spectra is not None]
+        # Summed in realisation order, not arrival order (Dask): the same run gives the same bits.
+        ordered = sorted(parts, key=lambda part: part.first)
+        sums = [part.spectra for part in ordered if part.spectra is not None]
         return _result(scenario, seed, controllers, table, sums, interrupted or bool(held),
                        sampling, arithmetic)  # fmt: skip
 

@@ -15,10 +15,8 @@ import errno
 import hashlib
 import json
 import os
-import signal
 import stat
 import tempfile
-import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,48 +27,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-#: Signals held back while a file is being written (delivered right after).
-_DEFERRED = (signal.SIGINT, signal.SIGTERM)
+from quadrs.guard import deferred_signals
 
-
-@contextlib.contextmanager
-def deferred_signals(deliver: bool = True) -> Iterator[list[int]]:
-    """Hold Ctrl-C and SIGTERM back for the duration of the block, then deliver the first one
-    (only on the main thread, where Python runs signal handlers; elsewhere a no-op). Yields
-    the list of the signals held. With ``deliver=False`` the caller acts on the list instead
-    (e.g. marks a batch interrupted): the handler still runs, so it can note the signal (the
-    command line's exit status for SIGTERM), but the KeyboardInterrupt it raises is dropped."""
-    caught: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield caught
-        return
-    frames: list[Any] = []
-    previous: dict[int, Any] = {}
-
-    def hold(signum: int, frame: Any) -> None:
-        caught.append(signum)
-        frames.append(frame)
-
-    for sig in _DEFERRED:
-        try:
-            previous[sig] = signal.signal(sig, hold)
-        except (ValueError, OSError):  # not installable here
-            pass
-    try:
-        yield caught
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        for signum, frame in zip(caught[:1], frames[:1], strict=True):
-            handler = previous.get(signum)
-            if callable(handler):
-                if deliver:
-                    handler(signum, frame)
-                else:
-                    with contextlib.suppress(KeyboardInterrupt):
-                        handler(signum, frame)
-            elif handler == signal.SIG_DFL:
-                signal.raise_signal(signum)
+__all__ = ["atomic_write", "deferred_signals", "read_file", "write_frame"]
 
 
 def _umask() -> int:
@@ -215,18 +174,26 @@ def read_regular(path: str | Path, limit: int | None = None) -> bytes:
 
 
 def _rows_digest(table: pa.Table) -> bytes:
-    """SHA-256 of a table's column names, types and values (numbers by their bytes, so every
-    bit counts; anything else by its Python value)."""
+    """SHA-256 of a table's column names and values: numbers by their bytes (every bit
+    counts), anything else (controller and phase names) as the distinct values and, per row,
+    which one it holds."""
     h = hashlib.sha256()
     for name, column in zip(table.column_names, table.columns, strict=True):
         h.update(json.dumps(name).encode() + b"\0")
-        kind = column.type
+        array = column.combine_chunks()
+        kind = array.type
+        values = None
         if pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind):
-            values = np.ascontiguousarray(column.to_numpy())
-            h.update(values.dtype.str.encode() + b"\0" + values.tobytes())
+            values = np.asarray(array.to_numpy(zero_copy_only=False))
+        if values is not None and values.dtype != object:
+            h.update(values.dtype.str.encode() + b"\0" + np.ascontiguousarray(values).tobytes())
         else:
-            h.update(json.dumps([None if v is None else str(v) for v in column.to_pylist()])
-                     .encode())  # fmt: skip
+            if pa.types.is_dictionary(kind):
+                array = array.dictionary_decode()
+            coded = array.dictionary_encode()
+            index = np.asarray(coded.indices.fill_null(-1).to_numpy(), dtype=np.int64)
+            distinct = [None if v is None else str(v) for v in coded.dictionary.to_pylist()]
+            h.update(json.dumps(distinct).encode() + b"\0" + index.tobytes())
         h.update(b"\1")
     return h.digest()
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from quadrs.integrity import CorruptRunError, RunRecord
+from quadrs.integrity import CorruptRunError, RunRecord, check_rows
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.report import summarise
@@ -237,6 +237,10 @@ class SweepResult:
         grid = meta["grid"]
         if not all(isinstance(v, list) for v in grid.values()):
             raise CorruptRunError(f"{str(path)!r}: metadata 'grid' must map keys to lists")
+        check_rows(runs, path, record.controllers, record.scenario.phase_names)
+        missing = sorted(set(grid) - set(runs.columns))
+        if missing:
+            raise CorruptRunError(f"{str(path)!r}: its rows lack the swept columns {missing}")
         return cls(
             scenario=record.scenario,
             grid={k: list(v) for k, v in grid.items()},
