@@ -470,6 +470,11 @@ def test_control_characters_in_scenario_strings_are_escaped(tmp_path: Path, caps
     assert code == 0, err
     assert "\x1b" not in out + err and "\x07" not in out + err
     assert "\\x1b]0;owned" in out
+    code, out, err = run_cli("tune", "--scenario", str(evil), "--param", "payload.mass=0.1:0.3",
+                             "--controller", "pd", "--runs", "1", "--maxiter", "1", "--method",
+                             "nelder-mead", "--out", str(tmp_path / "t.toml"),
+                             capsys=capsys)  # fmt: skip
+    assert code == 0 and "\x1b" not in out + err, err
     code, _, err = run_cli("run", "--set", "gust.w20\x1b[2J=3", capsys=capsys)
     assert code == 2 and "\x1b" not in err and "\\x1b" in one_line(err)
 

@@ -17,6 +17,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
+from quadrs.terminal import terminal_text
+
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
@@ -1035,20 +1037,6 @@ def _cli_words(text: str) -> str:
     for api, cli in CLI_WORDS:
         text = text.replace(api, cli)
     return text
-
-
-def terminal_text(text: str) -> str:
-    """``text`` safe to show on a terminal: control characters (escape sequences, backspaces,
-    carriage returns, bidirectional overrides; all but newline and tab) as ``\\xNN``/``\\uNNNN``
-    escapes, so a scenario string (a phase name, a key) cannot drive the terminal."""
-    import unicodedata
-
-    def safe(c: str) -> str:
-        if c in "\n\t" or unicodedata.category(c) not in ("Cc", "Cf"):
-            return c
-        return repr(c)[1:-1] if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
-
-    return "".join(safe(c) for c in text) if not text.isprintable() else text
 
 
 def _one_line(text: str) -> str:

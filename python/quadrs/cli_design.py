@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.guard import CONTROLLERS
+from quadrs.terminal import terminal_text
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
 
@@ -227,8 +228,8 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     )
     for key, value in result.best.items():
         print(f"{key} = {value:.6g}")
-    print(f"objective ({args.objective} over {', '.join(phases)}, seed {args.seed}): "
-          f"{result.objective:.6g}")  # fmt: skip
+    print(terminal_text(f"objective ({args.objective} over {', '.join(phases)}, seed "
+                        f"{args.seed}): {result.objective:.6g}"))  # fmt: skip
     if result.holdout is not None:
         ho = result.holdout
         print(f"held out (seed {ho.seed}, {ho.runs} runs): {ho.objective:.6g} "
