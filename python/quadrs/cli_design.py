@@ -160,11 +160,16 @@ def _tuned_toml(args: argparse.Namespace, out: Path, keys: list[str], tuned: Any
         parts = _split_key(key)
         cut = next((i for i, p in enumerate(parts) if isinstance(p, int)), len(parts))
         path = [str(p) for p in parts[: max(cut, 1)]]  # up to the first array
-        node, value = nested, data
+        value: Any = data
+        try:
+            for part in path:
+                value = value[part]
+        except (KeyError, TypeError):  # set, then replaced (stiffness by natural_frequency)
+            continue
+        node = nested
         for part in path[:-1]:
             node = node.setdefault(part, {})
-            value = value[part]
-        node[path[-1]] = value[path[-1]]
+        node[path[-1]] = value
     head = "# Written by quadrs tune: the input, its --set values and the tuned values.\n"
     text = head + tomli_w.dumps({"base": base, **nested})
     try:
