@@ -90,6 +90,11 @@ class RareEventResult:
         return self.run.upper_bound
 
     @property
+    def interrupted(self) -> bool:
+        """True if Ctrl-C stopped the run: :attr:`levels` are the levels done, no estimate."""
+        return self.run.interrupted
+
+    @property
     def reached(self) -> bool:
         """True if some sample crossed the threshold."""
         return self.run.reached
@@ -189,6 +194,7 @@ class RareEventResult:
             "probability": run.probability,
             "cov": run.cov,
             "upper_bound": run.upper_bound,
+            "interrupted": run.interrupted,
             "levels": [dataclasses.asdict(level) for level in run.levels],
         }
         record = self._record()
@@ -284,6 +290,7 @@ class RareEventResult:
                 p0=float(meta["p0"]),
                 seed=meta["seed"],
                 max_levels=meta["max_levels"],
+                interrupted=meta.get("interrupted") is True,
             )
         except (KeyError, TypeError, ValueError) as e:
             raise _fail(path, f"its rare-event tables are malformed ({e})") from None
@@ -292,6 +299,12 @@ class RareEventResult:
     # -- display --------------------------------------------------------------------------
     def _headline(self) -> str:
         run = self.run
+        if run.interrupted:
+            bound = "" if run.upper_bound is None else f" <= about {run.upper_bound:.3g}"
+            return (
+                f"interrupted after {len(run.levels)} levels ({run.flights} flights): "
+                f"P({self.value_name} > {run.threshold:g}){bound}, no estimate"
+            )
         if run.probability is None:
             return (
                 f"no failure found: P({self.value_name} > {run.threshold:g}) <= about "
