@@ -364,6 +364,31 @@ def subset_simulation(
     cov2 = 0.0
     product = 1.0
     closest = -math.inf
+
+    def result(estimate: tuple[float, float] | None, bound: float | None,
+               failed: _Arrays, interrupted: bool = False) -> SubsetRun:  # fmt: skip
+        fx, fv, fc, fch, fst = failed
+        return SubsetRun(
+            probability=None if estimate is None else estimate[0],
+            cov=None if estimate is None else estimate[1],
+            upper_bound=bound,
+            levels=levels,
+            flights=evaluate.count,
+            failure_xi=fx,
+            failure_values=fv,
+            failure_copies=fc,
+            failure_chain=fch,
+            failure_step=fst,
+            closest=closest,
+            dimension=dimension,
+            threshold=threshold,
+            per_level=per_level,
+            p0=p0,
+            seed=seed,
+            max_levels=max_levels,
+            interrupted=interrupted,
+        )
+
     try:
         for level in range(max_levels):
             best = _Best(seeds, dimension)
@@ -424,29 +449,10 @@ def subset_simulation(
             if on_level is not None:
                 on_level(levels[-1])
             if last:
-                found = n_fail > 0
-                if found:
-                    cov2 += cov_level**2
-                fx, fv, fc, fch, fst = failures.arrays(dimension) if found else _none(dimension)
-                return SubsetRun(
-                    probability=product * p if found else None,
-                    cov=math.sqrt(cov2) if found else None,
-                    upper_bound=None if found else product * p,
-                    levels=levels,
-                    flights=evaluate.count,
-                    failure_xi=fx,
-                    failure_values=fv,
-                    failure_copies=fc,
-                    failure_chain=fch,
-                    failure_step=fst,
-                    closest=closest,
-                    dimension=dimension,
-                    threshold=threshold,
-                    per_level=per_level,
-                    p0=p0,
-                    seed=seed,
-                    max_levels=max_levels,
-                )
+                if not n_fail:
+                    return result(None, product * p, _none(dimension))
+                estimate = (product * p, math.sqrt(cov2 + cov_level**2))
+                return result(estimate, None, failures.arrays(dimension))
             cov2 += cov_level**2
             product *= p
             if level:
@@ -456,27 +462,8 @@ def subset_simulation(
             seeds_xi, seeds_val = best.xi, best.values
     except KeyboardInterrupt:
         # Keep what the finished levels found: the probability of the last cut they set.
-        fx, fv, fc, fch, fst = _none(dimension)
-        return SubsetRun(
-            probability=None,
-            cov=None,
-            upper_bound=math.prod(lv.conditional_p for lv in levels) if levels else None,
-            levels=levels,
-            flights=evaluate.count,
-            failure_xi=fx,
-            failure_values=fv,
-            failure_copies=fc,
-            failure_chain=fch,
-            failure_step=fst,
-            closest=closest,
-            dimension=dimension,
-            threshold=threshold,
-            per_level=per_level,
-            p0=p0,
-            seed=seed,
-            max_levels=max_levels,
-            interrupted=True,
-        )
+        bound = math.prod(lv.conditional_p for lv in levels) if levels else None
+        return result(None, bound, _none(dimension), interrupted=True)
     raise AssertionError("unreachable: the last level returns")  # pragma: no cover
 
 
