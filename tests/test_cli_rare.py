@@ -20,6 +20,7 @@ import pytest
 
 from quadrs.cli import main
 from quadrs.rare import RareEventResult
+from quadrs.rare.scenario_model import ScenarioModel
 from tests.test_cli import SHORT, one_error_line, run_cli
 
 RARE = ["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]
@@ -34,16 +35,13 @@ def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
     assert proc.stderr.strip() == f"wrote {out}"
     r = RareEventResult.read_parquet(out)
     assert r.probability is not None and r.cov is not None and r.interval is not None
-    assert r.model is not None and (r.model.controller, r.model.metric, r.model.phase) == (
-        "pd",
-        "max_accel",
-        "P2",
-    )
+    model = r.model
+    assert isinstance(model, ScenarioModel)
+    assert (model.controller, model.metric, model.phase) == ("pd", "max_accel", "P2")
     assert (r.seed, r.threshold, r.run.per_level, r.run.p0) == (2, 3.5, 100, 0.1)
-    rows = dict(
-        re.match(r"\s+(.*?)\s{2,}(.*)", line).groups()  # type: ignore[union-attr]
-        for line in proc.stdout.splitlines()[1:]
-    )
+    # "  label   value" rows: the label and the value are two or more spaces apart.
+    rows = dict(line.strip().split("  ", 1) for line in proc.stdout.splitlines()[1:])
+    rows = {label: value.strip() for label, value in rows.items()}
     assert proc.stdout.startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
     assert rows["estimate"] == f"{r.probability:.3g}"
     assert rows["coefficient of variation"] == f"{r.cov:.3f}"

@@ -107,8 +107,8 @@ def test_paired_controllers_give_a_ratio(paired: RareEventComparison) -> None:
     # Paired: one seed, so level 0 flew the same innovations under both controllers (that
     # paired runs share their first level is tested in test_rare_event.py).
     assert pd_.seed == smc.seed == 3 and pd_.levels["flights"].iloc[0] == 200
-    assert (pd_.model is not None and smc.model is not None
-            and (pd_.model.controller, smc.model.controller) == ("pd", "smc"))  # fmt: skip
+    assert isinstance(pd_.model, ScenarioModel) and isinstance(smc.model, ScenarioModel)
+    assert (pd_.model.controller, smc.model.controller) == ("pd", "smc")
 
 
 def test_subset_agrees_with_plain_monte_carlo(short: quadrs.Scenario) -> None:
