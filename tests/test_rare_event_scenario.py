@@ -171,3 +171,13 @@ def test_ctrl_c_keeps_the_levels_done(tmp_path: Path) -> None:
     r.to_parquet(path)
     back = RareEventResult.read_parquet(path)
     assert back.interrupted and back.upper_bound == r.upper_bound and len(back.levels) == 1
+    assert back.closest == r.closest
+    # Stopped before the first level: nothing to report but that.
+    calls = 0
+    # (p0 = 0.05: level 0 is 20 calls of 10 rows, so the 15th is inside it.)
+    early = quadrs.rare_event(limit_state=f, dimension=50, threshold=4.0, per_level=200, p0=0.05)
+    assert isinstance(early, RareEventResult) and early.interrupted
+    assert len(early.levels) == 0 and early.upper_bound is None and early.flights == 140
+    early.to_parquet(path)
+    again = RareEventResult.read_parquet(path)
+    assert again.interrupted and again.upper_bound is None and again.closest == -math.inf
