@@ -188,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_tune(sub, common)
     add_linearize(sub, common)
+    from quadrs.cli_rare import add_rare
+
+    add_rare(sub, common)
     return parser
 
 
@@ -1007,7 +1010,15 @@ COMMANDS = {
     "scenario": cmd_scenario,
     "tune": lambda args: _design("cmd_tune", args),
     "linearize": lambda args: _design("cmd_linearize", args),
+    "rare": lambda args: _rare(args),
 }
+
+
+def _rare(args: argparse.Namespace) -> int:
+    """``rare`` lives in quadrs.cli_rare."""
+    from quadrs.cli_rare import cmd_rare
+
+    return cmd_rare(args, load_scenario)
 
 
 def _design(name: str, args: argparse.Namespace) -> int:
