@@ -107,12 +107,13 @@ def _option_words(text: str) -> str:
 def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     """Subset simulation of one controller: a short table, optional Parquet; 130 if
     interrupted (the finished levels are reported and saved)."""
-    from quadrs.cli import _check_outputs, _check_suffix, _save
     from quadrs.rare import rare_event
     from quadrs.rare.result import RareEventResult
     from quadrs.rare.subset import Level, check_settings
+    from quadrs.saving import check_outputs, save
 
-    _check_suffix(args.out, (".parquet",), "--out")
+    if args.out is not None and args.out.suffix.lower() != ".parquet":
+        raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
     for option, value, low in (("--seed", args.seed, 0), ("--workers", args.workers, 1)):
         if value is not None and value < low:
             raise ValueError(f"{option} must be >= {low}, got {value}")
@@ -123,7 +124,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     scenario = load_scenario(args)
     if args.phase not in scenario.phase_names:
         raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
-    _check_outputs(args.out)
+    check_outputs(args.out)
     value_name = f"{args.metric} in {args.phase}"
     show = not args.no_progress and sys.stderr.isatty()
 
@@ -150,7 +151,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     assert isinstance(result, RareEventResult)
     saved = True
     if args.out is not None:  # saved first: a second Ctrl-C keeps it
-        saved = _save(result.to_parquet, args.out)
+        saved = save(result.to_parquet, args.out)
     if result.interrupted:
         done = len(result.levels)
         bound = result.upper_bound
