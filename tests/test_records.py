@@ -1,11 +1,12 @@
 """One record per concept: the chunk a batch yields (here or on Dask), the run a file records,
-the spectra saved as a table beside it, the key a ScenarioError names, the engine's names."""
+the spectra saved as a table inside it, the key a ScenarioError names, the engine's names."""
 
 import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -45,70 +46,73 @@ def test_a_dask_task_yields_the_record_a_local_chunk_does(short: Scenario) -> No
         np.testing.assert_array_equal(grid, flight.spectra[phase]["frequency"])
 
 
-# -- spectra saved as a table -----------------------------------------------------------------
-def test_spectra_are_a_table_beside_the_runs_not_schema_metadata(
+# -- spectra saved as a table, in the result's own file ---------------------------------------
+def test_spectra_are_a_table_embedded_in_the_result_file(
     mc: MonteCarloResult, tmp_path: Path
 ) -> None:
     path = tmp_path / "runs.parquet"
     mc.to_parquet(path)
-    meta = pq.read_schema(path).metadata[b"quadrs"]
-    assert len(meta) < 8_000, len(meta)  # the run, not the spectra (was hundreds of KB)
-    ref = json.loads(meta)["spectra"]
-    table = pq.read_table(tmp_path / ref["table"]).to_pandas()
+    assert [p.name for p in tmp_path.iterdir()] == ["runs.parquet"]  # one result, one file
+    schema = pq.read_schema(path).metadata
+    assert len(schema[b"quadrs"]) < 8_000, len(schema[b"quadrs"])  # the run, not the spectra
+    ref = json.loads(schema[b"quadrs"])["spectra"]
+    table = pq.read_table(pa.BufferReader(schema[b"quadrs_spectra"])).to_pandas()
     assert list(table.columns) == ["phase", "controller", "frequency", "total", "total_sq"]
     assert ref["count"] == [6, 6]
     back = MonteCarloResult.read_parquet(path)
     pd.testing.assert_frame_equal(back.spectra, mc.spectra)
-    # overwriting keeps one table, the new one
     quadrs.monte_carlo(mc.scenario, runs=2, seed=3, workers=2, progress=False).to_parquet(path)
-    assert len(list(tmp_path.glob("runs.spectra-*.parquet"))) == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["runs.parquet"]
     assert MonteCarloResult.read_parquet(path).spectrum_sums.count.tolist() == [2, 2]
 
 
-def test_a_file_with_spectra_in_its_metadata_still_reads(
+def test_files_of_the_previous_format_are_refused_clearly(
     mc: MonteCarloResult, tmp_path: Path
 ) -> None:
-    """Files written before spectra became a table hold them as JSON in the metadata."""
+    """Spectra as JSON in the metadata, or in a table beside the file, and no content digest:
+    such a file cannot be told from an edited one, so it is refused, saying why."""
     old = tmp_path / "old.parquet"
     meta = mc.record.metadata(interrupted=False, spectra=mc.spectrum_sums.to_json())
-    write_frame(mc.runs, old, b"quadrs", meta)
-    back = MonteCarloResult.read_parquet(old)
-    pd.testing.assert_frame_equal(back.spectra, mc.spectra)
-    pd.testing.assert_frame_equal(back.runs, mc.runs)
+    table = pa.Table.from_pandas(mc.runs, preserve_index=False)
+    pq.write_table(table.replace_schema_metadata({b"quadrs": json.dumps(meta).encode()}), old)
+    with pytest.raises(CorruptRunError, match="no content digest"):
+        MonteCarloResult.read_parquet(old)
 
 
-def test_a_missing_or_foreign_spectrum_table_is_refused(
+def test_a_foreign_spectrum_table_is_refused(
     mc: MonteCarloResult, short: Scenario, tmp_path: Path
 ) -> None:
-    path = tmp_path / "a" / "runs.parquet"
-    mc.to_parquet(path)
-    (table,) = path.parent.glob("runs.spectra-*.parquet")
+    from quadrs.chunk import SPECTRA_KEY, spectra_attachment
+
     other = quadrs.monte_carlo(short, runs=6, seed=4, workers=2, progress=False)
-    other.to_parquet(tmp_path / "b" / "runs.parquet")
-    (theirs,) = (tmp_path / "b").glob("runs.spectra-*.parquet")
-    table.write_bytes(theirs.read_bytes())  # another run's table under our name
+    ours, _ = spectra_attachment(mc.spectrum_sums, mc.record)
+    _, theirs = spectra_attachment(other.spectrum_sums, other.record)
+    path = tmp_path / "runs.parquet"
+    # Written (and sealed) by quadrs, but naming our table while holding theirs.
+    write_frame(mc.runs, path, b"quadrs", mc.record.metadata(interrupted=False, spectra=ours),
+                attachments={SPECTRA_KEY: theirs})  # fmt: skip
     with pytest.raises(CorruptRunError, match="not the one it was written with"):
         MonteCarloResult.read_parquet(path)
-    table.unlink()
-    with pytest.raises(CorruptRunError, match="which is missing"):
+    write_frame(mc.runs, path, b"quadrs", mc.record.metadata(interrupted=False, spectra=ours))
+    with pytest.raises(CorruptRunError, match="spectrum table is missing"):
         MonteCarloResult.read_parquet(path)
 
 
-def test_a_checkpoint_keeps_its_spectra_as_tables(short: Scenario, tmp_path: Path) -> None:
+def test_a_checkpoint_keeps_its_spectra_in_its_parts(short: Scenario, tmp_path: Path) -> None:
     out = tmp_path / "run"
     ck = quadrs.monte_carlo(short, runs=8, seed=1, chunk=4, workers=2, progress=False, out=out)
     whole = quadrs.monte_carlo(short, runs=8, seed=1, workers=2, progress=False)
-    assert len(list(out.glob("spectra-*.parquet"))) == 2
+    assert sorted(p.name.split("-")[0] for p in out.glob("*.parquet")) == ["part", "part"]
     for part in out.glob("part-*.parquet"):
         assert len(pq.read_schema(part).metadata[b"quadrs_part"]) < 2_000
     pd.testing.assert_frame_equal(ck.spectra, whole.spectra, rtol=1e-12)
     pd.testing.assert_frame_equal(MonteCarloResult.read_parquet(out).spectra, ck.spectra)
 
 
-def test_a_checkpoint_with_spectra_in_its_parts_metadata_still_reads(
+def test_a_checkpoint_part_of_the_previous_format_is_refused_clearly(
     short: Scenario, tmp_path: Path
 ) -> None:
-    """Checkpoint parts written before spectra became tables hold them as JSON."""
+    """Checkpoint parts written before parts carried a content digest."""
     from quadrs.store import RunStore
 
     out = tmp_path / "run"
@@ -117,12 +121,11 @@ def test_a_checkpoint_with_spectra_in_its_parts_metadata_still_reads(
     (part,) = store.parts()
     runs = pq.read_table(part).to_pandas()
     meta = {"run": store.run, "spectra": new.spectrum_sums.to_json()}
-    for table in out.glob("spectra-*.parquet"):
-        table.unlink()
-    write_frame(runs, part, b"quadrs_part", meta)
-    old = MonteCarloResult.read_parquet(out)
-    pd.testing.assert_frame_equal(old.spectra, new.spectra)
-    pd.testing.assert_frame_equal(old.runs, new.runs)
+    table = pa.Table.from_pandas(runs, preserve_index=False)
+    pq.write_table(table.replace_schema_metadata({b"quadrs_part": json.dumps(meta).encode()}),
+                   part)  # fmt: skip
+    with pytest.raises(CorruptRunError, match="no content digest"):
+        MonteCarloResult.read_parquet(out)
 
 
 # -- the run record ---------------------------------------------------------------------------

@@ -2,7 +2,8 @@
 the record they yield, :class:`Chunk`, the same whether the chunk ran here or on a Dask worker.
 
 A chunk's rows depend only on (scenario, seed, realisation index), so chunks can run anywhere,
-in any order, and add up (:class:`SpectrumSums` adds exactly) to the batch a single call gives.
+in any order, and add up to the batch a single call gives: the rows bit for bit, the
+:class:`SpectrumSums` to within rounding (floating-point sums depend on their order).
 """
 
 from __future__ import annotations
@@ -19,30 +20,33 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.flight import METRIC_COLUMNS
-from quadrs.guard import run_cancellable
-from quadrs.integrity import CorruptRunError, RunRecord, check_spectra
-from quadrs.parquet import atomic_write_bytes, frame_bytes, read_frame
+from quadrs.guard import deferred_signals, run_cancellable
+from quadrs.integrity import CorruptRunError, RunRecord
+from quadrs.parquet import frame_bytes, read_frame
 from quadrs.scenario import Scenario
 
 __all__ = [
     "Chunk",
     "Design",
     "SpectrumSums",
+    "check_spectrum_counts",
     "fly_chunk",
     "load_spectra",
     "run_range",
     "runs_frame",
-    "save_spectra",
+    "spectra_attachment",
 ]
 
-#: The metadata key of a spectrum table's file (it holds the run identity).
-_SPECTRA_KEY = b"quadrs_spectra"
+#: The schema-metadata key of a spectrum table: in the table's own bytes it holds the run
+#: identity; in a result or part file, the embedded table.
+SPECTRA_KEY = b"quadrs_spectra"
 
 
 @dataclass
 class SpectrumSums:
     """Ensemble sums of amplitude spectra, per phase an array (n_controllers, bins): they add
-    exactly across chunks and machines, and give the mean and spread."""
+    across chunks and machines (equal to within rounding, not bit for bit, whatever the
+    chunking) and give the mean and spread."""
 
     frequencies: list[np.ndarray]
     total: list[np.ndarray]
@@ -241,8 +245,9 @@ def run_range(
             on_progress(progress.done())
 
     out, interrupted = run_cancellable(work, progress, None if on_progress is None else poll)
-    poll()
-    return out, interrupted
+    with deferred_signals(deliver=False) as held:  # the flights are done: keep them
+        poll()
+    return out, interrupted or bool(held)
 
 
 def dispersion_arrays(
@@ -273,8 +278,13 @@ def fly_chunk(
         scenario, controllers, seed, first, count, workers, spectra, on_progress, values,
         fused=fused,
     )  # fmt: skip
-    rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
-    return Chunk(first, count, rows, spectrum_sums(raw, scenario), interrupted)
+    # The flights are done: a Ctrl-C (or SIGTERM) while their rows are assembled must not
+    # throw them away. It is held and only marks the chunk interrupted (the batch stops
+    # after it, keeping it).
+    with deferred_signals(deliver=False) as held:
+        rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
+        sums = spectrum_sums(raw, scenario)
+    return Chunk(first, count, rows, sums, interrupted or bool(held))
 
 
 def runs_frame(
@@ -329,64 +339,70 @@ def spectrum_sums(raw: _core.BatchResult, scenario: Scenario) -> SpectrumSums | 
     )
 
 
-def save_spectra(sums: SpectrumSums, beside: Path, stem: str, record: RunRecord) -> dict[str, Any]:
-    """Write ``sums`` as a Parquet table (:meth:`SpectrumSums.table`) in the directory of the
-    file ``beside``, named ``stem`` and its content's hash (so a file overwritten later never
-    loses the table it names), stamped with the run identity. Returns the reference that
-    file keeps in its metadata under ``spectra``: the table's name, SHA-256 and the counts."""
+def spectra_attachment(sums: SpectrumSums, record: RunRecord) -> tuple[dict[str, Any], bytes]:
+    """``sums`` as a Parquet table (:meth:`SpectrumSums.table`) stamped with the run identity,
+    to embed in the file of the rows they belong to (one result, one file). Returns the
+    reference that file keeps in its metadata under ``spectra`` (the table's SHA-256 and the
+    counts) and the table's bytes."""
     table = sums.table(record.controllers, record.scenario.phase_names)
-    data = frame_bytes(table, _SPECTRA_KEY, {"run": record.run})
-    digest = hashlib.sha256(data).hexdigest()
-    name = f"{stem}-{digest[:16]}.parquet"
-    atomic_write_bytes(beside.parent / name, data)
-    return {"table": name, "sha256": digest, "count": [int(n) for n in sums.count]}
+    data = frame_bytes(table, SPECTRA_KEY, {"run": record.run})
+    ref = {"sha256": hashlib.sha256(data).hexdigest(), "count": [int(n) for n in sums.count]}
+    return ref, data
 
 
-def spectra_file(ref: Any) -> str | None:
-    """The spectrum table a file's ``spectra`` metadata names (None if it names none)."""
-    if isinstance(ref, dict) and isinstance(ref.get("table"), str):
-        return str(ref["table"])
-    return None
-
-
-def load_spectra(ref: Any, path: str | Path, record: RunRecord) -> SpectrumSums | None:
-    """The spectrum sums the file ``path`` of run ``record`` refers to with ``ref`` (its
-    ``spectra`` metadata): a table beside it, checked against the SHA-256 and run identity
-    ``ref`` and the table carry, and against the run's frequency grid; or, in files written
-    before spectra were tables, the sums themselves as JSON. None if it has none.
+def load_spectra(
+    ref: Any, path: str | Path, record: RunRecord, attachments: dict[bytes, bytes]
+) -> SpectrumSums | None:
+    """The spectrum sums embedded in the file ``path`` of run ``record`` (``attachments``: its
+    embedded tables), as its ``spectra`` metadata ``ref`` describes them: checked against the
+    SHA-256 and run identity, and against the run's frequency grid. None if it has none.
     CorruptRunError naming the file otherwise."""
     phases = record.scenario.phase_names
     if ref is None or ref is False:
         return None
-    if isinstance(ref, dict) and "table" not in ref:  # the older form: JSON in the metadata
-        check_spectra(ref, path, len(record.controllers), len(phases))
-        return SpectrumSums.from_json(ref)
 
     def fail(what: str) -> CorruptRunError:
         return CorruptRunError(f"{str(path)!r}: {what}; refusing to read it")
 
-    name = spectra_file(ref)
-    ok = name is not None and Path(name).name == name and not name.startswith(".")
-    if not (ok and isinstance(ref.get("sha256"), str) and isinstance(ref.get("count"), list)):
+    if not (isinstance(ref, dict) and isinstance(ref.get("sha256"), str)
+            and isinstance(ref.get("count"), list)):  # fmt: skip
         raise fail("its spectra metadata is malformed")
-    assert name is not None
-    table_path = Path(path).parent / name
-    try:
-        data = table_path.read_bytes()
-    except FileNotFoundError:
-        raise fail(f"its spectra are in {name!r} beside it, which is missing (copy the two "
-                   "files together)") from None  # fmt: skip
+    data = attachments.get(SPECTRA_KEY)
+    if data is None:
+        raise fail("its spectrum table is missing")
     if hashlib.sha256(data).hexdigest() != ref["sha256"]:
-        raise fail(f"its spectrum table {name!r} is not the one it was written with")
+        raise fail("its spectrum table is not the one it was written with")
     try:
-        frame, meta = read_frame(data, _SPECTRA_KEY)
+        frame, meta = read_frame(data, SPECTRA_KEY)
     except (OSError, ValueError) as e:
-        raise fail(f"its spectrum table {name!r} is unreadable ({e})") from None
+        raise fail(f"its spectrum table is unreadable ({e})") from None
     if not isinstance(meta, dict) or meta.get("run") != record.run:
-        raise fail(f"its spectrum table {name!r} belongs to another run")
+        raise fail("its spectrum table belongs to another run")
     try:
         return SpectrumSums.from_table(
             frame, ref["count"], record.controllers, phases, record.scenario.spectrum_frequencies
         )
     except ValueError as e:
-        raise fail(f"its spectrum table {name!r} does not fit it ({e})") from None
+        raise fail(f"its spectrum table does not fit it ({e})") from None
+
+
+def check_spectrum_counts(
+    sums: SpectrumSums | None, runs: pd.DataFrame, controllers: Sequence[str], path: str | Path
+) -> None:
+    """The spectra of a run count, per controller, exactly its finished realisations that did
+    not diverge under it (the engine's rule): anything else (a part counted twice, an edited
+    count) is refused, naming ``path``."""
+    if sums is None:
+        return
+    if "diverged" in runs and len(runs):
+        flown = runs.drop_duplicates(["realisation", "controller"])
+        ok = flown[~flown["diverged"].astype(bool)]
+        expected = [int((ok["controller"].astype(str) == c).sum()) for c in controllers]
+    else:
+        expected = [0] * len(controllers)
+    got = [int(n) for n in sums.count]
+    if got != expected:
+        raise CorruptRunError(
+            f"{str(path)!r}: its spectra count {got} flights per controller ({list(controllers)})"
+            f" but its rows hold {expected} that did not diverge; refusing to read it"
+        )

@@ -17,6 +17,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
+from quadrs.terminal import terminal_text
+
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
@@ -140,7 +142,7 @@ def _print_table3(mc: Any, args: argparse.Namespace) -> None:
     from quadrs.report import format_table3, shows_paper
 
     paper = not args.no_paper and shows_paper(mc.scenario)  # the paper's P: its own problem only
-    print(format_table3(mc.summary(), wide=args.wide, paper=paper))
+    print(terminal_text(format_table3(mc.summary(), wide=args.wide, paper=paper)))
 
 
 def _controller_names() -> tuple[str, ...]:
@@ -186,6 +188,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_tune(sub, common)
     add_linearize(sub, common)
+    from quadrs.cli_rare import add_rare
+
+    add_rare(sub, common)
     return parser
 
 
@@ -533,7 +538,7 @@ def _base_preset(args: argparse.Namespace) -> str:
 
 def load_scenario(args: argparse.Namespace) -> Any:
     """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once."""
-    from quadrs.scenario import Scenario, parse_value
+    from quadrs.scenario import Scenario, canonical_key, parse_value
 
     if args.scenario is not None and args.preset is not None:
         raise BadInput("--preset and --scenario: give one or the other")
@@ -556,7 +561,7 @@ def load_scenario(args: argparse.Namespace) -> Any:
             key, sep, spec = item.partition("=")
             if not sep or not key.strip():
                 raise BadInput(f"--disperse {item!r}: expected KEY=DIST(ARGS)")
-            table[key.strip()] = parse_distribution(spec)
+            table[canonical_key(key.strip())] = parse_distribution(spec)  # replaces the base's
         changes["dispersions"] = table
     return base.override(changes) if changes else base
 
@@ -608,7 +613,7 @@ def _print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4
         "display.float_format",
         lambda v: f"{v:.{digits}g}",
     ):
-        print(frame.to_string(), file=out or sys.stdout)
+        print(terminal_text(frame.to_string()), file=out or sys.stdout)
 
 
 def _check_suffix(path: Path | None, allowed: Sequence[str], option: str) -> None:
@@ -626,41 +631,18 @@ def _progress(args: argparse.Namespace) -> bool:
     return not args.no_progress and sys.stderr.isatty()
 
 
-def _saved(path: Path) -> None:
-    print(f"wrote {path}", file=sys.stderr)
-
-
 def _check_outputs(*paths: Path | None) -> None:
-    """Before any work: each output file must be writable (not a directory, its directory
-    creatable and accepting a new file), so a long batch is never lost to a bad --out."""
-    from quadrs.parquet import check_writable
+    """Before any work: the outputs can be written (:func:`quadrs.saving.check_outputs`)."""
+    from quadrs.saving import check_outputs
 
-    for path in paths:
-        if path is not None:
-            check_writable(path)
+    check_outputs(*paths)
 
 
 def _save(write: Any, path: Path) -> bool:
-    """``write(path)``; if that fails (full disk, permissions), save to a fresh recovery
-    directory instead and say where. Returns True if ``path`` was written."""
-    import tempfile
+    """``write(path)``, or a recovery copy named on stderr (:func:`quadrs.saving.save`)."""
+    from quadrs.saving import save
 
-    try:
-        write(path)
-    except OSError as e:
-        reason = e.strerror or str(e)
-        try:
-            spare = Path(tempfile.mkdtemp(prefix="quadrs-recovered-")) / path.name
-            write(spare)
-        except OSError as e2:
-            print(f"quadrs: error: could not write {path} ({reason}) nor a recovery copy "
-                  f"({e2.strerror or e2})", file=sys.stderr)  # fmt: skip
-        else:
-            print(f"quadrs: error: could not write {path} ({reason}); the results were "
-                  f"saved to {spare} instead", file=sys.stderr)  # fmt: skip
-        return False
-    _saved(path)
-    return True
+    return save(write, path)
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -772,16 +754,25 @@ def _dask_client(address: str | None) -> Iterator[Any]:
 def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
     from quadrs import plots
 
-    files = plots.save(plots.distributions(mc.runs), directory / "distributions")
+    figures: list[tuple[str, Any]] = [("distributions", lambda: plots.distributions(mc.runs))]
     if mc.spectra is not None:
-        files += plots.save(plots.ensemble_spectra(mc.spectra), directory / "spectra")
-        files += plots.save(plots.ensemble_psd(mc.spectra), directory / "psd")
+        figures += [("spectra", lambda: plots.ensemble_spectra(mc.spectra)),
+                    ("psd", lambda: plots.ensemble_psd(mc.spectra))]  # fmt: skip
     for metric in dict.fromkeys([m for m, _ in limits] or ["max_accel"]):
         marks = [t for m, t in limits if m == metric]
-        fig = plots.exceedance_curves(mc.runs, metric, marks)
-        files += plots.save(fig, directory / f"exceedance_{metric}")
+        curves = lambda m=metric, t=marks: plots.exceedance_curves(mc.runs, m, t)  # noqa: E731
+        figures.append((f"exceedance_{metric}", curves))
     if mc.dispersed_keys:
-        files += plots.save(plots.dispersion_scatter(mc, "iae"), directory / "dispersion_iae")
+        figures.append(("dispersion_iae", lambda: plots.dispersion_scatter(mc, "iae")))
+    files: list[Path] = []
+    for name, make in figures:
+        # One figure without data to draw (every flight diverged: nothing on a log scale)
+        # must not cost the others.
+        try:
+            files += plots.save(make(), directory / name)
+        except ValueError as e:
+            print(terminal_text(f"quadrs: warning: figure {name} not drawn ({_one_line(str(e))})"),
+                  file=sys.stderr)  # fmt: skip
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
@@ -844,9 +835,9 @@ def cmd_report(args: argparse.Namespace) -> int:
 
         if not RunStore(args.file).exists():
             raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
-    elif not args.file.is_file():
+    elif not args.file.exists():
         raise BadInput(f"{str(args.file)!r}: no such file")
-    if args.file.is_file() and is_sweep_file(args.file):
+    if not args.file.is_dir() and is_sweep_file(args.file):
         result = SweepResult.read_parquet(args.file)
         _print_frame(result.compact())
         _print_limits(result, args)
@@ -856,6 +847,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         mc = MonteCarloResult.read_parquet(args.file)
         note = " (interrupted batch)" if mc.interrupted else ""
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
+        if mc.runs.empty:  # a run stopped before its first realisation finished
+            return EXIT_OK
         _print_table3(mc, args)
         _print_limits(mc, args)
         if args.plots is not None:
@@ -866,15 +859,20 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_sensitivity(args: argparse.Namespace) -> int:
     """Sobol' indices of the dispersed keys: a compact ranking, optional Parquet and bars."""
     from quadrs.flight import METRIC_COLUMNS
+    from quadrs.guard import MAX_WORKERS, check_int
     from quadrs.sensitivity import sensitivity
 
     scenario = load_scenario(args)
     _check_suffix(args.out, (".parquet",), "--out")
     _check_positive("--workers", args.workers)
+    check_int("--seed", args.seed)
+    if args.workers is not None:
+        check_int("--workers", args.workers, 1, MAX_WORKERS)
     if args.metric not in METRIC_COLUMNS:
         raise BadInput(f"--metric {args.metric!r}: one of {', '.join(METRIC_COLUMNS)}")
     if args.phase is not None and args.phase not in scenario.phase_names:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+    _check_outputs(args.out)
     sa = sensitivity(
         scenario,
         runs=args.runs,
@@ -884,10 +882,9 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         progress=_progress(args),
         gust=not args.no_gust_factor,
     )
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        sa.to_parquet(args.out)
-        _saved(args.out)
+    status = EXIT_OK
+    if args.out is not None and not _save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
+        status = EXIT_FAIL
     print(
         f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "
         f"flights per controller; ± half-width of the 95% interval)"
@@ -898,7 +895,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
 
         files = plots.save(plots.sobol_bars(sa, args.metric), args.plots / f"sobol_{args.metric}")
         print(f"wrote {len(files)} figure files to {args.plots}", file=sys.stderr)
-    return EXIT_OK
+    return status
 
 
 def sensitivity_table(sa: Any, metric: str, phase: str | None) -> pd.DataFrame:
@@ -1013,7 +1010,15 @@ COMMANDS = {
     "scenario": cmd_scenario,
     "tune": lambda args: _design("cmd_tune", args),
     "linearize": lambda args: _design("cmd_linearize", args),
+    "rare": lambda args: _rare(args),
 }
+
+
+def _rare(args: argparse.Namespace) -> int:
+    """``rare`` lives in quadrs.cli_rare."""
+    from quadrs.cli_rare import cmd_rare
+
+    return cmd_rare(args, load_scenario)
 
 
 def _design(name: str, args: argparse.Namespace) -> int:
@@ -1036,7 +1041,7 @@ def _terse_warnings() -> Iterator[None]:
         if text not in seen:
             seen.add(text)
             kind = "note" if category.__name__ == "StabilityNote" else "warning"  # calm: harmless
-            print(f"quadrs: {kind}: {text}", file=sys.stderr)
+            print(terminal_text(f"quadrs: {kind}: {text}"), file=sys.stderr)
 
     with warnings.catch_warnings():
         warnings.showwarning = show
@@ -1093,7 +1098,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _bad_input_types() as e:
         if os.environ.get("QUADRS_TRACEBACK"):
             raise
-        print(f"{prog}: error: {_cli_words(_describe(e))}", file=sys.stderr)
+        print(terminal_text(f"{prog}: error: {_cli_words(_describe(e))}"), file=sys.stderr)
         return EXIT_USAGE
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.guard import CONTROLLERS
+from quadrs.terminal import terminal_text
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
 
@@ -133,46 +134,52 @@ def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, metavar="FILE.npz", help="save A, B, C, D (numpy .npz)")
 
 
-def _tuned_toml(args: argparse.Namespace, out: Path, best: dict[str, float], tuned: Any) -> str:
-    """``base`` = the input (preset name or the file's path relative to ``out``), then every
-    --set value and tuned value (a vector element writes its whole vector)."""
-    from quadrs.optimize import expand
-    from quadrs.report import toml_value
-    from quadrs.scenario import _split_key
+def _tuned_toml(args: argparse.Namespace, out: Path, keys: list[str], tuned: Any) -> str:
+    """The tuned scenario as a file: ``base`` = the input (preset name or the file's path
+    relative to ``out``), then every --set and tuned key (a key inside an array writes the
+    whole array, phases included). If that text would not read back as exactly ``tuned``
+    (a base that gives ``natural_frequency`` where ``stiffness`` is tuned, a scenario file
+    that cannot be a ``base``), the complete scenario is written instead."""
+    import tomli_w
+
+    from quadrs.scenario import Scenario, _split_key
 
     if args.scenario is not None:
-        src = Path(args.scenario).resolve()
+        src = Path(os.path.realpath(args.scenario))
         try:
-            base = os.path.relpath(src, out.resolve().parent)
+            base = os.path.relpath(src, Path(os.path.realpath(out)).parent)
         except ValueError:  # another drive
             base = str(src)
     else:
         base = args.preset or "paper"
-    keys = [item.partition("=")[0].strip() for item in args.overrides] + list(expand(best))
+    keys = [item.partition("=")[0].strip() for item in args.overrides] + keys
+    if getattr(args, "dispersions", None):
+        keys.append("dispersions")
+    data = tuned.to_dict()
     nested: dict[str, Any] = {}
     for key in keys:
         parts = _split_key(key)
-        while parts and isinstance(parts[-1], int):
-            parts = parts[:-1]
+        cut = next((i for i, p in enumerate(parts) if isinstance(p, int)), len(parts))
+        path = [str(p) for p in parts[: max(cut, 1)]]  # up to the first array
+        value: Any = data
+        try:
+            for part in path:
+                value = value[part]
+        except (KeyError, TypeError):  # set, then replaced (stiffness by natural_frequency)
+            continue
         node = nested
-        for part in parts[:-1]:
-            node = node.setdefault(str(part), {})
-        node[str(parts[-1])] = tuned[".".join(str(x) for x in parts)]
-
-    lines = ["# Written by quadrs tune: the input, its --set values and the tuned values.",
-             f"base = {toml_value(base)}"]  # fmt: skip
-
-    def emit(table: dict[str, Any], prefix: str) -> None:
-        leaves = {k: v for k, v in table.items() if not isinstance(v, dict)}
-        if prefix and leaves:
-            lines.extend(["", f"[{prefix}]"])
-        lines.extend(f"{k} = {toml_value(v)}" for k, v in leaves.items())
-        for k, v in table.items():
-            if isinstance(v, dict):
-                emit(v, f"{prefix}.{k}" if prefix else k)
-
-    emit(nested, "")
-    return "\n".join(lines) + "\n"
+        for part in path[:-1]:
+            node = node.setdefault(part, {})
+        node[path[-1]] = value
+    head = "# Written by quadrs tune: the input, its --set values and the tuned values.\n"
+    text = head + tomli_w.dumps({"base": base, **nested})
+    try:
+        if Scenario.from_toml_string(text, source=str(out)) == tuned:
+            return text
+    except ValueError:
+        pass
+    return ("# Written by quadrs tune: the complete tuned scenario (its input could not be "
+            "its base).\n" + tuned.to_toml())  # fmt: skip
 
 
 #: How the command line turns its options into a scenario (quadrs.cli.load_scenario).
@@ -180,8 +187,9 @@ LoadScenario = Callable[[argparse.Namespace], Any]
 
 
 def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
-    from quadrs.optimize import optimize
-    from quadrs.parquet import atomic_write_bytes, atomic_write_frame
+    from quadrs.guard import check_int
+    from quadrs.optimize import _canonical_params, expand, optimize
+    from quadrs.parquet import atomic_write_bytes, atomic_write_frame, check_writable
     from quadrs.scenario import Scenario
 
     if args.out.suffix != ".toml":
@@ -190,11 +198,19 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ValueError(f"--{name} must be >= 1, got {value}")
+    check_int("--seed", args.seed)
     scenario = load_scenario(args)
-    params = dict(args.param)
-    if len(params) != len(args.param):
+    if len(dict(args.param)) != len(args.param):
         raise ValueError("--param: each key at most once")
+    params = _canonical_params(scenario, dict(args.param))
     phases = tuple(args.phase) if args.phase else tuple(scenario.phase_names)
+    # Before any flight: the outputs can be written, and the tuned file can be made from a
+    # candidate (the midpoint of the bounds), so the work is not lost to a bad --out.
+    for path in (args.out, args.history):
+        if path is not None:
+            check_writable(path)
+    middle = {k: (lo + hi) / 2 for k, (lo, hi) in params.items()}
+    _tuned_toml(args, args.out, list(expand(middle)), scenario.override(expand(middle)))
     progress = sys.stderr.isatty()
     result = optimize(
         scenario,
@@ -222,8 +238,9 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     )
     for key, value in result.best.items():
         print(f"{key} = {value:.6g}")
-    print(f"objective ({args.objective} over {', '.join(phases)}, seed {args.seed}): "
-          f"{result.objective:.6g} (untuned: {result.baseline:.6g})")  # fmt: skip
+    print(terminal_text(f"objective ({args.objective} over {', '.join(phases)}, seed "
+                        f"{args.seed}): {result.objective:.6g} "
+                        f"(untuned: {result.baseline:.6g})"))  # fmt: skip
     if result.holdout is not None:
         ho = result.holdout
         print(f"held out (seed {ho.seed}, {ho.runs} runs): {ho.objective:.6g} "
@@ -234,19 +251,28 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
               f"the flight excites{why}, diverged or gave a non-finite objective): nothing "
               "written", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
-    text = _tuned_toml(args, args.out, result.best, result.scenario)
-    atomic_write_bytes(args.out, text.encode())
+    text = _tuned_toml(args, args.out, list(expand(result.best)), result.scenario)
     # The file must give back exactly the tuned scenario.
-    if Scenario.from_toml(args.out) != result.scenario:  # pragma: no cover - a bug if it fires
-        raise RuntimeError(f"{args.out} does not reproduce the tuned scenario")
-    print(f"wrote {args.out}", file=sys.stderr)
-    if args.history is not None:
-        atomic_write_frame(h, args.history, index=False)
-        print(f"wrote {args.history}", file=sys.stderr)
+    if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
+        raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
+    status = EXIT_OK
+    if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
+        status = EXIT_FAIL
+    if args.history is not None and not _save_text(
+        lambda p: atomic_write_frame(h, p, index=False), args.history
+    ):
+        status = EXIT_FAIL
     if result.interrupted:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
         return EXIT_INTERRUPT
-    return EXIT_OK
+    return status
+
+
+def _save_text(write: Callable[[Path], object], path: Path) -> bool:
+    """The command line's saving with a recovery copy (quadrs.saving.save)."""
+    from quadrs.saving import save
+
+    return save(write, path)
 
 
 def _print_phase_effects(effects: Any, metric: str, tuned: tuple[str, ...]) -> None:
@@ -269,11 +295,14 @@ def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     import numpy as np
 
     from quadrs.linear import OUTPUT_NAMES, equivalent_wind, linearize
+    from quadrs.parquet import atomic_write, check_writable
 
     scenario = load_scenario(args)
     wind = equivalent_wind(scenario) if args.wind is None else args.wind
     if not math.isfinite(wind):
         raise ValueError(f"--wind must be finite, got {wind}")
+    if args.out is not None:
+        check_writable(args.out)
     controllers = CONTROLLERS if args.controller == "both" else (args.controller,)
     models = {}
     for c in controllers:
@@ -291,8 +320,10 @@ def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                              outputs=OUTPUT_NAMES,
                              wind=(0.0, 0.0, wind)) for c in controllers}  # fmt: skip
         arrays = {f"{c}_{m}": getattr(lin, m) for c, lin in full.items() for m in "ABCD"}
-        np.savez(args.out, **arrays)
-        print(f"wrote {args.out}", file=sys.stderr)
+        # np.savez appends .npz to a name without it: write the name it would load from.
+        out = args.out if args.out.suffix == ".npz" else args.out.with_name(args.out.name + ".npz")
+        if not _save_text(lambda p: atomic_write(p, lambda f: np.savez(f, **arrays)), out):
+            return EXIT_FAIL
     if args.plot is not None:
         from quadrs.plots import gust_transmissibility
 

@@ -146,15 +146,19 @@ class Flight:
         from another quadrs version (:class:`quadrs.integrity.CorruptRunError`)."""
         from quadrs.parquet import read_frame
 
-        frame, meta = read_frame(path, _META_KEY)
-        if not isinstance(meta, dict) or meta.get("kind") != "flight":
-            raise _fail(path, "it is not a quadrs flight trace (no flight metadata)")
+        def validate(meta: Any) -> None:
+            if not isinstance(meta, dict) or meta.get("kind") != "flight":
+                raise _fail(path, "it is not a quadrs flight trace (no flight metadata)")
+            RunRecord.read(meta, path, "trace", _TRACE_META)
+            if meta["trace"] != {k: meta[k] for k in ("realisation", "record_every")}:
+                raise _fail(path, "its trace fields disagree with its run identity (edited?)")
+            if meta["controllers"] != [meta["controller"]]:
+                raise _fail(path, f"its controller {meta['controller']!r} disagrees with "
+                                  f"{meta['controllers']!r}")  # fmt: skip
+
+        frame, meta = read_frame(path, _META_KEY, validate=validate)
         scenario = RunRecord.read(meta, path, "trace", _TRACE_META).scenario
-        if meta["trace"] != {k: meta[k] for k in ("realisation", "record_every")}:
-            raise _fail(path, "its trace fields disagree with its run identity (edited?)")
         ctrl = meta["controller"]
-        if meta["controllers"] != [ctrl]:
-            raise _fail(path, f"its controller {ctrl!r} disagrees with {meta['controllers']!r}")
         if frame.index.name != "t" or list(frame.columns) != scenario.trace_columns:
             raise _fail(path, "its columns are not those of a quadrs trace")
         phases = scenario.phase_names

@@ -6,9 +6,11 @@ See docs/guarantees.md for what these promise.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from quadrs import _core
@@ -25,6 +27,55 @@ I64_MAX = 2**63 - 1
 MAX_WORKERS = 4096
 #: The controllers the engine flies, by name (its list: one vocabulary for the package).
 CONTROLLERS: tuple[str, ...] = tuple(_core.CONTROLLER_NAMES)
+#: Signals held back while finished work is kept (Ctrl-C and what the CLI treats like it).
+_DEFERRED = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def deferred_signals(
+    deliver: bool = True, on_signal: Callable[[int], None] | None = None
+) -> Iterator[list[int]]:
+    """Hold Ctrl-C and SIGTERM back for the duration of the block (only on the main thread,
+    where Python runs signal handlers; elsewhere a no-op), calling ``on_signal(signum)`` as
+    each arrives (e.g. to cancel the engine). Yields the list of the signals held. On exit
+    the first one is delivered to the handler it would have met; with ``deliver=False`` the
+    caller acts on the list instead (marks the work interrupted): the handler still runs, so
+    it can note the signal (the command line's exit status for SIGTERM), but the
+    KeyboardInterrupt it raises is dropped. No KeyboardInterrupt is ever raised inside the
+    block: one raised inside a lock or an Event's wait can leave it broken."""
+    caught: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield caught
+        return
+    frames: list[Any] = []
+    previous: dict[int, Any] = {}
+
+    def hold(signum: int, frame: Any) -> None:
+        caught.append(signum)
+        frames.append(frame)
+        if on_signal is not None:
+            on_signal(signum)
+
+    for sig in _DEFERRED:
+        try:
+            previous[sig] = signal.signal(sig, hold)
+        except (ValueError, OSError):  # not installable here
+            pass
+    try:
+        yield caught
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum, frame in zip(caught[:1], frames[:1], strict=True):
+            handler = previous.get(signum)
+            if callable(handler):
+                if deliver:
+                    handler(signum, frame)
+                else:
+                    with contextlib.suppress(KeyboardInterrupt):
+                        handler(signum, frame)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
 
 
 def check_controller(name: str) -> str:
@@ -127,18 +178,21 @@ def run_cancellable(
                 continue
 
     thread = threading.Thread(target=run, name="quadrs-engine", daemon=True)
-    interrupted = False
+    # Ctrl-C (and SIGTERM) cancel the engine from the handler itself: no KeyboardInterrupt is
+    # raised into this wait, where a second one could break the Event's lock.
     try:
-        thread.start()  # inside the try: Ctrl-C can land while start() waits
-        while not finished.wait(POLL_SECONDS):
-            if on_poll is not None:
-                on_poll()
-    except KeyboardInterrupt:
-        interrupted = True
+        with deferred_signals(deliver=False, on_signal=lambda _: progress.cancel()) as caught:
+            thread.start()
+            while not finished.wait(POLL_SECONDS):
+                if on_poll is not None:
+                    on_poll()
+    except KeyboardInterrupt:  # only off the main thread, or before the handlers were set
+        caught = [signal.SIGINT]
         cancel_and_wait()
     except BaseException:
         cancel_and_wait()
         raise
+    interrupted = bool(caught)
     if "error" in box:
         raise box["error"]
     if "out" not in box:  # interrupted before the work began

@@ -186,26 +186,12 @@ def check_run_metadata(
     return scenario
 
 
-def check_spectra(raw: Any, path: str | Path, n_ctrl: int, n_phase: int) -> None:
-    """Spectrum sums shaped for ``n_ctrl`` controllers and ``n_phase`` phases."""
-    ok = isinstance(raw, dict) and all(
-        k in raw for k in ("frequencies", "total", "total_sq", "count")
-    )
-    ok = ok and isinstance(raw["count"], list) and len(raw["count"]) == n_ctrl
-    ok = ok and all(isinstance(c, int) and not isinstance(c, bool) and c >= 0 for c in raw["count"])
-    ok = ok and all(
-        isinstance(raw[k], list) and len(raw[k]) == n_phase
-        for k in ("frequencies", "total", "total_sq")
-    )
-    if not ok:
-        raise _fail(path, "its spectrum sums are malformed")
-
-
 def check_rows(
     runs: Any, path: str | Path, controllers: Sequence[str], phases: Sequence[str]
 ) -> None:
     """The rows hold the columns of a runs table, and only our controllers and phases."""
-    need = {"realisation", "controller", "phase", "diverged"}
+    need = {"realisation", "controller", "phase", "diverged", "diverged_at",
+            *_core.METRIC_NAMES}  # fmt: skip
     missing = need - set(runs.columns)
     if missing:
         raise _fail(path, f"its rows lack the columns {sorted(missing)}")

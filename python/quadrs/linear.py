@@ -142,8 +142,19 @@ def linearize(
     names = (*scenario.state_names, *OUTPUT_NAMES[len(_core.STATE_NAMES) :])
     rows = _select(outputs, names, "outputs")
     cols = _select(inputs, INPUT_NAMES, "inputs")
+    if not all(math.isfinite(x) for x in w):
+        raise ValueError(f"wind must be finite, got {wind!r}")
     raw = _core.linearize(scenario.to_json(), controller, list(w))
     assert tuple(raw["output_names"]) == names
+    bad = [m for m in ("A", "B", "C", "D") if not np.all(np.isfinite(raw[m]))]
+    if bad or not np.all(np.isfinite(raw["equilibrium"])):
+        # No trim exists (the thrust cannot balance such a wind) or its slopes overflow:
+        # say so, naming the input, rather than hand back inf/NaN matrices.
+        raise ValueError(
+            f"wind = {list(w)} m/s: the closed loop of {controller} has no finite "
+            f"linearisation about it ({', '.join(bad) or 'the equilibrium'} not finite); "
+            "choose a smaller wind"
+        )
     return LinearModel(
         A=raw["A"],
         B=raw["B"][:, cols],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import operator
 import warnings
@@ -20,8 +21,9 @@ from quadrs.guard import (
     check_labels,
     check_memory,
     default_workers,
+    deferred_signals,
 )
-from quadrs.results import MonteCarloResult
+from quadrs.results import MonteCarloResult, empty_runs
 from quadrs.scenario import Scenario
 from quadrs.stability import warn_before_running
 from quadrs.store import RunStore, missing_ranges
@@ -109,8 +111,6 @@ def monte_carlo(
     metadata, a checkpoint's manifest and the run identity, so a resumed run keeps its mode; on
     Dask each worker fuses on its own instruction set). See docs/performance.md.
     """
-    from tqdm.auto import tqdm
-
     controllers = tuple(check_controller(c) for c in controllers)
     if len(set(controllers)) != len(controllers) or not controllers:
         raise ValueError(f"controllers must be distinct and non-empty, got {controllers}")
@@ -141,14 +141,43 @@ def monte_carlo(
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
-    todo = [(first, runs)]
     store = RunStore(out) if out is not None else None
-    if store is not None:
-        if store.exists() and resume:
-            store.check_matches(scenario, seed, controllers, spectra, design.record(), arithmetic)
-            todo = missing_ranges(first, runs, store.done_realisations())
-        else:
-            store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
+    with contextlib.ExitStack() as held:
+        todo = [(first, runs)]
+        if store is not None:
+            if store.exists() and resume:
+                held.enter_context(store.writing())  # one writer at a time
+                store.check_matches(scenario, seed, controllers, spectra, design.record(),
+                                    arithmetic)  # fmt: skip
+                todo = missing_ranges(first, runs, store.done_realisations())
+            else:
+                store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
+                held.enter_context(store.writing())
+        return _fly(scenario, controllers, seed, runs, workers, progress, spectra, out, store,
+                    chunk, client, sampling, design, fused, arithmetic, todo)  # fmt: skip
+
+
+def _fly(
+    scenario: Scenario,
+    controllers: tuple[str, ...],
+    seed: int,
+    runs: int,
+    workers: int,
+    progress: bool,
+    spectra: bool,
+    out: str | Path | None,
+    store: RunStore | None,
+    chunk: int | None,
+    client: Client | None,
+    sampling: str,
+    design: Design,
+    fused: bool,
+    arithmetic: str,
+    todo: list[tuple[int, int]],
+) -> MonteCarloResult:
+    """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
+    from tqdm.auto import tqdm
+
     if client is not None:
         from quadrs.distributed import total_threads
 
@@ -159,16 +188,20 @@ def monte_carlo(
     ranges = split_ranges(todo, size)
     parts: list[Chunk] = []
     pending: list[Chunk] = []
+    interrupted = False
 
     def flush() -> None:
-        """Hand finished chunks to the store (or the in-memory list). An item leaves `pending`
-        only once written, so a Ctrl-C landing mid-write is retried from `finally`."""
-        while pending:
-            if store is not None:
-                store.write_part(pending[0])
-            else:
-                parts.append(pending[0])
-            pending.pop(0)
+        """Hand finished chunks to the store (or the in-memory list), Ctrl-C held back so each
+        lands exactly once (a signal held here marks the batch interrupted)."""
+        nonlocal interrupted
+        with deferred_signals(deliver=False) as held:
+            while pending:
+                if store is not None:
+                    store.write_part(pending[0])
+                else:
+                    parts.append(pending[0])
+                pending.pop(0)
+        interrupted = interrupted or bool(held)
 
     remaining = sum(c for _, c in ranges)
     bar = tqdm(
@@ -196,7 +229,7 @@ def monte_carlo(
                 flush()
                 if client is not None:
                     bar.update(done.count)
-                if done.interrupted:
+                if done.interrupted or interrupted:  # (a signal held while saving it)
                     interrupted = True
                     break
         finally:
@@ -207,20 +240,44 @@ def monte_carlo(
     finally:
         bar.close()
         flush()
-    if interrupted:
-        warnings.warn(
-            "Monte Carlo interrupted: the result holds only the realisations that finished"
-            + (f" (saved in {out}; resume=True continues it)" if out is not None else ""),
-            RuntimeWarning,
-            stacklevel=2,
-        )
-    if store is not None:
-        return MonteCarloResult.from_store(store, interrupted)
-    frames = [part.runs for part in parts]
-    table = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
-    if len(frames) > 1:
-        table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
-    sums = [part.spectra for part in parts if part.spectra is not None]
+    # What finished is assembled whatever arrives meanwhile: a signal now only marks the
+    # batch interrupted (the command line then saves it and exits 130).
+    with deferred_signals(deliver=False) as held:
+        interrupted = interrupted or bool(held)
+        if interrupted:
+            warnings.warn(
+                "Monte Carlo interrupted: the result holds only the realisations that finished"
+                + (f" (saved in {out}; resume=True continues it)" if out is not None else ""),
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        if store is not None:
+            return MonteCarloResult.from_store(store, interrupted or bool(held))
+        frames = [part.runs for part in parts]
+        if not frames:
+            table = empty_runs(scenario)
+        elif len(frames) == 1:
+            table = frames[0]
+        else:
+            table = pd.concat(frames, ignore_index=True)
+            table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
+        # Summed in realisation order, not arrival order (Dask): the same run gives the same bits.
+        ordered = sorted(parts, key=lambda part: part.first)
+        sums = [part.spectra for part in ordered if part.spectra is not None]
+        return _result(scenario, seed, controllers, table, sums, interrupted or bool(held),
+                       sampling, arithmetic)  # fmt: skip
+
+
+def _result(
+    scenario: Scenario,
+    seed: int,
+    controllers: tuple[str, ...],
+    table: pd.DataFrame,
+    sums: list[SpectrumSums],
+    interrupted: bool,
+    sampling: str,
+    arithmetic: str,
+) -> MonteCarloResult:
     return MonteCarloResult(
         scenario=scenario,
         seed=seed,

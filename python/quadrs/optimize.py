@@ -26,10 +26,10 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core
-from quadrs.guard import check_controller
+from quadrs.guard import U64_MAX, check_controller, check_int
 from quadrs.montecarlo import monte_carlo
 from quadrs.results import MonteCarloResult
-from quadrs.scenario import Scenario, scenario_error
+from quadrs.scenario import Scenario, design_keys, scenario_error
 
 METHODS = ("differential_evolution", "nelder-mead")
 #: Offset of the held-out seed from the tuning seed.
@@ -38,6 +38,12 @@ HOLDOUT_SEED_OFFSET = 1_000_003
 HOLDOUT_BATCHES = 8
 
 Objective = str | Callable[[MonteCarloResult], float]
+
+
+def holdout_seed(seed: int) -> int:
+    """The seed the best candidate is re-evaluated on: ``seed + HOLDOUT_SEED_OFFSET``,
+    wrapping within the 64-bit seeds (a seed near 2**64 still has one)."""
+    return (seed + HOLDOUT_SEED_OFFSET) % (U64_MAX + 1)
 
 
 class _Stop(Exception):
@@ -124,6 +130,17 @@ class OptimizeResult:
 def expand(values: Mapping[str, float]) -> dict[str, float]:
     """{key: value} with tied keys ("a,b": one value for both) split into one entry each."""
     return {k.strip(): v for key, v in values.items() for k in key.split(",")}
+
+
+def _canonical_params(
+    scenario: Scenario, params: Mapping[str, Sequence[float]]
+) -> dict[str, Sequence[float]]:
+    """``params`` with every key (also each of a tied group) in its canonical spelling; a key
+    given twice (in two groups, or two spellings) or also dispersed is refused by name."""
+    groups = [[k.strip() for k in key.split(",")] for key in params]
+    canon = iter(design_keys(scenario, [k for g in groups for k in g], "params"))
+    names = [",".join(next(canon) for _ in g) for g in groups]
+    return dict(zip(names, params.values(), strict=True))
 
 
 def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> None:
@@ -214,7 +231,7 @@ def optimize(
         raise ValueError("controller must name at least one of 'pd', 'smc'")
     for c in controllers:
         check_controller(c)
-    params = dict(params or {})
+    params = _canonical_params(scenario, dict(params or {}))
     _check_params(scenario, params)
     keys = list(params)
     bounds = [(float(params[k][0]), float(params[k][1])) for k in keys]
@@ -222,8 +239,7 @@ def optimize(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
-    if seed < 0:
-        raise ValueError(f"seed must be >= 0, got {seed}")
+    seed = check_int("seed", seed)
     if maxiter is not None and maxiter < 1:
         raise ValueError(f"maxiter must be >= 1, got {maxiter}")
     if popsize < 1:
@@ -366,7 +382,7 @@ def optimize(
     holdout, baseline, effects = None, math.nan, None
     if not interrupted and not bool(best_row["penalised"]):
         count = runs if holdout_runs is None else int(holdout_runs)
-        hseed = seed + HOLDOUT_SEED_OFFSET
+        hseed = holdout_seed(seed)
         try:
             mc = fly(tuned, hseed, count)
             holdout = _holdout(mc, objective, phases, hseed, count, score)

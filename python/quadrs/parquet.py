@@ -11,48 +11,25 @@ until the rename is done, then delivered.
 from __future__ import annotations
 
 import contextlib
+import errno
+import hashlib
 import json
 import os
-import signal
+import stat
 import tempfile
-import threading
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-#: Signals held back while a file is being written (delivered right after).
-_DEFERRED = (signal.SIGINT, signal.SIGTERM)
+from quadrs.guard import deferred_signals
 
-
-@contextlib.contextmanager
-def deferred_signals() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM back for the duration of the block, then deliver them (only on
-    the main thread, where Python runs signal handlers; elsewhere a no-op)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught: list[tuple[int, Any]] = []
-    previous: dict[int, Any] = {}
-    for sig in _DEFERRED:
-        try:
-            previous[sig] = signal.signal(sig, lambda s, f: caught.append((s, f)))
-        except (ValueError, OSError):  # not installable here
-            pass
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        for signum, frame in caught[:1]:
-            handler = previous.get(signum)
-            if callable(handler):
-                handler(signum, frame)
-            elif handler == signal.SIG_DFL:
-                signal.raise_signal(signum)
+__all__ = ["atomic_write", "deferred_signals", "read_file", "write_frame"]
 
 
 def _umask() -> int:
@@ -157,46 +134,241 @@ def check_writable(path: str | Path) -> None:
         os.unlink(tmp)
 
 
-def _table(frame: pd.DataFrame, key: bytes, meta: Any, index: bool = False) -> pa.Table:
+#: Largest JSON side file (a checkpoint's manifest) read, in bytes.
+MAX_JSON_BYTES = 16 << 20
+#: The metadata field that binds a saved file to its contents (see :func:`write_frame`).
+CONTENTS = "contents"
+
+
+def check_regular(path: str | Path) -> int:
+    """The size of ``path`` if it is a regular file (symlinks followed); OSError naming it
+    otherwise: a device (``/dev/zero``), a FIFO or a socket would be read forever or block, so
+    nothing is ever read from one."""
+    st = os.stat(path)
+    if not stat.S_ISREG(st.st_mode):
+        raise OSError(errno.EINVAL, "not a regular file (a device, FIFO or socket?)", str(path))
+    return st.st_size
+
+
+def read_regular(path: str | Path, limit: int | None = None) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them (default: what the
+    memory available can hold): OSError naming the file if it is not a regular file or is
+    larger. Opened without blocking, so a FIFO swapped in after the check cannot hang us."""
+    from quadrs.guard import check_memory
+
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise OSError(errno.EINVAL, "not a regular file (a device, FIFO or socket?)",
+                          str(path))  # fmt: skip
+        if limit is not None and st.st_size > limit:
+            raise OSError(errno.EFBIG, f"larger than {limit} bytes", str(path))
+        if limit is None:
+            check_memory(f"reading {str(path)!r}", 2 * st.st_size)
+        cap = st.st_size if limit is None else limit
+        data = f.read(cap + 1)
+    if len(data) > cap:  # it grew while we read
+        raise OSError(errno.EFBIG, "changed size while being read", str(path))
+    return data
+
+
+def _rows_digest(table: pa.Table) -> bytes:
+    """SHA-256 of a table's column names and values: numbers by their bytes (every bit
+    counts), anything else (controller and phase names) as the distinct values and, per row,
+    which one it holds."""
+    h = hashlib.sha256()
+    for name, column in zip(table.column_names, table.columns, strict=True):
+        h.update(json.dumps(name).encode() + b"\0")
+        array = column.combine_chunks()
+        kind = array.type
+        values = None
+        if pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind):
+            values = np.asarray(array.to_numpy(zero_copy_only=False))
+        if values is not None and values.dtype != object:
+            h.update(values.dtype.str.encode() + b"\0" + np.ascontiguousarray(values).tobytes())
+        else:
+            if pa.types.is_dictionary(kind):
+                array = array.dictionary_decode()
+            coded = array.dictionary_encode()
+            index = np.asarray(coded.indices.fill_null(-1).to_numpy(), dtype=np.int64)
+            distinct = [None if v is None else str(v) for v in coded.dictionary.to_pylist()]
+            h.update(json.dumps(distinct).encode() + b"\0" + index.tobytes())
+        h.update(b"\1")
+    return h.digest()
+
+
+def _seal(meta: dict[str, Any], table: pa.Table, others: dict[bytes, bytes]) -> str:
+    """The content digest of a saved file: its metadata (but the digest), its rows, and every
+    other entry of its schema metadata (the embedded spectrum table, pandas' index layout)."""
+    h = hashlib.sha256()
+    doc = {k: v for k, v in meta.items() if k != CONTENTS}
+    h.update(json.dumps(doc, sort_keys=True).encode())
+    h.update(_rows_digest(table))
+    for k in sorted(others):
+        h.update(hashlib.sha256(k).digest() + hashlib.sha256(others[k]).digest())
+    return h.hexdigest()
+
+
+def _table(
+    frame: pd.DataFrame,
+    key: bytes,
+    meta: Any,
+    index: bool = False,
+    attachments: dict[bytes, bytes] | None = None,
+) -> pa.Table:
     table = pa.Table.from_pandas(frame, preserve_index=index)
     schema_meta = dict(table.schema.metadata or {})
+    schema_meta.update(attachments or {})
+    if isinstance(meta, dict):
+        meta = {**meta, CONTENTS: _seal(meta, table, schema_meta)}
     schema_meta[key] = json.dumps(meta).encode()
     return table.replace_schema_metadata(schema_meta)
 
 
 def write_frame(
-    frame: pd.DataFrame, path: str | Path, key: bytes, meta: Any, index: bool = False
+    frame: pd.DataFrame,
+    path: str | Path,
+    key: bytes,
+    meta: Any,
+    index: bool = False,
+    attachments: dict[bytes, bytes] | None = None,
 ) -> None:
-    """``frame`` (with its index if ``index``) to ``path`` with ``meta`` as JSON under ``key``."""
-    table = _table(frame, key, meta, index)
+    """``frame`` (with its index if ``index``) to ``path`` with ``meta`` as JSON under ``key``
+    and ``attachments`` (name -> bytes, e.g. an embedded table) beside it in the schema
+    metadata: one file. A dict ``meta`` gets ``contents``, the SHA-256 of everything else in
+    the file (metadata, rows, attachments), which :func:`read_frame` checks."""
+    table = _table(frame, key, meta, index, attachments)
     atomic_write(path, lambda f: pq.write_table(table, f))
 
 
 def frame_bytes(frame: pd.DataFrame, key: bytes, meta: Any) -> bytes:
-    """The Parquet file :func:`write_frame` would write, as bytes (to hash before saving)."""
+    """The Parquet file :func:`write_frame` would write, as bytes (to hash or embed)."""
     sink = pa.BufferOutputStream()
     pq.write_table(_table(frame, key, meta), sink)
     return bytes(sink.getvalue().to_pybytes())
 
 
-def read_frame(path: str | Path | bytes, key: bytes) -> tuple[pd.DataFrame, Any | None]:
+@dataclass(frozen=True)
+class SavedFile:
+    """A Parquet file quadrs wrote: its rows, its metadata (JSON under its key, None if it has
+    none) and the other entries of its schema metadata (embedded tables)."""
+
+    frame: pd.DataFrame
+    meta: Any
+    attachments: dict[bytes, bytes]
+
+
+def read_file(
+    path: str | Path | bytes,
+    key: bytes,
+    sealed: bool = True,
+    validate: Callable[[Any], object] | None = None,
+) -> SavedFile:
+    """A file (or its bytes) written by :func:`write_frame`. ``validate(meta)`` runs first
+    (a reader's own checks of its metadata, whose errors say most precisely what is wrong).
+    Then, with ``sealed`` (the default), a dict metadata must carry the ``contents`` digest of
+    what the file holds: CorruptRunError naming the file if it lacks one (written before
+    quadrs bound files to their contents) or if anything (rows, metadata, attachments) was
+    changed since."""
+    from quadrs.integrity import CorruptRunError
+
+    where = "<bytes>" if isinstance(path, bytes) else str(path)
+    data = path if isinstance(path, bytes) else read_regular(path)
+    try:
+        table = pq.read_table(pa.BufferReader(data))
+    except (pa.ArrowException, OSError, ValueError) as e:
+        raise CorruptRunError(f"{where!r}: not a readable Parquet file ({_first_line(e)})") \
+            from None  # fmt: skip
+    schema_meta = dict(table.schema.metadata or {})
+    raw = schema_meta.pop(key, None)
+    meta = loads_json(raw, where) if raw is not None else None
+    if validate is not None:
+        validate(meta)
+    if sealed and isinstance(meta, dict):
+        seal = meta.get(CONTENTS)
+        if not isinstance(seal, str):
+            raise CorruptRunError(
+                f"{where!r}: it carries no content digest (written by an earlier quadrs, "
+                "before saved files were bound to their contents): run it again; refusing "
+                "to read it"
+            )
+        if seal != _seal(meta, table, schema_meta):
+            raise CorruptRunError(
+                f"{where!r}: its rows, metadata or spectra are not those it was written with "
+                "(edited, or parts of two files combined); refusing to read it"
+            )
+    attachments = {k: v for k, v in schema_meta.items() if k != b"pandas"}
+    try:
+        frame = table.to_pandas()
+    except (pa.ArrowException, ValueError, TypeError) as e:
+        raise CorruptRunError(f"{where!r}: its rows cannot be read ({_first_line(e)})") from None
+    return SavedFile(frame, meta, attachments)
+
+
+def read_frame(
+    path: str | Path | bytes,
+    key: bytes,
+    sealed: bool = True,
+    validate: Callable[[Any], object] | None = None,
+) -> tuple[pd.DataFrame, Any]:
     """The frame and the JSON metadata under ``key`` (None if the file has none), from a file
-    or from the bytes of one."""
-    source = pa.BufferReader(path) if isinstance(path, bytes) else path
-    table = pq.read_table(source)
-    raw = (table.schema.metadata or {}).get(key)
-    where = "<bytes>" if isinstance(path, bytes) else path
-    return table.to_pandas(), (_loads(raw, where) if raw is not None else None)
+    or from the bytes of one; checked as :func:`read_file` checks it."""
+    saved = read_file(path, key, sealed, validate)
+    return saved.frame, saved.meta
 
 
 def read_meta(path: str | Path, key: bytes) -> Any | None:
-    """Only the JSON metadata under ``key``, without reading the data."""
-    raw = (pq.read_schema(path).metadata or {}).get(key)
-    return _loads(raw, path) if raw is not None else None
-
-
-def _loads(raw: bytes, path: str | Path) -> Any:
+    """Only the JSON metadata under ``key``, without reading the data (nor checking it
+    against the data: for telling kinds of file apart)."""
+    check_regular(path)
     try:
-        return json.loads(raw)
+        schema = pq.read_schema(path)
+    except (pa.ArrowException, ValueError) as e:
+        from quadrs.integrity import CorruptRunError
+
+        raise CorruptRunError(f"{str(path)!r}: not a readable Parquet file ({_first_line(e)})") \
+            from None  # fmt: skip
+    raw = (schema.metadata or {}).get(key)
+    return loads_json(raw, path) if raw is not None else None
+
+
+def _first_line(e: BaseException) -> str:
+    return (str(e).strip().splitlines() or [type(e).__name__])[0]
+
+
+#: Deepest nesting of quadrs metadata (a scenario nests at most 32 deep in its own TOML).
+MAX_META_DEPTH = 64
+
+
+def loads_json(raw: bytes, path: str | Path) -> Any:
+    """JSON metadata, refused (ValueError naming ``path``) if invalid, with a repeated key, or
+    nested deeper than MAX_META_DEPTH (checked without recursion)."""
+    try:
+        value = json.loads(raw, object_pairs_hook=_unique_keys)
+    except RecursionError:
+        value = None
+        too_deep = True
     except ValueError as e:
         raise ValueError(f"{str(path)!r}: its quadrs metadata is not valid JSON ({e})") from None
+    else:
+        too_deep = False
+        stack = [(value, 0)]
+        while stack and not too_deep:
+            node, depth = stack.pop()
+            too_deep = depth > MAX_META_DEPTH
+            children = node.values() if isinstance(node, dict) else node if isinstance(
+                node, list) else ()  # fmt: skip
+            stack.extend((c, depth + 1) for c in children)
+    if too_deep:
+        raise ValueError(f"{str(path)!r}: its quadrs metadata is nested more than "
+                         f"{MAX_META_DEPTH} levels deep")  # fmt: skip
+    return value
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are distinct (a repeated key would hide one value)."""
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        raise ValueError("a key is repeated")
+    return out

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -10,9 +9,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from quadrs.chunk import SpectrumSums, load_spectra, runs_frame, save_spectra, spectra_file
+from quadrs.chunk import (
+    SPECTRA_KEY,
+    SpectrumSums,
+    check_spectrum_counts,
+    load_spectra,
+    runs_frame,
+    spectra_attachment,
+)
 from quadrs.integrity import RunRecord, check_rows
-from quadrs.parquet import read_frame, read_meta, write_frame
+from quadrs.parquet import read_file, write_frame
 from quadrs.scenario import Scenario
 from quadrs.store import RunStore
 from quadrs.summary import summarise
@@ -20,6 +26,18 @@ from quadrs.summary import summarise
 __all__ = ["MonteCarloResult", "SpectrumSums", "runs_frame"]
 
 _META_KEY = b"quadrs"
+
+
+def empty_runs(scenario: Scenario) -> pd.DataFrame:
+    """A runs table with every column (those of the dispersed keys too) and no rows."""
+    from quadrs.dispersion import dispersed_keys
+    from quadrs.flight import METRIC_COLUMNS
+
+    columns = {"realisation": "int64", "controller": "object", "phase": "object"}
+    columns |= {m: "float64" for m in METRIC_COLUMNS}
+    columns |= {"diverged": "bool", "diverged_at": "float64"}
+    columns |= {k: "float64" for k in dispersed_keys(scenario)}
+    return pd.DataFrame({c: pd.Series(dtype=t) for c, t in columns.items()})
 
 
 @dataclass
@@ -193,27 +211,17 @@ class MonteCarloResult:
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the scenario, seed, controllers and quadrs version in the file's
-        metadata, and the ensemble spectra as a table beside it (``<name>.spectra-<hash>.parquet``,
-        named in the metadata with its hash). Each file is written to a temporary file, then
-        renamed: never half-written; an overwritten result keeps its own table until then."""
-        path = Path(path)
+        metadata and the ensemble spectra embedded as a table: one result, one file (copy it
+        alone). The metadata holds a digest of everything in the file, checked on reading.
+        Written to a temporary file, then renamed: never half-written."""
         record = self.record
-        old = None
-        with contextlib.suppress(OSError, ValueError):
-            meta = read_meta(path, _META_KEY) if path.is_file() else None
-            old = spectra_file(meta.get("spectra")) if isinstance(meta, dict) else None
-        stem = f"{path.stem}.spectra"
-        spectra = None
+        spectra, attachments = None, {}
         if self.spectrum_sums is not None:
-            spectra = save_spectra(self.spectrum_sums, path, stem, record)
+            spectra, data = spectra_attachment(self.spectrum_sums, record)
+            attachments = {SPECTRA_KEY: data}
         write_frame(self.runs, path, _META_KEY,
-                    record.metadata(interrupted=self.interrupted, spectra=spectra))  # fmt: skip
-        # The replaced file's own table is now unreferenced (a copy's, named after another
-        # file, is left alone).
-        if old is not None and old != spectra_file(spectra) and old.startswith(f"{stem}-"):
-            if Path(old).name == old:
-                with contextlib.suppress(OSError):
-                    (path.parent / old).unlink()
+                    record.metadata(interrupted=self.interrupted, spectra=spectra),
+                    attachments=attachments)  # fmt: skip
 
     @classmethod
     def from_store(cls, store: RunStore, interrupted: bool = False) -> MonteCarloResult:
@@ -221,30 +229,38 @@ class MonteCarloResult:
         record = store.record
         runs, sums = store.load()
         if runs is None:
-            runs = pd.DataFrame(columns=["realisation", "controller", "phase"])
+            runs = empty_runs(record.scenario)
         sampling = str(record.extra.get("sampling", "random"))
         return cls(record.scenario, record.seed, record.controllers, runs, sums, interrupted,
                    sampling, arithmetic=record.arithmetic)  # fmt: skip
 
     @classmethod
     def read_parquet(cls, path: str | Path) -> MonteCarloResult:
-        """Read a file written by :meth:`to_parquet` (also one written by an earlier quadrs
-        that kept the spectra in the metadata), or a run directory written by
-        ``monte_carlo(..., out=DIR)`` (complete or not)."""
+        """Read a file written by :meth:`to_parquet`, or a run directory written by
+        ``monte_carlo(..., out=DIR)`` (complete or not). A file whose rows, metadata or spectra
+        were changed, or that lacks the content digest (written before quadrs kept one), is
+        refused (:class:`quadrs.integrity.CorruptRunError`)."""
         if Path(path).is_dir():
             return cls.from_store(RunStore(path))
-        runs, meta = read_frame(path, _META_KEY)
-        if meta is None:
-            raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
-        # Types, required keys and the run identity: a foreign or edited file is refused.
+
+        def validate(meta: Any) -> None:
+            if meta is None:
+                raise ValueError(f"{path} was not written by quadrs (no 'quadrs' metadata)")
+            # Types, required keys and the run identity: a foreign or edited file is refused.
+            RunRecord.read(meta, path, "sampling", {"interrupted": bool, "sampling": str})
+
+        saved = read_file(path, _META_KEY, validate=validate)
+        runs, meta = saved.frame, saved.meta
         record = RunRecord.read(meta, path, "sampling", {"interrupted": bool, "sampling": str})
         check_rows(runs, path, record.controllers, record.scenario.phase_names)
+        sums = load_spectra(meta.get("spectra"), path, record, saved.attachments)
+        check_spectrum_counts(sums, runs, record.controllers, path)
         return cls(
             scenario=record.scenario,
             seed=record.seed,
             controllers=record.controllers,
             runs=runs,
-            spectrum_sums=load_spectra(meta.get("spectra"), path, record),
+            spectrum_sums=sums,
             interrupted=meta["interrupted"],
             sampling=meta["sampling"],
             arithmetic=meta.get("arithmetic", "exact"),

@@ -11,9 +11,10 @@ import contextvars
 import copy
 import json
 import math
+import os
 import re
 import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -72,11 +73,11 @@ def base_preset(path: str | Path) -> str | None:
     through files that base on other files; None if there is none or the file is unreadable
     (reading the scenario itself reports why)."""
     path, seen = Path(path), set()
-    while path.resolve() not in seen:
-        seen.add(path.resolve())
+    while _real(path) not in seen:
+        seen.add(_real(path))
         try:
-            base = tomllib.loads(path.read_text(encoding="utf-8")).get(_BASE_KEY)
-        except (OSError, ValueError):
+            base = tomllib.loads(_read_text(path)).get(_BASE_KEY)
+        except (OSError, ValueError, RecursionError):
             return None
         if not isinstance(base, str):
             return None
@@ -86,13 +87,45 @@ def base_preset(path: str | Path) -> str | None:
     return None
 
 
+def _real(path: Path) -> Path:
+    """``path`` with its symlinks resolved as far as they go (a loop does not raise: reading
+    the file then reports it)."""
+    return Path(os.path.realpath(path))
+
+
+def _read_text(path: Path) -> str:
+    """A scenario file's text: at most MAX_FILE_BYTES are read (a device such as /dev/zero
+    is refused, not read forever; a pipe, ``<(...)``, is read); UTF-8. ScenarioError naming
+    the file otherwise."""
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except OSError as e:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} cannot be read: {e.strerror or e}"
+        ) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
+        )
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} is not UTF-8 text (byte {e.start}): not a scenario"
+        ) from None
+
+
 def parse_value(text: str) -> Any:
     """A command-line value: TOML syntax (numbers, booleans, arrays, quoted strings), else a
     bare string. ``"2"`` -> 2, ``"[1, 2]"`` -> [1, 2], ``"min_jerk"`` -> "min_jerk"."""
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        value = tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+    except RecursionError:
+        raise scenario_error(f"{text[:40]!r}...: a value nested too deeply", None) from None
+    return value
 
 
 def _split_key(key: str) -> list[str | int]:
@@ -107,6 +140,50 @@ def _split_key(key: str) -> list[str | int]:
         parts.append(m["name"])
         parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", m["index"]))
     return parts
+
+
+def canonical_key(key: str) -> str:
+    """The one spelling of a dotted key: ``"controller.pd.kp[02]"`` -> ``"controller.pd.kp[2]"``
+    (indices without leading zeros). Every key a user gives (dispersions, ``override``,
+    sweeps, optimised parameters) goes through it, so two spellings never name two keys."""
+    out = ""
+    for part in _split_key(key):
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else part)
+    return out
+
+
+def canonical_keys(keys: Iterable[str], what: str) -> list[str]:
+    """``keys`` in their canonical spelling; ScenarioError naming both spellings if two of
+    them are one key (``what``: where they were given, for the message)."""
+    seen: dict[str, str] = {}
+    out = []
+    for key in keys:
+        canon = canonical_key(key)
+        if canon in seen:
+            raise scenario_error(
+                f"{what}: {seen[canon]!r} and {key!r} are the same key ({canon}); give it once",
+                canon,
+            )
+        seen[canon] = key
+        out.append(canon)
+    return out
+
+
+def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]:
+    """Keys a design-loop command sets on ``scenario`` (swept, tuned): canonical, each once
+    (:func:`canonical_keys`), and not dispersed, since a dispersion would override every
+    value set and the command would compare identical batches. ScenarioError naming the key
+    and ``what`` (the option or argument) otherwise; checked before anything flies."""
+    keys = canonical_keys(keys, what)
+    dispersed = set(scenario.dispersions)
+    for key in keys:
+        if key in dispersed:
+            raise scenario_error(
+                f"{what}: {key} is also dispersed ([dispersions] or --disperse): its drawn "
+                "values would replace every value set; remove one of the two",
+                key,
+            )
+    return keys
 
 
 #: Deepest nesting of tables and arrays a scenario may have (the presets use 3).
@@ -291,6 +368,10 @@ class Scenario:
         data = _plain(data)
         if not isinstance(data, dict):
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        table = data.get("dispersions")
+        if isinstance(table, dict) and table:
+            keys = canonical_keys(table, "dispersions")
+            data["dispersions"] = dict(zip(keys, table.values(), strict=True))
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
         plausibility.check(data)  # and one that can fly; implausible values warn
@@ -311,22 +392,7 @@ class Scenario:
     def from_toml(cls, path: str | Path) -> Scenario:
         """Read a scenario file. A file may start from a preset with ``base = "paper"`` and
         give only what differs; otherwise it must be complete. Unknown keys are rejected."""
-        path = Path(path)
-        try:
-            with path.open("rb") as f:
-                raw = f.read(MAX_FILE_BYTES + 1)
-        except OSError as e:
-            raise ScenarioError(f"scenario file {str(path)!r} cannot be read: {e.strerror}") from e
-        if len(raw) > MAX_FILE_BYTES:
-            raise ScenarioError(
-                f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
-            )
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError as e:
-            raise ScenarioError(
-                f"scenario file {str(path)!r} is not UTF-8 text (byte {e.start}): not a scenario"
-            ) from None
+        text = _read_text(Path(path))
         return cls.from_toml_string(text, source=str(path))
 
     @classmethod
@@ -347,11 +413,11 @@ class Scenario:
             if not path.is_absolute() and source != "<string>":
                 path = Path(source).parent / path
             chain = _BASE_CHAIN.get()
-            if path.resolve() in chain:
+            if _real(path) in chain:
                 raise scenario_error(
                     f"base = {base!r} in {source}: a scenario file bases on itself", "base"
                 )
-            token = _BASE_CHAIN.set((*chain, path.resolve()))
+            token = _BASE_CHAIN.set((*chain, _real(path)))
             try:
                 parent = cls.from_toml(path)
             finally:
@@ -400,6 +466,8 @@ class Scenario:
         drops ``payload.natural_frequency`` and vice versa; a value of None removes an
         optional key (``controller.thrust_max``)."""
         data = copy.deepcopy(self._data)
+        keys = canonical_keys(changes, "override")
+        changes = dict(zip(keys, changes.values(), strict=True))
         for key, value in changes.items():
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)

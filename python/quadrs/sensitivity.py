@@ -92,8 +92,9 @@ class SensitivityResult:
     def __repr__(self) -> str:
         """A summary, not the tables: the design and the most influential parameter."""
         top = ""
-        if len(self.indices):
-            row = self.indices.loc[self.indices["ST"].idxmax()]
+        st = self.indices["ST"].dropna()
+        if len(st):
+            row = self.indices.loc[st.idxmax()]
             top = f"; largest ST {row['ST']:.2f}: {row['parameter']} ({row['controller']} " \
                 f"{row['phase']} {row['metric']})"  # fmt: skip
         return (
@@ -128,10 +129,14 @@ class SensitivityResult:
     @classmethod
     def read_parquet(cls, path: str | Path) -> SensitivityResult:
         """Read a file written by :meth:`to_parquet` (its ``samples`` are not stored)."""
-        indices, meta = read_frame(path, _META_KEY)
-        if meta is None:
-            raise ValueError(f"{path} holds no quadrs sensitivity indices")
-        # Types, version and the run identity: a foreign or edited file is refused.
+
+        def validate(meta: Any) -> None:
+            if meta is None:
+                raise ValueError(f"{path} holds no quadrs sensitivity indices")
+            # Types, version and the run identity: a foreign or edited file is refused.
+            RunRecord.read(meta, path, "design", {"design": dict})
+
+        indices, meta = read_frame(path, _META_KEY, validate=validate)
         scenario = RunRecord.read(meta, path, "design", {"design": dict}).scenario
         missing = set(INDEX_COLUMNS) - set(indices.columns)
         if missing:
@@ -172,8 +177,12 @@ def sensitivity(
     from quadrs.chunk import run_range, runs_frame
     from quadrs.dispersion import dispersed_keys, distribution
     from quadrs.flight import METRIC_COLUMNS
-    from quadrs.guard import check_controller, default_workers
+    from quadrs.guard import MAX_WORKERS, check_controller, check_int, default_workers
 
+    seed = check_int("seed", seed)
+    runs = check_int("runs", runs, 2, 2**40)
+    if workers is not None:
+        workers = check_int("workers", workers, 1, MAX_WORKERS)
     keys = dispersed_keys(scenario)
     if not keys:
         raise scenario_error(

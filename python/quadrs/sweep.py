@@ -16,10 +16,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from quadrs.integrity import CorruptRunError, RunRecord
+from quadrs.integrity import CorruptRunError, RunRecord, check_rows
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
-from quadrs.scenario import Scenario
+from quadrs.scenario import Scenario, design_keys
 from quadrs.summary import summarise
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -235,13 +235,21 @@ class SweepResult:
     @classmethod
     def read_parquet(cls, path: str | Path) -> SweepResult:
         """Read a file written by :meth:`to_parquet`."""
-        runs, meta = read_frame(path, _META_KEY)
-        if meta is None:
-            raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+
+        def validate(meta: Any) -> None:
+            if meta is None:
+                raise ValueError(f"{path} was not written by quadrs sweep (no sweep metadata)")
+            RunRecord.read(meta, path, "grid", {"interrupted": bool, "grid": dict})
+
+        runs, meta = read_frame(path, _META_KEY, validate=validate)
         record = RunRecord.read(meta, path, "grid", {"interrupted": bool, "grid": dict})
         grid = meta["grid"]
         if not all(isinstance(v, list) for v in grid.values()):
             raise CorruptRunError(f"{str(path)!r}: metadata 'grid' must map keys to lists")
+        check_rows(runs, path, record.controllers, record.scenario.phase_names)
+        missing = sorted(set(grid) - set(runs.columns))
+        if missing:
+            raise CorruptRunError(f"{str(path)!r}: its rows lack the swept columns {missing}")
         return cls(
             scenario=record.scenario,
             grid={k: list(v) for k, v in grid.items()},
@@ -283,8 +291,10 @@ def sweep(
     ``client``: a ``dask.distributed.Client``; each point's realisations then run as chunks
     on the cluster (see :func:`quadrs.monte_carlo`), with results identical to a local sweep.
     """
-    grid = check_grid(grid)
-    points = grid_points(grid)
+    checked = check_grid(grid)
+    keys = design_keys(scenario, checked, "grid")
+    swept = dict(zip(keys, checked.values(), strict=True))
+    points = grid_points(swept)
     scenarios = [scenario.override(p) for p in points]  # validate all before running any
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
@@ -304,7 +314,7 @@ def sweep(
                 client=client,
             )
             frame = mc.runs
-            for k in reversed(list(grid)):
+            for k in reversed(list(swept)):
                 frame.insert(0, k, column_value(point[k]))
             parts.append(frame)
             bar.update(1)
@@ -315,8 +325,8 @@ def sweep(
         interrupted = True
     finally:
         bar.close()
-    table = pd.concat(parts, ignore_index=True) if parts else _empty_runs(grid, controllers)
-    return SweepResult(scenario, grid, seed, tuple(controllers), table, interrupted)
+    table = pd.concat(parts, ignore_index=True) if parts else _empty_runs(swept, controllers)
+    return SweepResult(scenario, swept, seed, tuple(controllers), table, interrupted)
 
 
 def _points_bar(total: int, progress: bool) -> Any:

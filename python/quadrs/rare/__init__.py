@@ -16,7 +16,7 @@ import numpy as np
 from quadrs.guard import check_int
 from quadrs.rare.result import RareEventComparison, RareEventResult
 from quadrs.rare.scenario_model import RareEventModel, ScenarioModel
-from quadrs.rare.subset import Model, check_settings, check_threshold, subset_simulation
+from quadrs.rare.subset import Level, Model, check_settings, check_threshold, subset_simulation
 from quadrs.scenario import Scenario
 
 __all__ = ["METHODS", "RareEventComparison", "RareEventResult", "rare_event"]
@@ -42,6 +42,8 @@ def rare_event(
     dimension: int | None = None,
     controllers: Sequence[str] | None = None,
     max_levels: int | None = None,
+    workers: int | None = None,
+    on_level: Callable[[Level], None] | None = None,
 ) -> RareEventResult | RareEventComparison:
     """P(value > ``threshold``) by subset simulation, with its coefficient of variation and a
     95 % interval (see :class:`RareEventResult` and docs/rare-events.md).
@@ -61,6 +63,12 @@ def rare_event(
     next (1/L for a whole L: 0.1, 0.2, 0.25, 0.5); ``p0 * per_level`` >= 10 chains.
     ``max_levels``: the deepest level tried before reporting that no failure was found
     (default: enough for about 1e-12). Flights: ``per_level * (1 + (levels - 1) * (1 - p0))``.
+    ``workers``: threads flying each batch of a scenario run (default: all cores; the result
+    does not depend on it). ``on_level(level)``: called as each level is done (progress).
+
+    Ctrl-C stops the run and returns what the finished levels found (``result.interrupted``;
+    no estimate, ``upper_bound`` the probability of the last cut reached); a paired run
+    stops there too, with the controllers done and the interrupted one.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -71,14 +79,16 @@ def rare_event(
     settings: dict[str, Any] = {"per_level": per_level, "p0": p0, "max_levels": max_levels}
     settings["per_level"], settings["p0"], settings["max_levels"] = check_settings(**settings)
     settings["seed"] = check_int("seed", seed)
+    settings["on_level"] = on_level
 
     if limit_state is not None:
         if scenario is not None:
             raise ValueError("give either a scenario or limit_state=, not both")
-        if metric is not None or phase is not None or controllers is not None:
+        scenario_only = (metric, phase, controllers, workers)
+        if any(v is not None for v in scenario_only):
             raise ValueError(
-                "metric, phase and controllers belong to a scenario run; a limit_state run "
-                "has its function and dimension only"
+                "metric, phase, controllers and workers belong to a scenario run; a "
+                "limit_state run has its function and dimension only"
             )
         if dimension is None:
             raise ValueError("dimension is required with limit_state= (standard normals a row)")
@@ -106,11 +116,15 @@ def rare_event(
     names = tuple(controllers) if controllers is not None else (controller,)
     if not names or len(set(names)) != len(names):
         raise ValueError(f"controllers must be distinct and non-empty, got {names}")
-    models = [ScenarioModel(scenario, c, metric, phase) for c in names]
+    models = [ScenarioModel(scenario, c, metric, phase, workers) for c in names]
     from quadrs.stability import warn_before_running
 
     warn_before_running(scenario, names, gains=True, stacklevel=2)
-    results = {m.controller: _run_model(m, threshold, settings) for m in models}
+    results: dict[str, RareEventResult] = {}
+    for m in models:
+        results[m.controller] = _run_model(m, threshold, settings)
+        if results[m.controller].interrupted:
+            break
     if controllers is None:
         return results[controller]
     return RareEventComparison(results)

@@ -90,6 +90,11 @@ class RareEventResult:
         return self.run.upper_bound
 
     @property
+    def interrupted(self) -> bool:
+        """True if Ctrl-C stopped the run: :attr:`levels` are the levels done, no estimate."""
+        return self.run.interrupted
+
+    @property
     def reached(self) -> bool:
         """True if some sample crossed the threshold."""
         return self.run.reached
@@ -189,6 +194,7 @@ class RareEventResult:
             "probability": run.probability,
             "cov": run.cov,
             "upper_bound": run.upper_bound,
+            "interrupted": run.interrupted,
             "levels": [dataclasses.asdict(level) for level in run.levels],
         }
         record = self._record()
@@ -261,6 +267,7 @@ class RareEventResult:
                                   f"{_core.__version__}")  # fmt: skip
         try:
             levels = [Level(**{k: _nan(v) for k, v in row.items()}) for row in meta["levels"]]
+            interrupted = meta.get("interrupted") is True
             n = len(frame)
             dimension = meta["dimension"]
             xi = np.stack(frame["xi"].to_numpy()) if n else np.empty((0, dimension))
@@ -277,13 +284,14 @@ class RareEventResult:
                 failure_copies=frame["copies"].to_numpy(np.int64),
                 failure_chain=frame["chain"].to_numpy(np.int64),
                 failure_step=frame["step"].to_numpy(np.int64),
-                closest=math.inf if meta["closest"] is None else float(meta["closest"]),
+                closest=_closest(meta["closest"], interrupted and not levels),
                 dimension=dimension,
                 threshold=float(meta["threshold"]),
                 per_level=meta["per_level"],
                 p0=float(meta["p0"]),
                 seed=meta["seed"],
                 max_levels=meta["max_levels"],
+                interrupted=interrupted,
             )
         except (KeyError, TypeError, ValueError) as e:
             raise _fail(path, f"its rare-event tables are malformed ({e})") from None
@@ -292,6 +300,12 @@ class RareEventResult:
     # -- display --------------------------------------------------------------------------
     def _headline(self) -> str:
         run = self.run
+        if run.interrupted:
+            bound = "" if run.upper_bound is None else f" <= about {run.upper_bound:.3g}"
+            return (
+                f"interrupted after {len(run.levels)} levels ({run.flights} flights): "
+                f"P({self.value_name} > {run.threshold:g}){bound}, no estimate"
+            )
         if run.probability is None:
             return (
                 f"no failure found: P({self.value_name} > {run.threshold:g}) <= about "
@@ -361,6 +375,14 @@ class RareEventComparison:
 def _nan(value: Any) -> Any:
     """JSON null back as NaN for level fields; other values as they are."""
     return math.nan if value is None else value
+
+
+def _closest(value: Any, nothing_flown: bool) -> float:
+    """The largest value seen, back from JSON: null is +inf (a diverged flight), or -inf
+    when a run was interrupted before its first level (no value seen)."""
+    if value is None:
+        return -math.inf if nothing_flown else math.inf
+    return float(value)
 
 
 def _number(value: Any) -> float | None:

@@ -9,15 +9,15 @@ The protocol the sampler relies on (:class:`RareEventModel`):
   flight counts as +inf (an exceedance, as in ``MonteCarloResult.exceedance``);
 - ``fly(xi_row)``: the :class:`~quadrs.flight.Flight` of one row, with its trace.
 
-The engine side (a flight from explicit innovations) is issue 25's engine part. Until it
-exists, everything here is checked and ready, and the first call that needs the engine raises
-NotImplementedError naming what is missing. The engine functions expected, in ``_core``:
+The engine functions, in ``_core`` (see docs/rare-events.md, "The engine interface"):
 
 - ``innovations_dimension(config_json) -> int``;
-- ``run_innovations(config_json, controller, xi, progress) -> metrics`` with ``xi`` float64
-  (N, dimension), ``metrics`` (N, phases, len(METRIC_NAMES)), NaN after a divergence;
+- ``run_innovations(config_json, controller, xi, progress, workers) -> metrics`` with ``xi``
+  float64 (N, dimension), ``metrics`` (N, phases, len(METRIC_NAMES)), NaN after a divergence;
 - ``simulate_innovations(config_json, controller, xi_row, record_every, progress) -> dict``,
   the dict :func:`quadrs._core.simulate` returns.
+
+An engine built without them raises NotImplementedError naming what is missing.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from quadrs import _core
-from quadrs.guard import check_controller, run_cancellable
+from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,8 +55,9 @@ def engine_function(name: str) -> Callable[..., Any]:
     if fn is None:
         raise NotImplementedError(
             f"the engine's innovations interface (a flight driven by explicit standard normals "
-            f"xi, quadrs._core.{name}) is not built yet (issue 25); rare_event(limit_state=...) "
-            f"runs the same algorithm on a function of standard normals"
+            f"xi, quadrs._core.{name}) is not in this build of the engine; "
+            f"rare_event(limit_state=...) runs the same algorithm on a function of standard "
+            f"normals"
         )
     return fn
 
@@ -66,7 +67,14 @@ class ScenarioModel:
     gust's innovations (see the module docstring). Arguments are checked here, against the
     scenario, before anything flies."""
 
-    def __init__(self, scenario: Scenario, controller: str, metric: str, phase: str) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        controller: str,
+        metric: str,
+        phase: str,
+        workers: int | None = None,
+    ) -> None:
         from quadrs.flight import METRIC_COLUMNS
 
         if not isinstance(scenario, Scenario):
@@ -94,6 +102,8 @@ class ScenarioModel:
         self._metric_index = METRIC_COLUMNS.index(metric)
         self._phase_index = phases.index(phase)
         self._dimension: int | None = None
+        #: Threads flying a batch (None: all cores); results do not depend on it.
+        self.workers = None if workers is None else check_int("workers", workers, 1, MAX_WORKERS)
 
     @property
     def name(self) -> str:
@@ -117,7 +127,7 @@ class ScenarioModel:
         progress = _core.Progress()
         config = self.scenario.to_json()
         metrics, interrupted = run_cancellable(
-            lambda: run(config, self.controller, xi, progress), progress
+            lambda: run(config, self.controller, xi, progress, self.workers), progress
         )
         if interrupted:
             raise KeyboardInterrupt
@@ -128,7 +138,7 @@ class ScenarioModel:
         """The flight of one row of innovations, with its trace (about one row a millisecond)."""
         import pandas as pd
 
-        from quadrs.flight import TRACE_COLUMNS, Flight, metrics_frame
+        from quadrs.flight import Flight, metrics_frame
 
         simulate = engine_function("simulate_innovations")
         row = np.ascontiguousarray(xi_row, dtype=np.float64)
@@ -137,12 +147,15 @@ class ScenarioModel:
         record_every = max(1, round(1e-3 / float(self.scenario["integrator.dt"])))
         progress = _core.Progress()
         config = self.scenario.to_json()
-        out, _ = run_cancellable(
+        out, interrupted = run_cancellable(
             lambda: simulate(config, self.controller, row, record_every, progress), progress
         )
+        if interrupted:
+            raise KeyboardInterrupt
         raw = out["trace"]
+        # The scenario's own layout (its payload and actuator models add or drop columns).
         trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"),
-                             columns=TRACE_COLUMNS)  # fmt: skip
+                             columns=out["trace_columns"])  # fmt: skip
         phases = self.scenario.phase_names
         spectra = {
             name: pd.DataFrame({"frequency": f, "amplitude": a})
@@ -160,4 +173,5 @@ class ScenarioModel:
             spectra=spectra,
             diverged_at=float(out["diverged_at"]),
             record_every=record_every,
+            status=out["status"],
         )

@@ -98,6 +98,9 @@ class SubsetRun:
     p0: float
     seed: int
     max_levels: int
+    #: True if Ctrl-C stopped the run: ``levels`` are the levels done, ``upper_bound`` the
+    #: estimated probability of the last cut they set (None before the first), no estimate.
+    interrupted: bool = False
 
     @property
     def reached(self) -> bool:
@@ -316,6 +319,7 @@ def subset_simulation(
     seed: int = 0,
     max_levels: int | None = None,
     name: str = "the model",
+    on_level: Callable[[Level], None] | None = None,
 ) -> SubsetRun:
     """Estimate P(model(xi) > threshold) for xi ~ N(0, I_dimension) by subset simulation.
 
@@ -333,6 +337,10 @@ def subset_simulation(
     biases a sum-of-squares tail low by a factor of five (docs/rare-events.md).
 
     Evaluations: ``per_level + (levels - 1) * per_level * (1 - p0)``, exactly.
+
+    ``on_level(level)`` is called as each level is done (progress). Ctrl-C (a
+    KeyboardInterrupt from the model or between its calls) stops the run and returns what the
+    finished levels found, with ``interrupted=True`` (see :class:`SubsetRun`).
     """
     per_level, p0, max_levels = check_settings(per_level, p0, max_levels)
     dimension = check_int("dimension", dimension, 1, 2**40)
@@ -356,93 +364,106 @@ def subset_simulation(
     cov2 = 0.0
     product = 1.0
     closest = -math.inf
-    for level in range(max_levels):
-        best = _Best(seeds, dimension)
-        failures = _Failures(seeds, per_level)
-        values = np.empty((length, seeds))  # sample l of chain c (level 0: block l, row c)
-        accepted = 0
-        if level == 0:
-            for block in range(length):
-                xi = rng.standard_normal((seeds, dimension))
-                v = evaluate(xi)
-                values[block] = v
-                best.offer(xi, v)
-                hit = v > threshold
-                failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
-        else:
-            state = seeds_xi  # the previous level's best: ours to move in place
-            value = seeds_val.copy()
-            cut = levels[-1].threshold
-            sigma = spread
-            rho = math.sqrt(1.0 - sigma * sigma)
-            values[0] = value
-            best.offer(state, value)
-            hit = value > threshold
-            failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
-            candidate = np.empty_like(state)
-            for step in range(1, length):
-                # In place: no temporary of the chains' size beyond the candidate itself.
-                rng.standard_normal(out=candidate)
-                candidate *= sigma
-                candidate += rho * state
-                v = evaluate(candidate)
-                move = v > cut
-                accepted += int(move.sum())
-                state[move] = candidate[move]
-                value[move] = v[move]
-                values[step] = value
+
+    def result(estimate: tuple[float, float] | None, bound: float | None,
+               failed: _Arrays, interrupted: bool = False) -> SubsetRun:  # fmt: skip
+        fx, fv, fc, fch, fst = failed
+        return SubsetRun(
+            probability=None if estimate is None else estimate[0],
+            cov=None if estimate is None else estimate[1],
+            upper_bound=bound,
+            levels=levels,
+            flights=evaluate.count,
+            failure_xi=fx,
+            failure_values=fv,
+            failure_copies=fc,
+            failure_chain=fch,
+            failure_step=fst,
+            closest=closest,
+            dimension=dimension,
+            threshold=threshold,
+            per_level=per_level,
+            p0=p0,
+            seed=seed,
+            max_levels=max_levels,
+            interrupted=interrupted,
+        )
+
+    try:
+        for level in range(max_levels):
+            best = _Best(seeds, dimension)
+            failures = _Failures(seeds, per_level)
+            values = np.empty((length, seeds))  # sample l of chain c (level 0: block l, row c)
+            accepted = 0
+            if level == 0:
+                for block in range(length):
+                    xi = rng.standard_normal((seeds, dimension))
+                    v = evaluate(xi)
+                    values[block] = v
+                    best.offer(xi, v)
+                    hit = v > threshold
+                    failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
+            else:
+                state = seeds_xi  # the previous level's best: ours to move in place
+                value = seeds_val.copy()
+                cut = levels[-1].threshold
+                sigma = spread
+                rho = math.sqrt(1.0 - sigma * sigma)
+                values[0] = value
                 best.offer(state, value)
-                # A chain's failure state is recorded when reached, then its copies counted.
-                new = move & (value > threshold)
-                held = ~move & (value > threshold)
-                failures.add(state[new], value[new], np.flatnonzero(new), step)
-                failures.hold(np.flatnonzero(held))
-        flat = values.ravel()
-        closest = max(closest, float(flat.max()))
-        n_fail = int((flat > threshold).sum())
-        rate = accepted / (seeds * (length - 1)) if level else math.nan
-        last = n_fail >= seeds or level == max_levels - 1
-        # The last level's fraction is of the threshold itself (when anything crossed it).
-        cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds, threshold)
-        p = above / per_level
-        # Chains started from copies of one state (a repeated chain state among the seeds)
-        # are correlated with each other, not only along themselves: group them by seed.
-        gamma = chain_gamma(values > cut, _groups(values[0])) if level else 0.0
-        cov_level = math.sqrt((1.0 - p) / (per_level * p) * (1.0 + gamma))
-        flights = per_level if level == 0 else seeds * (length - 1)
-        levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level,
-                            spread if level else math.nan))  # fmt: skip
-        if last:
-            found = n_fail > 0
-            if found:
-                cov2 += cov_level**2
-            fx, fv, fc, fch, fst = failures.arrays(dimension) if found else _none(dimension)
-            return SubsetRun(
-                probability=product * p if found else None,
-                cov=math.sqrt(cov2) if found else None,
-                upper_bound=None if found else product * p,
-                levels=levels,
-                flights=evaluate.count,
-                failure_xi=fx,
-                failure_values=fv,
-                failure_copies=fc,
-                failure_chain=fch,
-                failure_step=fst,
-                closest=closest,
-                dimension=dimension,
-                threshold=threshold,
-                per_level=per_level,
-                p0=p0,
-                seed=seed,
-                max_levels=max_levels,
-            )
-        cov2 += cov_level**2
-        product *= p
-        if level:
-            # Steer the step towards the target acceptance (Papaioannou et al.'s rule, applied
-            # once per level so that every chain of a level moves by the same kernel).
-            spread = min(spread * math.exp(rate - TARGET_ACCEPTANCE), 1.0)
-        seeds_xi, seeds_val = best.xi, best.values
+                hit = value > threshold
+                failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
+                candidate = np.empty_like(state)
+                for step in range(1, length):
+                    # In place: no temporary of the chains' size beyond the candidate itself.
+                    rng.standard_normal(out=candidate)
+                    candidate *= sigma
+                    candidate += rho * state
+                    v = evaluate(candidate)
+                    move = v > cut
+                    accepted += int(move.sum())
+                    state[move] = candidate[move]
+                    value[move] = v[move]
+                    values[step] = value
+                    best.offer(state, value)
+                    # A chain's failure state is recorded when reached, then its copies counted.
+                    new = move & (value > threshold)
+                    held = ~move & (value > threshold)
+                    failures.add(state[new], value[new], np.flatnonzero(new), step)
+                    failures.hold(np.flatnonzero(held))
+            flat = values.ravel()
+            closest = max(closest, float(flat.max()))
+            n_fail = int((flat > threshold).sum())
+            rate = accepted / (seeds * (length - 1)) if level else math.nan
+            last = n_fail >= seeds or level == max_levels - 1
+            # The last level's fraction is of the threshold itself (when anything crossed it).
+            cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds, threshold)
+            p = above / per_level
+            # Chains started from copies of one state (a repeated chain state among the seeds)
+            # are correlated with each other, not only along themselves: group them by seed.
+            gamma = chain_gamma(values > cut, _groups(values[0])) if level else 0.0
+            cov_level = math.sqrt((1.0 - p) / (per_level * p) * (1.0 + gamma))
+            flights = per_level if level == 0 else seeds * (length - 1)
+            levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level,
+                                spread if level else math.nan))  # fmt: skip
+            if on_level is not None:
+                on_level(levels[-1])
+            if last:
+                if not n_fail:
+                    return result(None, product * p, _none(dimension))
+                estimate = (product * p, math.sqrt(cov2 + cov_level**2))
+                return result(estimate, None, failures.arrays(dimension))
+            cov2 += cov_level**2
+            product *= p
+            if level:
+                # Steer the step towards the target acceptance (Papaioannou et al.'s rule, applied
+                # once per level so that every chain of a level moves by the same kernel).
+                spread = min(spread * math.exp(rate - TARGET_ACCEPTANCE), 1.0)
+            seeds_xi, seeds_val = best.xi, best.values
+    except KeyboardInterrupt:
+        # Keep what the finished levels found: the probability of the last cut they set.
+        bound = math.prod(lv.conditional_p for lv in levels) if levels else None
+        return result(None, bound, _none(dimension), interrupted=True)
     raise AssertionError("unreachable: the last level returns")  # pragma: no cover
 
 

@@ -1,0 +1,186 @@
+"""``quadrs rare``: a rare-event probability by subset simulation on the command line.
+
+Kept apart from :mod:`quadrs.cli`, which registers the subcommand (see docs/rare-events.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from quadrs.guard import CONTROLLERS
+
+EXIT_OK, EXIT_FAIL, EXIT_INTERRUPT = 0, 1, 130
+
+LoadScenario = Callable[[argparse.Namespace], Any]
+
+#: The library's argument names -> the options that set them, in the sampler's messages.
+OPTION_WORDS = (("per_level", "--per-level"), ("max_levels", "--max-levels"), ("p0", "--p0"))
+
+
+def _threshold(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"--threshold {text!r}: expected a finite number")
+    return value
+
+
+def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
+    from quadrs import _core
+
+    p = sub.add_parser(
+        "rare",
+        parents=[common],
+        help="a small probability P(metric > threshold) by subset simulation",
+        description="Estimate P(METRIC in PHASE > THRESHOLD) over the gust's randomness by "
+        "subset simulation: far fewer flights than plain Monte Carlo for small probabilities. "
+        "Prints the estimate, its coefficient of variation and 95%% interval, the levels and "
+        "the flights, and the flights plain Monte Carlo would need for the same precision. "
+        "A diverged flight counts as an exceedance (see docs/rare-events.md).",
+    )
+    p.add_argument(
+        "--metric",
+        required=True,
+        choices=list(_core.METRIC_NAMES),
+        metavar="M",
+        help=f"the metric, one of {', '.join(_core.METRIC_NAMES)}",
+    )
+    p.add_argument("--phase", required=True, metavar="P", help="the phase it is taken in")
+    p.add_argument(
+        "--threshold",
+        required=True,
+        type=_threshold,
+        metavar="X",
+        help="estimate P(metric > X), X in the metric's SI unit",
+    )
+    p.add_argument(
+        "--controller", choices=CONTROLLERS, default="pd", help="controller (default: pd)"
+    )
+    p.add_argument(
+        "--per-level",
+        type=int,
+        default=1000,
+        metavar="N",
+        help="flights per level, a multiple of 1/p0 (default: 1000)",
+    )
+    p.add_argument(
+        "--p0",
+        type=float,
+        default=0.1,
+        metavar="P",
+        help="conditional probability of a level, 1/L for a whole L (default: 0.1)",
+    )
+    p.add_argument(
+        "--max-levels",
+        type=int,
+        default=None,
+        metavar="K",
+        help="deepest level tried (default: enough for about 1e-12)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default: 0)")
+    p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="FILE.parquet",
+        help="write the result here (the failure samples with their innovations, the levels "
+        "and the run record; RareEventResult.read_parquet reads it)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no per-level progress lines")
+
+
+def _option_words(text: str) -> str:
+    for name, option in OPTION_WORDS:
+        # The name as the subject ("p0 must", "per_level = 105"), not inside "1/p0".
+        text = re.sub(rf"(?<![/\w]){name}(?= must| =|,)", option, text)
+    return text
+
+
+def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+    """Subset simulation of one controller: a short table, optional Parquet; 130 if
+    interrupted (the finished levels are reported and saved)."""
+    from quadrs.rare import rare_event
+    from quadrs.rare.result import RareEventResult
+    from quadrs.rare.subset import Level, check_settings
+    from quadrs.saving import check_outputs, save
+
+    if args.out is not None and args.out.suffix.lower() != ".parquet":
+        raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
+    for option, value, low in (("--seed", args.seed, 0), ("--workers", args.workers, 1)):
+        if value is not None and value < low:
+            raise ValueError(f"{option} must be >= {low}, got {value}")
+    try:
+        check_settings(args.per_level, args.p0, args.max_levels)
+    except ValueError as e:
+        raise ValueError(_option_words(str(e))) from None
+    scenario = load_scenario(args)
+    if args.phase not in scenario.phase_names:
+        raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+    check_outputs(args.out)
+    value_name = f"{args.metric} in {args.phase}"
+    show = not args.no_progress and sys.stderr.isatty()
+
+    def on_level(level: Level) -> None:
+        if show:
+            print(f"quadrs rare: level {level.level} done: cut {level.threshold:.4g}, "
+                  f"conditional p {level.conditional_p:.3g}, acceptance "
+                  f"{level.acceptance_rate:.2f}, {level.flights} flights",
+                  file=sys.stderr, flush=True)  # fmt: skip
+
+    result = rare_event(
+        scenario,
+        controller=args.controller,
+        metric=args.metric,
+        phase=args.phase,
+        threshold=args.threshold,
+        per_level=args.per_level,
+        p0=args.p0,
+        seed=args.seed,
+        max_levels=args.max_levels,
+        workers=args.workers,
+        on_level=on_level,
+    )
+    assert isinstance(result, RareEventResult)
+    saved = True
+    if args.out is not None:  # saved first: a second Ctrl-C keeps it
+        saved = save(result.to_parquet, args.out)
+    if result.interrupted:
+        done = len(result.levels)
+        bound = result.upper_bound
+        note = "" if bound is None else f"; P <= about {bound:.3g} (the last cut reached)"
+        print(f"quadrs rare: interrupted after {done} finished level{'s' * (done != 1)} "
+              f"({result.flights} flights), no estimate{note}", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPT
+    print(f"P({value_name} > {args.threshold:g}), {args.controller}, seed {args.seed}, "
+          f"{result.dimension} innovations a flight")  # fmt: skip
+    for label, text in summary_rows(result):
+        print(f"  {label:<34} {text}")
+    return EXIT_OK if saved else EXIT_FAIL
+
+
+def summary_rows(result: Any) -> list[tuple[str, str]]:
+    """(label, value) rows of the printed table of a :class:`RareEventResult`."""
+    rows: list[tuple[str, str]] = []
+    if result.probability is None:
+        rows.append(("estimate", "no failure found"))
+        rows.append(("upper bound (last cut reached)", f"{result.upper_bound:.3g}"))
+        rows.append(("largest value seen", f"{result.closest:.6g}"))
+    else:
+        lo, hi = result.interval
+        rows.append(("estimate", f"{result.probability:.3g}"))
+        rows.append(("coefficient of variation", f"{result.cov:.3f}"))
+        rows.append(("95 % interval", f"[{lo:.3g}, {hi:.3g}]"))
+    rows.append(("levels", str(len(result.levels))))
+    rows.append(("flights", str(result.flights)))
+    need = result.monte_carlo_flights
+    if need is not None:
+        rows.append(("Monte Carlo flights, same CoV", f"{need:.3g} ({need / result.flights:.1f}x)"))
+    return rows

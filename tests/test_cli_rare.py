@@ -1,0 +1,129 @@
+"""``quadrs rare`` end to end: in a subprocess for what only a real process shows (exit status,
+stderr, a real Ctrl-C), in process for bad input. The scenario is the short one of
+tests/test_cli.py (1000 innovations a flight)."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import pty
+import re
+import select
+import signal
+import struct
+import subprocess
+import sys
+import termios
+from pathlib import Path
+
+import pytest
+
+from quadrs.cli import main
+from quadrs.rare import RareEventResult
+from quadrs.rare.scenario_model import ScenarioModel
+from tests.test_cli import SHORT, one_error_line, run_cli
+
+RARE = ["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]
+
+
+def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
+    out = tmp_path / "rare.parquet"
+    proc = run_cli(*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2",
+                   "--workers", "1", "--out", str(out))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    # stderr is no terminal: no progress lines, only where the file went.
+    assert proc.stderr.strip() == f"wrote {out}"
+    r = RareEventResult.read_parquet(out)
+    assert r.probability is not None and r.cov is not None and r.interval is not None
+    model = r.model
+    assert isinstance(model, ScenarioModel)
+    assert (model.controller, model.metric, model.phase) == ("pd", "max_accel", "P2")
+    assert (r.seed, r.threshold, r.run.per_level, r.run.p0) == (2, 3.5, 100, 0.1)
+    # "  label   value" rows: the label and the value are two or more spaces apart.
+    rows = dict(line.strip().split("  ", 1) for line in proc.stdout.splitlines()[1:])
+    rows = {label: value.strip() for label, value in rows.items()}
+    assert proc.stdout.startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    assert rows["estimate"] == f"{r.probability:.3g}"
+    assert rows["coefficient of variation"] == f"{r.cov:.3f}"
+    assert rows["95 % interval"] == f"[{r.interval[0]:.3g}, {r.interval[1]:.3g}]"
+    assert rows["levels"] == str(len(r.levels)) and rows["flights"] == str(r.flights)
+    need = (1 - r.probability) / (r.probability * r.cov**2)
+    assert rows["Monte Carlo flights, same CoV"].startswith(f"{need:.3g} (")
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--threshold", "nan"], ["--threshold", "'nan'"]),
+        (["--threshold", "3", "--p0", "0.3"], ["--p0", "0.3"]),
+        (["--threshold", "3", "--per-level", "105"], ["--per-level", "105"]),
+        (["--threshold", "3", "--per-level", "50"], ["--per-level", "50"]),
+        (["--threshold", "3", "--max-levels", "0"], ["--max-levels", "0"]),
+        (["--threshold", "3", "--seed", "-1"], ["--seed", "-1"]),
+        (["--threshold", "3", "--workers", "0"], ["--workers", "0"]),
+        (["--threshold", "3", "--out", "r.csv"], ["--out", "r.csv"]),
+        (["--threshold", "3", "--phase", "P9"], ["--phase", "P9"]),
+        (["--threshold", "3", "--metric", "accel"], ["--metric", "accel"]),
+        (["--threshold", "3", "--controller", "lqr"], ["--controller", "lqr"]),
+        (["--threshold", "3", "--set", "gust.enabled=false"], ["gust.enabled"]),
+        (["--threshold", "3", "--disperse", "payload.mass=uniform(0.1,0.3)"], ["payload.mass"]),
+        (["--threshold", "3", "--set", "integrator.dt=-1"], ["integrator.dt", "-1"]),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    args: list[str], needles: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main([*RARE, *args]) == 2
+    captured = capsys.readouterr()
+    one_error_line(captured.err, "quadrs rare", *needles)
+    assert captured.out == ""
+
+
+def test_a_missing_required_option_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]) == 2
+    one_error_line(capsys.readouterr().err, "--threshold")
+
+
+def test_real_sigint_keeps_the_levels_done(tmp_path: Path) -> None:
+    """A real Ctrl-C after the first level: exit 130, one line saying how far it got, and
+    the finished levels saved. stderr is a pseudo-terminal, so the level lines are drawn."""
+    out = tmp_path / "cut.parquet"
+    master, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    # A threshold no flight reaches in a few levels: the run is stopped mid-way.
+    command = [sys.executable, "-m", "quadrs.cli", *RARE, "--threshold", "40",
+               "--per-level", "100", "--workers", "1", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=terminal)
+    os.close(terminal)
+    seen = b""
+    try:
+        while b"level 0 done" not in seen:
+            ready, _, _ = select.select([master], [], [], 60)
+            assert ready, f"no level line within 60 s: {seen!r}"
+            chunk = os.read(master, 4096)
+            assert chunk, seen
+            seen += chunk
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+        while True:  # the rest of stderr
+            ready, _, _ = select.select([master], [], [], 1)
+            if not ready:
+                break
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # the terminal closed with the process
+                break
+            if not chunk:
+                break
+            seen += chunk
+    finally:
+        proc.kill()
+        os.close(master)
+    assert proc.returncode == 130, seen
+    text = seen.decode()
+    assert re.search(r"quadrs rare: interrupted after [1-9]\d* finished levels? \(\d+ flights\)",
+                     text), text  # fmt: skip
+    assert "Traceback" not in text
+    r = RareEventResult.read_parquet(out)
+    assert r.interrupted and len(r.levels) >= 1 and r.probability is None
+    assert r.upper_bound is not None and 0 < r.upper_bound <= 0.1 ** (len(r.levels) - 1)
