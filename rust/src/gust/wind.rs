@@ -99,17 +99,18 @@ pub enum Source<'a> {
     Given { xi: &'a [f64], next: usize },
 }
 
-impl Normals for Source<'_> {
+/// A cursor over given innovations.
+struct Given<'a> {
+    xi: &'a [f64],
+    next: usize,
+}
+
+impl Normals for Given<'_> {
     #[inline(always)]
     fn normal(&mut self) -> f64 {
-        match self {
-            Source::Seeded(rng) => rng.normal(),
-            Source::Given { xi, next } => {
-                let x = xi.get(*next).copied().unwrap_or(f64::NAN);
-                *next += 1;
-                x
-            }
-        }
+        let x = self.xi.get(self.next).copied().unwrap_or(f64::NAN);
+        self.next += 1;
+        x
     }
 }
 
@@ -210,27 +211,55 @@ impl WindField {
         if !self.enabled || step < self.start_step || step >= self.end_step {
             return [0.0; 3];
         }
-        if !state.started {
-            for (i, f) in self.filters.iter().enumerate() {
-                if let Some(f) = f {
-                    state.x[i] = f.stationary_state(&mut state.rng);
-                }
+        // One match per sample, not per normal: the draws below run on the concrete source.
+        let WindState {
+            rng,
+            x,
+            started,
+            step: at,
+        } = state;
+        match rng {
+            Source::Seeded(rng) => self.advance_to(x, started, at, step, rng),
+            Source::Given { xi, next } => {
+                let mut given = Given { xi, next: *next };
+                let w = self.advance_to(x, started, at, step, &mut given);
+                *next = given.next;
+                w
             }
-            state.started = true;
-            state.step = self.start_step;
         }
-        while state.step < step {
+    }
+
+    /// `sample`'s work on a concrete source of normals.
+    #[inline(always)]
+    fn advance_to(
+        &self,
+        x: &mut [[f64; 3]; 3],
+        started: &mut bool,
+        at: &mut u64,
+        step: u64,
+        normals: &mut impl Normals,
+    ) -> [f64; 3] {
+        if !*started {
             for (i, f) in self.filters.iter().enumerate() {
                 if let Some(f) = f {
-                    f.advance(&mut state.x[i], &mut state.rng);
+                    x[i] = f.stationary_state(normals);
                 }
             }
-            state.step += 1;
+            *started = true;
+            *at = self.start_step;
+        }
+        while *at < step {
+            for (i, f) in self.filters.iter().enumerate() {
+                if let Some(f) = f {
+                    f.advance(&mut x[i], normals);
+                }
+            }
+            *at += 1;
         }
         let mut w = self.mean;
         for (i, f) in self.filters.iter().enumerate() {
             if let Some(f) = f {
-                w[i] += f.output(&state.x[i]);
+                w[i] += f.output(&x[i]);
             }
         }
         w
