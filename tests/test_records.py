@@ -180,3 +180,16 @@ def test_scenario_error_without_a_key(paper: Scenario) -> None:
     with pytest.raises(quadrs.ScenarioError) as info:
         Scenario.from_toml_string("not toml [")
     assert info.value.key is None
+
+
+def test_list_columns_are_bound_to_the_digest_too():
+    """Lists of numbers (a rare-event result's failure samples) count bit for bit."""
+    import pyarrow as pa
+
+    from quadrs.parquet import _rows_digest
+
+    a = pa.table({"xi": pa.array([[0.1, 0.2], [0.3]]), "k": [1, 2]})
+    b = pa.table({"xi": pa.array([[0.1, 0.2], [0.30000000000000004]]), "k": [1, 2]})
+    c = pa.table({"xi": pa.array([[0.1], [0.2, 0.3]]), "k": [1, 2]})
+    assert _rows_digest(a) == _rows_digest(pa.table({"xi": [[0.1, 0.2], [0.3]], "k": [1, 2]}))
+    assert len({_rows_digest(a), _rows_digest(b), _rows_digest(c)}) == 3

@@ -51,7 +51,7 @@ def test_status_is_ok_exactly_where_the_flight_did_not_diverge(short):
     s = short.override(
         {
             "gust.components": ["lateral", "vertical"],
-            "gust.w20": 40.0,
+            "gust.w20": 23.0,
             "gust.start": 0.5,
             "gust.end": 6.0,
             "divergence.max_tilt": 0.2,

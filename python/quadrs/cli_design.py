@@ -284,11 +284,11 @@ def _print_phase_effects(effects: Any, metric: str, tuned: tuple[str, ...]) -> N
           "of the change lies above 0):")  # fmt: skip
     table = effects[["untuned", "tuned", "change_pct", "worse"]].copy()
     table["in objective"] = [p in tuned for p in table.index]
-    print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    print(terminal_text(table.to_string(float_format=lambda v: f"{v:.4g}")))
     hurt = [p for p, r in effects.iterrows() if r["worse"] and p not in tuned]
     if hurt:
-        print(f"quadrs tune: note: the tuned values raise {metric} in {', '.join(hurt)}, "
-              "outside the objective", file=sys.stderr)  # fmt: skip
+        note = f"the tuned values raise {metric} in {', '.join(hurt)}, outside the objective"
+        print(terminal_text(f"quadrs tune: note: {note}"), file=sys.stderr)
 
 
 def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:

@@ -42,7 +42,7 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         help="a small probability P(metric > threshold) by subset simulation",
         description="Estimate P(METRIC in PHASE > THRESHOLD) over the gust's randomness by "
         "subset simulation: far fewer flights than plain Monte Carlo for small probabilities. "
-        "Prints the estimate, its coefficient of variation and 95%% interval, the levels and "
+        "Prints the estimate, its coefficient of variation and 95% interval, the levels and "
         "the flights, and the flights plain Monte Carlo would need for the same precision. "
         "A diverged flight counts as an exceedance (see docs/rare-events.md).",
     )

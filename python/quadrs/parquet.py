@@ -173,27 +173,37 @@ def read_regular(path: str | Path, limit: int | None = None) -> bytes:
     return data
 
 
+def _array_digest(h: Any, array: pa.Array) -> None:
+    """Feed one column into ``h``: numbers by their bytes (every bit counts), lists by their
+    offsets and their flattened values, anything else (controller and phase names) as the
+    distinct values and, per row, which one it holds."""
+    kind = array.type
+    if pa.types.is_list(kind) or pa.types.is_large_list(kind):
+        offsets = np.asarray(array.offsets.to_numpy(zero_copy_only=False), dtype=np.int64)
+        valid = np.asarray(array.is_valid().to_numpy(zero_copy_only=False), dtype=np.bool_)
+        h.update(b"list\0" + offsets.tobytes() + valid.tobytes())
+        _array_digest(h, array.flatten())
+        return
+    values = None
+    if pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind):
+        values = np.asarray(array.to_numpy(zero_copy_only=False))
+    if values is not None and values.dtype != object:
+        h.update(values.dtype.str.encode() + b"\0" + np.ascontiguousarray(values).tobytes())
+        return
+    if pa.types.is_dictionary(kind):
+        array = array.dictionary_decode()
+    coded = array.dictionary_encode()
+    index = np.asarray(coded.indices.fill_null(-1).to_numpy(), dtype=np.int64)
+    distinct = [None if v is None else str(v) for v in coded.dictionary.to_pylist()]
+    h.update(json.dumps(distinct).encode() + b"\0" + index.tobytes())
+
+
 def _rows_digest(table: pa.Table) -> bytes:
-    """SHA-256 of a table's column names and values: numbers by their bytes (every bit
-    counts), anything else (controller and phase names) as the distinct values and, per row,
-    which one it holds."""
+    """SHA-256 of a table's column names and values (see :func:`_array_digest`)."""
     h = hashlib.sha256()
     for name, column in zip(table.column_names, table.columns, strict=True):
         h.update(json.dumps(name).encode() + b"\0")
-        array = column.combine_chunks()
-        kind = array.type
-        values = None
-        if pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind):
-            values = np.asarray(array.to_numpy(zero_copy_only=False))
-        if values is not None and values.dtype != object:
-            h.update(values.dtype.str.encode() + b"\0" + np.ascontiguousarray(values).tobytes())
-        else:
-            if pa.types.is_dictionary(kind):
-                array = array.dictionary_decode()
-            coded = array.dictionary_encode()
-            index = np.asarray(coded.indices.fill_null(-1).to_numpy(), dtype=np.int64)
-            distinct = [None if v is None else str(v) for v in coded.dictionary.to_pylist()]
-            h.update(json.dumps(distinct).encode() + b"\0" + index.tobytes())
+        _array_digest(h, column.combine_chunks())
         h.update(b"\1")
     return h.digest()
 
