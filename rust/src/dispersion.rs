@@ -66,6 +66,23 @@ impl Dispersion {
     /// The scenario realisation `row` flies, validated; an invalid drawn value is an error
     /// naming the key, the realisation and the value.
     pub fn config(&self, row: usize, first: u64) -> Result<Config, ConfigError> {
+        let cfg = self.patched(row, first)?;
+        cfg.validate().map_err(|e| ConfigError {
+            message: format!(
+                "dispersions: realisation {} drew a value the scenario refuses: {} \
+                 (narrow or truncate the distribution)",
+                first + row as u64,
+                e.message
+            ),
+            key: e.key,
+        })?;
+        Ok(cfg)
+    }
+
+    /// The scenario with row `row`'s values set, not validated: for a batch whose rows
+    /// `config` has already checked (`montecarlo::Batch::check`), so that each realisation
+    /// pays for its checks once.
+    pub fn patched(&self, row: usize, first: u64) -> Result<Config, ConfigError> {
         let n = self.keys.len();
         let mut cfg = self.base.clone();
         for (j, (key, path)) in self.keys.iter().zip(&self.paths).enumerate() {
@@ -82,15 +99,6 @@ impl Dispersion {
             let set = cfg.set_number(path, x);
             debug_assert!(set, "checked by Dispersion::new");
         }
-        cfg.validate().map_err(|e| ConfigError {
-            message: format!(
-                "dispersions: realisation {} drew a value the scenario refuses: {} \
-                 (narrow or truncate the distribution)",
-                first + row as u64,
-                e.message
-            ),
-            key: e.key,
-        })?;
         Ok(cfg)
     }
 }

@@ -231,7 +231,7 @@ pub fn run_batch(
                     let wind = (!d.touches_wind()).then_some(&engine.craft);
                     rows.iter()
                         .map(|&j| {
-                            let cfg = d.config(j, first).expect("checked by Batch::check");
+                            let cfg = d.patched(j, first).expect("checked by Batch::check");
                             Craft::with_wind_of(&cfg, wind).expect("checked by Batch::check")
                         })
                         .collect()

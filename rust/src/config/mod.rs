@@ -429,7 +429,7 @@ impl Config {
         let v = &self.vehicle;
         positive("vehicle.mass", v.mass)?;
         for (i, x) in v.inertia.iter().enumerate() {
-            positive(&format!("vehicle.inertia[{i}]"), *x)?;
+            positive(format_args!("vehicle.inertia[{i}]"), *x)?;
         }
         for (i, x) in v.inertia_error.iter().enumerate() {
             let key = format!("vehicle.inertia_error[{i}]");
@@ -469,10 +469,10 @@ impl Config {
         positive("environment.gravity", self.environment.gravity)?;
 
         for (i, x) in self.initial.position.iter().enumerate() {
-            finite(&format!("initial.position[{i}]"), *x)?;
+            finite(format_args!("initial.position[{i}]"), *x)?;
         }
         for (i, x) in self.initial.attitude.iter().enumerate() {
-            finite(&format!("initial.attitude[{i}]"), *x)?;
+            finite(format_args!("initial.attitude[{i}]"), *x)?;
         }
         for i in 0..2 {
             let a = self.initial.attitude[i];
@@ -551,7 +551,7 @@ impl Config {
             ("kd_attitude", pd.kd_attitude),
         ] {
             for (i, x) in arr.iter().enumerate() {
-                non_negative(&format!("controller.pd.{name}[{i}]"), *x)?;
+                non_negative(format_args!("controller.pd.{name}[{i}]"), *x)?;
             }
         }
         let smc = &c.smc;
@@ -564,7 +564,7 @@ impl Config {
             ("eta_attitude", smc.eta_attitude),
         ] {
             for (i, x) in arr.iter().enumerate() {
-                non_negative(&format!("controller.smc.{name}[{i}]"), *x)?;
+                non_negative(format_args!("controller.smc.{name}[{i}]"), *x)?;
             }
         }
         positive("controller.smc.gamma", smc.gamma)
@@ -590,7 +590,7 @@ impl Config {
         }
         for (i, row) in w.iter().enumerate() {
             for (j, x) in row.iter().enumerate() {
-                finite(&format!("trajectory.waypoints[{i}][{j}]"), *x)?;
+                finite(format_args!("trajectory.waypoints[{i}][{j}]"), *x)?;
             }
             if i > 0 && row[0] <= w[i - 1][0] {
                 let key = format!("trajectory.waypoints[{i}][0]");
@@ -680,7 +680,7 @@ impl Config {
         }
         non_negative("gust.air_density", g.air_density)?;
         for (i, x) in g.mean_wind.iter().enumerate() {
-            finite(&format!("gust.mean_wind[{i}]"), *x)?;
+            finite(format_args!("gust.mean_wind[{i}]"), *x)?;
         }
         for (i, c) in g.components.iter().enumerate() {
             if g.components[..i].contains(c) {
@@ -694,34 +694,37 @@ impl Config {
     }
 }
 
-fn finite(key: &str, x: f64) -> Result<(), ConfigError> {
+/// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
+fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() {
         Ok(())
     } else {
         Err(ConfigError::new(
-            key,
+            key.to_string(),
             format!("{key} must be a finite number, got {x:?}"),
         ))
     }
 }
 
-fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
+/// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
+fn positive(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x > 0.0 {
         Ok(())
     } else {
         Err(ConfigError::new(
-            key,
+            key.to_string(),
             format!("{key} must be > 0, got {x:?}"),
         ))
     }
 }
 
-fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
+/// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
+fn non_negative(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x >= 0.0 {
         Ok(())
     } else {
         Err(ConfigError::new(
-            key,
+            key.to_string(),
             format!("{key} must be >= 0, got {x:?}"),
         ))
     }
