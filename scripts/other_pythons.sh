@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Build, install and smoke-test quadrs on the lowest supported Python (3.10) and the newest
-# installed one, so that requires-python stays true. Each gets a throwaway venv; the Rust
-# dependencies are shared with the main build through target/. Pythons not found are reported
+# Install and smoke-test quadrs on the lowest supported Python (3.10) and the newest installed
+# one, so that requires-python stays true: one abi3 wheel, built once, into a throwaway venv
+# each; the Rust dependencies are shared with the main build through target/. Pythons not found are reported
 # and skipped. Usage: scripts/other_pythons.sh [PYTHON ...] (default: pyenv's 3.10 and 3.13).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,7 +31,14 @@ for py in "${pythons[@]}"; do
     venv=$(mktemp -d)
     "$py" -m venv "$venv"
     "$venv/bin/python" -m pip install -q --upgrade pip
-    "$venv/bin/python" -m pip install -q .
+    # The engine is an abi3 wheel (one for every CPython >= 3.10): build it once, with the
+    # first Python, and install that same wheel into every other one.
+    if [ -z "${wheel:-}" ]; then
+        wheels=$(mktemp -d)
+        "$venv/bin/python" -m pip wheel -q --no-deps -w "$wheels" .
+        wheel=$(ls "$wheels"/quadrs-*.whl)
+    fi
+    "$venv/bin/python" -m pip install -q "$wheel"
     (cd "$venv" && "$venv/bin/python" -c "$smoke" && "$venv/bin/quadrs" --version)
     rm -rf "$venv"
 done
