@@ -74,10 +74,20 @@ def short(s: quadrs.Scenario, duration: float, gust: tuple[float, float]) -> qua
     )
 
 
+#: The whole-flight phase every result carries after the scenario's own phases (new outputs:
+#: its rows are left out of the recorded digests, which cover the scenario's phases).
+FLIGHT = "flight"
+
+
+def own_phases(frame: pd.DataFrame) -> pd.DataFrame:
+    """The rows of the phases the scenario itself names, renumbered from 0."""
+    return frame[frame["phase"] != FLIGHT].reset_index(drop=True)
+
+
 def flight_case(s: quadrs.Scenario, controller: str, seed: int, realisation: int) -> dict:
     f = quadrs.simulate(s, controller, seed, realisation=realisation, record_every=37)
     out = frame_digests("trace", f.trace, TRACE)
-    out.update(frame_digests("metrics", f.metrics, METRICS))
+    out.update(frame_digests("metrics", own_phases(f.metrics), METRICS))
     out["diverged_at"] = digest([f.diverged_at])
     for phase, spec in f.spectra.items():
         out[f"spectrum.{phase}"] = digest(spec["amplitude"].to_numpy())
@@ -86,13 +96,14 @@ def flight_case(s: quadrs.Scenario, controller: str, seed: int, realisation: int
 
 def batch_case(s: quadrs.Scenario, runs: int, seed: int, **kw: Any) -> dict:
     mc = quadrs.monte_carlo(s, runs=runs, seed=seed, progress=False, workers=2, **kw)
-    rows = mc.runs.sort_values(["realisation", "controller", "phase"]).reset_index(drop=True)
+    rows = own_phases(mc.runs.sort_values(["realisation", "controller", "phase"]))
     out = {
         f"runs.{c}": digest(rows[c].to_numpy(dtype=np.float64)) for c in [*METRICS, *s.dispersions]
     }
     out["runs.diverged"] = digest(rows["diverged"].to_numpy(dtype=np.float64))
     spectra = getattr(mc, "spectra", None)
     if isinstance(spectra, pd.DataFrame):
+        spectra = own_phases(spectra)
         for c in spectra.columns:
             if pd.api.types.is_float_dtype(spectra[c]):
                 out[f"spectra.{c}"] = digest(spectra[c].to_numpy())
