@@ -259,7 +259,7 @@ def test_tune_reports_the_untuned_objective_and_every_phase(short: Scenario) -> 
         maxiter=4,
     )
     fx = result.phase_effects
-    assert list(fx.index) == ["P1", "P2", "P3"]
+    assert list(fx.index) == ["P1", "P2", "P3", "flight"]
     untuned = quadrs.monte_carlo(short, runs=3, controllers=("pd",), progress=False)
     direct = untuned.runs.groupby("phase")["max_accel"].mean()
     assert fx["untuned"].to_numpy() == pytest.approx(direct.to_numpy(), rel=1e-12)

@@ -57,7 +57,7 @@ def test_paper_preset_without_gust(paper: Scenario) -> None:
     smc_f = quadrs.simulate(s, "smc")
     for f in (pd_f, smc_f):
         assert list(f.metrics.columns) == METRICS
-        assert list(f.metrics["phase"]) == ["P1", "P2", "P3"]
+        assert list(f.metrics["phase"]) == ["P1", "P2", "P3", "flight"]
         assert np.isfinite(f.metrics.drop(columns="phase").to_numpy()).all()
         assert not f.diverged
     p1 = lambda f: f.metrics.set_index("phase").loc["P1", "iae"]  # noqa: E731

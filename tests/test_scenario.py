@@ -16,7 +16,8 @@ def test_paper_preset_is_model_md(paper: Scenario) -> None:
     assert paper["controller.pd.kp"] == [1.5, 1.6, 1.5]
     assert paper["controller.smc.gamma"] == 0.2
     assert paper["gust.components"] == ["vertical"]
-    assert paper.phase_names == ["P1", "P2", "P3"]
+    assert paper.phase_names == ["P1", "P2", "P3", "flight"]  # the whole flight last
+    assert paper.scenario_phases == ["P1", "P2", "P3"]
     assert paper.steps == 350_000
     # kc = mc (2 pi fn)^2 and d0 = mc g / kc
     assert paper.stiffness == pytest.approx(0.22 * (2 * math.pi * 2.0) ** 2, rel=1e-14)

@@ -20,7 +20,7 @@ def test_reprs_summarise(short: Scenario) -> None:
     for text in (repr(flight), repr(mc)):
         assert "\n" not in text and len(text) < 250, text
     assert "2 realisations x pd/smc" in repr(mc) and "did not diverge" in repr(flight)
-    assert flight.metrics["phase"].tolist() == ["P1", "P2", "P3"]
+    assert flight.metrics["phase"].tolist() == ["P1", "P2", "P3", "flight"]
     assert flight.metrics["phase"].dtype == mc.runs["phase"].dtype  # strings in both
 
 

@@ -4,7 +4,7 @@ The engine's results are plain dicts; their keys and types are spelled out below
 TypedDicts (they exist only for the type checker), read off rust/src/lib.rs.
 """
 
-from typing import TypedDict, final
+from typing import Any, TypedDict, final
 
 import numpy as np
 import numpy.typing as npt
@@ -31,6 +31,11 @@ class Description(TypedDict):
     state_names: list[str]
     trace_columns: list[str]
     spectrum_frequencies: list[_Floats]
+    #: (name, start s, end s) of every phase, the whole-flight phase last.
+    phase_windows: list[tuple[str, float, float]]
+    #: A route's schedule, one dict per hold or leg (empty without a route): name, kind,
+    #: start, arrival, end, origin, target, length, peak_speed, ramp, cruise.
+    route: list[dict[str, Any]]
 
 class StabilityResult(TypedDict):
     """:func:`stability`: the closed-loop poles at hover (one entry each, least stable

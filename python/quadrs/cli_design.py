@@ -203,7 +203,7 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     if len(dict(args.param)) != len(args.param):
         raise ValueError("--param: each key at most once")
     params = _canonical_params(scenario, dict(args.param))
-    phases = tuple(args.phase) if args.phase else tuple(scenario.phase_names)
+    phases = tuple(args.phase) if args.phase else tuple(scenario.scenario_phases)
     # Before any flight: the outputs can be written, and the tuned file can be made from a
     # candidate (the midpoint of the bounds), so the work is not lost to a bad --out.
     for path in (args.out, args.history):

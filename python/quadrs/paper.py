@@ -82,11 +82,12 @@ def _figure_name(kind: str, index: int, phase: str) -> str:
 
 def gust_phase(scenario: Scenario) -> str:
     """The phase holding the gust onset (the paper's cruise P2); the second phase otherwise."""
-    names = scenario.phase_names
+    names = scenario.scenario_phases
     t = float(scenario["gust.start"])
-    for p in scenario["phases"]:
-        if p["start"] <= t < p["end"]:
-            return str(p["name"])
+    windows = scenario.phase_windows
+    for name in names:
+        if windows[name][0] <= t < windows[name][1]:
+            return name
     return names[min(1, len(names) - 1)]
 
 
@@ -98,7 +99,7 @@ def flight_figures(scenario: Scenario, seed: int, out: Path) -> tuple[dict[str, 
     calm = simulate(scenario.override({"gust.enabled": False}), "pd", seed)
     files = []
     files += plots.save(plots.altitude(flights), out / "fig04_07_altitude")
-    for i, phase in enumerate(scenario.phase_names):
+    for i, phase in enumerate(scenario.scenario_phases):
         fig = plots.oscillation(flights, [phase])
         files += plots.save(fig, out / _figure_name("oscillation", i, phase))
         fig = plots.spectra(flights, [phase])
@@ -188,7 +189,7 @@ def sweep_outputs(result: SweepResult, out: Path) -> list[Path]:
         return files
     summ = result.summary()
     files.append(_csv(summ, out / "sweep_natural_frequency.csv"))
-    names = result.scenario.phase_names
+    names = result.scenario.scenario_phases
     ends = [names[0], names[-1]] if len(names) > 1 else names
     files += plots.save(plots.max_amplitude(summ, ends), out / "fig13_14_max_amplitude")
     runs = result.runs[result.runs["phase"].isin(ends)]
@@ -428,7 +429,7 @@ def _claims_section(
     n_sweep, against_sweep = 0, pd.DataFrame()
     if sweep_result is not None and not sweep_result.runs.empty:
         sw = claims(sweep_result.summary())
-        names = sweep_result.scenario.phase_names
+        names = sweep_result.scenario.scenario_phases
         ends = {names[0], names[-1]}  # Figs. 13/14: take-off and landing
         sw = sw[sw["index"].str.startswith("peak |e_o|") & sw["phase"].isin(ends)]
         n_sweep, against_sweep = len(sw), sw[sw["agrees"] == "NO"]

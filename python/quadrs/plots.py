@@ -194,9 +194,9 @@ def _ctrl_name(ctrl: str) -> str:
 
 
 def _phase_window(flight: Flight, phase: str) -> tuple[float, float]:
-    for p in flight.scenario["phases"]:
-        if p["name"] == phase:
-            return float(p["start"]), float(p["end"])
+    windows = flight.scenario.phase_windows
+    if phase in windows:
+        return windows[phase]
     raise ValueError(f"phase must be one of {flight.scenario.phase_names}, got {phase!r}")
 
 
@@ -1047,3 +1047,6 @@ def gust_spectrum(
         _loglog(a, top)
         _legend(a)
     return _finish(fig, path)
+
+
+from quadrs.plots_route import altitude_profile, ground_track  # noqa: E402, F401

@@ -28,6 +28,7 @@ else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
     import tomli as tomllib
 
 from quadrs import _core, plausibility
+from quadrs.route import FLIGHT_PHASE, Route
 
 ScenarioError = _core.ScenarioError
 
@@ -585,7 +586,27 @@ class Scenario:
 
     @property
     def phase_names(self) -> list[str]:
+        """The phases every result has a row for: the scenario's own (``scenario_phases``),
+        then ``"flight"``, the whole flight (docs/model.md, "Routes")."""
         return list(self._derived["phases"])
+
+    @property
+    def scenario_phases(self) -> list[str]:
+        """The phases the scenario itself names (``phases``, or a route's legs and holds under
+        ``phases = "legs"``), without the whole-flight phase."""
+        return [p for p in self.phase_names if p != FLIGHT_PHASE]
+
+    @property
+    def phase_windows(self) -> dict[str, tuple[float, float]]:
+        """Each phase's time window (s, both ends included), ``"flight"`` last."""
+        return {str(n): (float(a), float(b)) for n, a, b in self._derived["phase_windows"]}
+
+    @property
+    def route(self) -> Route | None:
+        """The schedule of a route (``trajectory.interpolation = "route"``): its legs and
+        holds with their times, lengths and arrival; None for waypoint trajectories."""
+        segments = self._derived["route"]
+        return Route.from_engine(segments) if segments else None
 
     @property
     def spectrum_frequencies(self) -> list[Any]:

@@ -13,6 +13,7 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
+pub mod route;
 pub mod stability;
 pub mod trajectory;
 
@@ -47,7 +48,7 @@ mod _core {
     use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
     use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
     use pyo3::prelude::*;
-    use pyo3::types::PyDict;
+    use pyo3::types::{PyDict, PyList};
     use rustfft::FftPlanner;
     use std::panic::{catch_unwind, AssertUnwindSafe};
     use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -163,13 +164,35 @@ mod _core {
         };
         d.set_item("hover_offset", hover_offset)?;
         d.set_item("steps", cfg.steps())?;
-        d.set_item(
-            "phases",
-            cfg.phases
-                .iter()
-                .map(|p| p.name.clone())
-                .collect::<Vec<_>>(),
-        )?;
+        d.set_item("phases", crate::trajectory::phase_names(&cfg))?;
+        let windows: Vec<(String, f64, f64)> = cfg
+            .phases
+            .iter()
+            .map(|p| (p.name.clone(), p.start, p.end))
+            .chain(std::iter::once((
+                crate::route::FLIGHT_PHASE.to_string(),
+                0.0,
+                cfg.integrator.duration,
+            )))
+            .collect();
+        d.set_item("phase_windows", windows)?;
+        let route = PyList::empty(py);
+        for s in crate::route::schedule(&cfg).map_err(scenario_error)? {
+            let seg = PyDict::new(py);
+            seg.set_item("name", &s.name)?;
+            seg.set_item("kind", s.kind.name())?;
+            seg.set_item("start", s.start)?;
+            seg.set_item("arrival", s.arrival)?;
+            seg.set_item("end", s.end)?;
+            seg.set_item("origin", cfg.trajectory.route[s.from])?;
+            seg.set_item("target", cfg.trajectory.route[s.to])?;
+            seg.set_item("length", s.profile.length)?;
+            seg.set_item("peak_speed", s.profile.peak_speed)?;
+            seg.set_item("ramp", s.profile.ramp)?;
+            seg.set_item("cruise", s.profile.cruise)?;
+            route.append(seg)?;
+        }
+        d.set_item("route", route)?;
         let vars = state_vars(cfg.payload.model, cfg.actuator.model);
         d.set_item(
             "state_names",

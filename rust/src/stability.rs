@@ -214,11 +214,11 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
     dispatch(cfg.payload.model, cfg.actuator.model, Build(cfg, kind, r))
 }
 
-/// The hover reference: the first waypoint's position, psi_ref = 0, no motion.
+/// The hover reference: the first waypoint's (or route point's) position, psi_ref = 0, no
+/// motion.
 fn hover_reference(cfg: &Config) -> Reference {
-    let wp = cfg.trajectory.waypoints[0];
     Reference {
-        pos: [wp[1], wp[2], wp[3]],
+        pos: cfg.trajectory.points()[0],
         ..Reference::default()
     }
 }
@@ -524,12 +524,12 @@ fn describe(
 /// lateral command.
 pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
     let mut out = Vec::new();
-    let w = &cfg.trajectory.waypoints;
+    let w = cfg.trajectory.points();
     let [x0, y0, _] = cfg.initial.position;
-    if w.iter().any(|p| p[1] != w[0][1] || p[2] != w[0][2]) {
+    if w.iter().any(|p| p[0] != w[0][0] || p[1] != w[0][1]) {
         out.push("waypoints move in x/y");
     }
-    if x0 != w[0][1] || y0 != w[0][2] {
+    if x0 != w[0][0] || y0 != w[0][1] {
         out.push("initial x/y off the first waypoint");
     }
     if cfg.initial.attitude[0] != 0.0 || cfg.initial.attitude[1] != 0.0 {

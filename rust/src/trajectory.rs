@@ -1,6 +1,7 @@
 //! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
 use crate::config::{Config, Interpolation};
+use crate::route::{Segment, SegmentKind, FLIGHT_PHASE};
 
 /// Desired position (x, y, z), yaw and their first two derivatives at one instant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -25,6 +26,9 @@ pub struct Trajectory {
     start: [f64; 5],
     /// Min-jerk only: s, the duration of each move (shortened to the gap to the next waypoint).
     transition: f64,
+    /// Route only: the points and the schedule of holds and legs over them.
+    route: Vec<[f64; 3]>,
+    segments: Vec<Segment>,
 }
 
 impl Trajectory {
@@ -34,8 +38,11 @@ impl Trajectory {
         Self {
             waypoints: w.clone(),
             interpolation: cfg.trajectory.interpolation,
-            start: [w[0][0], x, y, z, cfg.initial.attitude[2]],
+            start: [w.first().map_or(0.0, |r| r[0]), x, y, z, cfg.initial.attitude[2]],
             transition: cfg.trajectory.transition,
+            route: cfg.trajectory.route.clone(),
+            // A validated scenario's schedule cannot fail (`Config::validate` built it).
+            segments: crate::route::schedule(cfg).unwrap_or_default(),
         }
     }
 
@@ -50,7 +57,7 @@ impl Trajectory {
                 .waypoints
                 .get(segment + 1)
                 .map_or(f64::INFINITY, |w| w[0]),
-            Interpolation::MinJerk => f64::NEG_INFINITY,
+            Interpolation::MinJerk | Interpolation::Route => f64::NEG_INFINITY,
         }
     }
 
@@ -64,6 +71,9 @@ impl Trajectory {
     /// both modes, and min-jerk tends to step as the transition tends to zero.
     #[inline]
     pub fn at(&self, t: f64, segment: &mut usize) -> Reference {
+        if self.interpolation == Interpolation::Route {
+            return self.route_at(t, segment);
+        }
         let w = &self.waypoints;
         while *segment + 1 < w.len() && t + TIME_SLACK >= w[*segment + 1][0] {
             *segment += 1;
@@ -85,7 +95,70 @@ impl Trajectory {
                 }
                 min_jerk(from, &w[i], w[i][0], span, t)
             }
+            Interpolation::Route => unreachable!("handled above"),
         }
+    }
+
+    /// The straight line the reference follows in `segment` (as left by `at`): a point on it
+    /// and its unit direction, from the previous point (waypoint, route point, or the initial
+    /// position before the first waypoint) to the current one. The direction is zero where
+    /// the two coincide (a route's hold, a waypoint repeating the previous position): the
+    /// line is then that point. The cross-track error is the distance from this line.
+    pub fn line(&self, segment: usize) -> ([f64; 3], [f64; 3]) {
+        let (a, b) = match self.interpolation {
+            Interpolation::Route => match self.segments.get(segment) {
+                Some(s) => (self.route[s.from], self.route[s.to]),
+                None => ([0.0; 3], [0.0; 3]),
+            },
+            Interpolation::Step | Interpolation::MinJerk => {
+                let w = &self.waypoints;
+                let from = if segment == 0 {
+                    &self.start
+                } else {
+                    &w[segment - 1]
+                };
+                let to = &w[segment];
+                ([from[1], from[2], from[3]], [to[1], to[2], to[3]])
+            }
+        };
+        let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if n == 0.0 {
+            (b, [0.0; 3])
+        } else {
+            (a, [d[0] / n, d[1] / n, d[2] / n])
+        }
+    }
+
+    /// Route: `segment` indexes the schedule. A hold (and any time after the schedule) rests
+    /// at its point; a leg moves along the straight line by its profile. psi_des = 0.
+    #[inline]
+    fn route_at(&self, t: f64, segment: &mut usize) -> Reference {
+        let s = &self.segments;
+        while *segment + 1 < s.len() && t + TIME_SLACK >= s[*segment + 1].start {
+            *segment += 1;
+        }
+        let Some(seg) = s.get(*segment) else {
+            return Reference::default();
+        };
+        let (a, b) = (self.route[seg.from], self.route[seg.to]);
+        if seg.kind == SegmentKind::Hold {
+            return Reference {
+                pos: a,
+                ..Reference::default()
+            };
+        }
+        let p = &seg.profile;
+        let (dist, speed, accel) = p.at(t - seg.start);
+        let mut r = Reference::default();
+        for k in 0..3 {
+            let u = (b[k] - a[k]) / p.length;
+            // At arrival the position is the point itself, not a + L u (rounding).
+            r.pos[k] = if dist >= p.length { b[k] } else { a[k] + dist * u };
+            r.vel[k] = speed * u;
+            r.acc[k] = accel * u;
+        }
+        r
     }
 }
 
@@ -134,6 +207,7 @@ impl PhaseSteps {
 }
 
 /// Each phase of the scenario on the step grid: the samples whose time lies in [start, end].
+/// After them, the whole flight (`FLIGHT_PHASE`): every sample, 0 to the last step.
 pub fn phase_steps(cfg: &Config) -> Vec<PhaseSteps> {
     let dt = cfg.integrator.dt;
     let steps = cfg.steps();
@@ -147,6 +221,19 @@ pub fn phase_steps(cfg: &Config) -> Vec<PhaseSteps> {
                 last,
             }
         })
+        .chain(std::iter::once(PhaseSteps {
+            first: 0,
+            last: steps,
+        }))
+        .collect()
+}
+
+/// The names of `phase_steps`' phases: the scenario's, then `FLIGHT_PHASE`.
+pub fn phase_names(cfg: &Config) -> Vec<String> {
+    cfg.phases
+        .iter()
+        .map(|p| p.name.clone())
+        .chain(std::iter::once(FLIGHT_PHASE.to_string()))
         .collect()
 }
 

@@ -180,18 +180,49 @@ pub struct SmcGains {
 pub enum Interpolation {
     Step,
     MinJerk,
+    /// Straight legs between `trajectory.route` points, rest to rest (docs/model.md, "Routes").
+    Route,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Trajectory {
     pub interpolation: Interpolation,
-    /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing.
+    /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing (step and min-jerk;
+    /// absent for a route).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub waypoints: Vec<[f64; 5]>,
     /// s, min-jerk only: each move toward a waypoint starts at its time and lasts this long
     /// (or up to the next waypoint's time if that comes sooner).
     #[serde(default = "default_transition")]
     pub transition: f64,
+    /// Route only: the points [x, y, z] (m) flown in straight legs, in order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub route: Vec<[f64; 3]>,
+    /// Route only: m/s, the cruise speed of every leg long enough to reach it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<f64>,
+    /// Route only: m/s^2, the bound on the reference's acceleration along a leg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acceleration: Option<f64>,
+    /// Route only: s, the hover at each point (one per point; empty: no holds).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hold: Vec<f64>,
+    /// Route only: the names of the route's segments (holds and legs, in time order) in place
+    /// of leg1, hold2, ...; empty: those defaults.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub names: Vec<String>,
+}
+
+impl Trajectory {
+    /// The reference's points (m): the waypoints' positions, or the route.
+    pub fn points(&self) -> Vec<[f64; 3]> {
+        if self.interpolation == Interpolation::Route {
+            self.route.clone()
+        } else {
+            self.waypoints.iter().map(|w| [w[1], w[2], w[3]]).collect()
+        }
+    }
 }
 
 /// s, the default min-jerk move duration: a 2 m climb peaks at 0.75 m/s and 0.46 m/s^2.
@@ -375,12 +406,31 @@ fn default_max_rate() -> f64 {
     100.0
 }
 
+/// `phases = "legs"`: one phase per leg and hold of the route (docs/model.md, "Routes").
+pub const LEGS: &str = "legs";
+
 /// Most integration steps one flight may take (guards against hangs from a tiny dt).
 pub const MAX_STEPS: f64 = 2.0e9;
 
 impl Config {
     /// Parse and validate the engine's JSON form of a scenario.
     pub fn from_json(text: &str) -> Result<Self, ConfigError> {
+        // `phases = "legs"`: the route's schedule gives the phases, once the rest is valid.
+        let legs = serde_json::from_str::<serde_json::Value>(text)
+            .ok()
+            .is_some_and(|v| v.get("phases").and_then(|p| p.as_str()) == Some(LEGS));
+        if legs {
+            let mut v: serde_json::Value = serde_json::from_str(text).expect("parsed above");
+            let whole = v
+                .pointer("/integrator/duration")
+                .cloned()
+                .unwrap_or(serde_json::Value::Null);
+            v["phases"] = serde_json::json!([{"name": LEGS, "start": 0.0, "end": whole}]);
+            let mut cfg = Self::from_json(&v.to_string())?;
+            cfg.phases = crate::route::leg_phases(&cfg)?;
+            cfg.validate()?;
+            return Ok(cfg);
+        }
         let de = &mut serde_json::Deserializer::from_str(text);
         let cfg: Config = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
@@ -510,6 +560,7 @@ impl Config {
                 ),
             ));
         }
+        crate::route::schedule(self)?;
         self.validate_phases()?;
 
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
@@ -571,6 +622,17 @@ impl Config {
     }
 
     fn validate_trajectory(&self) -> Result<(), ConfigError> {
+        crate::route::validate(self)?;
+        let tr = self.trajectory.transition;
+        if !(tr.is_finite() && tr >= 0.0) {
+            return Err(ConfigError::new(
+                "trajectory.transition",
+                format!("trajectory.transition must be a finite number >= 0 (s), got {tr:?}"),
+            ));
+        }
+        if self.trajectory.interpolation == Interpolation::Route {
+            return Ok(());
+        }
         let w = &self.trajectory.waypoints;
         if w.len() < 2 {
             return Err(ConfigError::new(
@@ -579,13 +641,6 @@ impl Config {
                     "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got {}",
                     w.len()
                 ),
-            ));
-        }
-        let tr = self.trajectory.transition;
-        if !(tr.is_finite() && tr >= 0.0) {
-            return Err(ConfigError::new(
-                "trajectory.transition",
-                format!("trajectory.transition must be a finite number >= 0 (s), got {tr:?}"),
             ));
         }
         for (i, row) in w.iter().enumerate() {
@@ -619,6 +674,15 @@ impl Config {
                 return Err(ConfigError::new(
                     format!("phases[{i}].name"),
                     format!("phases[{i}].name must not be empty, got {:?}", ph.name),
+                ));
+            }
+            if ph.name == crate::route::FLIGHT_PHASE {
+                return Err(ConfigError::new(
+                    format!("phases[{i}].name"),
+                    format!(
+                        "phases[{i}].name {:?} is the whole-flight phase every result has: choose another name",
+                        ph.name
+                    ),
                 ));
             }
             if self.phases[..i].iter().any(|p| p.name == ph.name) {

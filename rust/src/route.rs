@@ -1,0 +1,610 @@
+//! Routes (`trajectory.interpolation = "route"`, docs/model.md "Routes"): straight legs between
+//! 3-D points, each flown rest to rest, with optional hovers (holds) at the points.
+//!
+//! Along a leg of length L the reference moves by s(t) with a sin^2 acceleration pulse,
+//! a(t) = A sin^2(pi t / T) over the ramp T = 2 v_p / A, then cruises at v_p, then mirrors the
+//! ramp to rest. The pulse is the simplest closed form whose acceleration *and* jerk are
+//! continuous (zero at both ends, so it joins rest and cruise smoothly) and whose peak is
+//! exactly the bound A; the ramp covers v_p T / 2. v_p = min(V, sqrt(A L / 2)): a leg too short
+//! to reach the cruise speed V ramps up and straight down. A leg lasts T + L / v_p.
+
+use crate::config::{Config, ConfigError, Interpolation, Phase};
+use crate::trajectory::TIME_SLACK;
+use std::f64::consts::PI;
+
+/// The whole-flight phase every result carries after the scenario's own phases.
+pub const FLIGHT_PHASE: &str = "flight";
+
+/// Fewest steps a hold or leg may last: its phase, with both ends moved to the step grid (by
+/// up to half a step each), still spans the two steps a phase needs.
+pub const MIN_STEPS: f64 = 4.0;
+
+/// The motion along one leg: s, ds/dt, d2s/dt2 as functions of the time since it began.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Profile {
+    /// m.
+    pub length: f64,
+    /// m/s^2, the acceleration bound (the pulse's peak).
+    pub accel: f64,
+    /// m/s, the speed reached: the cruise speed, or less on a short leg.
+    pub peak_speed: f64,
+    /// s, each of the two ramps.
+    pub ramp: f64,
+    /// s, at peak speed between the ramps (0 on a short leg).
+    pub cruise: f64,
+}
+
+impl Profile {
+    pub fn new(length: f64, speed: f64, accel: f64) -> Self {
+        let peak_speed = speed.min((accel * length / 2.0).sqrt());
+        let ramp = 2.0 * peak_speed / accel;
+        Self {
+            length,
+            accel,
+            peak_speed,
+            ramp,
+            cruise: (length / peak_speed - ramp).max(0.0),
+        }
+    }
+
+    /// s, rest to rest.
+    pub fn duration(&self) -> f64 {
+        2.0 * self.ramp + self.cruise
+    }
+
+    /// (s, v, a) during the first ramp, `tau` in [0, ramp].
+    fn ramp_at(&self, tau: f64) -> (f64, f64, f64) {
+        let (t, a) = (self.ramp, self.accel);
+        let w = 2.0 * PI / t;
+        let s = 0.5 * a * (0.5 * tau * tau + (( w * tau).cos() - 1.0) / (w * w));
+        let v = 0.5 * a * (tau - (w * tau).sin() / w);
+        let sin = (PI * tau / t).sin();
+        (s, v, a * sin * sin)
+    }
+
+    /// (s, v, a) at `tau` s after the leg began: at rest at 0 before, at `length` after.
+    pub fn at(&self, tau: f64) -> (f64, f64, f64) {
+        let total = self.duration();
+        if tau <= 0.0 {
+            (0.0, 0.0, 0.0)
+        } else if tau >= total {
+            (self.length, 0.0, 0.0)
+        } else if tau <= self.ramp {
+            self.ramp_at(tau)
+        } else if tau <= self.ramp + self.cruise {
+            let s = 0.5 * self.peak_speed * self.ramp + self.peak_speed * (tau - self.ramp);
+            (s, self.peak_speed, 0.0)
+        } else {
+            let (s, v, a) = self.ramp_at(total - tau);
+            (self.length - s, v, -a)
+        }
+    }
+}
+
+/// A hover at a point, or a leg between two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SegmentKind {
+    Hold,
+    Leg,
+}
+
+impl SegmentKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            SegmentKind::Hold => "hold",
+            SegmentKind::Leg => "leg",
+        }
+    }
+}
+
+/// One segment of the route's schedule (one phase under `phases = "legs"`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segment {
+    pub name: String,
+    pub kind: SegmentKind,
+    /// s, when the segment begins (a leg leaves its first point at rest).
+    pub start: f64,
+    /// s, when the reference is at rest at `to` (a hold: `start`).
+    pub arrival: f64,
+    /// s, when the next segment begins (the flight's end for the last one).
+    pub end: f64,
+    /// Indices into `trajectory.route` (equal for a hold).
+    pub from: usize,
+    pub to: usize,
+    /// The motion along a leg (all zero for a hold).
+    pub profile: Profile,
+}
+
+fn length(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+/// The keys of a route that can be checked without the step grid.
+pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
+    let tr = &cfg.trajectory;
+    if tr.interpolation != Interpolation::Route {
+        for (key, set) in [
+            ("trajectory.route", !tr.route.is_empty()),
+            ("trajectory.speed", tr.speed.is_some()),
+            ("trajectory.acceleration", tr.acceleration.is_some()),
+            ("trajectory.hold", !tr.hold.is_empty()),
+            ("trajectory.names", !tr.names.is_empty()),
+        ] {
+            if set {
+                return Err(ConfigError::new(
+                    key,
+                    format!(
+                        "{key} is only read by a route (trajectory.interpolation = \"route\"), \
+                         got it with {:?}",
+                        tr.interpolation
+                    ),
+                ));
+            }
+        }
+        return Ok(());
+    }
+    if !tr.waypoints.is_empty() {
+        return Err(ConfigError::new(
+            "trajectory.waypoints",
+            format!(
+                "trajectory.waypoints must be absent for a route (trajectory.interpolation = \
+                 \"route\" flies trajectory.route), got {} rows",
+                tr.waypoints.len()
+            ),
+        ));
+    }
+    let r = &tr.route;
+    if r.len() < 2 {
+        return Err(ConfigError::new(
+            "trajectory.route",
+            format!(
+                "trajectory.route needs at least two points [x, y, z], got {}",
+                r.len()
+            ),
+        ));
+    }
+    for (i, p) in r.iter().enumerate() {
+        for (j, x) in p.iter().enumerate() {
+            if !x.is_finite() {
+                let key = format!("trajectory.route[{i}][{j}]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} must be a finite number, got {x:?}"),
+                ));
+            }
+        }
+        if i > 0 && length(r[i - 1], *p) == 0.0 {
+            let key = format!("trajectory.route[{i}]");
+            return Err(ConfigError::new(
+                &key,
+                format!("{key} repeats the previous point {p:?}: a leg needs two distinct points"),
+            ));
+        }
+    }
+    for (key, x) in [
+        ("trajectory.speed", tr.speed),
+        ("trajectory.acceleration", tr.acceleration),
+    ] {
+        match x {
+            None => {
+                return Err(ConfigError::new(
+                    key,
+                    format!("{key} must be given for a route, got none"),
+                ))
+            }
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                return Err(ConfigError::new(key, format!("{key} must be > 0, got {x:?}")))
+            }
+            Some(_) => {}
+        }
+    }
+    if !tr.hold.is_empty() && tr.hold.len() != r.len() {
+        return Err(ConfigError::new(
+            "trajectory.hold",
+            format!(
+                "trajectory.hold needs one value per route point ({}), got {}",
+                r.len(),
+                tr.hold.len()
+            ),
+        ));
+    }
+    for (i, h) in tr.hold.iter().enumerate() {
+        if !(h.is_finite() && *h >= 0.0) {
+            let key = format!("trajectory.hold[{i}]");
+            return Err(ConfigError::new(&key, format!("{key} must be >= 0, got {h:?}")));
+        }
+    }
+    Ok(())
+}
+
+/// The route's schedule over the flight: holds and legs in time order, from t = 0 to
+/// `integrator.duration` (the time after the last arrival is a hold at the last point). Checks
+/// what needs the step grid: a hold or leg shorter than MIN_STEPS steps, a route longer than the
+/// flight, `trajectory.names`. Empty unless the scenario flies a route; `validate` first.
+pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
+    let tr = &cfg.trajectory;
+    if tr.interpolation != Interpolation::Route {
+        return Ok(Vec::new());
+    }
+    let (speed, accel) = (
+        tr.speed.unwrap_or(f64::NAN),
+        tr.acceleration.unwrap_or(f64::NAN),
+    );
+    let dt = cfg.integrator.dt;
+    let duration = cfg.integrator.duration;
+    let n = tr.route.len();
+    let mut out = Vec::with_capacity(2 * n);
+    let mut t = 0.0;
+    for i in 0..n {
+        let h = tr.hold.get(i).copied().unwrap_or(0.0);
+        if h > 0.0 {
+            if h < MIN_STEPS * dt {
+                let key = format!("trajectory.hold[{i}]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} must be 0 or at least {MIN_STEPS} steps ({MIN_STEPS} integrator.dt = {:?} s), got {h:?}",
+                        MIN_STEPS * dt
+                    ),
+                ));
+            }
+            out.push(Segment {
+                name: format!("hold{}", i + 1),
+                kind: SegmentKind::Hold,
+                start: t,
+                arrival: t,
+                end: t + h,
+                from: i,
+                to: i,
+                profile: Profile::default(),
+            });
+            t += h;
+        }
+        if i + 1 < n {
+            let profile = Profile::new(length(tr.route[i], tr.route[i + 1]), speed, accel);
+            let span = profile.duration();
+            if span < MIN_STEPS * dt {
+                let key = format!("trajectory.route[{}]", i + 1);
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key}: the leg to it lasts {span:?} s, less than {MIN_STEPS} steps \
+                         ({MIN_STEPS} integrator.dt = {:?} s): move the point or lower trajectory.acceleration",
+                        MIN_STEPS * dt
+                    ),
+                ));
+            }
+            out.push(Segment {
+                name: format!("leg{}", i + 1),
+                kind: SegmentKind::Leg,
+                start: t,
+                arrival: t + span,
+                end: t + span,
+                from: i,
+                to: i + 1,
+                profile,
+            });
+            t += span;
+        }
+    }
+    if t > duration + TIME_SLACK {
+        return Err(ConfigError::new(
+            "integrator.duration",
+            format!(
+                "integrator.duration must cover the route's legs and holds ({t:?} s), got {duration:?}"
+            ),
+        ));
+    }
+    // What is left of the flight hovers at the last point: the last hold runs to the end, or
+    // becomes one; a remainder shorter than MIN_STEPS steps closes the last leg instead.
+    let last = out.last_mut().expect("a route has at least one leg");
+    if last.kind == SegmentKind::Hold || duration - t < MIN_STEPS * dt {
+        last.end = duration;
+    } else {
+        out.push(Segment {
+            name: format!("hold{n}"),
+            kind: SegmentKind::Hold,
+            start: t,
+            arrival: t,
+            end: duration,
+            from: n - 1,
+            to: n - 1,
+            profile: Profile::default(),
+        });
+    }
+    if !tr.names.is_empty() {
+        if tr.names.len() != out.len() {
+            let defaults: Vec<&str> = out.iter().map(|s| s.name.as_str()).collect();
+            return Err(ConfigError::new(
+                "trajectory.names",
+                format!(
+                    "trajectory.names must name each of the route's {} segments in order ({}), got {}",
+                    out.len(),
+                    defaults.join(", "),
+                    tr.names.len()
+                ),
+            ));
+        }
+        for (i, name) in tr.names.iter().enumerate() {
+            let key = format!("trajectory.names[{i}]");
+            if name.trim().is_empty() || name == FLIGHT_PHASE {
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} must be a name other than {FLIGHT_PHASE:?} (the whole flight's), got {name:?}"
+                    ),
+                ));
+            }
+            if tr.names[..i].contains(name) {
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} must be unique, got {name:?} twice"),
+                ));
+            }
+        }
+        for (s, name) in out.iter_mut().zip(&tr.names) {
+            s.name = name.clone();
+        }
+    }
+    Ok(out)
+}
+
+/// `phases = "legs"`: one phase per segment of the schedule, covering the flight.
+pub fn leg_phases(cfg: &Config) -> Result<Vec<Phase>, ConfigError> {
+    if cfg.trajectory.interpolation != Interpolation::Route {
+        return Err(ConfigError::new(
+            "phases",
+            format!(
+                "phases = \"legs\" needs trajectory.interpolation = \"route\", got {:?}",
+                cfg.trajectory.interpolation
+            ),
+        ));
+    }
+    // Interior boundaries on the step grid, so that consecutive phases share their boundary
+    // sample (trapezoid sums then tile the flight); the flight's own ends stay exact.
+    let dt = cfg.integrator.dt;
+    let on_grid = |t: f64| (t / dt).round() * dt;
+    let segments = schedule(cfg)?;
+    let n = segments.len();
+    Ok(segments
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| Phase {
+            name: s.name,
+            start: if i == 0 { 0.0 } else { on_grid(s.start) },
+            end: if i + 1 == n {
+                cfg.integrator.duration
+            } else {
+                on_grid(s.end)
+            },
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper_value;
+    use crate::trajectory::{phase_steps, Reference, Trajectory};
+    use serde_json::json;
+
+    /// The paper scenario flying `route` under `phases = "legs"`, with `edit` applied.
+    fn route_cfg(edit: impl Fn(&mut serde_json::Value)) -> Result<Config, ConfigError> {
+        let mut v = paper_value();
+        let tr = &mut v["trajectory"];
+        tr["interpolation"] = json!("route");
+        tr.as_object_mut().unwrap().remove("waypoints");
+        tr["route"] = json!([[0, 0, 0], [0, 0, 10], [300, 40, 10], [300, 40, 0]]);
+        tr["speed"] = json!(8.0);
+        tr["acceleration"] = json!(1.5);
+        tr["hold"] = json!([2.0, 0.0, 0.0, 5.0]);
+        v["phases"] = json!("legs");
+        v["integrator"]["duration"] = json!(80.0);
+        v["integrator"]["dt"] = json!(1e-3);
+        edit(&mut v);
+        Config::from_json(&v.to_string())
+    }
+
+    fn norm(v: [f64; 3]) -> f64 {
+        (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    }
+
+    #[test]
+    fn profile_matches_the_closed_form_on_each_axis() {
+        // A = 2 m/s^2, V = 5 m/s, L = 100 m: ramp T = 2V/A = 5 s, cruise L/V - T = 15 s.
+        // Halfway up the ramp: a = A, v = V/2, s = A T^2 (1/16 - 1/(4 pi^2)).
+        let (a, v, l, t) = (2.0, 5.0, 100.0, 5.0);
+        let s_half = a * t * t * (1.0 / 16.0 - 1.0 / (4.0 * PI * PI));
+        for axis in 0..3 {
+            let mut to = [0.0; 3];
+            to[axis] = l;
+            let cfg = route_cfg(|c| {
+                c["trajectory"]["route"] = json!([[0, 0, 0], to]);
+                c["trajectory"]["speed"] = json!(v);
+                c["trajectory"]["acceleration"] = json!(a);
+                c["trajectory"]["hold"] = json!([]);
+                c["integrator"]["duration"] = json!(30.0);
+            })
+            .unwrap();
+            let seg = &schedule(&cfg).unwrap()[0];
+            assert_eq!((seg.profile.ramp, seg.profile.cruise), (t, 15.0));
+            assert_eq!(seg.arrival, 25.0);
+            let tr = Trajectory::new(&cfg);
+            let r = tr.at(t / 2.0, &mut 0);
+            assert!((r.pos[axis] - s_half).abs() < 1e-12, "{r:?}");
+            assert!((r.vel[axis] - v / 2.0).abs() < 1e-12);
+            assert!((r.acc[axis] - a).abs() < 1e-12);
+            // Mid-cruise: s = V T / 2 + V (t - T); the other axes never move.
+            let r = tr.at(12.5, &mut 0);
+            assert!((r.pos[axis] - (12.5 + 5.0 * 7.5)).abs() < 1e-12);
+            assert_eq!((r.vel[axis], r.acc[axis]), (v, 0.0));
+            for other in (0..3).filter(|k| *k != axis) {
+                assert_eq!((r.pos[other], r.vel[other], r.acc[other]), (0.0, 0.0, 0.0));
+            }
+            // Symmetric: a quarter of the way down the decel ramp mirrors the accel ramp.
+            let r = tr.at(25.0 - t / 2.0, &mut 0);
+            assert!((r.pos[axis] - (l - s_half)).abs() < 1e-12);
+            assert!((r.acc[axis] + a).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn short_leg_peaks_below_the_cruise_speed() {
+        // L = 4 m, A = 2: v_p = sqrt(A L / 2) = 2 m/s < V = 8; lasts sqrt(8 L / A) = 4 s.
+        let p = Profile::new(4.0, 8.0, 2.0);
+        assert_eq!(p.peak_speed, 2.0);
+        assert_eq!((p.cruise, p.duration()), (0.0, 4.0));
+        let (s, v, a) = p.at(2.0);
+        assert!((s - 2.0).abs() < 1e-12 && (v - 2.0).abs() < 1e-12 && a.abs() < 1e-12);
+    }
+
+    #[test]
+    fn reference_rests_at_every_point_within_its_bounds_and_is_continuous() {
+        let cfg = route_cfg(|_| {}).unwrap();
+        let (speed, accel) = (8.0, 1.5);
+        let segs = schedule(&cfg).unwrap();
+        let tr = Trajectory::new(&cfg);
+        // At rest at each point on arrival, exactly.
+        for s in &segs {
+            let r = tr.at(s.arrival, &mut 0);
+            assert_eq!(r.pos, cfg.trajectory.route[s.to], "{}", s.name);
+            assert_eq!((r.vel, r.acc), ([0.0; 3], [0.0; 3]), "{}", s.name);
+            if s.kind == SegmentKind::Leg {
+                // ... and not before: the summary's arrival is the reference's.
+                let r = tr.at(s.arrival - 0.05, &mut 0);
+                assert!(norm(r.vel) > 0.0, "{}", s.name);
+            }
+        }
+        // Dense sampling: |v| <= V and |a| <= A (to 1e-12 relative: rounding of the closed
+        // form), and the steps between samples bounded as continuity demands: |dv| <= A h,
+        // |da| <= max jerk * h (max jerk = pi A / T, T the shortest ramp).
+        let h = 1e-4;
+        let ramp = segs
+            .iter()
+            .filter(|s| s.kind == SegmentKind::Leg)
+            .map(|s| s.profile.ramp)
+            .fold(f64::INFINITY, f64::min);
+        let jerk = PI * accel / ramp;
+        let mut seg = 0;
+        let mut prev: Option<Reference> = None;
+        let steps = (80.0 / h) as usize;
+        for k in 0..=steps {
+            let r = tr.at(k as f64 * h, &mut seg);
+            assert!(norm(r.vel) <= speed * (1.0 + 1e-12), "t {}", k as f64 * h);
+            assert!(norm(r.acc) <= accel * (1.0 + 1e-12), "t {}", k as f64 * h);
+            if let Some(p) = prev {
+                let dv = norm([r.vel[0] - p.vel[0], r.vel[1] - p.vel[1], r.vel[2] - p.vel[2]]);
+                let da = norm([r.acc[0] - p.acc[0], r.acc[1] - p.acc[1], r.acc[2] - p.acc[2]]);
+                assert!(dv <= accel * h * (1.0 + 1e-9), "velocity jumps at t {}", k as f64 * h);
+                assert!(da <= jerk * h * (1.0 + 1e-6), "acceleration jumps at t {}", k as f64 * h);
+            }
+            prev = Some(r);
+        }
+        // Derivatives agree with finite differences of the position.
+        for t in [3.0, 9.7, 20.0, 44.4, 57.0] {
+            let (a, b, c) = (tr.at(t - 1e-5, &mut 0), tr.at(t + 1e-5, &mut 0), tr.at(t, &mut 0));
+            for k in 0..3 {
+                assert!(((b.pos[k] - a.pos[k]) / 2e-5 - c.vel[k]).abs() < 1e-6);
+                assert!(((b.vel[k] - a.vel[k]) / 2e-5 - c.acc[k]).abs() < 1e-6);
+            }
+            assert_eq!((c.psi, c.psi_dot, c.psi_ddot), (0.0, 0.0, 0.0));
+        }
+    }
+
+    #[test]
+    fn leg_phases_cover_the_flight_without_gaps() {
+        let cfg = route_cfg(|_| {}).unwrap();
+        let names: Vec<&str> = cfg.phases.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["hold1", "leg1", "leg2", "leg3", "hold4"]);
+        assert_eq!(cfg.phases[0].start, 0.0);
+        assert_eq!(cfg.phases.last().unwrap().end, cfg.integrator.duration);
+        for w in cfg.phases.windows(2) {
+            assert_eq!(w[0].end, w[1].start);
+        }
+        // On the step grid: consecutive phases share their boundary sample, the last ends on
+        // the last step, and the whole-flight phase follows.
+        let steps = phase_steps(&cfg);
+        assert_eq!(steps.len(), cfg.phases.len() + 1);
+        for w in steps[..cfg.phases.len()].windows(2) {
+            assert_eq!(w[0].last, w[1].first);
+        }
+        assert_eq!(steps[cfg.phases.len() - 1].last, cfg.steps());
+        assert_eq!((steps.last().unwrap().first, steps.last().unwrap().last), (0, cfg.steps()));
+        // A last hold of 0 s with time left over: the remainder is a hold at the last point;
+        // names replace the defaults.
+        let cfg = route_cfg(|c| {
+            c["trajectory"]["hold"] = json!([0, 0, 0, 0]);
+            c["trajectory"]["names"] = json!(["climb", "transit", "descent", "drop"]);
+        })
+        .unwrap();
+        let names: Vec<&str> = cfg.phases.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["climb", "transit", "descent", "drop"]);
+        assert_eq!(cfg.phases[0].start, 0.0);
+    }
+
+    #[test]
+    fn unflyable_routes_name_their_key() {
+        let key = |edit: fn(&mut serde_json::Value)| route_cfg(edit).unwrap_err().key;
+        assert_eq!(key(|c| c["trajectory"]["speed"] = json!(0.0)), "trajectory.speed");
+        assert_eq!(
+            key(|c| c["trajectory"]["acceleration"] = json!(-1.0)),
+            "trajectory.acceleration"
+        );
+        let e = route_cfg(|c| {
+            c["trajectory"].as_object_mut().unwrap().remove("speed");
+        })
+        .unwrap_err();
+        assert_eq!(e.message, "trajectory.speed must be given for a route, got none");
+        let e = route_cfg(|c| {
+            c["trajectory"]["route"] = json!([[0, 0, 0], [0, 0, 10], [0, 0, 10], [5, 0, 10]]);
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "trajectory.route[2]");
+        assert!(e.message.contains("repeats the previous point"), "{e}");
+        assert_eq!(key(|c| c["trajectory"]["route"] = json!([[0, 0, 0]])), "trajectory.route");
+        assert_eq!(key(|c| c["trajectory"]["hold"] = json!([1.0])), "trajectory.hold");
+        assert_eq!(
+            key(|c| c["trajectory"]["hold"] = json!([1.0, -1.0, 0.0, 0.0])),
+            "trajectory.hold[1]"
+        );
+        assert_eq!(
+            key(|c| c["trajectory"]["hold"] = json!([1.0, 0.0005, 0.0, 0.0])),
+            "trajectory.hold[1]"
+        );
+        let e = route_cfg(|c| c["integrator"]["duration"] = json!(40.0)).unwrap_err();
+        assert_eq!(e.key, "integrator.duration");
+        assert!(e.message.contains("must cover the route"), "{e}");
+        assert_eq!(key(|c| c["trajectory"]["names"] = json!(["a"])), "trajectory.names");
+        assert_eq!(
+            key(|c| c["trajectory"]["names"] = json!(["a", "b", "a", "c", "d"])),
+            "trajectory.names[2]"
+        );
+        assert_eq!(
+            key(|c| c["trajectory"]["waypoints"] = json!([[0, 0, 0, 2, 0], [1, 0, 0, 0, 0]])),
+            "trajectory.waypoints"
+        );
+        // Route keys outside a route, and "legs" without one.
+        let e = Config::from_json(&{
+            let mut v = paper_value();
+            v["trajectory"]["speed"] = json!(3.0);
+            v.to_string()
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "trajectory.speed");
+        let e = Config::from_json(&{
+            let mut v = paper_value();
+            v["phases"] = json!("legs");
+            v.to_string()
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "phases");
+        let e = Config::from_json(&{
+            let mut v = paper_value();
+            v["phases"][0]["name"] = json!("flight");
+            v.to_string()
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "phases[0].name");
+    }
+}
