@@ -32,6 +32,7 @@ from matplotlib.patches import Patch
 from quadrs.flight import Flight
 from quadrs.parquet import atomic_write
 from quadrs.report import phase_diverged
+from quadrs.route import FLIGHT_PHASE
 from quadrs.units import UNITS as KEY_UNITS
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
@@ -223,7 +224,13 @@ def _legend(ax: Axes, **kwargs: Any) -> None:
 
 
 def _phases(flight: Flight, phases: Sequence[str] | None) -> list[str]:
-    return list(phases) if phases is not None else flight.scenario.phase_names
+    """The phases asked for; by default the scenario's own (the whole flight on request)."""
+    return list(phases) if phases is not None else flight.scenario.scenario_phases
+
+
+def _own_phases(df: pd.DataFrame) -> list[str]:
+    """The phases in a table's ``phase`` column, the whole-flight phase left out."""
+    return [str(p) for p in pd.unique(df["phase"]) if p != FLIGHT_PHASE]
 
 
 # -- single flights -------------------------------------------------------------------------
@@ -494,7 +501,7 @@ def _ensemble_panels(
 ) -> tuple[Figure, list[tuple[Axes, str, list[Curve]]]]:
     """One panel per phase of a tidy ensemble frame, with each controller's rows, style and
     realisation count ``n``."""
-    phases = list(phases) if phases is not None else [str(p) for p in pd.unique(df["phase"])]
+    phases = list(phases) if phases is not None else _own_phases(df)
     fig, axes = _panels(ax, len(phases))
     panels = []
     for a, phase in zip(axes, phases, strict=True):
@@ -609,7 +616,7 @@ def distributions(
         if key not in runs.columns:
             raise ValueError(f"by: {key!r} is not a column of the runs")
     ok = runs[~phase_diverged(runs)]
-    phases = [str(p) for p in pd.unique(runs["phase"])]
+    phases = _own_phases(runs)
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
     colors = [_style(k, i)["color"] for i, k in enumerate(ctrls)]
     points = list(runs[keys].drop_duplicates().itertuples(index=False)) if keys else [()]
@@ -697,7 +704,7 @@ def sweep_metric(
     swept key, one line per controller and value of that key."""
     keys = [n for n in summary.index.names if n not in ("metric", "phase")]
     part = summary.xs(metric, level="metric").reset_index()
-    phases = list(phases) if phases is not None else [str(p) for p in pd.unique(part["phase"])]
+    phases = list(phases) if phases is not None else _own_phases(part)
     ctrls = [c.removesuffix("_mean") for c in part.columns if c.endswith("_mean")]
     fig, axes = _panels(ax, len(phases))
     for a, phase in zip(axes, phases, strict=True):
@@ -771,7 +778,7 @@ def exceedance_curves(
     from quadrs.risk import check_metric, survival_curve
 
     check_metric(metric)
-    phases = list(phases) if phases is not None else [str(p) for p in pd.unique(runs["phase"])]
+    phases = list(phases) if phases is not None else _own_phases(runs)
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
     fig, axes = _panels(ax, len(phases))
     floor = 1.0
@@ -826,7 +833,7 @@ def dispersion_scatter(
     keys = list(mc.dispersed_keys)
     if not keys:
         raise ValueError("dispersion_scatter needs a batch with dispersed keys")
-    phases = list(phases or mc.scenario.phase_names)
+    phases = list(phases or mc.scenario.scenario_phases)
     runs = mc.runs
     fig, axes = _panels(ax, len(keys), len(phases), width=3.2 * len(phases), height=2.6)
     grid = np.asarray(axes, dtype=object).reshape(len(keys), len(phases))
@@ -874,7 +881,7 @@ def sobol_bars(
     """First-order (S1, solid) and total (ST, hatched) Sobol' indices of one metric with
     their 95 % intervals, per phase (columns) and controller (bar colours)."""
     idx = sa.indices[sa.indices["metric"] == metric]
-    phases = list(phases or pd.unique(idx["phase"]))
+    phases = list(phases or _own_phases(idx))
     params = list(sa.parameters)
     ctrls = [str(c) for c in pd.unique(idx["controller"])]
     height = 0.5 * len(params) + 1.6
