@@ -144,7 +144,7 @@ def test_mc_writes_parquet_and_report_reprints_it(tmp_path, capsys) -> None:
     assert max(len(line) for line in printed.splitlines()) <= 100  # fits a terminal
     mc = MonteCarloResult.read_parquet(out)
     assert list(mc.runs.columns) == RUN_COLUMNS
-    assert len(mc.runs) == 4 * 2 * 3 and mc.seed == 1 and not mc.interrupted
+    assert len(mc.runs) == 4 * 2 * 4 and mc.seed == 1 and not mc.interrupted
     assert mc.scenario == Scenario.paper().override(_short_dict())
 
     figs = tmp_path / "figs"
@@ -278,7 +278,7 @@ def test_two_point_sweep(tmp_path, capsys) -> None:
     res = SweepResult.read_parquet(out)
     assert list(res.runs.columns) == ["payload.natural_frequency", *RUN_COLUMNS]
     assert sorted(res.runs["payload.natural_frequency"].unique()) == [1.5, 3.0]
-    assert len(res.runs) == 2 * 3 * 2 * 3
+    assert len(res.runs) == 2 * 3 * 2 * 4
     # same seed at every point: realisations 0..2 at both
     for _, g in res.runs.groupby("payload.natural_frequency"):
         assert sorted(g["realisation"].unique()) == [0, 1, 2]
@@ -360,7 +360,7 @@ def test_paper_writes_every_table_and_figure(tmp_path, capsys) -> None:
     ]
     assert comparison.set_index(["metric", "phase"]).loc[("iae", "P2"), "paper_P"] == 11.38
     runs = MonteCarloResult.read_parquet(out / "runs.parquet").runs
-    assert list(runs.columns) == RUN_COLUMNS and len(runs) == 4 * 2 * 3
+    assert list(runs.columns) == RUN_COLUMNS and len(runs) == 4 * 2 * 4
     sweep = SweepResult.read_parquet(out / "sweep_natural_frequency.parquet")
     assert sorted(sweep.runs["payload.natural_frequency"].unique()) == [1, 2]
     assert Scenario.from_toml(out / "scenario.toml") == Scenario.paper().override(_short_dict())

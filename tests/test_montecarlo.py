@@ -24,7 +24,7 @@ def test_runs_table_layout(short: Scenario) -> None:
     assert list(r.columns) == ["realisation", "controller", "phase", *METRICS, "diverged",
                                "diverged_at", "status"]  # fmt: skip
     assert ((r["status"] == "ok") == ~r["diverged"]).all()
-    assert len(r) == 6 * 2 * 3
+    assert len(r) == 6 * 2 * 4  # P1, P2, P3 and the whole flight
     assert sorted(r["realisation"].unique()) == list(range(6))
     assert set(r["controller"]) == {"pd", "smc"}
     assert not r["diverged"].any()
@@ -196,7 +196,7 @@ def test_ctrl_c_returns_finished_realisations(paper: Scenario, tmp_path) -> None
     assert mc.interrupted
     n = mc.runs["realisation"].nunique()
     assert 0 < n < 400
-    assert len(mc.runs) == n * 2 * 3
+    assert len(mc.runs) == n * 2 * 4  # P1-P3 and the whole flight
     assert np.isfinite(mc.runs[METRICS].to_numpy()).all()
     # Resuming flies only what is missing, and equals an uninterrupted run.
     resumed = quadrs.monte_carlo(paper, runs=12, workers=2, progress=False, out=out, resume=True)

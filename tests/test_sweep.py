@@ -34,7 +34,7 @@ def test_one_key_sweep_table(short: Scenario) -> None:
     res = quadrs.sweep(short, {KEY: [1.5, 3.0]}, runs=3, seed=2, workers=2, progress=False)
     r = res.runs
     assert list(r.columns[:4]) == [KEY, "realisation", "controller", "phase"]
-    assert len(r) == 2 * 3 * 2 * 3
+    assert len(r) == 2 * 3 * 2 * 4  # P1-P3 and the whole flight
     assert sorted(r[KEY].unique()) == [1.5, 3.0]
     assert not res.interrupted
     # Each point is exactly the Monte Carlo batch of its scenario with the same seed.
@@ -123,4 +123,4 @@ def test_ctrl_c_keeps_the_points_that_finished(short: Scenario, monkeypatch) -> 
     res = quadrs.sweep(short, {KEY: [1.5, 3.0, 4.0]}, runs=2, progress=False)
     assert res.interrupted
     assert list(res.runs[KEY].unique()) == [1.5]
-    assert len(res.runs) == 2 * 2 * 3
+    assert len(res.runs) == 2 * 2 * 4
