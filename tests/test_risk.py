@@ -181,7 +181,7 @@ def test_result_exceedance_matches_a_direct_count(batch: quadrs.MonteCarloResult
     threshold = float(runs["max_accel"].median())
     table = batch.exceedance("max_accel", threshold)
     assert list(table["controller"].unique()) == ["pd", "smc"]
-    assert set(table["phase"]) == {"P1", "P2", "P3"}
+    assert set(table["phase"]) == {"P1", "P2", "P3", "flight"}
     for r in table.itertuples():
         sel = runs[(runs["controller"] == r.controller) & (runs["phase"] == r.phase)]
         k = int((sel["max_accel"] > threshold).sum() + sel["diverged"].sum())
@@ -223,14 +223,14 @@ def test_sweep_exceedance_per_point(short: Scenario) -> None:
         short, {"payload.natural_frequency": [2.0, 4.0]}, runs=3, seed=0, progress=False
     )
     table = sw.exceedance("max_accel", 1.0)
-    assert len(table) == 2 * 2 * 3
+    assert len(table) == 2 * 2 * 4  # P1-P3 and the whole flight
     for fn, part in table.groupby("payload.natural_frequency"):
         sub = sw.runs[sw.runs["payload.natural_frequency"] == fn]
         mc = quadrs.MonteCarloResult(sw.scenario, 0, sw.controllers, sub.drop(columns=[
             "payload.natural_frequency"]))  # fmt: skip
         want = mc.exceedance("max_accel", 1.0)
         assert part["exceedances"].tolist() == want["exceedances"].tolist()
-    assert len(sw.quantile("rms_accel", 0.5, paired=True)) == 2 * 3
+    assert len(sw.quantile("rms_accel", 0.5, paired=True)) == 2 * 4
 
 
 # -- command line ------------------------------------------------------------------------------

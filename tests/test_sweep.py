@@ -78,7 +78,7 @@ def test_two_key_grid_and_summary(short: Scenario) -> None:
         "n",
         "diverged",
     ]
-    assert len(compact) == 4 * 3
+    assert len(compact) == 4 * 4  # P1-P3 and the whole flight
 
 
 def test_stiffer_attachment_swings_less_on_take_off(short: Scenario) -> None:
