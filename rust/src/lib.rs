@@ -68,7 +68,10 @@ mod _core {
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
         let vars = state_vars(PayloadKind::default(), ActuatorKind::default());
-        m.add("TRACE_COLUMNS", trace_columns(&vars))?;
+        m.add(
+            "TRACE_COLUMNS",
+            trace_columns(PayloadKind::default(), ActuatorKind::default()),
+        )?;
         m.add(
             "STATE_NAMES",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
@@ -175,7 +178,10 @@ mod _core {
             "state_names",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
         )?;
-        d.set_item("trace_columns", trace_columns(&vars))?;
+        d.set_item(
+            "trace_columns",
+            trace_columns(cfg.payload.model, cfg.actuator.model),
+        )?;
         let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
             &crate::trajectory::phase_steps(&cfg),
             cfg.integrator.dt,
