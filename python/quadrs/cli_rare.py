@@ -228,12 +228,13 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
 
 def _inputs(result: Any) -> str:
     """What a flight's standard normals drive: ``1000 innovations`` or ``1000 innovations
-    and 2 parameters (payload.mass, vehicle.mass)``."""
+    and 1 parameter (payload.mass)``."""
     keys = getattr(result.model, "parameter_keys", ())
     gust = result.dimension - len(keys)
     if not keys:
         return f"{gust} innovations"
-    return f"{gust} innovations and {len(keys)} parameters ({', '.join(keys)})"
+    plural = "s" * (len(keys) != 1)
+    return f"{gust} innovations and {len(keys)} parameter{plural} ({', '.join(keys)})"
 
 
 def ratio_line(comparison: Any, a: str, b: str) -> str:
