@@ -22,24 +22,22 @@ EXIT_OK, EXIT_FAIL, EXIT_INTERRUPT = 0, 1, 130
 DEFAULT_LIMIT = 9.81
 
 
-def _positive(text: str) -> float:
+def _number(text: str, ok: Callable[[float], bool], expected: str) -> float:
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"must be {expected}, got {text!r}")
     return value
+
+
+def _positive(text: str) -> float:
+    return _number(text, lambda v: math.isfinite(v) and v > 0, "finite and > 0")
 
 
 def _fraction(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0 < value < 1:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text!r}")
-    return value
+    return _number(text, lambda v: 0 < v < 1, "in (0, 1)")
 
 
 def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
