@@ -252,7 +252,7 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
             constraints=args.constraint,
         )
     h = result.history
-    searched = h[h["role"] != "baseline"]
+    searched = result.evaluations
     rejected = searched["unstable_modes"].astype(bool) & ~searched["flown"]
     modes = ", ".join(
         dict.fromkeys("; ".join(searched.loc[rejected, "unstable_modes"]).split("; "))

@@ -48,7 +48,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         description="Fly --runs gust realisations of the scenario with one controller and "
         'print, per phase (a route\'s legs and holds under phases = "legs") and for the '
         "whole flight: the probability that the payload's peak acceleration exceeds --limit "
-        "(exact 95%% interval), the worst and the --quantile of the swing and the cable "
+        "(exact 95% interval), the worst and the --quantile of the swing and the cable "
         "tension, slack and saturated time, and the tracking errors, with intervals "
         "(see docs/delivery.md). Diverged flights count as exceeding.",
     )

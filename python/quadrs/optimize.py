@@ -119,11 +119,17 @@ class OptimizeResult:
         note = ", interrupted" if self.interrupted else ""
         if not self.feasible:
             note += ", NO FEASIBLE CANDIDATE (this is the least violating)"
-        searched = int((self.history["role"] != "baseline").sum())
+        searched = len(self.evaluations)
         return (
             f"<OptimizeResult {best}: objective {self.objective:.4g} after "
             f"{searched} evaluations{note}>"
         )
+
+    @property
+    def evaluations(self) -> pd.DataFrame:
+        """The search's own rows of ``history`` (the baseline row left out)."""
+        h = self.history
+        return h[h["role"] != "baseline"] if "role" in h else h
 
     @property
     def comparison(self) -> pd.DataFrame:
@@ -131,6 +137,8 @@ class OptimizeResult:
         rows of ``history`` indexed by ``role`` (parameters, objective, every constraint's
         value and whether it is met, ``feasible``). No baseline row if interrupted."""
         h = self.history
+        if "role" not in h:  # a history written before the baseline row existed
+            return h.iloc[:0]
         return h[h["role"].isin(["baseline", "best"])].set_index("role").sort_index()
 
     def _repr_html_(self) -> str:
