@@ -133,6 +133,16 @@ def test_the_history_shows_the_baseline_beside_the_best() -> None:
     )
     assert cmp.loc["baseline", "P(max_accel>100)"] == 0.0
     assert bool(cmp.loc["best", "feasible"])
+    # Re-checked on the held-out seed, with intervals, from flights flown here again.
+    held = res.holdout_constraints.set_index("constraint")
+    fresh = quadrs.monte_carlo(res.scenario, runs=2, seed=1_000_003, controllers=("smc",),
+                               progress=False, spectra=False)  # fmt: skip
+    x = fresh.runs.loc[fresh.runs["phase"] == "G", "max_accel"].to_numpy()
+    q = held.loc["quantile(max_accel,0.5)<=100"]
+    assert q["value"] == np.quantile(x, 0.5, method="inverted_cdf") and bool(q["met"])
+    p = held.loc["P(max_accel>100)<=0"]
+    assert p["value"] == 0.0 and p["ci_low"] == 0.0 and p["ci_high"] > 0.5  # 0 of 2
+    assert bool(p["met"]) and not bool(p["certain"])
 
 
 def test_values_agree_with_the_risk_tables() -> None:

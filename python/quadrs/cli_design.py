@@ -275,6 +275,12 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
               f"[95% CI {ho.low:.6g}, {ho.high:.6g}]")  # fmt: skip
     _print_phase_effects(result.phase_effects, args.objective, phases)
     _print_comparison(result)
+    if result.holdout_constraints is not None:
+        print("\nconstraints on the held-out seed (95% intervals; certain: the whole interval "
+              "meets the bound):")  # fmt: skip
+        table = result.holdout_constraints.set_index(["constraint", "phase"])
+        table = table.drop(columns=["controller"])
+        print(terminal_text(table.to_string(float_format=lambda v: f"{v:.4g}")))
     best_row = h[h["role"] == "best"].iloc[0]
     if result.constraints and not result.feasible and not bool(best_row["penalised"]):
         broken = "; ".join(str(c) for c in result.constraints)

@@ -152,6 +152,38 @@ class Constraint:
             return math.nan
         return max(values) if self.op in ("<", "<=") else min(values)
 
+    def check(self, runs: pd.DataFrame, phases: Sequence[str], confidence: float = 0.95
+              ) -> pd.DataFrame:  # fmt: skip
+        """Per controller and phase (as :meth:`value`), the statistic with its interval:
+        exact (Clopper-Pearson) for an exceedance, order-statistic for a quantile, Student t
+        for a mean; ``met`` (the estimate meets the bound) and ``certain`` (the whole interval
+        does). For re-checking a design on seeds it was not tuned on."""
+        from quadrs.risk import exceedance_stats, quantile_interval
+        from quadrs.summary import mean_ci, phase_diverged
+
+        chosen = [self.phase] if self.phase is not None else list(phases)
+        rows = []
+        for (ctrl, phase), sel in runs[runs["phase"].isin(chosen)].groupby(
+            ["controller", "phase"], sort=True
+        ):
+            x = sel[self.metric].to_numpy(float)
+            gone = phase_diverged(sel)
+            if self.statistic == "exceedance":
+                e = exceedance_stats(x, float(self.level), gone, confidence)  # type: ignore[arg-type]
+                n, value, lo, hi = e.n, e.probability, e.ci_low, e.ci_high
+            elif self.statistic == "quantile":
+                x = np.where(gone, np.inf, x)
+                n, value, lo, hi = quantile_interval(x, float(self.level), confidence)  # type: ignore[arg-type]
+            else:
+                n, value, lo, hi = mean_ci(np.where(gone, np.nan, x), confidence)
+                if gone.any():
+                    value = lo = hi = math.nan
+            rows.append({"constraint": str(self), "controller": ctrl, "phase": phase, "n": n,
+                         "value": value, "ci_low": lo, "ci_high": hi,
+                         "met": self.satisfied(value),
+                         "certain": self.satisfied(lo) and self.satisfied(hi)})  # fmt: skip
+        return pd.DataFrame(rows)
+
     def _statistic(self, x: np.ndarray, gone: np.ndarray) -> float:
         from quadrs.risk import exceeds
 

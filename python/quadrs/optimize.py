@@ -97,6 +97,8 @@ class OptimizeResult:
     scenario on the same seed, flown whatever its stability, never a candidate), else "".
     ``feasible`` (the result's): the best met every constraint; when no candidate did, it is
     the least violating one, ``feasible`` is False and an :class:`InfeasibleWarning` is given.
+    ``holdout_constraints``: every constraint re-checked on the held-out flights, per
+    controller and phase, with its 95 % interval (:meth:`Constraint.check`).
     """
 
     best: dict[str, float]
@@ -112,6 +114,7 @@ class OptimizeResult:
     phase_effects: pd.DataFrame | None = field(default=None, repr=False)
     constraints: tuple[Constraint, ...] = ()
     feasible: bool = True
+    holdout_constraints: pd.DataFrame | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         """The best values and objective, not the history."""
@@ -478,7 +481,7 @@ def optimize(
     best = {k: float(best_row[k]) for k in keys}
     tuned = scenario.override(expand(best))
 
-    holdout, baseline, effects = None, math.nan, None
+    holdout, baseline, effects, held = None, math.nan, None, None
     if not interrupted:
         try:
             # The untuned scenario on the same gusts, beside the best in the history.
@@ -494,6 +497,8 @@ def optimize(
                 hseed = holdout_seed(seed)
                 mc = fly(tuned, hseed, count)
                 holdout = _holdout(mc, objective, phases, hseed, count, score)
+                if cons:
+                    held = pd.concat([c.check(mc.runs, phases) for c in cons], ignore_index=True)
                 if isinstance(objective, str) and before is not None:
                     effects = phase_effects(before, fly(tuned, seed, runs), objective)
         except (_Stop, KeyboardInterrupt):
@@ -512,6 +517,7 @@ def optimize(
         phase_effects=effects,
         constraints=cons,
         feasible=feasible,
+        holdout_constraints=held,
     )
 
 
