@@ -97,7 +97,8 @@ def test_an_independent_batch_agrees_within_its_standard_error() -> None:
 
 def test_coming_columns_and_the_whole_flight_phase_are_used_when_present() -> None:
     mc = batch(30)
-    runs = mc.runs.copy()
+    # One column the results lack (whatever this engine's version gives), four they have.
+    runs = mc.runs.drop(columns=["saturated_time"], errors="ignore")
     rng = np.random.default_rng(0)
     runs["max_swing"] = rng.uniform(0.0, 0.3, len(runs))
     runs["max_tension"] = rng.uniform(5.0, 9.0, len(runs))
