@@ -205,3 +205,27 @@ def test_tune_with_constraints_records_them_in_the_history(
     assert {"tracking_rms@G", "tracking_rms@G<=1", "P(max_accel>100)", "feasible",
             "role"} <= set(h.columns)  # fmt: skip
     assert list(h["role"].fillna(""))[-1] == "baseline" and (h["role"] == "best").sum() == 1
+
+
+def test_the_value_is_the_worst_phase_and_controller_for_the_bound() -> None:
+    # Means: pd/A 1, pd/B 4, smc/A 2, smc/B 3 (two realisations each).
+    rows = [
+        {"realisation": r, "controller": c, "phase": p, "rms": v + d, "diverged": False}
+        for (c, p, v) in [("pd", "A", 1.0), ("pd", "B", 4.0), ("smc", "A", 2.0), ("smc", "B", 3.0)]
+        for r, d in [(0, -0.5), (1, 0.5)]
+    ]
+    runs = pd.DataFrame(rows)
+    assert Constraint("rms", "<=", 9.0).value(runs, ["A", "B"]) == 4.0
+    assert Constraint("rms", ">=", 0.0).value(runs, ["A", "B"]) == 1.0
+    assert Constraint("rms", "<=", 9.0, phase="A").value(runs, ["B"]) == 2.0
+    p = Constraint("rms", "<=", 1.0, "exceedance", 3.0)
+    assert p.value(runs, ["A", "B"]) == 1.0  # pd/B: both above 3
+    assert p.value(runs, ["A"]) == 0.0
+    # A realisation that diverged exceeds and makes a mean undefined (never met).
+    runs.loc[(runs["controller"] == "smc") & (runs["realisation"] == 0), "diverged"] = True
+    runs.loc[(runs["controller"] == "smc") & (runs["realisation"] == 0), "rms"] = np.nan
+    assert p.value(runs, ["A"]) == 0.5
+    mean = Constraint("rms", "<=", 9.0)
+    assert np.isnan(mean.value(runs, ["A"])) and not mean.satisfied(mean.value(runs, ["A"]))
+    assert mean.violation(np.nan) == np.inf and mean.violation(4.0) == 0.0
+    assert Constraint("rms", "<=", 2.0).violation(3.0) == pytest.approx(0.5)
