@@ -207,3 +207,12 @@ def test_bad_input_exits_2_with_one_line(
     rc = main(["mission", *TWO_PHASES, *args])
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1 and name in err
+
+
+def test_repr_is_one_line_and_html_has_the_tables() -> None:
+    r = mission_report(batch(6), 5.0)
+    p = r.acceleration.loc[ALL_PHASES, "probability"]
+    assert "\n" not in repr(r) and f"{100 * p:.3g} %" in repr(r) and ALL_PHASES in repr(r)
+    html = r._repr_html_()
+    # acceleration, tracking, and the payload's table when the engine gives its columns
+    assert html.count("<table") == 2 + bool(len(r.payload.columns))

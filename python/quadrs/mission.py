@@ -74,6 +74,26 @@ class MissionReport:
     payload: pd.DataFrame
     tracking: pd.DataFrame
 
+    def __repr__(self) -> str:
+        """One line: what was asked and the whole flight's answer."""
+        p = self.acceleration.loc[self.whole]
+        return (
+            f"<MissionReport {self.controller.upper()}, {self.runs} realisations: P(max_accel > "
+            f"{self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
+            f"[{100 * p['ci_low']:.3g}, {100 * p['ci_high']:.3g}]>"
+        )
+
+    def _repr_html_(self) -> str:
+        """In a notebook: the three tables, as HTML."""
+        from quadrs.display import render
+
+        tables = [("payload acceleration", self.acceleration)]
+        if len(self.payload.columns):
+            tables.append(("swing (rad), tension (N), durations (s)", self.payload))
+        if len(self.tracking.columns):
+            tables.append(("tracking errors (m)", self.tracking))
+        return render(repr(self), tables)
+
     def to_text(self, width: int = 100) -> str:
         """The tables for a terminal, each at most ``width`` columns wide (split into blocks
         of columns when needed)."""

@@ -162,6 +162,10 @@ class OptimizeResult:
         tables = [("best values", values), ("objective", scores)]
         if self.phase_effects is not None:
             tables.append(("per phase, untuned -> tuned (same gusts)", self.phase_effects))
+        if self.constraints and not self.comparison.empty:
+            tables.append(("untuned and best on the tuning seed", self.comparison.T))
+        if self.holdout_constraints is not None:
+            tables.append(("constraints on the held-out seed", self.holdout_constraints))
         return render(repr(self), tables)
 
 
