@@ -1056,4 +1056,5 @@ def gust_spectrum(
     return _finish(fig, path)
 
 
+from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)
 from quadrs.plots_route import altitude_profile, ground_track  # noqa: E402, F401
