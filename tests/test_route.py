@@ -201,3 +201,56 @@ def test_along_track_projects_onto_the_polyline() -> None:
     x = np.array([0.0, 1.5, 3.0, 4.0, 3.0])
     y = np.array([0.0, 2.0, 4.0, 7.0, 12.0])
     np.testing.assert_allclose(along_track(pts, x, y), [0.0, 2.5, 5.0, 8.0, 11.0])
+
+
+def _cross_track_from_trace(scenario: Scenario, tr) -> np.ndarray:
+    """Distance of each trace row's quadrotor from its segment's line, computed here from the
+    route summary (independently of the engine's Trajectory::line)."""
+    segs = scenario.route.segments
+    starts = np.array([s.start for s in segs])
+    out = np.empty(len(tr))
+    for i, (t, row) in enumerate(tr.iterrows()):
+        seg = segs[int(np.searchsorted(starts, t + 1e-9, side="right")) - 1]
+        a, b = np.array(seg.origin), np.array(seg.target)
+        p = row[["x", "y", "z"]].to_numpy(float)
+        if seg.kind == "hold":
+            out[i] = np.linalg.norm(p - b)
+        else:
+            u = (b - a) / np.linalg.norm(b - a)
+            d = p - a
+            out[i] = np.linalg.norm(d - d.dot(u) * u)
+    return out
+
+
+def test_cross_track_and_peak_tracking_metrics(scenario, flight) -> None:
+    """The engine's cross-track metrics against the trace (recorded every 10th step, so its
+    peak is at most the engine's and its RMS close), and two identities: the reference lies on
+    the leg's line, so cross-track <= 3-D tracking error at every sample."""
+    m = flight.metrics.set_index("phase")
+    tr = flight.trace
+    cross = _cross_track_from_trace(scenario, tr)
+    whole = m.loc["flight"]
+    assert cross.max() <= whole["max_cross_track"] * (1 + 1e-12)
+    assert cross.max() >= 0.9 * whole["max_cross_track"]
+    t = tr.index.to_numpy(float)
+    rms = np.sqrt(np.trapezoid(cross**2, t) / (t[-1] - t[0]))
+    assert rms == pytest.approx(whole["rms_cross_track"], rel=2e-2)
+    err = np.linalg.norm(
+        tr[["x_ref", "y_ref", "z_ref"]].to_numpy(float) - tr[["x", "y", "z"]].to_numpy(float),
+        axis=1,
+    )
+    assert err.max() <= whole["max_tracking"] * (1 + 1e-12)
+    assert (m["max_cross_track"] <= m["max_tracking"] * (1 + 1e-12)).all()
+    assert (m["rms_cross_track"] <= m["tracking_rms"] * (1 + 1e-12)).all()
+    assert (m["max_tracking"] >= m["tracking_rms"]).all()
+    assert whole["max_cross_track"] > 0  # the transit turns: something to measure
+
+
+def test_cross_track_of_a_vertical_flight_is_zero() -> None:
+    """The paper flies up and down the z axis with x = y = 0 exactly: every leg is that axis."""
+    s = Scenario.paper().override(
+        {"integrator.duration": 4.0, "phases": [{"name": "A", "start": 0, "end": 4}]}
+    )
+    m = quadrs.simulate(s, "pd", seed=2).metrics.set_index("phase")
+    assert (m["max_cross_track"] == 0).all() and (m["rms_cross_track"] == 0).all()
+    assert (m["max_tracking"] > 0).all()

@@ -53,6 +53,9 @@ UNITS = {
     "peak_amplitude": "m",
     "max_accel": "m/s²",
     "rms_accel": "m/s²",
+    "max_tracking": "m",
+    "rms_cross_track": "m",
+    "max_cross_track": "m",
     # every scenario key, from the package's one table of them (quadrs.units)
     **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
 }
@@ -66,6 +69,9 @@ PLAIN_LABELS = {
     "iae": "Integrated absolute displacement, IAE (m s)",
     "itae": "Time-weighted IAE, ITAE (m s²)",
     "tracking_rms": "RMS altitude tracking error (m)",
+    "max_tracking": "Peak 3-D tracking error (m)",
+    "rms_cross_track": "RMS cross-track error (m)",
+    "max_cross_track": "Peak cross-track error (m)",
     "peak_frequency": "Frequency of the displacement's spectral peak (Hz)",
     "peak_amplitude": "Amplitude of the displacement's spectral peak (m)",
     "payload.natural_frequency": "Attachment natural frequency (Hz)",

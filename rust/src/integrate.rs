@@ -396,6 +396,17 @@ macro_rules! flight_loop_for {
     )+};
 }
 
+/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
+/// the point itself where the direction is zero): the squared cross-track error.
+#[inline(always)]
+fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([f64; 3], [f64; 3])) -> L {
+    let (a, u) = line;
+    let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+    let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+    let q = [d[0] - along * u[0], d[1] - along * u[1], d[2] - along * u[2]];
+    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+}
+
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
@@ -700,6 +711,8 @@ impl Engine {
         let mut segment = 0;
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
+        // The straight line of the current leg (a point, a unit direction): cross-track error.
+        let mut line = ([0.0; 3], [0.0; 3]);
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
         // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
         let windy = || crafts.iter().filter(|c| c.wind.enabled());
@@ -717,6 +730,7 @@ impl Engine {
             if t + TIME_SLACK >= ref_changes {
                 r = self.trajectory.at(t, &mut segment);
                 ref_changes = self.trajectory.next_change(segment);
+                line = self.trajectory.line(segment);
             }
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);
@@ -760,6 +774,7 @@ impl Engine {
                 &Sample {
                     e_o: out.e_o,
                     tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
+                    cross_sq: cross_track_sq(&rigid.pos, &line),
                     accel,
                     swing: out.swing,
                     tension: out.tension,

@@ -12,7 +12,7 @@ use crate::trajectory::PhaseSteps;
 use rustfft::{num_complex::Complex, FftPlanner};
 
 /// Column order of every metrics array the engine returns.
-pub const METRIC_NAMES: [&str; 15] = [
+pub const METRIC_NAMES: [&str; 18] = [
     "iae",
     "itae",
     "max_abs",
@@ -28,6 +28,9 @@ pub const METRIC_NAMES: [&str; 15] = [
     "min_tension",
     "slack_time",
     "saturated_time",
+    "max_tracking",
+    "rms_cross_track",
+    "max_cross_track",
 ];
 pub const N_METRICS: usize = METRIC_NAMES.len();
 
@@ -47,6 +50,9 @@ struct Sums<L> {
     /// Steps (at t_k) with the attachment slack, and with an actuator command clamped.
     slack_steps: L,
     saturated_steps: L,
+    max_tracking_sq: L,
+    cross_sq: L,
+    max_cross_sq: L,
 }
 
 /// What the flight loop hands the accumulator at one step (lane values).
@@ -56,6 +62,9 @@ pub struct Sample<L> {
     pub e_o: L,
     /// m^2, the squared 3-D position error |p_ref - p|^2.
     pub tracking_sq: L,
+    /// m^2, the squared distance from the current leg's straight line (cross-track error;
+    /// `Trajectory::line`).
+    pub cross_sq: L,
     /// m/s^2, the magnitude of the payload's inertial acceleration.
     pub accel: L,
     /// rad, the attachment's angle from the vertical.
@@ -101,6 +110,9 @@ impl<L: Lane> PhaseAccumulator<L> {
                     min_tension: L::splat(f64::INFINITY),
                     slack_steps: zero,
                     saturated_steps: zero,
+                    max_tracking_sq: zero,
+                    cross_sq: zero,
+                    max_cross_sq: zero,
                 };
                 phases.len()
             ],
@@ -137,6 +149,9 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.min_tension = sums.min_tension.min(x.tension);
                 sums.slack_steps += x.slack;
                 sums.saturated_steps += x.saturated;
+                sums.max_tracking_sq = sums.max_tracking_sq.max(x.tracking_sq);
+                sums.cross_sq += x.cross_sq * w;
+                sums.max_cross_sq = sums.max_cross_sq.max(x.cross_sq);
             }
         }
         self.block_sum += e_o;
@@ -194,6 +209,9 @@ impl<L: Lane> PhaseAccumulator<L> {
                 s.min_tension.lane(lane),
                 s.slack_steps.lane(lane) * self.dt,
                 s.saturated_steps.lane(lane) * self.dt,
+                s.max_tracking_sq.lane(lane).sqrt(),
+                (s.cross_sq.lane(lane) / span).sqrt(),
+                s.max_cross_sq.lane(lane).sqrt(),
             ]);
         }
         rows
@@ -291,6 +309,7 @@ mod tests {
                 &Sample {
                     e_o: t,
                     tracking_sq: 0.0,
+                    cross_sq: 0.0,
                     accel: 2.0 * t,
                     swing: 0.1 * t,
                     tension: 5.0 - 10.0 * t,
