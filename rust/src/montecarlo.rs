@@ -327,7 +327,7 @@ mod tests {
         let engine = Engine::new(short()).unwrap();
         let a = batch(&engine, 0, 10, 1);
         let b = batch(&engine, 0, 10, 2);
-        assert_eq!(a.metrics.len(), 10 * 2 * 2 * N_METRICS);
+        assert_eq!(a.metrics.len(), 10 * 2 * 3 * N_METRICS); // 2 phases and the whole flight
         assert!(a.done.iter().all(|d| *d));
         assert_eq!(
             a.metrics.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
