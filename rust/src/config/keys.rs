@@ -183,6 +183,7 @@ impl Config {
                     _ => Target::Missing,
                 }
             }
+            ("ground", "altitude") => one(&mut self.ground.altitude, rest),
             _ => Target::Missing,
         }
     }
