@@ -1047,3 +1047,6 @@ def gust_spectrum(
         _loglog(a, top)
         _legend(a)
     return _finish(fig, path)
+
+
+from quadrs.plots_wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401
