@@ -6,7 +6,7 @@ formulas. Conventions as in :mod:`quadrs.plots` (Agg, PNG and SVG with ``path``,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -15,8 +15,10 @@ from matplotlib.figure import Figure
 from quadrs import _core
 from quadrs.flight import Flight
 from quadrs.gust import COMPONENTS, gust_scales
-from quadrs.plots import AxesArg, _finish, _legend, _loglog, _panels, gust_spectrum_frame
 from quadrs.scenario import Scenario
+
+if TYPE_CHECKING:  # quadrs.plots re-exports this module: its helpers are imported on use
+    from quadrs.plots import AxesArg
 
 _AXES = ("x", "y", "z")
 
@@ -33,6 +35,8 @@ def wind_met(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = No
     ``wind_x``, ``wind_y``, ``wind_z``) against time, one panel per component (three
     panels), with the ``[wind]`` mean wind at the quadrotor's altitude dashed: what the
     turbulence and the discrete gusts ride on."""
+    from quadrs.plots import _finish, _legend, _panels
+
     trace = flight.trace
     t = trace.index.to_numpy(float)
     mean = mean_wind(flight.scenario, trace["z"].to_numpy(float))
@@ -72,6 +76,8 @@ def gust_spectra_frame(
     scenario's own unless given; required where they follow the vehicle): for each of
     longitudinal, lateral, vertical, :func:`quadrs.plots.gust_spectrum_frame` with that
     component's MIL-F-8785C sigma and L (column ``component``)."""
+    from quadrs.plots import gust_spectrum_frame
+
     h = _scale(scenario, "gust.altitude", altitude, "vehicle")
     v = _scale(scenario, "gust.airspeed", airspeed, "relative")
     scales = gust_scales(h, scenario.turbulence_w20)
@@ -100,6 +106,8 @@ def gust_spectra(
     formula at that component's sigma and L: the ensemble-mean Welch PSD with a +-2
     standard-error band and the formula, log-log up to a fifth of the Nyquist frequency.
     ``frame``: from :func:`gust_spectra_frame`, called with ``params`` when None."""
+    from quadrs.plots import _finish, _legend, _loglog, _panels
+
     frame = gust_spectra_frame(**params) if frame is None else frame
     p = frame.attrs
     fig, axes = _panels(ax, len(COMPONENTS))
