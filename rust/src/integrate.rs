@@ -1274,7 +1274,10 @@ mod tests {
         let req = FlightRequest::new(ControllerKind::Pd, 11, &indices);
         let seeded = engine.fly::<F64x4>(&req, None, &mut planner).unwrap();
         assert!(seeded.iter().all(|l| l.status == ExitStatus::Ok));
-        let xi: Vec<Vec<f64>> = indices.iter().map(|&i| engine.innovations_of(11, i)).collect();
+        let xi: Vec<Vec<f64>> = indices
+            .iter()
+            .map(|&i| engine.innovations_of(11, i))
+            .collect();
         assert!(xi[0].len() > 1000);
         let rows: Vec<&[f64]> = xi.iter().map(|x| x.as_slice()).collect();
         let given = FlightRequest {

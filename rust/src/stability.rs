@@ -548,7 +548,12 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
     if cfg.wind.speed != 0.0 {
         out.push("wind.speed (a horizontal mean wind over the whole flight)");
     }
-    if cfg.wind.gusts.iter().any(|d| d.amplitude[0] != 0.0 || d.amplitude[1] != 0.0) {
+    if cfg
+        .wind
+        .gusts
+        .iter()
+        .any(|d| d.amplitude[0] != 0.0 || d.amplitude[1] != 0.0)
+    {
         out.push("horizontal discrete gusts");
     }
     out

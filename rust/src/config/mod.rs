@@ -7,9 +7,9 @@ pub mod keys;
 pub mod wind;
 
 pub use dispersions::{Dispersions, Distribution};
-pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
 use serde::{Deserialize, Serialize};
 use std::fmt;
+pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]

@@ -928,7 +928,10 @@ mod tests {
             let (du, dv) = (u[0] - 0.3, u[1] + 0.2);
             let want = [du * c - dv * s + 0.3, du * s + dv * c - 0.2, u[2]];
             for i in 0..3 {
-                assert!((w[i] - want[i]).abs() < 1e-14, "step {n}: {w:?} vs {want:?}");
+                assert!(
+                    (w[i] - want[i]).abs() < 1e-14,
+                    "step {n}: {w:?} vs {want:?}"
+                );
             }
         }
         // Heading 0 is section 4 exactly.
@@ -1010,7 +1013,7 @@ mod tests {
         steps: usize,
         lag: usize,
     ) -> [(f64, f64); 3] {
-        let mut series = vec![Vec::with_capacity(rows * steps); 3];
+        let mut series: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(rows * steps));
         for r in 0..rows {
             let mut st = f.realisation(77, r as u64);
             for n in 0..steps as u64 {
@@ -1049,11 +1052,21 @@ mod tests {
             for i in 0..3 {
                 let (m, se) = var[i];
                 let want = sigma[i] * sigma[i];
-                assert!((m - want).abs() < 4.5 * se, "h {h} component {i}: {m} vs {want} ({se})");
-                assert!(se < 0.03 * want, "h {h} component {i}: se {se} too large to see");
+                assert!(
+                    (m - want).abs() < 4.5 * se,
+                    "h {h} component {i}: {m} vs {want} ({se})"
+                );
+                assert!(
+                    se < 0.03 * want,
+                    "h {h} component {i}: se {se} too large to see"
+                );
                 // The autocorrelation of that altitude's L.
                 let u = v * lag as f64 * dt / length[i];
-                let rho = if i == 0 { (-u).exp() } else { (-u).exp() * (1.0 - u / 2.0) };
+                let rho = if i == 0 {
+                    (-u).exp()
+                } else {
+                    (-u).exp() * (1.0 - u / 2.0)
+                };
                 let (m, se) = cov[i];
                 assert!(
                     (m - want * rho).abs() < 4.5 * se,
@@ -1071,7 +1084,10 @@ mod tests {
             });
             let (mut a, mut b) = (f.realisation(2, 3), fixed.realisation(2, 3));
             for n in 0..200 {
-                assert_eq!(f.sample_at(&mut a, n, at(z, [0.0; 3])), fixed.sample(&mut b, n));
+                assert_eq!(
+                    f.sample_at(&mut a, n, at(z, [0.0; 3])),
+                    fixed.sample(&mut b, n)
+                );
             }
         }
     }
@@ -1102,7 +1118,13 @@ mod tests {
         // jump (the normalised state keeps unit covariance).
         let (dt, rows, steps) = (0.02, 4000, 120);
         let f = whole(dt, |c| c.gust.altitude = GustAltitude::Vehicle);
-        let z = |n: u64| if n < 60 { 5.0 + 0.2 * n as f64 } else { 250.0 - 0.5 * (n - 60) as f64 };
+        let z = |n: u64| {
+            if n < 60 {
+                5.0 + 0.2 * n as f64
+            } else {
+                250.0 - 0.5 * (n - 60) as f64
+            }
+        };
         let mut w = vec![[0.0; 3]; rows * steps];
         for r in 0..rows {
             let mut st = f.realisation(5, r as u64);
@@ -1117,7 +1139,10 @@ mod tests {
                 let x: Vec<f64> = (0..rows).map(|r| w[r * steps + n][i] / sigma[i]).collect();
                 let var = x.iter().map(|v| v * v).sum::<f64>() / rows as f64;
                 let se = (2.0 / rows as f64).sqrt();
-                assert!((var - 1.0).abs() < 4.5 * se, "step {n} component {i}: {var}");
+                assert!(
+                    (var - 1.0).abs() < 4.5 * se,
+                    "step {n} component {i}: {var}"
+                );
             }
         }
     }
