@@ -972,8 +972,8 @@ mod tests {
             let half_ramp = discrete_gust(&ramp, start + 0.5 * d);
             let peak = discrete_gust(&pulse, start + 0.5 * d);
             for i in 0..3 {
-                assert!((half_ramp[i] - 0.5 * a[i]).abs() < 1e-15);
-                assert!((peak[i] - a[i]).abs() < 1e-15);
+                assert!((half_ramp[i] - 0.5 * a[i]).abs() < 1e-12);
+                assert!((peak[i] - a[i]).abs() < 1e-12);
             }
         }
         // In the field: inertial (not turned by the heading), at every step, whatever
@@ -1036,7 +1036,8 @@ mod tests {
             let lu = h / (0.177 + 0.000823 * h).powf(1.2) * 0.3048;
             ([su, su, sw], [lu, lu, h_m])
         };
-        let (dt, v) = (0.05, 12.0);
+        // A long step (the discretisation is exact at any step): many scale lengths per row.
+        let (dt, v) = (0.5, 12.0);
         let f = whole(dt, |c| {
             c.gust.altitude = GustAltitude::Vehicle;
             c.gust.airspeed = GustAirspeed::Fixed(v);
@@ -1046,9 +1047,9 @@ mod tests {
         let w20 = 30.0 * 1852.0 / 3600.0;
         for h in [15.0, 150.0] {
             let (sigma, length) = sigmas(h, w20);
-            let var = held_moments(&f, h, 300, 800, 0);
+            let var = held_moments(&f, h, 300, 1000, 0);
             let lag = 2;
-            let cov = held_moments(&f, h, 300, 800, lag);
+            let cov = held_moments(&f, h, 300, 1000, lag);
             for i in 0..3 {
                 let (m, se) = var[i];
                 let want = sigma[i] * sigma[i];
