@@ -959,3 +959,4 @@ def gust_spectrum(
 
 
 from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)
+from quadrs.plots_wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401

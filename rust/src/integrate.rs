@@ -5,7 +5,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
-use crate::gust::{WindField, WindState};
+use crate::gust::{Kinematics, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
@@ -711,6 +711,8 @@ impl Engine {
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
+        // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
+        let blows = crafts.iter().any(|c| c.wind.blows());
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -721,13 +723,32 @@ impl Engine {
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);
             let cmd = vehicle.actuator.command(&u);
-            // Outside the gust window `sample` returns zeros without touching the state, so the
-            // per-lane calls are skipped where no lane's window is open (most of a flight).
+            // Outside the gust window `sample_at` returns zeros without touching the state
+            // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
+            // window is open and nothing else blows (most of a paper flight).
+            let at = |lane: usize| {
+                let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                move || Kinematics {
+                    z: rigid.pos[2].lane(lane),
+                    vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
+                }
+            };
             if let Some(prescribed) = &self.prescribed_wind {
                 wind_lanes = [prescribed[k]; MAX_LANES];
-            } else if (gust_from..gust_to).contains(&(k as u64)) {
-                for ((ws, v), c) in winds.iter_mut().zip(wind_lanes.iter_mut()).zip(crafts) {
-                    *v = c.wind.sample(ws, k as u64);
+                if blows {
+                    for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
+                        let d = c.wind.deterministic(k as u64, &at(lane)());
+                        *v = [0, 1, 2].map(|i| v[i] + d[i]);
+                    }
+                }
+            } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
+                for (lane, ((ws, v), c)) in winds
+                    .iter_mut()
+                    .zip(wind_lanes.iter_mut())
+                    .zip(crafts)
+                    .enumerate()
+                {
+                    *v = c.wind.sample_at(ws, k as u64, at(lane));
                 }
             } else {
                 wind_lanes = [[0.0; 3]; MAX_LANES];
@@ -1275,5 +1296,116 @@ mod tests {
                 "{isa:?}: worst relative difference {worst}"
             );
         }
+    }
+
+    /// A short paper flight in the whole-flight wind: a sheared mean wind at 30 deg, turbulence
+    /// on all axes following the vehicle's altitude and airspeed, a ramp and a pulse.
+    fn windy_cfg() -> Config {
+        use crate::config::{
+            DiscreteGust, GustAirspeed, GustAltitude, GustComponent, GustShape, Shear,
+        };
+        let mut cfg = paper();
+        cfg.integrator.dt = 1e-3;
+        cfg.integrator.duration = 24.0;
+        cfg.phases.truncate(2);
+        cfg.phases[1].end = 24.0;
+        cfg.trajectory.interpolation = crate::config::Interpolation::MinJerk;
+        cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 20.0, 0.0]];
+        cfg.trajectory.transition = 15.0;
+        cfg.gust.components = GustComponent::ALL.to_vec();
+        cfg.gust.start = 3.0;
+        cfg.gust.end = 20.0;
+        cfg.gust.altitude = GustAltitude::Vehicle;
+        cfg.gust.airspeed = GustAirspeed::Relative;
+        cfg.wind.speed = 2.0;
+        cfg.wind.heading = 30.0;
+        cfg.wind.shear = Shear::Log;
+        cfg.wind.gusts = vec![
+            DiscreteGust {
+                start: 5.0,
+                duration: 2.0,
+                amplitude: [1.0, -0.5, 0.3],
+                shape: GustShape::Ramp,
+            },
+            DiscreteGust {
+                start: 12.0,
+                duration: 1.5,
+                amplitude: [0.0, 1.0, -0.8],
+                shape: GustShape::Pulse,
+            },
+        ];
+        cfg.validate().unwrap();
+        cfg
+    }
+
+    #[test]
+    fn given_innovations_fly_the_seeded_flight_in_a_wind_that_follows_the_vehicle() {
+        let engine = Engine::new(windy_cfg()).unwrap();
+        let mut planner = FftPlanner::new();
+        let bits = |r: &[LaneResult]| -> Vec<u64> {
+            r.iter()
+                .flat_map(|l| l.metrics.iter().flatten().map(|x| x.to_bits()))
+                .collect()
+        };
+        let indices: Vec<u64> = (3..7).collect();
+        let req = FlightRequest::new(ControllerKind::Pd, 11, &indices);
+        let seeded = engine.fly::<F64x4>(&req, None, &mut planner).unwrap();
+        assert!(seeded.iter().all(|l| l.status == ExitStatus::Ok));
+        let xi: Vec<Vec<f64>> = indices
+            .iter()
+            .map(|&i| engine.innovations_of(11, i))
+            .collect();
+        assert!(xi[0].len() > 1000);
+        let rows: Vec<&[f64]> = xi.iter().map(|x| x.as_slice()).collect();
+        let given = FlightRequest {
+            innovations: Some(&rows),
+            ..req
+        };
+        let flown = engine.fly::<F64x4>(&given, None, &mut planner).unwrap();
+        assert_eq!(bits(&seeded), bits(&flown));
+        // One lane alone flies the same as in its lane-set.
+        let one = engine
+            .fly::<f64>(
+                &FlightRequest::new(ControllerKind::Pd, 11, &indices[1..2]),
+                None,
+                &mut planner,
+            )
+            .unwrap();
+        assert_eq!(bits(&one), bits(&seeded[1..2]));
+    }
+
+    #[test]
+    fn the_wind_blows_outside_the_window_and_the_prescribed_wind_adds_to_it() {
+        let mut cfg = windy_cfg();
+        cfg.gust.enabled = false;
+        let engine = Engine::new(cfg).unwrap();
+        let every = 1;
+        let mut tr = engine.trace(every);
+        let req = FlightRequest::new(ControllerKind::Pd, 0, &[0]);
+        engine
+            .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
+            .unwrap();
+        let wind = engine.craft.wind();
+        let mut max_x = 0.0_f64;
+        for (k, row) in tr.data.chunks(tr.width).enumerate() {
+            let z = col(row, "z");
+            let m = wind.mean_at(z);
+            let g = wind.discrete_gusts(k as u64);
+            let w = [col(row, "wind_x"), col(row, "wind_y"), col(row, "wind_z")];
+            assert_eq!(w, [m[0] + g[0], m[1] + g[1], m[2] + g[2]], "t = {}", row[0]);
+            max_x = max_x.max(w[0]);
+        }
+        assert!(max_x > 2.0, "{max_x}");
+        // A prescribed wind (zero here) adds to the mean wind and the discrete gusts.
+        let steps = engine.steps;
+        let engine = Engine::new(engine.cfg.clone())
+            .unwrap()
+            .with_wind(vec![[0.0; 3]; steps + 1])
+            .unwrap();
+        let mut tr2 = engine.trace(every);
+        engine
+            .fly::<f64>(&req, Some(&mut tr2), &mut FftPlanner::new())
+            .unwrap();
+        assert_eq!(tr.data, tr2.data);
     }
 }

@@ -538,11 +538,23 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
     let g = &cfg.gust;
     let blowing = g.enabled && g.end > g.start && g.start < cfg.integrator.duration;
     let horizontal = [GustComponent::Longitudinal, GustComponent::Lateral];
-    if blowing && g.w20 > 0.0 && g.components.iter().any(|c| horizontal.contains(c)) {
+    if blowing && cfg.turbulence_w20() > 0.0 && g.components.iter().any(|c| horizontal.contains(c))
+    {
         out.push("horizontal gust components");
     }
     if blowing && (g.mean_wind[0] != 0.0 || g.mean_wind[1] != 0.0) {
         out.push("horizontal mean wind");
+    }
+    if cfg.wind.speed != 0.0 {
+        out.push("wind.speed (a horizontal mean wind over the whole flight)");
+    }
+    if cfg
+        .wind
+        .gusts
+        .iter()
+        .any(|d| d.amplitude[0] != 0.0 || d.amplitude[1] != 0.0)
+    {
+        out.push("horizontal discrete gusts");
     }
     out
 }

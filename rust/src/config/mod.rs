@@ -4,10 +4,12 @@
 
 pub mod dispersions;
 pub mod keys;
+pub mod wind;
 
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
+pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +49,9 @@ pub struct Config {
     pub trajectory: Trajectory,
     pub phases: Vec<Phase>,
     pub gust: Gust,
+    /// Wind over the whole flight: mean wind with shear, discrete gusts (docs/model.md).
+    #[serde(default, skip_serializing_if = "Wind::is_default")]
+    pub wind: Wind,
     pub integrator: Integrator,
     pub metrics: Metrics,
     pub divergence: Divergence,
@@ -326,12 +331,21 @@ pub struct Gust {
     /// s, the gust window [start, end).
     pub start: f64,
     pub end: f64,
-    /// m above ground (converted to feet for the MIL-F-8785C scale formulas).
-    pub altitude: f64,
-    /// m/s, wind speed at 20 ft.
-    pub w20: f64,
-    /// m/s, the speed at which the frozen turbulence is convected past the vehicle.
-    pub airspeed: f64,
+    /// m above ground (converted to feet for the MIL-F-8785C scale formulas), or `"vehicle"`:
+    /// the quadrotor's z at each step, clamped to [10 ft, 1000 ft].
+    pub altitude: GustAltitude,
+    /// m/s, wind speed at 20 ft for the turbulence. Exactly one of this and `intensity`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub w20: Option<f64>,
+    /// The standard's named level (W20 = 15, 30, 45 kt), instead of `w20`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity: Option<Intensity>,
+    /// m/s, the speed at which the frozen turbulence is convected past the vehicle, or
+    /// `"relative"`: max(|v - mean(h)|, `min_airspeed`) at each step.
+    pub airspeed: GustAirspeed,
+    /// m/s, the floor of the relative airspeed.
+    #[serde(default = "wind::default_min_airspeed")]
+    pub min_airspeed: f64,
     /// kg/m^3.
     pub air_density: f64,
     /// m/s, inertial x, y, z, added to the gust inside the window.
@@ -440,6 +454,15 @@ impl Config {
         }
     }
 
+    /// m/s, W20 of the turbulence: `gust.w20`, or the level `gust.intensity` names.
+    pub fn turbulence_w20(&self) -> f64 {
+        match (self.gust.w20, self.gust.intensity) {
+            (Some(w), _) => w,
+            (None, Some(i)) => i.w20(),
+            (None, None) => f64::NAN, // rejected by validate()
+        }
+    }
+
     /// Number of RK4 steps of a flight: the duration rounded to the nearest whole step.
     pub fn steps(&self) -> usize {
         (self.integrator.duration / self.integrator.dt).round() as usize
@@ -514,6 +537,7 @@ impl Config {
         self.validate_controller()?;
         self.validate_trajectory()?;
         self.validate_gust()?;
+        self.wind.validate()?;
 
         let it = &self.integrator;
         positive("integrator.dt", it.dt)?;
@@ -710,15 +734,44 @@ impl Config {
                 ),
             ));
         }
-        positive("gust.altitude", g.altitude)?;
-        non_negative("gust.w20", g.w20)?;
-        if !(g.airspeed.is_finite() && g.airspeed > 0.0) {
+        if let GustAltitude::Fixed(h) = g.altitude {
+            positive("gust.altitude", h)?;
+        }
+        match (g.w20, g.intensity) {
+            (Some(_), Some(_)) => {
+                return Err(ConfigError::new(
+                    "gust.intensity",
+                    "give exactly one of gust.w20 and gust.intensity, got both",
+                ))
+            }
+            (None, None) => {
+                return Err(ConfigError::new(
+                    "gust.w20",
+                    "give exactly one of gust.w20 and gust.intensity, got neither",
+                ))
+            }
+            (Some(w), None) => non_negative("gust.w20", w)?,
+            (None, Some(_)) => {}
+        }
+        if let GustAirspeed::Fixed(v) = g.airspeed {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ConfigError::new(
+                    "gust.airspeed",
+                    format!(
+                        "gust.airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
+                        g.model.name(),
+                        v
+                    ),
+                ));
+            }
+        }
+        if !(g.min_airspeed.is_finite() && g.min_airspeed > 0.0) {
             return Err(ConfigError::new(
-                "gust.airspeed",
+                "gust.min_airspeed",
                 format!(
-                    "gust.airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
+                    "gust.min_airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
                     g.model.name(),
-                    g.airspeed
+                    g.min_airspeed
                 ),
             ));
         }
@@ -873,7 +926,7 @@ pub(crate) mod tests {
             edit(&mut c);
             c.validate().unwrap_err()
         };
-        let e = bad(|c| c.gust.airspeed = 0.0);
+        let e = bad(|c| c.gust.airspeed = GustAirspeed::Fixed(0.0));
         assert_eq!(e.key, "gust.airspeed");
         assert_eq!(
             e.message,
@@ -881,15 +934,15 @@ pub(crate) mod tests {
         );
         let e = bad(|c| {
             c.gust.model = GustModel::VonKarman;
-            c.gust.airspeed = 0.0;
+            c.gust.airspeed = GustAirspeed::Fixed(0.0);
         });
         assert!(e.message.contains("von Karman filters are singular"), "{e}");
-        let e = bad(|c| c.gust.altitude = -1.0);
+        let e = bad(|c| c.gust.altitude = GustAltitude::Fixed(-1.0));
         assert_eq!(
             (e.key.as_str(), e.message.as_str()),
             ("gust.altitude", "gust.altitude must be > 0, got -1.0")
         );
-        let e = bad(|c| c.gust.w20 = -3.0);
+        let e = bad(|c| c.gust.w20 = Some(-3.0));
         assert_eq!(e.message, "gust.w20 must be >= 0, got -3.0");
         let e = bad(|c| c.gust.end = 10.0);
         assert_eq!(e.key, "gust.end");
@@ -903,7 +956,7 @@ pub(crate) mod tests {
         // A disabled gust is still checked: the scenario is one set of rules.
         let e = bad(|c| {
             c.gust.enabled = false;
-            c.gust.w20 = -3.0;
+            c.gust.w20 = Some(-3.0);
         });
         assert_eq!(e.key, "gust.w20");
     }
