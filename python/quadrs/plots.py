@@ -1047,3 +1047,6 @@ def gust_spectrum(
         _loglog(a, top)
         _legend(a)
     return _finish(fig, path)
+
+
+from quadrs.plots_payload import payload_path, swing_tension  # noqa: E402,F401  (re-exported)

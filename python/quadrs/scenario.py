@@ -607,6 +607,8 @@ class Scenario:
             if "natural_frequency" in p
             else f"kc={p['stiffness']} N/m"
         )
+        if p.get("model") == "cable":
+            attach = f"on a {p['cable_length']} m cable, {attach}"
         gust = f"{g['model']} w20={g['w20']} m/s" if g["enabled"] else "off"
         dt = self["integrator.dt"]
         n = len(self._data.get("dispersions", {}))
