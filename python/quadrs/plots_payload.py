@@ -29,7 +29,9 @@ from quadrs.plots import (
 __all__ = ["payload_path", "swing_tension"]
 
 
-def swing_tension(flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None) -> Figure:
+def swing_tension(
+    flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None
+) -> Figure:
     """The cable's angle from hanging straight down (degrees) and its tension (N) against time:
     two panels, one line per flight (PD dashed blue, SMC solid red), the gust window shaded.
     Read from ``Flight.trace`` columns ``swing`` (rad) and ``tension`` (N); for the vertical
