@@ -623,6 +623,8 @@ class Scenario:
             if "natural_frequency" in p
             else f"kc={p['stiffness']} N/m"
         )
+        if p.get("model") == "cable":
+            attach = f"on a {p['cable_length']} m cable, {attach}"
         level = f"w20={g['w20']} m/s" if "w20" in g else f"{g.get('intensity')}"
         gust = f"{g['model']} {level}" if g["enabled"] else "off"
         dt = self["integrator.dt"]

@@ -163,6 +163,8 @@ mod _core {
         d.set_item("stiffness", cfg.stiffness())?;
         let hover_offset = match AnyPayload::new(&cfg) {
             AnyPayload::Spring(p) => p.hover_offset,
+            // The payload hangs the stretched line below the hook, the hook below the CG.
+            AnyPayload::Cable(p) => p.hover_length + p.offset,
         };
         d.set_item("hover_offset", hover_offset)?;
         d.set_item("steps", cfg.steps())?;

@@ -46,6 +46,9 @@ pub const MODE_LATERAL_X: &str = "lateral x/pitch";
 pub const MODE_LATERAL_Y: &str = "lateral y/roll";
 pub const MODE_VERTICAL: &str = "vertical";
 pub const MODE_PAYLOAD: &str = "payload";
+/// A slung payload swinging below the vehicle (the pendulum modes of a cable).
+pub const MODE_SWING_X: &str = "swing x";
+pub const MODE_SWING_Y: &str = "swing y";
 pub const MODE_YAW: &str = "yaw";
 pub const MODE_ACTUATOR: &str = "actuator";
 
@@ -500,6 +503,20 @@ fn describe(
         if let Some(&zc) = payload_z.first() {
             if (full[zc] - full[ix::Z]).norm() > full[ix::Z].norm() {
                 mode = MODE_PAYLOAD;
+            }
+        }
+    }
+    // A swing mode moves the payload sideways more than the quadrotor, and against it (the
+    // lateral modes of the controller carry the payload along, or barely move it).
+    for (lateral, swing, axis, own) in [
+        (MODE_LATERAL_X, MODE_SWING_X, Axis::X, ix::X),
+        (MODE_LATERAL_Y, MODE_SWING_Y, Axis::Y, ix::Y),
+    ] {
+        let payload = states_where(vars, |s| s.part == Part::Payload && s.axis == axis);
+        if let (true, Some(&c)) = (mode == lateral, payload.first()) {
+            let (load, vehicle) = (full[c], full[own]);
+            if load.norm() > vehicle.norm() && (load - vehicle).norm() > vehicle.norm() {
+                mode = swing;
             }
         }
     }

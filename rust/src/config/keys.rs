@@ -118,6 +118,8 @@ impl Config {
                     "stiffness" => optional(&mut p.stiffness, rest),
                     "damping" => one(&mut p.damping, rest),
                     "drag_area" => one(&mut p.drag_area, rest),
+                    "cable_length" => optional(&mut p.cable_length, rest),
+                    "attachment_offset" => optional(&mut p.attachment_offset, rest),
                     _ => Target::Missing,
                 }
             }

@@ -87,6 +87,8 @@ pub enum PayloadModelName {
     /// A point mass on a vertical spring (the paper's).
     #[default]
     Spring,
+    /// A point mass on an elastic cable that swings in 3-D and can go slack (section 7).
+    Cable,
 }
 
 /// Which actuator model flies (`actuator.model`, docs/model.md section 8).
@@ -121,8 +123,22 @@ pub struct Payload {
     pub stiffness: Option<f64>,
     /// N s/m.
     pub damping: f64,
-    /// m^2, Cd times projected area for vertical drag.
+    /// m^2, Cd times projected area for vertical drag (the cable's payload: in every direction).
     pub drag_area: f64,
+    /// m, the cable's unstretched length L0 (`model = "cable"` only; required there).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cable_length: Option<f64>,
+    /// m, the hook's distance below the centre of gravity along the body z axis
+    /// (`model = "cable"` only; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attachment_offset: Option<f64>,
+}
+
+impl Payload {
+    /// m, the cable's hook below the centre of gravity (0 unless given).
+    pub fn attachment_offset(&self) -> f64 {
+        self.attachment_offset.unwrap_or(0.0)
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -514,6 +530,36 @@ impl Config {
         }
         non_negative("payload.damping", p.damping)?;
         non_negative("payload.drag_area", p.drag_area)?;
+        match p.model {
+            PayloadModelName::Cable => {
+                let Some(l0) = p.cable_length else {
+                    return Err(ConfigError::new(
+                        "payload.cable_length",
+                        "payload.cable_length must be given for payload.model = \"cable\"",
+                    ));
+                };
+                positive("payload.cable_length", l0)?;
+                if let Some(h) = p.attachment_offset {
+                    non_negative("payload.attachment_offset", h)?;
+                }
+            }
+            PayloadModelName::Spring => {
+                for (key, value) in [
+                    ("payload.cable_length", p.cable_length),
+                    ("payload.attachment_offset", p.attachment_offset),
+                ] {
+                    if let Some(x) = value {
+                        return Err(ConfigError::new(
+                            key,
+                            format!(
+                                "{key} applies to payload.model = \"cable\" only, got {x:?} \
+                                 with payload.model = \"spring\""
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
 
         positive("environment.gravity", self.environment.gravity)?;
 

@@ -288,9 +288,10 @@ pub fn dispatch<V: VehicleVisitor>(
     v: V,
 ) -> V::Output {
     use actuator::Ideal;
-    use payload::Spring;
+    use payload::{Cable, Spring};
     match (payload, actuator) {
         (PayloadKind::Spring, ActuatorKind::Ideal) => v.visit::<Spring, Ideal, 14>(),
+        (PayloadKind::Cable, ActuatorKind::Ideal) => v.visit::<Cable, Ideal, 18>(),
     }
 }
 
