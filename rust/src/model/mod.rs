@@ -285,10 +285,11 @@ pub fn dispatch<V: VehicleVisitor>(
     actuator: ActuatorKind,
     v: V,
 ) -> V::Output {
-    use actuator::Ideal;
+    use actuator::{Ideal, Rotors};
     use payload::Spring;
     match (payload, actuator) {
         (PayloadKind::Spring, ActuatorKind::Ideal) => v.visit::<Spring, Ideal, 14>(),
+        (PayloadKind::Spring, ActuatorKind::Rotors) => v.visit::<Spring, Rotors, 18>(),
     }
 }
 
