@@ -47,7 +47,7 @@ def main() -> None:
     res = quadrs.optimize(s, ("pd", "smc"), PARAMS, distance, runs=RUNS, seed=0,
                           require_stable=False, maxiter=6, popsize=4,
                           progress=sys.stderr.isatty())  # fmt: skip
-    h = res.history
+    h = res.evaluations  # the search (res.history also has the untuned baseline)
     print(f"{len(h)} evaluations, {int(h['penalised'].sum())} penalised")
     for k, v in res.best.items():
         print(f"  {k} = {v:.4g}")

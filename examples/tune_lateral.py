@@ -60,7 +60,7 @@ def main() -> None:
     print(quadrs.stability(start, "smc"))
     res = quadrs.optimize(start, "smc", params, lateral_rms, runs=RUNS, seed=0,
                           maxiter=8, popsize=5, progress=sys.stderr.isatty())  # fmt: skip
-    h = res.history
+    h = res.evaluations  # the search (res.history also has the untuned baseline)
     print(f"{len(h)} evaluations, {int((~h['stable']).sum())} rejected as unstable at hover")
     for k, v in res.best.items():
         print(f"  {k} = {v:.4g}")

@@ -6,15 +6,20 @@
 # installed Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Elapsed time at each stage, so a slow stage shows in the CI log.
+stage() { echo "== $(date -u +%T) (+${SECONDS}s) $*"; }
 
+stage "install"
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e '.[test,dask,docs]'
 
+stage "rust checks and tests"
 cargo fmt --check
 cargo clippy --all-targets -q -- -D warnings
 cargo test --release -q
 
+stage "python checks"
 .venv/bin/ruff check python tests benches examples scripts
 .venv/bin/ruff format --check python tests benches examples scripts
 .venv/bin/python -m mypy python/quadrs
@@ -23,7 +28,10 @@ cargo test --release -q
 NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mktemp -d)"
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
+stage "pytest"
 .venv/bin/python -m pytest -q "$@"
 if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
+    stage "other pythons"
     bash scripts/other_pythons.sh
 fi
+stage "done"

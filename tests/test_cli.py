@@ -22,7 +22,8 @@ from quadrs.scenario import parse_value
 from quadrs.sweep import SweepResult
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
-           "max_accel", "rms_accel"]  # fmt: skip
+           "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
+           "slack_time", "saturated_time"]  # fmt: skip
 RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at", "status"]
 TABLE3_COLUMNS = [
     "phase", "IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %",

@@ -51,6 +51,29 @@ def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
     assert rows["Monte Carlo flights, same CoV"].startswith(f"{need:.3g} (")
 
 
+def test_paired_controllers_print_both_and_their_ratio(tmp_path: Path) -> None:
+    """--controller pd,smc: the same gusts for both, a table each, the ratio with its
+    interval, and one file per controller beside --out."""
+    out = tmp_path / "rare.parquet"
+    proc = run_cli(*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2",
+                   "--workers", "1", "--controller", "pd,smc", "--out", str(out))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    results = {c: RareEventResult.read_parquet(tmp_path / f"rare-{c}.parquet")
+               for c in ("pd", "smc")}  # fmt: skip
+    assert not out.exists()
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    heads = [line for line in lines if line.startswith("P(")]
+    assert [h.split(", ")[1] for h in heads] == ["pd", "smc"]
+    pd_, smc = results["pd"], results["smc"]
+    assert pd_.probability is not None and smc.probability is not None
+    # Level 0 flew the same gusts: the same innovations in any failure both found there.
+    assert pd_.levels["flights"].iloc[0] == smc.levels["flights"].iloc[0] == 100
+    ratio = [line for line in lines if line.startswith("ratio smc / pd: ")]
+    assert len(ratio) == 1 and f"{smc.probability / pd_.probability:.3g}" in ratio[0]
+    assert "95 % [" in ratio[0] and "first-level correlation" in ratio[0]
+
+
 @pytest.mark.parametrize(
     ("args", "needles"),
     [
@@ -66,7 +89,8 @@ def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
         (["--threshold", "3", "--metric", "accel"], ["--metric", "accel"]),
         (["--threshold", "3", "--controller", "lqr"], ["--controller", "lqr"]),
         (["--threshold", "3", "--set", "gust.enabled=false"], ["gust.enabled"]),
-        (["--threshold", "3", "--disperse", "payload.mass=uniform(0.1,0.3)"], ["payload.mass"]),
+        (["--threshold", "3", "--controller", "pd,pd"], ["--controller", "pd,pd"]),
+        (["--threshold", "3", "--workers", "1", "--scheduler", "tcp://x:1"], ["--scheduler"]),
         (["--threshold", "3", "--set", "integrator.dt=-1"], ["integrator.dt", "-1"]),
     ],
 )

@@ -126,6 +126,32 @@ def test_dask_local_cluster_equals_local_run(short: Scenario, cluster) -> None:
     pd.testing.assert_frame_equal(swept.runs, local_sweep.runs)
 
 
+def test_rare_event_on_dask_equals_the_local_run(short: Scenario, cluster) -> None:
+    """rare_event(client=): each batch's rows flown on the cluster's worker processes, for a
+    scenario with a dispersed key (its values travel with the rows): the same estimate,
+    levels and failure samples as on one machine, bit for bit."""
+    from dask.distributed import Client
+
+    from quadrs.rare import RareEventResult
+
+    s = short.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.15,
+                                                         "high": 0.35}}})  # fmt: skip
+    # p0 = 0.2: 9 batches in two levels (each a round trip to the cluster).
+    kwargs = dict(metric="max_accel", phase="P2", threshold=4.0, per_level=50, p0=0.2, seed=2,
+                  max_levels=2)  # fmt: skip
+    local = quadrs.rare_event(s, **kwargs)  # type: ignore[arg-type]
+    with Client(cluster) as client:
+        remote = quadrs.rare_event(s, client=client, **kwargs)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="workers= or client="):
+            quadrs.rare_event(s, client=client, workers=1, **kwargs)  # type: ignore[arg-type]
+    assert isinstance(local, RareEventResult) and isinstance(remote, RareEventResult)
+    assert local.probability is not None
+    assert remote.probability == local.probability and remote.cov == local.cov
+    pd.testing.assert_frame_equal(remote.levels, local.levels)
+    pd.testing.assert_frame_equal(remote.failures, local.failures)
+    assert np.array_equal(remote.xi, local.xi)
+
+
 def test_dask_fused_run_equals_local_fused_run(short: Scenario, cluster) -> None:
     """The fused mode reaches the workers (and their task keys): on one machine's CPU its
     chunks are the local fused run's, and differ from the exact run's."""

@@ -102,14 +102,15 @@ def tune_altitude_gain(scenario: Scenario) -> quadrs.OptimizeResult:
 def test_require_stable_ignores_modes_the_flight_does_not_excite(short: Scenario) -> None:
     """The paper's SMC is unstable laterally, which vertical flights never excite: tuning a
     vertical gain must fly candidates, not reject every one."""
-    h = tune_altitude_gain(short).history
+    h = tune_altitude_gain(short).evaluations
     assert h["flown"].all() and not h["penalised"].any()
     assert not h["stable"].any()  # unstable in some mode, all the same
     assert (h["unstable_modes"] == "").all()
 
 
 def test_a_rejection_names_the_excited_mode(short: Scenario) -> None:
-    h = tune_altitude_gain(short.override({"gust.components": ["vertical", "lateral"]})).history
+    s = short.override({"gust.components": ["vertical", "lateral"]})
+    h = tune_altitude_gain(s).evaluations
     assert not h["flown"].any() and h["penalised"].all()
     assert h["unstable_modes"].str.contains("SMC lateral x/pitch +1.31 ± 3.90j", regex=False).all()
 

@@ -8,9 +8,11 @@ from quadrs import Scenario
 
 STATES = ["x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc"]
 TRACE = [*STATES, "x_ref", "y_ref", "z_ref", "psi_ref", "U1", "tau_phi", "tau_theta",
-         "tau_psi", "wind_x", "wind_y", "wind_z", "e_o", "accel_c", "drag_z"]  # fmt: skip
+         "tau_psi", "wind_x", "wind_y", "wind_z", "e_o", "accel_c", "drag_z", "swing",
+         "tension"]  # fmt: skip
 METRICS = ["phase", "iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency",
-           "peak_amplitude", "max_accel", "rms_accel"]  # fmt: skip
+           "peak_amplitude", "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension",
+           "min_tension", "slack_time", "saturated_time"]  # fmt: skip
 
 
 def hover(paper: Scenario) -> Scenario:

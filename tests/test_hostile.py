@@ -15,7 +15,8 @@ from quadrs import EngineError, Scenario, ScenarioError
 from quadrs.stability import StepSizeWarning
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
-           "max_accel", "rms_accel"]  # fmt: skip
+           "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
+           "slack_time", "saturated_time"]  # fmt: skip
 #: Flights longer than this many steps are validated but not flown (keeps the property fast).
 MAX_FLOWN_STEPS = 20_000
 

@@ -15,7 +15,8 @@ from quadrs import MonteCarloResult, Scenario
 from quadrs.report import ratio_ci, summarise
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
-           "max_accel", "rms_accel"]  # fmt: skip
+           "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
+           "slack_time", "saturated_time"]  # fmt: skip
 
 
 def test_runs_table_layout(short: Scenario) -> None:

@@ -4,11 +4,12 @@ The public API; see the README for a tour.
 """
 
 from quadrs._core import EngineError, ScenarioError, __version__
+from quadrs.constraints import Constraint
 from quadrs.flight import Flight, simulate
 from quadrs.gust import gust_scales, gust_series
 from quadrs.linear import LinearModel, linearize
 from quadrs.montecarlo import MonteCarloResult, monte_carlo
-from quadrs.optimize import OptimizeResult, optimize
+from quadrs.optimize import InfeasibleWarning, OptimizeResult, optimize
 from quadrs.plausibility import PlausibilityWarning
 from quadrs.rare import RareEventComparison, RareEventResult, rare_event
 from quadrs.scenario import Scenario
@@ -23,8 +24,10 @@ from quadrs.stability import (
 from quadrs.sweep import sweep
 
 __all__ = [
+    "Constraint",
     "EngineError",
     "Flight",
+    "InfeasibleWarning",
     "LinearModel",
     "MonteCarloResult",
     "OptimizeResult",

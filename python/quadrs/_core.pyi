@@ -119,6 +119,8 @@ def simulate(
     wind: npt.NDArray[np.float64] | None = None,
     progress: Progress | None = None,
     xi: npt.NDArray[np.float64] | None = None,
+    dispersion_keys: list[str] = ...,
+    dispersion_values: npt.NDArray[np.float64] | None = None,
 ) -> SimulateResult: ...
 def innovations_dimension(config_json: str) -> int: ...
 def innovations(config_json: str, seed: int, realisation: int) -> _Floats: ...
@@ -128,6 +130,8 @@ def run_innovations(
     xi: npt.NDArray[np.float64],
     progress: Progress | None = None,
     workers: int | None = None,
+    dispersion_keys: list[str] = ...,
+    dispersion_values: npt.NDArray[np.float64] | None = None,
 ) -> _Floats: ...
 def simulate_innovations(
     config_json: str,
@@ -135,6 +139,8 @@ def simulate_innovations(
     xi_row: npt.NDArray[np.float64],
     record_every: int = 1,
     progress: Progress | None = None,
+    dispersion_keys: list[str] = ...,
+    dispersion_values: npt.NDArray[np.float64] | None = None,
 ) -> SimulateResult: ...
 def stability(config_json: str, controller: str) -> StabilityResult: ...
 def linearize(

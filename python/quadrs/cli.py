@@ -191,6 +191,9 @@ def build_parser() -> argparse.ArgumentParser:
     from quadrs.cli_rare import add_rare
 
     add_rare(sub, common)
+    from quadrs.cli_mission import add_mission
+
+    add_mission(sub, common)
     return parser
 
 
@@ -1011,7 +1014,15 @@ COMMANDS = {
     "tune": lambda args: _design("cmd_tune", args),
     "linearize": lambda args: _design("cmd_linearize", args),
     "rare": lambda args: _rare(args),
+    "mission": lambda args: _mission(args),
 }
+
+
+def _mission(args: argparse.Namespace) -> int:
+    """``mission`` lives in quadrs.cli_mission."""
+    from quadrs.cli_mission import cmd_mission
+
+    return cmd_mission(args, load_scenario)
 
 
 def _rare(args: argparse.Namespace) -> int:

@@ -9,6 +9,7 @@ import argparse
 import math
 import os
 import sys
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,15 @@ def _param(text: str) -> tuple[str, tuple[float, float]]:
     if not lo < hi:
         raise argparse.ArgumentTypeError(f"--param {text!r}: LOW must be < HIGH")
     return key.strip(), (lo, hi)
+
+
+def _constraint(text: str) -> Any:
+    from quadrs.constraints import parse_constraint
+
+    try:
+        return parse_constraint(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -75,6 +85,17 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         default=None,
         metavar="P",
         help="phase the metric is summed over, repeatable (default: every phase)",
+    )
+    p.add_argument(
+        "--constraint",
+        type=_constraint,
+        action="append",
+        default=[],
+        metavar="C",
+        help="a constraint every chosen candidate must meet, repeatable: METRIC<=X (the mean "
+        "over the runs), P(METRIC>T)<=P (the fraction of runs above T), "
+        "quantile(METRIC,Q)<=X; >= too; METRIC@PHASE for one phase, else each --phase; "
+        "e.g. 'tracking_rms<=0.5' 'P(max_accel>8)<=0.01' (see docs/design-loop.md)",
     )
     p.add_argument("--runs", type=int, default=64, metavar="N", help="realisations (default: 64)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
@@ -188,7 +209,7 @@ LoadScenario = Callable[[argparse.Namespace], Any]
 
 def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.guard import check_int
-    from quadrs.optimize import _canonical_params, expand, optimize
+    from quadrs.optimize import InfeasibleWarning, _canonical_params, expand, optimize
     from quadrs.parquet import atomic_write_bytes, atomic_write_frame, check_writable
     from quadrs.scenario import Scenario
 
@@ -212,28 +233,35 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     middle = {k: (lo + hi) / 2 for k, (lo, hi) in params.items()}
     _tuned_toml(args, args.out, list(expand(middle)), scenario.override(expand(middle)))
     progress = sys.stderr.isatty()
-    result = optimize(
-        scenario,
-        args.controller,
-        params,
-        args.objective,
-        phases,
-        runs=args.runs,
-        seed=args.seed,
-        require_stable=not args.allow_unstable,
-        method=args.method,
-        maxiter=args.maxiter,
-        workers=args.workers,
-        progress=progress,
-        popsize=args.popsize,
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
+        result = optimize(
+            scenario,
+            args.controller,
+            params,
+            args.objective,
+            phases,
+            runs=args.runs,
+            seed=args.seed,
+            require_stable=not args.allow_unstable,
+            method=args.method,
+            maxiter=args.maxiter,
+            workers=args.workers,
+            progress=progress,
+            popsize=args.popsize,
+            constraints=args.constraint,
+        )
     h = result.history
-    rejected = h["unstable_modes"].astype(bool) & ~h["flown"]
-    modes = ", ".join(dict.fromkeys("; ".join(h.loc[rejected, "unstable_modes"]).split("; ")))
+    searched = result.evaluations
+    rejected = searched["unstable_modes"].astype(bool) & ~searched["flown"]
+    modes = ", ".join(
+        dict.fromkeys("; ".join(searched.loc[rejected, "unstable_modes"]).split("; "))
+    )
     why = f": {modes}" if rejected.any() else ""
     print(
-        f"{len(h)} evaluations ({int(rejected.sum())} rejected as unstable at hover in a mode "
-        f"the flight excites{why}; {int(h['penalised'].sum())} penalised)"
+        f"{len(searched)} evaluations ({int(rejected.sum())} rejected as unstable at hover in a "
+        f"mode the flight excites{why}; {int(searched['penalised'].sum())} penalised"
+        f"{_infeasible_count(searched, result)})"
         f"{' - interrupted' if result.interrupted else ''}"
     )
     for key, value in result.best.items():
@@ -246,7 +274,21 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         print(f"held out (seed {ho.seed}, {ho.runs} runs): {ho.objective:.6g} "
               f"[95% CI {ho.low:.6g}, {ho.high:.6g}]")  # fmt: skip
     _print_phase_effects(result.phase_effects, args.objective, phases)
-    if bool(h.loc[h["objective"].idxmin(), "penalised"]):
+    _print_comparison(result)
+    if result.holdout_constraints is not None:
+        print("\nconstraints on the held-out seed (95% intervals; certain: the whole interval "
+              "meets the bound):")  # fmt: skip
+        table = result.holdout_constraints.set_index(["constraint", "phase"])
+        table = table.drop(columns=["controller"])
+        print(terminal_text(table.to_string(float_format=lambda v: f"{v:.4g}")))
+    best_row = h[h["role"] == "best"].iloc[0]
+    if result.constraints and not result.feasible and not bool(best_row["penalised"]):
+        broken = "; ".join(str(c) for c in result.constraints)
+        print(terminal_text(f"quadrs tune: no candidate met every constraint ({broken}): "
+                            "nothing written (the least violating is shown above)"),
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
+    if bool(best_row["penalised"]):
         print("quadrs tune: no admissible candidate (every one was unstable at hover in a mode "
               f"the flight excites{why}, diverged or gave a non-finite objective): nothing "
               "written", file=sys.stderr)  # fmt: skip
@@ -266,6 +308,31 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
         return EXIT_INTERRUPT
     return status
+
+
+def _infeasible_count(searched: Any, result: Any) -> str:
+    """The "; K broke a constraint" note of a constrained run (flown candidates only)."""
+    if not result.constraints:
+        return ""
+    broke = searched["flown"].astype(bool) & ~searched["penalised"].astype(bool)
+    broke &= ~searched["feasible"].astype(bool)
+    return f"; {int(broke.sum())} broke a constraint"
+
+
+def _print_comparison(result: Any) -> None:
+    """The untuned scenario beside the best candidate (same gusts): parameters, objective and
+    each constraint's value and verdict."""
+    table = result.comparison
+    if table.empty:
+        return
+    keys = list(result.best)
+    columns = [*keys, "objective"]
+    for c in result.constraints:
+        columns += [col for col in (c.label, str(c)) if col not in columns]
+    columns += ["feasible"] if result.constraints else []
+    print("\nuntuned (the scenario's own values) and best, on the same gusts:")
+    shown = table[columns].T
+    print(terminal_text(shown.to_string(float_format=lambda v: f"{v:.6g}")))
 
 
 def _save_text(write: Callable[[Path], object], path: Path) -> bool:

@@ -33,6 +33,26 @@ def _threshold(text: str) -> float:
     return value
 
 
+def _controllers(text: str) -> tuple[str, ...]:
+    """``pd`` or a comma-separated list of distinct controllers, ``pd,smc``."""
+    names = tuple(n.strip() for n in text.split(","))
+    bad = [n for n in names if n not in CONTROLLERS]
+    if bad or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected one of {', '.join(CONTROLLERS)} or a comma-separated list of "
+            f"distinct ones (e.g. pd,smc)"
+        )
+    return names
+
+
+def paired_paths(out: Path, controllers: tuple[str, ...]) -> dict[str, Path]:
+    """Where ``--out FILE.parquet`` writes each controller's result: FILE itself for one
+    controller, FILE-<controller>.parquet beside it for several."""
+    if len(controllers) == 1:
+        return {controllers[0]: out}
+    return {c: out.with_name(f"{out.stem}-{c}{out.suffix}") for c in controllers}
+
+
 def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
     from quadrs import _core
 
@@ -62,7 +82,12 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         help="estimate P(metric > X), X in the metric's SI unit",
     )
     p.add_argument(
-        "--controller", choices=CONTROLLERS, default="pd", help="controller (default: pd)"
+        "--controller",
+        type=_controllers,
+        default=("pd",),
+        metavar="C",
+        help="controller, or a comma-separated list flown on the same gusts (pd,smc: paired "
+        "runs and the ratio of their probabilities) (default: pd)",
     )
     p.add_argument(
         "--per-level",
@@ -92,7 +117,14 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         type=Path,
         metavar="FILE.parquet",
         help="write the result here (the failure samples with their innovations, the levels "
-        "and the run record; RareEventResult.read_parquet reads it)",
+        "and the run record; RareEventResult.read_parquet reads it); with several "
+        "controllers, FILE-<controller>.parquet each",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="fly each level's flights on a Dask cluster, e.g. tcp://10.0.0.5:8786 (needs pip "
+        "install quadrs[dask]); the result is the same as on one machine",
     )
     p.add_argument("--no-progress", action="store_true", help="no per-level progress lines")
 
@@ -105,10 +137,12 @@ def _option_words(text: str) -> str:
 
 
 def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
-    """Subset simulation of one controller: a short table, optional Parquet; 130 if
-    interrupted (the finished levels are reported and saved)."""
+    """Subset simulation of one controller, or of several paired on the same gusts (each
+    one's table, then the ratios to the first): optional Parquet; 130 if interrupted (the
+    finished levels are reported and saved)."""
+    from quadrs.cli import _dask_client
     from quadrs.rare import rare_event
-    from quadrs.rare.result import RareEventResult
+    from quadrs.rare.result import RareEventComparison, RareEventResult
     from quadrs.rare.subset import Level, check_settings
     from quadrs.saving import check_outputs, save
 
@@ -117,6 +151,9 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     for option, value, low in (("--seed", args.seed, 0), ("--workers", args.workers, 1)):
         if value is not None and value < low:
             raise ValueError(f"{option} must be >= {low}, got {value}")
+    if args.scheduler is not None and args.workers is not None:
+        raise ValueError("--workers and --scheduler: give one (a cluster's workers set "
+                         "their own threads)")  # fmt: skip
     try:
         check_settings(args.per_level, args.p0, args.max_levels)
     except ValueError as e:
@@ -124,46 +161,91 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     scenario = load_scenario(args)
     if args.phase not in scenario.phase_names:
         raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
-    check_outputs(args.out)
+    controllers: tuple[str, ...] = args.controller
+    paths = paired_paths(args.out, controllers) if args.out is not None else {}
+    check_outputs(*paths.values())
     value_name = f"{args.metric} in {args.phase}"
     show = not args.no_progress and sys.stderr.isatty()
+    flying = [-1]  # which controller's levels are reported (level 0 starts the next one)
 
     def on_level(level: Level) -> None:
+        flying[0] += level.level == 0
+        who = f" ({controllers[flying[0]]})" if len(controllers) > 1 else ""
         if show:
-            print(f"quadrs rare: level {level.level} done: cut {level.threshold:.4g}, "
+            print(f"quadrs rare{who}: level {level.level} done: cut {level.threshold:.4g}, "
                   f"conditional p {level.conditional_p:.3g}, acceptance "
                   f"{level.acceptance_rate:.2f}, {level.flights} flights",
                   file=sys.stderr, flush=True)  # fmt: skip
 
-    result = rare_event(
-        scenario,
-        controller=args.controller,
-        metric=args.metric,
-        phase=args.phase,
-        threshold=args.threshold,
-        per_level=args.per_level,
-        p0=args.p0,
-        seed=args.seed,
-        max_levels=args.max_levels,
-        workers=args.workers,
-        on_level=on_level,
-    )
-    assert isinstance(result, RareEventResult)
+    with _dask_client(args.scheduler) as client:
+        out = rare_event(
+            scenario,
+            controller=controllers[0],
+            metric=args.metric,
+            phase=args.phase,
+            threshold=args.threshold,
+            per_level=args.per_level,
+            p0=args.p0,
+            seed=args.seed,
+            max_levels=args.max_levels,
+            workers=args.workers,
+            on_level=on_level,
+            controllers=controllers if len(controllers) > 1 else None,
+            client=client,
+        )
+    results: dict[str, RareEventResult]
+    if isinstance(out, RareEventComparison):
+        results = dict(out.results)
+    else:
+        assert isinstance(out, RareEventResult)
+        results = {controllers[0]: out}
     saved = True
-    if args.out is not None:  # saved first: a second Ctrl-C keeps it
-        saved = save(result.to_parquet, args.out)
-    if result.interrupted:
+    for name, result in results.items():  # saved first: a second Ctrl-C keeps them
+        if name in paths:
+            saved = save(result.to_parquet, paths[name]) and saved
+    interrupted = [name for name, r in results.items() if r.interrupted]
+    if interrupted:
+        result = results[interrupted[0]]
         done = len(result.levels)
         bound = result.upper_bound
         note = "" if bound is None else f"; P <= about {bound:.3g} (the last cut reached)"
-        print(f"quadrs rare: interrupted after {done} finished level{'s' * (done != 1)} "
-              f"({result.flights} flights), no estimate{note}", file=sys.stderr)  # fmt: skip
+        who = f" ({interrupted[0]})" if len(controllers) > 1 else ""
+        print(f"quadrs rare{who}: interrupted after {done} finished "
+              f"level{'s' * (done != 1)} ({result.flights} flights), no estimate{note}",
+              file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT
-    print(f"P({value_name} > {args.threshold:g}), {args.controller}, seed {args.seed}, "
-          f"{result.dimension} innovations a flight")  # fmt: skip
-    for label, text in summary_rows(result):
-        print(f"  {label:<34} {text}")
+    for name, result in results.items():
+        print(f"P({value_name} > {args.threshold:g}), {name}, seed {args.seed}, "
+              f"{_inputs(result)} a flight")  # fmt: skip
+        for label, text in summary_rows(result):
+            print(f"  {label:<34} {text}")
+    if isinstance(out, RareEventComparison):
+        base = controllers[0]
+        for name in controllers[1:]:
+            print(ratio_line(out, name, base))
     return EXIT_OK if saved else EXIT_FAIL
+
+
+def _inputs(result: Any) -> str:
+    """What a flight's standard normals drive: ``1000 innovations`` or ``1000 innovations
+    and 1 parameter (payload.mass)``."""
+    keys = getattr(result.model, "parameter_keys", ())
+    gust = result.dimension - len(keys)
+    if not keys:
+        return f"{gust} innovations"
+    plural = "s" * (len(keys) != 1)
+    return f"{gust} innovations and {len(keys)} parameter{plural} ({', '.join(keys)})"
+
+
+def ratio_line(comparison: Any, a: str, b: str) -> str:
+    """``ratio smc / pd ...``: P_a / P_b with its 95 % interval, or why there is none."""
+    r = comparison.ratio(a, b)
+    if r["ratio"] is None:
+        return f"ratio {a} / {b}: none (a run found no failure)"
+    corr = r["first_level_correlation"]
+    note = "" if corr is None else f"; first-level correlation {corr:.2f}"
+    return (f"ratio {a} / {b}: {r['ratio']:.3g}, 95 % [{r['low']:.3g}, {r['high']:.3g}]"
+            f"{note}")  # fmt: skip
 
 
 def summary_rows(result: Any) -> list[tuple[str, str]]:

@@ -67,10 +67,12 @@ class Flight:
     """One simulated flight.
 
     ``metrics``: one row per phase (``phase`` and the metric columns). ``trace``: indexed by
-    time ``t`` (s): states, references, controls, wind, ``e_o``, the payload's acceleration
-    ``accel_c`` (m/s^2) and the vertical drag on the quadrotor ``drag_z`` (N, the force the
-    engine's dynamics use). ``spectra``: per phase, the amplitude spectrum of e_o
-    (``frequency`` in Hz, ``amplitude`` in m).
+    time ``t`` (s): states, references, controls, wind, ``e_o``, the magnitude of the payload's
+    inertial acceleration ``accel_c`` (m/s^2), the vertical drag on the quadrotor ``drag_z``
+    (N, the force the engine's dynamics use), the attachment's ``swing`` (rad) and ``tension``
+    (N), then the actuator's own columns (``scenario.trace_columns`` lists them all).
+    ``spectra``: per phase, the amplitude spectrum of e_o (``frequency`` in Hz, ``amplitude``
+    in m).
     """
 
     scenario: Scenario

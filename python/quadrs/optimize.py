@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from quadrs import _core
+from quadrs.constraints import Constraint, check_phases, constraints_from
 from quadrs.guard import U64_MAX, check_controller, check_int
 from quadrs.montecarlo import monte_carlo
 from quadrs.results import MonteCarloResult
@@ -44,6 +45,10 @@ def holdout_seed(seed: int) -> int:
     """The seed the best candidate is re-evaluated on: ``seed + HOLDOUT_SEED_OFFSET``,
     wrapping within the 64-bit seeds (a seed near 2**64 still has one)."""
     return (seed + HOLDOUT_SEED_OFFSET) % (U64_MAX + 1)
+
+
+class InfeasibleWarning(UserWarning):
+    """No candidate met every constraint: the result holds the least-violating one."""
 
 
 class _Stop(Exception):
@@ -83,6 +88,17 @@ class OptimizeResult:
     objectives): per phase, the metric's mean untuned and tuned on the tuning seed, the paired
     change with its 95 % interval and ``worse`` (the interval lies above 0), so a phase
     outside the objective that the tuning made worse shows.
+
+    With ``constraints``: ``history`` has, per constraint, a column named by its statistic
+    (e.g. ``P(max_accel>8)``: the value on the tuning seed) and one named by the constraint
+    (e.g. ``P(max_accel>8)<=0.01``: met or not), and ``feasible`` (every one met; False for a
+    candidate not flown); ``score`` is what the optimiser minimised (the objective, or a
+    penalty); ``role`` is "best" on the chosen row, "baseline" on the last row (the untuned
+    scenario on the same seed, flown whatever its stability, never a candidate), else "".
+    ``feasible`` (the result's): the best met every constraint; when no candidate did, it is
+    the least violating one, ``feasible`` is False and an :class:`InfeasibleWarning` is given.
+    ``holdout_constraints``: every constraint re-checked on the held-out flights, per
+    controller and phase, with its 95 % interval (:meth:`Constraint.check`).
     """
 
     best: dict[str, float]
@@ -96,15 +112,37 @@ class OptimizeResult:
     runs: int
     baseline: float = math.nan
     phase_effects: pd.DataFrame | None = field(default=None, repr=False)
+    constraints: tuple[Constraint, ...] = ()
+    feasible: bool = True
+    holdout_constraints: pd.DataFrame | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         """The best values and objective, not the history."""
         best = ", ".join(f"{k}={v:.4g}" for k, v in self.best.items())
         note = ", interrupted" if self.interrupted else ""
+        if not self.feasible:
+            note += ", NO FEASIBLE CANDIDATE (this is the least violating)"
+        searched = len(self.evaluations)
         return (
             f"<OptimizeResult {best}: objective {self.objective:.4g} after "
-            f"{len(self.history)} evaluations{note}>"
+            f"{searched} evaluations{note}>"
         )
+
+    @property
+    def evaluations(self) -> pd.DataFrame:
+        """The search's own rows of ``history`` (the baseline row left out)."""
+        h = self.history
+        return h[h["role"] != "baseline"] if "role" in h else h
+
+    @property
+    def comparison(self) -> pd.DataFrame:
+        """The untuned baseline (the scenario's own values) beside the best candidate: their
+        rows of ``history`` indexed by ``role`` (parameters, objective, every constraint's
+        value and whether it is met, ``feasible``). No baseline row if interrupted."""
+        h = self.history
+        if "role" not in h:  # a history written before the baseline row existed
+            return h.iloc[:0]
+        return h[h["role"].isin(["baseline", "best"])].set_index("role").sort_index()
 
     def _repr_html_(self) -> str:
         """In a notebook: best values, objective beside the untuned one and the holdout, and
@@ -124,6 +162,10 @@ class OptimizeResult:
         tables = [("best values", values), ("objective", scores)]
         if self.phase_effects is not None:
             tables.append(("per phase, untuned -> tuned (same gusts)", self.phase_effects))
+        if self.constraints and not self.comparison.empty:
+            tables.append(("untuned and best on the tuning seed", self.comparison.T))
+        if self.holdout_constraints is not None:
+            tables.append(("constraints on the held-out seed", self.holdout_constraints))
         return render(repr(self), tables)
 
 
@@ -198,6 +240,7 @@ def optimize(
     penalty: float = 1e6,
     holdout_runs: int | None = None,
     callback: Callable[[dict[str, Any]], None] | None = None,
+    constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None,
 ) -> OptimizeResult:
     """Minimise a Monte Carlo objective over bounded scenario keys.
 
@@ -221,6 +264,18 @@ def optimize(
     realisations flown at ``seed + HOLDOUT_SEED_OFFSET`` to re-evaluate the best. Ctrl-C
     stops and returns the best so far with ``interrupted=True``. ``callback`` receives each
     history row as it is recorded (e.g. for a progress display).
+
+    ``constraints`` (see :mod:`quadrs.constraints` and docs/design-loop.md): e.g.
+    ``{"tracking_rms": ("<=", 0.5), ("max_accel", "exceedance", 8.0): ("<=", 0.01)}`` or
+    ``["tracking_rms<=0.5", "P(max_accel>8)<=0.01"]``: the mean, exceedance fraction or
+    quantile of a metric over the ``runs`` realisations of ``seed`` (the same gusts for every
+    candidate), in each of ``phases`` unless the constraint names its own
+    (``"tracking_rms@P1"``), for every controller. A candidate that breaks one scores
+    between ``penalty / 2`` and ``penalty`` (more for a larger relative violation), above
+    every feasible one (objectives are assumed below ``penalty / 2``) and below every
+    unstable or diverged one, and is never chosen as best. If none meets them all, the least
+    violating flown candidate is returned with ``feasible=False`` and an
+    :class:`InfeasibleWarning`.
     """
     from tqdm.auto import tqdm
 
@@ -260,6 +315,15 @@ def optimize(
             raise ValueError(f"phases must be among {scenario.phase_names}, got {list(phases)}")
     elif not callable(objective):
         raise TypeError(f"objective must be a metric name or a callable, got {objective!r}")
+    cons = constraints_from(constraints)
+    check_phases(cons, scenario.phase_names)
+    if cons and not all(c.phase is not None for c in cons):
+        unknown = [p for p in phases if p not in scenario.phase_names]
+        if not phases or unknown:
+            raise ValueError(
+                f"phases (those of the constraints without their own) must be among "
+                f"{scenario.phase_names}, got {list(phases)}"
+            )
 
     rows: list[dict[str, Any]] = []
     if method == "differential_evolution":
@@ -294,9 +358,22 @@ def optimize(
         diverged = int(mc.runs.groupby("realisation")["diverged"].any().sum())
         return float(objective(mc)), diverged, None
 
-    def evaluate(x: np.ndarray) -> float:
-        values = {k: float(v) for k, v in zip(keys, x, strict=True)}
-        candidate = scenario.override(expand(values))
+    def judge(row: dict[str, Any], mc: MonteCarloResult | None) -> float:
+        """Each constraint's value and verdict into ``row``; the summed relative violation."""
+        total = 0.0
+        for c in cons:
+            value = c.value(mc.runs, phases) if mc is not None else math.nan
+            row[c.label] = value
+            row[str(c)] = c.satisfied(value)
+            total += c.violation(value)
+        row["feasible"] = total == 0.0
+        return total
+
+    def measure(
+        values: dict[str, float], candidate: Scenario, require: bool
+    ) -> tuple[dict[str, Any], MonteCarloResult | None]:
+        """One candidate's history row (before its score) and its flights (None if not
+        flown)."""
         row: dict[str, Any] = {"evaluation": len(rows), **values}
         reports = [stability(candidate, c) for c in controllers]
         # Judged on the modes the scenario excites: the others stay exactly at rest in flight.
@@ -307,7 +384,8 @@ def optimize(
         )
         row.update(stable=stable, max_real=max_real, flown=False, diverged=0, penalised=False,
                    unstable_modes=unstable)  # fmt: skip
-        if require_stable and unstable:
+        mc = None
+        if require and unstable:
             value = penalty * (1.0 + max(0.0, max_real))
             row.update(penalised=True)
         else:
@@ -321,6 +399,21 @@ def optimize(
                 value = penalty * (1.0 + diverged / runs)
                 row.update(penalised=True)
         row["objective"] = value
+        violation = judge(row, mc)
+        row["score"] = value
+        if violation > 0 and not row["penalised"]:
+            # Feasible < infeasible (ordered by violation) < unstable or diverged.
+            frac = 1.0 if math.isinf(violation) else violation / (1.0 + violation)
+            row["score"] = penalty * (0.5 + 0.5 * frac)
+        row["violation"] = violation
+        row["role"] = ""
+        return row, mc
+
+    def evaluate(x: np.ndarray) -> float:
+        values = {k: float(v) for k, v in zip(keys, x, strict=True)}
+        candidate = scenario.override(expand(values))
+        row, _ = measure(values, candidate, require_stable)
+        value = float(row["score"])
         rows.append(row)
         bar.update(1)
         if callback is not None:
@@ -372,24 +465,46 @@ def optimize(
         "penalised",
         "unstable_modes",
     ]
-    history = pd.DataFrame(rows, columns=columns)
-    if history.empty:
+    for con in cons:
+        columns += [col for col in (con.label, str(con)) if col not in columns]
+    columns += ["feasible", "violation", "score", "role"]
+    if not rows:
         raise KeyboardInterrupt("interrupted before the first evaluation finished")
-    best_row = history.loc[history["objective"].idxmin()]
+    history = pd.DataFrame(rows, columns=columns)
+    pick, feasible = _choose(history)
+    if not feasible:
+        warnings.warn(
+            "no candidate met every constraint ("
+            + "; ".join(str(c) for c in cons)
+            + "): the result is the least violating one, not a feasible design",
+            InfeasibleWarning,
+            stacklevel=2,
+        )
+    history.loc[pick, "role"] = "best"
+    best_row = history.loc[pick]
     best = {k: float(best_row[k]) for k in keys}
     tuned = scenario.override(expand(best))
 
-    holdout, baseline, effects = None, math.nan, None
-    if not interrupted and not bool(best_row["penalised"]):
-        count = runs if holdout_runs is None else int(holdout_runs)
-        hseed = holdout_seed(seed)
+    holdout, baseline, effects, held = None, math.nan, None, None
+    if not interrupted:
         try:
-            mc = fly(tuned, hseed, count)
-            holdout = _holdout(mc, objective, phases, hseed, count, score)
-            before = fly(scenario, seed, runs)
-            baseline = score(before)[0]
-            if isinstance(objective, str):
-                effects = phase_effects(before, fly(tuned, seed, runs), objective)
+            # The untuned scenario on the same gusts, beside the best in the history.
+            own = {k: float(scenario[k.split(",")[0].strip()]) for k in keys}
+            row, before = measure(own, scenario, require=False)
+            row["role"] = "baseline"
+            history = pd.concat([history, pd.DataFrame([row], columns=columns)],
+                                ignore_index=True)  # fmt: skip
+            if before is not None:
+                baseline = score(before)[0]
+            if not bool(best_row["penalised"]):
+                count = runs if holdout_runs is None else int(holdout_runs)
+                hseed = holdout_seed(seed)
+                mc = fly(tuned, hseed, count)
+                holdout = _holdout(mc, objective, phases, hseed, count, score)
+                if cons:
+                    held = pd.concat([c.check(mc.runs, phases) for c in cons], ignore_index=True)
+                if isinstance(objective, str) and before is not None:
+                    effects = phase_effects(before, fly(tuned, seed, runs), objective)
         except (_Stop, KeyboardInterrupt):
             interrupted = True
     return OptimizeResult(
@@ -404,7 +519,25 @@ def optimize(
         runs=runs,
         baseline=baseline,
         phase_effects=effects,
+        constraints=cons,
+        feasible=feasible,
+        holdout_constraints=held,
     )
+
+
+def _choose(history: pd.DataFrame) -> tuple[Any, bool]:
+    """The best row's label and whether it is feasible: the least objective among the feasible
+    candidates flown without penalty; if there is none, the least violation (then objective)
+    among those flown without penalty; if none was, the least score (as without
+    constraints)."""
+    admissible = history[~history["penalised"].astype(bool)]
+    ok = admissible[admissible["feasible"].astype(bool)]
+    if not ok.empty:
+        return ok["objective"].idxmin(), True
+    if admissible.empty:
+        return history["score"].idxmin(), bool(history["feasible"].all())
+    order = admissible.sort_values(["violation", "objective"], kind="stable")
+    return order.index[0], False
 
 
 def phase_effects(

@@ -1047,3 +1047,6 @@ def gust_spectrum(
         _loglog(a, top)
         _legend(a)
     return _finish(fig, path)
+
+
+from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)

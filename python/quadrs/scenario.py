@@ -40,6 +40,10 @@ def scenario_error(message: str, key: str | None) -> ScenarioError:
     return error
 
 
+#: Top-level tables the engine fills with defaults when a scenario omits them (so that
+#: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
+OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
+
 _PRESET_DIR = "presets"
 _BASE_KEY = "base"
 #: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
@@ -475,6 +479,8 @@ class Scenario:
                 data.get("payload", {}).pop(other.split(".")[1], None)
             parent: Any = data
             for i, part in enumerate(parts[:-1]):
+                if i == 0 and part in OPTIONAL_TABLES and part not in parent:
+                    parent[part] = {}  # a table the scenario leaves at its defaults
                 try:
                     parent = parent[part]
                 except (KeyError, IndexError, TypeError):

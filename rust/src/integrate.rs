@@ -10,10 +10,10 @@ use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
-use crate::metrics::{PhaseAccumulator, N_METRICS};
+use crate::metrics::{PhaseAccumulator, Sample, N_METRICS};
 use crate::model::{
-    dispatch, state_from_fn, state_vars, Actuator, ActuatorModel, Bound, Inputs, Parts, Payload,
-    State, StateVar, Trig, Vehicle, VehicleVisitor,
+    dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, Bound, Inputs,
+    Parts, Payload, PayloadKind, State, StateVar, Trig, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
@@ -57,8 +57,9 @@ where
     )
 }
 
-/// Trace columns after the states (whose names come from the layout), in order.
-pub const SIGNAL_COLUMNS: [&str; 14] = [
+/// Trace columns after the states (whose names come from the layout), in order; the actuator's
+/// own (`ActuatorModel::SIGNALS`) follow.
+pub const SIGNAL_COLUMNS: [&str; 16] = [
     "x_ref",
     "y_ref",
     "z_ref",
@@ -73,11 +74,31 @@ pub const SIGNAL_COLUMNS: [&str; 14] = [
     "e_o",
     "accel_c",
     "drag_z",
+    "swing",
+    "tension",
 ];
 
-/// Every trace column after `t`: the states of `vars`, then `SIGNAL_COLUMNS`.
-pub fn trace_columns(vars: &[StateVar]) -> Vec<&'static str> {
-    vars.iter().map(|v| v.name).chain(SIGNAL_COLUMNS).collect()
+/// Most extra trace columns an actuator kind may have.
+const MAX_ACTUATOR_SIGNALS: usize = 8;
+
+/// Every trace column after `t` of a vehicle with these kinds: its states, `SIGNAL_COLUMNS`,
+/// then the actuator's own.
+pub fn trace_columns(payload: PayloadKind, actuator: ActuatorKind) -> Vec<&'static str> {
+    struct Columns;
+    impl VehicleVisitor for Columns {
+        type Output = Vec<&'static str>;
+        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+            let extra = <Act::At<f64> as ActuatorModel<f64>>::SIGNALS;
+            assert!(extra.len() <= MAX_ACTUATOR_SIGNALS);
+            let vars = crate::model::state_vars_of::<Pay, Act>();
+            vars.iter()
+                .map(|v| v.name)
+                .chain(SIGNAL_COLUMNS)
+                .chain(extra.iter().copied())
+                .collect()
+        }
+    }
+    dispatch(payload, actuator, Columns)
 }
 
 /// Rows of (t, trace columns...) every `every` steps, for lane 0 of a flight.
@@ -89,10 +110,10 @@ pub struct Trace {
 }
 
 impl Trace {
-    /// A trace of a flight of `steps` steps of a vehicle with `states` states.
-    pub fn new(every: usize, steps: usize, states: usize) -> Self {
+    /// A trace of a flight of `steps` steps with `columns` columns after `t`.
+    pub fn new(every: usize, steps: usize, columns: usize) -> Self {
         let every = every.max(1);
-        let width = 1 + states + SIGNAL_COLUMNS.len();
+        let width = 1 + columns;
         Self {
             every,
             width,
@@ -101,7 +122,7 @@ impl Trace {
     }
 
     fn push<L: Lane, const N: usize>(&mut self, row: &TraceRow<L, N>) {
-        debug_assert_eq!(self.width, 1 + N + SIGNAL_COLUMNS.len());
+        debug_assert_eq!(self.width, 1 + N + SIGNAL_COLUMNS.len() + row.extra.len());
         self.data.push(row.t);
         self.data.extend(row.s.iter().map(|x| x.lane(0)));
         let r = row.r;
@@ -109,9 +130,10 @@ impl Trace {
             .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, row.u.u1.lane(0)]);
         self.data
             .extend(row.u.tau.iter().chain(row.w.iter()).map(|x| x.lane(0)));
-        for x in [row.e_o, row.accel_c, row.drag_z] {
+        for x in [row.e_o, row.accel_c, row.drag_z, row.swing, row.tension] {
             self.data.push(x.lane(0));
         }
+        self.data.extend(row.extra.iter().map(|x| x.lane(0)));
     }
 }
 
@@ -125,9 +147,14 @@ struct TraceRow<'a, L, const N: usize> {
     /// The wind held over the step starting at `t`.
     w: &'a [L; 3],
     e_o: L,
+    /// m/s^2, the magnitude of the payload's inertial acceleration.
     accel_c: L,
     /// N, the vertical drag on the quadrotor the derivative uses at `s` in `w`.
     drag_z: L,
+    swing: L,
+    tension: L,
+    /// The actuator's own columns.
+    extra: &'a [L],
 }
 
 /// Why a flight ended (docs/model.md section 11): it ran to the end, or a state went
@@ -141,16 +168,18 @@ pub enum ExitStatus {
     Tilt = 3,
     Speed = 4,
     Rate = 5,
+    Ground = 6,
 }
 
 impl ExitStatus {
-    pub const ALL: [Self; 6] = [
+    pub const ALL: [Self; 7] = [
         Self::Ok,
         Self::NonFinite,
         Self::Distance,
         Self::Tilt,
         Self::Speed,
         Self::Rate,
+        Self::Ground,
     ];
 
     /// The public name (`mc.runs["status"]`).
@@ -162,6 +191,7 @@ impl ExitStatus {
             Self::Tilt => "tilt",
             Self::Speed => "speed",
             Self::Rate => "rate",
+            Self::Ground => "ground",
         }
     }
 
@@ -174,6 +204,7 @@ impl ExitStatus {
             Self::Tilt => "roll or pitch went past divergence.max_tilt",
             Self::Speed => "a velocity went past divergence.max_speed",
             Self::Rate => "a body rate went past divergence.max_rate",
+            Self::Ground => "the quadrotor went below ground.altitude",
         }
     }
 
@@ -187,11 +218,14 @@ impl ExitStatus {
     }
 }
 
-/// Why the state `s` (one lane's values) failed its checks: non-finite first, then the first
-/// bound exceeded in the order of `Bound`.
-fn classify(vars: &[StateVar], s: &[f64], limits: &[f64; 4]) -> ExitStatus {
+/// Why the state `s` (one lane's values) failed its checks: non-finite first, then the ground
+/// (`floor`, the quadrotor's z), then the first bound exceeded in the order of `Bound`.
+fn classify(vars: &[StateVar], s: &[f64], limits: &[f64; 4], floor: f64) -> ExitStatus {
     if s.iter().any(|x| !x.is_finite()) {
         return ExitStatus::NonFinite;
+    }
+    if s[ix::Z] < floor {
+        return ExitStatus::Ground;
     }
     [Bound::Distance, Bound::Tilt, Bound::Speed, Bound::Rate]
         .into_iter()
@@ -230,6 +264,8 @@ pub struct Craft {
     /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
     /// the order of `Bound`.
     limits: [f64; 4],
+    /// m, the flight ends below this z (`ground.*`; minus infinity when off).
+    floor: f64,
 }
 
 impl Craft {
@@ -255,6 +291,7 @@ impl Craft {
             wind,
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
+            floor: cfg.ground.floor(),
         })
     }
 }
@@ -401,12 +438,12 @@ impl Engine {
 
     /// Trace columns after `t`.
     pub fn trace_columns(&self) -> Vec<&'static str> {
-        trace_columns(&self.vars)
+        trace_columns(self.cfg.payload.model, self.cfg.actuator.model)
     }
 
     /// An empty trace for one flight, a row every `every` steps.
     pub fn trace(&self, every: usize) -> Trace {
-        Trace::new(every, self.steps, self.vars.len())
+        Trace::new(every, self.steps, self.trace_columns().len())
     }
 
     /// Fly the wind `wind` (m/s, inertial [x, y, z]; row k held over step k, one row per step
@@ -669,6 +706,11 @@ impl Engine {
         let gust_from = windy().map(|c| c.wind.start_step()).min();
         let gust_to = windy().map(|c| c.wind.end_step()).max();
         let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
+        let floor = L::from_fn(|l| crafts[l].floor);
+        let grounded = crafts.iter().any(|c| c.floor > f64::NEG_INFINITY);
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
+        let extra = &mut extra[..Act::SIGNALS.len()];
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -704,10 +746,32 @@ impl Engine {
             ];
             let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
             let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
-            acc.sample(k, t, out.e_o, rigid.pos[2] * -1.0 + r.pos[2], out.accel_z);
+            let e = [
+                rigid.pos[0] * -1.0 + r.pos[0],
+                rigid.pos[1] * -1.0 + r.pos[1],
+                rigid.pos[2] * -1.0 + r.pos[2],
+            ];
+            let [ax, ay, az] = out.accel;
+            // |a| without the square root's rounding where the acceleration is vertical only.
+            let accel = (ax * ax + ay * ay + az * az).sqrt();
+            acc.sample(
+                k,
+                t,
+                &Sample {
+                    e_o: out.e_o,
+                    tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
+                    accel,
+                    swing: out.swing,
+                    tension: out.tension,
+                    slack: L::select(out.tension.cmp_le(zero), one, zero),
+                    saturated: vehicle.actuator.saturated(&cmd),
+                },
+            );
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && diverged_at[0].is_nan() {
+                    let lay = Vehicle::<L, Pay, Act>::LAYOUT;
+                    vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
                     tr.push(&TraceRow {
                         t,
                         s: &s,
@@ -715,8 +779,11 @@ impl Engine {
                         u: &u,
                         w: &w,
                         e_o: out.e_o,
-                        accel_c: out.accel_z,
+                        accel_c: accel,
                         drag_z: vehicle.body.vertical_drag(rigid.vel[2], w[2]),
+                        swing: out.swing,
+                        tension: out.tension,
+                        extra,
                     });
                 }
             }
@@ -729,13 +796,17 @@ impl Engine {
             for i in 0..N {
                 ok &= s[i].abs().le_mask(limit[i]);
             }
+            if grounded {
+                ok &= floor.le_mask(s[ix::Z]);
+            }
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
                         *at = t + self.dt;
                         alive -= 1;
                         let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
-                        status[lane] = classify(&self.vars, &values, &crafts[lane].limits);
+                        let c = crafts[lane];
+                        status[lane] = classify(&self.vars, &values, &c.limits, c.floor);
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
                         for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
                             x.set_lane(lane, *x0);
@@ -980,13 +1051,22 @@ mod tests {
         let limits = [1.0, 1.0, 1.0, 1.0];
         let mut s = vec![0.0; vars.len()];
         s[ix::ZC] = -2.0;
-        assert_eq!(classify(&vars, &s, &limits), ExitStatus::Distance);
+        assert_eq!(
+            classify(&vars, &s, &limits, f64::NEG_INFINITY),
+            ExitStatus::Distance
+        );
         s[ix::ZC] = 0.0;
         s[ix::VZ] = 2.0;
         s[ix::P] = 2.0;
-        assert_eq!(classify(&vars, &s, &limits), ExitStatus::Speed);
+        assert_eq!(
+            classify(&vars, &s, &limits, f64::NEG_INFINITY),
+            ExitStatus::Speed
+        );
         s[ix::PSI] = f64::NAN;
-        assert_eq!(classify(&vars, &s, &limits), ExitStatus::NonFinite);
+        assert_eq!(
+            classify(&vars, &s, &limits, f64::NEG_INFINITY),
+            ExitStatus::NonFinite
+        );
     }
 
     fn hover_cfg() -> Config {
@@ -1091,10 +1171,7 @@ mod tests {
 
     /// Column `name` of a trace row (`row[0]` is t).
     fn col(row: &[f64], name: &str) -> f64 {
-        let columns = trace_columns(&crate::model::state_vars(
-            Default::default(),
-            Default::default(),
-        ));
+        let columns = trace_columns(Default::default(), Default::default());
         row[1 + columns.iter().position(|c| *c == name).unwrap()]
     }
 

@@ -38,7 +38,7 @@ mod _core {
     use crate::control::ControllerKind;
     use crate::dispersion::Dispersion;
     use crate::gust;
-    use crate::integrate::{trace_columns, Engine, ExitStatus, FlightRequest};
+    use crate::integrate::{trace_columns, Craft, Engine, ExitStatus, FlightRequest};
     use crate::memory;
     use crate::metrics::{METRIC_NAMES, N_METRICS};
     use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
@@ -68,7 +68,10 @@ mod _core {
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
         let vars = state_vars(PayloadKind::default(), ActuatorKind::default());
-        m.add("TRACE_COLUMNS", trace_columns(&vars))?;
+        m.add(
+            "TRACE_COLUMNS",
+            trace_columns(PayloadKind::default(), ActuatorKind::default()),
+        )?;
         m.add(
             "STATE_NAMES",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
@@ -175,7 +178,10 @@ mod _core {
             "state_names",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
         )?;
-        d.set_item("trace_columns", trace_columns(&vars))?;
+        d.set_item(
+            "trace_columns",
+            trace_columns(cfg.payload.model, cfg.actuator.model),
+        )?;
         let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
             &crate::trajectory::phase_steps(&cfg),
             cfg.integrator.dt,
@@ -261,10 +267,14 @@ mod _core {
     /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
     /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model; with `xi`
     /// (`innovations_dimension` values) the turbulence is driven by those standard normals
-    /// instead of the seeded stream. With `progress`, the flight polls its cancel flag
-    /// (`Progress.cancel()`) and raises KeyboardInterrupt when cancelled.
+    /// instead of the seeded stream; a dispersed scenario's flight then needs
+    /// `dispersion_keys` (its dispersed keys) and `dispersion_values` (one value each): the
+    /// flight of the fixed scenario with those values set, bit for bit. A seeded flight flies
+    /// a fixed scenario only (the engine draws no parameter values). With `progress`, the
+    /// flight polls its cancel flag (`Progress.cancel()`) and raises KeyboardInterrupt when
+    /// cancelled.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None))]
+    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None, dispersion_keys=Vec::new(), dispersion_values=None))]
     #[allow(clippy::too_many_arguments)]
     fn simulate<'py>(
         py: Python<'py>,
@@ -276,12 +286,36 @@ mod _core {
         wind: Option<PyReadonlyArray2<'py, f64>>,
         progress: Option<&Bound<'py, Progress>>,
         xi: Option<PyReadonlyArray1<'py, f64>>,
+        dispersion_keys: Vec<String>,
+        dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if record_every == 0 {
             return Err(PyValueError::new_err("record_every must be >= 1, got 0"));
         }
         let mut e = engine(config_json)?;
+        if xi.is_some() {
+            let values = dispersion_values.map(|v| {
+                let v: Vec<f64> = v.as_array().iter().copied().collect();
+                Array2::from_shape_vec((1, v.len()), v).expect("one row")
+            });
+            if let Some(d) = innovations_dispersion(&e, dispersion_keys, values.as_ref(), 1)? {
+                // The fixed scenario of the row: exactly what an override of the keys flies.
+                let cfg = d.config(0, 0).map_err(scenario_error)?;
+                e = Engine::new(cfg).map_err(scenario_error)?;
+            }
+        } else if !dispersion_keys.is_empty() || dispersion_values.is_some() {
+            return Err(PyValueError::new_err(
+                "dispersion_keys and dispersion_values go with xi (a flight driven by innovations)",
+            ));
+        } else if !e.cfg.dispersions.is_empty() {
+            return Err(ScenarioError::new_err(format!(
+                "simulate flies a fixed scenario, and this one disperses {:?}: the engine draws \
+                 no parameter values; fly the fixed scenario of a realisation \
+                 (Scenario.realisation, as quadrs.simulate does)",
+                e.cfg.dispersions.keys().collect::<Vec<_>>()
+            )));
+        }
         if let Some(w) = wind {
             let w = w.as_array();
             if w.ncols() != 3 {
@@ -356,6 +390,73 @@ mod _core {
         Ok(())
     }
 
+    /// The per-row values of a dispersed scenario's keys for a flight driven by innovations
+    /// (None for a fixed scenario). The engine draws no parameter values, so it refuses a
+    /// dispersed scenario without them, keys other than exactly its dispersed ones, a table
+    /// not of shape (rows, keys), a value the scenario refuses, and gust values that change
+    /// the count of innovations (the standard-normal space must be the same for every row).
+    fn innovations_dispersion(
+        e: &Engine,
+        keys: Vec<String>,
+        values: Option<&Array2<f64>>,
+        rows: usize,
+    ) -> PyResult<Option<Dispersion>> {
+        let dispersed: Vec<&String> = e.cfg.dispersions.keys().collect();
+        let values = match (values, keys.is_empty()) {
+            (None, true) if dispersed.is_empty() => return Ok(None),
+            (None, true) => {
+                return Err(ScenarioError::new_err(format!(
+                    "the scenario disperses {dispersed:?}: a flight driven by innovations flies \
+                     the values given for them (dispersion_keys, dispersion_values) and none \
+                     were given; the engine draws no parameter values"
+                )))
+            }
+            (Some(v), false) => v,
+            _ => {
+                return Err(PyValueError::new_err(
+                    "dispersion_keys and dispersion_values go together",
+                ))
+            }
+        };
+        let mut sorted = keys.clone();
+        sorted.sort();
+        sorted.dedup();
+        if sorted.len() != keys.len() || !sorted.iter().eq(dispersed.iter().copied()) {
+            return Err(ScenarioError::new_err(format!(
+                "dispersion_keys must be the scenario's dispersed keys {dispersed:?}, each once, \
+                 got {keys:?}"
+            )));
+        }
+        if values.shape() != [rows, keys.len()] {
+            return Err(PyValueError::new_err(format!(
+                "dispersion_values must have shape ({rows}, {}), got {:?}",
+                keys.len(),
+                values.shape()
+            )));
+        }
+        let flat = values.iter().copied().collect();
+        let d = Dispersion::new(&e.cfg, keys, flat, rows).map_err(scenario_error)?;
+        let want = e.innovations();
+        for j in 0..rows {
+            let cfg = d.config(j, 0).map_err(scenario_error)?;
+            if d.touches_wind() {
+                let got = Craft::new(&cfg)
+                    .map_err(scenario_error)?
+                    .wind()
+                    .innovations(e.steps);
+                if got != want {
+                    return Err(ScenarioError::new_err(format!(
+                        "dispersions: row {j}'s gust values change the flight's innovations \
+                         from {want} to {got}; every row must be driven by the same standard \
+                         normals (disperse only gust keys that keep the gust window and its \
+                         filters)"
+                    )));
+                }
+            }
+        }
+        Ok(Some(d))
+    }
+
     /// Standard normals one flight's turbulence draws: its onset's stationary state and every
     /// later step of the gust window, per active component (docs/rare-events.md).
     #[pyfunction]
@@ -379,8 +480,11 @@ mod _core {
 
     /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
     /// lane-sets on `workers` threads: metrics (N, phases, metrics), NaN after a divergence.
+    /// A dispersed scenario needs `dispersion_keys` (its dispersed keys) and
+    /// `dispersion_values` (N, keys): row j flies the fixed scenario with row j's values set.
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, xi, progress=None, workers=None))]
+    #[pyo3(signature = (config_json, controller, xi, progress=None, workers=None, dispersion_keys=Vec::new(), dispersion_values=None))]
+    #[allow(clippy::too_many_arguments)]
     fn run_innovations<'py>(
         py: Python<'py>,
         config_json: &str,
@@ -388,6 +492,8 @@ mod _core {
         xi: PyReadonlyArray2<'py, f64>,
         progress: Option<&Bound<'py, Progress>>,
         workers: Option<usize>,
+        dispersion_keys: Vec<String>,
+        dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
         use numpy::ndarray::Array3;
         use rayon::prelude::*;
@@ -396,6 +502,8 @@ mod _core {
         let xi = xi.as_array();
         let (n, dim) = (xi.nrows(), xi.ncols());
         check_innovations(&e, dim)?;
+        let values = dispersion_values.map(|v| v.as_array().to_owned());
+        let dispersion = innovations_dispersion(&e, dispersion_keys, values.as_ref(), n)?;
         let workers =
             workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
         if workers == 0 {
@@ -429,8 +537,23 @@ mod _core {
                                 .map(|l| rows[(set * lanes + l).min(n - 1)])
                                 .collect();
                             let indices: Vec<u64> = (0..lanes as u64).collect();
+                            // A dispersed scenario: each lane's craft of its row's values, with
+                            // the scenario's gust filters unless a gust key is dispersed.
+                            let crafts: Option<Vec<Craft>> = dispersion.as_ref().map(|d| {
+                                let wind = (!d.touches_wind()).then_some(&e.craft);
+                                (0..lanes)
+                                    .map(|l| {
+                                        let j = (set * lanes + l).min(n - 1);
+                                        let cfg = d.patched(j, 0).expect("checked above");
+                                        Craft::with_wind_of(&cfg, wind).expect("checked above")
+                                    })
+                                    .collect()
+                            });
+                            let craft_refs: Option<Vec<&Craft>> =
+                                crafts.as_ref().map(|c| c.iter().collect());
                             let req = FlightRequest {
                                 cancel: Some(&cancel),
+                                crafts: craft_refs.as_deref(),
                                 innovations: Some(&mine),
                                 ..FlightRequest::new(kind, 0, &indices)
                             };
@@ -460,9 +583,11 @@ mod _core {
             .into_pyarray(py))
     }
 
-    /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`).
+    /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`, and its
+    /// `dispersion_keys`/`dispersion_values` for a dispersed scenario).
     #[pyfunction]
-    #[pyo3(signature = (config_json, controller, xi_row, record_every=1, progress=None))]
+    #[pyo3(signature = (config_json, controller, xi_row, record_every=1, progress=None, dispersion_keys=Vec::new(), dispersion_values=None))]
+    #[allow(clippy::too_many_arguments)]
     fn simulate_innovations<'py>(
         py: Python<'py>,
         config_json: &str,
@@ -470,6 +595,8 @@ mod _core {
         xi_row: PyReadonlyArray1<'py, f64>,
         record_every: usize,
         progress: Option<&Bound<'py, Progress>>,
+        dispersion_keys: Vec<String>,
+        dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         simulate(
             py,
@@ -481,6 +608,8 @@ mod _core {
             None,
             progress,
             Some(xi_row),
+            dispersion_keys,
+            dispersion_values,
         )
     }
 

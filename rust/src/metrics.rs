@@ -1,6 +1,7 @@
 //! Per-phase indices of the relative oscillation e_o, accumulated online (docs/model.md section 5),
-//! and of the payload's vertical inertial acceleration (`max_accel`, `rms_accel`: what a
-//! fragile cargo feels; docs/risk.md).
+//! and the whole vehicle's (section 11): the magnitude of the payload's inertial acceleration
+//! (`max_accel`, `rms_accel`: what a fragile cargo feels; docs/risk.md), the 3-D tracking error,
+//! the attachment's swing and tension, slack and actuator saturation times.
 //!
 //! Integrals use the trapezoidal rule on the step grid. The amplitude spectrum needs the signal,
 //! so e_o is also kept block-averaged at `metrics.spectrum_rate` (a few thousand numbers per
@@ -11,7 +12,7 @@ use crate::trajectory::PhaseSteps;
 use rustfft::{num_complex::Complex, FftPlanner};
 
 /// Column order of every metrics array the engine returns.
-pub const METRIC_NAMES: [&str; 9] = [
+pub const METRIC_NAMES: [&str; 15] = [
     "iae",
     "itae",
     "max_abs",
@@ -21,6 +22,12 @@ pub const METRIC_NAMES: [&str; 9] = [
     "peak_amplitude",
     "max_accel",
     "rms_accel",
+    "max_swing",
+    "rms_swing",
+    "max_tension",
+    "min_tension",
+    "slack_time",
+    "saturated_time",
 ];
 pub const N_METRICS: usize = METRIC_NAMES.len();
 
@@ -33,6 +40,32 @@ struct Sums<L> {
     max_abs: L,
     accel_sq: L,
     max_accel: L,
+    swing_sq: L,
+    max_swing: L,
+    max_tension: L,
+    min_tension: L,
+    /// Steps (at t_k) with the attachment slack, and with an actuator command clamped.
+    slack_steps: L,
+    saturated_steps: L,
+}
+
+/// What the flight loop hands the accumulator at one step (lane values).
+#[derive(Clone, Copy, Debug)]
+pub struct Sample<L> {
+    /// m, the relative oscillation.
+    pub e_o: L,
+    /// m^2, the squared 3-D position error |p_ref - p|^2.
+    pub tracking_sq: L,
+    /// m/s^2, the magnitude of the payload's inertial acceleration.
+    pub accel: L,
+    /// rad, the attachment's angle from the vertical.
+    pub swing: L,
+    /// N, the force the attachment carries.
+    pub tension: L,
+    /// 1 where the attachment is slack (tension <= 0), else 0.
+    pub slack: L,
+    /// 1 where an actuator command was clamped over this step, else 0.
+    pub saturated: L,
 }
 
 /// Online accumulator for one lane-set over all phases.
@@ -62,6 +95,12 @@ impl<L: Lane> PhaseAccumulator<L> {
                     max_abs: zero,
                     accel_sq: zero,
                     max_accel: zero,
+                    swing_sq: zero,
+                    max_swing: zero,
+                    max_tension: L::splat(f64::NEG_INFINITY),
+                    min_tension: L::splat(f64::INFINITY),
+                    slack_steps: zero,
+                    saturated_steps: zero,
                 };
                 phases.len()
             ],
@@ -73,10 +112,10 @@ impl<L: Lane> PhaseAccumulator<L> {
         }
     }
 
-    /// Take sample k (time t) of e_o, of the altitude tracking error and of the payload's
-    /// vertical acceleration `accel` (m/s^2); k = 0, 1, 2, ... in turn.
+    /// Take sample k (time t); k = 0, 1, 2, ... in turn.
     #[inline(always)]
-    pub fn sample(&mut self, k: usize, t: f64, e_o: L, tracking: L, accel: L) {
+    pub fn sample(&mut self, k: usize, t: f64, x: &Sample<L>) {
+        let e_o = x.e_o;
         let a = e_o.abs();
         for (ph, sums) in self.phases.iter().zip(self.sums.iter_mut()) {
             if ph.contains(k) {
@@ -88,10 +127,16 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.iae += a * w;
                 sums.itae += a * (w * t);
                 sums.sq += e_o * e_o * w;
-                sums.tracking_sq += tracking * tracking * w;
+                sums.tracking_sq += x.tracking_sq * w;
                 sums.max_abs = sums.max_abs.max(a);
-                sums.accel_sq += accel * accel * w;
-                sums.max_accel = sums.max_accel.max(accel.abs());
+                sums.accel_sq += x.accel * x.accel * w;
+                sums.max_accel = sums.max_accel.max(x.accel);
+                sums.swing_sq += x.swing * x.swing * w;
+                sums.max_swing = sums.max_swing.max(x.swing);
+                sums.max_tension = sums.max_tension.max(x.tension);
+                sums.min_tension = sums.min_tension.min(x.tension);
+                sums.slack_steps += x.slack;
+                sums.saturated_steps += x.saturated;
             }
         }
         self.block_sum += e_o;
@@ -143,6 +188,12 @@ impl<L: Lane> PhaseAccumulator<L> {
                 peak_a,
                 s.max_accel.lane(lane),
                 (s.accel_sq.lane(lane) / span).sqrt(),
+                s.max_swing.lane(lane),
+                (s.swing_sq.lane(lane) / span).sqrt(),
+                s.max_tension.lane(lane),
+                s.min_tension.lane(lane),
+                s.slack_steps.lane(lane) * self.dt,
+                s.saturated_steps.lane(lane) * self.dt,
             ]);
         }
         rows
@@ -233,15 +284,34 @@ mod tests {
         let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100);
         for k in 0..=100 {
             let t = k as f64 * dt;
-            acc.sample(k, t, t, 0.0, -2.0 * t);
+            let flag = if k < 30 { 1.0 } else { 0.0 };
+            acc.sample(
+                k,
+                t,
+                &Sample {
+                    e_o: t,
+                    tracking_sq: 0.0,
+                    accel: 2.0 * t,
+                    swing: 0.1 * t,
+                    tension: 5.0 - 10.0 * t,
+                    slack: 1.0 - flag,
+                    saturated: flag,
+                },
+            );
         }
         let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
         assert!((row[0] - 0.5).abs() < 1e-12);
         assert!((row[1] - (1.0 / 3.0 + dt * dt / 6.0)).abs() < 1e-12);
         assert!((row[2] - 1.0).abs() < 1e-12);
         assert!((row[3] - (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
-        // accel = -2 t: peak |accel| 2, RMS 2 sqrt(1/3 + dt^2/6).
+        // accel = 2 t: peak 2, RMS 2 sqrt(1/3 + dt^2/6).
         assert!((row[7] - 2.0).abs() < 1e-12);
         assert!((row[8] - 2.0 * (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
+        // swing = 0.1 t; tension 5 - 10 t from 5 down to -5; 71 slack and 30 saturated steps.
+        assert!((row[9] - 0.1).abs() < 1e-12);
+        assert!((row[10] - 0.1 * (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
+        assert_eq!((row[11], row[12]), (5.0, -5.0));
+        assert!((row[13] - 71.0 * dt).abs() < 1e-12);
+        assert!((row[14] - 30.0 * dt).abs() < 1e-12);
     }
 }

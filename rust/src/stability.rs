@@ -161,7 +161,7 @@ impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<Pay, Act, C, 
         let f = v.derivative(&s, &trig, &cmd, w);
         let out = v.payload_outputs(&s, &trig, u.u1, w);
         let mut y = s.to_vec();
-        y.extend([out.e_o, u.u1, u.tau[0], u.tau[1], u.tau[2], out.accel_z]);
+        y.extend([out.e_o, u.u1, u.tau[0], u.tau[1], u.tau[2], out.accel[2]]);
         (f.to_vec(), y)
     }
 }

@@ -9,7 +9,7 @@ standard normals; both go through :func:`quadrs.rare.subset.subset_simulation`.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from quadrs.rare.result import RareEventComparison, RareEventResult
 from quadrs.rare.scenario_model import RareEventModel, ScenarioModel
 from quadrs.rare.subset import Level, Model, check_settings, check_threshold, subset_simulation
 from quadrs.scenario import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
 
 __all__ = ["METHODS", "RareEventComparison", "RareEventResult", "rare_event"]
 
@@ -44,13 +47,16 @@ def rare_event(
     max_levels: int | None = None,
     workers: int | None = None,
     on_level: Callable[[Level], None] | None = None,
+    client: Client | None = None,
 ) -> RareEventResult | RareEventComparison:
     """P(value > ``threshold``) by subset simulation, with its coefficient of variation and a
     95 % interval (see :class:`RareEventResult` and docs/rare-events.md).
 
     Scenario run: ``rare_event(s, controller="pd", metric="max_accel", phase="P2",
     threshold=8.0)``: the value is ``metric`` in ``phase`` of a flight of ``s``, whose random
-    inputs are its gust's innovations; a diverged flight counts as an exceedance.
+    inputs are its gust's innovations and, if ``s`` has ``[dispersions]``, one standard normal
+    per dispersed key (its value F^-1(Phi(z)), after the gust's in each row); a diverged
+    flight counts as an exceedance.
     ``controllers=("pd", "smc")`` instead runs every controller on the same seed (the same
     first level of gusts, the same proposal normals) and returns a
     :class:`RareEventComparison` (``.ratio("smc", "pd")``).
@@ -65,6 +71,8 @@ def rare_event(
     (default: enough for about 1e-12). Flights: ``per_level * (1 + (levels - 1) * (1 - p0))``.
     ``workers``: threads flying each batch of a scenario run (default: all cores; the result
     does not depend on it). ``on_level(level)``: called as each level is done (progress).
+    ``client``: a ``dask.distributed.Client``; each batch's flights are then spread over its
+    workers (``workers`` is then theirs), with the same result as on one machine.
 
     Ctrl-C stops the run and returns what the finished levels found (``result.interrupted``;
     no estimate, ``upper_bound`` the probability of the last cut reached); a paired run
@@ -84,10 +92,10 @@ def rare_event(
     if limit_state is not None:
         if scenario is not None:
             raise ValueError("give either a scenario or limit_state=, not both")
-        scenario_only = (metric, phase, controllers, workers)
+        scenario_only = (metric, phase, controllers, workers, client)
         if any(v is not None for v in scenario_only):
             raise ValueError(
-                "metric, phase, controllers and workers belong to a scenario run; a "
+                "metric, phase, controllers, workers and client belong to a scenario run; a "
                 "limit_state run has its function and dimension only"
             )
         if dimension is None:
@@ -116,7 +124,10 @@ def rare_event(
     names = tuple(controllers) if controllers is not None else (controller,)
     if not names or len(set(names)) != len(names):
         raise ValueError(f"controllers must be distinct and non-empty, got {names}")
-    models = [ScenarioModel(scenario, c, metric, phase, workers) for c in names]
+    if client is not None and workers is not None:
+        raise ValueError("give workers= or client=, not both: with a client, each Dask "
+                         "worker's threads fly its rows")  # fmt: skip
+    models = [ScenarioModel(scenario, c, metric, phase, workers, client) for c in names]
     from quadrs.stability import warn_before_running
 
     warn_before_running(scenario, names, gains=True, stacklevel=2)

@@ -144,9 +144,10 @@ class RareEventResult:
     def failures(self) -> pd.DataFrame:
         """One row per failure sample k: ``sample`` (k), the value (column named after it),
         ``copies``, ``chain`` and ``step`` (where the chain reached it; on level 0, ``chain``
-        is the sample's index). Their standard normals: ``xi[k]``."""
+        is the sample's index), then, for a dispersed scenario, each dispersed key's value
+        (the parameters the flight flew). Their standard normals: ``xi[k]``."""
         run = self.run
-        return pd.DataFrame(
+        frame = pd.DataFrame(
             {
                 "sample": np.arange(len(run.failure_values)),
                 self.value_name: run.failure_values,
@@ -155,6 +156,12 @@ class RareEventResult:
                 "step": run.failure_step,
             }
         )
+        keys = getattr(self.model, "parameter_keys", ())
+        if keys:
+            theta = self.model.parameters(run.failure_xi)  # type: ignore[union-attr]
+            for j, key in enumerate(keys):
+                frame[key] = theta[:, j]
+        return frame
 
     @property
     def xi(self) -> np.ndarray:
@@ -347,22 +354,31 @@ class RareEventComparison:
         return self.results[name]
 
     def ratio(self, a: str, b: str, confidence: float = 0.95) -> dict[str, Any]:
-        """P_a / P_b with an interval on the log scale from both coefficients of variation,
-        taken as independent (the runs share their first level, which correlates them
-        positively and makes this interval conservative). None values when either run found
-        no failure."""
+        """P_a / P_b with an interval on the log scale: ``ratio``, ``low``, ``high`` and
+        ``first_level_correlation``. Var(log ratio) = s_a^2 + s_b^2 - 2 c_0 with s^2 =
+        log(1 + cov^2) of each run and c_0 the covariance of the two runs' level-0 fractions
+        (they fly the very same samples: estimated from which samples lie above each run's
+        first cut). The conditional levels' correlation (through the shared proposal normals) is
+        not estimated and taken as 0; it is positive if anything, so the interval errs wide.
+        Without level 0's samples (a result read from a file), c_0 = 0. None values when
+        either run found no failure."""
         for name in (a, b):
             if name not in self.results:
                 raise KeyError(f"{name!r} is not one of {sorted(self.results)}")
         ra, rb = self.results[a].run, self.results[b].run
         if ra.probability is None or rb.probability is None or ra.cov is None or rb.cov is None:
-            return {"ratio": None, "low": None, "high": None}
+            return {"ratio": None, "low": None, "high": None, "first_level_correlation": None}
         from scipy.stats import norm
 
         z = float(norm.ppf(0.5 + confidence / 2))
-        s = math.sqrt(math.log1p(ra.cov**2) + math.log1p(rb.cov**2))
+        var_a, var_b = math.log1p(ra.cov**2), math.log1p(rb.cov**2)
+        c0, corr = _first_level_covariance(ra.first_above, rb.first_above)
+        # Never below what the conditional levels alone contribute (c_0 cannot cancel them).
+        shared = math.log1p(ra.levels[0].cov ** 2) + math.log1p(rb.levels[0].cov ** 2)
+        s = math.sqrt(max(var_a + var_b - 2 * c0, var_a + var_b - shared))
         r = ra.probability / rb.probability
-        return {"ratio": r, "low": r * math.exp(-z * s), "high": r * math.exp(z * s)}
+        return {"ratio": r, "low": r * math.exp(-z * s), "high": r * math.exp(z * s),
+                "first_level_correlation": corr}  # fmt: skip
 
     def __repr__(self) -> str:
         parts = ", ".join(
@@ -370,6 +386,21 @@ class RareEventComparison:
             for k, v in self.results.items()
         )
         return f"<RareEventComparison {parts}>"
+
+
+def _first_level_covariance(
+    above_a: np.ndarray | None, above_b: np.ndarray | None
+) -> tuple[float, float | None]:
+    """(c_0, correlation): the covariance of log p_a and log p_b of level 0, two fractions of
+    the same samples, (P(both) - p_a p_b) / (N p_a p_b); (0, None) without the samples."""
+    if above_a is None or above_b is None or len(above_a) != len(above_b) or not len(above_a):
+        return 0.0, None
+    pa, pb = float(above_a.mean()), float(above_b.mean())
+    if not 0 < pa < 1 or not 0 < pb < 1:
+        return 0.0, None
+    joint = float((above_a & above_b).mean()) - pa * pb
+    corr = joint / math.sqrt(pa * (1 - pa) * pb * (1 - pb))
+    return joint / (len(above_a) * pa * pb), corr
 
 
 def _nan(value: Any) -> Any:

@@ -28,13 +28,60 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from quadrs import _core
+from quadrs.dispersion import dispersed_keys, distribution
 from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
+
     from quadrs.flight import Flight
 
-__all__ = ["RareEventModel", "ScenarioModel", "engine_function"]
+__all__ = ["RareEventModel", "ScenarioModel", "engine_function", "parameters_of_normals"]
+
+#: Phi(z) is held this far inside (0, 1), as monte_carlo's uniforms are
+#: (quadrs.dispersion): an unbounded distribution's quantile stays finite (|z| <= about 8.2).
+_EDGE = 1e-16
+
+
+def parameters_of_normals(scenario: Scenario, z: np.ndarray) -> np.ndarray:
+    """The dispersed keys' values (N, keys) of standard normals ``z`` (N, keys), keys sorted:
+    theta_j = F_j^-1(Phi(z_j)) with F_j the key's distribution exactly as monte_carlo draws it
+    (:func:`quadrs.dispersion.distribution`, scipy.stats ``ppf``), Phi(z) held in
+    [1e-16, 1 - 1e-16] like monte_carlo's uniforms. So z ~ N(0, 1) gives theta ~ F_j."""
+    from scipy.stats import norm
+
+    z = np.asarray(z, dtype=np.float64)
+    keys = dispersed_keys(scenario)
+    if z.shape[-1] != len(keys):
+        raise ValueError(f"z must have {len(keys)} columns (one per dispersed key), got {z.shape}")
+    table = scenario.dispersions
+    theta = np.empty_like(z)
+    for j, key in enumerate(keys):
+        u = np.clip(norm.cdf(z[..., j]), _EDGE, 1.0 - _EDGE)
+        theta[..., j] = distribution(table[key]).ppf(u)
+    return theta
+
+
+def _run_rows(
+    config: str,
+    controller: str,
+    keys: list[str],
+    gust: np.ndarray,
+    values: np.ndarray | None,
+    workers: int | None,
+) -> np.ndarray:
+    """The engine's metrics (N, phases, metrics) of rows of innovations (and parameter
+    values), Ctrl-C turned into a prompt cancel and KeyboardInterrupt."""
+    run = engine_function("run_innovations")
+    progress = _core.Progress()
+    extra = {} if values is None else {"dispersion_keys": keys, "dispersion_values": values}
+    metrics, interrupted = run_cancellable(
+        lambda: run(config, controller, gust, progress, workers, **extra), progress
+    )
+    if interrupted:
+        raise KeyboardInterrupt
+    return np.asarray(metrics, dtype=np.float64)
 
 
 class RareEventModel(Protocol):
@@ -74,6 +121,7 @@ class ScenarioModel:
         metric: str,
         phase: str,
         workers: int | None = None,
+        client: Client | None = None,
     ) -> None:
         from quadrs.flight import METRIC_COLUMNS
 
@@ -90,20 +138,18 @@ class ScenarioModel:
                 "the scenario's gust is off (gust.enabled = false): its flights are not random, "
                 "so there is no probability to estimate"
             )
-        if scenario.dispersed:
-            raise ValueError(
-                "rare_event flies a fixed scenario: its random inputs are the gust's innovations "
-                f"only, and this one disperses {sorted(scenario.dispersions)}; fix them "
-                "(scenario.fixed()) or study them with monte_carlo"
-            )
         self.scenario = scenario
         self.metric = metric
         self.phase = phase
         self._metric_index = METRIC_COLUMNS.index(metric)
         self._phase_index = phases.index(phase)
         self._dimension: int | None = None
+        #: The dispersed keys (sorted), each driven by one standard normal after the gust's.
+        self.parameter_keys: tuple[str, ...] = tuple(dispersed_keys(scenario))
         #: Threads flying a batch (None: all cores); results do not depend on it.
         self.workers = None if workers is None else check_int("workers", workers, 1, MAX_WORKERS)
+        #: A dask.distributed Client: each batch's rows are spread over its workers.
+        self.client = client
 
     @property
     def name(self) -> str:
@@ -111,28 +157,51 @@ class ScenarioModel:
         return f"{self.metric}_{self.phase}"
 
     @property
-    def dimension(self) -> int:
-        """Standard normals per flight (the engine's count of the gust filters' innovations)."""
+    def innovations(self) -> int:
+        """The gust filters' innovations per flight (the first columns of a row)."""
         if self._dimension is None:
             count = engine_function("innovations_dimension")(self.scenario.to_json())
             self._dimension = int(count)
         return self._dimension
 
+    @property
+    def dimension(self) -> int:
+        """Standard normals per flight: the gust's innovations, then one per dispersed key."""
+        return self.innovations + len(self.parameter_keys)
+
+    def parameters(self, xi: np.ndarray) -> np.ndarray:
+        """The dispersed keys' values of each row, (N, keys): theta = F^-1(Phi(z)) of the
+        row's last ``len(parameter_keys)`` normals (:func:`parameters_of_normals`)."""
+        xi = np.asarray(xi, dtype=np.float64)
+        return parameters_of_normals(self.scenario, xi[..., self.innovations :])
+
     def evaluate(self, xi: np.ndarray) -> np.ndarray:
         """The metric of each row's flight (+inf where the flight diverged)."""
-        run = engine_function("run_innovations")
         xi = np.ascontiguousarray(xi, dtype=np.float64)
         if xi.ndim != 2 or xi.shape[1] != self.dimension:
             raise ValueError(f"xi must have shape (N, {self.dimension}), got {xi.shape}")
-        progress = _core.Progress()
-        config = self.scenario.to_json()
-        metrics, interrupted = run_cancellable(
-            lambda: run(config, self.controller, xi, progress, self.workers), progress
+        gust = np.ascontiguousarray(xi[:, : self.innovations])
+        values = np.ascontiguousarray(self.parameters(xi)) if self.parameter_keys else None
+        if self.client is not None:
+            from quadrs.rare.distributed import evaluate_on_dask
+
+            metrics = evaluate_on_dask(self.client, self._engine_args(), gust, values)
+        else:
+            metrics = _run_rows(*self._engine_args(), gust, values, self.workers)
+        picked = metrics[:, self._phase_index, self._metric_index]
+        return np.where(np.isnan(picked), np.inf, picked)
+
+    def _engine_args(self) -> tuple[str, str, list[str]]:
+        return self.scenario.to_json(), self.controller, list(self.parameter_keys)
+
+    def flown_scenario(self, xi_row: np.ndarray) -> Scenario:
+        """The fixed scenario a row flies: the dispersed keys set to the row's values."""
+        if not self.parameter_keys:
+            return self.scenario
+        theta = self.parameters(np.asarray(xi_row, dtype=np.float64)[None, :])[0]
+        return self.scenario.fixed(
+            {k: float(v) for k, v in zip(self.parameter_keys, theta, strict=True)}
         )
-        if interrupted:
-            raise KeyboardInterrupt
-        values = np.asarray(metrics, dtype=np.float64)[:, self._phase_index, self._metric_index]
-        return np.where(np.isnan(values), np.inf, values)
 
     def fly(self, xi_row: np.ndarray) -> Flight:
         """The flight of one row of innovations, with its trace (about one row a millisecond)."""
@@ -144,11 +213,15 @@ class ScenarioModel:
         row = np.ascontiguousarray(xi_row, dtype=np.float64)
         if row.shape != (self.dimension,):
             raise ValueError(f"xi_row must have shape ({self.dimension},), got {row.shape}")
+        # The fixed scenario of the row's parameter values, set by override: the batch's
+        # per-row values fly exactly this (tested bit for bit).
+        scenario = self.flown_scenario(row)
+        gust = np.ascontiguousarray(row[: self.innovations])
         record_every = max(1, round(1e-3 / float(self.scenario["integrator.dt"])))
         progress = _core.Progress()
-        config = self.scenario.to_json()
+        config = scenario.to_json()
         out, interrupted = run_cancellable(
-            lambda: simulate(config, self.controller, row, record_every, progress), progress
+            lambda: simulate(config, self.controller, gust, record_every, progress), progress
         )
         if interrupted:
             raise KeyboardInterrupt
@@ -156,15 +229,15 @@ class ScenarioModel:
         # The scenario's own layout (its payload and actuator models add or drop columns).
         trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"),
                              columns=out["trace_columns"])  # fmt: skip
-        phases = self.scenario.phase_names
+        phases = scenario.phase_names
         spectra = {
             name: pd.DataFrame({"frequency": f, "amplitude": a})
             for name, f, a in zip(
-                phases, self.scenario.spectrum_frequencies, out["spectra"], strict=True
+                phases, scenario.spectrum_frequencies, out["spectra"], strict=True
             )
         }
         return Flight(
-            scenario=self.scenario,
+            scenario=scenario,
             controller=self.controller,
             seed=0,
             realisation=0,

@@ -101,6 +101,9 @@ class SubsetRun:
     #: True if Ctrl-C stopped the run: ``levels`` are the levels done, ``upper_bound`` the
     #: estimated probability of the last cut they set (None before the first), no estimate.
     interrupted: bool = False
+    #: Level 0's samples above its cut (the threshold if it was the last level), in the order
+    #: drawn: paired runs share level 0, and their ratio's interval uses its correlation.
+    first_above: np.ndarray | None = None
 
     @property
     def reached(self) -> bool:
@@ -364,11 +367,13 @@ def subset_simulation(
     cov2 = 0.0
     product = 1.0
     closest = -math.inf
+    first_above: np.ndarray | None = None
 
     def result(estimate: tuple[float, float] | None, bound: float | None,
                failed: _Arrays, interrupted: bool = False) -> SubsetRun:  # fmt: skip
         fx, fv, fc, fch, fst = failed
         return SubsetRun(
+            first_above=first_above,
             probability=None if estimate is None else estimate[0],
             cov=None if estimate is None else estimate[1],
             upper_bound=bound,
@@ -439,6 +444,8 @@ def subset_simulation(
             # The last level's fraction is of the threshold itself (when anything crossed it).
             cut, above = (threshold, n_fail) if last and n_fail else _cut(flat, seeds, threshold)
             p = above / per_level
+            if level == 0:
+                first_above = flat > cut
             # Chains started from copies of one state (a repeated chain state among the seeds)
             # are correlated with each other, not only along themselves: group them by seed.
             gamma = chain_gamma(values > cut, _groups(values[0])) if level else 0.0

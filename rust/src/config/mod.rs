@@ -50,6 +50,9 @@ pub struct Config {
     pub integrator: Integrator,
     pub metrics: Metrics,
     pub divergence: Divergence,
+    /// The ground plane a flight ends at (docs/model.md section 11); off by default.
+    #[serde(default)]
+    pub ground: Ground,
     /// Uncertain parameters: dotted key -> distribution (`crate::dispersion`).
     #[serde(default, skip_serializing_if = "Dispersions::is_empty")]
     pub dispersions: Dispersions,
@@ -445,6 +448,29 @@ pub struct Divergence {
     pub max_rate: f64,
 }
 
+/// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
+/// when `enabled`. No contact dynamics: the flight simply stops.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ground {
+    #[serde(default)]
+    pub enabled: bool,
+    /// m.
+    #[serde(default)]
+    pub altitude: f64,
+}
+
+impl Ground {
+    /// The altitude below which a flight ends (minus infinity when the ground is off).
+    pub fn floor(&self) -> f64 {
+        if self.enabled {
+            self.altitude
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+}
+
 fn default_max_speed() -> f64 {
     100.0
 }
@@ -596,7 +622,25 @@ impl Config {
         positive("divergence.max_tilt", self.divergence.max_tilt)?;
         positive("divergence.max_speed", self.divergence.max_speed)?;
         positive("divergence.max_rate", self.divergence.max_rate)?;
+        self.validate_ground()?;
         dispersions::validate(self)
+    }
+
+    fn validate_ground(&self) -> Result<(), ConfigError> {
+        let g = &self.ground;
+        finite("ground.altitude", g.altitude)?;
+        let z0 = self.initial.position[2];
+        if g.enabled && z0 < g.altitude {
+            return Err(ConfigError::new(
+                "ground.altitude",
+                format!(
+                    "ground.altitude must be at or below the start (initial.position[2] = {z0:?}) \
+                     when ground.enabled, got {:?}",
+                    g.altitude
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn validate_controller(&self) -> Result<(), ConfigError> {

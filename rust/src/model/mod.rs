@@ -34,20 +34,22 @@ pub mod ix {
     pub const PAYLOAD: usize = 6;
 }
 
-/// Indices of the paper's layout (vertical spring, ideal actuators), for tests and examples;
-/// the engine itself reads indices from `Layout`.
+/// Indices of the paper's layout (vertical spring, ideal actuators), for tests and examples,
+/// derived from its `Layout`; the engine itself reads indices from `Layout`.
 pub mod paper_ix {
     pub use super::ix::*;
-    pub const ZC: usize = 6;
-    pub const VX: usize = 7;
-    pub const VY: usize = 8;
-    pub const VZ: usize = 9;
-    pub const P: usize = 10;
-    pub const Q: usize = 11;
-    pub const R: usize = 12;
-    pub const VZC: usize = 13;
+    use super::Layout;
+    const LAYOUT: Layout = Layout::new(1, 0);
+    pub const ZC: usize = PAYLOAD;
+    pub const VX: usize = LAYOUT.vel();
+    pub const VY: usize = VX + 1;
+    pub const VZ: usize = VX + 2;
+    pub const P: usize = VX + 3;
+    pub const Q: usize = VX + 4;
+    pub const R: usize = VX + 5;
+    pub const VZC: usize = LAYOUT.payload_vel();
     /// Number of states.
-    pub const NX: usize = 14;
+    pub const NX: usize = LAYOUT.len();
 }
 
 /// The paper's vehicle (vertical spring, ideal actuators) with `f64` parameters.
@@ -299,12 +301,18 @@ pub fn state_vars(payload: PayloadKind, actuator: ActuatorKind) -> Vec<StateVar>
     impl VehicleVisitor for Vars {
         type Output = Vec<StateVar>;
         fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<StateVar> {
-            let lay = Layout::new(Pay::POSITIONS.len(), Act::VARS.len());
-            assert_eq!(lay.len(), N, "model::dispatch gives the wrong state count");
-            lay.vars(Pay::POSITIONS, Pay::VELOCITIES, Act::VARS)
+            let vars = state_vars_of::<Pay, Act>();
+            assert_eq!(vars.len(), N, "model::dispatch gives the wrong state count");
+            vars
         }
     }
     dispatch(payload, actuator, Vars)
+}
+
+/// Every state of a vehicle with kinds `Pay`, `Act`, in order.
+pub fn state_vars_of<Pay: Payload, Act: Actuator>() -> Vec<StateVar> {
+    let lay = Layout::new(Pay::POSITIONS.len(), Act::VARS.len());
+    lay.vars(Pay::POSITIONS, Pay::VELOCITIES, Act::VARS)
 }
 
 /// One vehicle's parameters, all kinds, resolved once from a validated scenario: what may

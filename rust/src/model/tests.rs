@@ -61,7 +61,7 @@ fn payload_acceleration_is_the_derivative_of_vzc() {
     let u = hover(&v);
     let trig = Trig::of(&s);
     assert!(
-        v.payload_outputs(&s, &trig, u.u1, &[0.0; 3]).accel_z.abs() < 1e-12,
+        v.payload_outputs(&s, &trig, u.u1, &[0.0; 3]).accel[2].abs() < 1e-12,
         "zero at hover"
     );
     s[6] -= 0.03;
@@ -69,7 +69,7 @@ fn payload_acceleration_is_the_derivative_of_vzc() {
     s[13] = -0.7;
     for wz in [0.0, 1.3, -2.0] {
         let ds = derivative(&v, &s, &u, &[0.0, 0.0, wz]);
-        let a = v.payload_outputs(&s, &trig, u.u1, &[0.0, 0.0, wz]).accel_z;
+        let a = v.payload_outputs(&s, &trig, u.u1, &[0.0, 0.0, wz]).accel[2];
         assert_eq!(a.to_bits(), ds[13].to_bits(), "wind {wz}");
     }
 }

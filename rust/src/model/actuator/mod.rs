@@ -22,6 +22,8 @@ pub trait ActuatorModel<L: Lane>: Sync {
     const STATES: usize;
     /// What the actuator is told at the start of a step and holds over its four RK4 stages.
     type Command: Copy;
+    /// The kind's extra trace columns, after the common ones (`signals` writes them).
+    const SIGNALS: &'static [&'static str] = &[];
 
     /// The held command for the controller's thrust and torques `u`.
     fn command(&self, u: &Inputs<L>) -> Self::Command;
@@ -40,6 +42,23 @@ pub trait ActuatorModel<L: Lane>: Sync {
 
     /// Put the actuator states at hover (`s[at..at + STATES]`).
     fn rest<const N: usize>(&self, s: &mut State<L, N>, at: usize);
+
+    /// The kind's extra trace columns (`SIGNALS`, in order) at `s` with `cmd` held.
+    #[inline(always)]
+    fn signals<const N: usize>(
+        &self,
+        _cmd: &Self::Command,
+        _s: &State<L, N>,
+        _at: usize,
+        _out: &mut [L],
+    ) {
+    }
+
+    /// 1 in a lane where the held command `cmd` was clamped to a limit, else 0.
+    #[inline(always)]
+    fn saturated(&self, _cmd: &Self::Command) -> L {
+        L::splat(0.0)
+    }
 }
 
 /// An actuator kind's parameters for one vehicle, resolved once from the scenario.

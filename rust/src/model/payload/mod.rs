@@ -21,8 +21,8 @@ pub struct PayloadOutputs<L> {
     /// m, the vertical relative oscillation: the payload's height relative to its attachment,
     /// minus that at hover (0 at hover; the paper's e_o).
     pub e_o: L,
-    /// m/s^2, the payload's vertical inertial acceleration (0 at hover).
-    pub accel_z: L,
+    /// m/s^2, the payload's inertial acceleration (x, y, z; 0 at hover).
+    pub accel: [L; 3],
     /// N, the force the attachment carries (the spring force Fs, or the cable tension).
     pub tension: L,
     /// rad, the attachment's angle from the vertical (0 for the vertical spring).

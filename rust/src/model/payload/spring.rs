@@ -89,6 +89,35 @@ impl<L: Lane> Spring<L> {
         (s[ix::Z] - s[ZC]).mul_add(self.kc, (s[VZ] - s[VZC]) * self.cc)
     }
 
+    /// The lateral accelerations of quadrotor and payload together (mass m + mc).
+    #[inline(always)]
+    fn lateral<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+    ) -> [L; 2] {
+        let Trig {
+            sphi,
+            cphi,
+            sth,
+            spsi,
+            cpsi,
+            ..
+        } = *trig;
+        let fdx = drag(body.drag_lateral, s[VX], w[0]);
+        let fdy = drag(body.drag_lateral, s[VY], w[1]);
+        // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
+        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly.
+        let cs = cphi * sth;
+        [
+            cs.mul_add(cpsi, spsi * sphi).mul_add(u1, fdx) * self.inv_m_lateral,
+            cs.mul_add(spsi, -(sphi * cpsi)).mul_add(u1, fdy) * self.inv_m_lateral,
+        ]
+    }
+
     /// mc azc = -mc g + Fs + Fdzc: the payload's vertical inertial acceleration.
     #[inline(always)]
     fn acceleration<const N: usize>(&self, body: &Body<L>, s: &State<L, N>, spring: L, wz: L) -> L {
@@ -110,24 +139,10 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
-        let Trig {
-            sphi,
-            cphi,
-            sth,
-            cth,
-            spsi,
-            cpsi,
-        } = *trig;
-        let fdx = drag(body.drag_lateral, s[VX], w[0]);
-        let fdy = drag(body.drag_lateral, s[VY], w[1]);
         let fdz = body.vertical_drag(s[VZ], w[2]);
         let spring = self.force(s);
-        // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
-        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly.
-        let cs = cphi * sth;
-        ds[VX] = cs.mul_add(cpsi, spsi * sphi).mul_add(u1, fdx) * self.inv_m_lateral;
-        ds[VY] = cs.mul_add(spsi, -(sphi * cpsi)).mul_add(u1, fdy) * self.inv_m_lateral;
-        let az = (cphi * cth).mul_add(u1, -spring) + fdz;
+        [ds[VX], ds[VY]] = self.lateral(body, s, trig, u1, w);
+        let az = (trig.cphi * trig.cth).mul_add(u1, -spring) + fdz;
         ds[VZ] = az * body.inv_m - body.g;
         ds[VZC] = self.acceleration(body, s, spring, w[2]);
         None
@@ -138,14 +153,16 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        _trig: &Trig<L>,
-        _u1: L,
+        trig: &Trig<L>,
+        u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
         let spring = self.force(s);
+        // The payload moves laterally with the quadrotor (docs/model.md section 12).
+        let [ax, ay] = self.lateral(body, s, trig, u1, w);
         PayloadOutputs {
             e_o: s[ZC] - s[ix::Z] + self.hover_offset,
-            accel_z: self.acceleration(body, s, spring, w[2]),
+            accel: [ax, ay, self.acceleration(body, s, spring, w[2])],
             tension: spring,
             swing: L::splat(0.0),
         }
