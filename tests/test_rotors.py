@@ -6,6 +6,8 @@ against their limits."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -56,7 +58,8 @@ class _Plant:
         self.kf = s["actuator.thrust_coefficient"]
         self.tau_m = s["actuator.time_constant"]
         self.t_min, self.t_max = s["actuator.thrust_min"], s["actuator.thrust_max"]
-        self.M = _allocation(s["actuator.layout"], s["vehicle.arm_length"], s["actuator.torque_ratio"])
+        arm, cq = s["vehicle.arm_length"], s["actuator.torque_ratio"]
+        self.M = _allocation(s["actuator.layout"], arm, cq)
         self.M_inv = np.linalg.inv(self.M)
 
     def speed_command(self, u1: float, tau: np.ndarray) -> np.ndarray:
@@ -64,10 +67,11 @@ class _Plant:
         return np.sqrt(np.clip(wanted, self.t_min, self.t_max) / self.kf)
 
     def f(self, s: np.ndarray, w_cmd: np.ndarray) -> np.ndarray:
-        x, y, z, phi, th, psi, zc, vx, vy, vz, p, q, r, vzc = s[:14]
+        _, _, z, phi, th, psi, zc, vx, vy, vz, p, q, r, vzc = s[:14]
         w = s[14:]
         u1, tx, ty, tz = self.M @ (self.kf * w**2)
-        cf, sf, ct, st, cp, sp = np.cos(phi), np.sin(phi), np.cos(th), np.sin(th), np.cos(psi), np.sin(psi)
+        cf, sf, ct, st = np.cos(phi), np.sin(phi), np.cos(th), np.sin(th)
+        cp, sp = np.cos(psi), np.sin(psi)
         fs = self.kc * (z - zc) + self.cc * (vz - vzc)
         ml = self.m + self.mc
         ax = ((cf * st * cp + sp * sf) * u1 - self.drag_lat * vx * abs(vx)) / ml
@@ -125,7 +129,11 @@ def _maneuver(paper: quadrs.Scenario, tau: float | None) -> quadrs.Scenario:
             "initial.attitude": [0.0, 0.0, 0.0],
             "trajectory.interpolation": "min_jerk",
             "trajectory.transition": 3.0,
-            "trajectory.waypoints": [[0, 0, 0, 2, 0], [2, 1.0, -0.5, 2.5, 0.3], [6, 1, -0.5, 2.5, 0.3]],
+            "trajectory.waypoints": [
+                [0, 0, 0, 2, 0],
+                [2, 1.0, -0.5, 2.5, 0.3],
+                [6, 1.0, -0.5, 2.5, 0.3],
+            ],
             "integrator.duration": 6.0,
             "integrator.dt": dt,
             "phases": [{"name": "all", "start": 0.0, "end": 6.0}],
@@ -157,7 +165,7 @@ def test_rotors_reduce_to_ideal_actuators_as_the_lag_vanishes(paper) -> None:
         diff = rotors.trace[columns].to_numpy() - ideal.trace[columns].to_numpy()
         gaps.append(float(np.max(np.abs(diff))))
     # Quantified (docs/model.md "Rotors"): about 1e-4 m or rad at tau = 4 ms, then halving.
-    ratios = [a / b for a, b in zip(gaps, gaps[1:], strict=False)]
+    ratios = [a / b for a, b in itertools.pairwise(gaps)]
     assert gaps[0] < 1e-3, gaps
     assert all(1.7 < r < 2.3 for r in ratios), (gaps, ratios)
 
@@ -231,6 +239,48 @@ def test_linearize_and_stability_see_the_rotor_states(climb) -> None:
     fast = st.poles[st.poles["mode"] == "actuator"]
     assert len(fast) == 4 and (fast["real"] < -0.5 / tau).all()
     np.testing.assert_allclose(
-        np.sort_complex(lin.poles()), np.sort_complex(st.poles["real"] + 1j * st.poles["imag"]),
+        np.sort_complex(lin.poles()),
+        np.sort_complex(st.poles["real"] + 1j * st.poles["imag"]),
         atol=1e-8,
     )
+
+
+def test_a_binding_limit_holds_every_rotor_and_counts_saturated_time(climb, tmp_path) -> None:
+    """The actual thrusts kf w^2 stay inside [thrust_min, thrust_max]; saturated_time is the
+    steps with a clamped command times dt, and the figure renders with them shaded."""
+    flight = quadrs.simulate(climb, "pd", record_every=1)
+    tr = flight.trace
+    thrusts = tr[["thrust_1", "thrust_2", "thrust_3", "thrust_4"]].to_numpy()
+    kf = climb["actuator.thrust_coefficient"]
+    np.testing.assert_allclose(thrusts, kf * tr[OMEGA].to_numpy() ** 2, rtol=1e-15)
+    t_min, t_max = climb["actuator.thrust_min"], climb["actuator.thrust_max"]
+    assert thrusts.max() <= t_max * (1 + 1e-12) and thrusts.min() >= t_min * (1 - 1e-12)
+    assert thrusts.max() > 0.99 * t_max
+    saturated = tr["saturated"].to_numpy()
+    assert set(np.unique(saturated)) == {0.0, 1.0}
+    dt = climb["integrator.dt"]
+    # The trace's last row is t = duration, after the last step: not a step of the metric.
+    expected = saturated[:-1].sum() * dt
+    got = float(flight.metrics["saturated_time"].iloc[0])
+    assert got > 0.1 and got == pytest.approx(expected, rel=1e-12, abs=dt)
+    ideal = quadrs.simulate(climb.override({"actuator.model": "ideal"}), "pd")
+    assert float(ideal.metrics["saturated_time"].iloc[0]) == 0.0
+
+    from quadrs import plots
+
+    fig = plots.rotors(flight, tmp_path / "rotors")
+    assert len(fig.axes) == 2 and (tmp_path / "rotors.png").stat().st_size > 0
+    with pytest.raises(ValueError, match=r"actuator\.model = 'rotors'"):
+        plots.rotors(ideal)
+
+
+def test_saturated_intervals_are_the_runs_of_the_flag() -> None:
+    from quadrs.plots_rotors import saturated_intervals
+
+    t = np.arange(8) * 0.5
+    assert saturated_intervals(t, [1, 1, 0, 0, 1, 0, 1, 1], 0.5) == [
+        (0.0, 1.0),
+        (2.0, 2.5),
+        (3.0, 4.0),
+    ]
+    assert saturated_intervals(t, np.zeros(8), 0.5) == []

@@ -1050,3 +1050,4 @@ def gust_spectrum(
 
 
 from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)
+from quadrs.plots_rotors import rotors  # noqa: E402, F401  (re-exported)

@@ -71,5 +71,6 @@ def rotors(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = None
             a.axvspan(start, end, color="0.85", zorder=0, lw=0, label="clamped" if i == 0 else None)
         a.set(xlabel="time (s)", ylabel=ylabel)
         _legend(a, ncols=3)
-    axes[0].set_title(f"Rotors ({s['actuator.layout']} layout), {_title(flight.controller, flight)}")
+    layout = s["actuator.layout"]
+    axes[0].set_title(f"Rotors ({layout} layout), {_title(flight.controller, flight)}")
     return _finish(fig, path)

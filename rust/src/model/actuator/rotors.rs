@@ -162,6 +162,9 @@ impl<L: Lane> Rotors<L> {
 impl<L: Lane> ActuatorModel<L> for Rotors<L> {
     const STATES: usize = 4;
     type Command = RotorCommand<L>;
+    /// The actual thrusts kf w_i^2 (N), and whether the step's command was clamped (0 or 1).
+    const SIGNALS: &'static [&'static str] =
+        &["thrust_1", "thrust_2", "thrust_3", "thrust_4", "saturated"];
 
     #[inline(always)]
     fn command(&self, u: &Inputs<L>) -> RotorCommand<L> {
@@ -212,6 +215,31 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         for i in 0..4 {
             s[at + i] = self.hover_speed;
         }
+    }
+
+    #[inline(always)]
+    fn signals<const N: usize>(
+        &self,
+        cmd: &RotorCommand<L>,
+        s: &State<L, N>,
+        at: usize,
+        out: &mut [L],
+    ) {
+        out[..4].copy_from_slice(&self.thrusts(s, at));
+        out[4] = self.saturated(cmd);
+    }
+
+    /// 1 where any rotor's wanted thrust lay outside [thrust_min, thrust_max] (or was NaN).
+    #[inline(always)]
+    fn saturated(&self, cmd: &RotorCommand<L>) -> L {
+        let mut inside = L::ALL;
+        for i in 0..4 {
+            inside &= cmd.wanted[i].le_mask(self.thrust_max) & self.thrust_min.le_mask(cmd.wanted[i]);
+        }
+        if inside == L::ALL {
+            return L::splat(0.0);
+        }
+        L::from_fn(|l| if inside & (1 << l) != 0 { 0.0 } else { 1.0 })
     }
 }
 
@@ -323,8 +351,20 @@ mod tests {
             let want = (cmd.thrust[i] / a.thrust_coefficient).sqrt();
             assert!((cmd.speed[i] - want).abs() < 1e-12 * want);
         }
+        assert_eq!(v.actuator.saturated(&cmd), 1.0);
+        let hover = v.actuator.command(&Inputs {
+            u1: weight(&cfg),
+            tau: [0.0; 3],
+        });
+        assert_eq!(v.actuator.saturated(&hover), 0.0);
         let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
         s[OMEGA..].copy_from_slice(&[500.0, 900.0, 1300.0, 700.0]);
+        let mut out = [0.0; 5];
+        v.actuator.signals(&cmd, &s, OMEGA, &mut out);
+        assert_eq!(out[4], 1.0);
+        for i in 0..4 {
+            assert_eq!(out[i], a.thrust_coefficient * s[OMEGA + i] * s[OMEGA + i]);
+        }
         let mut ds = [0.0; NX];
         v.actuator.derivative(&cmd, &s, OMEGA, &mut ds);
         for i in 0..4 {
