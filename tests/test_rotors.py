@@ -198,8 +198,8 @@ def test_the_trace_and_state_names_carry_the_rotor_speeds(climb) -> None:
     ],
 )
 def test_bad_rotors_are_refused_naming_the_key(paper, changes, key, says) -> None:
-    s = paper.override({"actuator.model": "rotors", "actuator.thrust_min": 0.5, **changes})
     with pytest.raises(quadrs.ScenarioError, match=says) as err:
+        s = paper.override({"actuator.model": "rotors", "actuator.thrust_min": 0.5, **changes})
         quadrs.simulate(s, "pd")
     assert key in str(err.value)
 
