@@ -155,7 +155,18 @@ impl Config {
                     _ => Target::Missing,
                 }
             }
-            ("actuator", "model") => flag(rest),
+            ("actuator", f) => {
+                let a = &mut self.actuator;
+                match f {
+                    "model" | "layout" => flag(rest),
+                    "thrust_coefficient" => one(&mut a.thrust_coefficient, rest),
+                    "torque_ratio" => one(&mut a.torque_ratio, rest),
+                    "time_constant" => one(&mut a.time_constant, rest),
+                    "thrust_min" => one(&mut a.thrust_min, rest),
+                    "thrust_max" => one(&mut a.thrust_max, rest),
+                    _ => Target::Missing,
+                }
+            }
             ("gust", f) => {
                 let g = &mut self.gust;
                 match f {

@@ -98,13 +98,91 @@ pub enum ActuatorModelName {
     /// The controller's thrust and torques act at once, without limit (the paper's).
     #[default]
     Ideal,
+    /// Four rotors with first-order speed dynamics and per-rotor thrust limits.
+    Rotors,
 }
 
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+/// Where the four rotors sit (`actuator.layout`): rotor i at arm angle a_i from body x.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotorLayout {
+    /// a = 45, 135, 225, 315 degrees.
+    #[default]
+    X,
+    /// a = 0, 90, 180, 270 degrees.
+    Plus,
+}
+
+impl RotorLayout {
+    /// The arm angles a_1..a_4 (rad).
+    pub fn angles(self) -> [f64; 4] {
+        let first = match self {
+            RotorLayout::X => 45.0,
+            RotorLayout::Plus => 0.0,
+        };
+        [0.0, 90.0, 180.0, 270.0].map(|a: f64| (first + a).to_radians())
+    }
+}
+
+/// `[actuator]` (docs/model.md section 8 and "Rotors"). The rotor keys are read only when
+/// `model = "rotors"`, but checked always (one set of rules).
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorConfig {
     #[serde(default)]
     pub model: ActuatorModelName,
+    #[serde(default)]
+    pub layout: RotorLayout,
+    /// N s^2/rad^2, kf in T = kf w^2.
+    #[serde(default = "default_thrust_coefficient")]
+    pub thrust_coefficient: f64,
+    /// m, cq: a rotor's yaw reaction torque per newton of its thrust.
+    #[serde(default = "default_torque_ratio")]
+    pub torque_ratio: f64,
+    /// s, tau_m of the rotor speed lag dw/dt = (w_cmd - w) / tau_m.
+    #[serde(default = "default_time_constant")]
+    pub time_constant: f64,
+    /// N per rotor, the commanded thrust's lower and upper clamps.
+    #[serde(default)]
+    pub thrust_min: f64,
+    #[serde(default = "default_rotor_thrust_max")]
+    pub thrust_max: f64,
+}
+
+impl Default for ActuatorConfig {
+    fn default() -> Self {
+        Self {
+            model: ActuatorModelName::default(),
+            layout: RotorLayout::default(),
+            thrust_coefficient: default_thrust_coefficient(),
+            torque_ratio: default_torque_ratio(),
+            time_constant: default_time_constant(),
+            thrust_min: 0.0,
+            thrust_max: default_rotor_thrust_max(),
+        }
+    }
+}
+
+/// N s^2/rad^2: a 10-inch multirotor propeller (RotorS and PX4's x500 `motorConstant`;
+/// docs/model.md "Rotors").
+pub fn default_thrust_coefficient() -> f64 {
+    8.54858e-6
+}
+
+/// m: RotorS and PX4's x500 `momentConstant` (docs/model.md "Rotors").
+pub fn default_torque_ratio() -> f64 {
+    0.016
+}
+
+/// s: a 2 kg class motor with a 10-inch propeller (docs/model.md "Rotors").
+pub fn default_time_constant() -> f64 {
+    0.03
+}
+
+/// N per rotor: thrust-to-weight about 2 for the paper's 2.42 kg loaded vehicle
+/// (docs/model.md "Rotors").
+pub fn default_rotor_thrust_max() -> f64 {
+    12.0
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -607,6 +685,7 @@ impl Config {
             ));
         }
         self.validate_phases()?;
+        self.validate_actuator()?;
 
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
         positive("divergence.max_distance", self.divergence.max_distance)?;
@@ -682,6 +761,74 @@ impl Config {
             }
         }
         positive("controller.smc.gamma", smc.gamma)
+    }
+
+    /// `[actuator]`: every rotor key in range always; whether the rotors can hold this
+    /// vehicle in hover and the lag can be integrated at this step only when they fly.
+    fn validate_actuator(&self) -> Result<(), ConfigError> {
+        let a = &self.actuator;
+        positive("actuator.thrust_coefficient", a.thrust_coefficient)?;
+        positive("actuator.torque_ratio", a.torque_ratio)?;
+        positive("actuator.time_constant", a.time_constant)?;
+        non_negative("actuator.thrust_min", a.thrust_min)?;
+        finite("actuator.thrust_max", a.thrust_max)?;
+        if a.thrust_max <= a.thrust_min {
+            return Err(ConfigError::new(
+                "actuator.thrust_max",
+                format!(
+                    "actuator.thrust_max must exceed actuator.thrust_min ({:?} N), got {:?}",
+                    a.thrust_min, a.thrust_max
+                ),
+            ));
+        }
+        if a.model != ActuatorModelName::Rotors {
+            return Ok(());
+        }
+        let l = self.vehicle.arm_length;
+        if l <= 0.0 {
+            return Err(ConfigError::new(
+                "vehicle.arm_length",
+                format!(
+                    "vehicle.arm_length must be > 0 with actuator.model = \"rotors\" (the rotors' \
+                     roll and pitch arms), got {l:?}"
+                ),
+            ));
+        }
+        let dt = self.integrator.dt;
+        if a.time_constant < dt {
+            return Err(ConfigError::new(
+                "actuator.time_constant",
+                format!(
+                    "actuator.time_constant must be at least integrator.dt ({dt:?} s): RK4 on \
+                     the rotor lag is unstable past dt / tau ~ 2.8; got {:?}",
+                    a.time_constant
+                ),
+            ));
+        }
+        let weight = (self.vehicle.mass + self.payload.mass) * self.environment.gravity;
+        if 4.0 * a.thrust_max < weight {
+            return Err(ConfigError::new(
+                "actuator.thrust_max",
+                format!(
+                    "actuator.thrust_max is too small to hover: 4 x {:?} N is below the weight \
+                     (vehicle.mass + payload.mass) x environment.gravity = {weight:?} N",
+                    a.thrust_max
+                ),
+            ));
+        }
+        if a.thrust_min > weight / 4.0 {
+            return Err(ConfigError::new(
+                "actuator.thrust_min",
+                format!(
+                    "actuator.thrust_min is too large to hover: {:?} N per rotor exceeds the \
+                     hover thrust per rotor (vehicle.mass + payload.mass) x environment.gravity \
+                     / 4 = {:?} N",
+                    a.thrust_min,
+                    weight / 4.0
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn validate_trajectory(&self) -> Result<(), ConfigError> {
@@ -938,6 +1085,66 @@ pub(crate) mod tests {
         assert_eq!(e.key, "vehicle.mass");
         let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();
         assert!(e.message.contains("exactly one"), "{e}");
+    }
+
+    #[test]
+    fn rotor_values_name_their_keys() {
+        let bad = |edit: fn(&mut Config)| {
+            let mut c = paper();
+            c.actuator.model = ActuatorModelName::Rotors;
+            edit(&mut c);
+            c.validate().unwrap_err()
+        };
+        let mut c = paper();
+        c.actuator.model = ActuatorModelName::Rotors;
+        c.validate().expect("the paper vehicle on its default rotors");
+        // 4 x 5 N = 20 N < (2.2 + 0.22) kg x 9.81 m/s^2 = 23.74 N.
+        let e = bad(|c| c.actuator.thrust_max = 5.0);
+        assert_eq!(e.key, "actuator.thrust_max");
+        assert!(
+            e.message.contains("too small to hover")
+                && e.message.contains("vehicle.mass + payload.mass"),
+            "{e}"
+        );
+        // Exactly the weight on four rotors still hovers; a heavier payload does not.
+        c.actuator.thrust_max = (2.2 + 0.22) * 9.81 / 4.0;
+        c.validate().expect("thrust_max = hover holds hover");
+        let e = bad(|c| c.payload.mass = 3.0);
+        assert_eq!(e.key, "actuator.thrust_max");
+        let e = bad(|c| c.actuator.thrust_min = 6.0);
+        assert_eq!(e.key, "actuator.thrust_min");
+        assert!(e.message.contains("too large to hover"), "{e}");
+        let e = bad(|c| c.actuator.time_constant = 1e-4);
+        assert_eq!(e.key, "actuator.time_constant");
+        assert!(e.message.contains("integrator.dt"), "{e}");
+        let e = bad(|c| c.vehicle.arm_length = 0.0);
+        assert_eq!(e.key, "vehicle.arm_length");
+        for (edit, key) in [
+            (
+                (|c: &mut Config| c.actuator.thrust_coefficient = 0.0) as fn(&mut Config),
+                "actuator.thrust_coefficient",
+            ),
+            (|c| c.actuator.torque_ratio = -0.01, "actuator.torque_ratio"),
+            (|c| c.actuator.time_constant = f64::NAN, "actuator.time_constant"),
+            (|c| c.actuator.thrust_min = -1.0, "actuator.thrust_min"),
+            (|c| c.actuator.thrust_max = 0.0, "actuator.thrust_max"),
+        ] {
+            assert_eq!(bad(edit).key, key);
+            // Checked with ideal actuators too: one set of rules.
+            let mut c = paper();
+            edit(&mut c);
+            assert_eq!(c.validate().unwrap_err().key, key);
+        }
+        // What only rotors need is not asked of ideal actuators.
+        let mut c = paper();
+        c.actuator.thrust_max = 1.0;
+        c.actuator.time_constant = 1e-6;
+        c.vehicle.arm_length = 0.0;
+        c.validate().expect("ideal actuators fly no rotors");
+        let e = with(|v| v["actuator"]["layout"] = "y".into()).unwrap_err();
+        assert_eq!(e.key, "actuator.layout");
+        let e = with(|v| v["actuator"]["model"] = "jets".into()).unwrap_err();
+        assert_eq!(e.key, "actuator.model");
     }
 
     #[test]
