@@ -289,7 +289,7 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         let accel = self.acceleration(body, s, &line, w);
         PayloadOutputs {
             e_o: (s[XC + 2] - line.hook[2]) + self.hover_length,
-            accel_z: accel[2],
+            accel,
             tension: line.tension,
             swing: Self::swing(&line),
         }
