@@ -234,6 +234,7 @@ impl Config {
                 }
             }
             ("ground", "altitude") => one(&mut self.ground.altitude, rest),
+            ("ground", "enabled") => Target::NotNumber,
             _ => Target::Missing,
         }
     }
