@@ -103,7 +103,10 @@ def test_a_lateral_step_with_an_offset_hook_agrees_with_an_independent_integrati
     steps = sc.steps
     t = np.arange(steps + 1) * sc["integrator.dt"]
     wind = np.column_stack([1.5 * np.sin(2 * t), 0.8 + 0 * t, 0.3 * np.cos(3 * t)])
-    flight = quadrs.simulate(sc, "pd", record_every=1, wind=wind)
+    # The PD's swing modes are unstable at hover with this line (a finding, not the point of
+    # this check): the 1.5 s step is far shorter than their 7 s e-folding.
+    with pytest.warns(quadrs.StabilityWarning, match="swing"):
+        flight = quadrs.simulate(sc, "pd", record_every=1, wind=wind)
     tr = flight.trace
     assert len(tr) == steps + 1 and not flight.diverged
     # order: positions, angles, payload positions, velocities, rates, payload velocities
