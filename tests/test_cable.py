@@ -181,6 +181,9 @@ def test_a_descent_faster_than_free_fall_slackens_the_cable(slung: quadrs.Scenar
     np.testing.assert_allclose(np.diff(tr["vxc"].to_numpy())[k], 0.0, atol=1e-15)
 
 
+# The paper's PD lets the swing grow slowly (see test_stability_names_the_swing_modes); the
+# identity checked here holds whatever the stability.
+@pytest.mark.filterwarnings("ignore::quadrs.StabilityWarning")
 def test_a_dispersed_cable_batch_row_is_its_single_flight(slung: quadrs.Scenario) -> None:
     sc = slung.override(
         {
@@ -209,14 +212,16 @@ def test_a_dispersed_cable_batch_row_is_its_single_flight(slung: quadrs.Scenario
 
 
 def test_stability_names_the_swing_modes(slung: quadrs.Scenario) -> None:
-    rep = quadrs.stability(slung)
+    # The SMC (retuned laterally, as in paper_stable_lateral) holds the swing; the paper's PD
+    # lets swing x grow slowly (+0.04 1/s): see docs/model.md.
+    rep = quadrs.stability(slung, "smc")
     poles = rep.poles if isinstance(rep.poles, pd.DataFrame) else pd.DataFrame(rep.poles)
     modes = set(poles["mode"])
     assert {"swing x", "swing y", "payload"} <= modes, modes
     swing = poles[poles["mode"].str.startswith("swing")]
     assert (swing["real"] < 0).all()
     lin = quadrs.linearize(slung, "pd", outputs=("e_o",))
-    assert set(CABLE_STATES) <= set(lin.states)
+    assert set(CABLE_STATES) <= set(lin.state_names)
 
 
 @pytest.mark.parametrize(
