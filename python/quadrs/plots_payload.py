@@ -13,17 +13,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from quadrs.plots import (
+from quadrs.plots_base import (
     AxesArg,
     Figure,
     Flights,
-    _finish,
-    _legend,
-    _named,
-    _panels,
-    _shade_gust,
-    _style,
-    _title,
+    add_legend,
+    finish_figure,
+    flight_title,
+    flights_by_label,
+    line_style,
+    panel_axes,
+    shade_gust,
 )
 
 __all__ = ["payload_path", "swing_tension"]
@@ -36,15 +36,15 @@ def swing_tension(
     two panels, one line per flight (PD dashed blue, SMC solid red), the gust window shaded.
     Read from ``Flight.trace`` columns ``swing`` (rad) and ``tension`` (N); for the vertical
     spring the angle is 0 and the "tension" is the spring force."""
-    named = _named(flights)
-    fig, (angle, pull) = _panels(ax, 2)
+    named = flights_by_label(flights)
+    fig, (angle, pull) = panel_axes(ax, 2)
     for i, (label, flight) in enumerate(named.items()):
         tr = flight.trace
-        angle.plot(tr.index, np.degrees(tr["swing"].to_numpy()), lw=1.0, **_style(label, i))
-        pull.plot(tr.index, tr["tension"].to_numpy(), lw=1.0, **_style(label, i))
+        angle.plot(tr.index, np.degrees(tr["swing"].to_numpy()), lw=1.0, **line_style(label, i))
+        pull.plot(tr.index, tr["tension"].to_numpy(), lw=1.0, **line_style(label, i))
     first = next(iter(named.values()))
     for a in (angle, pull):
-        _shade_gust(a, first)
+        shade_gust(a, first)
     angle.set(
         xlabel="time (s)",
         ylabel="cable angle from vertical (deg)",
@@ -52,9 +52,9 @@ def swing_tension(
     )
     pull.set(xlabel="time (s)", ylabel="cable tension (N)", title="how hard the line pulls")
     pull.axhline(0.0, color="0.5", lw=0.8, label="slack (no tension)")
-    _legend(angle)
-    _legend(pull)
-    return _finish(fig, path)
+    add_legend(angle)
+    add_legend(pull)
+    return finish_figure(fig, path)
 
 
 def _payload_xyz(trace: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -70,8 +70,8 @@ def payload_path(flights: Flights, path: str | Path | None = None, *, ax: AxesAr
     two panels per flight (one row each), the vehicle solid, the payload dashed, both starting
     at a dot. Positions in metres, from ``Flight.trace`` columns ``x, y, z`` and ``xc, yc,
     zc``."""
-    named = _named(flights)
-    fig, axes = _panels(ax, len(named), 2, width=9.0, height=3.6)
+    named = flights_by_label(flights)
+    fig, axes = panel_axes(ax, len(named), 2, width=9.0, height=3.6)
     for row, (label, flight) in enumerate(named.items()):
         side, top = axes[2 * row], axes[2 * row + 1]
         tr = flight.trace
@@ -86,10 +86,10 @@ def payload_path(flights: Flights, path: str | Path | None = None, *, ax: AxesAr
             a.plot(h[:1], v[:1], "o", color="tab:blue", ms=4, label="start")
             a.plot(hc[:1], vc[:1], "o", color="black", ms=4, label="_start")
             a.set(xlabel="forward x (m)", ylabel=vlabel)
-            _legend(a)
+            add_legend(a)
         # Equal scales: a swing looks like a swing. The side view spans the line's length.
         top.set_aspect("equal", adjustable="datalim")
         side.set_aspect("equal", adjustable="datalim")
-        side.set_title(f"side view; {_title(label, flight)}")
+        side.set_title(f"side view; {flight_title(label, flight)}")
         top.set_title("seen from above")
-    return _finish(fig, path)
+    return finish_figure(fig, path)

@@ -13,7 +13,7 @@ import numpy.typing as npt
 from matplotlib.figure import Figure
 
 from quadrs.flight import Flight
-from quadrs.plots import AxesArg, _finish, _legend, _panels, _title
+from quadrs.plots_base import AxesArg, add_legend, finish_figure, flight_title, panel_axes
 
 #: Trace columns of the rotors: speeds (states, rad/s) and actual thrusts kf w^2 (N).
 SPEEDS = ("omega_1", "omega_2", "omega_3", "omega_4")
@@ -56,7 +56,7 @@ def rotors(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = None
     t = tr.index.to_numpy(dtype=float)
     step = float(t[1] - t[0]) if len(t) > 1 else float(s["integrator.dt"])
     shaded = saturated_intervals(t, tr[SATURATED], step)
-    fig, axes = _panels(ax, 2, height=2.8)
+    fig, axes = panel_axes(ax, 2, height=2.8)
     panels = (
         (SPEEDS, tuple(float(np.sqrt(x / kf)) for x in limits), "rotor speed (rad/s)", "ω"),
         (THRUSTS, limits, "rotor thrust (N)", "T"),
@@ -70,7 +70,7 @@ def rotors(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = None
         for i, (start, end) in enumerate(shaded):
             a.axvspan(start, end, color="0.85", zorder=0, lw=0, label="clamped" if i == 0 else None)
         a.set(xlabel="time (s)", ylabel=ylabel)
-        _legend(a, ncols=3)
+        add_legend(a, ncols=3)
     layout = s["actuator.layout"]
-    axes[0].set_title(f"Rotors ({layout} layout), {_title(flight.controller, flight)}")
-    return _finish(fig, path)
+    axes[0].set_title(f"Rotors ({layout} layout), {flight_title(flight.controller, flight)}")
+    return finish_figure(fig, path)
