@@ -114,9 +114,10 @@ def test_real_sigint_keeps_the_levels_done(tmp_path: Path) -> None:
     out = tmp_path / "cut.parquet"
     master, terminal = pty.openpty()
     fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
-    # A threshold no flight reaches in a few levels: the run is stopped mid-way.
+    # A threshold no flight reaches in a few levels, and levels long enough (1000 flights)
+    # that a fast build cannot finish them all before the signal lands: stopped mid-way.
     command = [sys.executable, "-m", "quadrs.cli", *RARE, "--threshold", "40",
-               "--per-level", "100", "--workers", "1", "--out", str(out)]  # fmt: skip
+               "--per-level", "1000", "--workers", "1", "--out", str(out)]  # fmt: skip
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=terminal)
     os.close(terminal)
     seen = b""

@@ -6,7 +6,7 @@ formulas. Conventions as in :mod:`quadrs.plots` (Agg, PNG and SVG with ``path``,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -15,10 +15,9 @@ from matplotlib.figure import Figure
 from quadrs import _core
 from quadrs.flight import Flight
 from quadrs.gust import COMPONENTS, gust_scales
+from quadrs.plots_base import AxesArg, add_legend, finish_figure, loglog_axes, panel_axes
+from quadrs.psd import gust_spectrum_frame
 from quadrs.scenario import Scenario
-
-if TYPE_CHECKING:  # quadrs.plots re-exports this module: its helpers are imported on use
-    from quadrs.plots import AxesArg
 
 _AXES = ("x", "y", "z")
 
@@ -35,20 +34,18 @@ def wind_met(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = No
     ``wind_x``, ``wind_y``, ``wind_z``) against time, one panel per component (three
     panels), with the ``[wind]`` mean wind at the quadrotor's altitude dashed: what the
     turbulence and the discrete gusts ride on."""
-    from quadrs.plots import _finish, _legend, _panels
-
     trace = flight.trace
     t = trace.index.to_numpy(float)
     mean = mean_wind(flight.scenario, trace["z"].to_numpy(float))
-    fig, axes = _panels(ax, 3)
+    fig, axes = panel_axes(ax, 3)
     for i, (a, name) in enumerate(zip(axes, _AXES, strict=True)):
         a.plot(t, trace[f"wind_{name}"], color="tab:blue", lw=0.8, label="wind met")
         a.plot(t, mean[:, i], color="black", ls="--", lw=1.2, label="mean wind at z")
         a.set(xlabel="time (s)", ylabel=f"wind {name} (m/s)")
         a.grid(True, alpha=0.3)
-        _legend(a)
+        add_legend(a)
     axes[0].set_title(f"Wind met ({flight.controller.upper()}, realisation {flight.realisation})")
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def _scale(scenario: Scenario, key: str, given: float | None, word: str) -> float:
@@ -76,8 +73,6 @@ def gust_spectra_frame(
     scenario's own unless given; required where they follow the vehicle): for each of
     longitudinal, lateral, vertical, :func:`quadrs.plots.gust_spectrum_frame` with that
     component's MIL-F-8785C sigma and L (column ``component``)."""
-    from quadrs.plots import gust_spectrum_frame
-
     h = _scale(scenario, "gust.altitude", altitude, "vehicle")
     v = _scale(scenario, "gust.airspeed", airspeed, "relative")
     scales = gust_scales(h, scenario.turbulence_w20)
@@ -106,11 +101,9 @@ def gust_spectra(
     formula at that component's sigma and L: the ensemble-mean Welch PSD with a +-2
     standard-error band and the formula, log-log up to a fifth of the Nyquist frequency.
     ``frame``: from :func:`gust_spectra_frame`, called with ``params`` when None."""
-    from quadrs.plots import _finish, _legend, _loglog, _panels
-
     frame = gust_spectra_frame(**params) if frame is None else frame
     p = frame.attrs
-    fig, axes = _panels(ax, len(COMPONENTS))
+    fig, axes = panel_axes(ax, len(COMPONENTS))
     top = 0.1 / p["dt"]
     for a, c in zip(axes, COMPONENTS, strict=True):
         sel = frame[(frame["component"] == c) & (frame["frequency"] > 0)]
@@ -127,9 +120,9 @@ def gust_spectra(
             ylabel="PSD ((m/s)²/Hz)",
             title=f"{c}: sigma = {sigma:.3g} m/s, L = {length:.3g} m",
         )
-        _loglog(a, top)
-        _legend(a)
+        loglog_axes(a, top)
+        add_legend(a)
     axes[0].figure.suptitle(
         f"{p['model']} turbulence at h = {p['altitude']:g} m, V = {p['airspeed']:g} m/s"
     )
-    return _finish(fig, path)
+    return finish_figure(fig, path)

@@ -5,13 +5,22 @@ a Monte Carlo's. Signal processing only: the figures that draw them are in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
 from quadrs.flight import Flight
 
-__all__ = ["amplitude_to_psd", "ensemble_psd_frame", "phase_psd", "phase_window", "welch_psd"]
+__all__ = [
+    "amplitude_to_psd",
+    "ensemble_psd_frame",
+    "gust_spectrum_frame",
+    "phase_psd",
+    "phase_window",
+    "welch_psd",
+]
 
 
 def welch_psd(
@@ -107,4 +116,61 @@ def ensemble_psd_frame(spectra_frame: pd.DataFrame) -> pd.DataFrame:
     for _, idx in out.groupby(["controller", "phase"], sort=False).indices.items():
         psd[idx] = amplitude_to_psd(out["frequency"].to_numpy(float)[idx], np.sqrt(mean_sq[idx]))
     out["psd"] = psd
+    return out
+
+
+def gust_spectrum_frame(
+    component: str = "vertical",
+    sigma: float = 1.0,
+    length_scale: float = 2.0,
+    airspeed: float = 10.0,
+    dt: float = 0.01,
+    steps: int = 8192,
+    realisations: int = 64,
+    seed: int = 0,
+    *,
+    models: Sequence[str] = ("dryden", "von_karman"),
+    resolution: float | None = None,
+    workers: int | None = None,
+) -> pd.DataFrame:
+    """The generated gust's spectrum against the formula, per model: the Welch PSD
+    (:func:`welch_psd`, ``(m/s)^2/Hz``) of each of ``realisations`` series of
+    :func:`quadrs.gust.gust_series` (``steps`` samples every ``dt`` s), averaged (column
+    ``welch``, with its standard error ``welch_se`` over realisations), beside
+    :func:`quadrs.gust.gust_psd` at the same frequencies: ``filter`` (the forming filter the
+    series discretises) and ``formula`` (the Dryden or exact von Karman PSD). ``resolution``
+    defaults to 1 / (1024 dt) Hz. The sampled series' PSD is the aliased filter PSD: compare
+    well below the Nyquist frequency 1 / (2 dt)."""
+    from quadrs.gust import gust_psd, gust_series
+
+    if not dt > 0:
+        raise ValueError(f"dt must be positive (s), got {dt!r}")
+    resolution = 1.0 / (min(1024, steps) * dt) if resolution is None else resolution
+    parts = []
+    for model in models:
+        x = gust_series(
+            component, sigma, length_scale, airspeed, dt, steps, realisations, seed,
+            model=model, workers=workers,
+        )  # fmt: skip
+        f, p = welch_psd(x, 1.0 / dt, resolution)
+        p = np.atleast_2d(p)
+        realised, target = gust_psd(f, component, sigma, length_scale, airspeed, dt, model=model)
+        se = p.std(axis=0, ddof=1) / np.sqrt(len(p)) if len(p) > 1 else np.full(len(f), np.nan)
+        parts.append(
+            pd.DataFrame(
+                {
+                    "model": model,
+                    "frequency": f,
+                    "welch": p.mean(axis=0),
+                    "welch_se": se,
+                    "filter": realised,
+                    "formula": target,
+                }
+            )
+        )
+    out = pd.concat(parts, ignore_index=True)
+    out.attrs = {
+        "component": component, "sigma": sigma, "length_scale": length_scale,
+        "airspeed": airspeed, "dt": dt, "realisations": realisations,
+    }  # fmt: skip
     return out
