@@ -17,7 +17,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
-from quadrs.cli_common import BadInput, dask_client
+from quadrs.cli_common import BadInput, dask_client, seed_and_workers
 from quadrs.terminal import terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -85,14 +85,7 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
         metavar="N",
         help="gust realisations (each flown by every controller) (default: %(default)s)",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="W",
-        help="worker threads (default: every core this process may use)",
-    )
+    seed_and_workers(p)
     p.add_argument(
         "--controllers",
         type=_controllers,

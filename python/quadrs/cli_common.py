@@ -4,11 +4,12 @@ none of them imports another."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["BadInput", "dask_client"]
+__all__ = ["BadInput", "dask_client", "seed_and_workers"]
 
 
 class BadInput(ValueError):
@@ -31,3 +32,15 @@ def dask_client(address: str | None) -> Iterator[Any]:
         raise BadInput(f"--scheduler {address}: cannot connect ({e})") from None
     with client:
         yield client
+
+
+def seed_and_workers(p: argparse.ArgumentParser) -> None:
+    """The options every batch command takes: ``--seed`` and ``--workers``."""
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="W",
+        help="worker threads (default: every core this process may use)",
+    )
