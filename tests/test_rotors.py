@@ -229,12 +229,14 @@ def test_rotor_keys_disperse_per_realisation(climb) -> None:
 
 def test_linearize_and_stability_see_the_rotor_states(climb) -> None:
     """The rotor speeds are states of the linear model: the lag's -1/tau on A's diagonal, four
-    poles labelled "actuator", the rest those of the ideal vehicle moved a little by the lag."""
-    lin = quadrs.linearize(climb, "pd")
+    poles labelled "actuator", the rest those of the ideal vehicle moved a little by the lag.
+    With RotorS's spin-up lag (12.5 ms) the paper's PD stays stable."""
+    fast_rotors = climb.override({"actuator.time_constant": 0.0125})
+    lin = quadrs.linearize(fast_rotors, "pd")
     assert list(lin.state_names[-4:]) == OMEGA and lin.A.shape == (18, 18)
-    tau = climb["actuator.time_constant"]
+    tau = fast_rotors["actuator.time_constant"]
     np.testing.assert_allclose(np.diag(lin.A)[-4:], -1 / tau, rtol=1e-12)
-    st = quadrs.stability(climb, "pd")
+    st = quadrs.stability(fast_rotors, "pd")
     assert st.stable and len(st.poles) == 18
     fast = st.poles[st.poles["mode"] == "actuator"]
     assert len(fast) == 4 and (fast["real"] < -0.5 / tau).all()
@@ -242,6 +244,34 @@ def test_linearize_and_stability_see_the_rotor_states(climb) -> None:
         np.sort_complex(lin.poles()),
         np.sort_complex(st.poles["real"] + 1j * st.poles["imag"]),
         atol=1e-8,
+    )
+
+
+def test_the_rotor_lag_eats_the_paper_pds_lateral_margin(climb) -> None:
+    """The lag is seen where it matters: the paper's PD, stable with ideal actuators, loses its
+    x-pitch loop to the default 30 ms lag (a slow growing oscillation near 1 Hz), and the
+    ideal vehicle's poles come back as the lag goes to zero."""
+    import warnings
+
+    assert climb["actuator.time_constant"] == 0.03
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        slow = quadrs.stability(climb, "pd")
+        ideal = quadrs.stability(climb.override({"actuator.model": "ideal"}), "pd")
+    assert ideal.stable and not slow.stable
+    growing = slow.poles[slow.poles["real"] > 0]
+    assert len(growing) == 2 and (np.abs(growing["imag"]) > 2 * np.pi * 0.5).all()
+    assert (np.abs(growing["imag"]) < 2 * np.pi * 2.0).all()
+    tiny = quadrs.linearize(
+        climb.override({"actuator.time_constant": 1e-3, "integrator.dt": 1e-3}), "pd"
+    )
+    vehicle = np.sort_complex(tiny.poles()[np.abs(tiny.poles()) < 200])
+    np.testing.assert_allclose(
+        vehicle,
+        np.sort_complex(
+            quadrs.linearize(climb.override({"actuator.model": "ideal"}), "pd").poles()
+        ),
+        atol=0.05,
     )
 
 
