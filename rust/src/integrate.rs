@@ -396,6 +396,70 @@ macro_rules! flight_loop_for {
     )+};
 }
 
+/// A lane type's way into the flight loop: the one function compiled for the instruction set
+/// its operations need, and no other. Each (lane type, instruction set) pair the loop is
+/// compiled for costs a copy of the whole inlined model, controller and integrator per vehicle
+/// and law, so only the pairs that can run are built: the intrinsic lane types in their own
+/// instruction set, the portable ones (`f64` for single flights, `F64x4`) in the baseline
+/// one. The arithmetic never contracts or reorders, so the same lanes give the same bits in
+/// any of them.
+pub trait LoopEntry: KernelOps {
+    fn enter(
+        engine: &Engine,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>>;
+}
+
+macro_rules! portable_entry {
+    ($($ty:ty),+) => {$(
+        impl LoopEntry for $ty {
+            fn enter(
+                engine: &Engine,
+                req: &FlightRequest,
+                trace: Option<&mut Trace>,
+                planner: &mut FftPlanner<f64>,
+            ) -> Option<Vec<LaneResult>> {
+                engine.fly_any::<Self>(req, trace, planner)
+            }
+        }
+    )+};
+}
+portable_entry!(f64, F64x4);
+
+/// An intrinsic lane type enters only the loop compiled for its instruction set (and only on
+/// a CPU that has it: asserted, because the type's operations would be illegal otherwise).
+macro_rules! intrinsic_entry {
+    ($($ty:ty => $isa:expr, $fused:expr, $name:ident;)+) => {$(
+        #[cfg(target_arch = "x86_64")]
+        impl LoopEntry for $ty {
+            fn enter(
+                engine: &Engine,
+                req: &FlightRequest,
+                trace: Option<&mut Trace>,
+                planner: &mut FftPlanner<f64>,
+            ) -> Option<Vec<LaneResult>> {
+                let isa: Isa = $isa;
+                assert!(
+                    isa.supported() && (!$fused || isa.fused_supported()),
+                    "the {} path{} does not run on this CPU",
+                    isa.name(),
+                    if $fused { " (fused)" } else { "" }
+                );
+                // SAFETY: the CPU supports the instruction set (asserted just above).
+                unsafe { engine.$name::<Self>(req, trace, planner) }
+            }
+        }
+    )+};
+}
+intrinsic_entry! {
+    F64x4Avx => Isa::Avx2, false, fly_avx2;
+    F64x4Fma => Isa::Avx2, true, fly_avx2_fma;
+    F64x8Avx512 => Isa::Avx512, false, fly_avx512;
+    F64x8Fma512 => Isa::Avx512, true, fly_avx512;
+}
+
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
@@ -500,7 +564,7 @@ impl Engine {
 
     /// Fly `req.indices` (one per lane of `L`) on lane type `L`, with a trace of lane 0 if
     /// asked. Returns None if cancelled.
-    pub fn fly<L: KernelOps>(
+    pub fn fly<L: LoopEntry>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -521,8 +585,8 @@ impl Engine {
             self.set_lanes(),
             "one realisation index per lane"
         );
-        // The intrinsic lane types below are only ever flown by `fly_on`, which enters the loop
-        // compiled for (and checked to run on) `self.isa`.
+        // Each lane type below enters the loop compiled for its own instruction set
+        // (`LoopEntry`), checked to run on this CPU.
         match (self.isa, self.fused) {
             (Isa::Baseline, _) => self.fly_on::<F64x4>(req, None, planner),
             #[cfg(target_arch = "x86_64")]
@@ -538,11 +602,9 @@ impl Engine {
         }
     }
 
-    /// The one instruction-set dispatch: fly on lane type `L` inside the flight loop compiled
-    /// for `self.isa` (`fly_any` and everything it inlines, the whole model, controller and
-    /// integrator, becomes VEX or EVEX code). Refuses, rather than risks an illegal
-    /// instruction, a path the CPU cannot run.
-    fn fly_on<L: KernelOps>(
+    /// Enter the flight loop for lane type `L` (`LoopEntry`). Refuses, rather than risks an
+    /// illegal instruction, a path the CPU cannot run.
+    fn fly_on<L: LoopEntry>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -554,21 +616,7 @@ impl Engine {
             "one realisation index per lane"
         );
         assert!(L::LANES <= MAX_LANES);
-        assert!(
-            self.isa.supported() && (!self.fused || self.isa.fused_supported()),
-            "the {} path{} does not run on this CPU",
-            self.isa.name(),
-            if self.fused { " (fused)" } else { "" }
-        );
-        #[cfg(target_arch = "x86_64")]
-        match (self.isa, self.fused) {
-            // SAFETY (all three): the CPU supports the path (asserted just above).
-            (Isa::Avx2, false) => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
-            (Isa::Avx2, true) => return unsafe { self.fly_avx2_fma::<L>(req, trace, planner) },
-            (Isa::Avx512, _) => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
-            (Isa::Baseline, _) => {}
-        }
-        self.fly_any::<L>(req, trace, planner)
+        L::enter(self, req, trace, planner)
     }
 
     flight_loop_for! {

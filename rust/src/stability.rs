@@ -247,7 +247,14 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
             } else {
                 0.0
             };
-            poles.push(describe(vars, lambda, &block, &v, actuator, !sources.is_empty()));
+            poles.push(describe(
+                vars,
+                lambda,
+                &block,
+                &v,
+                actuator,
+                !sources.is_empty(),
+            ));
         }
     }
     poles.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));

@@ -1097,7 +1097,8 @@ pub(crate) mod tests {
         };
         let mut c = paper();
         c.actuator.model = ActuatorModelName::Rotors;
-        c.validate().expect("the paper vehicle on its default rotors");
+        c.validate()
+            .expect("the paper vehicle on its default rotors");
         // 4 x 5 N = 20 N < (2.2 + 0.22) kg x 9.81 m/s^2 = 23.74 N.
         let e = bad(|c| c.actuator.thrust_max = 5.0);
         assert_eq!(e.key, "actuator.thrust_max");
@@ -1125,7 +1126,10 @@ pub(crate) mod tests {
                 "actuator.thrust_coefficient",
             ),
             (|c| c.actuator.torque_ratio = -0.01, "actuator.torque_ratio"),
-            (|c| c.actuator.time_constant = f64::NAN, "actuator.time_constant"),
+            (
+                |c| c.actuator.time_constant = f64::NAN,
+                "actuator.time_constant",
+            ),
             (|c| c.actuator.thrust_min = -1.0, "actuator.thrust_min"),
             (|c| c.actuator.thrust_max = 0.0, "actuator.thrust_max"),
         ] {

@@ -73,6 +73,9 @@ pub trait Actuator: Clone + Sync + Send + Sized + 'static {
 }
 
 /// Every actuator kind's parameters: the one place the kinds are listed.
+// One per vehicle, read only when the lanes are gathered: a Box would add an allocation and an
+// indirection for the few hundred bytes the rotors' allocation matrices take.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum AnyActuator {
     Ideal(Ideal),

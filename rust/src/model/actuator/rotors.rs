@@ -45,7 +45,9 @@ pub fn allocation(layout: RotorLayout, arm: f64, torque_ratio: f64) -> [[f64; 4]
 /// singular (l or cq zero: refused by `Config::validate`).
 pub fn allocation_inverse(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
     let inv = Matrix4::from_fn(|i, j| m[i][j]).try_inverse()?;
-    Some(std::array::from_fn(|i| std::array::from_fn(|j| inv[(i, j)])))
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| inv[(i, j)])
+    }))
 }
 
 /// The rotors' parameters: `L = f64` for one vehicle, a lane type for one per lane.
@@ -171,7 +173,12 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         let inv = &self.inverse;
         let wanted: [L; 4] = state_from_fn(
             #[inline(always)]
-            |i| inv[i][0] * u.u1 + inv[i][1] * u.tau[0] + inv[i][2] * u.tau[1] + inv[i][3] * u.tau[2],
+            |i| {
+                inv[i][0] * u.u1
+                    + inv[i][1] * u.tau[0]
+                    + inv[i][2] * u.tau[1]
+                    + inv[i][3] * u.tau[2]
+            },
         );
         let thrust: [L; 4] = state_from_fn(
             #[inline(always)]
@@ -234,7 +241,8 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
     fn saturated(&self, cmd: &RotorCommand<L>) -> L {
         let mut inside = L::ALL;
         for i in 0..4 {
-            inside &= cmd.wanted[i].le_mask(self.thrust_max) & self.thrust_min.le_mask(cmd.wanted[i]);
+            inside &=
+                cmd.wanted[i].le_mask(self.thrust_max) & self.thrust_min.le_mask(cmd.wanted[i]);
         }
         if inside == L::ALL {
             return L::splat(0.0);
@@ -257,7 +265,8 @@ mod tests {
     fn rotor_config() -> Config {
         let mut cfg = paper();
         cfg.actuator.model = ActuatorModelName::Rotors;
-        cfg.validate().expect("the paper vehicle on its default rotors");
+        cfg.validate()
+            .expect("the paper vehicle on its default rotors");
         cfg
     }
 
@@ -279,10 +288,7 @@ mod tests {
         .map(|v| v.name)
         .collect();
         assert_eq!(names.len(), NX);
-        assert_eq!(
-            names[OMEGA..],
-            ["omega_1", "omega_2", "omega_3", "omega_4"]
-        );
+        assert_eq!(names[OMEGA..], ["omega_1", "omega_2", "omega_3", "omega_4"]);
     }
 
     #[test]
@@ -323,7 +329,10 @@ mod tests {
             let felt = v.actuator.inputs(&cmd, &s, OMEGA);
             assert!((felt.u1 - u.u1).abs() < 1e-13 * u.u1, "{layout:?}");
             for k in 0..3 {
-                assert!((felt.tau[k] - u.tau[k]).abs() < 1e-14, "{layout:?} tau[{k}]");
+                assert!(
+                    (felt.tau[k] - u.tau[k]).abs() < 1e-14,
+                    "{layout:?} tau[{k}]"
+                );
             }
             let mut ds = [0.0; NX];
             v.actuator.derivative(&cmd, &s, OMEGA, &mut ds);
@@ -341,12 +350,21 @@ mod tests {
         // than thrust_min.
         let cmd = v.actuator.command(&Inputs {
             u1: 30.0,
-            tau: [2.0, 0.0, 0.0],
+            tau: [4.0, 0.0, 0.0],
         });
         let wanted = cmd.wanted;
-        assert!(wanted[0] > a.thrust_max && wanted[1] > a.thrust_max, "{wanted:?}");
-        assert!(wanted[2] < a.thrust_min && wanted[3] < a.thrust_min, "{wanted:?}");
-        assert_eq!(cmd.thrust, [a.thrust_max, a.thrust_max, a.thrust_min, a.thrust_min]);
+        assert!(
+            wanted[0] > a.thrust_max && wanted[1] > a.thrust_max,
+            "{wanted:?}"
+        );
+        assert!(
+            wanted[2] < a.thrust_min && wanted[3] < a.thrust_min,
+            "{wanted:?}"
+        );
+        assert_eq!(
+            cmd.thrust,
+            [a.thrust_max, a.thrust_max, a.thrust_min, a.thrust_min]
+        );
         for i in 0..4 {
             let want = (cmd.thrust[i] / a.thrust_coefficient).sqrt();
             assert!((cmd.speed[i] - want).abs() < 1e-12 * want);
@@ -426,8 +444,14 @@ mod tests {
                         let mi: f64 = (0..4).map(|k| m[i][k] * inv[k][j]).sum();
                         let im: f64 = (0..4).map(|k| inv[i][k] * m[k][j]).sum();
                         let id = if i == j { 1.0 } else { 0.0 };
-                        assert!((mi - id).abs() < 1e-14, "{layout:?} M M^-1 [{i}][{j}] = {mi}");
-                        assert!((im - id).abs() < 1e-14, "{layout:?} M^-1 M [{i}][{j}] = {im}");
+                        assert!(
+                            (mi - id).abs() < 1e-14,
+                            "{layout:?} M M^-1 [{i}][{j}] = {mi}"
+                        );
+                        assert!(
+                            (im - id).abs() < 1e-14,
+                            "{layout:?} M^-1 M [{i}][{j}] = {im}"
+                        );
                     }
                 }
             }
