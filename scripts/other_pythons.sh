@@ -33,6 +33,8 @@ for py in "${pythons[@]}"; do
     "$venv/bin/python" -m pip install -q --upgrade pip
     # The engine is an abi3 wheel (one for every CPython >= 3.10): build it once, with the
     # first Python, and install that same wheel into every other one.
+    # QUADRS_WHEEL (set by scripts/test.sh) is a wheel built already.
+    wheel="${wheel:-${QUADRS_WHEEL:-}}"
     if [ -z "${wheel:-}" ]; then
         wheels=$(mktemp -d)
         "$venv/bin/python" -m pip wheel -q --no-deps -w "$wheels" .

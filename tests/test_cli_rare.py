@@ -114,10 +114,18 @@ def test_real_sigint_keeps_the_levels_done(tmp_path: Path) -> None:
     out = tmp_path / "cut.parquet"
     master, terminal = pty.openpty()
     fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
-    # A threshold no flight reaches in a few levels: the run is stopped mid-way.
+    # A threshold no flight reaches in a few levels, and levels long enough (1000 flights)
+    # that a fast build cannot finish them all before the signal lands: stopped mid-way.
     command = [sys.executable, "-m", "quadrs.cli", *RARE, "--threshold", "40",
-               "--per-level", "100", "--workers", "1", "--out", str(out)]  # fmt: skip
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=terminal)
+               "--per-level", "1000", "--workers", "1", "--out", str(out)]  # fmt: skip
+    # The child starts with Ctrl-C at its default, as from a terminal: a test process whose
+    # SIGINT is ignored (something imported during collection sets that) would pass SIG_IGN on.
+    proc = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=terminal,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     os.close(terminal)
     seen = b""
     try:

@@ -280,8 +280,13 @@ def test_ctrl_c_during_a_write_is_delivered_after_it(tmp_path: Path) -> None:
         time.sleep(0.05)
         f.write(b"b" * 1000)
 
-    with pytest.raises(KeyboardInterrupt):
-        atomic_write(target, write)
+    # Python's own Ctrl-C handler, whatever an earlier test in this process left installed.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            atomic_write(target, write)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert target.read_bytes() == b"a" * 1000 + b"b" * 1000
     assert [p.name for p in tmp_path.iterdir()] == ["f.bin"]
 

@@ -173,7 +173,7 @@ def test_the_command_on_a_scenario_of_ones_own_phases(
     text = capsys.readouterr().out
     assert rc == 0 and text.startswith("PD, 8 realisations")
     rows = [line.split()[0] for line in text.splitlines() if line[:5] in ("calm ", "gusty")]
-    # One row each in every table (acceleration, tracking, and the payload's when present).
+    # One row per phase in each table (acceleration, tracking, attachment...).
     assert rows.count("calm") == rows.count("gusty") >= 2
     assert "q50" in text
 

@@ -27,6 +27,7 @@ class Description(TypedDict):
     stiffness: float
     hover_offset: float
     steps: int
+    turbulence_w20: float
     phases: list[str]
     state_names: list[str]
     trace_columns: list[str]
@@ -166,6 +167,7 @@ def run_batch(
     fused: bool = False,
 ) -> BatchResult: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
+def mean_wind(config_json: str, altitudes: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
 def gust_psd(
     model: str,
     component: str,

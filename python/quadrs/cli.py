@@ -17,16 +17,13 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
+from quadrs.cli_common import BadInput, dask_client, seed_and_workers
 from quadrs.terminal import terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 130, 143
-
-
-class BadInput(ValueError):
-    """Bad command-line input caught by the CLI itself (not by the scenario)."""
 
 
 class Parser(argparse.ArgumentParser):
@@ -88,14 +85,7 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
         metavar="N",
         help="gust realisations (each flown by every controller) (default: %(default)s)",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="W",
-        help="worker threads (default: every core this process may use)",
-    )
+    seed_and_workers(p)
     p.add_argument(
         "--controllers",
         type=_controllers,
@@ -698,7 +688,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
         if any(args.checkpoint.iterdir()):
             raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
     _check_outputs(args.out)
-    with _dask_client(args.scheduler) as client:
+    with dask_client(args.scheduler) as client:
         mc = monte_carlo(
             scenario,
             runs=args.runs,
@@ -734,24 +724,6 @@ def _print_dispersions(mc: Any) -> None:
         print(f"Dispersed ({mc.sampling} sampling, values per realisation in the runs table):")
         for line in lines:
             print(f"  {line}")
-
-
-@contextlib.contextmanager
-def _dask_client(address: str | None) -> Iterator[Any]:
-    """A Dask client for ``--scheduler`` (None without it): Dask is imported only then."""
-    if address is None:
-        yield None
-        return
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise BadInput("--scheduler needs Dask: pip install 'quadrs[dask]'") from None
-    try:
-        client = Client(address, timeout="10s")
-    except (OSError, TimeoutError) as e:
-        raise BadInput(f"--scheduler {address}: cannot connect ({e})") from None
-    with client:
-        yield client
 
 
 def _mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
@@ -795,7 +767,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     _check_positive("--runs", args.runs)
     _check_positive("--workers", args.workers)
     _check_outputs(args.out)
-    with _dask_client(args.scheduler) as client:
+    with dask_client(args.scheduler) as client:
         result = sweep(
             scenario,
             grid,

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from quadrs.cli_common import seed_and_workers
 from quadrs.guard import CONTROLLERS
 
 EXIT_OK, EXIT_FAIL, EXIT_INTERRUPT = 0, 1, 130
@@ -76,14 +77,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controller", choices=CONTROLLERS, default="smc", help="controller (default: smc)"
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="W",
-        help="worker threads (default: every core this process may use)",
-    )
+    seed_and_workers(p)
     p.add_argument(
         "--out",
         type=Path,

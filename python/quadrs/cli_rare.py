@@ -140,7 +140,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     """Subset simulation of one controller, or of several paired on the same gusts (each
     one's table, then the ratios to the first): optional Parquet; 130 if interrupted (the
     finished levels are reported and saved)."""
-    from quadrs.cli import _dask_client
+    from quadrs.cli_common import dask_client
     from quadrs.rare import rare_event
     from quadrs.rare.result import RareEventComparison, RareEventResult
     from quadrs.rare.subset import Level, check_settings
@@ -177,7 +177,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                   f"{level.acceptance_rate:.2f}, {level.flights} flights",
                   file=sys.stderr, flush=True)  # fmt: skip
 
-    with _dask_client(args.scheduler) as client:
+    with dask_client(args.scheduler) as client:
         out = rare_event(
             scenario,
             controller=controllers[0],

@@ -179,5 +179,6 @@ def equivalent_wind(scenario: Scenario) -> float:
     comps = scenario["gust.components"]
     if not scenario["gust.enabled"] or "vertical" not in comps:
         return 0.0
-    sigma = _core.low_altitude_scales(float(scenario["gust.altitude"]), float(scenario["gust.w20"]))
+    # sigma_z = 0.1 W20 at every altitude: any altitude serves (gust.altitude may be "vehicle").
+    sigma = _core.low_altitude_scales(10.0, scenario.turbulence_w20)
     return float(sigma[0][2]) * math.sqrt(2.0 / math.pi)

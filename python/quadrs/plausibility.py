@@ -94,8 +94,8 @@ def findings(data: dict[str, Any]) -> list[str]:
         out.append(
             f"{_fmt('gust.w20', w20)} is beyond severe turbulence (45 kt = 23 m/s): knots or ft/s?"
         )
-    altitude = _value(data, "gust.altitude")
-    if altitude is not None and altitude > MAX_GUST_ALTITUDE:
+    altitude = _value(data, "gust.altitude")  # or "vehicle": clamped by the engine
+    if isinstance(altitude, int | float) and altitude > MAX_GUST_ALTITUDE:
         out.append(
             f"{_fmt('gust.altitude', altitude)} is above the low-altitude Dryden model's "
             "1000 ft (305 m): feet?"

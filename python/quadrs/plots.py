@@ -20,213 +20,57 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
 import numpy as np
-import numpy.typing as npt
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from quadrs import plots_base as _base
+from quadrs import psd as _psd
 from quadrs.flight import Flight
-from quadrs.parquet import atomic_write
+from quadrs.plots_base import (
+    CYCLE,
+    DISPLACEMENT,
+    STYLE,
+    UNITS,
+    AxesArg,
+    Flights,
+    add_legend,
+    controller_label,
+    finish_figure,
+    flight_title,
+    flights_by_label,
+    gust_window,
+    label_with_unit,
+    line_style,
+    loglog_axes,
+    panel_axes,
+    shade_gust,
+    short_label,
+)
+from quadrs.psd import phase_psd, phase_window
 from quadrs.report import phase_diverged
 from quadrs.route import FLIGHT_PHASE
-from quadrs.units import UNITS as KEY_UNITS
 
-#: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
-FMAX = 10.0
-FORMATS = ("png", "svg")
-STYLE: dict[str, dict[str, Any]] = {
-    "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
-    "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
-}
-#: Units of the metric columns and of common sweep keys, for axis labels.
-UNITS = {
-    "iae": "m s",
-    "itae": "m s²",
-    "max_abs": "m",
-    "rms": "m",
-    "tracking_rms": "m",
-    "peak_frequency": "Hz",
-    "peak_amplitude": "m",
-    "max_accel": "m/s²",
-    "rms_accel": "m/s²",
-    "max_tracking": "m",
-    "rms_cross_track": "m",
-    "max_cross_track": "m",
-    # every scenario key, from the package's one table of them (quadrs.units)
-    **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
-}
-#: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
-#: labels a metric or key through these (a key not listed shows as itself).
-PLAIN_LABELS = {
-    "max_accel": "Payload acceleration peak (m/s²)",
-    "rms_accel": "Payload acceleration RMS (m/s²)",
-    "max_abs": "Peak |payload relative displacement| (m)",
-    "rms": "RMS payload relative displacement (m)",
-    "iae": "Integrated absolute displacement, IAE (m s)",
-    "itae": "Time-weighted IAE, ITAE (m s²)",
-    "tracking_rms": "RMS altitude tracking error (m)",
-    "max_tracking": "Peak 3-D tracking error (m)",
-    "rms_cross_track": "RMS cross-track error (m)",
-    "max_cross_track": "Peak cross-track error (m)",
-    "peak_frequency": "Frequency of the displacement's spectral peak (Hz)",
-    "peak_amplitude": "Amplitude of the displacement's spectral peak (m)",
-    "payload.natural_frequency": "Attachment natural frequency (Hz)",
-    "payload.stiffness": "Attachment stiffness (N/m)",
-    "payload.mass": "Payload mass (kg)",
-    "payload.damping": "Attachment damping (N s/m)",
-    "payload.drag_area": "Payload drag area (m²)",
-    "gust.w20": "Wind at 20 ft (m/s)",
-    "gust.airspeed": "Airspeed (m/s)",
-    "gust.altitude": "Altitude of the gust model (m)",
-    "gust.air_density": "Air density (kg/m³)",
-    "vehicle.mass": "Quadrotor mass (kg)",
-    "vehicle.drag_area": "Quadrotor drag area (m²)",
-    "integrator.dt": "Integration step (s)",
-}
-#: Short names for titles (the label without its unit, where that is long).
-SHORT_NAMES = {
-    "max_abs": "Peak |relative displacement|",
-    "rms": "RMS relative displacement",
-    "iae": "IAE",
-    "itae": "ITAE",
-    "tracking_rms": "RMS tracking error",
-    "peak_frequency": "Spectral peak frequency",
-    "peak_amplitude": "Spectral peak amplitude",
-    "max_accel": "Peak payload acceleration",
-    "rms_accel": "RMS payload acceleration",
-}
-#: What the trace's e_o = (zc - z) + d0 is called on a figure.
-DISPLACEMENT = "payload relative displacement"
-_CYCLE = ("tab:blue", "black", "goldenrod", "tab:green", "tab:purple", "tab:brown")
+#: Display names of the gust models.
+_MODEL_NAMES = {"dryden": "Dryden", "von_karman": "von Kármán"}
 
-Flights = Flight | Sequence[Flight] | Mapping[str, Flight]
-#: Where to draw: None (a new figure), one Axes, or one Axes per panel.
-AxesArg = Axes | Sequence[Axes] | None
 
+#: Public names re-exported from where they now live (the figure machinery in
+#: quadrs.plots_base, the signal processing in quadrs.psd): ``plots.save`` and the rest stay.
+FMAX = _base.FMAX
+FORMATS = _base.FORMATS
+PLAIN_LABELS = _base.PLAIN_LABELS
+SHORT_NAMES = _base.SHORT_NAMES
+new_figure = _base.new_figure
+save = _base.save
+amplitude_to_psd = _psd.amplitude_to_psd
+ensemble_psd_frame = _psd.ensemble_psd_frame
+gust_spectrum_frame = _psd.gust_spectrum_frame
+welch_psd = _psd.welch_psd
 
 # -- helpers --------------------------------------------------------------------------------
-def new_figure(nrows: int = 1, ncols: int = 1, width: float = 7.0, height: float = 3.0) -> Figure:
-    """An Agg-backed figure of ``nrows x ncols`` panels, ``height`` inches per row."""
-    fig = Figure(figsize=(width, height * nrows), layout="constrained")
-    FigureCanvasAgg(fig)
-    fig.subplots(nrows, ncols, squeeze=False)
-    return fig
-
-
-def save(fig: Figure, path: str | Path, formats: Sequence[str] = FORMATS) -> list[Path]:
-    """Write ``fig`` as ``path.<fmt>`` for each format (the directory is created); returns the
-    files written. A suffix already on ``path`` is replaced."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    written = []
-    with matplotlib.rc_context({"svg.hashsalt": "quadrs"}):
-        for fmt in formats:
-            target = path.with_suffix(f".{fmt}")
-            meta = {"Date": None} if fmt == "svg" else None
-            atomic_write(
-                target,
-                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),  # type: ignore[misc]
-            )
-            written.append(target)
-    return written
-
-
-def _finish(fig: Figure, path: str | Path | None) -> Figure:
-    if path is not None:
-        save(fig, path)
-    return fig
-
-
-def _panels(
-    ax: AxesArg, nrows: int, ncols: int = 1, width: float = 7.0, height: float = 3.0
-) -> tuple[Figure, list[Axes]]:
-    """The figure and its ``nrows x ncols`` panels (row-major): a new figure, or the caller's
-    ``ax`` (one Axes for a one-panel figure, else a sequence of exactly that many Axes)."""
-    n = nrows * ncols
-    if ax is None:
-        fig = new_figure(nrows, ncols, width, height)
-        return fig, list(fig.axes)
-    axes = [ax] if isinstance(ax, Axes) else list(ax)
-    if len(axes) != n or not all(isinstance(a, Axes) for a in axes):
-        raise ValueError(
-            f"ax must be {'an Axes' if n == 1 else f'a sequence of {n} Axes'} (one per panel), "
-            f"got {ax!r}"
-        )
-    root = axes[0].get_figure(root=True)
-    if not isinstance(root, Figure):
-        raise ValueError("ax must belong to a Figure")
-    return root, axes
-
-
-def _axes(fig: Figure) -> list[Axes]:
-    return list(fig.axes)
-
-
-def _named(flights: Flights) -> dict[str, Flight]:
-    """Flights keyed by a label: the controller name, or the mapping's own keys."""
-    if isinstance(flights, Flight):
-        return {flights.controller: flights}
-    if isinstance(flights, Mapping):
-        return dict(flights)
-    out: dict[str, Flight] = {}
-    for f in flights:
-        label = f.controller if f.controller not in out else f"{f.controller} #{len(out)}"
-        out[label] = f
-    return out
-
-
-def _style(label: str, index: int, markers: bool = False) -> dict[str, Any]:
-    """The paper's style for "pd"/"smc"; otherwise the ``index``-th colour and dash."""
-    base = STYLE.get(label.lower())
-    if base is not None:
-        style = dict(base)
-    else:
-        style = {
-            "color": _CYCLE[index % len(_CYCLE)],
-            "linestyle": ("-", "--", "-.", ":")[index % 4],
-            "marker": "o",
-            "label": label,
-        }
-    if not markers:
-        style.pop("marker")
-    return style
-
-
-def _ctrl_name(ctrl: str) -> str:
-    return str(STYLE.get(ctrl.lower(), {}).get("label", ctrl))
-
-
-def _phase_window(flight: Flight, phase: str) -> tuple[float, float]:
-    windows = flight.scenario.phase_windows
-    if phase in windows:
-        return windows[phase]
-    raise ValueError(f"phase must be one of {flight.scenario.phase_names}, got {phase!r}")
-
-
-def _gust_window(flight: Flight) -> tuple[float, float] | None:
-    s = flight.scenario
-    return (float(s["gust.start"]), float(s["gust.end"])) if s["gust.enabled"] else None
-
-
-def _unit(name: str) -> str:
-    """The plain label of a metric or key with its unit; ``name (unit)`` if it has none."""
-    if name in PLAIN_LABELS:
-        return PLAIN_LABELS[name]
-    return f"{name} ({UNITS[name]})" if name in UNITS else name
-
-
-def _short(name: str) -> str:
-    """A metric's or key's name for a title: short, without its unit."""
-    return SHORT_NAMES.get(name) or _unit(name).split(" (")[0]
-
-
-def _legend(ax: Axes, **kwargs: Any) -> None:
-    """A legend of every labelled artist (call after drawing them all)."""
-    ax.legend(loc="best", fontsize="small", **kwargs)
 
 
 def _phases(flight: Flight, phases: Sequence[str] | None) -> list[str]:
@@ -243,27 +87,17 @@ def _own_phases(df: pd.DataFrame) -> list[str]:
 def altitude(flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None) -> Figure:
     """Reference, quadrotor and payload altitude against time (paper Figs. 4 and 7), one panel
     per flight, from ``Flight.trace`` columns ``z_ref``, ``z`` and ``zc``."""
-    named = _named(flights)
-    fig, axes = _panels(ax, len(named))
+    named = flights_by_label(flights)
+    fig, axes = panel_axes(ax, len(named))
     for a, (label, flight) in zip(axes, named.items(), strict=True):
         tr = flight.trace
         a.plot(tr.index, tr["z_ref"], color="tab:red", lw=1.2, label="reference")
         a.plot(tr.index, tr["z"], color="tab:blue", lw=1.0, label="quadrotor")
         a.plot(tr.index, tr["zc"], color="black", ls="--", lw=1.0, label="payload")
-        _shade_gust(a, flight)
-        a.set(xlabel="time (s)", ylabel="altitude (m)", title=_title(label, flight))
-        _legend(a)
-    return _finish(fig, path)
-
-
-def _title(label: str, flight: Flight) -> str:
-    return f"{_ctrl_name(label)}: seed {flight.seed}, realisation {flight.realisation}"
-
-
-def _shade_gust(ax: Axes, flight: Flight) -> None:
-    window = _gust_window(flight)
-    if window is not None:
-        ax.axvspan(*window, color="0.9", zorder=0, label="gust window")
+        shade_gust(a, flight)
+        a.set(xlabel="time (s)", ylabel="altitude (m)", title=flight_title(label, flight))
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def oscillation(
@@ -276,25 +110,25 @@ def oscillation(
     """Payload relative displacement e_o = (zc - z) + d0 against time, one panel per phase, one
     line per flight (paper Figs. 5, 9 and 11: PD dashed blue against SMC solid red; fly both
     with the same seed for a paired comparison). Black lines mark the gust's start and end."""
-    named = _named(flights)
+    named = flights_by_label(flights)
     first = next(iter(named.values()))
     phases = _phases(first, phases)
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     for a, phase in zip(axes, phases, strict=True):
-        lo, hi = _phase_window(first, phase)
+        lo, hi = phase_window(first, phase)
         for i, (label, flight) in enumerate(named.items()):
             e = flight.trace["e_o"]
             part = e[(e.index >= lo) & (e.index <= hi)]
-            a.plot(part.index, part.to_numpy(), lw=1.0, **_style(label, i))
-        window = _gust_window(first)
+            a.plot(part.index, part.to_numpy(), lw=1.0, **line_style(label, i))
+        window = gust_window(first)
         edges = [t for t in (window or ()) if lo <= t <= hi]
         for k, t in enumerate(edges):
             a.axvline(t, color="black", lw=1.0, label="gust start/end" if k == 0 else "_edge")
         a.set(
             xlabel="time (s)", ylabel=f"{DISPLACEMENT} (m)", title=f"relative oscillation, {phase}"
         )
-        _legend(a)
-    return _finish(fig, path)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def spectra(
@@ -310,92 +144,19 @@ def spectra(
     flight (paper Figs. 6, 10, 12; with a mapping such as ``{"gust": f1, "no gust": f0}``,
     Fig. 8), from ``Flight.spectra[phase]`` (``frequency`` Hz, ``amplitude`` m), 0 to ``fmax``
     Hz. ``title`` (default: what is shown) is followed by the phase."""
-    named = _named(flights)
+    named = flights_by_label(flights)
     phases = _phases(next(iter(named.values())), phases)
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     for a, phase in zip(axes, phases, strict=True):
         for i, (label, flight) in enumerate(named.items()):
             sp = flight.spectra[phase]
             sp = sp[sp["frequency"] <= fmax]
-            a.plot(sp["frequency"], sp["amplitude"], lw=1.0, **_style(label, i))
+            a.plot(sp["frequency"], sp["amplitude"], lw=1.0, **line_style(label, i))
         what = title or f"amplitude spectrum of the {DISPLACEMENT}"
         a.set(xlabel="frequency (Hz)", ylabel="amplitude (m)", title=f"{what}, {phase}")
         a.set_xlim(0, fmax)
-        _legend(a)
-    return _finish(fig, path)
-
-
-def welch_psd(
-    signal: npt.ArrayLike, rate: float, resolution: float | None = None
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """One-sided power spectral density of a uniformly sampled signal (units^2/Hz), by Welch's
-    method: Hann-windowed segments of ``1 / resolution`` s (default, and at most, the whole
-    record), 50 % overlap, each segment's mean removed, averaged. Density scaling
-    (scipy.signal.welch's): sum(psd) * df is the signal's variance, exactly for the mean of
-    the windowed segments' squares and in expectation for a stationary signal. ``signal``
-    may be 2-D (one row per realisation: one PSD per row). Returns ``(frequency, psd)``."""
-    from scipy.signal import welch
-
-    x = np.asarray(signal, dtype=float)
-    if not rate > 0:
-        raise ValueError(f"rate must be a positive sample rate (Hz), got {rate!r}")
-    n = x.shape[-1]
-    if n < 2:
-        raise ValueError(f"signal needs at least 2 samples for a PSD, got {n}")
-    if resolution is not None and not resolution > 0:
-        raise ValueError(f"resolution must be a positive frequency step (Hz), got {resolution!r}")
-    seg = n if resolution is None else min(n, max(2, round(rate / resolution)))
-    f, p = welch(x, fs=rate, window="hann", nperseg=seg, detrend="constant", scaling="density")
-    return f, p
-
-
-def amplitude_to_psd(
-    frequency: npt.ArrayLike, amplitude: npt.ArrayLike, rate: float | None = None
-) -> npt.NDArray[np.float64]:
-    """The one-sided PSD (m^2/Hz) of the engine's amplitude spectrum (single-sided
-    ``2 |X_k| / N``, mean removed, rectangular window): the periodogram
-    ``A_k^2 / (2 df)``, with ``A^2 / df`` at 0 Hz and at the Nyquist bin (``rate / 2``, when the
-    sample ``rate`` is given), so that ``sum(psd) * df`` is the variance of the sampled
-    signal (Parseval). Works elementwise on ensemble mean squares too."""
-    f = np.asarray(frequency, dtype=float)
-    a2 = np.asarray(amplitude, dtype=float) ** 2
-    if f.size < 2:
-        return np.full(f.shape, np.nan)
-    df = float(f[1] - f[0])
-    psd = a2 / (2 * df)
-    edge = np.isclose(f, 0.0)
-    if rate is not None:
-        edge |= np.isclose(f, rate / 2)
-    psd[edge] = a2[edge] / df
-    return psd
-
-
-def _loglog(a: Axes, fmax: float) -> None:
-    a.set_xscale("log")
-    a.set_yscale("log")
-    a.set_xlim(right=fmax)
-    a.grid(True, which="both", alpha=0.3)
-
-
-def _phase_trace_psd(
-    flight: Flight, phase: str, method: str, resolution: float | None
-) -> tuple[np.ndarray, np.ndarray]:
-    if method == "periodogram":
-        sp = flight.spectra[phase]
-        rate = float(flight.scenario["metrics.spectrum_rate"])
-        return sp["frequency"].to_numpy(float), amplitude_to_psd(
-            sp["frequency"], sp["amplitude"], rate
-        )
-    lo, hi = _phase_window(flight, phase)
-    e = flight.trace["e_o"]
-    part = e[(e.index >= lo) & (e.index <= hi)]
-    t = part.index.to_numpy(float)
-    if len(t) < 3:
-        raise ValueError(f"phase {phase!r} holds {len(t)} trace samples, too few for a PSD")
-    step = np.diff(t)
-    if np.ptp(step) > 1e-6 * step.mean():
-        raise ValueError(f"the trace of phase {phase!r} is not uniformly sampled")
-    return welch_psd(part.to_numpy(float), 1.0 / float(step.mean()), resolution)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def psd(
@@ -417,47 +178,47 @@ def psd(
     estimator :func:`ensemble_psd` averages). Either integrates to e_o's variance."""
     if method not in ("welch", "periodogram"):
         raise ValueError(f"method must be 'welch' or 'periodogram', got {method!r}")
-    named = _named(flights)
+    named = flights_by_label(flights)
     phases = _phases(next(iter(named.values())), phases)
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     for a, phase in zip(axes, phases, strict=True):
         for i, (label, flight) in enumerate(named.items()):
-            f, p = _phase_trace_psd(flight, phase, method, resolution)
+            f, p = phase_psd(flight, phase, method, resolution)
             keep = (f > 0) & (f <= fmax)
-            a.plot(f[keep], p[keep], lw=1.0, **_style(label, i))
+            a.plot(f[keep], p[keep], lw=1.0, **line_style(label, i))
         how = "Welch" if method == "welch" else "periodogram"
         a.set(
             xlabel="frequency (Hz)",
             ylabel="PSD (m²/Hz)",
             title=f"power spectral density of the {DISPLACEMENT} ({how}), {phase}",
         )
-        _loglog(a, fmax)
-        _legend(a)
-    return _finish(fig, path)
+        loglog_axes(a, fmax)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def gust_force(flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None) -> Figure:
     """The gust (paper Fig. 15): vertical wind velocity (m/s) and the vertical drag force it
     exerts on the quadrotor (N): the trace's ``drag_z``, the force the engine's dynamics use
     (docs/model.md section 1). Zoomed on the gust window when the gust is on."""
-    named = _named(flights)
-    fig, (ax_w, ax_f) = _panels(ax, 2)
+    named = flights_by_label(flights)
+    fig, (ax_w, ax_f) = panel_axes(ax, 2)
     for i, (label, flight) in enumerate(named.items()):
         tr = _around_gust(flight)
         force = tr["drag_z"]
         if i == 0:
             ax_w.plot(tr.index, tr["wind_z"], color="black", lw=1.0, label="vertical wind")
-        ax_f.plot(force.index, force.to_numpy(), lw=1.0, **_style(label, i))
+        ax_f.plot(force.index, force.to_numpy(), lw=1.0, **line_style(label, i))
     ax_w.set(xlabel="time (s)", ylabel="vertical wind (m/s)", title="vertical gust velocity")
     ax_f.set(xlabel="time (s)", ylabel="vertical drag force (N)",
              title="drag force on the quadrotor")  # fmt: skip
-    _legend(ax_w)
-    _legend(ax_f)
-    return _finish(fig, path)
+    add_legend(ax_w)
+    add_legend(ax_f)
+    return finish_figure(fig, path)
 
 
 def _around_gust(flight: Flight) -> pd.DataFrame:
-    window = _gust_window(flight)
+    window = gust_window(flight)
     tr = flight.trace
     if window is None:
         return tr
@@ -477,14 +238,14 @@ def mass_compensation(
     Fig. 16. ``flights`` maps ``(mass_compensation, payload_mass)`` to a flight of one
     controller (for both controllers, draw each into its own column of ``ax``)."""
     modes = sorted({comp for comp, _ in flights})
-    fig, axes = _panels(ax, len(modes))
+    fig, axes = panel_axes(ax, len(modes))
     for a, comp in zip(axes, modes, strict=True):
         chosen = sorted((m, f) for (c, m), f in flights.items() if c == comp)
         ref = chosen[0][1].trace
         a.plot(ref.index, ref["z_ref"], color="tab:red", lw=1.2, label="reference")
         for i, (mass, flight) in enumerate(chosen):
             tr = flight.trace
-            style = _style(f"payload {mass:g} kg", i)
+            style = line_style(f"payload {mass:g} kg", i)
             a.plot(tr.index, tr["z"], lw=1.0, **style)
         what = (
             "compensated (vehicle + payload mass)" if comp else "conventional (vehicle mass only)"
@@ -492,10 +253,10 @@ def mass_compensation(
         a.set(
             xlabel="time (s)",
             ylabel="quadrotor altitude (m)",
-            title=f"{_ctrl_name(chosen[0][1].controller)}, {what}",
+            title=f"{controller_label(chosen[0][1].controller)}, {what}",
         )
-        _legend(a)
-    return _finish(fig, path)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 # -- Monte Carlo ----------------------------------------------------------------------------
@@ -508,14 +269,14 @@ def _ensemble_panels(
     """One panel per phase of a tidy ensemble frame, with each controller's rows, style and
     realisation count ``n``."""
     phases = list(phases) if phases is not None else _own_phases(df)
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     panels = []
     for a, phase in zip(axes, phases, strict=True):
         sel = df[df["phase"] == phase]
         curves = []
         for i, ctrl in enumerate(pd.unique(sel["controller"])):
             part = sel[sel["controller"] == ctrl]
-            curves.append((part, _style(str(ctrl), i), int(part["n"].iloc[0])))
+            curves.append((part, line_style(str(ctrl), i), int(part["n"].iloc[0])))
         panels.append((a, phase, curves))
     return fig, panels
 
@@ -549,27 +310,8 @@ def ensemble_spectra(
             title=f"ensemble amplitude spectrum of the {DISPLACEMENT}, {phase}",
         )
         a.set_xlim(0, fmax)
-        _legend(a)
-    return _finish(fig, path)
-
-
-def ensemble_psd_frame(spectra_frame: pd.DataFrame) -> pd.DataFrame:
-    """``spectra_frame`` (``MonteCarloResult.spectra``) with a column ``psd``: the ensemble-mean
-    periodogram (m^2/Hz) per controller, phase and frequency. From the mean and the (n - 1)
-    standard deviation of the amplitudes, E[A^2] = mean^2 + std^2 (n - 1) / n exactly, so
-    ``psd`` is the mean of the realisations' :func:`amplitude_to_psd` (the Nyquist bin, far
-    above any plotted range, is taken as interior)."""
-    out = spectra_frame.copy()
-    n = out["n"].to_numpy(float)
-    mean = out["mean"].to_numpy(float)
-    std = np.nan_to_num(out["std"].to_numpy(float))  # n = 1: no spread, E[A^2] = A^2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean_sq = mean**2 + std**2 * np.where(n > 0, (n - 1) / n, np.nan)
-    psd = np.full(len(out), np.nan)
-    for _, idx in out.groupby(["controller", "phase"], sort=False).indices.items():
-        psd[idx] = amplitude_to_psd(out["frequency"].to_numpy(float)[idx], np.sqrt(mean_sq[idx]))
-    out["psd"] = psd
-    return out
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def ensemble_psd(
@@ -595,9 +337,9 @@ def ensemble_psd(
             ylabel="PSD (m²/Hz)",
             title=f"ensemble power spectral density of the {DISPLACEMENT}, {phase}",
         )
-        _loglog(a, fmax)
-        _legend(a)
-    return _finish(fig, path)
+        loglog_axes(a, fmax)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def distributions(
@@ -624,10 +366,10 @@ def distributions(
     ok = runs[~phase_diverged(runs)]
     phases = _own_phases(runs)
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
-    colors = [_style(k, i)["color"] for i, k in enumerate(ctrls)]
+    colors = [line_style(k, i)["color"] for i, k in enumerate(ctrls)]
     points = list(runs[keys].drop_duplicates().itertuples(index=False)) if keys else [()]
     width = max(3.2, 0.45 * len(points) * len(ctrls) + 1.0)
-    fig, axes = _panels(ax, len(metrics), len(phases), width * len(phases), 2.8)
+    fig, axes = panel_axes(ax, len(metrics), len(phases), width * len(phases), 2.8)
     grid = np.asarray(axes, dtype=object).reshape(len(metrics), len(phases))
     step = 0.8 / len(ctrls)
     for r, metric in enumerate(metrics):
@@ -644,14 +386,16 @@ def distributions(
             _dist(a, data, kind, cols, pos, 0.85 * step if keys else 0.5)
             if keys:
                 a.set_xticks(range(1, len(points) + 1), [_point_label(p) for p in points])
-                a.set_xlabel(", ".join(_unit(k) for k in keys))
+                a.set_xlabel(", ".join(label_with_unit(k) for k in keys))
                 handles = [Patch(color=col, alpha=0.5) for col in colors]
-                a.legend(handles, [_ctrl_name(k) for k in ctrls], loc="best", fontsize="small")
+                a.legend(
+                    handles, [controller_label(k) for k in ctrls], loc="best", fontsize="small"
+                )
             else:
-                a.set_xticks(range(1, len(ctrls) + 1), [_ctrl_name(k) for k in ctrls])
-            ylabel = textwrap.fill(_unit(metric), 30) if c == 0 else ""  # narrow panels
-            a.set(title=f"{_short(metric)}, {phase}", ylabel=ylabel)
-    return _finish(fig, path)
+                a.set_xticks(range(1, len(ctrls) + 1), [controller_label(k) for k in ctrls])
+            ylabel = textwrap.fill(label_with_unit(metric), 30) if c == 0 else ""  # narrow panels
+            a.set(title=f"{short_label(metric)}, {phase}", ylabel=ylabel)
+    return finish_figure(fig, path)
 
 
 def _at(runs: pd.DataFrame, keys: list[str], point: tuple[Any, ...]) -> pd.DataFrame:
@@ -712,26 +456,28 @@ def sweep_metric(
     part = summary.xs(metric, level="metric").reset_index()
     phases = list(phases) if phases is not None else _own_phases(part)
     ctrls = [c.removesuffix("_mean") for c in part.columns if c.endswith("_mean")]
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     for a, phase in zip(axes, phases, strict=True):
         sel = part[part["phase"] == phase]
         for j, (sub_label, sub) in enumerate(_by_second_key(sel, keys)):
             for i, ctrl in enumerate(ctrls):
-                style = _style(ctrl, i, markers=True)
+                style = line_style(ctrl, i, markers=True)
                 if len(keys) > 1:
-                    style["color"] = _CYCLE[j % len(_CYCLE)]
+                    style["color"] = CYCLE[j % len(CYCLE)]
                 _errorline(a, sub, keys[0], ctrl, style, sub_label)
         # The long label wrapped to fit beside one panel: unwrapped it overlaps its neighbours'.
-        ylabel = textwrap.fill(_unit(metric), 28)
-        a.set(xlabel=_unit(keys[0]), ylabel=ylabel, title=f"{_short(metric)}, {phase}")
-        _legend(a, title="mean and 95% CI", title_fontsize="small")
-    return _finish(fig, path)
+        ylabel = textwrap.fill(label_with_unit(metric), 28)
+        a.set(
+            xlabel=label_with_unit(keys[0]), ylabel=ylabel, title=f"{short_label(metric)}, {phase}"
+        )
+        add_legend(a, title="mean and 95% CI", title_fontsize="small")
+    return finish_figure(fig, path)
 
 
 def _by_second_key(sel: pd.DataFrame, keys: list[str]) -> list[tuple[str, pd.DataFrame]]:
     if len(keys) < 2:
         return [("", sel)]
-    name = _short(keys[1]).lower()
+    name = short_label(keys[1]).lower()
     unit = f" {UNITS[keys[1]]}" if keys[1] in UNITS else ""
     return [
         (f", {name} {_point_label([v])}{unit}", sel[sel[keys[1]] == v])
@@ -786,7 +532,7 @@ def exceedance_curves(
     check_metric(metric)
     phases = list(phases) if phases is not None else _own_phases(runs)
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
-    fig, axes = _panels(ax, len(phases))
+    fig, axes = panel_axes(ax, len(phases))
     floor = 1.0
     for a, phase in zip(axes, phases, strict=True):
         for i, ctrl in enumerate(ctrls):
@@ -795,7 +541,7 @@ def exceedance_curves(
             curve = survival_curve(sel[metric].to_numpy(float), div, confidence)
             if curve.empty:
                 continue
-            style = _style(ctrl, i)
+            style = line_style(ctrl, i)
             n = int(curve["n"].iloc[0])
             note = f", {int(div.sum())} diverged (counted as exceeding)" if div.any() else ""
             style["label"] = f"{style['label']} (n = {n}{note})"
@@ -817,12 +563,12 @@ def exceedance_curves(
         a.set_yscale("log")
         a.set_ylim(floor, 1.05)
         a.set(
-            xlabel=_unit(metric),
+            xlabel=label_with_unit(metric),
             ylabel="Chance of exceeding",
             title=f"Exceedance, {phase} (bands: pointwise {confidence:.0%} exact intervals)",
         )
-        _legend(a)
-    return _finish(fig, path)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 # -- uncertain parameters -------------------------------------------------------------------
@@ -841,16 +587,16 @@ def dispersion_scatter(
         raise ValueError("dispersion_scatter needs a batch with dispersed keys")
     phases = list(phases or mc.scenario.scenario_phases)
     runs = mc.runs
-    fig, axes = _panels(ax, len(keys), len(phases), width=3.2 * len(phases), height=2.6)
+    fig, axes = panel_axes(ax, len(keys), len(phases), width=3.2 * len(phases), height=2.6)
     grid = np.asarray(axes, dtype=object).reshape(len(keys), len(phases))
-    label = _unit(metric)
+    label = label_with_unit(metric)
     for r, key in enumerate(keys):
         for c, phase in enumerate(phases):
             a = grid[r, c]
             for i, ctrl in enumerate(mc.controllers):
                 sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
                 ok = ~phase_diverged(sel)
-                style = _style(ctrl, i)
+                style = line_style(ctrl, i)
                 a.scatter(
                     sel.loc[ok, key],
                     sel.loc[ok, metric],
@@ -868,12 +614,12 @@ def dispersion_scatter(
                         color=style["color"],
                         label=f"{style['label']} diverged",
                     )
-            a.set(xlabel=_unit(key), title=f"{phase}")
+            a.set(xlabel=label_with_unit(key), title=f"{phase}")
             if c == 0:
                 a.set_ylabel(label)
             if r == 0 and c == len(phases) - 1:
-                _legend(a)
-    return _finish(fig, path)
+                add_legend(a)
+    return finish_figure(fig, path)
 
 
 def sobol_bars(
@@ -891,14 +637,14 @@ def sobol_bars(
     params = list(sa.parameters)
     ctrls = [str(c) for c in pd.unique(idx["controller"])]
     height = 0.5 * len(params) + 1.6
-    fig, axes = _panels(ax, 1, len(phases), width=3.4 * len(phases), height=height)
+    fig, axes = panel_axes(ax, 1, len(phases), width=3.4 * len(phases), height=height)
     width = 0.8 / (2 * len(ctrls))
     y = np.arange(len(params))
     for a, phase in zip(axes, phases, strict=True):
         for i, ctrl in enumerate(ctrls):
             sel = idx[(idx["phase"] == phase) & (idx["controller"] == ctrl)].set_index("parameter")
             sel = sel.reindex(params)
-            style = _style(ctrl, i)
+            style = line_style(ctrl, i)
             for j, (col, hatch) in enumerate((("S1", None), ("ST", "//"))):
                 pos = y - 0.4 + width * (2 * i + j + 0.5)
                 a.barh(
@@ -911,19 +657,19 @@ def sobol_bars(
                     hatch=hatch,
                     label=f"{style['label']} {'total' if hatch else 'first-order'}",
                 )
-        names = [_short(p) for p in params]
+        names = [short_label(p) for p in params]
         a.set_yticks(y, names if a is axes[0] else [""] * len(params))
         a.set_xlim(-0.05, 1.05)
         a.axvline(0, color="grey", lw=0.5)
         a.set(xlabel="Sobol' index (share of variance)", title=phase)
     axes[-1].legend(loc="lower right", fontsize="small")
-    name = _unit(metric).split(" (")[0].split(",")[0]
+    name = label_with_unit(metric).split(" (")[0].split(",")[0]
     what = f"What drives the {name[0].lower() + name[1:]}"
     if ax is None:
         fig.suptitle(what)
     else:  # the caller's figure keeps its own title
         axes[0].set_title(f"{what}: {axes[0].get_title()}")
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 def gust_transmissibility(
@@ -942,7 +688,7 @@ def gust_transmissibility(
 
     w0 = equivalent_wind(scenario) if wind is None else float(wind)
     f = np.logspace(-2, 1.5, 600) if freqs_hz is None else np.asarray(freqs_hz, dtype=float)
-    fig, (a,) = _panels(ax, 1, height=3.6)
+    fig, (a,) = panel_axes(ax, 1, height=3.6)
     for c in controllers:
         lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, w0))
         mag = np.abs(lin.frequency_response(f)[:, 0, 0])
@@ -953,68 +699,10 @@ def gust_transmissibility(
     a.set_title(f"Vertical gust to payload oscillation, linearised about {w0:.2g} m/s updraft")
     a.grid(True, which="both", alpha=0.3)
     a.legend()
-    return _finish(fig, path)
+    return finish_figure(fig, path)
 
 
 # -- the gust alone -------------------------------------------------------------------------
-def gust_spectrum_frame(
-    component: str = "vertical",
-    sigma: float = 1.0,
-    length_scale: float = 2.0,
-    airspeed: float = 10.0,
-    dt: float = 0.01,
-    steps: int = 8192,
-    realisations: int = 64,
-    seed: int = 0,
-    *,
-    models: Sequence[str] = ("dryden", "von_karman"),
-    resolution: float | None = None,
-    workers: int | None = None,
-) -> pd.DataFrame:
-    """The generated gust's spectrum against the formula, per model: the Welch PSD
-    (:func:`welch_psd`, ``(m/s)^2/Hz``) of each of ``realisations`` series of
-    :func:`quadrs.gust.gust_series` (``steps`` samples every ``dt`` s), averaged (column
-    ``welch``, with its standard error ``welch_se`` over realisations), beside
-    :func:`quadrs.gust.gust_psd` at the same frequencies: ``filter`` (the forming filter the
-    series discretises) and ``formula`` (the Dryden or exact von Karman PSD). ``resolution``
-    defaults to 1 / (1024 dt) Hz. The sampled series' PSD is the aliased filter PSD: compare
-    well below the Nyquist frequency 1 / (2 dt)."""
-    from quadrs.gust import gust_psd, gust_series
-
-    if not dt > 0:
-        raise ValueError(f"dt must be positive (s), got {dt!r}")
-    resolution = 1.0 / (min(1024, steps) * dt) if resolution is None else resolution
-    parts = []
-    for model in models:
-        x = gust_series(
-            component, sigma, length_scale, airspeed, dt, steps, realisations, seed,
-            model=model, workers=workers,
-        )  # fmt: skip
-        f, p = welch_psd(x, 1.0 / dt, resolution)
-        p = np.atleast_2d(p)
-        realised, target = gust_psd(f, component, sigma, length_scale, airspeed, dt, model=model)
-        se = p.std(axis=0, ddof=1) / np.sqrt(len(p)) if len(p) > 1 else np.full(len(f), np.nan)
-        parts.append(
-            pd.DataFrame(
-                {
-                    "model": model,
-                    "frequency": f,
-                    "welch": p.mean(axis=0),
-                    "welch_se": se,
-                    "filter": realised,
-                    "formula": target,
-                }
-            )
-        )
-    out = pd.concat(parts, ignore_index=True)
-    out.attrs = {
-        "component": component, "sigma": sigma, "length_scale": length_scale,
-        "airspeed": airspeed, "dt": dt, "realisations": realisations,
-    }  # fmt: skip
-    return out
-
-
-_MODEL_NAMES = {"dryden": "Dryden", "von_karman": "von Kármán"}
 
 
 def gust_spectrum(
@@ -1032,7 +720,7 @@ def gust_spectrum(
     frame = gust_spectrum_frame(**params) if frame is None else frame
     p = frame.attrs  # what the frame was made with
     models = [str(m) for m in pd.unique(frame["model"])]
-    fig, axes = _panels(ax, len(models))
+    fig, axes = panel_axes(ax, len(models))
     top = 0.1 / p["dt"]
     for a, model in zip(axes, models, strict=True):
         sel = frame[(frame["model"] == model) & (frame["frequency"] > 0)]
@@ -1057,10 +745,13 @@ def gust_spectrum(
                 f"L = {p['length_scale']:g} m, V = {p['airspeed']:g} m/s"
             ),
         )
-        _loglog(a, top)
-        _legend(a)
-    return _finish(fig, path)
+        loglog_axes(a, top)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)
+from quadrs.plots_payload import payload_path, swing_tension  # noqa: E402,F401  (re-exported)
+from quadrs.plots_rotors import rotors  # noqa: E402, F401  (re-exported)
+from quadrs.plots_wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401
 from quadrs.plots_route import altitude_profile, ground_track  # noqa: E402, F401

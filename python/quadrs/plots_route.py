@@ -18,12 +18,20 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from quadrs.flight import Flight
-from quadrs.plots import AxesArg, Flights, _ctrl_name, _finish, _legend, _named, _panels
+from quadrs.plots_base import (
+    AxesArg,
+    Flights,
+    add_legend,
+    controller_label,
+    finish_figure,
+    flights_by_label,
+    panel_axes,
+)
 
 Array = npt.NDArray[np.float64]
 
 
-def payload_path(trace: pd.DataFrame) -> tuple[Array, Array, Array]:
+def payload_xyz(trace: pd.DataFrame) -> tuple[Array, Array, Array]:
     """The payload's x, y, z (m) in a trace: ``xc, yc, zc`` if present, else ``x, y, zc``."""
     x, y = ("xc", "yc") if {"xc", "yc"} <= set(trace.columns) else ("x", "y")
     return (
@@ -69,19 +77,19 @@ def _route_points(flight: Flight) -> Array:
 def ground_track(flights: Flights, path: str | Path | None = None, *, ax: AxesArg = None) -> Figure:
     """The route seen from above: the reference's, the quadrotor's and the payload's x-y
     paths and the route's points, one panel per flight."""
-    named = _named(flights)
-    fig, axes = _panels(ax, len(named), width=6.0, height=5.0)
+    named = flights_by_label(flights)
+    fig, axes = panel_axes(ax, len(named), width=6.0, height=5.0)
     for a, (label, flight) in zip(axes, named.items(), strict=True):
         tr, pts = flight.trace, _route_points(flight)
-        xc, yc, _ = payload_path(tr)
+        xc, yc, _ = payload_xyz(tr)
         a.plot(tr["x_ref"], tr["y_ref"], color="tab:red", lw=1.2, label="reference")
         a.plot(tr["x"], tr["y"], color="tab:blue", lw=1.0, label="quadrotor")
         a.plot(xc, yc, color="black", ls="--", lw=1.0, label="payload")
         a.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", ms=4, label="route points")
-        a.set(xlabel="x (m)", ylabel="y (m)", title=f"{_ctrl_name(label)}: ground track")
+        a.set(xlabel="x (m)", ylabel="y (m)", title=f"{controller_label(label)}: ground track")
         a.set_aspect("equal", adjustable="datalim")
-        _legend(a)
-    return _finish(fig, path)
+        add_legend(a)
+    return finish_figure(fig, path)
 
 
 def altitude_profile(
@@ -89,11 +97,11 @@ def altitude_profile(
 ) -> Figure:
     """Altitude against the horizontal distance along the route (:func:`along_track`) for the
     reference, the quadrotor and the payload, one panel per flight."""
-    named = _named(flights)
-    fig, axes = _panels(ax, len(named))
+    named = flights_by_label(flights)
+    fig, axes = panel_axes(ax, len(named))
     for a, (label, flight) in zip(axes, named.items(), strict=True):
         tr, pts = flight.trace, _route_points(flight)
-        xc, yc, zc = payload_path(tr)
+        xc, yc, zc = payload_xyz(tr)
         ref = along_track(pts, tr["x_ref"].to_numpy(float), tr["y_ref"].to_numpy(float))
         quad = along_track(pts, tr["x"].to_numpy(float), tr["y"].to_numpy(float))
         a.plot(ref, tr["z_ref"], color="tab:red", lw=1.2, label="reference")
@@ -102,7 +110,7 @@ def altitude_profile(
         a.set(
             xlabel="distance along the ground track (m)",
             ylabel="altitude (m)",
-            title=f"{_ctrl_name(label)}: altitude profile",
+            title=f"{controller_label(label)}: altitude profile",
         )
-        _legend(a)
-    return _finish(fig, path)
+        add_legend(a)
+    return finish_figure(fig, path)

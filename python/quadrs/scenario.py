@@ -51,10 +51,13 @@ _BASE_KEY = "base"
 _BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
     "_BASE_CHAIN", default=()
 )
-# The two ways of giving the attachment: setting one replaces the other.
+# Pairs of keys that give one thing two ways (the attachment; the turbulence's W20): setting
+# one replaces the other.
 _EXCLUSIVE = {
     "payload.stiffness": "payload.natural_frequency",
     "payload.natural_frequency": "payload.stiffness",
+    "gust.w20": "gust.intensity",
+    "gust.intensity": "gust.w20",
 }
 #: Column at which the presets start their end-of-line comments.
 _COMMENT_COLUMN = 38
@@ -468,7 +471,8 @@ class Scenario:
     def override(self, changes: Mapping[str, Any]) -> Scenario:
         """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
         "payload.mass": 0.44, "phases[2].end": 65.0}``. Setting ``payload.stiffness``
-        drops ``payload.natural_frequency`` and vice versa; a value of None removes an
+        drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
+        ``gust.intensity``); a value of None removes an
         optional key (``controller.thrust_max``)."""
         data = copy.deepcopy(self._data)
         keys = canonical_keys(changes, "override")
@@ -477,7 +481,8 @@ class Scenario:
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)
             if other is not None and other not in changes:
-                data.get("payload", {}).pop(other.split(".")[1], None)
+                table, name = other.split(".")
+                data.get(table, {}).pop(name, None)
             parent: Any = data
             for i, part in enumerate(parts[:-1]):
                 if i == 0 and part in OPTIONAL_TABLES and part not in parent:
@@ -576,6 +581,11 @@ class Scenario:
         return float(self._derived["hover_offset"])
 
     @property
+    def turbulence_w20(self) -> float:
+        """W20 of the turbulence (m/s): ``gust.w20``, or the level ``gust.intensity`` names."""
+        return float(self._derived["turbulence_w20"])
+
+    @property
     def steps(self) -> int:
         """RK4 steps of one flight."""
         return int(self._derived["steps"])
@@ -634,7 +644,10 @@ class Scenario:
             if "natural_frequency" in p
             else f"kc={p['stiffness']} N/m"
         )
-        gust = f"{g['model']} w20={g['w20']} m/s" if g["enabled"] else "off"
+        if p.get("model") == "cable":
+            attach = f"on a {p['cable_length']} m cable, {attach}"
+        level = f"w20={g['w20']} m/s" if "w20" in g else f"{g.get('intensity')}"
+        gust = f"{g['model']} {level}" if g["enabled"] else "off"
         dt = self["integrator.dt"]
         n = len(self._data.get("dispersions", {}))
         spread = f", {n} dispersed key{'s' if n > 1 else ''}" if n else ""

@@ -15,10 +15,10 @@ pub struct Dispersion {
     values: Vec<f64>,
 }
 
-/// Whether a key's value reaches the gust field (`WindField`): only `gust.*` keys do, so a
-/// batch that disperses none of them reuses the scenario's discretised filters.
+/// Whether a key's value reaches the wind field (`WindField`): only `gust.*` and `wind.*` keys
+/// do, so a batch that disperses none of them reuses the scenario's discretised filters.
 pub fn touches_wind(key: &str) -> bool {
-    key.starts_with("gust.")
+    key.starts_with("gust.") || key.starts_with("wind.")
 }
 
 impl Dispersion {

@@ -5,7 +5,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
-use crate::gust::{WindField, WindState};
+use crate::gust::{Kinematics, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
@@ -407,6 +407,70 @@ fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([f64; 3], [f64; 3])) -> L {
     q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
 }
 
+/// A lane type's way into the flight loop: the one function compiled for the instruction set
+/// its operations need, and no other. Each (lane type, instruction set) pair the loop is
+/// compiled for costs a copy of the whole inlined model, controller and integrator per vehicle
+/// and law, so only the pairs that can run are built: the intrinsic lane types in their own
+/// instruction set, the portable ones (`f64` for single flights, `F64x4`) in the baseline
+/// one. The arithmetic never contracts or reorders, so the same lanes give the same bits in
+/// any of them.
+pub trait LoopEntry: KernelOps {
+    fn enter(
+        engine: &Engine,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>>;
+}
+
+macro_rules! portable_entry {
+    ($($ty:ty),+) => {$(
+        impl LoopEntry for $ty {
+            fn enter(
+                engine: &Engine,
+                req: &FlightRequest,
+                trace: Option<&mut Trace>,
+                planner: &mut FftPlanner<f64>,
+            ) -> Option<Vec<LaneResult>> {
+                engine.fly_any::<Self>(req, trace, planner)
+            }
+        }
+    )+};
+}
+portable_entry!(f64, F64x4);
+
+/// An intrinsic lane type enters only the loop compiled for its instruction set (and only on
+/// a CPU that has it: asserted, because the type's operations would be illegal otherwise).
+macro_rules! intrinsic_entry {
+    ($($ty:ty => $isa:expr, $fused:expr, $name:ident;)+) => {$(
+        #[cfg(target_arch = "x86_64")]
+        impl LoopEntry for $ty {
+            fn enter(
+                engine: &Engine,
+                req: &FlightRequest,
+                trace: Option<&mut Trace>,
+                planner: &mut FftPlanner<f64>,
+            ) -> Option<Vec<LaneResult>> {
+                let isa: Isa = $isa;
+                assert!(
+                    isa.supported() && (!$fused || isa.fused_supported()),
+                    "the {} path{} does not run on this CPU",
+                    isa.name(),
+                    if $fused { " (fused)" } else { "" }
+                );
+                // SAFETY: the CPU supports the instruction set (asserted just above).
+                unsafe { engine.$name::<Self>(req, trace, planner) }
+            }
+        }
+    )+};
+}
+intrinsic_entry! {
+    F64x4Avx => Isa::Avx2, false, fly_avx2;
+    F64x4Fma => Isa::Avx2, true, fly_avx2_fma;
+    F64x8Avx512 => Isa::Avx512, false, fly_avx512;
+    F64x8Fma512 => Isa::Avx512, true, fly_avx512;
+}
+
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
@@ -511,7 +575,7 @@ impl Engine {
 
     /// Fly `req.indices` (one per lane of `L`) on lane type `L`, with a trace of lane 0 if
     /// asked. Returns None if cancelled.
-    pub fn fly<L: KernelOps>(
+    pub fn fly<L: LoopEntry>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -532,8 +596,8 @@ impl Engine {
             self.set_lanes(),
             "one realisation index per lane"
         );
-        // The intrinsic lane types below are only ever flown by `fly_on`, which enters the loop
-        // compiled for (and checked to run on) `self.isa`.
+        // Each lane type below enters the loop compiled for its own instruction set
+        // (`LoopEntry`), checked to run on this CPU.
         match (self.isa, self.fused) {
             (Isa::Baseline, _) => self.fly_on::<F64x4>(req, None, planner),
             #[cfg(target_arch = "x86_64")]
@@ -549,11 +613,9 @@ impl Engine {
         }
     }
 
-    /// The one instruction-set dispatch: fly on lane type `L` inside the flight loop compiled
-    /// for `self.isa` (`fly_any` and everything it inlines, the whole model, controller and
-    /// integrator, becomes VEX or EVEX code). Refuses, rather than risks an illegal
-    /// instruction, a path the CPU cannot run.
-    fn fly_on<L: KernelOps>(
+    /// Enter the flight loop for lane type `L` (`LoopEntry`). Refuses, rather than risks an
+    /// illegal instruction, a path the CPU cannot run.
+    fn fly_on<L: LoopEntry>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -565,21 +627,7 @@ impl Engine {
             "one realisation index per lane"
         );
         assert!(L::LANES <= MAX_LANES);
-        assert!(
-            self.isa.supported() && (!self.fused || self.isa.fused_supported()),
-            "the {} path{} does not run on this CPU",
-            self.isa.name(),
-            if self.fused { " (fused)" } else { "" }
-        );
-        #[cfg(target_arch = "x86_64")]
-        match (self.isa, self.fused) {
-            // SAFETY (all three): the CPU supports the path (asserted just above).
-            (Isa::Avx2, false) => return unsafe { self.fly_avx2::<L>(req, trace, planner) },
-            (Isa::Avx2, true) => return unsafe { self.fly_avx2_fma::<L>(req, trace, planner) },
-            (Isa::Avx512, _) => return unsafe { self.fly_avx512::<L>(req, trace, planner) },
-            (Isa::Baseline, _) => {}
-        }
-        self.fly_any::<L>(req, trace, planner)
+        L::enter(self, req, trace, planner)
     }
 
     flight_loop_for! {
@@ -724,6 +772,8 @@ impl Engine {
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
+        // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
+        let blows = crafts.iter().any(|c| c.wind.blows());
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -735,13 +785,32 @@ impl Engine {
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);
             let cmd = vehicle.actuator.command(&u);
-            // Outside the gust window `sample` returns zeros without touching the state, so the
-            // per-lane calls are skipped where no lane's window is open (most of a flight).
+            // Outside the gust window `sample_at` returns zeros without touching the state
+            // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
+            // window is open and nothing else blows (most of a paper flight).
+            let at = |lane: usize| {
+                let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                move || Kinematics {
+                    z: rigid.pos[2].lane(lane),
+                    vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
+                }
+            };
             if let Some(prescribed) = &self.prescribed_wind {
                 wind_lanes = [prescribed[k]; MAX_LANES];
-            } else if (gust_from..gust_to).contains(&(k as u64)) {
-                for ((ws, v), c) in winds.iter_mut().zip(wind_lanes.iter_mut()).zip(crafts) {
-                    *v = c.wind.sample(ws, k as u64);
+                if blows {
+                    for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
+                        let d = c.wind.deterministic(k as u64, &at(lane)());
+                        *v = [0, 1, 2].map(|i| v[i] + d[i]);
+                    }
+                }
+            } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
+                for (lane, ((ws, v), c)) in winds
+                    .iter_mut()
+                    .zip(wind_lanes.iter_mut())
+                    .zip(crafts)
+                    .enumerate()
+                {
+                    *v = c.wind.sample_at(ws, k as u64, at(lane));
                 }
             } else {
                 wind_lanes = [[0.0; 3]; MAX_LANES];
@@ -1290,5 +1359,116 @@ mod tests {
                 "{isa:?}: worst relative difference {worst}"
             );
         }
+    }
+
+    /// A short paper flight in the whole-flight wind: a sheared mean wind at 30 deg, turbulence
+    /// on all axes following the vehicle's altitude and airspeed, a ramp and a pulse.
+    fn windy_cfg() -> Config {
+        use crate::config::{
+            DiscreteGust, GustAirspeed, GustAltitude, GustComponent, GustShape, Shear,
+        };
+        let mut cfg = paper();
+        cfg.integrator.dt = 1e-3;
+        cfg.integrator.duration = 24.0;
+        cfg.phases.truncate(2);
+        cfg.phases[1].end = 24.0;
+        cfg.trajectory.interpolation = crate::config::Interpolation::MinJerk;
+        cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 20.0, 0.0]];
+        cfg.trajectory.transition = 15.0;
+        cfg.gust.components = GustComponent::ALL.to_vec();
+        cfg.gust.start = 3.0;
+        cfg.gust.end = 20.0;
+        cfg.gust.altitude = GustAltitude::Vehicle;
+        cfg.gust.airspeed = GustAirspeed::Relative;
+        cfg.wind.speed = 2.0;
+        cfg.wind.heading = 30.0;
+        cfg.wind.shear = Shear::Log;
+        cfg.wind.gusts = vec![
+            DiscreteGust {
+                start: 5.0,
+                duration: 2.0,
+                amplitude: [1.0, -0.5, 0.3],
+                shape: GustShape::Ramp,
+            },
+            DiscreteGust {
+                start: 12.0,
+                duration: 1.5,
+                amplitude: [0.0, 1.0, -0.8],
+                shape: GustShape::Pulse,
+            },
+        ];
+        cfg.validate().unwrap();
+        cfg
+    }
+
+    #[test]
+    fn given_innovations_fly_the_seeded_flight_in_a_wind_that_follows_the_vehicle() {
+        let engine = Engine::new(windy_cfg()).unwrap();
+        let mut planner = FftPlanner::new();
+        let bits = |r: &[LaneResult]| -> Vec<u64> {
+            r.iter()
+                .flat_map(|l| l.metrics.iter().flatten().map(|x| x.to_bits()))
+                .collect()
+        };
+        let indices: Vec<u64> = (3..7).collect();
+        let req = FlightRequest::new(ControllerKind::Pd, 11, &indices);
+        let seeded = engine.fly::<F64x4>(&req, None, &mut planner).unwrap();
+        assert!(seeded.iter().all(|l| l.status == ExitStatus::Ok));
+        let xi: Vec<Vec<f64>> = indices
+            .iter()
+            .map(|&i| engine.innovations_of(11, i))
+            .collect();
+        assert!(xi[0].len() > 1000);
+        let rows: Vec<&[f64]> = xi.iter().map(|x| x.as_slice()).collect();
+        let given = FlightRequest {
+            innovations: Some(&rows),
+            ..req
+        };
+        let flown = engine.fly::<F64x4>(&given, None, &mut planner).unwrap();
+        assert_eq!(bits(&seeded), bits(&flown));
+        // One lane alone flies the same as in its lane-set.
+        let one = engine
+            .fly::<f64>(
+                &FlightRequest::new(ControllerKind::Pd, 11, &indices[1..2]),
+                None,
+                &mut planner,
+            )
+            .unwrap();
+        assert_eq!(bits(&one), bits(&seeded[1..2]));
+    }
+
+    #[test]
+    fn the_wind_blows_outside_the_window_and_the_prescribed_wind_adds_to_it() {
+        let mut cfg = windy_cfg();
+        cfg.gust.enabled = false;
+        let engine = Engine::new(cfg).unwrap();
+        let every = 1;
+        let mut tr = engine.trace(every);
+        let req = FlightRequest::new(ControllerKind::Pd, 0, &[0]);
+        engine
+            .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
+            .unwrap();
+        let wind = engine.craft.wind();
+        let mut max_x = 0.0_f64;
+        for (k, row) in tr.data.chunks(tr.width).enumerate() {
+            let z = col(row, "z");
+            let m = wind.mean_at(z);
+            let g = wind.discrete_gusts(k as u64);
+            let w = [col(row, "wind_x"), col(row, "wind_y"), col(row, "wind_z")];
+            assert_eq!(w, [m[0] + g[0], m[1] + g[1], m[2] + g[2]], "t = {}", row[0]);
+            max_x = max_x.max(w[0]);
+        }
+        assert!(max_x > 2.0, "{max_x}");
+        // A prescribed wind (zero here) adds to the mean wind and the discrete gusts.
+        let steps = engine.steps;
+        let engine = Engine::new(engine.cfg.clone())
+            .unwrap()
+            .with_wind(vec![[0.0; 3]; steps + 1])
+            .unwrap();
+        let mut tr2 = engine.trace(every);
+        engine
+            .fly::<f64>(&req, Some(&mut tr2), &mut FftPlanner::new())
+            .unwrap();
+        assert_eq!(tr.data, tr2.data);
     }
 }

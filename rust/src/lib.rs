@@ -164,9 +164,12 @@ mod _core {
         d.set_item("stiffness", cfg.stiffness())?;
         let hover_offset = match AnyPayload::new(&cfg) {
             AnyPayload::Spring(p) => p.hover_offset,
+            // The payload hangs the stretched line below the hook, the hook below the CG.
+            AnyPayload::Cable(p) => p.hover_length + p.offset,
         };
         d.set_item("hover_offset", hover_offset)?;
         d.set_item("steps", cfg.steps())?;
+        d.set_item("turbulence_w20", cfg.turbulence_w20())?;
         d.set_item("phases", crate::trajectory::phase_names(&cfg))?;
         let windows: Vec<(String, f64, f64)> = cfg
             .phases
@@ -634,6 +637,21 @@ mod _core {
             dispersion_keys,
             dispersion_values,
         )
+    }
+
+    /// The scenario's `[wind]` mean wind (m/s, inertial x, y, z) at each altitude in
+    /// `altitudes` (m): W20 f(h) (cos chi, sin chi, 0), shape (n, 3).
+    #[pyfunction]
+    fn mean_wind<'py>(
+        py: Python<'py>,
+        config_json: &str,
+        altitudes: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
+        let field = gust::WindField::new(&cfg).map_err(scenario_error)?;
+        let h = altitudes.as_slice()?;
+        let out = Array2::from_shape_fn((h.len(), 3), |(i, j)| field.mean_at(h[i])[j]);
+        Ok(out.into_pyarray(py))
     }
 
     /// Low-altitude MIL-F-8785C intensities (m/s) and scale lengths (m) for

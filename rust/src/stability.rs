@@ -46,6 +46,9 @@ pub const MODE_LATERAL_X: &str = "lateral x/pitch";
 pub const MODE_LATERAL_Y: &str = "lateral y/roll";
 pub const MODE_VERTICAL: &str = "vertical";
 pub const MODE_PAYLOAD: &str = "payload";
+/// A slung payload swinging below the vehicle (the pendulum modes of a cable).
+pub const MODE_SWING_X: &str = "swing x";
+pub const MODE_SWING_Y: &str = "swing y";
 pub const MODE_YAW: &str = "yaw";
 pub const MODE_ACTUATOR: &str = "actuator";
 
@@ -237,8 +240,21 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
     let vars = cl.vars();
     let mut poles = Vec::with_capacity(vars.len());
     for block in blocks(&jacobian) {
+        let has_actuator = block.iter().any(|&i| vars[i].part == Part::Actuator);
         for (lambda, v) in eigen(&jacobian, &block) {
-            poles.push(describe(vars, lambda, &block, &v, !sources.is_empty()));
+            let actuator = if has_actuator {
+                actuator_participation(vars, &jacobian, &block, lambda, &v)
+            } else {
+                0.0
+            };
+            poles.push(describe(
+                vars,
+                lambda,
+                &block,
+                &v,
+                actuator,
+                !sources.is_empty(),
+            ));
         }
     }
     poles.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
@@ -433,24 +449,52 @@ fn eigen(jac: &Jacobian, block: &[usize]) -> Vec<(Complex<f64>, Vec<Complex<f64>
     let csub = sub.map(|x| Complex::new(x, 0.0));
     values
         .into_iter()
-        .map(|lambda| {
-            // Eigenvector: the right singular vector of (A - lambda I) with the least singular value.
-            let shifted = &csub - DMatrix::from_diagonal_element(n, n, lambda);
-            let svd = lambda
-                .is_finite()
-                .then(|| SVD::try_new(shifted, false, true, f64::EPSILON, MAX_ITERATIONS))
-                .flatten();
-            let v: Vec<Complex<f64>> = match svd {
-                Some(svd) => {
-                    let k = svd.singular_values.argmin().0;
-                    let v_t = svd.v_t.expect("asked for V");
-                    v_t.row(k).iter().map(|c| c.conj()).collect()
-                }
-                None => vec![nan; n],
-            };
-            (lambda, v)
-        })
+        .map(|lambda| (lambda, null_vector(&csub, lambda)))
         .collect()
+}
+
+/// A unit eigenvector of `a` for `lambda`: the right singular vector of (A - lambda I) with
+/// the least singular value (NaN if the solver gives up).
+fn null_vector(a: &DMatrix<Complex<f64>>, lambda: Complex<f64>) -> Vec<Complex<f64>> {
+    let n = a.nrows();
+    let shifted = a - DMatrix::from_diagonal_element(n, n, lambda);
+    let svd = lambda
+        .is_finite()
+        .then(|| SVD::try_new(shifted, false, true, f64::EPSILON, MAX_ITERATIONS))
+        .flatten();
+    match svd {
+        Some(svd) => {
+            let k = svd.singular_values.argmin().0;
+            let v_t = svd.v_t.expect("asked for V");
+            v_t.row(k).iter().map(|c| c.conj()).collect()
+        }
+        None => vec![Complex::new(f64::NAN, f64::NAN); n],
+    }
+}
+
+/// The actuator states' share of a pole: the sum of their participation factors |v_i w_i| /
+/// sum_j |v_j w_j| (v right, w left eigenvector over the block). Unlike eigenvector shares it
+/// does not depend on the states' units: a rotor speed (hundreds of rad/s) follows every slow
+/// mode with large components, yet takes little part in it.
+fn actuator_participation(
+    vars: &[StateVar],
+    jac: &Jacobian,
+    block: &[usize],
+    lambda: Complex<f64>,
+    v: &[Complex<f64>],
+) -> f64 {
+    let n = block.len();
+    let sub_t = DMatrix::from_fn(n, n, |i, j| Complex::new(jac[(block[j], block[i])], 0.0));
+    let w = null_vector(&sub_t, lambda);
+    let p: Vec<f64> = v.iter().zip(&w).map(|(a, b)| (a * b).norm()).collect();
+    let total: f64 = p.iter().sum();
+    let actuator: f64 = block
+        .iter()
+        .zip(&p)
+        .filter(|(&i, _)| vars[i].part == Part::Actuator)
+        .map(|(_, x)| x)
+        .sum();
+    actuator / total.max(f64::MIN_POSITIVE)
 }
 
 /// Indices of the states of `vars` that satisfy `keep`, in order.
@@ -458,18 +502,29 @@ fn states_where(vars: &[StateVar], keep: impl Fn(&StateVar) -> bool) -> Vec<usiz
     (0..vars.len()).filter(|&i| keep(&vars[i])).collect()
 }
 
+/// A pole's description from its right eigenvector `v` over `block`. `actuator` is the
+/// actuator states' participation (`actuator_participation`): above one half the pole is an
+/// actuator mode; otherwise it is named, and its shares and dominant state taken, over the
+/// airframe and payload states only (the actuator states' components are in their own units).
 fn describe(
     vars: &[StateVar],
     lambda: Complex<f64>,
     block: &[usize],
     v: &[Complex<f64>],
+    actuator: f64,
     lateral_source: bool,
 ) -> Pole {
     let mut full = vec![Complex::new(0.0, 0.0); vars.len()];
     for (&i, c) in block.iter().zip(v) {
         full[i] = *c;
     }
-    let mag: Vec<f64> = full.iter().map(|c| c.norm()).collect();
+    let is_actuator_mode = actuator > 0.5;
+    let counted = |s: &StateVar| is_actuator_mode || s.part != Part::Actuator;
+    let mag: Vec<f64> = full
+        .iter()
+        .zip(vars)
+        .map(|(c, s)| if counted(s) { c.norm() } else { 0.0 })
+        .collect();
     let total = mag
         .iter()
         .map(|a| a * a)
@@ -483,16 +538,16 @@ fn describe(
         (MODE_LATERAL_Y, share(&on(&[Axis::Y, Axis::Roll]))),
         (MODE_VERTICAL, share(&on(&[Axis::Z]))),
         (MODE_YAW, share(&on(&[Axis::Yaw]))),
-        (
-            MODE_ACTUATOR,
-            share(&states_where(vars, |s| s.part == Part::Actuator)),
-        ),
     ];
-    let mut mode = groups
-        .iter()
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("five groups")
-        .0;
+    let mut mode = if is_actuator_mode {
+        MODE_ACTUATOR
+    } else {
+        groups
+            .iter()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("four groups")
+            .0
+    };
     // The payload mode moves the payload against the quadrotor; the vertical modes carry both
     // together (the attachment barely stretches).
     let payload_z = states_where(vars, |s| s.part == Part::Payload && s.axis == Axis::Z);
@@ -500,6 +555,20 @@ fn describe(
         if let Some(&zc) = payload_z.first() {
             if (full[zc] - full[ix::Z]).norm() > full[ix::Z].norm() {
                 mode = MODE_PAYLOAD;
+            }
+        }
+    }
+    // A swing mode moves the payload sideways more than the quadrotor, and against it (the
+    // lateral modes of the controller carry the payload along, or barely move it).
+    for (lateral, swing, axis, own) in [
+        (MODE_LATERAL_X, MODE_SWING_X, Axis::X, ix::X),
+        (MODE_LATERAL_Y, MODE_SWING_Y, Axis::Y, ix::Y),
+    ] {
+        let payload = states_where(vars, |s| s.part == Part::Payload && s.axis == axis);
+        if let (true, Some(&c)) = (mode == lateral, payload.first()) {
+            let (load, vehicle) = (full[c], full[own]);
+            if load.norm() > vehicle.norm() && (load - vehicle).norm() > vehicle.norm() {
+                mode = swing;
             }
         }
     }
@@ -538,11 +607,23 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
     let g = &cfg.gust;
     let blowing = g.enabled && g.end > g.start && g.start < cfg.integrator.duration;
     let horizontal = [GustComponent::Longitudinal, GustComponent::Lateral];
-    if blowing && g.w20 > 0.0 && g.components.iter().any(|c| horizontal.contains(c)) {
+    if blowing && cfg.turbulence_w20() > 0.0 && g.components.iter().any(|c| horizontal.contains(c))
+    {
         out.push("horizontal gust components");
     }
     if blowing && (g.mean_wind[0] != 0.0 || g.mean_wind[1] != 0.0) {
         out.push("horizontal mean wind");
+    }
+    if cfg.wind.speed != 0.0 {
+        out.push("wind.speed (a horizontal mean wind over the whole flight)");
+    }
+    if cfg
+        .wind
+        .gusts
+        .iter()
+        .any(|d| d.amplitude[0] != 0.0 || d.amplitude[1] != 0.0)
+    {
+        out.push("horizontal discrete gusts");
     }
     out
 }

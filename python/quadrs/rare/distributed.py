@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from quadrs.distributed import total_threads, worker_threads
+from quadrs.rare.engine import run_rows
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
@@ -32,9 +33,7 @@ def fly_rows(
 ) -> np.ndarray:
     """One block of rows on whichever machine runs it: the engine's metrics
     (rows, phases, metrics), exactly what a local :class:`ScenarioModel` computes."""
-    from quadrs.rare.scenario_model import _run_rows
-
-    return _run_rows(config, controller, keys, gust, values, threads)
+    return run_rows(config, controller, keys, gust, values, threads)
 
 
 def evaluate_on_dask(

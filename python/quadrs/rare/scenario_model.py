@@ -22,14 +22,14 @@ An engine built without them raises NotImplementedError naming what is missing.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from quadrs import _core
 from quadrs.dispersion import dispersed_keys, distribution
 from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
+from quadrs.rare.engine import engine_function, run_rows
 from quadrs.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -63,27 +63,6 @@ def parameters_of_normals(scenario: Scenario, z: np.ndarray) -> np.ndarray:
     return theta
 
 
-def _run_rows(
-    config: str,
-    controller: str,
-    keys: list[str],
-    gust: np.ndarray,
-    values: np.ndarray | None,
-    workers: int | None,
-) -> np.ndarray:
-    """The engine's metrics (N, phases, metrics) of rows of innovations (and parameter
-    values), Ctrl-C turned into a prompt cancel and KeyboardInterrupt."""
-    run = engine_function("run_innovations")
-    progress = _core.Progress()
-    extra = {} if values is None else {"dispersion_keys": keys, "dispersion_values": values}
-    metrics, interrupted = run_cancellable(
-        lambda: run(config, controller, gust, progress, workers, **extra), progress
-    )
-    if interrupted:
-        raise KeyboardInterrupt
-    return np.asarray(metrics, dtype=np.float64)
-
-
 class RareEventModel(Protocol):
     """What :func:`quadrs.rare_event` needs of a model of flights."""
 
@@ -93,20 +72,6 @@ class RareEventModel(Protocol):
     def evaluate(self, xi: np.ndarray) -> np.ndarray: ...
 
     def fly(self, xi_row: np.ndarray) -> Flight: ...
-
-
-def engine_function(name: str) -> Callable[..., Any]:
-    """The engine's ``name``, or NotImplementedError saying that the innovations interface
-    (flights driven by explicit standard normals) is not in this build."""
-    fn = getattr(_core, name, None)
-    if fn is None:
-        raise NotImplementedError(
-            f"the engine's innovations interface (a flight driven by explicit standard normals "
-            f"xi, quadrs._core.{name}) is not in this build of the engine; "
-            f"rare_event(limit_state=...) runs the same algorithm on a function of standard "
-            f"normals"
-        )
-    return fn
 
 
 class ScenarioModel:
@@ -187,7 +152,7 @@ class ScenarioModel:
 
             metrics = evaluate_on_dask(self.client, self._engine_args(), gust, values)
         else:
-            metrics = _run_rows(*self._engine_args(), gust, values, self.workers)
+            metrics = run_rows(*self._engine_args(), gust, values, self.workers)
         picked = metrics[:, self._phase_index, self._metric_index]
         return np.where(np.isnan(picked), np.inf, picked)
 

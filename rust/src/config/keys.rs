@@ -1,7 +1,7 @@
 //! Dotted scenario keys (`"vehicle.inertia[2]"`) read as typed fields of `Config`: the numbers
 //! a dispersion, a sweep or an optimisation may set, without going through text or JSON.
 
-use super::{Config, ConfigError};
+use super::{Config, ConfigError, GustAirspeed, GustAltitude};
 
 /// One step of a dotted key: a table field or an array index.
 #[derive(Debug, Clone, PartialEq)]
@@ -118,6 +118,8 @@ impl Config {
                     "stiffness" => optional(&mut p.stiffness, rest),
                     "damping" => one(&mut p.damping, rest),
                     "drag_area" => one(&mut p.drag_area, rest),
+                    "cable_length" => optional(&mut p.cable_length, rest),
+                    "attachment_offset" => optional(&mut p.attachment_offset, rest),
                     _ => Target::Missing,
                 }
             }
@@ -153,7 +155,18 @@ impl Config {
                     _ => Target::Missing,
                 }
             }
-            ("actuator", "model") => flag(rest),
+            ("actuator", f) => {
+                let a = &mut self.actuator;
+                match f {
+                    "model" | "layout" => flag(rest),
+                    "thrust_coefficient" => one(&mut a.thrust_coefficient, rest),
+                    "torque_ratio" => one(&mut a.torque_ratio, rest),
+                    "time_constant" => one(&mut a.time_constant, rest),
+                    "thrust_min" => one(&mut a.thrust_min, rest),
+                    "thrust_max" => one(&mut a.thrust_max, rest),
+                    _ => Target::Missing,
+                }
+            }
             ("gust", f) => {
                 let g = &mut self.gust;
                 match f {
@@ -165,11 +178,48 @@ impl Config {
                     },
                     "start" => one(&mut g.start, rest),
                     "end" => one(&mut g.end, rest),
-                    "altitude" => one(&mut g.altitude, rest),
-                    "w20" => one(&mut g.w20, rest),
-                    "airspeed" => one(&mut g.airspeed, rest),
+                    "altitude" => match &mut g.altitude {
+                        GustAltitude::Fixed(h) => one(h, rest),
+                        GustAltitude::Vehicle => flag(rest),
+                    },
+                    "w20" => optional(&mut g.w20, rest),
+                    "intensity" if g.intensity.is_some() => flag(rest),
+                    "airspeed" => match &mut g.airspeed {
+                        GustAirspeed::Fixed(v) => one(v, rest),
+                        GustAirspeed::Relative => flag(rest),
+                    },
+                    "min_airspeed" => one(&mut g.min_airspeed, rest),
                     "air_density" => one(&mut g.air_density, rest),
                     "mean_wind" => at3(&mut g.mean_wind, rest),
+                    _ => Target::Missing,
+                }
+            }
+            ("wind", f) => {
+                let w = &mut self.wind;
+                match f {
+                    "speed" => one(&mut w.speed, rest),
+                    "heading" => one(&mut w.heading, rest),
+                    "shear" => flag(rest),
+                    "roughness" => one(&mut w.roughness, rest),
+                    "gusts" => match rest {
+                        [] => Target::NotNumber,
+                        [Seg::Index(i), tail @ ..] if *i < w.gusts.len() => {
+                            let g = &mut w.gusts[*i];
+                            let sub = tail.get(1..).unwrap_or(&[]);
+                            match tail.first() {
+                                None => Target::NotNumber,
+                                Some(Seg::Field(f)) => match f.as_str() {
+                                    "start" => one(&mut g.start, sub),
+                                    "duration" => one(&mut g.duration, sub),
+                                    "amplitude" => at3(&mut g.amplitude, sub),
+                                    "shape" => flag(sub),
+                                    _ => Target::Missing,
+                                },
+                                Some(Seg::Index(_)) => Target::Missing,
+                            }
+                        }
+                        _ => Target::Missing,
+                    },
                     _ => Target::Missing,
                 }
             }
@@ -183,6 +233,8 @@ impl Config {
                     _ => Target::Missing,
                 }
             }
+            ("ground", "altitude") => one(&mut self.ground.altitude, rest),
+            ("ground", "enabled") => Target::NotNumber,
             _ => Target::Missing,
         }
     }
@@ -307,6 +359,51 @@ mod tests {
         ] {
             let e = cfg.per_realisation_key(key).unwrap_err();
             assert!(e.message.contains(says) && e.message.contains(key), "{e:?}");
+        }
+    }
+
+    #[test]
+    fn wind_keys_are_per_realisation_numbers() {
+        use crate::config::{DiscreteGust, GustAltitude, GustShape, Intensity};
+        let mut cfg = paper();
+        cfg.wind.speed = 3.0;
+        cfg.wind.gusts = vec![DiscreteGust {
+            start: 1.0,
+            duration: 2.0,
+            amplitude: [0.0, 0.0, 1.0],
+            shape: GustShape::Pulse,
+        }];
+        for key in [
+            "wind.speed",
+            "wind.heading",
+            "wind.roughness",
+            "wind.gusts[0].start",
+            "wind.gusts[0].duration",
+            "wind.gusts[0].amplitude[2]",
+            "gust.min_airspeed",
+            "gust.altitude",
+            "gust.w20",
+        ] {
+            let path = cfg.per_realisation_key(key).unwrap();
+            let mut c = cfg.clone();
+            assert!(c.set_number(&path, 0.25), "{key}");
+            assert_ne!(c.to_json(), cfg.to_json(), "{key}");
+        }
+        cfg.gust.altitude = GustAltitude::Vehicle;
+        cfg.gust.w20 = None;
+        cfg.gust.intensity = Some(Intensity::Light);
+        for (key, says) in [
+            ("wind.shear", "not a number"),
+            ("wind.gusts[0].shape", "not a number"),
+            ("wind.gusts", "not a number"),
+            ("wind.gusts[1].start", "not a key"),
+            ("wind.gusts[0].colour", "not a key"),
+            ("gust.altitude", "not a number"),
+            ("gust.intensity", "not a number"),
+            ("gust.w20", "not a key"),
+        ] {
+            let e = cfg.per_realisation_key(key).unwrap_err();
+            assert!(e.message.contains(says), "{key}: {e:?}");
         }
     }
 }

@@ -4,10 +4,12 @@
 
 pub mod dispersions;
 pub mod keys;
+pub mod wind;
 
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
+pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +49,9 @@ pub struct Config {
     pub trajectory: Trajectory,
     pub phases: Vec<Phase>,
     pub gust: Gust,
+    /// Wind over the whole flight: mean wind with shear, discrete gusts (docs/model.md).
+    #[serde(default, skip_serializing_if = "Wind::is_default")]
+    pub wind: Wind,
     pub integrator: Integrator,
     pub metrics: Metrics,
     pub divergence: Divergence,
@@ -82,6 +87,8 @@ pub enum PayloadModelName {
     /// A point mass on a vertical spring (the paper's).
     #[default]
     Spring,
+    /// A point mass on an elastic cable that swings in 3-D and can go slack (section 7).
+    Cable,
 }
 
 /// Which actuator model flies (`actuator.model`, docs/model.md section 8).
@@ -91,13 +98,91 @@ pub enum ActuatorModelName {
     /// The controller's thrust and torques act at once, without limit (the paper's).
     #[default]
     Ideal,
+    /// Four rotors with first-order speed dynamics and per-rotor thrust limits.
+    Rotors,
 }
 
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+/// Where the four rotors sit (`actuator.layout`): rotor i at arm angle a_i from body x.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotorLayout {
+    /// a = 45, 135, 225, 315 degrees.
+    #[default]
+    X,
+    /// a = 0, 90, 180, 270 degrees.
+    Plus,
+}
+
+impl RotorLayout {
+    /// The arm angles a_1..a_4 (rad).
+    pub fn angles(self) -> [f64; 4] {
+        let first = match self {
+            RotorLayout::X => 45.0,
+            RotorLayout::Plus => 0.0,
+        };
+        [0.0, 90.0, 180.0, 270.0].map(|a: f64| (first + a).to_radians())
+    }
+}
+
+/// `[actuator]` (docs/model.md section 8 and "Rotors"). The rotor keys are read only when
+/// `model = "rotors"`, but checked always (one set of rules).
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorConfig {
     #[serde(default)]
     pub model: ActuatorModelName,
+    #[serde(default)]
+    pub layout: RotorLayout,
+    /// N s^2/rad^2, kf in T = kf w^2.
+    #[serde(default = "default_thrust_coefficient")]
+    pub thrust_coefficient: f64,
+    /// m, cq: a rotor's yaw reaction torque per newton of its thrust.
+    #[serde(default = "default_torque_ratio")]
+    pub torque_ratio: f64,
+    /// s, tau_m of the rotor speed lag dw/dt = (w_cmd - w) / tau_m.
+    #[serde(default = "default_time_constant")]
+    pub time_constant: f64,
+    /// N per rotor, the commanded thrust's lower and upper clamps.
+    #[serde(default)]
+    pub thrust_min: f64,
+    #[serde(default = "default_rotor_thrust_max")]
+    pub thrust_max: f64,
+}
+
+impl Default for ActuatorConfig {
+    fn default() -> Self {
+        Self {
+            model: ActuatorModelName::default(),
+            layout: RotorLayout::default(),
+            thrust_coefficient: default_thrust_coefficient(),
+            torque_ratio: default_torque_ratio(),
+            time_constant: default_time_constant(),
+            thrust_min: 0.0,
+            thrust_max: default_rotor_thrust_max(),
+        }
+    }
+}
+
+/// N s^2/rad^2: a 10-inch multirotor propeller (RotorS and PX4's x500 `motorConstant`;
+/// docs/model.md "Rotors").
+pub fn default_thrust_coefficient() -> f64 {
+    8.54858e-6
+}
+
+/// m: RotorS and PX4's x500 `momentConstant` (docs/model.md "Rotors").
+pub fn default_torque_ratio() -> f64 {
+    0.016
+}
+
+/// s: a 2 kg class motor with a 10-inch propeller (docs/model.md "Rotors").
+pub fn default_time_constant() -> f64 {
+    0.03
+}
+
+/// N per rotor: thrust-to-weight about 2 for the paper's 2.42 kg loaded vehicle
+/// (docs/model.md "Rotors").
+pub fn default_rotor_thrust_max() -> f64 {
+    12.0
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -116,8 +201,22 @@ pub struct Payload {
     pub stiffness: Option<f64>,
     /// N s/m.
     pub damping: f64,
-    /// m^2, Cd times projected area for vertical drag.
+    /// m^2, Cd times projected area for vertical drag (the cable's payload: in every direction).
     pub drag_area: f64,
+    /// m, the cable's unstretched length L0 (`model = "cable"` only; required there).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cable_length: Option<f64>,
+    /// m, the hook's distance below the centre of gravity along the body z axis
+    /// (`model = "cable"` only; default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attachment_offset: Option<f64>,
+}
+
+impl Payload {
+    /// m, the cable's hook below the centre of gravity (0 unless given).
+    pub fn attachment_offset(&self) -> f64 {
+        self.attachment_offset.unwrap_or(0.0)
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -357,12 +456,21 @@ pub struct Gust {
     /// s, the gust window [start, end).
     pub start: f64,
     pub end: f64,
-    /// m above ground (converted to feet for the MIL-F-8785C scale formulas).
-    pub altitude: f64,
-    /// m/s, wind speed at 20 ft.
-    pub w20: f64,
-    /// m/s, the speed at which the frozen turbulence is convected past the vehicle.
-    pub airspeed: f64,
+    /// m above ground (converted to feet for the MIL-F-8785C scale formulas), or `"vehicle"`:
+    /// the quadrotor's z at each step, clamped to [10 ft, 1000 ft].
+    pub altitude: GustAltitude,
+    /// m/s, wind speed at 20 ft for the turbulence. Exactly one of this and `intensity`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub w20: Option<f64>,
+    /// The standard's named level (W20 = 15, 30, 45 kt), instead of `w20`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity: Option<Intensity>,
+    /// m/s, the speed at which the frozen turbulence is convected past the vehicle, or
+    /// `"relative"`: max(|v - mean(h)|, `min_airspeed`) at each step.
+    pub airspeed: GustAirspeed,
+    /// m/s, the floor of the relative airspeed.
+    #[serde(default = "wind::default_min_airspeed")]
+    pub min_airspeed: f64,
     /// kg/m^3.
     pub air_density: f64,
     /// m/s, inertial x, y, z, added to the gust inside the window.
@@ -490,6 +598,15 @@ impl Config {
         }
     }
 
+    /// m/s, W20 of the turbulence: `gust.w20`, or the level `gust.intensity` names.
+    pub fn turbulence_w20(&self) -> f64 {
+        match (self.gust.w20, self.gust.intensity) {
+            (Some(w), _) => w,
+            (None, Some(i)) => i.w20(),
+            (None, None) => f64::NAN, // rejected by validate()
+        }
+    }
+
     /// Number of RK4 steps of a flight: the duration rounded to the nearest whole step.
     pub fn steps(&self) -> usize {
         (self.integrator.duration / self.integrator.dt).round() as usize
@@ -541,6 +658,36 @@ impl Config {
         }
         non_negative("payload.damping", p.damping)?;
         non_negative("payload.drag_area", p.drag_area)?;
+        match p.model {
+            PayloadModelName::Cable => {
+                let Some(l0) = p.cable_length else {
+                    return Err(ConfigError::new(
+                        "payload.cable_length",
+                        "payload.cable_length must be given for payload.model = \"cable\"",
+                    ));
+                };
+                positive("payload.cable_length", l0)?;
+                if let Some(h) = p.attachment_offset {
+                    non_negative("payload.attachment_offset", h)?;
+                }
+            }
+            PayloadModelName::Spring => {
+                for (key, value) in [
+                    ("payload.cable_length", p.cable_length),
+                    ("payload.attachment_offset", p.attachment_offset),
+                ] {
+                    if let Some(x) = value {
+                        return Err(ConfigError::new(
+                            key,
+                            format!(
+                                "{key} applies to payload.model = \"cable\" only, got {x:?} \
+                                 with payload.model = \"spring\""
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
 
         positive("environment.gravity", self.environment.gravity)?;
 
@@ -564,6 +711,7 @@ impl Config {
         self.validate_controller()?;
         self.validate_trajectory()?;
         self.validate_gust()?;
+        self.wind.validate()?;
 
         let it = &self.integrator;
         positive("integrator.dt", it.dt)?;
@@ -588,6 +736,7 @@ impl Config {
         }
         crate::route::schedule(self)?;
         self.validate_phases()?;
+        self.validate_actuator()?;
 
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
         positive("divergence.max_distance", self.divergence.max_distance)?;
@@ -663,6 +812,74 @@ impl Config {
             }
         }
         positive("controller.smc.gamma", smc.gamma)
+    }
+
+    /// `[actuator]`: every rotor key in range always; whether the rotors can hold this
+    /// vehicle in hover and the lag can be integrated at this step only when they fly.
+    fn validate_actuator(&self) -> Result<(), ConfigError> {
+        let a = &self.actuator;
+        positive("actuator.thrust_coefficient", a.thrust_coefficient)?;
+        positive("actuator.torque_ratio", a.torque_ratio)?;
+        positive("actuator.time_constant", a.time_constant)?;
+        non_negative("actuator.thrust_min", a.thrust_min)?;
+        finite("actuator.thrust_max", a.thrust_max)?;
+        if a.thrust_max <= a.thrust_min {
+            return Err(ConfigError::new(
+                "actuator.thrust_max",
+                format!(
+                    "actuator.thrust_max must exceed actuator.thrust_min ({:?} N), got {:?}",
+                    a.thrust_min, a.thrust_max
+                ),
+            ));
+        }
+        if a.model != ActuatorModelName::Rotors {
+            return Ok(());
+        }
+        let l = self.vehicle.arm_length;
+        if l <= 0.0 {
+            return Err(ConfigError::new(
+                "vehicle.arm_length",
+                format!(
+                    "vehicle.arm_length must be > 0 with actuator.model = \"rotors\" (the rotors' \
+                     roll and pitch arms), got {l:?}"
+                ),
+            ));
+        }
+        let dt = self.integrator.dt;
+        if a.time_constant < dt {
+            return Err(ConfigError::new(
+                "actuator.time_constant",
+                format!(
+                    "actuator.time_constant must be at least integrator.dt ({dt:?} s): RK4 on \
+                     the rotor lag is unstable past dt / tau ~ 2.8; got {:?}",
+                    a.time_constant
+                ),
+            ));
+        }
+        let weight = (self.vehicle.mass + self.payload.mass) * self.environment.gravity;
+        if 4.0 * a.thrust_max < weight {
+            return Err(ConfigError::new(
+                "actuator.thrust_max",
+                format!(
+                    "actuator.thrust_max is too small to hover: 4 x {:?} N is below the weight \
+                     (vehicle.mass + payload.mass) x environment.gravity = {weight:?} N",
+                    a.thrust_max
+                ),
+            ));
+        }
+        if a.thrust_min > weight / 4.0 {
+            return Err(ConfigError::new(
+                "actuator.thrust_min",
+                format!(
+                    "actuator.thrust_min is too large to hover: {:?} N per rotor exceeds the \
+                     hover thrust per rotor (vehicle.mass + payload.mass) x environment.gravity \
+                     / 4 = {:?} N",
+                    a.thrust_min,
+                    weight / 4.0
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn validate_trajectory(&self) -> Result<(), ConfigError> {
@@ -774,15 +991,44 @@ impl Config {
                 ),
             ));
         }
-        positive("gust.altitude", g.altitude)?;
-        non_negative("gust.w20", g.w20)?;
-        if !(g.airspeed.is_finite() && g.airspeed > 0.0) {
+        if let GustAltitude::Fixed(h) = g.altitude {
+            positive("gust.altitude", h)?;
+        }
+        match (g.w20, g.intensity) {
+            (Some(_), Some(_)) => {
+                return Err(ConfigError::new(
+                    "gust.intensity",
+                    "give exactly one of gust.w20 and gust.intensity, got both",
+                ))
+            }
+            (None, None) => {
+                return Err(ConfigError::new(
+                    "gust.w20",
+                    "give exactly one of gust.w20 and gust.intensity, got neither",
+                ))
+            }
+            (Some(w), None) => non_negative("gust.w20", w)?,
+            (None, Some(_)) => {}
+        }
+        if let GustAirspeed::Fixed(v) = g.airspeed {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(ConfigError::new(
+                    "gust.airspeed",
+                    format!(
+                        "gust.airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
+                        g.model.name(),
+                        v
+                    ),
+                ));
+            }
+        }
+        if !(g.min_airspeed.is_finite() && g.min_airspeed > 0.0) {
             return Err(ConfigError::new(
-                "gust.airspeed",
+                "gust.min_airspeed",
                 format!(
-                    "gust.airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
+                    "gust.min_airspeed must be > 0 (the {} filters are singular at zero airspeed), got {:?}",
                     g.model.name(),
-                    g.airspeed
+                    g.min_airspeed
                 ),
             ));
         }
@@ -906,6 +1152,70 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn rotor_values_name_their_keys() {
+        let bad = |edit: fn(&mut Config)| {
+            let mut c = paper();
+            c.actuator.model = ActuatorModelName::Rotors;
+            edit(&mut c);
+            c.validate().unwrap_err()
+        };
+        let mut c = paper();
+        c.actuator.model = ActuatorModelName::Rotors;
+        c.validate()
+            .expect("the paper vehicle on its default rotors");
+        // 4 x 5 N = 20 N < (2.2 + 0.22) kg x 9.81 m/s^2 = 23.74 N.
+        let e = bad(|c| c.actuator.thrust_max = 5.0);
+        assert_eq!(e.key, "actuator.thrust_max");
+        assert!(
+            e.message.contains("too small to hover")
+                && e.message.contains("vehicle.mass + payload.mass"),
+            "{e}"
+        );
+        // Exactly the weight on four rotors still hovers; a heavier payload does not.
+        c.actuator.thrust_max = (2.2 + 0.22) * 9.81 / 4.0;
+        c.validate().expect("thrust_max = hover holds hover");
+        let e = bad(|c| c.payload.mass = 3.0);
+        assert_eq!(e.key, "actuator.thrust_max");
+        let e = bad(|c| c.actuator.thrust_min = 6.0);
+        assert_eq!(e.key, "actuator.thrust_min");
+        assert!(e.message.contains("too large to hover"), "{e}");
+        let e = bad(|c| c.actuator.time_constant = 1e-4);
+        assert_eq!(e.key, "actuator.time_constant");
+        assert!(e.message.contains("integrator.dt"), "{e}");
+        let e = bad(|c| c.vehicle.arm_length = 0.0);
+        assert_eq!(e.key, "vehicle.arm_length");
+        for (edit, key) in [
+            (
+                (|c: &mut Config| c.actuator.thrust_coefficient = 0.0) as fn(&mut Config),
+                "actuator.thrust_coefficient",
+            ),
+            (|c| c.actuator.torque_ratio = -0.01, "actuator.torque_ratio"),
+            (
+                |c| c.actuator.time_constant = f64::NAN,
+                "actuator.time_constant",
+            ),
+            (|c| c.actuator.thrust_min = -1.0, "actuator.thrust_min"),
+            (|c| c.actuator.thrust_max = 0.0, "actuator.thrust_max"),
+        ] {
+            assert_eq!(bad(edit).key, key);
+            // Checked with ideal actuators too: one set of rules.
+            let mut c = paper();
+            edit(&mut c);
+            assert_eq!(c.validate().unwrap_err().key, key);
+        }
+        // What only rotors need is not asked of ideal actuators.
+        let mut c = paper();
+        c.actuator.thrust_max = 1.0;
+        c.actuator.time_constant = 1e-6;
+        c.vehicle.arm_length = 0.0;
+        c.validate().expect("ideal actuators fly no rotors");
+        let e = with(|v| v["actuator"]["layout"] = "y".into()).unwrap_err();
+        assert_eq!(e.key, "actuator.layout");
+        let e = with(|v| v["actuator"]["model"] = "jets".into()).unwrap_err();
+        assert_eq!(e.key, "actuator.model");
+    }
+
+    #[test]
     fn gust_words_are_one_vocabulary() {
         // serde's spelling, `key`/`name` and `FromStr` agree, so the scenario, the messages
         // and `gust_series` all read the same words.
@@ -937,7 +1247,7 @@ pub(crate) mod tests {
             edit(&mut c);
             c.validate().unwrap_err()
         };
-        let e = bad(|c| c.gust.airspeed = 0.0);
+        let e = bad(|c| c.gust.airspeed = GustAirspeed::Fixed(0.0));
         assert_eq!(e.key, "gust.airspeed");
         assert_eq!(
             e.message,
@@ -945,15 +1255,15 @@ pub(crate) mod tests {
         );
         let e = bad(|c| {
             c.gust.model = GustModel::VonKarman;
-            c.gust.airspeed = 0.0;
+            c.gust.airspeed = GustAirspeed::Fixed(0.0);
         });
         assert!(e.message.contains("von Karman filters are singular"), "{e}");
-        let e = bad(|c| c.gust.altitude = -1.0);
+        let e = bad(|c| c.gust.altitude = GustAltitude::Fixed(-1.0));
         assert_eq!(
             (e.key.as_str(), e.message.as_str()),
             ("gust.altitude", "gust.altitude must be > 0, got -1.0")
         );
-        let e = bad(|c| c.gust.w20 = -3.0);
+        let e = bad(|c| c.gust.w20 = Some(-3.0));
         assert_eq!(e.message, "gust.w20 must be >= 0, got -3.0");
         let e = bad(|c| c.gust.end = 10.0);
         assert_eq!(e.key, "gust.end");
@@ -967,7 +1277,7 @@ pub(crate) mod tests {
         // A disabled gust is still checked: the scenario is one set of rules.
         let e = bad(|c| {
             c.gust.enabled = false;
-            c.gust.w20 = -3.0;
+            c.gust.w20 = Some(-3.0);
         });
         assert_eq!(e.key, "gust.w20");
     }

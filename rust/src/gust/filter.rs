@@ -137,6 +137,27 @@ fn noise_factor(q: &DMatrix<f64>) -> Result<DMatrix<f64>, String> {
     Ok(g)
 }
 
+/// The noise factor of the 2x2 `[[q11, q12], [q12, q22]]` (padded): `noise_factor`'s
+/// Cholesky, operation for operation (so the same bits), without its heap matrices, since
+/// scales that follow the vehicle rebuild it every step; `noise_factor` itself where a pivot
+/// is not positive.
+fn chol2(q11: f64, q12: f64, q22: f64) -> Matrix3<f64> {
+    let l11 = q11.sqrt();
+    let l21 = q12 / l11;
+    let d = q22 - l21 * l21;
+    let l22 = d.sqrt();
+    if q11 > 0.0 && d > 0.0 && l21.is_finite() && l11.is_finite() && l22.is_finite() {
+        let mut g = Matrix3::zeros();
+        g[(0, 0)] = l11;
+        g[(1, 0)] = l21;
+        g[(1, 1)] = l22;
+        return g;
+    }
+    let q = DMatrix::from_row_slice(2, 2, &[q11, q12, q12, q22]);
+    // q is finite by construction, so noise_factor cannot fail.
+    embed(&noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)))
+}
+
 /// `S3(x) = sum_{n>=3} x^n / n! = e^x - 1 - x - x^2/2` without cancellation
 /// (used for `x <= 2` only).
 fn exp_tail3(x: f64) -> f64 {
@@ -259,11 +280,15 @@ impl GustFilter {
     ) -> Result<Self, String> {
         check_non_negative("sigma", sigma)?;
         check_positive("length_scale", length_scale, "")?;
-        let why = format!(
-            " (the {} filters are singular at zero airspeed)",
-            model.name()
-        );
-        check_positive("airspeed", airspeed, &why)?;
+        if !(airspeed.is_finite() && airspeed > 0.0) {
+            // The message is built only on failure: scales that follow the vehicle rebuild
+            // the filter every step.
+            let why = format!(
+                " (the {} filters are singular at zero airspeed)",
+                model.name()
+            );
+            check_positive("airspeed", airspeed, &why)?;
+        }
         check_positive("dt", dt, "")?;
         let k = airspeed * dt / length_scale;
         if !(k.is_finite() && k > 0.0) {
@@ -350,10 +375,7 @@ impl GustFilter {
                     )
                 };
                 let q12 = 0.5 * x * x * ex;
-                let q = DMatrix::from_row_slice(2, 2, &[q11, q12, q12, q22]);
-                // q is finite by construction, so noise_factor cannot fail.
-                let g = noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2));
-                f.chol = embed(&g);
+                f.chol = chol2(q11, q12, q22);
                 f.a[(0, 1)] = 1.0;
                 f.a[(1, 0)] = -1.0;
                 f.a[(1, 1)] = -2.0;
@@ -379,6 +401,34 @@ impl GustFilter {
         f.c = embed_vec(&nz.c);
         f.raw_variance_ratio = nz.raw_variance_ratio;
         Ok(f)
+    }
+
+    /// This filter re-discretised for new scales (same model, component and step): for
+    /// turbulence whose altitude or airspeed follows the vehicle. The normalised state keeps
+    /// unit stationary covariance whatever the scales, so changing them never makes the
+    /// variance jump. Dryden: the closed forms, no allocation.
+    #[inline]
+    pub fn rescaled(&self, sigma: f64, length_scale: f64, airspeed: f64) -> Result<Self, String> {
+        Self::new(
+            self.model,
+            self.component,
+            sigma,
+            length_scale,
+            airspeed,
+            self.dt,
+        )
+    }
+
+    /// This filter with NaN transition, noise and output: what a step whose scales no filter
+    /// can take (a runaway state) flies, so that the flight ends as non-finite.
+    pub(super) fn poisoned(&self) -> Self {
+        let nan = f64::NAN;
+        Self {
+            phi: Matrix3::from_element(nan),
+            chol: Matrix3::from_element(nan),
+            out: Vector3::from_element(nan),
+            ..*self
+        }
     }
 
     /// Filter order (state dimension), 1 to 3.

@@ -27,4 +27,6 @@ pub mod wind;
 
 pub use filter::GustFilter;
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
-pub use wind::{fill_series, realisation_rng, Source, WindField, WindState};
+pub use wind::{
+    fill_series, realisation_rng, Kinematics, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,
+};

@@ -3,7 +3,11 @@
 
 use super::filter::{step_fixed, GustFilter, Normals};
 use super::spectra::low_altitude_scales;
-use crate::config::{Config, ConfigError, GustComponent};
+use super::spectra::METRES_PER_FOOT;
+use crate::config::wind::{discrete_gust, shear_factor};
+use crate::config::{
+    Config, ConfigError, DiscreteGust, GustAirspeed, GustAltitude, GustComponent, Shear,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -73,8 +77,64 @@ pub fn fill_series(
     });
 }
 
-/// The discretised wind field of a scenario: built once per batch, shared
-/// read-only by all threads. Per-realisation state lives in [`WindState`].
+/// Lowest and highest altitude (m) of `gust.altitude = "vehicle"`: MIL-F-8785C's
+/// low-altitude model holds for 10 ft to 1000 ft; the vehicle's altitude is clamped to it.
+pub const VEHICLE_ALTITUDE_RANGE: (f64, f64) = (10.0 * METRES_PER_FOOT, 1000.0 * METRES_PER_FOOT);
+
+/// Where the quadrotor is at the start of a step: what the wind sources that follow it read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kinematics {
+    /// m, the quadrotor's altitude z.
+    pub z: f64,
+    /// m/s, its inertial velocity.
+    pub vel: [f64; 3],
+}
+
+impl Kinematics {
+    /// At rest at z = 0.
+    pub const AT_REST: Self = Self {
+        z: 0.0,
+        vel: [0.0; 3],
+    };
+}
+
+/// The `[wind]` mean wind: W20 f(h) (cos chi, sin chi, 0).
+#[derive(Clone, Copy, Debug)]
+struct Steady {
+    w20: f64,
+    shear: Shear,
+    roughness: f64,
+    cos: f64,
+    sin: f64,
+}
+
+impl Steady {
+    #[inline]
+    fn at(&self, h: f64) -> [f64; 3] {
+        let s = self.w20 * shear_factor(self.shear, h, self.roughness);
+        [s * self.cos, s * self.sin, 0.0]
+    }
+}
+
+/// Turbulence scales that follow the vehicle: sigma and L from its altitude, V from its speed
+/// through the mean air, re-discretised every step.
+#[derive(Clone, Copy, Debug)]
+struct Follow {
+    altitude: GustAltitude,
+    airspeed: GustAirspeed,
+    w20: f64,
+    min_airspeed: f64,
+}
+
+/// The wind of a scenario, built once per batch and shared read-only by all threads
+/// (per-realisation state lives in [`WindState`]): the held wind of a step is
+/// `mean(h) + turbulence + discrete gusts`, the sources composed behind one vector.
+///
+/// * turbulence (docs/model.md section 4): inside [gust.start, gust.end) when `gust.enabled`,
+///   plus `gust.mean_wind` there; its axes turned by `wind.heading` (u along it, v to its
+///   left, w up); with `gust.altitude = "vehicle"` or `gust.airspeed = "relative"` its
+///   filters are re-discretised every step for that step's scales;
+/// * the `[wind]` mean wind with its shear profile, and `[[wind.gusts]]`: at all times.
 #[derive(Clone, Debug)]
 pub struct WindField {
     enabled: bool,
@@ -83,6 +143,14 @@ pub struct WindField {
     start_step: u64,
     end_step: u64,
     dt: f64,
+    /// Scales that follow the vehicle, if any (else the filters above are the step's).
+    follow: Option<Follow>,
+    /// (cos chi, sin chi) of the turbulence axes; None when chi = 0 (no rotation at all).
+    axes: Option<(f64, f64)>,
+    /// The `[wind]` mean wind, if it blows.
+    steady: Option<Steady>,
+    /// The `[[wind.gusts]]`.
+    gusts: Vec<DiscreteGust>,
 }
 
 /// The unit normals of one flight's turbulence: its seeded stream, or innovations given
@@ -140,45 +208,75 @@ fn step_at_or_after(t: f64, dt: f64) -> u64 {
 
 impl WindField {
     /// Compute the scales ([`low_altitude_scales`]) of a validated scenario's gust
-    /// (`Config::validate` has checked every `gust` value, once for the whole engine) and
-    /// discretise the active components for the step `integrator.dt`.
+    /// (`Config::validate` has checked every `gust` and `wind` value, once for the whole
+    /// engine) and discretise the active components for the step `integrator.dt`.
     ///
     /// Step `n` (time `n dt`) is inside the window iff `start <= n dt < end`,
     /// times within 1e-9 steps of a grid point counting as on it (so a window
     /// [25, 40) s with dt = 2e-4 s is exactly steps 125000..200000).
-    /// When `gust.enabled` is false the field is zero. Errs (key `gust`) only if a filter
-    /// cannot be discretised for this step (e.g. `airspeed * dt / length_scale` overflows).
+    /// When `gust.enabled` is false there is no turbulence (the `[wind]` sources still
+    /// blow). Errs (key `gust`) only if a filter cannot be discretised for this step (e.g.
+    /// `airspeed * dt / length_scale` overflows). Where the scales follow the vehicle the
+    /// filters kept here are those of the lowest altitude (10 ft) and airspeed
+    /// `gust.min_airspeed` (or the fixed values): they fix the orders, the draws and the
+    /// innovations; each step uses its own.
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
-        let (g, dt) = (&cfg.gust, cfg.integrator.dt);
+        let (g, dt, wind) = (&cfg.gust, cfg.integrator.dt, &cfg.wind);
+        let chi = wind.heading.to_radians();
+        let steady = (wind.speed != 0.0).then_some(Steady {
+            w20: wind.speed,
+            shear: wind.shear,
+            roughness: wind.roughness,
+            cos: chi.cos(),
+            sin: chi.sin(),
+        });
+        let mut field = WindField {
+            enabled: false,
+            filters: [None; 3],
+            mean: [0.0; 3],
+            start_step: 0,
+            end_step: 0,
+            dt,
+            follow: None,
+            axes: None,
+            steady,
+            gusts: wind.gusts.clone(),
+        };
         if !g.enabled {
-            return Ok(WindField {
-                enabled: false,
-                filters: [None; 3],
-                mean: [0.0; 3],
-                start_step: 0,
-                end_step: 0,
-                dt,
-            });
+            return Ok(field);
         }
-        let (sigma, length) = low_altitude_scales(g.altitude, g.w20);
-        let mut filters = [None; 3];
+        let w20 = cfg.turbulence_w20();
+        let follows = g.altitude == GustAltitude::Vehicle || g.airspeed == GustAirspeed::Relative;
+        let altitude = match g.altitude {
+            GustAltitude::Fixed(h) => h,
+            GustAltitude::Vehicle => VEHICLE_ALTITUDE_RANGE.0,
+        };
+        let airspeed = match g.airspeed {
+            GustAirspeed::Fixed(v) => v,
+            GustAirspeed::Relative => g.min_airspeed,
+        };
+        let (sigma, length) = low_altitude_scales(altitude, w20);
         for c in GustComponent::ALL {
             let i = c.index();
             if g.components.contains(&c) {
-                let f = GustFilter::new(g.model, c, sigma[i], length[i], g.airspeed, dt).map_err(
+                let f = GustFilter::new(g.model, c, sigma[i], length[i], airspeed, dt).map_err(
                     |e| ConfigError::new("gust", format!("gust ({} component): {e}", c.name())),
                 )?;
-                filters[i] = Some(f);
+                field.filters[i] = Some(f);
             }
         }
-        Ok(WindField {
-            enabled: true,
-            filters,
-            mean: g.mean_wind,
-            start_step: step_at_or_after(g.start, dt),
-            end_step: step_at_or_after(g.end, dt),
-            dt,
-        })
+        field.enabled = true;
+        field.mean = g.mean_wind;
+        field.start_step = step_at_or_after(g.start, dt);
+        field.end_step = step_at_or_after(g.end, dt);
+        field.follow = follows.then_some(Follow {
+            altitude: g.altitude,
+            airspeed: g.airspeed,
+            w20,
+            min_airspeed: g.min_airspeed,
+        });
+        field.axes = (chi != 0.0).then_some((chi.cos(), chi.sin()));
+        Ok(field)
     }
 
     /// Fresh per-realisation state: `rng = realisation_rng(seed, index)`; the
@@ -193,24 +291,136 @@ impl WindField {
         }
     }
 
-    /// Wind (m/s, inertial x, y, z) held over the step starting at `t = step dt`:
-    /// zero outside the window and when disabled; `mean + gust` inside.
+    /// Turbulence only (m/s, inertial x, y, z) held over the step starting at `t = step dt`,
+    /// for a vehicle at rest at z = 0: [`sample_at`](Self::sample_at) without the vehicle.
+    #[inline]
+    pub fn sample(&self, state: &mut WindState<'_>, step: u64) -> [f64; 3] {
+        self.sample_at(state, step, || Kinematics::AT_REST)
+    }
+
+    /// The wind (m/s, inertial x, y, z) held over the step starting at `t = step dt`, the
+    /// quadrotor being where `at` says (asked only if a source follows it): zero outside the
+    /// gust window, when disabled, and when nothing else blows; inside, `gust.mean_wind`
+    /// plus the turbulence; plus, at all times, the `[wind]` mean wind at the quadrotor's
+    /// altitude and the discrete gusts at `t`.
     ///
     /// Call once per integration step in increasing step order. At the first
     /// call inside the window the filter states are drawn from their stationary
     /// distributions (as of the window's first step; components in order
     /// longitudinal, lateral, vertical, each `order()` normals), then advanced
     /// once per step (same component order). If steps are skipped the filters
-    /// are advanced through them, so the value at a step does not depend on
+    /// are advanced through them (with the scales of the step asked for, where they
+    /// follow the vehicle), so with fixed scales the value at a step does not depend on
     /// which earlier steps were sampled; a repeated step returns the same value
     /// without drawing, and a step earlier than the last one inside the window
     /// is not rewound (it returns the current value). No allocation, and no
     /// random draws outside the window.
     #[inline]
-    pub fn sample(&self, state: &mut WindState<'_>, step: u64) -> [f64; 3] {
-        if !self.enabled || step < self.start_step || step >= self.end_step {
+    pub fn sample_at(
+        &self,
+        state: &mut WindState<'_>,
+        step: u64,
+        at: impl FnOnce() -> Kinematics,
+    ) -> [f64; 3] {
+        let turbulent = self.is_active(step);
+        if !turbulent && !self.blows() {
             return [0.0; 3];
         }
+        let kin = if self.follows_vehicle() {
+            at()
+        } else {
+            Kinematics::AT_REST
+        };
+        let steady = self.steady.map(|m| m.at(kin.z));
+        let mut w = if turbulent {
+            self.turbulence(state, step, &kin, steady)
+        } else {
+            [0.0; 3]
+        };
+        if let Some(m) = steady {
+            for (w, m) in w.iter_mut().zip(m) {
+                *w += m;
+            }
+        }
+        if !self.gusts.is_empty() {
+            let g = self.discrete_gusts(step);
+            for (w, g) in w.iter_mut().zip(g) {
+                *w += g;
+            }
+        }
+        w
+    }
+
+    /// The sources that need no random numbers (the `[wind]` mean wind at the quadrotor's
+    /// altitude and the discrete gusts) at `step`: what a prescribed wind is added to.
+    #[inline]
+    pub fn deterministic(&self, step: u64, kin: &Kinematics) -> [f64; 3] {
+        let mut w = self.steady.map_or([0.0; 3], |m| m.at(kin.z));
+        if !self.gusts.is_empty() {
+            let g = self.discrete_gusts(step);
+            for (w, g) in w.iter_mut().zip(g) {
+                *w += g;
+            }
+        }
+        w
+    }
+
+    /// The `[wind]` mean wind (m/s, inertial) at altitude `h` (m): W20 f(h) (cos chi, sin chi,
+    /// 0); zero when `wind.speed` is 0.
+    pub fn mean_at(&self, h: f64) -> [f64; 3] {
+        self.steady.map_or([0.0; 3], |m| m.at(h))
+    }
+
+    /// The sum of the discrete gusts (m/s, inertial) at the step starting at `step dt`.
+    #[inline]
+    pub fn discrete_gusts(&self, step: u64) -> [f64; 3] {
+        let t = step as f64 * self.dt;
+        let mut w = [0.0; 3];
+        for g in &self.gusts {
+            for (w, x) in w.iter_mut().zip(discrete_gust(g, t)) {
+                *w += x;
+            }
+        }
+        w
+    }
+
+    /// Whether something blows outside the gust window (a mean wind, a discrete gust): then
+    /// the wind is sampled at every step.
+    #[inline]
+    pub fn blows(&self) -> bool {
+        self.steady.is_some() || !self.gusts.is_empty()
+    }
+
+    /// Whether a source reads the quadrotor's altitude or velocity.
+    #[inline]
+    pub fn follows_vehicle(&self) -> bool {
+        self.follow.is_some() || self.steady.is_some_and(|m| m.shear != Shear::None)
+    }
+
+    /// The turbulence of a step inside the window, `gust.mean_wind` included, inertial.
+    #[inline(always)]
+    fn turbulence(
+        &self,
+        state: &mut WindState<'_>,
+        step: u64,
+        kin: &Kinematics,
+        steady: Option<[f64; 3]>,
+    ) -> [f64; 3] {
+        let rescaled;
+        let filters = match &self.follow {
+            None => &self.filters,
+            Some(f) => {
+                rescaled = self.rescale(f, kin, steady.unwrap_or([0.0; 3]));
+                &rescaled
+            }
+        };
+        // With the axes turned, the filters' (u, v, w) are summed from zero and turned, then
+        // gust.mean_wind (inertial) is added; unturned, exactly the section-4 sum.
+        let base = if self.axes.is_some() {
+            [0.0; 3]
+        } else {
+            self.mean
+        };
         // One match per sample, not per normal: the draws below run on the concrete source.
         let WindState {
             rng,
@@ -218,21 +428,65 @@ impl WindField {
             started,
             step: at,
         } = state;
-        match rng {
-            Source::Seeded(rng) => self.advance_to(x, started, at, step, rng),
+        let w = match rng {
+            Source::Seeded(rng) => self.advance_to(filters, base, x, started, at, step, rng),
             Source::Given { xi, next } => {
                 let mut given = Given { xi, next: *next };
-                let w = self.advance_to(x, started, at, step, &mut given);
+                let w = self.advance_to(filters, base, x, started, at, step, &mut given);
                 *next = given.next;
                 w
             }
+        };
+        match self.axes {
+            None => w,
+            Some((c, s)) => [
+                w[0] * c - w[1] * s + self.mean[0],
+                w[0] * s + w[1] * c + self.mean[1],
+                w[2] + self.mean[2],
+            ],
         }
     }
 
+    /// The step's filters where the scales follow the vehicle: sigma and L from its altitude
+    /// (clamped to [10 ft, 1000 ft]) or the fixed one, V = max(|v - mean(h)|, min_airspeed)
+    /// or the fixed one. A scale no filter can take (a runaway state) gives NaN filters, so
+    /// the wind is NaN and the flight ends as non-finite.
+    #[inline]
+    fn rescale(&self, f: &Follow, kin: &Kinematics, mean: [f64; 3]) -> [Option<GustFilter>; 3] {
+        let (lo, hi) = VEHICLE_ALTITUDE_RANGE;
+        let h = match f.altitude {
+            GustAltitude::Fixed(h) => h,
+            GustAltitude::Vehicle => kin.z.clamp(lo, hi),
+        };
+        let v = match f.airspeed {
+            GustAirspeed::Fixed(v) => v,
+            GustAirspeed::Relative => {
+                let r: [f64; 3] = std::array::from_fn(|i| kin.vel[i] - mean[i]);
+                (r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+                    .sqrt()
+                    .max(f.min_airspeed)
+            }
+        };
+        let (sigma, length) = low_altitude_scales(h, f.w20);
+        let mut out = self.filters;
+        for (i, slot) in out.iter_mut().enumerate() {
+            if let Some(base) = slot {
+                *slot = Some(
+                    base.rescaled(sigma[i], length[i], v)
+                        .unwrap_or_else(|_| base.poisoned()),
+                );
+            }
+        }
+        out
+    }
+
     /// `sample`'s work on a concrete source of normals.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn advance_to(
         &self,
+        filters: &[Option<GustFilter>; 3],
+        base: [f64; 3],
         x: &mut [[f64; 3]; 3],
         started: &mut bool,
         at: &mut u64,
@@ -240,7 +494,7 @@ impl WindField {
         normals: &mut impl Normals,
     ) -> [f64; 3] {
         if !*started {
-            for (i, f) in self.filters.iter().enumerate() {
+            for (i, f) in filters.iter().enumerate() {
                 if let Some(f) = f {
                     x[i] = f.stationary_state(normals);
                 }
@@ -249,15 +503,15 @@ impl WindField {
             *at = self.start_step;
         }
         while *at < step {
-            for (i, f) in self.filters.iter().enumerate() {
+            for (i, f) in filters.iter().enumerate() {
                 if let Some(f) = f {
                     f.advance(&mut x[i], normals);
                 }
             }
             *at += 1;
         }
-        let mut w = self.mean;
-        for (i, f) in self.filters.iter().enumerate() {
+        let mut w = base;
+        for (i, f) in filters.iter().enumerate() {
             if let Some(f) = f {
                 w[i] += f.output(&x[i]);
             }
@@ -296,7 +550,7 @@ impl WindField {
         (0..self.innovations(steps)).map(|_| rng.normal()).collect()
     }
 
-    /// Whether the wind is on at all.
+    /// Whether the turbulence is on at all.
     pub fn enabled(&self) -> bool {
         self.enabled
     }
@@ -455,9 +709,9 @@ mod tests {
         cfg.gust.enabled = true;
         cfg.gust.model = GustModel::Dryden;
         cfg.gust.components = vec![GustComponent::Vertical];
-        cfg.gust.altitude = 2.0;
-        cfg.gust.w20 = 10.0;
-        cfg.gust.airspeed = 10.0;
+        cfg.gust.altitude = GustAltitude::Fixed(2.0);
+        cfg.gust.w20 = Some(10.0);
+        cfg.gust.airspeed = GustAirspeed::Fixed(10.0);
         cfg.gust.mean_wind = [0.0; 3];
         cfg.gust.start = 1.0;
         cfg.gust.end = 2.0;
@@ -501,7 +755,7 @@ mod tests {
         assert!(wf.filter(Lateral).is_none());
         // Disabled: zero throughout, no matter the rest.
         s.gust.enabled = false;
-        s.gust.airspeed = 0.0;
+        s.gust.airspeed = GustAirspeed::Fixed(0.0);
         let wf = field(&s, dt);
         let mut st = wf.realisation(3, 9);
         for step in 0..300u64 {
@@ -589,8 +843,8 @@ mod tests {
         // The scenario's gust values are checked once, by `Config::validate` (config.rs
         // tests); what no value check can see (a step too small for the scale) names `gust`.
         let mut s = spec();
-        s.gust.altitude = 1e300;
-        s.gust.airspeed = 1e-300;
+        s.gust.altitude = GustAltitude::Fixed(1e300);
+        s.gust.airspeed = GustAirspeed::Fixed(1e-300);
         assert!(s.validate().is_ok());
         let e = WindField::new(&s).unwrap_err();
         assert_eq!(e.key, "gust");
@@ -599,5 +853,351 @@ mod tests {
                 .starts_with("gust (vertical component): airspeed * dt / length_scale"),
             "{e}"
         );
+    }
+
+    // ---- Wind over the whole flight ----------------------------------------------------
+
+    use crate::config::{Intensity, Shear};
+
+    /// A field of `spec()` with all three components, the window open from step 0 on, and
+    /// `edit` applied.
+    fn whole(dt: f64, edit: impl Fn(&mut Config)) -> WindField {
+        let mut s = spec();
+        s.gust.components = GustComponent::ALL.to_vec();
+        s.gust.start = 0.0;
+        s.gust.end = 1e6;
+        edit(&mut s);
+        s.validate().unwrap();
+        field(&s, dt)
+    }
+
+    fn at(z: f64, vel: [f64; 3]) -> impl Fn() -> Kinematics {
+        move || Kinematics { z, vel }
+    }
+
+    #[test]
+    fn log_shear_gives_w20_at_20_ft_and_nothing_at_or_below_z0() {
+        for z0 in [0.0457, 0.61, 2.0] {
+            let f = whole(0.01, |c| {
+                c.gust.enabled = false;
+                c.wind.speed = 7.5;
+                c.wind.shear = Shear::Log;
+                c.wind.roughness = z0;
+            });
+            assert_eq!(f.mean_at(6.096), [7.5, 0.0, 0.0], "z0 = {z0}");
+            assert_eq!(f.mean_at(z0), [0.0; 3]);
+            assert_eq!(f.mean_at(0.5 * z0), [0.0; 3]);
+            assert_eq!(f.mean_at(-3.0), [0.0; 3]);
+            // Between: the formula, by hand; above 20 ft it keeps growing.
+            let h = 2.5;
+            let want = 7.5 * (h / z0).ln() / (6.096 / z0).ln();
+            assert!((f.mean_at(h)[0] - want).abs() < 1e-14);
+            assert!(f.mean_at(60.0)[0] > 7.5);
+        }
+        // No shear: W20 at every height.
+        let f = whole(0.01, |c| c.wind.speed = 3.0);
+        for h in [-1.0, 0.0, 1.0, 100.0] {
+            assert_eq!(f.mean_at(h), [3.0, 0.0, 0.0]);
+        }
+    }
+
+    #[test]
+    fn heading_turns_the_mean_wind_and_the_turbulence_axes() {
+        let dt = 0.01;
+        let chi = 120.0_f64;
+        let (c, s) = (chi.to_radians().cos(), chi.to_radians().sin());
+        let mean = whole(dt, |g| {
+            g.gust.enabled = false;
+            g.wind.speed = 4.0;
+            g.wind.heading = chi;
+        });
+        let m = mean.mean_at(1.0);
+        assert_eq!(m, [4.0 * c, 4.0 * s, 0.0]);
+        assert!((m[0] + 2.0).abs() < 1e-12 && (m[1] - 12f64.sqrt()).abs() < 1e-12);
+        // Turbulence: the heading-0 field's (u, v, w), turned; gust.mean_wind not turned.
+        let edit = |g: &mut Config| g.gust.mean_wind = [0.3, -0.2, 0.1];
+        let plain = whole(dt, edit);
+        let turned = whole(dt, |g| {
+            edit(g);
+            g.wind.heading = chi;
+        });
+        let (mut a, mut b) = (plain.realisation(4, 1), turned.realisation(4, 1));
+        for n in 0..300 {
+            let u = plain.sample(&mut a, n);
+            let w = turned.sample(&mut b, n);
+            let (du, dv) = (u[0] - 0.3, u[1] + 0.2);
+            let want = [du * c - dv * s + 0.3, du * s + dv * c - 0.2, u[2]];
+            for i in 0..3 {
+                assert!(
+                    (w[i] - want[i]).abs() < 1e-14,
+                    "step {n}: {w:?} vs {want:?}"
+                );
+            }
+        }
+        // Heading 0 is section 4 exactly.
+        let zero = whole(dt, |g| {
+            edit(g);
+            g.wind.heading = 0.0;
+        });
+        let (mut a, mut b) = (plain.realisation(4, 1), zero.realisation(4, 1));
+        for n in 0..50 {
+            assert_eq!(plain.sample(&mut a, n), zero.sample(&mut b, n));
+        }
+    }
+
+    #[test]
+    fn discrete_gust_shapes_reach_a_and_return_to_zero() {
+        use crate::config::wind::discrete_gust;
+        use crate::config::{DiscreteGust, GustShape};
+        let a = [1.5, -2.0, 0.75];
+        for (start, d) in [(2.0, 3.0), (0.0, 0.7), (1.1, 1e-3)] {
+            let ramp = DiscreteGust {
+                start,
+                duration: d,
+                amplitude: a,
+                shape: GustShape::Ramp,
+            };
+            let pulse = DiscreteGust {
+                shape: GustShape::Pulse,
+                ..ramp.clone()
+            };
+            for g in [&ramp, &pulse] {
+                assert_eq!(discrete_gust(g, start - 1e-9), [0.0; 3]);
+                assert_eq!(discrete_gust(g, start), [0.0; 3]);
+            }
+            assert_eq!(discrete_gust(&ramp, start + d), a);
+            assert_eq!(discrete_gust(&ramp, start + 10.0 * d), a);
+            assert_eq!(discrete_gust(&pulse, start + d), [0.0; 3]);
+            assert_eq!(discrete_gust(&pulse, start + 10.0 * d), [0.0; 3]);
+            let half_ramp = discrete_gust(&ramp, start + 0.5 * d);
+            let peak = discrete_gust(&pulse, start + 0.5 * d);
+            for i in 0..3 {
+                assert!((half_ramp[i] - 0.5 * a[i]).abs() < 1e-12);
+                assert!((peak[i] - a[i]).abs() < 1e-12);
+            }
+        }
+        // In the field: inertial (not turned by the heading), at every step, whatever
+        // gust.enabled; t = step dt.
+        let f = whole(0.1, |c| {
+            c.gust.enabled = false;
+            c.wind.heading = 45.0;
+            c.wind.gusts = vec![
+                DiscreteGust {
+                    start: 1.0,
+                    duration: 2.0,
+                    amplitude: a,
+                    shape: GustShape::Ramp,
+                },
+                DiscreteGust {
+                    start: 0.5,
+                    duration: 1.0,
+                    amplitude: [0.0, 0.0, 3.0],
+                    shape: GustShape::Pulse,
+                },
+            ];
+        });
+        assert!(f.blows() && !f.enabled());
+        let mut st = f.realisation(0, 0);
+        assert_eq!(f.sample(&mut st, 0), [0.0; 3]);
+        assert_eq!(f.sample(&mut st, 30), a);
+        let mid = f.sample(&mut st, 10);
+        assert!((mid[2] - 3.0).abs() < 1e-15 && mid[0] == 0.0);
+    }
+
+    /// Per-row estimates of E[w_i(t) w_i(t + lag)] / their standard error, for a component of
+    /// `rows` realisations of `steps` steps flown at the altitude `z` held.
+    fn held_moments(
+        f: &WindField,
+        z: f64,
+        rows: usize,
+        steps: usize,
+        lag: usize,
+    ) -> [(f64, f64); 3] {
+        let mut series: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(rows * steps));
+        for r in 0..rows {
+            let mut st = f.realisation(77, r as u64);
+            for n in 0..steps as u64 {
+                let w = f.sample_at(&mut st, n, at(z, [0.0; 3]));
+                for i in 0..3 {
+                    series[i].push(w[i]);
+                }
+            }
+        }
+        std::array::from_fn(|i| lag_moment(&series[i], rows, steps, lag))
+    }
+
+    #[test]
+    fn turbulence_follows_the_vehicle_altitude() {
+        // The formulas, written here from MIL-F-8785C (h in feet), not through the engine.
+        let sigmas = |h_m: f64, w20: f64| {
+            let h = h_m / 0.3048;
+            let sw = 0.1 * w20;
+            let su = sw / (0.177 + 0.000823 * h).powf(0.4);
+            let lu = h / (0.177 + 0.000823 * h).powf(1.2) * 0.3048;
+            ([su, su, sw], [lu, lu, h_m])
+        };
+        // A long step (the discretisation is exact at any step): many scale lengths per row.
+        let (dt, v) = (0.5, 12.0);
+        let f = whole(dt, |c| {
+            c.gust.altitude = GustAltitude::Vehicle;
+            c.gust.airspeed = GustAirspeed::Fixed(v);
+            c.gust.w20 = None;
+            c.gust.intensity = Some(Intensity::Moderate);
+        });
+        let w20 = 30.0 * 1852.0 / 3600.0;
+        for h in [15.0, 150.0] {
+            let (sigma, length) = sigmas(h, w20);
+            let var = held_moments(&f, h, 300, 1000, 0);
+            let lag = 2;
+            let cov = held_moments(&f, h, 300, 1000, lag);
+            for i in 0..3 {
+                let (m, se) = var[i];
+                let want = sigma[i] * sigma[i];
+                assert!(
+                    (m - want).abs() < 4.5 * se,
+                    "h {h} component {i}: {m} vs {want} ({se})"
+                );
+                assert!(
+                    se < 0.03 * want,
+                    "h {h} component {i}: se {se} too large to see"
+                );
+                // The autocorrelation of that altitude's L.
+                let u = v * lag as f64 * dt / length[i];
+                let rho = if i == 0 {
+                    (-u).exp()
+                } else {
+                    (-u).exp() * (1.0 - u / 2.0)
+                };
+                let (m, se) = cov[i];
+                assert!(
+                    (m - want * rho).abs() < 4.5 * se,
+                    "h {h} component {i} lag {lag}: {m} vs {} ({se})",
+                    want * rho
+                );
+            }
+        }
+        // Below 10 ft and above 1000 ft the altitude is clamped: the same numbers as there.
+        for (z, clamp) in [(0.5, 10.0 * 0.3048), (-4.0, 10.0 * 0.3048), (900.0, 304.8)] {
+            let fixed = whole(dt, |c| {
+                c.gust.altitude = GustAltitude::Fixed(clamp);
+                c.gust.airspeed = GustAirspeed::Fixed(v);
+                c.gust.w20 = Some(w20);
+            });
+            let (mut a, mut b) = (f.realisation(2, 3), fixed.realisation(2, 3));
+            for n in 0..200 {
+                assert_eq!(
+                    f.sample_at(&mut a, n, at(z, [0.0; 3])),
+                    fixed.sample(&mut b, n)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn an_altitude_held_flies_the_fixed_altitude_bit_for_bit() {
+        for model in MODELS {
+            let vehicle = whole(0.01, |c| {
+                c.gust.model = model;
+                c.gust.altitude = GustAltitude::Vehicle;
+            });
+            let fixed = whole(0.01, |c| {
+                c.gust.model = model;
+                c.gust.altitude = GustAltitude::Fixed(37.0);
+            });
+            let (mut a, mut b) = (vehicle.realisation(9, 9), fixed.realisation(9, 9));
+            for n in 0..300 {
+                let w = vehicle.sample_at(&mut a, n, at(37.0, [1.0, 2.0, 3.0]));
+                assert_eq!(w, fixed.sample(&mut b, n), "{model:?} step {n}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_climb_changes_the_variance_only_as_sigma_does() {
+        // An ensemble climbing from 5 m to 250 m, with a jump of the altitude at step 60: at
+        // every step the ensemble variance is that step's sigma^2, before, at and after the
+        // jump (the normalised state keeps unit covariance).
+        let (dt, rows, steps) = (0.02, 4000, 120);
+        let f = whole(dt, |c| c.gust.altitude = GustAltitude::Vehicle);
+        let z = |n: u64| {
+            if n < 60 {
+                5.0 + 0.2 * n as f64
+            } else {
+                250.0 - 0.5 * (n - 60) as f64
+            }
+        };
+        let mut w = vec![[0.0; 3]; rows * steps];
+        for r in 0..rows {
+            let mut st = f.realisation(5, r as u64);
+            for n in 0..steps {
+                w[r * steps + n] = f.sample_at(&mut st, n as u64, at(z(n as u64), [0.0; 3]));
+            }
+        }
+        for n in [0usize, 30, 59, 60, 61, 62, 90, 119] {
+            let (sigma, _) = low_altitude_scales(z(n as u64), 10.0);
+            for i in 0..3 {
+                // Normalised by that step's sigma: unit variance, standard error sqrt(2/rows).
+                let x: Vec<f64> = (0..rows).map(|r| w[r * steps + n][i] / sigma[i]).collect();
+                let var = x.iter().map(|v| v * v).sum::<f64>() / rows as f64;
+                let se = (2.0 / rows as f64).sqrt();
+                assert!(
+                    (var - 1.0).abs() < 4.5 * se,
+                    "step {n} component {i}: {var}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn relative_airspeed_is_the_speed_through_the_mean_air() {
+        let edit = |c: &mut Config| {
+            c.wind.speed = 5.0;
+            c.wind.heading = 90.0;
+        };
+        let relative = whole(0.01, |c| {
+            edit(c);
+            c.gust.airspeed = GustAirspeed::Relative;
+            c.gust.min_airspeed = 0.5;
+        });
+        // mean = (5 cos 90deg, 5, 0): v - mean = (3, 4, 12) up to cos 90deg's rounding.
+        let mean = relative.mean_at(2.0);
+        let vel = [3.0 + mean[0], 4.0 + mean[1], 12.0];
+        let v = {
+            let r = [vel[0] - mean[0], vel[1] - mean[1], vel[2]];
+            (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt()
+        };
+        assert!((v - 13.0).abs() < 1e-14);
+        for (vel, airspeed) in [(vel, v), (mean, 0.5)] {
+            let fixed = whole(0.01, |c| {
+                edit(c);
+                c.gust.airspeed = GustAirspeed::Fixed(airspeed);
+            });
+            let (mut a, mut b) = (relative.realisation(3, 0), fixed.realisation(3, 0));
+            for n in 0..200 {
+                assert_eq!(
+                    relative.sample_at(&mut a, n, at(2.0, vel)),
+                    fixed.sample(&mut b, n),
+                    "V {airspeed} step {n}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn innovations_drive_the_vehicle_following_field_like_its_seed() {
+        let f = whole(0.01, |c| {
+            c.gust.altitude = GustAltitude::Vehicle;
+            c.gust.airspeed = GustAirspeed::Relative;
+            c.wind.speed = 3.0;
+            c.wind.shear = Shear::Log;
+        });
+        let steps = 400;
+        let xi = f.innovations_of(8, 2, steps);
+        let (mut a, mut b) = (f.realisation(8, 2), f.given(&xi));
+        for n in 0..=steps as u64 {
+            let z = 1.0 + 0.1 * n as f64;
+            let k = at(z, [0.3, -0.1, 0.5]);
+            assert_eq!(f.sample_at(&mut a, n, &k), f.sample_at(&mut b, n, &k));
+        }
     }
 }

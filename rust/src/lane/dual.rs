@@ -144,11 +144,17 @@ impl Lane for Dual {
             Self::constant(0.0)
         }
     }
+    /// At 0 with a zero slope (the minimum of a sum of squares, e.g. a norm at the origin:
+    /// sqrt(x^2) = |x|) the slope is taken as 0, as for `abs`, not 0 / 0.
     fn sqrt(self) -> Self {
         let r = self.v.sqrt();
         Self {
             v: r,
-            d: self.d / (2.0 * r),
+            d: if self.v == 0.0 && self.d == 0.0 {
+                0.0
+            } else {
+                self.d / (2.0 * r)
+            },
         }
     }
     fn max(self, other: Self) -> Self {

@@ -287,10 +287,13 @@ pub fn dispatch<V: VehicleVisitor>(
     actuator: ActuatorKind,
     v: V,
 ) -> V::Output {
-    use actuator::Ideal;
-    use payload::Spring;
+    use actuator::{Ideal, Rotors};
+    use payload::{Cable, Spring};
     match (payload, actuator) {
         (PayloadKind::Spring, ActuatorKind::Ideal) => v.visit::<Spring, Ideal, 14>(),
+        (PayloadKind::Cable, ActuatorKind::Ideal) => v.visit::<Cable, Ideal, 18>(),
+        (PayloadKind::Spring, ActuatorKind::Rotors) => v.visit::<Spring, Rotors, 18>(),
+        (PayloadKind::Cable, ActuatorKind::Rotors) => v.visit::<Cable, Rotors, 22>(),
     }
 }
 

@@ -25,6 +25,7 @@ impl Actuator for Ideal {
     fn of(any: &AnyActuator) -> &Self {
         match any {
             AnyActuator::Ideal(a) => a,
+            _ => unreachable!("model::dispatch matched the ideal actuators"),
         }
     }
 }

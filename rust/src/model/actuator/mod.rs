@@ -6,8 +6,10 @@
 //! `AnyActuator` and of `config::ActuatorModelName`, and its lines in `model::dispatch`.
 
 mod ideal;
+pub mod rotors;
 
 pub use ideal::Ideal;
+pub use rotors::Rotors;
 
 use super::layout::StateVar;
 use super::{Inputs, State};
@@ -71,21 +73,27 @@ pub trait Actuator: Clone + Sync + Send + Sized + 'static {
 }
 
 /// Every actuator kind's parameters: the one place the kinds are listed.
+// One per vehicle, read only when the lanes are gathered: a Box would add an allocation and an
+// indirection for the few hundred bytes the rotors' allocation matrices take.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum AnyActuator {
     Ideal(Ideal),
+    Rotors(Rotors),
 }
 
 impl AnyActuator {
     pub fn new(cfg: &Config) -> Self {
         match cfg.actuator.model {
             ActuatorModelName::Ideal => Self::Ideal(Ideal::new(cfg)),
+            ActuatorModelName::Rotors => Self::Rotors(Rotors::new(cfg)),
         }
     }
 
     pub fn name(&self) -> ActuatorModelName {
         match self {
             Self::Ideal(_) => ActuatorModelName::Ideal,
+            Self::Rotors(_) => ActuatorModelName::Rotors,
         }
     }
 }

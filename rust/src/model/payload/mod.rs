@@ -5,8 +5,10 @@
 //! kind: a file beside `spring.rs`, a variant of `AnyPayload` and of `config::PayloadModelName`,
 //! and its lines in `model::dispatch` (docs/architecture.md).
 
+mod cable;
 mod spring;
 
+pub use cable::{Cable, Line};
 pub use spring::Spring;
 
 use super::body::Body;
@@ -81,12 +83,14 @@ pub trait Payload: Clone + Sync + Send + Sized + 'static {
 #[derive(Clone, Debug)]
 pub enum AnyPayload {
     Spring(Spring),
+    Cable(Cable),
 }
 
 impl AnyPayload {
     pub fn new(cfg: &Config) -> Self {
         match cfg.payload.model {
             PayloadModelName::Spring => Self::Spring(Spring::new(cfg)),
+            PayloadModelName::Cable => Self::Cable(Cable::new(cfg)),
         }
     }
 
@@ -94,6 +98,7 @@ impl AnyPayload {
     pub fn name(&self) -> PayloadModelName {
         match self {
             Self::Spring(_) => PayloadModelName::Spring,
+            Self::Cable(_) => PayloadModelName::Cable,
         }
     }
 }

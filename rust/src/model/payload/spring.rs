@@ -78,6 +78,7 @@ impl Payload for Spring {
     fn of(any: &AnyPayload) -> &Self {
         match any {
             AnyPayload::Spring(p) => p,
+            _ => unreachable!("model::dispatch matched the spring"),
         }
     }
 }

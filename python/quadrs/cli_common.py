@@ -1,0 +1,46 @@
+"""What every ``quadrs`` subcommand module shares: the bad-input error and the Dask client
+of ``--scheduler``. Imported by :mod:`quadrs.cli` and the ``cli_*`` modules alike, so that
+none of them imports another."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from collections.abc import Iterator
+from typing import Any
+
+__all__ = ["BadInput", "dask_client", "seed_and_workers"]
+
+
+class BadInput(ValueError):
+    """Bad command-line input caught by the CLI itself (not by the scenario)."""
+
+
+@contextlib.contextmanager
+def dask_client(address: str | None) -> Iterator[Any]:
+    """A Dask client for ``--scheduler`` (None without it): Dask is imported only then."""
+    if address is None:
+        yield None
+        return
+    try:
+        from dask.distributed import Client
+    except ImportError:
+        raise BadInput("--scheduler needs Dask: pip install 'quadrs[dask]'") from None
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError) as e:
+        raise BadInput(f"--scheduler {address}: cannot connect ({e})") from None
+    with client:
+        yield client
+
+
+def seed_and_workers(p: argparse.ArgumentParser) -> None:
+    """The options every batch command takes: ``--seed`` and ``--workers``."""
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="W",
+        help="worker threads (default: every core this process may use)",
+    )

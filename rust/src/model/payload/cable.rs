@@ -1,0 +1,311 @@
+//! The cable-slung payload (docs/model.md, "Cable-slung payload"): a point mass on a massless
+//! elastic cable that swings freely in 3-D and goes slack, hooked `h` below the centre of
+//! gravity. Three degrees of freedom: `xc, yc, zc` and `vxc, vyc, vzc`.
+//!
+//!     hook          a  = p + R hb,   hb = (0, 0, -h)
+//!     hook velocity va = v + R (w x hb),   w = (p, q, r)
+//!     cable         d = pc - a,  l = |d|,  u = d / l,  ldot = u . (vc - va)
+//!     tension       T = max(0, k (l - L0) + c ldot)   if l > L0,   else T = 0
+//!     payload       mc dvc/dt = -T u - mc g e3 + Fdc
+//!     quadrotor     m  dv/dt  =  U1 R e3 + T u - m g e3 + Fd
+//!     torque        tau += hb x (R^T (T u))
+//!     payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
+//!
+//! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
+
+use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
+use crate::config::Config;
+use crate::lane::Lane;
+use crate::model::body::{drag, Body};
+use crate::model::layout::{Axis, Bound, Part, StateVar};
+use crate::model::{ix, Layout, State, Trig};
+
+/// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Cable<L = f64> {
+    /// kg.
+    pub mc: L,
+    /// N/m (axial stiffness k) and N s/m (axial damping c).
+    pub k: L,
+    pub c: L,
+    /// m, the unstretched length L0.
+    pub rest_length: L,
+    /// m, the hook's distance h below the centre of gravity (body z axis).
+    pub offset: L,
+    /// 1/2 rho CdA of the payload (in every direction).
+    pub drag_payload: L,
+    /// m, the length at hover l_eq = L0 + mc g / k.
+    pub hover_length: L,
+    /// 1 / mc, computed once.
+    inv_mc: L,
+}
+
+const LAYOUT: Layout = Layout::new(3, 0);
+const XC: usize = ix::PAYLOAD;
+const VX: usize = LAYOUT.vel();
+const P: usize = VX + 3;
+const VXC: usize = LAYOUT.payload_vel();
+
+const fn payload(name: &'static str, axis: Axis, bound: Bound) -> StateVar {
+    StateVar::new(name, axis, Some(bound), Part::Payload)
+}
+
+impl Payload for Cable {
+    type At<L: Lane> = Cable<L>;
+    const POSITIONS: &'static [StateVar] = &[
+        payload("xc", Axis::X, Bound::Distance),
+        payload("yc", Axis::Y, Bound::Distance),
+        payload("zc", Axis::Z, Bound::Distance),
+    ];
+    const VELOCITIES: &'static [StateVar] = &[
+        payload("vxc", Axis::X, Bound::Speed),
+        payload("vyc", Axis::Y, Bound::Speed),
+        payload("vzc", Axis::Z, Bound::Speed),
+    ];
+
+    fn new(cfg: &Config) -> Self {
+        let p = &cfg.payload;
+        let k = cfg.stiffness();
+        let rest_length = p.cable_length.unwrap_or(f64::NAN); // required: Config::validate
+        Self {
+            mc: p.mass,
+            k,
+            c: p.damping,
+            rest_length,
+            offset: p.attachment_offset(),
+            drag_payload: 0.5 * cfg.gust.air_density * p.drag_area,
+            hover_length: rest_length + p.mass * cfg.environment.gravity / k,
+            inv_mc: 1.0 / p.mass,
+        }
+    }
+
+    fn gather<L: Lane>(each: &[&Self]) -> Cable<L> {
+        let at = |f: fn(&Cable) -> f64| L::from_fn(|l| f(each[l]));
+        Cable {
+            mc: at(|p| p.mc),
+            k: at(|p| p.k),
+            c: at(|p| p.c),
+            rest_length: at(|p| p.rest_length),
+            offset: at(|p| p.offset),
+            drag_payload: at(|p| p.drag_payload),
+            hover_length: at(|p| p.hover_length),
+            inv_mc: at(|p| p.inv_mc),
+        }
+    }
+
+    fn of(any: &AnyPayload) -> &Self {
+        match any {
+            AnyPayload::Cable(p) => p,
+            _ => unreachable!("model::dispatch matched the cable"),
+        }
+    }
+}
+
+/// The columns of R = Rz(psi) Ry(theta) Rx(phi): the body's x, y and z axes in inertial axes.
+#[inline(always)]
+fn axes<L: Lane>(t: &Trig<L>) -> [[L; 3]; 3] {
+    let Trig {
+        sphi,
+        cphi,
+        sth,
+        cth,
+        spsi,
+        cpsi,
+    } = *t;
+    let (ss, cs) = (sth * sphi, sth * cphi);
+    [
+        [cpsi * cth, spsi * cth, -sth],
+        [
+            cpsi.mul_add(ss, -(spsi * cphi)),
+            spsi.mul_add(ss, cpsi * cphi),
+            cth * sphi,
+        ],
+        [
+            cs.mul_add(cpsi, spsi * sphi),
+            cs.mul_add(spsi, -(sphi * cpsi)),
+            cphi * cth,
+        ],
+    ]
+}
+
+/// `[f(0), f(1), f(2)]`, always inlined (`array::map` is not guaranteed to be: see
+/// `model::state_from_fn`).
+#[inline(always)]
+fn vec3<L: Copy>(f: impl Fn(usize) -> L) -> [L; 3] {
+    [f(0), f(1), f(2)]
+}
+
+#[inline(always)]
+fn dot<L: Lane>(a: &[L; 3], b: &[L; 3]) -> L {
+    a[0].mul_add(b[0], a[1].mul_add(b[1], a[2] * b[2]))
+}
+
+/// `value` where `gate > 0`, else 0, for `value >= 0`, without a branch (the model is generic
+/// over lane types that have no select). `max(gate, 0) * MAX * MAX` is 0 where `gate <= 0`
+/// and at least 1.6e293 (or infinite) where `gate > 0`, even at the least subnormal, so the
+/// `min` returns `value` exactly there; NaN propagates.
+#[inline(always)]
+fn where_positive<L: Lane>(gate: L, value: L) -> L {
+    value.min(L::splat(0.0).max(gate) * f64::MAX * f64::MAX)
+}
+
+/// The cable at one state: what both the dynamics and the outputs read.
+#[derive(Clone, Copy, Debug)]
+pub struct Line<L> {
+    /// The hook's inertial position a (m).
+    pub hook: [L; 3],
+    /// pc - a (m) and its length l (m).
+    pub d: [L; 3],
+    pub length: L,
+    /// The unit vector u from the hook to the payload.
+    pub u: [L; 3],
+    /// N, the tension T (never negative; exactly 0 while slack).
+    pub tension: L,
+}
+
+impl<L: Lane> Cable<L> {
+    /// The hook, the cable's direction and its tension at `s` (`axes` from `s`'s angles).
+    #[inline(always)]
+    pub fn line<const N: usize>(&self, s: &State<L, N>, axes: &[[L; 3]; 3]) -> Line<L> {
+        let [ex, ey, ez] = axes;
+        let h = self.offset;
+        // a = p + R (0, 0, -h);  va = v + R (w x hb) with w x hb = (-h q, h p, 0).
+        let hook: [L; 3] = vec3(
+            #[inline(always)]
+            |i| (-h).mul_add(ez[i], s[ix::X + i]),
+        );
+        let (hq, hp) = (h * s[P + 1], h * s[P]);
+        let va: [L; 3] = vec3(
+            #[inline(always)]
+            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[VX + i])),
+        );
+        let d: [L; 3] = vec3(
+            #[inline(always)]
+            |i| s[XC + i] - hook[i],
+        );
+        let length = dot(&d, &d).sqrt();
+        let inv = L::splat(1.0) / length;
+        let u = vec3(
+            #[inline(always)]
+            |i| d[i] * inv,
+        );
+        let rel = vec3(
+            #[inline(always)]
+            |i| s[VXC + i] - va[i],
+        );
+        let ldot = dot(&u, &rel);
+        let stretch = length - self.rest_length;
+        let pull = L::splat(0.0).max(stretch.mul_add(self.k, self.c * ldot));
+        Line {
+            hook,
+            d,
+            length,
+            u,
+            tension: where_positive(stretch, pull),
+        }
+    }
+
+    /// mc dvc/dt = -T u - mc g e3 + Fdc: the payload's inertial acceleration.
+    #[inline(always)]
+    fn acceleration<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        line: &Line<L>,
+        w: &[L; 3],
+    ) -> [L; 3] {
+        let rel = vec3(
+            #[inline(always)]
+            |i| s[VXC + i] - w[i],
+        );
+        let k = dot(&rel, &rel).sqrt() * (-self.drag_payload);
+        let mut a = vec3(
+            #[inline(always)]
+            |i| rel[i].mul_add(k, -(line.tension * line.u[i])) * self.inv_mc,
+        );
+        a[2] = a[2] - body.g;
+        a
+    }
+
+    /// rad, the cable's angle from hanging straight down, acos(-u_z), as 2 asin(|u + e3| / 2):
+    /// accurate at small angles (acos loses half the digits near 1), clamped against rounding.
+    #[inline(always)]
+    fn swing(line: &Line<L>) -> L {
+        let [dx, dy, dz] = line.d;
+        let up = dz + line.length;
+        let chord = dx.mul_add(dx, dy.mul_add(dy, up * up)).sqrt();
+        let half = chord / (line.length * 2.0);
+        L::splat(1.0).min(half).asin() * 2.0
+    }
+}
+
+impl<L: Lane> PayloadModel<L> for Cable<L> {
+    const DOF: usize = 3;
+
+    #[inline(always)]
+    fn accelerations<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> Option<[L; 3]> {
+        let axes = axes(trig);
+        let line = self.line(s, &axes);
+        let pull = vec3(
+            #[inline(always)]
+            |i| line.tension * line.u[i],
+        );
+        let fd = [
+            drag(body.drag_lateral, s[VX], w[0]),
+            drag(body.drag_lateral, s[VX + 1], w[1]),
+            body.vertical_drag(s[VX + 2], w[2]),
+        ];
+        let thrust = &axes[2];
+        for i in 0..3 {
+            ds[VX + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
+        }
+        ds[VX + 2] = ds[VX + 2] - body.g;
+        let ac = self.acceleration(body, s, &line, w);
+        ds[VXC..VXC + 3].copy_from_slice(&ac);
+        // hb x f with hb = (0, 0, -h) and f = R^T (T u) = (ex . Tu, ey . Tu, ez . Tu).
+        let h = self.offset;
+        let (fx, fy) = (dot(&axes[0], &pull), dot(&axes[1], &pull));
+        Some([h * fy, -(h * fx), L::splat(0.0)])
+    }
+
+    #[inline(always)]
+    fn outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        _u1: L,
+        w: &[L; 3],
+    ) -> PayloadOutputs<L> {
+        let line = self.line(s, &axes(trig));
+        let accel = self.acceleration(body, s, &line, w);
+        PayloadOutputs {
+            e_o: (s[XC + 2] - line.hook[2]) + self.hover_length,
+            accel,
+            tension: line.tension,
+            swing: Self::swing(&line),
+        }
+    }
+
+    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+        // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
+        let ez = axes(&Trig::of(s))[2];
+        for i in 0..3 {
+            s[XC + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
+            s[VXC + i] = s[VX + i];
+        }
+        s[XC + 2] = s[XC + 2] - self.hover_length;
+    }
+}
+
+#[cfg(test)]
+#[path = "cable_tests.rs"]
+mod tests;
