@@ -254,3 +254,39 @@ def test_cross_track_of_a_vertical_flight_is_zero() -> None:
     m = quadrs.simulate(s, "pd", seed=2).metrics.set_index("phase")
     assert (m["max_cross_track"] == 0).all() and (m["rms_cross_track"] == 0).all()
     assert (m["max_tracking"] > 0).all()
+
+
+def test_a_dispersed_start_flies_its_own_cross_track_line() -> None:
+    """Before the first waypoint the line runs from the flight's own initial position: each
+    row of a batch that disperses the start equals the single flight of its drawn scenario,
+    cross-track included."""
+    s = Scenario.paper().override(
+        {
+            "integrator.duration": 4.0,
+            "integrator.dt": 2e-3,
+            "gust.enabled": False,
+            "phases": [{"name": "up", "start": 0.0, "end": 4.0}],
+            "dispersions": {"initial.position[0]": {"dist": "uniform", "low": 0.0, "high": 0.5}},
+        }
+    )
+    mc = quadrs.monte_carlo(s, runs=3, seed=4, controllers=["pd"], progress=False)
+    for k in range(3):
+        alone = quadrs.simulate(s, "pd", seed=4, realisation=k)
+        row = mc.runs[(mc.runs["realisation"] == k) & (mc.runs["phase"] == "up")]
+        for m in ("rms_cross_track", "max_cross_track", "iae", "tracking_rms"):
+            assert row[m].iloc[0] == alone.metrics.set_index("phase").loc["up", m], (k, m)
+    assert mc.runs["max_cross_track"].nunique() == 3  # the starts differ, so do the lines
+
+
+def test_a_min_jerk_reference_refuses_a_dispersed_start() -> None:
+    """A min-jerk reference starts from the initial state, which a batch's lanes share: a
+    dispersed initial state is refused, naming the key, instead of flying the wrong reference."""
+    with pytest.raises(ScenarioError, match=r"initial\.position\[2\].*min_jerk"):
+        Scenario.paper().override(
+            {
+                "trajectory.interpolation": "min_jerk",
+                "dispersions": {
+                    "initial.position[2]": {"dist": "uniform", "low": 0.0, "high": 0.5}
+                },
+            }
+        )

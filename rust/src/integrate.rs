@@ -399,11 +399,15 @@ macro_rules! flight_loop_for {
 /// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
 /// the point itself where the direction is zero): the squared cross-track error.
 #[inline(always)]
-fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([f64; 3], [f64; 3])) -> L {
+fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
     let (a, u) = line;
     let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
     let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
-    let q = [d[0] - along * u[0], d[1] - along * u[1], d[2] - along * u[2]];
+    let q = [
+        d[0] - along * u[0],
+        d[1] - along * u[1],
+        d[2] - along * u[2],
+    ];
     q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
 }
 
@@ -760,7 +764,7 @@ impl Engine {
         let mut r = Reference::default();
         let mut ref_changes = f64::NEG_INFINITY;
         // The straight line of the current leg (a point, a unit direction): cross-track error.
-        let mut line = ([0.0; 3], [0.0; 3]);
+        let mut line = ([L::splat(0.0); 3], [L::splat(0.0); 3]);
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
         // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
         let windy = || crafts.iter().filter(|c| c.wind.enabled());
@@ -780,7 +784,16 @@ impl Engine {
             if t + TIME_SLACK >= ref_changes {
                 r = self.trajectory.at(t, &mut segment);
                 ref_changes = self.trajectory.next_change(segment);
-                line = self.trajectory.line(segment);
+                // Each lane's line (they differ before the first waypoint, which each lane's
+                // own initial position leads to).
+                let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
+                for (l, c) in crafts.iter().enumerate() {
+                    lines[l] = self.trajectory.line(segment, [c.x0[0], c.x0[1], c.x0[2]]);
+                }
+                line = (
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].0[i])),
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].1[i])),
+                );
             }
             let trig = Trig::of(&s);
             let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);

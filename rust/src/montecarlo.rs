@@ -335,7 +335,7 @@ mod tests {
         );
         // Realisations 3..9 alone equal the same rows inside 0..10 (different lane packing).
         let c = batch(&engine, 3, 6, 2);
-        let row = 2 * 2 * N_METRICS;
+        let row = 2 * engine.phase_count() * N_METRICS;
         assert_eq!(
             c.metrics.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
             a.metrics[3 * row..9 * row]

@@ -56,7 +56,7 @@ impl Profile {
     fn ramp_at(&self, tau: f64) -> (f64, f64, f64) {
         let (t, a) = (self.ramp, self.accel);
         let w = 2.0 * PI / t;
-        let s = 0.5 * a * (0.5 * tau * tau + (( w * tau).cos() - 1.0) / (w * w));
+        let s = 0.5 * a * (0.5 * tau * tau + ((w * tau).cos() - 1.0) / (w * w));
         let v = 0.5 * a * (tau - (w * tau).sin() / w);
         let sin = (PI * tau / t).sin();
         (s, v, a * sin * sin)
@@ -194,7 +194,10 @@ pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
                 ))
             }
             Some(x) if !(x.is_finite() && x > 0.0) => {
-                return Err(ConfigError::new(key, format!("{key} must be > 0, got {x:?}")))
+                return Err(ConfigError::new(
+                    key,
+                    format!("{key} must be > 0, got {x:?}"),
+                ))
             }
             Some(_) => {}
         }
@@ -212,7 +215,10 @@ pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
     for (i, h) in tr.hold.iter().enumerate() {
         if !(h.is_finite() && *h >= 0.0) {
             let key = format!("trajectory.hold[{i}]");
-            return Err(ConfigError::new(&key, format!("{key} must be >= 0, got {h:?}")));
+            return Err(ConfigError::new(
+                &key,
+                format!("{key} must be >= 0, got {h:?}"),
+            ));
         }
     }
     Ok(())
@@ -494,16 +500,36 @@ mod tests {
             assert!(norm(r.vel) <= speed * (1.0 + 1e-12), "t {}", k as f64 * h);
             assert!(norm(r.acc) <= accel * (1.0 + 1e-12), "t {}", k as f64 * h);
             if let Some(p) = prev {
-                let dv = norm([r.vel[0] - p.vel[0], r.vel[1] - p.vel[1], r.vel[2] - p.vel[2]]);
-                let da = norm([r.acc[0] - p.acc[0], r.acc[1] - p.acc[1], r.acc[2] - p.acc[2]]);
-                assert!(dv <= accel * h * (1.0 + 1e-9), "velocity jumps at t {}", k as f64 * h);
-                assert!(da <= jerk * h * (1.0 + 1e-6), "acceleration jumps at t {}", k as f64 * h);
+                let dv = norm([
+                    r.vel[0] - p.vel[0],
+                    r.vel[1] - p.vel[1],
+                    r.vel[2] - p.vel[2],
+                ]);
+                let da = norm([
+                    r.acc[0] - p.acc[0],
+                    r.acc[1] - p.acc[1],
+                    r.acc[2] - p.acc[2],
+                ]);
+                assert!(
+                    dv <= accel * h * (1.0 + 1e-9),
+                    "velocity jumps at t {}",
+                    k as f64 * h
+                );
+                assert!(
+                    da <= jerk * h * (1.0 + 1e-6),
+                    "acceleration jumps at t {}",
+                    k as f64 * h
+                );
             }
             prev = Some(r);
         }
         // Derivatives agree with finite differences of the position.
         for t in [3.0, 9.7, 20.0, 44.4, 57.0] {
-            let (a, b, c) = (tr.at(t - 1e-5, &mut 0), tr.at(t + 1e-5, &mut 0), tr.at(t, &mut 0));
+            let (a, b, c) = (
+                tr.at(t - 1e-5, &mut 0),
+                tr.at(t + 1e-5, &mut 0),
+                tr.at(t, &mut 0),
+            );
             for k in 0..3 {
                 assert!(((b.pos[k] - a.pos[k]) / 2e-5 - c.vel[k]).abs() < 1e-6);
                 assert!(((b.vel[k] - a.vel[k]) / 2e-5 - c.acc[k]).abs() < 1e-6);
@@ -530,7 +556,10 @@ mod tests {
             assert_eq!(w[0].last, w[1].first);
         }
         assert_eq!(steps[cfg.phases.len() - 1].last, cfg.steps());
-        assert_eq!((steps.last().unwrap().first, steps.last().unwrap().last), (0, cfg.steps()));
+        assert_eq!(
+            (steps.last().unwrap().first, steps.last().unwrap().last),
+            (0, cfg.steps())
+        );
         // A last hold of 0 s with time left over: the remainder is a hold at the last point;
         // names replace the defaults.
         let cfg = route_cfg(|c| {
@@ -546,7 +575,10 @@ mod tests {
     #[test]
     fn unflyable_routes_name_their_key() {
         let key = |edit: fn(&mut serde_json::Value)| route_cfg(edit).unwrap_err().key;
-        assert_eq!(key(|c| c["trajectory"]["speed"] = json!(0.0)), "trajectory.speed");
+        assert_eq!(
+            key(|c| c["trajectory"]["speed"] = json!(0.0)),
+            "trajectory.speed"
+        );
         assert_eq!(
             key(|c| c["trajectory"]["acceleration"] = json!(-1.0)),
             "trajectory.acceleration"
@@ -555,15 +587,24 @@ mod tests {
             c["trajectory"].as_object_mut().unwrap().remove("speed");
         })
         .unwrap_err();
-        assert_eq!(e.message, "trajectory.speed must be given for a route, got none");
+        assert_eq!(
+            e.message,
+            "trajectory.speed must be given for a route, got none"
+        );
         let e = route_cfg(|c| {
             c["trajectory"]["route"] = json!([[0, 0, 0], [0, 0, 10], [0, 0, 10], [5, 0, 10]]);
         })
         .unwrap_err();
         assert_eq!(e.key, "trajectory.route[2]");
         assert!(e.message.contains("repeats the previous point"), "{e}");
-        assert_eq!(key(|c| c["trajectory"]["route"] = json!([[0, 0, 0]])), "trajectory.route");
-        assert_eq!(key(|c| c["trajectory"]["hold"] = json!([1.0])), "trajectory.hold");
+        assert_eq!(
+            key(|c| c["trajectory"]["route"] = json!([[0, 0, 0]])),
+            "trajectory.route"
+        );
+        assert_eq!(
+            key(|c| c["trajectory"]["hold"] = json!([1.0])),
+            "trajectory.hold"
+        );
         assert_eq!(
             key(|c| c["trajectory"]["hold"] = json!([1.0, -1.0, 0.0, 0.0])),
             "trajectory.hold[1]"
@@ -575,7 +616,10 @@ mod tests {
         let e = route_cfg(|c| c["integrator"]["duration"] = json!(40.0)).unwrap_err();
         assert_eq!(e.key, "integrator.duration");
         assert!(e.message.contains("must cover the route"), "{e}");
-        assert_eq!(key(|c| c["trajectory"]["names"] = json!(["a"])), "trajectory.names");
+        assert_eq!(
+            key(|c| c["trajectory"]["names"] = json!(["a"])),
+            "trajectory.names"
+        );
         assert_eq!(
             key(|c| c["trajectory"]["names"] = json!(["a", "b", "a", "c", "d"])),
             "trajectory.names[2]"

@@ -38,7 +38,13 @@ impl Trajectory {
         Self {
             waypoints: w.clone(),
             interpolation: cfg.trajectory.interpolation,
-            start: [w.first().map_or(0.0, |r| r[0]), x, y, z, cfg.initial.attitude[2]],
+            start: [
+                w.first().map_or(0.0, |r| r[0]),
+                x,
+                y,
+                z,
+                cfg.initial.attitude[2],
+            ],
             transition: cfg.trajectory.transition,
             route: cfg.trajectory.route.clone(),
             // A validated scenario's schedule cannot fail (`Config::validate` built it).
@@ -104,7 +110,8 @@ impl Trajectory {
     /// position before the first waypoint) to the current one. The direction is zero where
     /// the two coincide (a route's hold, a waypoint repeating the previous position): the
     /// line is then that point. The cross-track error is the distance from this line.
-    pub fn line(&self, segment: usize) -> ([f64; 3], [f64; 3]) {
+    /// `start` is the flight's own initial position (a dispersed batch's lanes differ in it).
+    pub fn line(&self, segment: usize, start: [f64; 3]) -> ([f64; 3], [f64; 3]) {
         let (a, b) = match self.interpolation {
             Interpolation::Route => match self.segments.get(segment) {
                 Some(s) => (self.route[s.from], self.route[s.to]),
@@ -112,13 +119,12 @@ impl Trajectory {
             },
             Interpolation::Step | Interpolation::MinJerk => {
                 let w = &self.waypoints;
-                let from = if segment == 0 {
-                    &self.start
-                } else {
-                    &w[segment - 1]
+                let from = match segment {
+                    0 => start,
+                    _ => [w[segment - 1][1], w[segment - 1][2], w[segment - 1][3]],
                 };
                 let to = &w[segment];
-                ([from[1], from[2], from[3]], [to[1], to[2], to[3]])
+                (from, [to[1], to[2], to[3]])
             }
         };
         let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
@@ -154,7 +160,11 @@ impl Trajectory {
         for k in 0..3 {
             let u = (b[k] - a[k]) / p.length;
             // At arrival the position is the point itself, not a + L u (rounding).
-            r.pos[k] = if dist >= p.length { b[k] } else { a[k] + dist * u };
+            r.pos[k] = if dist >= p.length {
+                b[k]
+            } else {
+                a[k] + dist * u
+            };
             r.vel[k] = speed * u;
             r.acc[k] = accel * u;
         }

@@ -1,7 +1,7 @@
 //! Dotted scenario keys (`"vehicle.inertia[2]"`) read as typed fields of `Config`: the numbers
 //! a dispersion, a sweep or an optimisation may set, without going through text or JSON.
 
-use super::{Config, ConfigError, GustAirspeed, GustAltitude};
+use super::{Config, ConfigError, GustAirspeed, GustAltitude, Interpolation};
 
 /// One step of a dotted key: a table field or an array index.
 #[derive(Debug, Clone, PartialEq)]
@@ -254,6 +254,17 @@ impl Config {
                      spectrum grid that every realisation of a batch shares"
                 )));
             }
+        }
+        // A min-jerk reference starts from the initial state, and a batch's lanes share one
+        // reference: a drawn start would fly the nominal start's reference.
+        if self.trajectory.interpolation == Interpolation::MinJerk
+            && matches!(path.first(), Some(Seg::Field(f)) if f == "initial")
+        {
+            return Err(err(
+                "cannot be dispersed with trajectory.interpolation = \"min_jerk\": the \
+                 reference starts from the initial state, which every realisation of a batch \
+                 shares (disperse it with \"step\" or \"route\")",
+            ));
         }
         match self.clone().target(&path) {
             Target::Number(_) => Ok(path),
