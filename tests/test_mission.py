@@ -153,7 +153,7 @@ def test_the_command_on_the_paper_preset_saves_draws_and_fits_100_columns(
     assert all(len(line) <= 100 for line in text.splitlines())
     assert "P(max_accel > 5)" in text and FLIGHT_PHASE in text
     saved = quadrs.MonteCarloResult.read_parquet(out)
-    assert saved.controllers == ("smc",) and len(saved.realisations) == 12
+    assert saved.controllers == ("pd",) and len(saved.realisations) == 12
     assert saved.scenario == quadrs.Scenario.preset("paper")
     # The printed P2 count is the saved runs' own count.
     x = per_realisation(saved, "P2", "max_accel")

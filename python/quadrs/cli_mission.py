@@ -75,7 +75,11 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         help="the high quantile shown beside the worst (default: %(default)s)",
     )
     p.add_argument(
-        "--controller", choices=CONTROLLERS, default="smc", help="controller (default: smc)"
+        "--controller",
+        choices=CONTROLLERS,
+        default="pd",
+        help="controller (default: pd; the paper's SMC loses its attitude on the delivery "
+        "route, docs/model.md)",
     )
     seed_and_workers(p)
     p.add_argument(

@@ -753,5 +753,5 @@ def gust_spectrum(
 from quadrs.plots_mission import mission_risk  # noqa: E402, F401  (re-exported)
 from quadrs.plots_payload import payload_path, swing_tension  # noqa: E402,F401  (re-exported)
 from quadrs.plots_rotors import rotors  # noqa: E402, F401  (re-exported)
-from quadrs.plots_wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401
 from quadrs.plots_route import altitude_profile, ground_track  # noqa: E402, F401
+from quadrs.plots_wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401
