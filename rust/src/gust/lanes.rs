@@ -11,10 +11,9 @@
 //! filters of all lanes advance in one pass of vector arithmetic.
 
 use super::filter::Normals;
+use super::normal::standard_normal;
 use super::wind::{Source, WindField};
 use crate::lane::Lane;
-use rand::RngExt;
-use rand_distr::StandardNormal;
 
 /// Most lanes a lane-set carries (the widest lane type).
 pub const MAX_LANES: usize = 8;
@@ -206,7 +205,7 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             match src {
                 Source::Seeded(rng) => {
                     for row in self.rows[..n].iter_mut() {
-                        row[l] = rng.sample(StandardNormal);
+                        row[l] = standard_normal(rng);
                     }
                 }
                 Source::Given { xi, next } => {
@@ -390,7 +389,10 @@ mod tests {
         let three = field(0.01, |c| c.gust.components = GustComponent::ALL.to_vec());
         for other in [&later, &three] {
             let fields = [&plain, &plain, other, &plain];
-            let sources = fields.iter().map(|f| f.realisation(0, 0).source()).collect();
+            let sources = fields
+                .iter()
+                .map(|f| f.realisation(0, 0).source())
+                .collect();
             assert!(LaneGust::<F64x4>::new(&fields, sources).is_none());
         }
     }

@@ -24,6 +24,7 @@
 
 pub mod filter;
 pub mod lanes;
+pub mod normal;
 pub mod spectra;
 pub mod wind;
 
