@@ -21,7 +21,10 @@ use _core::config::Config;
 use _core::control::ControllerKind;
 use _core::integrate::{Engine, FlightRequest};
 use _core::lane::isa::Isa;
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{
+    criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion, Throughput,
+};
 use rustfft::FftPlanner;
 use std::hint::black_box;
 use std::time::Duration;
@@ -76,25 +79,35 @@ fn lane_set(c: &mut Criterion) {
         }
         engine.isa = isa;
         engine.fused = fused;
-        let lanes = engine.set_lanes();
-        g.throughput(Throughput::Elements(
-            (KINDS.len() * lanes * engine.steps) as u64,
-        ));
-        let indices: Vec<u64> = (0..lanes as u64).collect();
-        g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
-            b.iter(|| {
-                for kind in KINDS {
-                    let req = FlightRequest {
-                        want_spectra: true,
-                        ..FlightRequest::new(kind, 1, black_box(idx))
-                    };
-                    let r = engine.fly_set(&req, &mut planner);
-                    black_box(r);
-                }
-            })
-        });
+        bench_set(&mut g, &name, &engine, &mut planner, true);
     }
     g.finish();
+}
+
+/// `Engine::fly_set` of one lane-set (realisations 0..), PD then SMC, as bench `name` of `g`.
+fn bench_set(
+    g: &mut BenchmarkGroup<WallTime>,
+    name: &str,
+    engine: &Engine,
+    planner: &mut FftPlanner<f64>,
+    want_spectra: bool,
+) {
+    let lanes = engine.set_lanes();
+    g.throughput(Throughput::Elements(
+        (KINDS.len() * lanes * engine.steps) as u64,
+    ));
+    let indices: Vec<u64> = (0..lanes as u64).collect();
+    g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
+        b.iter(|| {
+            for kind in KINDS {
+                let req = FlightRequest {
+                    want_spectra,
+                    ..FlightRequest::new(kind, 1, black_box(idx))
+                };
+                black_box(engine.fly_set(&req, planner));
+            }
+        })
+    });
 }
 
 /// The paper preset cut to `seconds`, one phase, the gust on throughout with `components`
@@ -125,19 +138,7 @@ fn turbulence(c: &mut Criterion) {
     ];
     for (name, components) in cases {
         let engine = Engine::new(whole_flight(4.0, components)).unwrap();
-        let lanes = engine.set_lanes();
-        g.throughput(Throughput::Elements(
-            (KINDS.len() * lanes * engine.steps) as u64,
-        ));
-        let indices: Vec<u64> = (0..lanes as u64).collect();
-        g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
-            b.iter(|| {
-                for kind in KINDS {
-                    let req = FlightRequest::new(kind, 1, black_box(idx));
-                    black_box(engine.fly_set(&req, &mut planner));
-                }
-            })
-        });
+        bench_set(&mut g, name, &engine, &mut planner, false);
     }
     g.finish();
 }

@@ -235,7 +235,8 @@ fn row_lanes<L: Lane>(rows: &[[f64; MAX_LANES]; ROWS], r: usize) -> L {
 /// `step_fixed::<N>` on lane values, the normals from rows `r..r + N`: `x' = Phi x + G n`,
 /// summed in the same order.
 #[inline(always)]
-#[allow(clippy::needless_range_loop)]
+// Element by element, not `copy_from_slice`: lane values stay in registers (no memcpy).
+#[allow(clippy::needless_range_loop, clippy::manual_memcpy)]
 fn advance<L: Lane, const N: usize>(
     c: &mut Component<L>,
     rows: &[[f64; MAX_LANES]; ROWS],
@@ -355,13 +356,22 @@ mod tests {
         let fields = [&f; 4];
         let given = xi.iter().map(|x| f.given(x).source()).collect();
         let seeded = (0..4).map(|i| f.realisation(3, i).source()).collect();
+        // Given and seeded lanes in one set, too.
+        let mixed = (0..4)
+            .map(|i| match i % 2 {
+                0 => f.given(&xi[i]).source(),
+                _ => f.realisation(3, i as u64).source(),
+            })
+            .collect();
         let mut a = LaneGust::<F64x4>::new(&fields, given).unwrap();
         let mut b = LaneGust::<F64x4>::new(&fields, seeded).unwrap();
+        let mut c = LaneGust::<F64x4>::new(&fields, mixed).unwrap();
         for step in f.start_step()..=(steps as u64).min(f.end_step() - 1) {
-            let (x, y) = (a.sample(step), b.sample(step));
+            let (x, y, z) = (a.sample(step), b.sample(step), c.sample(step));
             for i in 0..3 {
                 for l in 0..4 {
                     assert_eq!(x[i].lane(l).to_bits(), y[i].lane(l).to_bits());
+                    assert_eq!(z[i].lane(l).to_bits(), y[i].lane(l).to_bits());
                 }
             }
         }
