@@ -10,13 +10,21 @@
 //!   SSE2, `avx2`, `avx512`) and, with `+fused`, in the opt-in fused mode where the path has
 //!   FMA; the ones this CPU cannot run are named and skipped.
 //!
+//! - `turbulence/<case>`: `Engine::fly_set` on the widest path this CPU runs, 4 s flights with
+//!   the gust on for the whole flight: `off` (gust disabled), `vertical` (the paper's
+//!   component) and `three` (longitudinal, lateral and vertical), side by side in one run, so
+//!   the turbulence's share of the loop reads off as a ratio of `elem/s`.
+//!
 //! Both controllers are flown in turn (PD then SMC), as a paired realisation is.
 
 use _core::config::Config;
 use _core::control::ControllerKind;
 use _core::integrate::{Engine, FlightRequest};
 use _core::lane::isa::Isa;
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{
+    criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion, Throughput,
+};
 use rustfft::FftPlanner;
 use std::hint::black_box;
 use std::time::Duration;
@@ -71,26 +79,69 @@ fn lane_set(c: &mut Criterion) {
         }
         engine.isa = isa;
         engine.fused = fused;
-        let lanes = engine.set_lanes();
-        g.throughput(Throughput::Elements(
-            (KINDS.len() * lanes * engine.steps) as u64,
-        ));
-        let indices: Vec<u64> = (0..lanes as u64).collect();
-        g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
-            b.iter(|| {
-                for kind in KINDS {
-                    let req = FlightRequest {
-                        want_spectra: true,
-                        ..FlightRequest::new(kind, 1, black_box(idx))
-                    };
-                    let r = engine.fly_set(&req, &mut planner);
-                    black_box(r);
-                }
-            })
-        });
+        bench_set(&mut g, &name, &engine, &mut planner, true);
     }
     g.finish();
 }
 
-criterion_group!(benches, single_flight, lane_set);
+/// `Engine::fly_set` of one lane-set (realisations 0..), PD then SMC, as bench `name` of `g`.
+fn bench_set(
+    g: &mut BenchmarkGroup<WallTime>,
+    name: &str,
+    engine: &Engine,
+    planner: &mut FftPlanner<f64>,
+    want_spectra: bool,
+) {
+    let lanes = engine.set_lanes();
+    g.throughput(Throughput::Elements(
+        (KINDS.len() * lanes * engine.steps) as u64,
+    ));
+    let indices: Vec<u64> = (0..lanes as u64).collect();
+    g.bench_with_input(BenchmarkId::from_parameter(name), &indices, |b, idx| {
+        b.iter(|| {
+            for kind in KINDS {
+                let req = FlightRequest {
+                    want_spectra,
+                    ..FlightRequest::new(kind, 1, black_box(idx))
+                };
+                black_box(engine.fly_set(&req, planner));
+            }
+        })
+    });
+}
+
+/// The paper preset cut to `seconds`, one phase, the gust on throughout with `components`
+/// (none: the gust disabled).
+fn whole_flight(seconds: f64, components: &[&str]) -> Config {
+    let text = include_str!("../python/quadrs/presets/paper.toml");
+    let mut v: serde_json::Value = toml::from_str(text).expect("paper.toml parses");
+    v["integrator"]["duration"] = seconds.into();
+    v["phases"] = serde_json::json!([{"name": "all", "start": 0.0, "end": seconds}]);
+    let gust = &mut v["gust"];
+    gust["start"] = 0.0.into();
+    gust["end"] = seconds.into();
+    gust["enabled"] = (!components.is_empty()).into();
+    if !components.is_empty() {
+        gust["components"] = serde_json::json!(components);
+    }
+    Config::from_json(&v.to_string()).expect("the cut preset is valid")
+}
+
+fn turbulence(c: &mut Criterion) {
+    let mut planner = FftPlanner::new();
+    let mut g = c.benchmark_group("turbulence");
+    g.sample_size(10).measurement_time(Duration::from_secs(4));
+    let cases: [(&str, &[&str]); 3] = [
+        ("off", &[]),
+        ("vertical", &["vertical"]),
+        ("three", &["longitudinal", "lateral", "vertical"]),
+    ];
+    for (name, components) in cases {
+        let engine = Engine::new(whole_flight(4.0, components)).unwrap();
+        bench_set(&mut g, name, &engine, &mut planner, false);
+    }
+    g.finish();
+}
+
+criterion_group!(benches, single_flight, lane_set, turbulence);
 criterion_main!(benches);

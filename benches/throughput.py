@@ -6,6 +6,8 @@
     python benches/throughput.py --paths       # every SIMD path and the fused mode, paired
     python benches/throughput.py --short       # per-flight tax: 0.2 s flights against 4 s ones,
                                                # and dispersed 0.2 s flights against fixed ones
+    python benches/throughput.py --turbulence  # 4 s flights, gust on throughout: off, vertical,
+                                               # three components, in turn, as ratios to off
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -108,6 +110,11 @@ def main() -> None:
         action="store_true",
         help="time a batch with four dispersed keys against the fixed one, alternately",
     )
+    ap.add_argument(
+        "--turbulence",
+        action="store_true",
+        help="4 s flights with the gust off, vertical, three components, alternately (1 worker)",
+    )
     args = ap.parse_args()
 
     scenario = quadrs.Scenario.preset(args.preset)
@@ -143,6 +150,9 @@ def main() -> None:
         return
     if args.short:
         compare_short(scenario, args)
+        return
+    if args.turbulence:
+        compare_turbulence(scenario, args)
         return
     rates = {}
     for workers in sorted({1, args.workers}):
@@ -223,6 +233,29 @@ def compare_short(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
         vs = "" if name == "long" else f"; / {ref}: {statistics.median(ratios):.3f}"
         vs += f" [{min(ratios):.3f}, {max(ratios):.3f}]" if name != "long" else ""
         print(f"  {name:24s}: {statistics.median(samples) / 1e6:.2f} M realisation-steps/s{vs}")
+    print(f"load average after: {load()}")
+
+
+def compare_turbulence(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
+    """The turbulence's share of the loop: 4 s flights with the gust on throughout, off, the
+    vertical component and all three, in turn (A B C A B C ...), one worker, each rate as a
+    ratio to the same round's gust-off rate."""
+    flight = lasting(scenario, 4.0)
+    cases = {
+        "off": flight.override({"gust.enabled": False}),
+        "vertical": flight.override({"gust.components": ["vertical"]}),
+        "three": flight.override({"gust.components": ["longitudinal", "lateral", "vertical"]}),
+    }
+    runs = args.sample_runs
+    rates: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(args.repeat):
+        for name, s in cases.items():
+            rates[name].append(runs * 2 * s.steps / timed(s, runs, 1, args.seed))
+    print(f"1 worker, {args.repeat} rounds, {runs} paired 4 s flights per timing:")
+    for name, samples in rates.items():
+        ratios = [a / b for a, b in zip(samples, rates["off"], strict=True)]
+        vs = f"; / off: {statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
+        print(f"  {name:9s}: {statistics.median(samples) / 1e6:.2f} M realisation-steps/s{vs}")
     print(f"load average after: {load()}")
 
 

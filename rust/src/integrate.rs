@@ -5,7 +5,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, ControllerKind, Pd, Smc};
-use crate::gust::{Kinematics, WindField, WindState};
+use crate::gust::{Kinematics, LaneGust, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
@@ -373,7 +373,7 @@ pub struct Engine {
 }
 
 /// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
-pub const MAX_LANES: usize = 8;
+pub const MAX_LANES: usize = crate::gust::lanes::MAX_LANES;
 
 /// `fly_any` compiled with target features: one `unsafe fn $name` per (name, features).
 /// Safety of each: the CPU must support the features.
@@ -746,6 +746,15 @@ impl Engine {
                 .map(|(&i, c)| c.wind.realisation(req.seed, i))
                 .collect(),
         };
+        // The turbulence of the whole lane-set at once where every lane's field allows it
+        // (`LaneGust::new`): the same numbers as the per-lane `sample_at`, drawn from the same
+        // sources. Else (and for a prescribed wind) the per-lane path below.
+        let mut lane_gust = if self.prescribed_wind.is_none() {
+            let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
+            LaneGust::<L>::new(&fields, winds.iter().map(|w| w.source()).collect())
+        } else {
+            None
+        };
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; MAX_LANES];
@@ -808,6 +817,8 @@ impl Engine {
                     vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
                 }
             };
+            // The lane-set's turbulence when `lane_gust` flies it (else the per-lane values).
+            let mut wind_set: Option<[L; 3]> = None;
             if let Some(prescribed) = &self.prescribed_wind {
                 wind_lanes = [prescribed[k]; MAX_LANES];
                 if blows {
@@ -816,6 +827,13 @@ impl Engine {
                         *v = [0, 1, 2].map(|i| v[i] + d[i]);
                     }
                 }
+            } else if let Some(g) = lane_gust.as_mut() {
+                // No lane's wind blows outside the window here (`LaneGust::new`).
+                wind_set = if (gust_from..gust_to).contains(&(k as u64)) {
+                    Some(g.sample(k as u64))
+                } else {
+                    None
+                };
             } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
                 for (lane, ((ws, v), c)) in winds
                     .iter_mut()
@@ -835,11 +853,14 @@ impl Engine {
                     |lane| lanes[lane][c],
                 )
             }
-            let w: [L; 3] = [
-                wind_of(&wind_lanes, 0),
-                wind_of(&wind_lanes, 1),
-                wind_of(&wind_lanes, 2),
-            ];
+            let w: [L; 3] = match wind_set {
+                Some(w) => w,
+                None => [
+                    wind_of(&wind_lanes, 0),
+                    wind_of(&wind_lanes, 1),
+                    wind_of(&wind_lanes, 2),
+                ],
+            };
             let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
             let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
             let e = [

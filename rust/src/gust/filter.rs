@@ -5,9 +5,7 @@
 use super::spectra::{poly_abs2, rational, von_karman_psd_exact, Rational};
 use crate::config::{GustComponent, GustModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
-use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 
 /// Steps longer than this many `L/V` are computed as this many: the transition
 /// matrix is then zero to double precision for every filter here (the slowest
@@ -631,9 +629,10 @@ pub trait Normals {
 }
 
 impl Normals for ChaCha8Rng {
+    /// `StandardNormal`'s draw, its fast path inlined (`normal::standard_normal`).
     #[inline(always)]
     fn normal(&mut self) -> f64 {
-        self.sample(StandardNormal)
+        super::normal::standard_normal(self)
     }
 }
 

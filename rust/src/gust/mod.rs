@@ -19,13 +19,17 @@
 //!   `ChaCha8Rng::seed_from_u64(s)` with `set_stream(i)` ([`realisation_rng`]).
 //!
 //! Layout: [`spectra`] (the scales and spectra), [`filter`] (the exactly discretised
-//! forming filter), [`wind`] (the wind field a flight samples and stationary series).
+//! forming filter), [`wind`] (the wind field a flight samples and stationary series),
+//! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies).
 
 pub mod filter;
+pub mod lanes;
+pub mod normal;
 pub mod spectra;
 pub mod wind;
 
 pub use filter::GustFilter;
+pub use lanes::LaneGust;
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
 pub use wind::{
     fill_series, realisation_rng, Kinematics, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,

@@ -168,9 +168,21 @@ pub enum Source<'a> {
 }
 
 /// A cursor over given innovations.
-struct Given<'a> {
+pub(super) struct Given<'a> {
     xi: &'a [f64],
     next: usize,
+}
+
+impl<'a> Given<'a> {
+    /// The cursor at `next` in `xi`.
+    pub(super) fn new(xi: &'a [f64], next: usize) -> Self {
+        Given { xi, next }
+    }
+
+    /// Where the next draw will read.
+    pub(super) fn next(&self) -> usize {
+        self.next
+    }
 }
 
 impl Normals for Given<'_> {
@@ -191,6 +203,14 @@ pub struct WindState<'a> {
     started: bool,
     /// The step the filter states belong to (valid once started).
     step: u64,
+}
+
+impl<'a> WindState<'a> {
+    /// A copy of the realisation's source of normals as it stands (a fresh state's: the
+    /// stream from its start, or the innovations from the first).
+    pub fn source(&self) -> Source<'a> {
+        self.rng.clone()
+    }
 }
 
 /// First step `n` with `n dt >= t`, times within 1e-9 of a step treated as on it.
@@ -568,6 +588,16 @@ impl WindField {
     /// Whether step `step` is inside the (enabled) window.
     pub fn is_active(&self, step: u64) -> bool {
         self.enabled && step >= self.start_step && step < self.end_step
+    }
+
+    /// The filters of (longitudinal, lateral, vertical), the active ones only.
+    pub(super) fn filters(&self) -> &[Option<GustFilter>; 3] {
+        &self.filters
+    }
+
+    /// (cos chi, sin chi) of the turbulence axes; None when they are not turned.
+    pub(super) fn axes(&self) -> Option<(f64, f64)> {
+        self.axes
     }
 
     /// The filter of a component, if active.

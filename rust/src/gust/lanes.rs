@@ -1,0 +1,409 @@
+//! The turbulence of a whole lane-set at once: each lane's normals drawn in bulk from its own
+//! source (the realisation's seeded stream or its given innovations, exactly as
+//! [`WindField::sample_at`] would draw them), the forming filters advanced as lane values.
+//!
+//! Per lane the arithmetic is operation for operation that of the per-realisation path
+//! (`WindField::sample_at`: `step_fixed`, `GustFilter::output`, the axes' turn), with the lane
+//! operators that never fuse, so a lane's gust is bitwise the scalar one whatever the lane
+//! type, the packing of realisations into lanes or the engine's fused mode. What changes is
+//! only where the time goes: the normals of many steps are drawn in one tight loop per lane
+//! (no per-normal dispatch on the source, no per-step match on the filters' orders), and the
+//! filters of all lanes advance in one pass of vector arithmetic.
+
+use super::filter::Normals;
+use super::normal::standard_normal;
+use super::wind::{Source, WindField};
+use crate::lane::Lane;
+
+/// Most lanes a lane-set carries (the widest lane type).
+pub const MAX_LANES: usize = 8;
+
+/// Rows of the normals buffer: one row is one normal of every lane. A refill draws as many
+/// whole steps' worth (`ROWS / per_step` steps) as fit.
+const ROWS: usize = 128;
+
+/// One active component's filter as lane values (padded to order 3 like `GustFilter`).
+#[derive(Clone, Copy)]
+struct Component<L> {
+    /// Which of (longitudinal, lateral, vertical).
+    axis: usize,
+    order: usize,
+    /// First row of this component's normals within a step's rows.
+    offset: usize,
+    phi: [[L; 3]; 3],
+    g: [[L; 3]; 3],
+    out: [L; 3],
+    x: [L; 3],
+}
+
+/// The turbulence of one lane-set: built by [`LaneGust::new`] where every lane's field allows
+/// it (see there), sampled once per step inside the window by [`LaneGust::sample`].
+pub struct LaneGust<'a, L> {
+    components: [Option<Component<L>>; 3],
+    /// Normals one step draws per lane (the active components' orders summed).
+    per_step: usize,
+    /// `gust.mean_wind` added to the filters' sum (zero when the axes are turned).
+    base: [L; 3],
+    mean: [L; 3],
+    /// (cos chi, sin chi) per lane, when the axes are turned.
+    axes: Option<(L, L)>,
+    start: u64,
+    started: bool,
+    /// The step the filter states belong to (valid once started).
+    at: u64,
+    sources: Vec<Source<'a>>,
+    /// Row `r` holds the `r`-th buffered normal of every lane.
+    rows: Box<[[f64; MAX_LANES]; ROWS]>,
+    /// Next unread row, and the rows filled (a whole number of steps).
+    next: usize,
+    filled: usize,
+}
+
+impl<'a, L: Lane> LaneGust<'a, L> {
+    /// The lane-set's turbulence, lane `l` drawing from `sources[l]`, with `fields[l]` its
+    /// wind field; `None` where the per-realisation path must fly it instead: where a field
+    /// has no turbulence, where its turbulence follows the vehicle (`gust.altitude =
+    /// "vehicle"`, `gust.airspeed = "relative"`) or another source blows (a `[wind]` mean
+    /// wind, a discrete gust), or where the lanes differ in window, components, orders or
+    /// whether the axes are turned.
+    pub fn new(fields: &[&WindField], sources: Vec<Source<'a>>) -> Option<Self> {
+        assert!(L::LANES <= MAX_LANES && fields.len() == L::LANES);
+        assert_eq!(sources.len(), L::LANES, "one source per lane");
+        let first = fields[0];
+        let usable = |f: &WindField| f.enabled() && !f.follows_vehicle() && !f.blows();
+        let alike = |f: &WindField| {
+            f.start_step() == first.start_step()
+                && f.end_step() == first.end_step()
+                && f.axes().is_some() == first.axes().is_some()
+                && (0..3).all(|i| {
+                    f.filters()[i].map(|g| g.order()) == first.filters()[i].map(|g| g.order())
+                })
+        };
+        if !fields.iter().all(|f| usable(f) && alike(f)) {
+            return None;
+        }
+        let lanes = |get: &dyn Fn(&WindField) -> f64| L::from_fn(|l| get(fields[l]));
+        let mut components = [None; 3];
+        let mut per_step = 0;
+        for (axis, slot) in components.iter_mut().enumerate() {
+            let Some(f0) = first.filters()[axis] else {
+                continue;
+            };
+            let filter = |l: usize| fields[l].filters()[axis].expect("orders checked alike");
+            let phi = std::array::from_fn(|i| {
+                std::array::from_fn(|j| L::from_fn(|l| filter(l).transition()[(i, j)]))
+            });
+            let g = std::array::from_fn(|i| {
+                std::array::from_fn(|j| L::from_fn(|l| filter(l).noise_chol()[(i, j)]))
+            });
+            let out = std::array::from_fn(|i| L::from_fn(|l| filter(l).output_row()[i]));
+            *slot = Some(Component {
+                axis,
+                order: f0.order(),
+                offset: per_step,
+                phi,
+                g,
+                out,
+                x: [L::splat(0.0); 3],
+            });
+            per_step += f0.order();
+        }
+        let mean: [L; 3] = std::array::from_fn(|i| lanes(&|f| f.mean_wind()[i]));
+        let axes = first.axes().map(|_| {
+            (
+                lanes(&|f| f.axes().map_or(1.0, |a| a.0)),
+                lanes(&|f| f.axes().map_or(0.0, |a| a.1)),
+            )
+        });
+        Some(LaneGust {
+            components,
+            per_step,
+            base: if axes.is_some() {
+                [L::splat(0.0); 3]
+            } else {
+                mean
+            },
+            mean,
+            axes,
+            start: first.start_step(),
+            started: false,
+            at: 0,
+            sources,
+            rows: Box::new([[0.0; MAX_LANES]; ROWS]),
+            next: 0,
+            filled: 0,
+        })
+    }
+
+    /// The turbulence (m/s, inertial, `gust.mean_wind` included) of every lane over the step
+    /// `step` inside the window: `WindField::sample_at`'s, lane by lane. Call in increasing
+    /// step order; as there, the states are drawn stationary at the first call (as of the
+    /// window's first step), advanced once per step up to `step`, and a repeated step draws
+    /// nothing. No allocation.
+    #[inline(always)]
+    pub fn sample(&mut self, step: u64) -> [L; 3] {
+        if !self.started {
+            let row = self.take_step();
+            let LaneGust {
+                components, rows, ..
+            } = self;
+            for c in components.iter_mut().flatten() {
+                for j in 0..c.order {
+                    c.x[j] = row_lanes(rows, row + c.offset + j);
+                }
+            }
+            self.started = true;
+            self.at = self.start;
+        }
+        while self.at < step {
+            let row = self.take_step();
+            let LaneGust {
+                components, rows, ..
+            } = self;
+            for c in components.iter_mut().flatten() {
+                let r = row + c.offset;
+                match c.order {
+                    1 => advance::<L, 1>(c, rows, r),
+                    2 => advance::<L, 2>(c, rows, r),
+                    _ => advance::<L, 3>(c, rows, r),
+                }
+            }
+            self.at += 1;
+        }
+        let mut w = self.base;
+        for c in self.components.iter().flatten() {
+            let y = c.out[0] * c.x[0] + c.out[1] * c.x[1] + c.out[2] * c.x[2];
+            w[c.axis] += y;
+        }
+        match self.axes {
+            None => w,
+            Some((cos, sin)) => [
+                w[0] * cos - w[1] * sin + self.mean[0],
+                w[0] * sin + w[1] * cos + self.mean[1],
+                w[2] + self.mean[2],
+            ],
+        }
+    }
+
+    /// The first row of the next step's normals, refilling the buffer when it is spent.
+    #[inline(always)]
+    fn take_step(&mut self) -> usize {
+        if self.next + self.per_step > self.filled {
+            self.refill();
+        }
+        let row = self.next;
+        self.next += self.per_step;
+        row
+    }
+
+    /// Draw the next `ROWS / per_step` steps' normals of every lane, each lane from its own
+    /// source in its stream's order (one match on the source per lane, not per normal).
+    #[inline(never)]
+    fn refill(&mut self) {
+        let n = (ROWS / self.per_step) * self.per_step;
+        for (l, src) in self.sources.iter_mut().enumerate() {
+            match src {
+                Source::Seeded(rng) => {
+                    for row in self.rows[..n].iter_mut() {
+                        row[l] = standard_normal(rng);
+                    }
+                }
+                Source::Given { xi, next } => {
+                    let mut given = super::wind::Given::new(xi, *next);
+                    for row in self.rows[..n].iter_mut() {
+                        row[l] = given.normal();
+                    }
+                    *next = given.next();
+                }
+            }
+        }
+        self.next = 0;
+        self.filled = n;
+    }
+}
+
+/// Row `r` of the buffer as a lane value.
+#[inline(always)]
+fn row_lanes<L: Lane>(rows: &[[f64; MAX_LANES]; ROWS], r: usize) -> L {
+    let row = &rows[r];
+    L::from_fn(
+        #[inline(always)]
+        |l| row[l],
+    )
+}
+
+/// `step_fixed::<N>` on lane values, the normals from rows `r..r + N`: `x' = Phi x + G n`,
+/// summed in the same order.
+#[inline(always)]
+// Element by element, not `copy_from_slice`: lane values stay in registers (no memcpy).
+#[allow(clippy::needless_range_loop, clippy::manual_memcpy)]
+fn advance<L: Lane, const N: usize>(
+    c: &mut Component<L>,
+    rows: &[[f64; MAX_LANES]; ROWS],
+    r: usize,
+) {
+    let mut n = [L::splat(0.0); N];
+    for (j, n) in n.iter_mut().enumerate() {
+        *n = row_lanes(rows, r + j);
+    }
+    let mut y = [L::splat(0.0); N];
+    for i in 0..N {
+        let mut acc = L::splat(0.0);
+        for j in 0..N {
+            acc += c.phi[i][j] * c.x[j] + c.g[i][j] * n[j];
+        }
+        y[i] = acc;
+    }
+    for i in 0..N {
+        c.x[i] = y[i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Config, GustAltitude, GustComponent, GustModel};
+    use crate::lane::F64x4;
+
+    /// The paper preset's gust with `edit` applied, for the step `dt` (window [0.5, 3) s).
+    fn field(dt: f64, edit: impl Fn(&mut Config)) -> WindField {
+        let mut cfg = crate::config::tests::paper();
+        cfg.gust.enabled = true;
+        cfg.gust.start = 0.5;
+        cfg.gust.end = 3.0;
+        cfg.integrator.dt = dt;
+        edit(&mut cfg);
+        cfg.validate().unwrap();
+        WindField::new(&cfg).unwrap()
+    }
+
+    /// Every lane of `LaneGust` against `WindField::sample` of the same realisation, bit for
+    /// bit, over the window and a little past it (the flight loop samples inside only).
+    fn lanes_match<L: Lane>(fields: &[&WindField], seed: u64, indices: &[u64]) {
+        let sources = indices
+            .iter()
+            .zip(fields)
+            .map(|(&i, f)| f.realisation(seed, i).source())
+            .collect();
+        let mut set = LaneGust::<L>::new(fields, sources).expect("a plain gust flies as a set");
+        let mut one: Vec<_> = indices
+            .iter()
+            .zip(fields)
+            .map(|(&i, f)| f.realisation(seed, i))
+            .collect();
+        let (from, to) = (fields[0].start_step(), fields[0].end_step());
+        for step in from..to {
+            let w = set.sample(step);
+            for (l, (st, f)) in one.iter_mut().zip(fields).enumerate() {
+                let want = f.sample(st, step);
+                for i in 0..3 {
+                    assert_eq!(
+                        w[i].lane(l).to_bits(),
+                        want[i].to_bits(),
+                        "step {step} lane {l} axis {i}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_lane_set_draws_each_realisations_gust_bit_for_bit() {
+        use GustComponent::*;
+        let sets: [&[GustComponent]; 4] = [
+            &[Vertical],
+            &[Longitudinal, Lateral, Vertical],
+            &[Longitudinal],
+            &[Lateral, Vertical],
+        ];
+        for model in [GustModel::Dryden, GustModel::VonKarman] {
+            for comps in sets {
+                for heading in [0.0, 30.0] {
+                    let f = field(0.01, |c| {
+                        c.gust.model = model;
+                        c.gust.components = comps.to_vec();
+                        c.gust.mean_wind = [0.25, -0.5, 0.125];
+                        c.wind.heading = heading;
+                    });
+                    lanes_match::<f64>(&[&f], 11, &[7]);
+                    lanes_match::<F64x4>(&[&f; 4], 11, &[3, 0, 9, u64::MAX]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_may_differ_in_intensity_and_scale() {
+        // A dispersed batch: per-lane sigma (w20) and length scale (altitude).
+        let fs: Vec<WindField> = (0..4)
+            .map(|l| {
+                field(2e-3, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    c.gust.w20 = Some(5.0 + l as f64);
+                    c.gust.altitude = GustAltitude::Fixed(2.0 + 10.0 * l as f64);
+                })
+            })
+            .collect();
+        let refs: Vec<&WindField> = fs.iter().collect();
+        lanes_match::<F64x4>(&refs, 5, &[0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn given_innovations_fly_the_seeded_lanes() {
+        let f = field(0.01, |c| c.gust.components = GustComponent::ALL.to_vec());
+        let steps = 400;
+        let xi: Vec<Vec<f64>> = (0..4).map(|i| f.innovations_of(3, i, steps)).collect();
+        let fields = [&f; 4];
+        let given = xi.iter().map(|x| f.given(x).source()).collect();
+        let seeded = (0..4).map(|i| f.realisation(3, i).source()).collect();
+        // Given and seeded lanes in one set, too.
+        let mixed = (0..4)
+            .map(|i| match i % 2 {
+                0 => f.given(&xi[i]).source(),
+                _ => f.realisation(3, i as u64).source(),
+            })
+            .collect();
+        let mut a = LaneGust::<F64x4>::new(&fields, given).unwrap();
+        let mut b = LaneGust::<F64x4>::new(&fields, seeded).unwrap();
+        let mut c = LaneGust::<F64x4>::new(&fields, mixed).unwrap();
+        for step in f.start_step()..=(steps as u64).min(f.end_step() - 1) {
+            let (x, y, z) = (a.sample(step), b.sample(step), c.sample(step));
+            for i in 0..3 {
+                for l in 0..4 {
+                    assert_eq!(x[i].lane(l).to_bits(), y[i].lane(l).to_bits());
+                    assert_eq!(z[i].lane(l).to_bits(), y[i].lane(l).to_bits());
+                }
+            }
+        }
+        // Past the innovations given: NaN, as on the per-realisation path.
+        let short = &xi[0][..xi[0].len() - 5];
+        let mut c = LaneGust::<f64>::new(&[&f], vec![f.given(short).source()]).unwrap();
+        let last = (steps as u64).min(f.end_step() - 1);
+        assert!(c.sample(last - 1).iter().all(|w| w.is_finite()));
+        assert!(c.sample(last).iter().all(|w| w.is_nan()));
+    }
+
+    #[test]
+    fn what_the_set_cannot_fly_is_left_to_the_per_lane_path() {
+        let src = |f: &WindField| vec![f.realisation(0, 0).source()];
+        let plain = field(0.01, |_| {});
+        assert!(LaneGust::<f64>::new(&[&plain], src(&plain)).is_some());
+        let off = field(0.01, |c| c.gust.enabled = false);
+        let vehicle = field(0.01, |c| c.gust.altitude = GustAltitude::Vehicle);
+        let blows = field(0.01, |c| c.wind.speed = 2.0);
+        for f in [&off, &vehicle, &blows] {
+            assert!(LaneGust::<f64>::new(&[f], src(f)).is_none());
+        }
+        // Lanes that differ in their window or components.
+        let later = field(0.01, |c| c.gust.start = 1.0);
+        let three = field(0.01, |c| c.gust.components = GustComponent::ALL.to_vec());
+        for other in [&later, &three] {
+            let fields = [&plain, &plain, other, &plain];
+            let sources = fields
+                .iter()
+                .map(|f| f.realisation(0, 0).source())
+                .collect();
+            assert!(LaneGust::<F64x4>::new(&fields, sources).is_none());
+        }
+    }
+}
