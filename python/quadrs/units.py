@@ -58,6 +58,7 @@ UNITS: dict[str, str] = {
     "trajectory.speed": "m/s",
     "trajectory.acceleration": "m/s^2",
     "trajectory.hold": "s",
+    "trajectory.names": "-",
     "phases": "-",
     "phases.name": "-",
     "phases.start": "s",
