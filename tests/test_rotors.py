@@ -7,7 +7,6 @@ against their limits."""
 from __future__ import annotations
 
 import itertools
-
 import warnings
 
 import numpy as np
