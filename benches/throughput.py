@@ -8,6 +8,9 @@
                                                # and dispersed 0.2 s flights against fixed ones
     python benches/throughput.py --turbulence  # 4 s flights, gust on throughout: off, vertical,
                                                # three components, in turn, as ratios to off
+    python benches/throughput.py --models      # 4 s flights of the vertical gust: spring/ideal,
+                                               # cable, rotors, cable + rotors, as ratios to
+                                               # the spring on ideal actuators (the paper's)
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -115,6 +118,11 @@ def main() -> None:
         action="store_true",
         help="4 s flights with the gust off, vertical, three components, alternately (1 worker)",
     )
+    ap.add_argument(
+        "--models",
+        action="store_true",
+        help="4 s flights of each payload and actuator model, alternately (1 worker)",
+    )
     args = ap.parse_args()
 
     scenario = quadrs.Scenario.preset(args.preset)
@@ -153,6 +161,9 @@ def main() -> None:
         return
     if args.turbulence:
         compare_turbulence(scenario, args)
+        return
+    if args.models:
+        compare_models(scenario, args)
         return
     rates = {}
     for workers in sorted({1, args.workers}):
@@ -194,6 +205,48 @@ def compare_dispersed(scenario: quadrs.Scenario, args: argparse.Namespace) -> No
         f"{statistics.median(fixed_rates) / 1e6:.2f} M realisation-steps/s; dispersed/fixed "
         f"throughput {statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]"
     )
+    print(f"load average after: {load()}")
+
+
+#: The payload and actuator models, as overrides of the preset (the cable as in "slung").
+MODELS = {
+    "spring, ideal": {},
+    "cable, ideal": {
+        "payload.model": "cable",
+        "payload.cable_length": 1.0,
+        "payload.attachment_offset": 0.05,
+        "payload.natural_frequency": 10.0,
+    },
+    "spring, rotors": {"actuator.model": "rotors", "initial.attitude": [0.0, 0.0, 0.0]},
+}
+MODELS["cable, rotors"] = {**MODELS["cable, ideal"], **MODELS["spring, rotors"]}
+
+
+def compare_models(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
+    """The cost per step of each model against the paper's spring on ideal actuators: 4 s
+    flights of the same gust, the models in turn (A B C D A B C D ...), one worker, each ratio
+    taken round by round."""
+    base = lasting(scenario, 4.0)
+    cases = {name: base.override(change) for name, change in MODELS.items()}
+    rates: dict[str, list[float]] = {name: [] for name in cases}
+    ratios: dict[str, list[float]] = {name: [] for name in cases}
+    for s in cases.values():  # warm-up
+        timed(s, 4, 1, args.seed)
+    for _ in range(args.repeat):
+        rnd = {
+            name: args.sample_runs * 2 * s.steps / timed(s, args.sample_runs, 1, args.seed)
+            for name, s in cases.items()
+        }
+        for name, rate in rnd.items():
+            rates[name].append(rate)
+            ratios[name].append(rate / rnd["spring, ideal"])
+    print(f"1 worker, {args.sample_runs} paired 4 s runs per model, path {_core.simd_path()}")
+    for name in cases:
+        r = ratios[name]
+        print(
+            f"  {name:15s} {statistics.median(rates[name]) / 1e6:6.2f} M realisation-steps/s, "
+            f"throughput / spring on ideal {statistics.median(r):.3f} [{min(r):.3f}, {max(r):.3f}]"
+        )
     print(f"load average after: {load()}")
 
 
