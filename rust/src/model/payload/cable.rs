@@ -2,14 +2,16 @@
 //! elastic cable that swings freely in 3-D and goes slack, hooked `h` below the centre of
 //! gravity. Three degrees of freedom: `xc, yc, zc` and `vxc, vyc, vzc`.
 //!
-//!     hook          a  = p + R hb,   hb = (0, 0, -h)
-//!     hook velocity va = v + R (w x hb),   w = (p, q, r)
-//!     cable         d = pc - a,  l = |d|,  u = d / l,  ldot = u . (vc - va)
-//!     tension       T = max(0, k (l - L0) + c ldot)   if l > L0,   else T = 0
-//!     payload       mc dvc/dt = -T u - mc g e3 + Fdc
-//!     quadrotor     m  dv/dt  =  U1 R e3 + T u - m g e3 + Fd
-//!     torque        tau += hb x (R^T (T u))
-//!     payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
+//! ```text
+//! hook          a  = p + R hb,   hb = (0, 0, -h)
+//! hook velocity va = v + R (w x hb),   w = (p, q, r)
+//! cable         d = pc - a,  l = |d|,  u = d / l,  ldot = u . (vc - va)
+//! tension       T = max(0, k (l - L0) + c ldot)   if l > L0,   else T = 0
+//! payload       mc dvc/dt = -T u - mc g e3 + Fdc
+//! quadrotor     m  dv/dt  =  U1 R e3 + T u - m g e3 + Fd
+//! torque        tau += hb x (R^T (T u))
+//! payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
+//! ```
 //!
 //! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
 
