@@ -53,7 +53,7 @@ def test_summary_times_lengths_and_phases(scenario: Scenario) -> None:
     assert names == ["hold1", "leg1", "leg2", "leg3", "hold4"]
     assert scenario.phase_names == [*names, "flight"]
     assert scenario.scenario_phases == names
-    # Closed forms (rust/src/route.rs): a leg of length L >= 2 V^2 / A lasts 2 V / A + L / V,
+    # Closed forms (rust/src/config/route.rs): a leg of length L >= 2 V^2 / A lasts 2 V / A + L / V,
     # a shorter one sqrt(8 L / A).
     climb, transit = np.sqrt(8 * 3.0 / ACCEL), 2 * SPEED / ACCEL + 25.0 / SPEED
     legs = route.legs
@@ -81,7 +81,7 @@ def test_summary_times_lengths_and_phases(scenario: Scenario) -> None:
 def test_reference_arrives_at_rest_when_the_summary_says(scenario, flight) -> None:
     """On the trace's grid: the sample nearest the summary's arrival time, sigma s from it, is
     within the distance a rest-to-rest reference can cover in sigma (A sigma^2 / 2; A bounds
-    the acceleration) of the target, its speed within A sigma (rust/src/route.rs tests the
+    the acceleration) of the target, its speed within A sigma (rust/src/config/route.rs tests the
     exact instant)."""
     tr = flight.trace
     times = tr.index.to_numpy(float)

@@ -64,7 +64,8 @@ def test_indices_are_tidy_and_cover_every_group(analysis):
         "controller.pd.kp[0]",
         GUST_FACTOR,
     }
-    assert set(idx["controller"]) == {"pd", "smc"} and set(idx["phase"]) == {"P1", "P2", "P3"}
+    phases = {"P1", "P2", "P3", "flight"}  # the paper's phases and the whole flight
+    assert set(idx["controller"]) == {"pd", "smc"} and set(idx["phase"]) == phases
     # Every flight of the design is kept: N (k + 2) rows per controller and phase.
     assert analysis.samples["row"].nunique() == 128 * (4 + 2)
 

@@ -1,6 +1,6 @@
 """A route's schedule as Python sees it (``Scenario.route``; docs/model.md, "Routes").
 
-The engine computes the schedule (rust/src/route.rs): one segment per hold and leg, in time
+The engine computes the schedule (rust/src/config/route.rs): one segment per hold and leg, in time
 order, covering the flight. Under ``phases = "legs"`` each segment is a phase of that name.
 """
 

@@ -13,7 +13,6 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
-pub mod route;
 pub mod stability;
 pub mod trajectory;
 
@@ -176,14 +175,14 @@ mod _core {
             .iter()
             .map(|p| (p.name.clone(), p.start, p.end))
             .chain(std::iter::once((
-                crate::route::FLIGHT_PHASE.to_string(),
+                crate::config::route::FLIGHT_PHASE.to_string(),
                 0.0,
                 cfg.integrator.duration,
             )))
             .collect();
         d.set_item("phase_windows", windows)?;
         let route = PyList::empty(py);
-        for s in crate::route::schedule(&cfg).map_err(scenario_error)? {
+        for s in crate::config::route::schedule(&cfg).map_err(scenario_error)? {
             let seg = PyDict::new(py);
             seg.set_item("name", &s.name)?;
             seg.set_item("kind", s.kind.name())?;

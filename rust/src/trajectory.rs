@@ -1,7 +1,7 @@
 //! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
+use crate::config::route::{Segment, SegmentKind, FLIGHT_PHASE};
 use crate::config::{Config, Interpolation};
-use crate::route::{Segment, SegmentKind, FLIGHT_PHASE};
 
 /// Desired position (x, y, z), yaw and their first two derivatives at one instant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -14,9 +14,7 @@ pub struct Reference {
     pub psi_ddot: f64,
 }
 
-/// Times are compared with this slack so that a waypoint at t = 60 s is reached at the step
-/// whose nominal time k dt rounds to 60 s, whatever the floating-point noise in k dt.
-pub(crate) const TIME_SLACK: f64 = 1e-9;
+pub(crate) use crate::config::route::TIME_SLACK;
 
 #[derive(Clone, Debug)]
 pub struct Trajectory {
@@ -48,7 +46,7 @@ impl Trajectory {
             transition: cfg.trajectory.transition,
             route: cfg.trajectory.route.clone(),
             // A validated scenario's schedule cannot fail (`Config::validate` built it).
-            segments: crate::route::schedule(cfg).unwrap_or_default(),
+            segments: crate::config::route::schedule(cfg).unwrap_or_default(),
         }
     }
 

@@ -4,6 +4,7 @@
 
 pub mod dispersions;
 pub mod keys;
+pub mod route;
 pub mod wind;
 
 pub use dispersions::{Dispersions, Distribution};
@@ -561,7 +562,7 @@ impl Config {
                 .unwrap_or(serde_json::Value::Null);
             v["phases"] = serde_json::json!([{"name": LEGS, "start": 0.0, "end": whole}]);
             let mut cfg = Self::from_json(&v.to_string())?;
-            cfg.phases = crate::route::leg_phases(&cfg)?;
+            cfg.phases = route::leg_phases(&cfg)?;
             cfg.validate()?;
             return Ok(cfg);
         }
@@ -734,7 +735,7 @@ impl Config {
                 ),
             ));
         }
-        crate::route::schedule(self)?;
+        route::schedule(self)?;
         self.validate_phases()?;
         self.validate_actuator()?;
 
@@ -883,7 +884,7 @@ impl Config {
     }
 
     fn validate_trajectory(&self) -> Result<(), ConfigError> {
-        crate::route::validate(self)?;
+        route::validate(self)?;
         let tr = self.trajectory.transition;
         if !(tr.is_finite() && tr >= 0.0) {
             return Err(ConfigError::new(
@@ -937,7 +938,7 @@ impl Config {
                     format!("phases[{i}].name must not be empty, got {:?}", ph.name),
                 ));
             }
-            if ph.name == crate::route::FLIGHT_PHASE {
+            if ph.name == route::FLIGHT_PHASE {
                 return Err(ConfigError::new(
                     format!("phases[{i}].name"),
                     format!(

@@ -9,8 +9,11 @@
 //! to reach the cruise speed V ramps up and straight down. A leg lasts T + L / v_p.
 
 use crate::config::{Config, ConfigError, Interpolation, Phase};
-use crate::trajectory::TIME_SLACK;
 use std::f64::consts::PI;
+
+/// Times are compared with this slack so that a waypoint at t = 60 s is reached at the step
+/// whose nominal time k dt rounds to 60 s, whatever the floating-point noise in k dt.
+pub(crate) const TIME_SLACK: f64 = 1e-9;
 
 /// The whole-flight phase every result carries after the scenario's own phases.
 pub const FLIGHT_PHASE: &str = "flight";
