@@ -11,6 +11,9 @@
     python benches/throughput.py --models      # 4 s flights of the vertical gust: spring/ideal,
                                                # cable, rotors, cable + rotors, as ratios to
                                                # the spring on ideal actuators (the paper's)
+    python benches/throughput.py --calls       # per-call cost of short engine calls: the
+                                               # compiled engine (Scenario.engine) against a
+                                               # call that compiles the scenario's JSON first
 
 A realisation-step is one RK4 step of one realisation under one controller: a paired PD + SMC
 realisation of the paper preset (70 s at dt = 2e-4 s) is 2 x 350,000 of them. Every timing is
@@ -123,6 +126,11 @@ def main() -> None:
         action="store_true",
         help="4 s flights of each payload and actuator model, alternately (1 worker)",
     )
+    ap.add_argument(
+        "--calls",
+        action="store_true",
+        help="per-call time of short flights and batches: compiled engine vs JSON, alternately",
+    )
     args = ap.parse_args()
 
     scenario = quadrs.Scenario.preset(args.preset)
@@ -164,6 +172,9 @@ def main() -> None:
         return
     if args.models:
         compare_models(scenario, args)
+        return
+    if args.calls:
+        compare_calls(scenario, args)
         return
     rates = {}
     for workers in sorted({1, args.workers}):
@@ -348,6 +359,32 @@ def compare_paths(args: argparse.Namespace) -> None:
     for name, why in skipped.items():
         if not name.startswith("_"):
             print(f"  {name:8s}: skipped ({why})")
+    print(f"load average after: {load()}")
+
+
+def compare_calls(scenario: quadrs.Scenario, args: argparse.Namespace) -> None:
+    """What a call costs besides its flights: 0.01 s single flights (``simulate``) and batches
+    of 4 (``run_batch``, one lane-set, 1 worker), 200 calls each, through the compiled engine
+    and through the module function that compiles the scenario's JSON at every call (what
+    every call did before the engine handle), alternately; per call, median [min, max]."""
+    short = lasting(scenario, 0.01)
+    js, engine = short.to_json(), short.engine
+    n = 200
+    calls = {
+        "simulate, compiled engine": lambda: engine.simulate("pd", 0, 0, 10),
+        "simulate, JSON each call": lambda: _core.simulate(js, "pd", 0, 0, 10),
+        "batch of 4, compiled engine": lambda: engine.run_batch(["pd"], 0, 0, 4, 1, False),
+        "batch of 4, JSON each call": lambda: _core.run_batch(js, ["pd"], 0, 0, 4, 1, False),
+    }
+    samples: dict[str, list[float]] = {k: [] for k in calls}
+    for _ in range(args.repeat):
+        for name, call in calls.items():
+            t0 = time.perf_counter()
+            for _ in range(n):
+                call()
+            samples[name].append((time.perf_counter() - t0) / n * 1e6)
+    for name, s in samples.items():
+        print(f"{name:30s} {statistics.median(s):8.1f} us per call [{min(s):.1f}, {max(s):.1f}]")
     print(f"load average after: {load()}")
 
 

@@ -166,6 +166,8 @@ CORE = {
     "quadrs.montecarlo",
     "quadrs.chunk",
     "quadrs.results",
+    "quadrs.compiled",
+    "quadrs.tables",
     "quadrs.summary",
     "quadrs.store",
     "quadrs.integrity",

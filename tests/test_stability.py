@@ -262,3 +262,29 @@ def test_a_vertical_single_flight_does_not_warn_about_unexcited_modes(short: Sce
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert not quadrs.simulate(short, "smc", record_every=100).diverged
+
+
+def axis_of(mode: str) -> str:
+    return "x" if mode.startswith(("lateral x", "swing x")) else "y"
+
+
+@pytest.mark.parametrize("controller", ["pd", "smc"])
+def test_a_symmetric_vehicle_names_each_repeated_mode_once_per_axis(controller: str) -> None:
+    """The delivery vehicle is symmetric in x and y (equal inertias and gains, a round sling):
+    every lateral and swing pole comes twice, and the pair is one mode in x and one in y,
+    whichever basis of the repeated eigenvalue's plane the eigensolver returns."""
+    s = Scenario.preset("delivery")
+    assert s["vehicle.inertia"][0] == s["vehicle.inertia"][1]
+    poles = quadrs.stability(s, controller).poles
+    sideways = poles[poles["mode"].str.startswith(("lateral", "swing"))]
+    assert set(sideways["mode"].str.split().str[0]) == {"lateral", "swing"}
+    z = sideways["real"].to_numpy() + 1j * sideways["imag"].to_numpy()
+    modes = sideways["mode"].to_numpy()
+    unpaired = list(range(len(z)))
+    while unpaired:
+        i = unpaired.pop(0)
+        j = min(unpaired, key=lambda k: abs(z[k] - z[i]))
+        assert abs(z[j] - z[i]) < 1e-6 * max(1.0, abs(z[i])), f"{z[i]} has no twin"
+        unpaired.remove(j)
+        assert modes[i].split()[0] == modes[j].split()[0], (modes[i], modes[j])
+        assert {axis_of(modes[i]), axis_of(modes[j])} == {"x", "y"}, (z[i], modes[i], modes[j])

@@ -113,6 +113,65 @@ class Progress:
     def cancel(self) -> None: ...
     def cancelled(self) -> bool: ...
 
+@final
+class Engine:
+    """A scenario compiled once (validated; vehicle, reference and gust filters built) and
+    flown many times: the module's functions without ``config_json``, bit for bit the same."""
+
+    def __new__(cls, config_json: str) -> Engine: ...
+    @property
+    def steps(self) -> int: ...
+    def innovations_dimension(self) -> int: ...
+    def innovations(self, seed: int, realisation: int) -> _Floats: ...
+    def stability(self, controller: str) -> StabilityResult: ...
+    def linearize(
+        self, controller: str, wind: tuple[float, float, float] | list[float]
+    ) -> LinearizeResult: ...
+    def simulate(
+        self,
+        controller: str,
+        seed: int,
+        realisation: int = 0,
+        record_every: int = 1,
+        wind: npt.NDArray[np.float64] | None = None,
+        progress: Progress | None = None,
+        xi: npt.NDArray[np.float64] | None = None,
+        dispersion_keys: list[str] = ...,
+        dispersion_values: npt.NDArray[np.float64] | None = None,
+    ) -> SimulateResult: ...
+    def simulate_innovations(
+        self,
+        controller: str,
+        xi_row: npt.NDArray[np.float64],
+        record_every: int = 1,
+        progress: Progress | None = None,
+        dispersion_keys: list[str] = ...,
+        dispersion_values: npt.NDArray[np.float64] | None = None,
+    ) -> SimulateResult: ...
+    def run_batch(
+        self,
+        controllers: list[str],
+        seed: int,
+        first: int,
+        count: int,
+        workers: int,
+        spectra: bool = True,
+        progress: Progress | None = None,
+        dispersion_keys: list[str] = ...,
+        dispersion_values: npt.NDArray[np.float64] | None = None,
+        streams: npt.NDArray[np.uint64] | None = None,
+        fused: bool = False,
+    ) -> BatchResult: ...
+    def run_innovations(
+        self,
+        controller: str,
+        xi: npt.NDArray[np.float64],
+        progress: Progress | None = None,
+        workers: int | None = None,
+        dispersion_keys: list[str] = ...,
+        dispersion_values: npt.NDArray[np.float64] | None = None,
+    ) -> _Floats: ...
+
 def _panic_for_tests(message: str, in_pool: bool) -> None: ...
 def describe(config_json: str) -> Description: ...
 def simd_path() -> str: ...

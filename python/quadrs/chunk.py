@@ -221,12 +221,11 @@ def run_range(
     interrupted. A failing ``on_progress`` cancels the batch and re-raises (see
     :func:`quadrs.guard.run_cancellable`)."""
     progress = _core.Progress()
-    config_json = scenario.to_json()
+    engine = scenario.engine
     keys, table = dispersion_arrays(values)
 
     def work() -> _core.BatchResult:
-        return _core.run_batch(
-            config_json,
+        return engine.run_batch(
             list(controllers),
             seed,
             first,

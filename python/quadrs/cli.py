@@ -17,13 +17,21 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
-from quadrs.cli_common import BadInput, dask_client, seed_and_workers
+from quadrs.cli_common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    EXIT_TERMINATED,
+    EXIT_USAGE,
+    BadInput,
+    dask_client,
+    seed_and_workers,
+)
+from quadrs.dispersion import SAMPLINGS
 from quadrs.terminal import terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
-
-EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
 
 class Parser(argparse.ArgumentParser):
@@ -107,7 +115,7 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
     )
     p.add_argument(
         "--sampling",
-        choices=("random", "lhs", "sobol"),
+        choices=SAMPLINGS,
         default="random",
         help="how the values of dispersed keys are drawn: independent per realisation "
         "(random), or a stratified design over the batch (lhs, sobol) (default: random)",
@@ -1020,7 +1028,7 @@ def _terse_warnings() -> Iterator[None]:
     seen: set[str] = set()
 
     def show(message: Warning | str, category: type[Warning], *_: Any, **__: Any) -> None:
-        text = _cli_words(_one_line(str(message)))
+        text = _one_line(str(message))
         if text not in seen:
             seen.add(text)
             kind = "note" if category.__name__ == "StabilityNote" else "warning"  # calm: harmless
@@ -1029,26 +1037,6 @@ def _terse_warnings() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.showwarning = show
         yield
-
-
-#: The library's words in warnings -> what a user of the command line types instead.
-CLI_WORDS = (
-    ("see quadrs.stability()", "see `quadrs stability`"),
-    ("resume=True continues it", "`quadrs mc --checkpoint DIR --resume` continues it"),
-    ("Scenario.preset('paper_stable_lateral')", "--preset paper_stable_lateral"),
-    ("runs.diverged", "the runs' diverged column"),
-    (
-        "fused=True is not supported with out= or client=",
-        "--fused is not supported with --checkpoint or --scheduler",
-    ),
-    ("fused=True needs", "--fused needs"),
-)
-
-
-def _cli_words(text: str) -> str:
-    for api, cli in CLI_WORDS:
-        text = text.replace(api, cli)
-    return text
 
 
 def _one_line(text: str) -> str:
@@ -1081,7 +1069,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _bad_input_types() as e:
         if os.environ.get("QUADRS_TRACEBACK"):
             raise
-        print(terminal_text(f"{prog}: error: {_cli_words(_describe(e))}"), file=sys.stderr)
+        print(terminal_text(f"{prog}: error: {_describe(e)}"), file=sys.stderr)
         return EXIT_USAGE
 
 

@@ -9,7 +9,20 @@ import contextlib
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["BadInput", "dask_client", "seed_and_workers"]
+__all__ = [
+    "EXIT_FAIL",
+    "EXIT_INTERRUPT",
+    "EXIT_OK",
+    "EXIT_TERMINATED",
+    "EXIT_USAGE",
+    "BadInput",
+    "dask_client",
+    "seed_and_workers",
+]
+
+#: Exit statuses of every subcommand: done; done but a check failed (or nothing was saved);
+#: bad input (one line on stderr); interrupted (Ctrl-C, what finished is saved); terminated.
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 130, 143
 
 
 class BadInput(ValueError):

@@ -14,10 +14,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from quadrs.cli_common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
 from quadrs.guard import CONTROLLERS
+from quadrs.optimize import METHODS
 from quadrs.terminal import terminal_text
-
-EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPT = 0, 1, 2, 130
 
 
 class BadParam(ValueError):
@@ -101,7 +101,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
     p.add_argument(
         "--method",
-        choices=("differential_evolution", "nelder-mead"),
+        choices=METHODS,
         default="differential_evolution",
         help="optimiser (default: differential_evolution)",
     )

@@ -15,10 +15,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli_common import seed_and_workers
+from quadrs.cli_common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, seed_and_workers
 from quadrs.guard import CONTROLLERS
 
-EXIT_OK, EXIT_FAIL, EXIT_INTERRUPT = 0, 1, 130
 #: Default payload acceleration limit: 1 g (m/s^2).
 DEFAULT_LIMIT = 9.81
 

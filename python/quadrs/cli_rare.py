@@ -13,9 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from quadrs.cli_common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
 from quadrs.guard import CONTROLLERS
-
-EXIT_OK, EXIT_FAIL, EXIT_INTERRUPT = 0, 1, 130
 
 LoadScenario = Callable[[argparse.Namespace], Any]
 

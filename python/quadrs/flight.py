@@ -232,11 +232,9 @@ def simulate(
             raise ValueError(f"wind must have shape (steps + 1, 3), got {prescribed.shape}")
     # The engine polls a cancel flag, so Ctrl-C stops even a long flight promptly.
     progress = _core.Progress()
-    config_json = scenario.to_json()
+    engine = scenario.engine
     out, _ = run_cancellable(
-        lambda: _core.simulate(
-            config_json, controller, seed, realisation, record_every, prescribed, progress
-        ),
+        lambda: engine.simulate(controller, seed, realisation, record_every, prescribed, progress),
         progress,
     )
     raw = out["trace"]

@@ -144,7 +144,7 @@ def linearize(
     cols = _select(inputs, INPUT_NAMES, "inputs")
     if not all(math.isfinite(x) for x in w):
         raise ValueError(f"wind must be finite, got {wind!r}")
-    raw = _core.linearize(scenario.to_json(), controller, list(w))
+    raw = scenario.engine.linearize(controller, list(w))
     assert tuple(raw["output_names"]) == names
     bad = [m for m in ("A", "B", "C", "D") if not np.all(np.isfinite(raw[m]))]
     if bad or not np.all(np.isfinite(raw["equilibrium"])):

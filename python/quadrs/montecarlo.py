@@ -247,7 +247,11 @@ def _fly(
         if interrupted:
             warnings.warn(
                 "Monte Carlo interrupted: the result holds only the realisations that finished"
-                + (f" (saved in {out}; resume=True continues it)" if out is not None else ""),
+                + (
+                    f" (saved in {out}; resume=True, or --resume on the command line, continues it)"
+                    if out is not None
+                    else ""
+                ),
                 RuntimeWarning,
                 stacklevel=3,
             )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ from quadrs.integrity import RunRecord, check_rows
 from quadrs.parquet import read_file, write_frame
 from quadrs.scenario import Scenario
 from quadrs.store import RunStore
-from quadrs.summary import summarise
+from quadrs.tables import Group, RunTables
 
 __all__ = ["MonteCarloResult", "SpectrumSums", "runs_frame"]
 
@@ -41,7 +42,7 @@ def empty_runs(scenario: Scenario) -> pd.DataFrame:
 
 
 @dataclass
-class MonteCarloResult:
+class MonteCarloResult(RunTables):
     """Everything a batch produced.
 
     ``runs``: one row per (realisation, controller, phase) with the metric columns,
@@ -126,69 +127,20 @@ class MonteCarloResult:
             return None
         return self.spectrum_sums.frame(self.controllers, self.scenario.phase_names)
 
+    def _groups(self) -> Iterator[Group]:
+        yield {}, self.runs, self.scenario.phase_names
+
     def summary(self, confidence: float = 0.95) -> pd.DataFrame:
         """The paper's Table 3 and more: for each (metric, phase), per controller the mean and
         its confidence interval, and P = 100 * mean(SMC) / mean(PD) with a paired CI. A
         dispersed batch lists its dispersions in ``.attrs["dispersions"]``."""
-        table = summarise(self.runs, self.controllers, self.scenario.phase_names, confidence)
+        table = super().summary(confidence)
         if self.dispersed_keys:
             from quadrs.dispersion import describe
 
             table.attrs["dispersions"] = describe(self.scenario)
             table.attrs["sampling"] = self.sampling
         return table
-
-    def exceedance(
-        self,
-        metric: str,
-        threshold: float,
-        confidence: float = 0.95,
-        *,
-        paired: bool = False,
-        controllers: tuple[str, str] = ("smc", "pd"),
-        half_width: float = 0.01,
-        relative: bool = False,
-    ) -> pd.DataFrame:
-        """P(metric > threshold) per controller and phase with an exact (Clopper-Pearson)
-        interval, the counts behind it and ``runs_needed`` for an interval half-width of
-        ``half_width`` (default 0.01: +-1 percentage point; with ``relative``, a fraction of the
-        probability). Diverged realisations count as exceedances (column ``diverged``) from
-        the phase in which they diverged on.
-
-        ``paired=True``: instead, per phase, P(a exceeds) - P(b exceeds) for ``controllers =
-        (a, b)`` on the same gusts, with Newcombe's paired interval and McNemar's exact test.
-        See :mod:`quadrs.risk` and docs/risk.md."""
-        from quadrs import risk
-
-        phases = self.scenario.phase_names
-        if paired:
-            pair = risk.check_pair(self.controllers, controllers)
-            return risk.exceedance_difference_table(
-                self.runs, metric, threshold, phases, pair, confidence
-            )
-        return risk.exceedance_table(
-            self.runs, metric, threshold, self.controllers, phases, confidence, half_width, relative
-        )
-
-    def quantile(
-        self,
-        metric: str,
-        q: float,
-        confidence: float = 0.95,
-        *,
-        paired: bool = False,
-        controllers: tuple[str, str] = ("smc", "pd"),
-    ) -> pd.DataFrame:
-        """The ``q``-quantile of ``metric`` per controller and phase with a distribution-free
-        (order-statistic) interval; diverged realisations count as +inf. ``paired=True``: per
-        phase, the ``q``-quantile of the per-realisation difference a - b instead."""
-        from quadrs import risk
-
-        phases = self.scenario.phase_names
-        if paired:
-            pair = risk.check_pair(self.controllers, controllers)
-            return risk.quantile_difference_table(self.runs, metric, q, phases, pair, confidence)
-        return risk.quantile_table(self.runs, metric, q, self.controllers, phases, confidence)
 
     # -- persistence ----------------------------------------------------------------------
     @property
@@ -203,11 +155,6 @@ class MonteCarloResult:
             self.sampling,
             arithmetic=self.arithmetic,
         )
-
-    def metadata(self) -> dict[str, Any]:
-        """What produced this result (scenario, seed, controllers, sampling, arithmetic, quadrs
-        version) and its run identity, as its saved file records them."""
-        return self.record.metadata(interrupted=self.interrupted)
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the scenario, seed, controllers and quadrs version in the file's

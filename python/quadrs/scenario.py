@@ -568,7 +568,25 @@ class Scenario:
 
     @cached_property
     def _derived(self) -> _core.Description:
+        # Validation and derived numbers only: no engine, no gust filters.
         return _core.describe(self.to_json())
+
+    @property
+    def engine(self) -> _core.Engine:
+        """The compiled engine (:mod:`quadrs.compiled`): built on first use, then shared by
+        every flight, batch, stability analysis and linearisation of this scenario."""
+        engine = self.__dict__.get("_engine")
+        if engine is None:
+            from quadrs.compiled import compiled
+
+            engine = self.__dict__["_engine"] = compiled(self.to_json())
+        return engine
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its engine (rebuilt, or found in the cache, where it is used)."""
+        state = self.__dict__.copy()
+        state.pop("_engine", None)
+        return state
 
     @property
     def stiffness(self) -> float:

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from quadrs import _core
 from quadrs.guard import check_controller
 from quadrs.scenario import Scenario
 
@@ -213,8 +212,8 @@ class StabilityReport:
         fast = f", the fastest growing e-fold every {1 / growth:.2g} s" if growth > 0 else ""
         return (
             f"{name} and this scenario EXCITES them{by}: {poles}{fast}. Expect diverged "
-            "flights (flagged in runs.diverged); Scenario.preset('paper_stable_lateral') is a "
-            "stable retune; see quadrs.stability()."
+            "flights (flagged in the runs' diverged column); the preset paper_stable_lateral is "
+            "a stable retune; see the stability analysis (quadrs.stability, `quadrs stability`)."
         )
 
 
@@ -225,7 +224,7 @@ def stability(scenario: Scenario, controller: str = "smc") -> StabilityReport:
     :class:`StabilityReport` for the tables.
     """
     check_controller(controller)
-    raw = _core.stability(scenario.to_json(), controller)
+    raw = scenario.engine.stability(controller)
     real = np.asarray(raw["real"], dtype=float)
     imag = np.asarray(raw["imag"], dtype=float)
     magnitude = np.hypot(real, imag)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import itertools
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,7 +20,7 @@ from quadrs.integrity import CorruptRunError, RunRecord, check_rows
 from quadrs.montecarlo import monte_carlo
 from quadrs.parquet import read_frame, read_meta, write_frame
 from quadrs.scenario import Scenario, design_keys
-from quadrs.summary import summarise
+from quadrs.tables import Group, RunTables
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
@@ -63,7 +63,7 @@ def check_grid(grid: Mapping[str, Sequence[Any]]) -> dict[str, list[Any]]:
 
 
 @dataclass
-class SweepResult:
+class SweepResult(RunTables):
     """What a sweep produced.
 
     ``runs``: the tidy table of every grid point's Monte Carlo runs (one row per point,
@@ -110,96 +110,18 @@ class SweepResult:
         rows = [{k: column_value(v) for k, v in p.items()} for p in grid_points(self.grid)]
         return pd.DataFrame(rows, columns=self.keys)
 
-    def summary(self, confidence: float = 0.95) -> pd.DataFrame:
-        """Per grid point, :func:`quadrs.report.summarise` of its runs: rows indexed by the
-        swept keys then (metric, phase); per controller mean and CI, and P = 100 SMC/PD."""
-        parts = []
+    def _group_keys(self) -> list[str]:
+        return self.keys
+
+    def _groups(self) -> Iterator[Group]:
+        """One group per grid point that has finished runs, in grid order."""
         for _, point in self.points.iterrows():
             mask = np.ones(len(self.runs), dtype=bool)
             for k in self.keys:
                 mask &= (self.runs[k] == point[k]).to_numpy()
             sub = self.runs[mask]
-            if sub.empty:
-                continue
-            phases = list(pd.unique(sub["phase"]))
-            part = summarise(sub, self.controllers, phases, confidence).reset_index()
-            for k in reversed(self.keys):
-                part.insert(0, k, point[k])
-            parts.append(part)
-        if not parts:
-            raise ValueError("the sweep holds no finished runs")
-        return pd.concat(parts, ignore_index=True).set_index([*self.keys, "metric", "phase"])
-
-    def _per_point(self, table: Any) -> pd.DataFrame:
-        """``table(runs, phases)`` at every grid point, the swept keys prepended."""
-        parts = []
-        for _, point in self.points.iterrows():
-            mask = np.ones(len(self.runs), dtype=bool)
-            for k in self.keys:
-                mask &= (self.runs[k] == point[k]).to_numpy()
-            sub = self.runs[mask]
-            if sub.empty:
-                continue
-            part = table(sub, list(pd.unique(sub["phase"])))
-            for k in reversed(self.keys):
-                part.insert(0, k, point[k])
-            parts.append(part)
-        if not parts:
-            raise ValueError("the sweep holds no finished runs")
-        return pd.concat(parts, ignore_index=True)
-
-    def exceedance(
-        self,
-        metric: str,
-        threshold: float,
-        confidence: float = 0.95,
-        *,
-        paired: bool = False,
-        controllers: tuple[str, str] = ("smc", "pd"),
-        half_width: float = 0.01,
-        relative: bool = False,
-    ) -> pd.DataFrame:
-        """:meth:`quadrs.MonteCarloResult.exceedance` at every grid point (swept keys as the
-        first columns)."""
-        from quadrs import risk
-
-        if paired:
-            pair = risk.check_pair(self.controllers, controllers)
-            return self._per_point(
-                lambda runs, phases: risk.exceedance_difference_table(
-                    runs, metric, threshold, phases, pair, confidence
-                )
-            )
-        return self._per_point(
-            lambda runs, phases: risk.exceedance_table(
-                runs, metric, threshold, self.controllers, phases, confidence, half_width, relative
-            )
-        )
-
-    def quantile(
-        self,
-        metric: str,
-        q: float,
-        confidence: float = 0.95,
-        *,
-        paired: bool = False,
-        controllers: tuple[str, str] = ("smc", "pd"),
-    ) -> pd.DataFrame:
-        """:meth:`quadrs.MonteCarloResult.quantile` at every grid point."""
-        from quadrs import risk
-
-        if paired:
-            pair = risk.check_pair(self.controllers, controllers)
-            return self._per_point(
-                lambda runs, phases: risk.quantile_difference_table(
-                    runs, metric, q, phases, pair, confidence
-                )
-            )
-        return self._per_point(
-            lambda runs, phases: risk.quantile_table(
-                runs, metric, q, self.controllers, phases, confidence
-            )
-        )
+            if not sub.empty:
+                yield {k: point[k] for k in self.keys}, sub, list(pd.unique(sub["phase"]))
 
     def compact(self, metrics: Sequence[str] = ("iae", "itae")) -> pd.DataFrame:
         """The summary in one screen: per point and phase, the mean of each metric per
@@ -223,9 +145,6 @@ class SweepResult:
     def record(self) -> RunRecord:
         """What this sweep is, as its file records it (the grid fixes its rows too)."""
         return RunRecord(self.scenario, self.seed, self.controllers, False, "grid", self.grid)
-
-    def metadata(self) -> dict[str, Any]:
-        return self.record.metadata(interrupted=self.interrupted)
 
     def to_parquet(self, path: str | Path) -> None:
         """Write ``runs`` with the base scenario, grid, seed and quadrs version in the file's

@@ -254,6 +254,7 @@ pub struct LaneResult {
 /// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
 /// scenario has one (`Engine::craft`); a dispersed batch builds one per realisation and the
 /// flight loop carries them one per lane.
+#[derive(Clone)]
 pub struct Craft {
     pub parts: Parts,
     pd: Pd,
@@ -351,6 +352,7 @@ impl<'a> FlightRequest<'a> {
 }
 
 /// A validated scenario turned into everything the loop needs, built once and shared read-only.
+#[derive(Clone)]
 pub struct Engine {
     pub cfg: Config,
     /// The scenario's own vehicle (every realisation's, unless dispersed).
@@ -548,7 +550,8 @@ impl Engine {
     pub fn with_fused(mut self, fused: bool) -> Result<Self, String> {
         if fused && !self.isa.fused_supported() {
             return Err(format!(
-                "fused=True needs fused multiply-add on vectors (AVX2 with FMA, or AVX-512): \
+                "fused=True needs fused multiply-add on vectors (AVX2 with FMA, or AVX-512), as \
+                 --fused needs on the command line: \
                  the {} path on this CPU has none",
                 self.isa.name()
             ));

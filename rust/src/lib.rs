@@ -45,10 +45,12 @@ mod _core {
     use crate::montecarlo::{pool, run_batch as batch, Batch};
     use numpy::ndarray::{Array1, Array2, Array4};
     use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
-    use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
+    use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyTypeError, PyValueError};
     use pyo3::prelude::*;
-    use pyo3::types::{PyDict, PyList};
+    use pyo3::types::{PyCFunction, PyDict, PyList, PyTuple};
     use rustfft::FftPlanner;
+    use std::borrow::Cow;
+    use std::ffi::CStr;
     use std::panic::{catch_unwind, AssertUnwindSafe};
     use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
     use std::sync::Arc;
@@ -84,6 +86,9 @@ mod _core {
             "EXIT_MESSAGES",
             ExitStatus::ALL.map(ExitStatus::message).to_vec(),
         )?;
+        for f in ENGINE_FUNCTIONS {
+            m.add_function(engine_function(m.py(), f)?)?;
+        }
         m.add("__version__", env!("CARGO_PKG_VERSION"))
     }
 
@@ -220,18 +225,233 @@ mod _core {
         Ok(d)
     }
 
-    /// Closed-loop poles at hover (rust/src/stability.rs), least stable first: per pole its
-    /// mode, dominant state, status and whether the scenario excites it; and the verdict.
-    #[pyfunction]
-    fn stability<'py>(
+    /// The module's engine functions: each is `Engine(config_json).<name>(*args, **kwargs)`,
+    /// for a caller with one call to make (the docstring holds the signature and points to
+    /// the method, the one implementation).
+    const ENGINE_FUNCTIONS: [(&CStr, &CStr); 8] = [
+        (c"simulate", c"simulate(config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None, dispersion_keys=..., dispersion_values=None)\n--\n\nEngine(config_json).simulate(...): one flight, its trace, metrics and spectra."),
+        (c"simulate_innovations", c"simulate_innovations(config_json, controller, xi_row, record_every=1, progress=None, dispersion_keys=..., dispersion_values=None)\n--\n\nEngine(config_json).simulate_innovations(...): one flight driven by given standard normals."),
+        (c"run_batch", c"run_batch(config_json, controllers, seed, first, count, workers, spectra=True, progress=None, dispersion_keys=..., dispersion_values=None, streams=None, fused=False)\n--\n\nEngine(config_json).run_batch(...): a Monte Carlo chunk."),
+        (c"run_innovations", c"run_innovations(config_json, controller, xi, progress=None, workers=None, dispersion_keys=..., dispersion_values=None)\n--\n\nEngine(config_json).run_innovations(...): one flight per row of standard normals."),
+        (c"innovations", c"innovations(config_json, seed, realisation)\n--\n\nEngine(config_json).innovations(...): the standard normals a seeded flight draws."),
+        (c"innovations_dimension", c"innovations_dimension(config_json)\n--\n\nEngine(config_json).innovations_dimension(): standard normals per flight."),
+        (c"stability", c"stability(config_json, controller)\n--\n\nEngine(config_json).stability(...): the closed-loop poles at hover."),
+        (c"linearize", c"linearize(config_json, controller, wind)\n--\n\nEngine(config_json).linearize(...): the closed loop at hover as a state-space model."),
+    ];
+
+    /// One of `ENGINE_FUNCTIONS` as a Python function of `config_json` (first, or by
+    /// keyword) and the method's arguments.
+    fn engine_function<'py>(
         py: Python<'py>,
-        config_json: &str,
-        controller: &str,
+        (name, doc): (&'static CStr, &'static CStr),
+    ) -> PyResult<Bound<'py, PyCFunction>> {
+        let method = name.to_str().expect("an ASCII name");
+        PyCFunction::new_closure(py, Some(name), Some(doc), move |args, kwargs| {
+            let py = args.py();
+            let kwargs = kwargs.map(|k| k.copy()).transpose()?;
+            let (json, rest) = match args.len() {
+                0 => {
+                    let json = kwargs
+                        .as_ref()
+                        .and_then(|k| k.get_item("config_json").transpose())
+                        .transpose()?
+                        .ok_or_else(|| {
+                            PyTypeError::new_err(format!("{method}() needs config_json"))
+                        })?;
+                    if let Some(k) = &kwargs {
+                        k.del_item("config_json")?;
+                    }
+                    (json, PyTuple::empty(py))
+                }
+                n => (args.get_item(0)?, args.get_slice(1, n)),
+            };
+            let engine = Bound::new(py, CompiledEngine::new(&json.extract::<String>()?)?)?;
+            engine
+                .call_method(method, rest, kwargs.as_ref())
+                .map(Bound::unbind)
+        })
+    }
+
+    /// A scenario compiled once (validated; its vehicle, reference and gust filters built) and
+    /// then flown many times without reading the scenario again, as a schema validator is
+    /// built once and called many times. `quadrs.Scenario.engine` holds one. Its methods are
+    /// the module's functions without `config_json`, and give the same numbers bit for bit.
+    #[pyclass(frozen, name = "Engine", module = "quadrs._core")]
+    struct CompiledEngine {
+        engine: Engine,
+    }
+
+    #[pymethods]
+    impl CompiledEngine {
+        #[new]
+        fn new(config_json: &str) -> PyResult<Self> {
+            Ok(Self {
+                engine: engine(config_json)?,
+            })
+        }
+
+        /// Integration steps of one flight.
+        #[getter]
+        fn steps(&self) -> usize {
+            self.engine.steps
+        }
+
+        /// Standard normals one flight's turbulence draws: its onset's stationary state and every
+        /// later step of the gust window, per active component (docs/rare-events.md).
+        fn innovations_dimension(&self) -> usize {
+            self.engine.innovations()
+        }
+
+        /// The innovations realisation `realisation` of `seed` draws: `simulate(..., xi=these)`
+        /// flies the seeded flight, bit for bit.
+        fn innovations<'py>(
+            &self,
+            py: Python<'py>,
+            seed: u64,
+            realisation: u64,
+        ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+            innovations_of(py, &self.engine, seed, realisation)
+        }
+
+        /// Closed-loop poles at hover (rust/src/stability.rs), least stable first: per pole its
+        /// mode, dominant state, status and whether the scenario excites it; and the verdict.
+        fn stability<'py>(
+            &self,
+            py: Python<'py>,
+            controller: &str,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+            stability_of(py, &self.engine.cfg, kind)
+        }
+
+        /// The closed loop linearised at hover in the steady wind `wind` (rust/src/stability.rs):
+        /// A, B, C, D (exact, dual numbers), the equilibrium and the signal names.
+        fn linearize<'py>(
+            &self,
+            py: Python<'py>,
+            controller: &str,
+            wind: [f64; 3],
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+            linearize_of(py, &self.engine.cfg, kind, wind)
+        }
+
+        /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
+        /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model; with `xi`
+        /// (`innovations_dimension` values) the turbulence is driven by those standard normals
+        /// instead of the seeded stream; a dispersed scenario's flight then needs
+        /// `dispersion_keys` (its dispersed keys) and `dispersion_values` (one value each): the
+        /// flight of the fixed scenario with those values set, bit for bit. A seeded flight flies
+        /// a fixed scenario only (the engine draws no parameter values). With `progress`, the
+        /// flight polls its cancel flag (`Progress.cancel()`) and raises KeyboardInterrupt when
+        /// cancelled.
+        #[pyo3(signature = (controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None, dispersion_keys=Vec::new(), dispersion_values=None))]
+        #[allow(clippy::too_many_arguments)]
+        fn simulate<'py>(
+            &self,
+            py: Python<'py>,
+            controller: &str,
+            seed: u64,
+            realisation: u64,
+            record_every: usize,
+            wind: Option<PyReadonlyArray2<'py, f64>>,
+            progress: Option<&Bound<'py, Progress>>,
+            xi: Option<PyReadonlyArray1<'py, f64>>,
+            dispersion_keys: Vec<String>,
+            dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let flight = Flight {
+                controller,
+                seed,
+                realisation,
+                record_every,
+            };
+            #[rustfmt::skip]
+            let out = simulate_on(py, Cow::Borrowed(&self.engine), flight, wind, progress, xi, dispersion_keys, dispersion_values);
+            out
+        }
+
+        /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`, and its
+        /// `dispersion_keys`/`dispersion_values` for a dispersed scenario).
+        #[pyo3(signature = (controller, xi_row, record_every=1, progress=None, dispersion_keys=Vec::new(), dispersion_values=None))]
+        #[allow(clippy::too_many_arguments)]
+        fn simulate_innovations<'py>(
+            &self,
+            py: Python<'py>,
+            controller: &str,
+            xi_row: PyReadonlyArray1<'py, f64>,
+            record_every: usize,
+            progress: Option<&Bound<'py, Progress>>,
+            dispersion_keys: Vec<String>,
+            dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let flight = Flight {
+                controller,
+                seed: 0,
+                realisation: 0,
+                record_every,
+            };
+            #[rustfmt::skip]
+            let out = simulate_on(py, Cow::Borrowed(&self.engine), flight, None, progress, Some(xi_row), dispersion_keys, dispersion_values);
+            out
+        }
+
+        /// Realisations first..first+count of every controller, on `workers` threads. With
+        /// `dispersion_keys`, row j of `dispersion_values` (count, keys) holds the values
+        /// realisation first + j flies; `streams` (count,) overrides each one's gust stream.
+        /// `fused`: the opt-in fused mode (fused multiply-adds; not bit-identical to the default).
+        #[pyo3(signature = (controllers, seed, first, count, workers, spectra=true, progress=None, dispersion_keys=Vec::new(), dispersion_values=None, streams=None, fused=false))]
+        #[allow(clippy::too_many_arguments)]
+        fn run_batch<'py>(
+            &self,
+            py: Python<'py>,
+            controllers: Vec<String>,
+            seed: u64,
+            first: u64,
+            count: usize,
+            workers: usize,
+            spectra: bool,
+            progress: Option<&Bound<'py, Progress>>,
+            dispersion_keys: Vec<String>,
+            dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
+            streams: Option<PyReadonlyArray1<'py, u64>>,
+            fused: bool,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let range = Realisations { seed, first, count };
+            #[rustfmt::skip]
+            let out = run_batch_on(py, Cow::Borrowed(&self.engine), controllers, range, workers, spectra, progress, dispersion_keys, dispersion_values, streams, fused);
+            out
+        }
+
+        /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
+        /// lane-sets on `workers` threads: metrics (N, phases, metrics), NaN after a divergence.
+        /// A dispersed scenario needs `dispersion_keys` (its dispersed keys) and
+        /// `dispersion_values` (N, keys): row j flies the fixed scenario with row j's values set.
+        #[pyo3(signature = (controller, xi, progress=None, workers=None, dispersion_keys=Vec::new(), dispersion_values=None))]
+        #[allow(clippy::too_many_arguments)]
+        fn run_innovations<'py>(
+            &self,
+            py: Python<'py>,
+            controller: &str,
+            xi: PyReadonlyArray2<'py, f64>,
+            progress: Option<&Bound<'py, Progress>>,
+            workers: Option<usize>,
+            dispersion_keys: Vec<String>,
+            dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
+        ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
+            #[rustfmt::skip]
+            let out = run_innovations_on(py, &self.engine, controller, xi, progress, workers, dispersion_keys, dispersion_values);
+            out
+        }
+    }
+
+    fn stability_of<'py>(
+        py: Python<'py>,
+        cfg: &Config,
+        kind: ControllerKind,
     ) -> PyResult<Bound<'py, PyDict>> {
         use crate::stability::{analyse, Pole, Verdict, TOLERANCE};
-        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-        let a = py.detach(|| guarded("stability", || analyse(&cfg, kind)))?;
+        let a = py.detach(|| guarded("stability", || analyse(cfg, kind)))?;
         let numbers = |f: fn(&Pole) -> f64| Array1::from_iter(a.poles.iter().map(f));
         let names = |f: fn(&Pole) -> &'static str| a.poles.iter().map(f).collect::<Vec<_>>();
         let excited = Array1::from_iter(a.poles.iter().map(|p| p.excited));
@@ -254,24 +474,19 @@ mod _core {
         Ok(d)
     }
 
-    /// The closed loop linearised at hover in the steady wind `wind` (rust/src/stability.rs):
-    /// A, B, C, D (exact, dual numbers), the equilibrium and the signal names.
-    #[pyfunction]
-    fn linearize<'py>(
+    fn linearize_of<'py>(
         py: Python<'py>,
-        config_json: &str,
-        controller: &str,
+        cfg: &Config,
+        kind: ControllerKind,
         wind: [f64; 3],
     ) -> PyResult<Bound<'py, PyDict>> {
         use crate::stability::{linearise, INPUT_NAMES};
-        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if let Some(w) = wind.iter().find(|w| !w.is_finite()) {
             return Err(PyValueError::new_err(format!(
                 "wind must be finite, got {w}"
             )));
         }
-        let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-        let l = py.detach(|| guarded("linearize", || linearise(&cfg, kind, wind)))?;
+        let l = py.detach(|| guarded("linearize", || linearise(cfg, kind, wind)))?;
         let d = PyDict::new(py);
         let dense = |rows: usize, cols: usize, f: &dyn Fn(usize, usize) -> f64| {
             Array2::from_shape_fn((rows, cols), |(i, j)| f(i, j))
@@ -289,36 +504,35 @@ mod _core {
         Ok(d)
     }
 
-    /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
-    /// `wind` ((steps + 1, 3), m/s) that wind is flown instead of the gust model; with `xi`
-    /// (`innovations_dimension` values) the turbulence is driven by those standard normals
-    /// instead of the seeded stream; a dispersed scenario's flight then needs
-    /// `dispersion_keys` (its dispersed keys) and `dispersion_values` (one value each): the
-    /// flight of the fixed scenario with those values set, bit for bit. A seeded flight flies
-    /// a fixed scenario only (the engine draws no parameter values). With `progress`, the
-    /// flight polls its cancel flag (`Progress.cancel()`) and raises KeyboardInterrupt when
-    /// cancelled.
-    #[pyfunction]
-    #[pyo3(signature = (config_json, controller, seed, realisation=0, record_every=1, wind=None, progress=None, xi=None, dispersion_keys=Vec::new(), dispersion_values=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn simulate<'py>(
-        py: Python<'py>,
-        config_json: &str,
-        controller: &str,
+    /// What `simulate` flies, besides the scenario and its inputs.
+    struct Flight<'a> {
+        controller: &'a str,
         seed: u64,
         realisation: u64,
         record_every: usize,
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn simulate_on<'py>(
+        py: Python<'py>,
+        mut e: Cow<'_, Engine>,
+        flight: Flight<'_>,
         wind: Option<PyReadonlyArray2<'py, f64>>,
         progress: Option<&Bound<'py, Progress>>,
         xi: Option<PyReadonlyArray1<'py, f64>>,
         dispersion_keys: Vec<String>,
         dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let Flight {
+            controller,
+            seed,
+            realisation,
+            record_every,
+        } = flight;
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         if record_every == 0 {
             return Err(PyValueError::new_err("record_every must be >= 1, got 0"));
         }
-        let mut e = engine(config_json)?;
         if xi.is_some() {
             let values = dispersion_values.map(|v| {
                 let v: Vec<f64> = v.as_array().iter().copied().collect();
@@ -327,7 +541,7 @@ mod _core {
             if let Some(d) = innovations_dispersion(&e, dispersion_keys, values.as_ref(), 1)? {
                 // The fixed scenario of the row: exactly what an override of the keys flies.
                 let cfg = d.config(0, 0).map_err(scenario_error)?;
-                e = Engine::new(cfg).map_err(scenario_error)?;
+                e = Cow::Owned(Engine::new(cfg).map_err(scenario_error)?);
             }
         } else if !dispersion_keys.is_empty() || dispersion_values.is_some() {
             return Err(PyValueError::new_err(
@@ -350,7 +564,11 @@ mod _core {
                 )));
             }
             let rows = w.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-            e = e.with_wind(rows).map_err(PyValueError::new_err)?;
+            e = Cow::Owned(
+                e.into_owned()
+                    .with_wind(rows)
+                    .map_err(PyValueError::new_err)?,
+            );
         }
         let rows = (e.steps / record_every + 1) as u128;
         let width = 1 + e.trace_columns().len();
@@ -482,37 +700,20 @@ mod _core {
         Ok(Some(d))
     }
 
-    /// Standard normals one flight's turbulence draws: its onset's stationary state and every
-    /// later step of the gust window, per active component (docs/rare-events.md).
-    #[pyfunction]
-    fn innovations_dimension(config_json: &str) -> PyResult<usize> {
-        Ok(engine(config_json)?.innovations())
-    }
-
-    /// The innovations realisation `realisation` of `seed` draws: `simulate(..., xi=these)`
-    /// flies the seeded flight, bit for bit.
-    #[pyfunction]
-    fn innovations<'py>(
+    fn innovations_of<'py>(
         py: Python<'py>,
-        config_json: &str,
+        e: &Engine,
         seed: u64,
         realisation: u64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let e = engine(config_json)?;
         memory::check("innovations", e.innovations() as u128, 8).map_err(PyMemoryError::new_err)?;
         Ok(e.innovations_of(seed, realisation).into_pyarray(py))
     }
 
-    /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
-    /// lane-sets on `workers` threads: metrics (N, phases, metrics), NaN after a divergence.
-    /// A dispersed scenario needs `dispersion_keys` (its dispersed keys) and
-    /// `dispersion_values` (N, keys): row j flies the fixed scenario with row j's values set.
-    #[pyfunction]
-    #[pyo3(signature = (config_json, controller, xi, progress=None, workers=None, dispersion_keys=Vec::new(), dispersion_values=None))]
     #[allow(clippy::too_many_arguments)]
-    fn run_innovations<'py>(
+    fn run_innovations_on<'py>(
         py: Python<'py>,
-        config_json: &str,
+        e: &Engine,
         controller: &str,
         xi: PyReadonlyArray2<'py, f64>,
         progress: Option<&Bound<'py, Progress>>,
@@ -523,12 +724,11 @@ mod _core {
         use numpy::ndarray::Array3;
         use rayon::prelude::*;
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-        let e = engine(config_json)?;
         let xi = xi.as_array();
         let (n, dim) = (xi.nrows(), xi.ncols());
-        check_innovations(&e, dim)?;
+        check_innovations(e, dim)?;
         let values = dispersion_values.map(|v| v.as_array().to_owned());
-        let dispersion = innovations_dispersion(&e, dispersion_keys, values.as_ref(), n)?;
+        let dispersion = innovations_dispersion(e, dispersion_keys, values.as_ref(), n)?;
         let workers =
             workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
         if workers == 0 {
@@ -606,36 +806,6 @@ mod _core {
         Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
             .expect("shape")
             .into_pyarray(py))
-    }
-
-    /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`, and its
-    /// `dispersion_keys`/`dispersion_values` for a dispersed scenario).
-    #[pyfunction]
-    #[pyo3(signature = (config_json, controller, xi_row, record_every=1, progress=None, dispersion_keys=Vec::new(), dispersion_values=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn simulate_innovations<'py>(
-        py: Python<'py>,
-        config_json: &str,
-        controller: &str,
-        xi_row: PyReadonlyArray1<'py, f64>,
-        record_every: usize,
-        progress: Option<&Bound<'py, Progress>>,
-        dispersion_keys: Vec<String>,
-        dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        simulate(
-            py,
-            config_json,
-            controller,
-            0,
-            0,
-            record_every,
-            None,
-            progress,
-            Some(xi_row),
-            dispersion_keys,
-            dispersion_values,
-        )
     }
 
     /// The scenario's `[wind]` mean wind (m/s, inertial x, y, z) at each altitude in
@@ -795,20 +965,19 @@ mod _core {
         }
     }
 
-    /// Realisations first..first+count of every controller, on `workers` threads. With
-    /// `dispersion_keys`, row j of `dispersion_values` (count, keys) holds the values
-    /// realisation first + j flies; `streams` (count,) overrides each one's gust stream.
-    /// `fused`: the opt-in fused mode (fused multiply-adds; not bit-identical to the default).
-    #[pyfunction]
-    #[pyo3(signature = (config_json, controllers, seed, first, count, workers, spectra=true, progress=None, dispersion_keys=Vec::new(), dispersion_values=None, streams=None, fused=false))]
-    #[allow(clippy::too_many_arguments)]
-    fn run_batch<'py>(
-        py: Python<'py>,
-        config_json: &str,
-        controllers: Vec<String>,
+    /// Which realisations a batch flies: `first .. first + count` of master seed `seed`.
+    struct Realisations {
         seed: u64,
         first: u64,
         count: usize,
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run_batch_on<'py>(
+        py: Python<'py>,
+        e: Cow<'_, Engine>,
+        controllers: Vec<String>,
+        range: Realisations,
         workers: usize,
         spectra: bool,
         progress: Option<&Bound<'py, Progress>>,
@@ -817,6 +986,7 @@ mod _core {
         streams: Option<PyReadonlyArray1<'py, u64>>,
         fused: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let Realisations { seed, first, count } = range;
         let kinds = self::controllers(&controllers)?;
         if count == 0 {
             return Err(PyValueError::new_err("runs must be >= 1, got 0"));
@@ -824,9 +994,14 @@ mod _core {
         if workers == 0 {
             return Err(PyValueError::new_err("workers must be >= 1, got 0"));
         }
-        let e = engine(config_json)?
-            .with_fused(fused)
-            .map_err(PyValueError::new_err)?;
+        let e = match fused {
+            false => e,
+            true => Cow::Owned(
+                e.into_owned()
+                    .with_fused(true)
+                    .map_err(PyValueError::new_err)?,
+            ),
+        };
         let row = kinds.len() * e.phase_count() * N_METRICS;
         memory::check(
             "batch results (runs * controllers * phases * metrics)",

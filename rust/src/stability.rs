@@ -258,6 +258,7 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
         }
     }
     poles.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
+    name_both_axes(&mut poles);
     let verdict = poles.first().map_or(Verdict::Stable, |p| p.verdict);
     Analysis {
         controller: kind,
@@ -495,6 +496,38 @@ fn actuator_participation(
         .map(|(_, x)| x)
         .sum();
     actuator / total.max(f64::MIN_POSITIVE)
+}
+
+/// A vehicle symmetric in x and y (equal inertias and gains) has each lateral and swing mode
+/// twice at one eigenvalue; the eigensolver then returns any basis of that plane, often two
+/// vectors leaning to the same axis, and both would be named after it. Name such a pair once
+/// per axis: one mode in x and one in y is what the repeated eigenvalue means.
+fn name_both_axes(poles: &mut [Pole]) {
+    const PAIRS: [(&str, &str); 2] = [
+        (MODE_LATERAL_X, MODE_LATERAL_Y),
+        (MODE_SWING_X, MODE_SWING_Y),
+    ];
+    let same = |a: &Pole, b: &Pole| {
+        let scale = a.re.hypot(a.im).max(1.0);
+        (a.re - b.re).abs() <= 1e-9 * scale && (a.im - b.im).abs() <= 1e-9 * scale
+    };
+    for i in 0..poles.len() {
+        for j in i + 1..poles.len() {
+            let Some(&(x, y)) = PAIRS
+                .iter()
+                .find(|(x, y)| [*x, *y].contains(&poles[i].mode))
+            else {
+                break;
+            };
+            if poles[j].mode == poles[i].mode && same(&poles[i], &poles[j]) {
+                let other = if poles[i].mode == x { y } else { x };
+                // Neither is named after the other axis yet at this eigenvalue.
+                if !poles.iter().any(|p| p.mode == other && same(p, &poles[i])) {
+                    poles[j].mode = other;
+                }
+            }
+        }
+    }
 }
 
 /// Indices of the states of `vars` that satisfy `keep`, in order.

@@ -9,15 +9,17 @@ from typing import Any
 import numpy as np
 
 from quadrs import _core
+from quadrs.compiled import compiled
 from quadrs.guard import run_cancellable
 
 __all__ = ["engine_function", "run_rows"]
 
 
-def engine_function(name: str) -> Callable[..., Any]:
-    """The engine's ``name``, or NotImplementedError saying that the innovations interface
-    (flights driven by explicit standard normals) is not in this build."""
-    fn = getattr(_core, name, None)
+def engine_function(name: str, config: str) -> Callable[..., Any]:
+    """The compiled engine's method ``name`` for the scenario ``config`` (its JSON), or
+    NotImplementedError saying that the innovations interface (flights driven by explicit
+    standard normals) is not in this build."""
+    fn = getattr(_core, name, None) and getattr(compiled(config), name, None)
     if fn is None:
         raise NotImplementedError(
             f"the engine's innovations interface (a flight driven by explicit standard normals "
@@ -38,11 +40,11 @@ def run_rows(
 ) -> np.ndarray:
     """The engine's metrics (N, phases, metrics) of rows of innovations (and parameter
     values), Ctrl-C turned into a prompt cancel and KeyboardInterrupt."""
-    run = engine_function("run_innovations")
+    run = engine_function("run_innovations", config)
     progress = _core.Progress()
     extra = {} if values is None else {"dispersion_keys": keys, "dispersion_values": values}
     metrics, interrupted = run_cancellable(
-        lambda: run(config, controller, gust, progress, workers, **extra), progress
+        lambda: run(controller, gust, progress, workers, **extra), progress
     )
     if interrupted:
         raise KeyboardInterrupt

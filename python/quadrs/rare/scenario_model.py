@@ -125,7 +125,7 @@ class ScenarioModel:
     def innovations(self) -> int:
         """The gust filters' innovations per flight (the first columns of a row)."""
         if self._dimension is None:
-            count = engine_function("innovations_dimension")(self.scenario.to_json())
+            count = engine_function("innovations_dimension", self.scenario.to_json())()
             self._dimension = int(count)
         return self._dimension
 
@@ -174,7 +174,6 @@ class ScenarioModel:
 
         from quadrs.flight import Flight, metrics_frame
 
-        simulate = engine_function("simulate_innovations")
         row = np.ascontiguousarray(xi_row, dtype=np.float64)
         if row.shape != (self.dimension,):
             raise ValueError(f"xi_row must have shape ({self.dimension},), got {row.shape}")
@@ -184,9 +183,9 @@ class ScenarioModel:
         gust = np.ascontiguousarray(row[: self.innovations])
         record_every = max(1, round(1e-3 / float(self.scenario["integrator.dt"])))
         progress = _core.Progress()
-        config = scenario.to_json()
+        simulate = engine_function("simulate_innovations", scenario.to_json())
         out, interrupted = run_cancellable(
-            lambda: simulate(config, self.controller, gust, record_every, progress), progress
+            lambda: simulate(self.controller, gust, record_every, progress), progress
         )
         if interrupted:
             raise KeyboardInterrupt
