@@ -213,3 +213,21 @@ def test_cli_disperses_samples_and_ranks(tmp_path, capsys):
         assert main(["mc", *SHORT, *bad, "--runs", "4", "--no-progress"]) == 2
     assert main([*sa, "--runs", "12", "--no-progress"]) == 2  # not a power of two
     assert main([*sa, "--metric", "nope", "--no-progress"]) == 2
+
+
+def test_every_named_distribution_is_what_the_engine_and_the_sampler_take() -> None:
+    """``dispersion.DISTRIBUTIONS`` (the command line's vocabulary) against the engine's
+    validation and the sampler: each one's parameters are exactly what both need."""
+    from quadrs.dispersion import DISTRIBUTIONS, distribution
+
+    value = {"low": 0.1, "high": 0.4, "mean": 0.2, "std": 0.02, "mu": -1.6, "sigma": 0.1}
+    value["mode"] = 0.25
+    paper = quadrs.Scenario.paper()
+    for name, params in DISTRIBUTIONS.items():
+        spec = {"dist": name, **{p: value[p] for p in params}}
+        s = paper.override({"dispersions": {"payload.mass": spec}})
+        assert s.dispersed and 0.05 < distribution(spec).mean() < 0.5
+        for p in params:
+            short = {k: v for k, v in spec.items() if k != p}
+            with pytest.raises(quadrs.ScenarioError, match=f"`{p}`"):
+                paper.override({"dispersions": {"payload.mass": short}})

@@ -27,7 +27,7 @@ from quadrs.cli_common import (
     dask_client,
     seed_and_workers,
 )
-from quadrs.dispersion import SAMPLINGS
+from quadrs.dispersion import DISTRIBUTIONS, SAMPLINGS
 from quadrs.terminal import terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -77,9 +77,9 @@ def _scenario_options() -> argparse.ArgumentParser:
         action="append",
         default=[],
         dest="dispersions",
-        help="give a numeric key a distribution, repeatable: uniform(low,high), "
-        "normal(mean,std), truncnorm(mean,std,low,high), lognormal(mu,sigma) (of the "
-        "logarithm), triangular(low,mode,high); e.g. payload.mass=uniform(0.1,0.4); "
+        help="give a numeric key a distribution, repeatable: "
+        + ", ".join(f"{d}({','.join(p)})" for d, p in DISTRIBUTIONS.items())
+        + " (lognormal's of the logarithm); e.g. payload.mass=uniform(0.1,0.4); "
         "see docs/dispersions.md",
     )
     return common
@@ -567,28 +567,17 @@ def load_scenario(args: argparse.Namespace) -> Any:
     return base.override(changes) if changes else base
 
 
-#: Positional parameters of each distribution, in the order --disperse takes them.
-DISTRIBUTION_PARAMETERS = {
-    "uniform": ("low", "high"),
-    "normal": ("mean", "std"),
-    "truncnorm": ("mean", "std", "low", "high"),
-    "lognormal": ("mu", "sigma"),
-    "triangular": ("low", "mode", "high"),
-}
-
-
 def parse_distribution(text: str) -> dict[str, Any]:
     """``"uniform(0.1, 0.4)"`` or ``"normal(mean=2, std=0.2)"`` -> a dispersion entry."""
     from quadrs.scenario import parse_value
 
     name, sep, rest = text.strip().partition("(")
     name = name.strip()
-    if not sep or not rest.endswith(")") or name not in DISTRIBUTION_PARAMETERS:
+    if not sep or not rest.endswith(")") or name not in DISTRIBUTIONS:
         raise BadInput(
-            f"--disperse: {text!r} is not DIST(ARGS) with DIST one of "
-            f"{', '.join(DISTRIBUTION_PARAMETERS)}"
+            f"--disperse: {text!r} is not DIST(ARGS) with DIST one of {', '.join(DISTRIBUTIONS)}"
         )
-    order = DISTRIBUTION_PARAMETERS[name]
+    order = DISTRIBUTIONS[name]
     spec: dict[str, Any] = {"dist": name}
     args = [a.strip() for a in rest[:-1].split(",") if a.strip()]
     for i, arg in enumerate(args):

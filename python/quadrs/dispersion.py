@@ -28,6 +28,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from quadrs.scenario import Scenario
 
 __all__ = [
+    "DISTRIBUTIONS",
     "SAMPLINGS",
     "describe",
     "dispersed_keys",
@@ -38,6 +39,16 @@ __all__ = [
 
 #: Sampling schemes of `monte_carlo(..., sampling=...)`.
 SAMPLINGS = ("random", "lhs", "sobol")
+#: The distributions a dispersion may name, with their parameters in their conventional order
+#: (the order the command line's ``--disperse KEY=DIST(ARGS)`` takes them in). lognormal's
+#: are those of the logarithm.
+DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
+    "uniform": ("low", "high"),
+    "normal": ("mean", "std"),
+    "truncnorm": ("mean", "std", "low", "high"),
+    "lognormal": ("mu", "sigma"),
+    "triangular": ("low", "mode", "high"),
+}
 #: Tags the dispersion streams apart from every other use of the seed.
 _STREAM_TAG = 0x51D15
 #: Uniforms are kept this far inside (0, 1): an inverse CDF of an unbounded distribution is
