@@ -38,7 +38,7 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 stage "pytest"
-.venv/bin/python -m pytest -q "$@"
+.venv/bin/python -m pytest -q --durations=15 "$@"
 if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
     stage "other pythons"
     bash scripts/other_pythons.sh
