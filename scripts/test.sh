@@ -12,10 +12,14 @@ stage() { echo "== $(date -u +%T) (+${SECONDS}s) $*"; }
 stage "install"
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
-# The engine is built once (optimised, as shipped): the abi3 wheel this venv installs is the
-# same file scripts/other_pythons.sh installs into the other Pythons.
+# The engine is built once: the abi3 wheel this venv installs is the same file
+# scripts/other_pythons.sh installs into the other Pythons. It is optimised without LTO (the
+# dev-opt profile; LTO changes no arithmetic, so every number the tests check is the shipped
+# build's, and the build takes minutes less); QUADRS_TEST_PROFILE=release tests the shipped
+# profile instead. The Rust unit tests below reuse its dependencies.
 rm -rf target/ci-wheel
-.venv/bin/python -m pip wheel -q --no-deps -w target/ci-wheel .
+MATURIN_PEP517_ARGS="--profile ${QUADRS_TEST_PROFILE:-dev-opt}" \
+    .venv/bin/python -m pip wheel -q --no-deps -w target/ci-wheel .
 wheel=$(ls target/ci-wheel/quadrs-*.whl)
 .venv/bin/python -m pip install -q "${wheel}[test,dask,docs]"
 .venv/bin/python -m pip install -q --no-deps --force-reinstall "$wheel"
