@@ -293,6 +293,7 @@ mod tests {
     use super::*;
     use crate::config::{Config, GustAltitude, GustComponent, GustModel};
     use crate::lane::F64x4;
+    use rand::Rng;
 
     /// The paper preset's gust with `edit` applied, for the step `dt` (window [0.5, 3) s).
     fn field(dt: f64, edit: impl Fn(&mut Config)) -> WindField {
@@ -332,6 +333,42 @@ mod tests {
                         "step {step} lane {l} axis {i}"
                     );
                 }
+            }
+        }
+        // The normals drawn ahead and not used yet are each stream's next ones, and the stream
+        // goes on in step after them: no word lost or used twice across the refills.
+        for (l, st) in one.iter().enumerate() {
+            let Source::Seeded(mut rng) = st.source() else {
+                continue;
+            };
+            let Source::Seeded(lane_rng) = &mut set.sources[l] else {
+                unreachable!("seeded on both paths");
+            };
+            for r in set.next..set.filled {
+                let want = super::super::normal::standard_normal(&mut rng);
+                assert_eq!(set.rows[r][l].to_bits(), want.to_bits(), "lane {l} row {r}");
+            }
+            for k in 0..300 {
+                let word = set.ahead[l].next_u64(lane_rng);
+                assert_eq!(word, rng.next_u64(), "lane {l} word {k}");
+            }
+        }
+    }
+
+    /// The lane types of the AVX2 and AVX-512 paths, where this CPU has them (their draws
+    /// take the gathering fast path, `normal::fast_chunk`).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_wide_paths_draw_the_same_gust() {
+        use crate::lane::{F64x4Avx, F64x8Avx512};
+        use GustComponent::*;
+        for comps in [&[Vertical][..], &[Longitudinal, Lateral, Vertical]] {
+            let f = field(2e-3, |c| c.gust.components = comps.to_vec());
+            if Isa::Avx2.supported() {
+                lanes_match::<F64x4Avx>(&[&f; 4], 8, &[1, 0, 5, u64::MAX]);
+            }
+            if Isa::Avx512.supported() {
+                lanes_match::<F64x8Avx512>(&[&f; 8], 8, &[1, 0, 5, 9, 2, 3, 4, 6]);
             }
         }
     }
