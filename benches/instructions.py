@@ -7,7 +7,8 @@ not:
     valgrind --tool=callgrind --separate-threads=yes python benches/instructions.py dispersed
     callgrind_annotate callgrind.out.<pid>[-02] | grep TOTALS    # -02: the engine's worker
 
-Modes: ``loop`` (4 realisations of a 4 s flight, one AVX2 lane-set), ``long`` (8 x 4 s),
+Modes: ``loop`` (4 realisations of a 4 s flight, one AVX2 lane-set), ``gust_off`` and
+``gust_three`` (the same with the gust off, and with all three components), ``long`` (8 x 4 s),
 ``fixed`` (160 x 0.2 s), ``dispersed`` (160 x 0.2 s, three non-gust keys dispersed),
 ``dispersed_gust`` (the same plus ``gust.w20``). Every mode: the paper preset with the gust on
 throughout, PD, one worker, no spectra. Prints the mode and its realisation-steps.
@@ -25,7 +26,8 @@ DISPERSIONS = {
     "payload.natural_frequency": {"dist": "normal", "mean": 2.0, "std": 0.2},
     "vehicle.inertia[2]": {"dist": "triangular", "low": 0.04, "mode": 0.05, "high": 0.07},
 }
-MODES = {"loop": (4.0, 4), "long": (4.0, 8), "fixed": (0.2, 160)}
+MODES = {"loop": (4.0, 4), "gust_off": (4.0, 4), "gust_three": (4.0, 4), "long": (4.0, 8)}
+MODES |= {"fixed": (0.2, 160)}
 MODES |= {"dispersed": (0.2, 160), "dispersed_gust": (0.2, 160)}
 
 
@@ -41,6 +43,10 @@ def main(mode: str) -> None:
             "phases": [{"name": "all", "start": 0.0, "end": duration}],
         }
     )
+    if mode == "gust_off":
+        s = s.override({"gust.enabled": False})
+    elif mode == "gust_three":
+        s = s.override({"gust.components": ["longitudinal", "lateral", "vertical"]})
     if mode.startswith("dispersed"):
         d = dict(DISPERSIONS)
         if mode == "dispersed_gust":

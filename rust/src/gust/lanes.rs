@@ -11,8 +11,9 @@
 //! filters of all lanes advance in one pass of vector arithmetic.
 
 use super::filter::Normals;
-use super::normal::standard_normal;
+use super::normal::{Ahead, CHUNK};
 use super::wind::{Source, WindField};
+use crate::lane::isa::Isa;
 use crate::lane::Lane;
 
 /// Most lanes a lane-set carries (the widest lane type).
@@ -21,6 +22,10 @@ pub const MAX_LANES: usize = 8;
 /// Rows of the normals buffer: one row is one normal of every lane. A refill draws as many
 /// whole steps' worth (`ROWS / per_step` steps) as fit.
 const ROWS: usize = 128;
+
+/// The normals buffer: `ROWS` rows and the `CHUNK - 1` spare ones `Ahead::normals` may write
+/// past the last.
+type Rows = [[f64; MAX_LANES]; ROWS + CHUNK - 1];
 
 /// One active component's filter as lane values (padded to order 3 like `GustFilter`).
 #[derive(Clone, Copy)]
@@ -52,8 +57,10 @@ pub struct LaneGust<'a, L> {
     /// The step the filter states belong to (valid once started).
     at: u64,
     sources: Vec<Source<'a>>,
+    /// Each seeded lane's words drawn ahead (unused for given innovations).
+    ahead: Vec<Ahead>,
     /// Row `r` holds the `r`-th buffered normal of every lane.
-    rows: Box<[[f64; MAX_LANES]; ROWS]>,
+    rows: Box<Rows>,
     /// Next unread row, and the rows filled (a whole number of steps).
     next: usize,
     filled: usize,
@@ -128,8 +135,9 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             start: first.start_step(),
             started: false,
             at: 0,
+            ahead: (0..L::LANES).map(|_| Ahead::new()).collect(),
             sources,
-            rows: Box::new([[0.0; MAX_LANES]; ROWS]),
+            rows: Box::new([[0.0; MAX_LANES]; ROWS + CHUNK - 1]),
             next: 0,
             filled: 0,
         })
@@ -197,34 +205,59 @@ impl<'a, L: Lane> LaneGust<'a, L> {
     }
 
     /// Draw the next `ROWS / per_step` steps' normals of every lane, each lane from its own
-    /// source in its stream's order (one match on the source per lane, not per normal).
+    /// source in its stream's order (one match on the source per lane, not per normal), a
+    /// seeded lane's in bulk through its `Ahead`. Compiled for the lane type's instruction set
+    /// (`Lane::within`): the same numbers on every path, integer operations, one product and
+    /// one comparison per normal.
     #[inline(never)]
     fn refill(&mut self) {
         let n = (ROWS / self.per_step) * self.per_step;
-        for (l, src) in self.sources.iter_mut().enumerate() {
+        let lane = self.base[0];
+        lane.within(
+            #[inline(always)]
+            |isa| self.draw(n, isa),
+        );
+        self.next = 0;
+        self.filled = n;
+    }
+
+    /// `refill`'s draws: rows `0..n` of every lane, on the instruction set `isa`.
+    #[inline(always)]
+    fn draw(&mut self, n: usize, isa: Isa) {
+        let LaneGust {
+            sources,
+            ahead,
+            rows,
+            ..
+        } = self;
+        for (l, (src, ahead)) in sources.iter_mut().zip(ahead.iter_mut()).enumerate() {
             match src {
-                Source::Seeded(rng) => {
-                    for row in self.rows[..n].iter_mut() {
-                        row[l] = standard_normal(rng);
-                    }
-                }
+                Source::Seeded(rng) => ahead.normals(
+                    rng,
+                    n,
+                    isa,
+                    #[inline(always)]
+                    |r, x| {
+                        for (row, x) in rows[r..r + CHUNK].iter_mut().zip(x) {
+                            row[l] = x;
+                        }
+                    },
+                ),
                 Source::Given { xi, next } => {
                     let mut given = super::wind::Given::new(xi, *next);
-                    for row in self.rows[..n].iter_mut() {
+                    for row in rows[..n].iter_mut() {
                         row[l] = given.normal();
                     }
                     *next = given.next();
                 }
             }
         }
-        self.next = 0;
-        self.filled = n;
     }
 }
 
 /// Row `r` of the buffer as a lane value.
 #[inline(always)]
-fn row_lanes<L: Lane>(rows: &[[f64; MAX_LANES]; ROWS], r: usize) -> L {
+fn row_lanes<L: Lane>(rows: &Rows, r: usize) -> L {
     let row = &rows[r];
     L::from_fn(
         #[inline(always)]
@@ -237,11 +270,7 @@ fn row_lanes<L: Lane>(rows: &[[f64; MAX_LANES]; ROWS], r: usize) -> L {
 #[inline(always)]
 // Element by element, not `copy_from_slice`: lane values stay in registers (no memcpy).
 #[allow(clippy::needless_range_loop, clippy::manual_memcpy)]
-fn advance<L: Lane, const N: usize>(
-    c: &mut Component<L>,
-    rows: &[[f64; MAX_LANES]; ROWS],
-    r: usize,
-) {
+fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize) {
     let mut n = [L::splat(0.0); N];
     for (j, n) in n.iter_mut().enumerate() {
         *n = row_lanes(rows, r + j);
@@ -264,6 +293,7 @@ mod tests {
     use super::*;
     use crate::config::{Config, GustAltitude, GustComponent, GustModel};
     use crate::lane::F64x4;
+    use rand::Rng;
 
     /// The paper preset's gust with `edit` applied, for the step `dt` (window [0.5, 3) s).
     fn field(dt: f64, edit: impl Fn(&mut Config)) -> WindField {
@@ -303,6 +333,42 @@ mod tests {
                         "step {step} lane {l} axis {i}"
                     );
                 }
+            }
+        }
+        // The normals drawn ahead and not used yet are each stream's next ones, and the stream
+        // goes on in step after them: no word lost or used twice across the refills.
+        for (l, st) in one.iter().enumerate() {
+            let Source::Seeded(mut rng) = st.source() else {
+                continue;
+            };
+            let Source::Seeded(lane_rng) = &mut set.sources[l] else {
+                unreachable!("seeded on both paths");
+            };
+            for r in set.next..set.filled {
+                let want = super::super::normal::standard_normal(&mut rng);
+                assert_eq!(set.rows[r][l].to_bits(), want.to_bits(), "lane {l} row {r}");
+            }
+            for k in 0..300 {
+                let word = set.ahead[l].next_u64(lane_rng);
+                assert_eq!(word, rng.next_u64(), "lane {l} word {k}");
+            }
+        }
+    }
+
+    /// The lane types of the AVX2 and AVX-512 paths, where this CPU has them (their draws
+    /// take the gathering fast path, `normal::fast_chunk`).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_wide_paths_draw_the_same_gust() {
+        use crate::lane::{F64x4Avx, F64x8Avx512};
+        use GustComponent::*;
+        for comps in [&[Vertical][..], &[Longitudinal, Lateral, Vertical]] {
+            let f = field(2e-3, |c| c.gust.components = comps.to_vec());
+            if Isa::Avx2.supported() {
+                lanes_match::<F64x4Avx>(&[&f; 4], 8, &[1, 0, 5, u64::MAX]);
+            }
+            if Isa::Avx512.supported() {
+                lanes_match::<F64x8Avx512>(&[&f; 8], 8, &[1, 0, 5, 9, 2, 3, 4, 6]);
             }
         }
     }

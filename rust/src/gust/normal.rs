@@ -4,7 +4,13 @@
 //! handed whole to `StandardNormal` itself, replaying the `u64` it started from, so the rare
 //! paths (the wedges and the tail) are rand_distr's own code and the stream is consumed
 //! exactly as before.
+//!
+//! [`Ahead`] draws many normals of one stream at once: the stream's `u64`s are drawn ahead in
+//! bulk, the fast path runs branch-free on [`CHUNK`] consecutive words at a time, and a word it
+//! rejects goes to `StandardNormal` with the words held ahead put back in front of the stream,
+//! so the normals, and the words each consumes, are those of `standard_normal` one at a time.
 
+use crate::lane::isa::Isa;
 use rand::{Rng, RngExt, TryRng};
 use rand_distr::StandardNormal;
 use std::convert::Infallible;
@@ -87,14 +93,248 @@ static ZIG_NORM_X: [f64; 257] =
 #[inline(always)]
 pub fn standard_normal<R: Rng>(rng: &mut R) -> f64 {
     let bits = rng.next_u64();
+    let (x, ok) = fast(bits);
+    if ok {
+        return x;
+    }
+    slow(rng, bits)
+}
+
+/// The ziggurat's fast path on the `u64` `bits`: its candidate, and whether it is accepted
+/// (else the draw is `slow`'s).
+#[inline(always)]
+fn fast(bits: u64) -> (f64, bool) {
     let i = bits as usize & 0xff;
     // rand_distr's symmetric conversion: 52 bits into [2, 4), minus 3.
     let u = f64::from_bits((bits >> 12) | (1024u64 << 52)) - 3.0;
     let x = u * ZIG_NORM_X[i];
-    if x.abs() < ZIG_NORM_X[i + 1] {
-        return x;
+    (x, x.abs() < ZIG_NORM_X[i + 1])
+}
+
+/// Normals one pass of [`Ahead::normals`] makes at once (branch-free, from consecutive words).
+pub const CHUNK: usize = 8;
+
+/// `fast` on `CHUNK` consecutive little-endian words: the candidates, and bit `j` set where
+/// word `j`'s is accepted. On AVX2 (`isa` not the baseline: the caller runs compiled for it,
+/// `Lane::within`) one vector pass with the layer edges gathered, the same operations (one
+/// product, one comparison) and so the same bits.
+#[inline(always)]
+fn fast_chunk(words: &[u8; 8 * CHUNK], isa: Isa) -> ([f64; CHUNK], u32) {
+    #[cfg(target_arch = "x86_64")]
+    if isa != Isa::Baseline {
+        // SAFETY: AVX2 is available (`isa` is AVX2 or AVX-512, whose CPUs have it).
+        return unsafe { fast_chunk_avx2(words) };
     }
-    slow(rng, bits)
+    let _ = isa;
+    let mut x = [0.0; CHUNK];
+    let mut accepted = 0;
+    for (j, (x, w)) in x.iter_mut().zip(words.chunks_exact(8)).enumerate() {
+        let (v, ok) = fast(u64::from_le_bytes(w.try_into().expect("8 bytes")));
+        *x = v;
+        accepted |= (ok as u32) << j;
+    }
+    (x, accepted)
+}
+
+/// `fast_chunk` in AVX2 instructions.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn fast_chunk_avx2(words: &[u8; 8 * CHUNK]) -> ([f64; CHUNK], u32) {
+    use std::arch::x86_64::*;
+    let mut out = [0.0; CHUNK];
+    let mut accepted = 0;
+    for q in 0..CHUNK / 4 {
+        // SAFETY: words `4q..4q + 4` are in `words`.
+        let w = unsafe { _mm256_loadu_si256(words.as_ptr().add(32 * q).cast()) };
+        let i = _mm256_and_si256(w, _mm256_set1_epi64x(0xff));
+        let bits = _mm256_or_si256(_mm256_srli_epi64::<12>(w), _mm256_set1_epi64x(1024 << 52));
+        let u = _mm256_sub_pd(_mm256_castsi256_pd(bits), _mm256_set1_pd(3.0));
+        // SAFETY: every index is at most 255 and the table has 257 entries.
+        let (edge, next) = unsafe {
+            let table = ZIG_NORM_X.as_ptr();
+            (
+                _mm256_i64gather_pd::<8>(table, i),
+                _mm256_i64gather_pd::<8>(table.add(1), i),
+            )
+        };
+        let x = _mm256_mul_pd(u, edge);
+        let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), x);
+        let ok = _mm256_cmp_pd::<_CMP_LT_OQ>(abs, next);
+        // SAFETY: `out` holds `CHUNK` f64.
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr().add(4 * q), x) };
+        accepted |= (_mm256_movemask_pd(ok) as u32) << (4 * q);
+    }
+    (out, accepted)
+}
+
+/// Words [`Ahead`] holds (a multiple of `CHUNK`, a few ChaCha blocks).
+const AHEAD: usize = 256;
+
+/// One stream's `u64`s drawn ahead, and the normals made of them in bulk. The words held are
+/// the stream's next ones in order: the stream seen through an `Ahead` is its held words, then
+/// the generator's own. Allocates once, at construction.
+pub struct Ahead {
+    /// `AHEAD` little-endian `u64`s (what `fill_bytes` writes); `pos..len` are held.
+    bytes: Box<[u8; 8 * AHEAD]>,
+    pos: usize,
+    len: usize,
+    /// Draws handed to `StandardNormal`, those of them that read past the held words, and the
+    /// top-ups (for the tests' coverage checks).
+    /// Then the rejections at each place of a chunk.
+    #[cfg(test)]
+    pub(crate) counts: [usize; 3 + CHUNK],
+}
+
+impl Default for Ahead {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Ahead {
+    /// Nothing held yet.
+    pub fn new() -> Self {
+        Ahead {
+            bytes: Box::new([0; 8 * AHEAD]),
+            pos: 0,
+            len: 0,
+            #[cfg(test)]
+            counts: [0; 3 + CHUNK],
+        }
+    }
+
+    /// Word `k` of the buffer.
+    #[inline(always)]
+    fn word(&self, k: usize) -> u64 {
+        let b: [u8; 8] = self.bytes[8 * k..8 * k + 8].try_into().expect("8 bytes");
+        u64::from_le_bytes(b)
+    }
+
+    /// Words `k..k + CHUNK` of the buffer.
+    #[inline(always)]
+    fn chunk(&self, k: usize) -> &[u8; 8 * CHUNK] {
+        self.bytes[8 * k..8 * (k + CHUNK)]
+            .try_into()
+            .expect("CHUNK words")
+    }
+
+    /// The next `n` standard normals of the stream (the words held, then `rng`), as `n` calls
+    /// of [`standard_normal`] would draw them; words drawn ahead and not used stay held for
+    /// the next call. `store(r, x)` receives candidates for normals `r..r + CHUNK`: only
+    /// those below `n` and below the `r` of the next `store` are final (later calls overwrite
+    /// the rest), so the destination needs `CHUNK - 1` spare places past `n`. `isa`: the
+    /// instruction set the caller is compiled for (`fast_chunk`).
+    #[inline(always)]
+    pub fn normals<R: Rng>(
+        &mut self,
+        rng: &mut R,
+        n: usize,
+        isa: Isa,
+        mut store: impl FnMut(usize, [f64; CHUNK]),
+    ) {
+        let mut r = 0;
+        // `self.pos`, kept in a register between the calls out.
+        let mut pos = self.pos;
+        while r < n {
+            if self.len - pos < CHUNK {
+                self.pos = pos;
+                self.top_up(rng);
+                pos = self.pos;
+            }
+            let (x, accepted) = fast_chunk(self.chunk(pos), isa);
+            store(r, x);
+            // The accepted prefix (a rejected word ends it), never past the `n`-th normal.
+            let k = (accepted.trailing_ones() as usize).min(n - r);
+            r += k;
+            pos += k;
+            if k < CHUNK && r < n {
+                let bits = self.word(pos);
+                self.pos = pos + 1;
+                #[cfg(test)]
+                {
+                    self.counts[0] += 1;
+                    self.counts[3 + k] += 1;
+                }
+                let x = slow(&mut Held { ahead: self, rng }, bits);
+                pos = self.pos;
+                store(r, [x; CHUNK]);
+                r += 1;
+            }
+        }
+        self.pos = pos;
+    }
+
+    /// Keep the held words (fewer than `CHUNK`) at the front and fill the rest from `rng`:
+    /// `fill_bytes` writes the stream's next `u32`s little-endian, so each 8 bytes are the
+    /// `u64` that `next_u64` would have returned (its low half first).
+    #[cold]
+    #[inline(never)]
+    fn top_up<R: Rng>(&mut self, rng: &mut R) {
+        let held = self.len - self.pos;
+        self.bytes.copy_within(8 * self.pos..8 * self.len, 0);
+        rng.fill_bytes(&mut self.bytes[8 * held..]);
+        self.pos = 0;
+        self.len = AHEAD;
+        #[cfg(test)]
+        {
+            self.counts[2] += 1;
+        }
+    }
+
+    /// The stream's next `u64`: a held word, else `rng`'s.
+    #[inline]
+    pub fn next_u64<R: Rng>(&mut self, rng: &mut R) -> u64 {
+        if self.pos < self.len {
+            self.pos += 1;
+            self.word(self.pos - 1)
+        } else {
+            rng.next_u64()
+        }
+    }
+}
+
+/// A stream seen through its [`Ahead`]: the held words, then the generator's.
+struct Held<'a, R> {
+    ahead: &'a mut Ahead,
+    rng: &'a mut R,
+}
+
+impl<R: Rng> TryRng for Held<'_, R> {
+    type Error = Infallible;
+
+    /// Only with no word held: a `u32` cannot be taken from a held `u64` and the rest put
+    /// back. `StandardNormal` never asks for one (its layers, wedges and tail all read
+    /// `next_u64`; `normal_matches_rand_distr` and `ahead_matches_rand_distr` would fail).
+    fn try_next_u32(&mut self) -> Result<u32, Infallible> {
+        assert!(
+            self.ahead.pos == self.ahead.len,
+            "StandardNormal reads u64s only"
+        );
+        Ok(self.rng.next_u32())
+    }
+
+    #[inline]
+    fn try_next_u64(&mut self) -> Result<u64, Infallible> {
+        #[cfg(test)]
+        if self.ahead.pos == self.ahead.len {
+            self.ahead.counts[1] += 1;
+        }
+        Ok(self.ahead.next_u64(self.rng))
+    }
+
+    /// As `try_next_u32`: only with no word held.
+    fn try_fill_bytes(&mut self, dst: &mut [u8]) -> Result<(), Infallible> {
+        assert!(
+            self.ahead.pos == self.ahead.len,
+            "StandardNormal reads u64s only"
+        );
+        self.rng.fill_bytes(dst);
+        Ok(())
+    }
 }
 
 /// The draw `StandardNormal` makes when its first `u64` is `bits` and the rest follow from
@@ -171,5 +411,70 @@ mod tests {
             assert_eq!(a.next_u64(), b.next_u64(), "stream {index} left in step");
         }
         assert!(layers.iter().all(|&n| n > 5000), "every layer drawn often");
+    }
+
+    #[test]
+    fn fill_bytes_draws_the_u64s_of_next_u64() {
+        // `Ahead::top_up` relies on it, from any word position of the stream.
+        for skip in 0..4 {
+            let (mut a, mut b) = (realisation_rng(2, 5), realisation_rng(2, 5));
+            for _ in 0..skip {
+                assert_eq!(a.next_u32(), b.next_u32());
+            }
+            let mut bytes = [0u8; 8 * 100];
+            a.fill_bytes(&mut bytes);
+            for w in bytes.chunks_exact(8) {
+                assert_eq!(u64::from_le_bytes(w.try_into().unwrap()), b.next_u64());
+            }
+            assert_eq!(a.next_u64(), b.next_u64(), "left in step");
+        }
+    }
+
+    #[test]
+    fn ahead_matches_rand_distr() {
+        // Runs of every length from 1 to 130 normals (chunks cut short at the run's end, words
+        // carried over to the next run), a few words taken one by one between runs, over
+        // several streams, on every instruction set this CPU has: bit for bit against
+        // `StandardNormal`, the streams left in step.
+        let mut counts = [0usize; 3 + CHUNK];
+        let mut tail = 0;
+        let isas = Isa::ALL.into_iter().filter(|i| i.supported());
+        for (isa, index) in isas.flat_map(|i| [0u64, 3, 77, u64::MAX].map(|s| (i, s))) {
+            let (mut a, mut b) = (realisation_rng(4, index), realisation_rng(4, index));
+            let mut ahead = Ahead::new();
+            let mut out = [f64::NAN; 130 + CHUNK - 1];
+            let (mut total, mut n) = (0, 1);
+            while total < 600_000 {
+                ahead.normals(&mut a, n, isa, |r, x| out[r..r + CHUNK].copy_from_slice(&x));
+                for (r, x) in out[..n].iter().enumerate() {
+                    let y: f64 = b.sample(StandardNormal);
+                    assert_eq!(x.to_bits(), y.to_bits(), "{isa:?} {index} run of {n}, {r}");
+                    tail += (y.abs() >= ZIG_NORM_X[0]) as usize;
+                }
+                if n % 7 == 0 {
+                    assert_eq!(ahead.next_u64(&mut a), b.next_u64(), "one word");
+                }
+                total += n;
+                n = n % 130 + 1;
+            }
+            for _ in 0..AHEAD + 3 {
+                assert_eq!(
+                    ahead.next_u64(&mut a),
+                    b.next_u64(),
+                    "stream {index} in step"
+                );
+            }
+            for (c, a) in counts.iter_mut().zip(ahead.counts) {
+                *c += a;
+            }
+        }
+        // Rejections (1.2 %: wedges and tail) at every place of a chunk; some read past the
+        // words held; the tail drawn; many top-ups.
+        let [slow, past, top_ups, at @ ..] = counts;
+        assert!(slow > 20_000 && at.iter().all(|&n| n > 1000), "{counts:?}");
+        assert!(
+            past > 10 && top_ups > 5000 && tail > 50,
+            "{counts:?} tail {tail}"
+        );
     }
 }

@@ -80,6 +80,16 @@ pub trait Lane:
         self * a + b
     }
 
+    /// `f()` compiled for this lane type's instruction set: for work kept out of the hot
+    /// loop's line (an out-of-line function is compiled for the baseline, whatever its
+    /// caller's instruction set). The value `self` is the proof that the set is available.
+    /// `f` is told which set that is (`Isa::Baseline` on the portable lane types, run as
+    /// they stand).
+    #[inline(always)]
+    fn within<R>(self, f: impl FnOnce(isa::Isa) -> R) -> R {
+        f(isa::Isa::Baseline)
+    }
+
     /// Lane `i` is `f(i)`.
     #[inline(always)]
     fn from_fn(mut f: impl FnMut(usize) -> f64) -> Self {

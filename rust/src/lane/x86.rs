@@ -86,6 +86,7 @@ macro_rules! x86_lane {
         cmp_le = $le:expr, cmp_ge = $ge:expr, cmp_ne = $ne:expr,
         select = $select:expr, add_epi64 = $add64:expr, shl62 = $shl62:expr,
         le_bits = $le_bits:expr,
+        $(within = $within:expr,)?
         $(fma = $fma:expr,)?
     ) => {
         $(#[$meta])*
@@ -197,6 +198,13 @@ macro_rules! x86_lane {
                 bits
             }
             $(
+                #[inline(always)]
+                fn within<R>(self, f: impl FnOnce(super::isa::Isa) -> R) -> R {
+                    // SAFETY: the type's instruction set is available (a value of it exists).
+                    unsafe { $within(f) }
+                }
+            )?
+            $(
                 const FUSED: bool = {
                     let _ = stringify!($fma);
                     true
@@ -273,6 +281,13 @@ mod sse2 {
 mod avx2 {
     use std::arch::x86_64::*;
 
+    /// `f` compiled with AVX2 enabled (`Lane::within`; `f` is inlined here).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub unsafe fn within<R>(f: impl FnOnce(crate::lane::isa::Isa) -> R) -> R {
+        f(crate::lane::isa::Isa::Avx2)
+    }
+
     #[inline(always)]
     pub unsafe fn select(m: __m256d, a: __m256d, b: __m256d) -> __m256d {
         _mm256_blendv_pd(b, a, m)
@@ -300,6 +315,13 @@ mod avx2 {
 /// (both AVX-512DQ), which keeps the template, and so the arithmetic, identical to AVX2's.
 mod avx512 {
     use std::arch::x86_64::*;
+
+    /// `f` compiled with AVX-512F and DQ enabled (`Lane::within`; `f` is inlined here).
+    #[target_feature(enable = "avx512f,avx512dq")]
+    #[inline]
+    pub unsafe fn within<R>(f: impl FnOnce(crate::lane::isa::Isa) -> R) -> R {
+        f(crate::lane::isa::Isa::Avx512)
+    }
 
     #[inline(always)]
     unsafe fn vector(k: __mmask8) -> __m512d {
@@ -362,7 +384,7 @@ x86_lane! {
     cmp_le = _mm256_cmp_pd::<_CMP_LE_OQ>, cmp_ge = _mm256_cmp_pd::<_CMP_GE_OQ>,
     cmp_ne = _mm256_cmp_pd::<_CMP_NEQ_UQ>,
     select = avx2::select, add_epi64 = avx2::add_epi64, shl62 = avx2::shl62,
-    le_bits = avx2::le_bits,
+    le_bits = avx2::le_bits, within = avx2::within,
 }
 
 x86_lane! {
@@ -379,5 +401,5 @@ x86_lane! {
     cmp_le = avx512::cmp::<_CMP_LE_OQ>, cmp_ge = avx512::cmp::<_CMP_GE_OQ>,
     cmp_ne = avx512::cmp::<_CMP_NEQ_UQ>,
     select = avx512::select, add_epi64 = avx512::add_epi64, shl62 = avx512::shl62,
-    le_bits = avx512::le_bits,
+    le_bits = avx512::le_bits, within = avx512::within,
 }
