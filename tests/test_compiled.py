@@ -126,3 +126,12 @@ def test_the_module_functions_compile_and_call(scenario: quadrs.Scenario) -> Non
     ]
     with pytest.raises(TypeError, match="config_json"):
         _core.innovations_dimension()
+
+
+def test_validation_refuses_what_the_engine_could_not_build() -> None:
+    """A Scenario that exists is one the engine accepts: an altitude so small that the gust
+    filters cannot be discretised (the step in scale lengths overflows) is refused when the
+    scenario is made, naming ``gust``, not at its first flight."""
+    with pytest.raises(quadrs.ScenarioError, match="length_scale") as e:
+        quadrs.Scenario.paper().override({"gust.altitude": 5e-324})
+    assert e.value.key == "gust"

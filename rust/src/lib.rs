@@ -164,6 +164,7 @@ mod _core {
     fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
         isa()?;
         let cfg = Config::from_json(config_json).map_err(scenario_error)?;
+        gust::WindField::check(&cfg).map_err(scenario_error)?;
         let d = PyDict::new(py);
         d.set_item("stiffness", cfg.stiffness())?;
         let hover_offset = match AnyPayload::new(&cfg) {
@@ -310,7 +311,10 @@ mod _core {
             seed: u64,
             realisation: u64,
         ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-            innovations_of(py, &self.engine, seed, realisation)
+            let e = &self.engine;
+            memory::check("innovations", e.innovations() as u128, 8)
+                .map_err(PyMemoryError::new_err)?;
+            Ok(e.innovations_of(seed, realisation).into_pyarray(py))
         }
 
         /// Closed-loop poles at hover (rust/src/stability.rs), least stable first: per pole its
@@ -321,7 +325,29 @@ mod _core {
             controller: &str,
         ) -> PyResult<Bound<'py, PyDict>> {
             let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-            stability_of(py, &self.engine.cfg, kind)
+            let cfg = &self.engine.cfg;
+            use crate::stability::{analyse, Pole, Verdict, TOLERANCE};
+            let a = py.detach(|| guarded("stability", || analyse(cfg, kind)))?;
+            let numbers = |f: fn(&Pole) -> f64| Array1::from_iter(a.poles.iter().map(f));
+            let names = |f: fn(&Pole) -> &'static str| a.poles.iter().map(f).collect::<Vec<_>>();
+            let excited = Array1::from_iter(a.poles.iter().map(|p| p.excited));
+            let n = a.jacobian.nrows();
+            let jac = Array2::from_shape_fn((n, n), |(i, j)| a.jacobian[(i, j)]);
+            let d = PyDict::new(py);
+            d.set_item("real", numbers(|p| p.re).into_pyarray(py))?;
+            d.set_item("imag", numbers(|p| p.im).into_pyarray(py))?;
+            d.set_item("mode", names(|p| p.mode))?;
+            d.set_item("dominant", names(|p| p.dominant))?;
+            d.set_item("status", names(|p| p.verdict.name()))?;
+            d.set_item("excited", excited.into_pyarray(py))?;
+            d.set_item("verdict", a.verdict.name())?;
+            d.set_item("stable", a.verdict == Verdict::Stable)?;
+            d.set_item("lateral_sources", a.lateral_sources)?;
+            d.set_item("equilibrium", a.equilibrium.to_vec().into_pyarray(py))?;
+            d.set_item("residual", a.residual)?;
+            d.set_item("jacobian", jac.into_pyarray(py))?;
+            d.set_item("tolerance", TOLERANCE)?;
+            Ok(d)
         }
 
         /// The closed loop linearised at hover in the steady wind `wind` (rust/src/stability.rs):
@@ -333,7 +359,29 @@ mod _core {
             wind: [f64; 3],
         ) -> PyResult<Bound<'py, PyDict>> {
             let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-            linearize_of(py, &self.engine.cfg, kind, wind)
+            let cfg = &self.engine.cfg;
+            use crate::stability::{linearise, INPUT_NAMES};
+            if let Some(w) = wind.iter().find(|w| !w.is_finite()) {
+                return Err(PyValueError::new_err(format!(
+                    "wind must be finite, got {w}"
+                )));
+            }
+            let l = py.detach(|| guarded("linearize", || linearise(cfg, kind, wind)))?;
+            let d = PyDict::new(py);
+            let dense = |rows: usize, cols: usize, f: &dyn Fn(usize, usize) -> f64| {
+                Array2::from_shape_fn((rows, cols), |(i, j)| f(i, j))
+            };
+            let (nx, nu, ny) = (l.b.nrows(), l.b.ncols(), l.c.nrows());
+            d.set_item("A", dense(nx, nx, &|i, j| l.a[(i, j)]).into_pyarray(py))?;
+            d.set_item("B", dense(nx, nu, &|i, j| l.b[(i, j)]).into_pyarray(py))?;
+            d.set_item("C", dense(ny, nx, &|i, j| l.c[(i, j)]).into_pyarray(py))?;
+            d.set_item("D", dense(ny, nu, &|i, j| l.d[(i, j)]).into_pyarray(py))?;
+            d.set_item("state_names", l.states.clone())?;
+            d.set_item("input_names", INPUT_NAMES.to_vec())?;
+            d.set_item("output_names", l.outputs.clone())?;
+            d.set_item("equilibrium", l.equilibrium.clone().into_pyarray(py))?;
+            d.set_item("residual", l.residual)?;
+            Ok(d)
         }
 
         /// One flight: trace every `record_every` steps, per-phase metrics, divergence time. With
@@ -417,10 +465,107 @@ mod _core {
             streams: Option<PyReadonlyArray1<'py, u64>>,
             fused: bool,
         ) -> PyResult<Bound<'py, PyDict>> {
-            let range = Realisations { seed, first, count };
-            #[rustfmt::skip]
-            let out = run_batch_on(py, Cow::Borrowed(&self.engine), controllers, range, workers, spectra, progress, dispersion_keys, dispersion_values, streams, fused);
-            out
+            let e = Cow::Borrowed(&self.engine);
+            let kinds = self::controllers(&controllers)?;
+            if count == 0 {
+                return Err(PyValueError::new_err("runs must be >= 1, got 0"));
+            }
+            if workers == 0 {
+                return Err(PyValueError::new_err("workers must be >= 1, got 0"));
+            }
+            let e = match fused {
+                false => e,
+                true => Cow::Owned(
+                    e.into_owned()
+                        .with_fused(true)
+                        .map_err(PyValueError::new_err)?,
+                ),
+            };
+            let row = kinds.len() * e.phase_count() * N_METRICS;
+            memory::check(
+                "batch results (runs * controllers * phases * metrics)",
+                count as u128 * (row + kinds.len() + 1) as u128,
+                8,
+            )
+            .and_then(|()| flight_memory(&e, e.set_lanes(), workers))
+            .map_err(PyMemoryError::new_err)?;
+            let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
+                (true, None) => None,
+                (false, Some(v)) => {
+                    let v = v.as_array();
+                    let shape = v.shape();
+                    if shape != [count, dispersion_keys.len()] {
+                        return Err(PyValueError::new_err(format!(
+                            "dispersion_values must have shape ({count}, {}), got {shape:?}",
+                            dispersion_keys.len()
+                        )));
+                    }
+                    let values = v.iter().copied().collect();
+                    Some(
+                        Dispersion::new(&e.cfg, dispersion_keys, values, count)
+                            .map_err(scenario_error)?,
+                    )
+                }
+                _ => {
+                    return Err(PyValueError::new_err(
+                        "dispersion_keys and dispersion_values go together",
+                    ))
+                }
+            };
+            let streams: Option<Vec<u64>> = streams.map(|s| s.as_array().iter().copied().collect());
+            let b = Batch {
+                want_spectra: spectra,
+                dispersion: dispersion.as_ref(),
+                streams: streams.as_deref(),
+                ..Batch::new(&kinds, seed, first, count)
+            };
+            let (done, cancel) = match progress {
+                Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
+                None => (
+                    Arc::new(AtomicU64::new(0)),
+                    Arc::new(AtomicBool::new(false)),
+                ),
+            };
+            let out = py.detach(|| {
+                guarded("run_batch", || {
+                    pool(workers).install(|| {
+                        b.check()?;
+                        Ok(batch(&e, &b, &done, &cancel))
+                    })
+                })
+            })?;
+            let out = out.map_err(scenario_error)?;
+            let n_ctrl = kinds.len();
+            let n_phase = e.phase_count();
+            let d = PyDict::new(py);
+            let metrics = Array4::from_shape_vec((count, n_ctrl, n_phase, N_METRICS), out.metrics)
+                .expect("metrics shape");
+            d.set_item("metrics", metrics.into_pyarray(py))?;
+            let diverged = Array2::from_shape_vec((count, n_ctrl), out.diverged_at).expect("shape");
+            d.set_item("diverged_at", diverged.into_pyarray(py))?;
+            let status = Array2::from_shape_vec((count, n_ctrl), out.status).expect("shape");
+            d.set_item("status", status.into_pyarray(py))?;
+            d.set_item("done", Array1::from_vec(out.done).into_pyarray(py))?;
+            if spectra {
+                // Per phase: (n_ctrl, bins) arrays of the ensemble sum and sum of squares.
+                let per_phase =
+                    |src: &Vec<Vec<Vec<f64>>>| -> Vec<Bound<'py, numpy::PyArray2<f64>>> {
+                        (0..n_phase)
+                            .map(|p| {
+                                let bins = src.first().map_or(0, |c| c[p].len());
+                                let flat: Vec<f64> =
+                                    src.iter().flat_map(|c| c[p].iter().copied()).collect();
+                                Array2::from_shape_vec((n_ctrl, bins), flat)
+                                    .expect("shape")
+                                    .into_pyarray(py)
+                            })
+                            .collect()
+                    };
+                d.set_item("spectrum_sum", per_phase(&out.spectra.sum))?;
+                d.set_item("spectrum_sum_sq", per_phase(&out.spectra.sum_sq))?;
+                d.set_item("spectrum_count", out.spectra.count)?;
+            }
+            Ok(d)
         }
 
         /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
@@ -439,69 +584,93 @@ mod _core {
             dispersion_keys: Vec<String>,
             dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
         ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
-            #[rustfmt::skip]
-            let out = run_innovations_on(py, &self.engine, controller, xi, progress, workers, dispersion_keys, dispersion_values);
-            out
+            let e = &self.engine;
+            use numpy::ndarray::Array3;
+            use rayon::prelude::*;
+            let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+            let xi = xi.as_array();
+            let (n, dim) = (xi.nrows(), xi.ncols());
+            check_innovations(e, dim)?;
+            let values = dispersion_values.map(|v| v.as_array().to_owned());
+            let dispersion = innovations_dispersion(e, dispersion_keys, values.as_ref(), n)?;
+            let workers = workers
+                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            if workers == 0 {
+                return Err(PyValueError::new_err("workers must be >= 1, got 0"));
+            }
+            let rows: Vec<&[f64]> = match xi.as_slice() {
+                Some(flat) if dim > 0 => flat.chunks(dim).collect(),
+                Some(_) => vec![&[][..]; n],
+                None => return Err(PyValueError::new_err("xi must be C-contiguous")),
+            };
+            let n_phase = e.phase_count();
+            let row = n_phase * N_METRICS;
+            let mut metrics = vec![f64::NAN; n * row];
+            let (done, cancel) = match progress {
+                Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
+                None => (
+                    Arc::new(AtomicU64::new(0)),
+                    Arc::new(AtomicBool::new(false)),
+                ),
+            };
+            let lanes = e.set_lanes();
+            let finished = py.detach(|| {
+                guarded("run_innovations", || {
+                    pool(workers).install(|| {
+                        metrics
+                            .par_chunks_mut(lanes * row)
+                            .enumerate()
+                            .map_init(FftPlanner::new, |planner, (set, out)| {
+                                // Pad the last lane-set by repeating its final row.
+                                let mine: Vec<&[f64]> = (0..lanes)
+                                    .map(|l| rows[(set * lanes + l).min(n - 1)])
+                                    .collect();
+                                let indices: Vec<u64> = (0..lanes as u64).collect();
+                                // A dispersed scenario: each lane's craft of its row's values, with
+                                // the scenario's gust filters unless a gust key is dispersed.
+                                let crafts: Option<Vec<Craft>> = dispersion.as_ref().map(|d| {
+                                    let wind = (!d.touches_wind()).then_some(&e.craft);
+                                    (0..lanes)
+                                        .map(|l| {
+                                            let j = (set * lanes + l).min(n - 1);
+                                            let cfg = d.patched(j, 0).expect("checked above");
+                                            Craft::with_wind_of(&cfg, wind).expect("checked above")
+                                        })
+                                        .collect()
+                                });
+                                let craft_refs: Option<Vec<&Craft>> =
+                                    crafts.as_ref().map(|c| c.iter().collect());
+                                let req = FlightRequest {
+                                    cancel: Some(&cancel),
+                                    crafts: craft_refs.as_deref(),
+                                    innovations: Some(&mine),
+                                    ..FlightRequest::new(kind, 0, &indices)
+                                };
+                                let Some(res) = e.fly_set(&req, planner) else {
+                                    return false;
+                                };
+                                for (l, r) in res.iter().take(out.len() / row).enumerate() {
+                                    for (p, m) in r.metrics.iter().enumerate() {
+                                        let at = l * row + p * N_METRICS;
+                                        out[at..at + N_METRICS].copy_from_slice(m);
+                                    }
+                                }
+                                done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
+                                true
+                            })
+                            .all(|ok| ok)
+                    })
+                })
+            })?;
+            if !finished {
+                return Err(PyKeyboardInterrupt::new_err(
+                    "run_innovations was cancelled",
+                ));
+            }
+            Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
+                .expect("shape")
+                .into_pyarray(py))
         }
-    }
-
-    fn stability_of<'py>(
-        py: Python<'py>,
-        cfg: &Config,
-        kind: ControllerKind,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        use crate::stability::{analyse, Pole, Verdict, TOLERANCE};
-        let a = py.detach(|| guarded("stability", || analyse(cfg, kind)))?;
-        let numbers = |f: fn(&Pole) -> f64| Array1::from_iter(a.poles.iter().map(f));
-        let names = |f: fn(&Pole) -> &'static str| a.poles.iter().map(f).collect::<Vec<_>>();
-        let excited = Array1::from_iter(a.poles.iter().map(|p| p.excited));
-        let n = a.jacobian.nrows();
-        let jac = Array2::from_shape_fn((n, n), |(i, j)| a.jacobian[(i, j)]);
-        let d = PyDict::new(py);
-        d.set_item("real", numbers(|p| p.re).into_pyarray(py))?;
-        d.set_item("imag", numbers(|p| p.im).into_pyarray(py))?;
-        d.set_item("mode", names(|p| p.mode))?;
-        d.set_item("dominant", names(|p| p.dominant))?;
-        d.set_item("status", names(|p| p.verdict.name()))?;
-        d.set_item("excited", excited.into_pyarray(py))?;
-        d.set_item("verdict", a.verdict.name())?;
-        d.set_item("stable", a.verdict == Verdict::Stable)?;
-        d.set_item("lateral_sources", a.lateral_sources)?;
-        d.set_item("equilibrium", a.equilibrium.to_vec().into_pyarray(py))?;
-        d.set_item("residual", a.residual)?;
-        d.set_item("jacobian", jac.into_pyarray(py))?;
-        d.set_item("tolerance", TOLERANCE)?;
-        Ok(d)
-    }
-
-    fn linearize_of<'py>(
-        py: Python<'py>,
-        cfg: &Config,
-        kind: ControllerKind,
-        wind: [f64; 3],
-    ) -> PyResult<Bound<'py, PyDict>> {
-        use crate::stability::{linearise, INPUT_NAMES};
-        if let Some(w) = wind.iter().find(|w| !w.is_finite()) {
-            return Err(PyValueError::new_err(format!(
-                "wind must be finite, got {w}"
-            )));
-        }
-        let l = py.detach(|| guarded("linearize", || linearise(cfg, kind, wind)))?;
-        let d = PyDict::new(py);
-        let dense = |rows: usize, cols: usize, f: &dyn Fn(usize, usize) -> f64| {
-            Array2::from_shape_fn((rows, cols), |(i, j)| f(i, j))
-        };
-        let (nx, nu, ny) = (l.b.nrows(), l.b.ncols(), l.c.nrows());
-        d.set_item("A", dense(nx, nx, &|i, j| l.a[(i, j)]).into_pyarray(py))?;
-        d.set_item("B", dense(nx, nu, &|i, j| l.b[(i, j)]).into_pyarray(py))?;
-        d.set_item("C", dense(ny, nx, &|i, j| l.c[(i, j)]).into_pyarray(py))?;
-        d.set_item("D", dense(ny, nu, &|i, j| l.d[(i, j)]).into_pyarray(py))?;
-        d.set_item("state_names", l.states.clone())?;
-        d.set_item("input_names", INPUT_NAMES.to_vec())?;
-        d.set_item("output_names", l.outputs.clone())?;
-        d.set_item("equilibrium", l.equilibrium.clone().into_pyarray(py))?;
-        d.set_item("residual", l.residual)?;
-        Ok(d)
     }
 
     /// What `simulate` flies, besides the scenario and its inputs.
@@ -700,114 +869,6 @@ mod _core {
         Ok(Some(d))
     }
 
-    fn innovations_of<'py>(
-        py: Python<'py>,
-        e: &Engine,
-        seed: u64,
-        realisation: u64,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        memory::check("innovations", e.innovations() as u128, 8).map_err(PyMemoryError::new_err)?;
-        Ok(e.innovations_of(seed, realisation).into_pyarray(py))
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn run_innovations_on<'py>(
-        py: Python<'py>,
-        e: &Engine,
-        controller: &str,
-        xi: PyReadonlyArray2<'py, f64>,
-        progress: Option<&Bound<'py, Progress>>,
-        workers: Option<usize>,
-        dispersion_keys: Vec<String>,
-        dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
-    ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
-        use numpy::ndarray::Array3;
-        use rayon::prelude::*;
-        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-        let xi = xi.as_array();
-        let (n, dim) = (xi.nrows(), xi.ncols());
-        check_innovations(e, dim)?;
-        let values = dispersion_values.map(|v| v.as_array().to_owned());
-        let dispersion = innovations_dispersion(e, dispersion_keys, values.as_ref(), n)?;
-        let workers =
-            workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-        if workers == 0 {
-            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
-        }
-        let rows: Vec<&[f64]> = match xi.as_slice() {
-            Some(flat) if dim > 0 => flat.chunks(dim).collect(),
-            Some(_) => vec![&[][..]; n],
-            None => return Err(PyValueError::new_err("xi must be C-contiguous")),
-        };
-        let n_phase = e.phase_count();
-        let row = n_phase * N_METRICS;
-        let mut metrics = vec![f64::NAN; n * row];
-        let (done, cancel) = match progress {
-            Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
-            None => (
-                Arc::new(AtomicU64::new(0)),
-                Arc::new(AtomicBool::new(false)),
-            ),
-        };
-        let lanes = e.set_lanes();
-        let finished = py.detach(|| {
-            guarded("run_innovations", || {
-                pool(workers).install(|| {
-                    metrics
-                        .par_chunks_mut(lanes * row)
-                        .enumerate()
-                        .map_init(FftPlanner::new, |planner, (set, out)| {
-                            // Pad the last lane-set by repeating its final row.
-                            let mine: Vec<&[f64]> = (0..lanes)
-                                .map(|l| rows[(set * lanes + l).min(n - 1)])
-                                .collect();
-                            let indices: Vec<u64> = (0..lanes as u64).collect();
-                            // A dispersed scenario: each lane's craft of its row's values, with
-                            // the scenario's gust filters unless a gust key is dispersed.
-                            let crafts: Option<Vec<Craft>> = dispersion.as_ref().map(|d| {
-                                let wind = (!d.touches_wind()).then_some(&e.craft);
-                                (0..lanes)
-                                    .map(|l| {
-                                        let j = (set * lanes + l).min(n - 1);
-                                        let cfg = d.patched(j, 0).expect("checked above");
-                                        Craft::with_wind_of(&cfg, wind).expect("checked above")
-                                    })
-                                    .collect()
-                            });
-                            let craft_refs: Option<Vec<&Craft>> =
-                                crafts.as_ref().map(|c| c.iter().collect());
-                            let req = FlightRequest {
-                                cancel: Some(&cancel),
-                                crafts: craft_refs.as_deref(),
-                                innovations: Some(&mine),
-                                ..FlightRequest::new(kind, 0, &indices)
-                            };
-                            let Some(res) = e.fly_set(&req, planner) else {
-                                return false;
-                            };
-                            for (l, r) in res.iter().take(out.len() / row).enumerate() {
-                                for (p, m) in r.metrics.iter().enumerate() {
-                                    let at = l * row + p * N_METRICS;
-                                    out[at..at + N_METRICS].copy_from_slice(m);
-                                }
-                            }
-                            done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
-                            true
-                        })
-                        .all(|ok| ok)
-                })
-            })
-        })?;
-        if !finished {
-            return Err(PyKeyboardInterrupt::new_err(
-                "run_innovations was cancelled",
-            ));
-        }
-        Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
-            .expect("shape")
-            .into_pyarray(py))
-    }
-
     /// The scenario's `[wind]` mean wind (m/s, inertial x, y, z) at each altitude in
     /// `altitudes` (m): W20 f(h) (cos chi, sin chi, 0), shape (n, 3).
     #[pyfunction]
@@ -963,128 +1024,5 @@ mod _core {
         fn cancelled(&self) -> bool {
             self.cancel.load(Ordering::Relaxed)
         }
-    }
-
-    /// Which realisations a batch flies: `first .. first + count` of master seed `seed`.
-    struct Realisations {
-        seed: u64,
-        first: u64,
-        count: usize,
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn run_batch_on<'py>(
-        py: Python<'py>,
-        e: Cow<'_, Engine>,
-        controllers: Vec<String>,
-        range: Realisations,
-        workers: usize,
-        spectra: bool,
-        progress: Option<&Bound<'py, Progress>>,
-        dispersion_keys: Vec<String>,
-        dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
-        streams: Option<PyReadonlyArray1<'py, u64>>,
-        fused: bool,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let Realisations { seed, first, count } = range;
-        let kinds = self::controllers(&controllers)?;
-        if count == 0 {
-            return Err(PyValueError::new_err("runs must be >= 1, got 0"));
-        }
-        if workers == 0 {
-            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
-        }
-        let e = match fused {
-            false => e,
-            true => Cow::Owned(
-                e.into_owned()
-                    .with_fused(true)
-                    .map_err(PyValueError::new_err)?,
-            ),
-        };
-        let row = kinds.len() * e.phase_count() * N_METRICS;
-        memory::check(
-            "batch results (runs * controllers * phases * metrics)",
-            count as u128 * (row + kinds.len() + 1) as u128,
-            8,
-        )
-        .and_then(|()| flight_memory(&e, e.set_lanes(), workers))
-        .map_err(PyMemoryError::new_err)?;
-        let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
-            (true, None) => None,
-            (false, Some(v)) => {
-                let v = v.as_array();
-                let shape = v.shape();
-                if shape != [count, dispersion_keys.len()] {
-                    return Err(PyValueError::new_err(format!(
-                        "dispersion_values must have shape ({count}, {}), got {shape:?}",
-                        dispersion_keys.len()
-                    )));
-                }
-                let values = v.iter().copied().collect();
-                Some(
-                    Dispersion::new(&e.cfg, dispersion_keys, values, count)
-                        .map_err(scenario_error)?,
-                )
-            }
-            _ => {
-                return Err(PyValueError::new_err(
-                    "dispersion_keys and dispersion_values go together",
-                ))
-            }
-        };
-        let streams: Option<Vec<u64>> = streams.map(|s| s.as_array().iter().copied().collect());
-        let b = Batch {
-            want_spectra: spectra,
-            dispersion: dispersion.as_ref(),
-            streams: streams.as_deref(),
-            ..Batch::new(&kinds, seed, first, count)
-        };
-        let (done, cancel) = match progress {
-            Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
-            None => (
-                Arc::new(AtomicU64::new(0)),
-                Arc::new(AtomicBool::new(false)),
-            ),
-        };
-        let out = py.detach(|| {
-            guarded("run_batch", || {
-                pool(workers).install(|| {
-                    b.check()?;
-                    Ok(batch(&e, &b, &done, &cancel))
-                })
-            })
-        })?;
-        let out = out.map_err(scenario_error)?;
-        let n_ctrl = kinds.len();
-        let n_phase = e.phase_count();
-        let d = PyDict::new(py);
-        let metrics = Array4::from_shape_vec((count, n_ctrl, n_phase, N_METRICS), out.metrics)
-            .expect("metrics shape");
-        d.set_item("metrics", metrics.into_pyarray(py))?;
-        let diverged = Array2::from_shape_vec((count, n_ctrl), out.diverged_at).expect("shape");
-        d.set_item("diverged_at", diverged.into_pyarray(py))?;
-        let status = Array2::from_shape_vec((count, n_ctrl), out.status).expect("shape");
-        d.set_item("status", status.into_pyarray(py))?;
-        d.set_item("done", Array1::from_vec(out.done).into_pyarray(py))?;
-        if spectra {
-            // Per phase: (n_ctrl, bins) arrays of the ensemble sum and sum of squares.
-            let per_phase = |src: &Vec<Vec<Vec<f64>>>| -> Vec<Bound<'py, numpy::PyArray2<f64>>> {
-                (0..n_phase)
-                    .map(|p| {
-                        let bins = src.first().map_or(0, |c| c[p].len());
-                        let flat: Vec<f64> =
-                            src.iter().flat_map(|c| c[p].iter().copied()).collect();
-                        Array2::from_shape_vec((n_ctrl, bins), flat)
-                            .expect("shape")
-                            .into_pyarray(py)
-                    })
-                    .collect()
-            };
-            d.set_item("spectrum_sum", per_phase(&out.spectra.sum))?;
-            d.set_item("spectrum_sum_sq", per_phase(&out.spectra.sum_sq))?;
-            d.set_item("spectrum_count", out.spectra.count)?;
-        }
-        Ok(d)
     }
 }

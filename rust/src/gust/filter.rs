@@ -276,6 +276,36 @@ impl GustFilter {
         airspeed: f64,
         dt: f64,
     ) -> Result<Self, String> {
+        let k = Self::check(model, sigma, length_scale, airspeed, dt)?;
+        let r = rational(model, component);
+        let mut f = match model {
+            GustModel::Dryden => Self::dryden_closed_form(component, k),
+            GustModel::VonKarman => Self::general(&r, k)?,
+        };
+        f.model = model;
+        f.component = component;
+        f.sigma = sigma;
+        f.length_scale = length_scale;
+        f.airspeed = airspeed;
+        f.dt = dt;
+        f.k = k;
+        f.out = f.c * sigma;
+        f.num = r.num;
+        f.den = r.den;
+        f.gain2 = r.gain2;
+        Ok(f)
+    }
+
+    /// What `new` requires of its numbers, checked without building the filter (scenario
+    /// validation runs it for every component): the step in scale lengths, `airspeed * dt /
+    /// length_scale`, finite and positive.
+    pub fn check(
+        model: GustModel,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+        dt: f64,
+    ) -> Result<f64, String> {
         check_non_negative("sigma", sigma)?;
         check_positive("length_scale", length_scale, "")?;
         if !(airspeed.is_finite() && airspeed > 0.0) {
@@ -295,23 +325,7 @@ impl GustFilter {
                  (airspeed {airspeed:?}, dt {dt:?}, length_scale {length_scale:?})"
             ));
         }
-        let r = rational(model, component);
-        let mut f = match model {
-            GustModel::Dryden => Self::dryden_closed_form(component, k),
-            GustModel::VonKarman => Self::general(&r, k)?,
-        };
-        f.model = model;
-        f.component = component;
-        f.sigma = sigma;
-        f.length_scale = length_scale;
-        f.airspeed = airspeed;
-        f.dt = dt;
-        f.k = k;
-        f.out = f.c * sigma;
-        f.num = r.num;
-        f.den = r.den;
-        f.gain2 = r.gain2;
-        Ok(f)
+        Ok(k)
     }
 
     fn blank(order: usize) -> Self {

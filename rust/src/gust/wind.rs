@@ -226,7 +226,46 @@ fn step_at_or_after(t: f64, dt: f64) -> u64 {
     }
 }
 
+/// A component's filter cannot be built for this scenario: the error names `gust`.
+fn component_error(c: GustComponent, e: String) -> ConfigError {
+    ConfigError::new("gust", format!("gust ({} component): {e}", c.name()))
+}
+
 impl WindField {
+    /// Intensities and scale lengths ([`low_altitude_scales`], per component) and the
+    /// airspeed the kept filters are built for: the fixed values, or where the scales follow
+    /// the vehicle the lowest altitude (10 ft) and `gust.min_airspeed`.
+    fn scales(cfg: &Config) -> ([f64; 3], [f64; 3], f64) {
+        let g = &cfg.gust;
+        let altitude = match g.altitude {
+            GustAltitude::Fixed(h) => h,
+            GustAltitude::Vehicle => VEHICLE_ALTITUDE_RANGE.0,
+        };
+        let airspeed = match g.airspeed {
+            GustAirspeed::Fixed(v) => v,
+            GustAirspeed::Relative => g.min_airspeed,
+        };
+        let (sigma, length) = low_altitude_scales(altitude, cfg.turbulence_w20());
+        (sigma, length, airspeed)
+    }
+
+    /// Whether [`WindField::new`] can discretise every active component for this step, checked
+    /// without building the filters (what validating a scenario runs: e.g. a `gust.altitude`
+    /// so small that `airspeed * dt / length_scale` overflows is refused there, naming `gust`).
+    pub fn check(cfg: &Config) -> Result<(), ConfigError> {
+        let g = &cfg.gust;
+        if !g.enabled {
+            return Ok(());
+        }
+        let (sigma, length, airspeed) = Self::scales(cfg);
+        for &c in &g.components {
+            let i = c.index();
+            GustFilter::check(g.model, sigma[i], length[i], airspeed, cfg.integrator.dt)
+                .map_err(|e| component_error(c, e))?;
+        }
+        Ok(())
+    }
+
     /// Compute the scales ([`low_altitude_scales`]) of a validated scenario's gust
     /// (`Config::validate` has checked every `gust` and `wind` value, once for the whole
     /// engine) and discretise the active components for the step `integrator.dt`.
@@ -267,21 +306,12 @@ impl WindField {
         }
         let w20 = cfg.turbulence_w20();
         let follows = g.altitude == GustAltitude::Vehicle || g.airspeed == GustAirspeed::Relative;
-        let altitude = match g.altitude {
-            GustAltitude::Fixed(h) => h,
-            GustAltitude::Vehicle => VEHICLE_ALTITUDE_RANGE.0,
-        };
-        let airspeed = match g.airspeed {
-            GustAirspeed::Fixed(v) => v,
-            GustAirspeed::Relative => g.min_airspeed,
-        };
-        let (sigma, length) = low_altitude_scales(altitude, w20);
+        let (sigma, length, airspeed) = Self::scales(cfg);
         for c in GustComponent::ALL {
             let i = c.index();
             if g.components.contains(&c) {
-                let f = GustFilter::new(g.model, c, sigma[i], length[i], airspeed, dt).map_err(
-                    |e| ConfigError::new("gust", format!("gust ({} component): {e}", c.name())),
-                )?;
+                let f = GustFilter::new(g.model, c, sigma[i], length[i], airspeed, dt)
+                    .map_err(|e| component_error(c, e))?;
                 field.filters[i] = Some(f);
             }
         }
@@ -631,6 +661,31 @@ mod tests {
             out.push(f.output(&x));
         }
         out
+    }
+
+    #[test]
+    fn check_refuses_what_new_cannot_build_and_builds_nothing() {
+        let mut cfg = crate::config::tests::paper();
+        cfg.gust.enabled = true;
+        cfg.validate().unwrap();
+        assert!(WindField::check(&cfg).is_ok() && WindField::new(&cfg).is_ok());
+        // An altitude so small that the step in scale lengths overflows: refused by both,
+        // with the same key and message.
+        cfg.gust.altitude = crate::config::GustAltitude::Fixed(5e-324);
+        cfg.validate().unwrap();
+        let checked = WindField::check(&cfg).unwrap_err();
+        let built = WindField::new(&cfg).err().expect("refused");
+        assert_eq!(
+            (checked.key.as_str(), &checked.message),
+            ("gust", &built.message)
+        );
+        assert!(
+            checked.message.contains("airspeed * dt / length_scale"),
+            "{checked:?}"
+        );
+        // Turbulence off: nothing to discretise.
+        cfg.gust.enabled = false;
+        assert!(WindField::check(&cfg).is_ok());
     }
 
     #[test]
