@@ -674,7 +674,9 @@ mod tests {
         cfg.gust.altitude = crate::config::GustAltitude::Fixed(5e-324);
         cfg.validate().unwrap();
         let checked = WindField::check(&cfg).unwrap_err();
-        let built = WindField::new(&cfg).err().expect("refused");
+        let Err(built) = WindField::new(&cfg) else {
+            panic!("new built a filter check refuses");
+        };
         assert_eq!(
             (checked.key.as_str(), &checked.message),
             ("gust", &built.message)
