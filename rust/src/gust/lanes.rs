@@ -21,17 +21,16 @@ pub const MAX_LANES: usize = 8;
 
 /// Rows of the normals buffer: one row is one normal of every lane. A refill draws as many
 /// whole steps' worth (`ROWS / per_step` steps) as fit.
-const ROWS: usize = 128;
+const ROWS: usize = 256;
 
 /// The normals buffer: `ROWS` rows and the `CHUNK - 1` spare ones `Ahead::normals` may write
 /// past the last.
 type Rows = [[f64; MAX_LANES]; ROWS + CHUNK - 1];
 
-/// One active component's filter as lane values (padded to order 3 like `GustFilter`).
+/// One axis's filter as lane values (padded to order 3 like `GustFilter`).
 #[derive(Clone, Copy)]
 struct Component<L> {
-    /// Which of (longitudinal, lateral, vertical).
-    axis: usize,
+    /// 0: none on this axis.
     order: usize,
     /// First row of this component's normals within a step's rows.
     offset: usize,
@@ -44,7 +43,8 @@ struct Component<L> {
 /// The turbulence of one lane-set: built by [`LaneGust::new`] where every lane's field allows
 /// it (see there), sampled once per step inside the window by [`LaneGust::sample`].
 pub struct LaneGust<'a, L> {
-    components: [Option<Component<L>>; 3],
+    /// Per axis (longitudinal, lateral, vertical); order 0 where the axis has no turbulence.
+    components: [Component<L>; 3],
     /// Normals one step draws per lane (the active components' orders summed).
     per_step: usize,
     /// `gust.mean_wind` added to the filters' sum (zero when the axes are turned).
@@ -90,7 +90,15 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             return None;
         }
         let lanes = |get: &dyn Fn(&WindField) -> f64| L::from_fn(|l| get(fields[l]));
-        let mut components = [None; 3];
+        let unused = Component {
+            order: 0,
+            offset: 0,
+            phi: [[L::splat(0.0); 3]; 3],
+            g: [[L::splat(0.0); 3]; 3],
+            out: [L::splat(0.0); 3],
+            x: [L::splat(0.0); 3],
+        };
+        let mut components = [unused; 3];
         let mut per_step = 0;
         for (axis, slot) in components.iter_mut().enumerate() {
             let Some(f0) = first.filters()[axis] else {
@@ -104,15 +112,14 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                 std::array::from_fn(|j| L::from_fn(|l| filter(l).noise_chol()[(i, j)]))
             });
             let out = std::array::from_fn(|i| L::from_fn(|l| filter(l).output_row()[i]));
-            *slot = Some(Component {
-                axis,
+            *slot = Component {
                 order: f0.order(),
                 offset: per_step,
                 phi,
                 g,
                 out,
                 x: [L::splat(0.0); 3],
-            });
+            };
             per_step += f0.order();
         }
         let mean: [L; 3] = std::array::from_fn(|i| lanes(&|f| f.mean_wind()[i]));
@@ -150,12 +157,53 @@ impl<'a, L: Lane> LaneGust<'a, L> {
     /// nothing. No allocation.
     #[inline(always)]
     pub fn sample(&mut self, step: u64) -> [L; 3] {
+        let mut w = self.base;
+        if self.started && self.at + 1 == step {
+            // The flight loop's case, one step on: each filter advanced and read in one pass.
+            let row = self.take_step();
+            let LaneGust {
+                components, rows, ..
+            } = self;
+            // Three iterations, unrolled: `w` stays in registers.
+            for (w, c) in w.iter_mut().zip(components.iter_mut()) {
+                let r = row + c.offset;
+                match c.order {
+                    0 => continue,
+                    1 => advance::<L, 1>(c, rows, r),
+                    2 => advance::<L, 2>(c, rows, r),
+                    _ => advance::<L, 3>(c, rows, r),
+                }
+                *w += c.output();
+            }
+            self.at = step;
+        } else {
+            self.advance_to(step);
+            for (w, c) in w.iter_mut().zip(self.components.iter()) {
+                if c.order > 0 {
+                    *w += c.output();
+                }
+            }
+        }
+        match self.axes {
+            None => w,
+            Some((cos, sin)) => [
+                w[0] * cos - w[1] * sin + self.mean[0],
+                w[0] * sin + w[1] * cos + self.mean[1],
+                w[2] + self.mean[2],
+            ],
+        }
+    }
+
+    /// Start the filters (stationary states, at the window's first step) if not yet, and
+    /// advance them once per step up to `step`.
+    #[inline(never)]
+    fn advance_to(&mut self, step: u64) {
         if !self.started {
             let row = self.take_step();
             let LaneGust {
                 components, rows, ..
             } = self;
-            for c in components.iter_mut().flatten() {
+            for c in components.iter_mut() {
                 for j in 0..c.order {
                     c.x[j] = row_lanes(rows, row + c.offset + j);
                 }
@@ -168,28 +216,16 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             let LaneGust {
                 components, rows, ..
             } = self;
-            for c in components.iter_mut().flatten() {
+            for c in components.iter_mut() {
                 let r = row + c.offset;
                 match c.order {
+                    0 => {}
                     1 => advance::<L, 1>(c, rows, r),
                     2 => advance::<L, 2>(c, rows, r),
                     _ => advance::<L, 3>(c, rows, r),
                 }
             }
             self.at += 1;
-        }
-        let mut w = self.base;
-        for c in self.components.iter().flatten() {
-            let y = c.out[0] * c.x[0] + c.out[1] * c.x[1] + c.out[2] * c.x[2];
-            w[c.axis] += y;
-        }
-        match self.axes {
-            None => w,
-            Some((cos, sin)) => [
-                w[0] * cos - w[1] * sin + self.mean[0],
-                w[0] * sin + w[1] * cos + self.mean[1],
-                w[2] + self.mean[2],
-            ],
         }
     }
 
@@ -237,9 +273,12 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                     n,
                     isa,
                     #[inline(always)]
-                    |r, x| {
-                        for (row, x) in rows[r..r + CHUNK].iter_mut().zip(x) {
-                            row[l] = x;
+                    |r, xs| {
+                        let to = rows[r..r + xs.len()].chunks_exact_mut(CHUNK);
+                        for (to, xs) in to.zip(xs.chunks_exact(CHUNK)) {
+                            for (row, x) in to.iter_mut().zip(xs) {
+                                row[l] = *x;
+                            }
                         }
                     },
                 ),
@@ -252,6 +291,14 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                 }
             }
         }
+    }
+}
+
+impl<L: Lane> Component<L> {
+    /// `GustFilter::output` on lane values (all three terms, as there).
+    #[inline(always)]
+    fn output(&self) -> L {
+        self.out[0] * self.x[0] + self.out[1] * self.x[1] + self.out[2] * self.x[2]
     }
 }
 

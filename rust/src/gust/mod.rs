@@ -23,6 +23,7 @@
 //! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies).
 
 pub mod filter;
+pub mod keystream;
 pub mod lanes;
 pub mod normal;
 pub mod spectra;

@@ -6,12 +6,15 @@
 //! exactly as before.
 //!
 //! [`Ahead`] draws many normals of one stream at once: the stream's `u64`s are drawn ahead in
-//! bulk, the fast path runs branch-free on [`CHUNK`] consecutive words at a time, and a word it
-//! rejects goes to `StandardNormal` with the words held ahead put back in front of the stream,
-//! so the normals, and the words each consumes, are those of `standard_normal` one at a time.
+//! bulk (`keystream`), the fast path's candidate of every word is made in one branch-free
+//! pass, and a word it rejects goes to `StandardNormal` with the words held ahead put back in
+//! front of the stream, so the normals, and the words each consumes, are those of
+//! `standard_normal` one at a time.
 
+use super::keystream::{self, WIDE};
 use crate::lane::isa::Isa;
 use rand::{Rng, RngExt, TryRng};
+use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::convert::Infallible;
 
@@ -111,82 +114,38 @@ fn fast(bits: u64) -> (f64, bool) {
     (x, x.abs() < ZIG_NORM_X[i + 1])
 }
 
-/// Normals one pass of [`Ahead::normals`] makes at once (branch-free, from consecutive words).
+/// Words an [`Ahead`] holds at most: a top-up draws up to the next block boundary (at most
+/// seven words) and then whole groups of the wide keystream (a multiple of `MARK`).
+const AHEAD: usize = 4 * WIDE + MARK;
+
+/// Words one pass of `mark_avx2` makes candidates of.
+const MARK: usize = 16;
+
+/// The normals [`Ahead::normals`] hands out at once (the copy's unit).
 pub const CHUNK: usize = 8;
 
-/// `fast` on `CHUNK` consecutive little-endian words: the candidates, and bit `j` set where
-/// word `j`'s is accepted. On AVX2 (`isa` not the baseline: the caller runs compiled for it,
-/// `Lane::within`) one vector pass with the layer edges gathered, the same operations (one
-/// product, one comparison) and so the same bits.
-#[inline(always)]
-fn fast_chunk(words: &[u8; 8 * CHUNK], isa: Isa) -> ([f64; CHUNK], u32) {
-    #[cfg(target_arch = "x86_64")]
-    if isa != Isa::Baseline {
-        // SAFETY: AVX2 is available (`isa` is AVX2 or AVX-512, whose CPUs have it).
-        return unsafe { fast_chunk_avx2(words) };
-    }
-    let _ = isa;
-    let mut x = [0.0; CHUNK];
-    let mut accepted = 0;
-    for (j, (x, w)) in x.iter_mut().zip(words.chunks_exact(8)).enumerate() {
-        let (v, ok) = fast(u64::from_le_bytes(w.try_into().expect("8 bytes")));
-        *x = v;
-        accepted |= (ok as u32) << j;
-    }
-    (x, accepted)
-}
-
-/// `fast_chunk` in AVX2 instructions.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-unsafe fn fast_chunk_avx2(words: &[u8; 8 * CHUNK]) -> ([f64; CHUNK], u32) {
-    use std::arch::x86_64::*;
-    let mut out = [0.0; CHUNK];
-    let mut accepted = 0;
-    for q in 0..CHUNK / 4 {
-        // SAFETY: words `4q..4q + 4` are in `words`.
-        let w = unsafe { _mm256_loadu_si256(words.as_ptr().add(32 * q).cast()) };
-        let i = _mm256_and_si256(w, _mm256_set1_epi64x(0xff));
-        let bits = _mm256_or_si256(_mm256_srli_epi64::<12>(w), _mm256_set1_epi64x(1024 << 52));
-        let u = _mm256_sub_pd(_mm256_castsi256_pd(bits), _mm256_set1_pd(3.0));
-        // SAFETY: every index is at most 255 and the table has 257 entries.
-        let (edge, next) = unsafe {
-            let table = ZIG_NORM_X.as_ptr();
-            (
-                _mm256_i64gather_pd::<8>(table, i),
-                _mm256_i64gather_pd::<8>(table.add(1), i),
-            )
-        };
-        let x = _mm256_mul_pd(u, edge);
-        let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), x);
-        let ok = _mm256_cmp_pd::<_CMP_LT_OQ>(abs, next);
-        // SAFETY: `out` holds `CHUNK` f64.
-        unsafe { _mm256_storeu_pd(out.as_mut_ptr().add(4 * q), x) };
-        accepted |= (_mm256_movemask_pd(ok) as u32) << (4 * q);
-    }
-    (out, accepted)
-}
-
-/// Words [`Ahead`] holds (a multiple of `CHUNK`, a few ChaCha blocks).
-const AHEAD: usize = 256;
-
-/// One stream's `u64`s drawn ahead, and the normals made of them in bulk. The words held are
-/// the stream's next ones in order: the stream seen through an `Ahead` is its held words, then
-/// the generator's own. Allocates once, at construction.
+/// One stream's `u64`s drawn ahead, with the ziggurat's fast-path candidate of each made in
+/// bulk. The words held are the stream's next ones in order: the stream seen through an
+/// `Ahead` is its held words, then the generator's own. A normal is a held word's candidate
+/// where the fast path accepts it; a rejected word goes to `StandardNormal` (`slow`), which
+/// reads any further words it needs from the held ones first, so the stream is consumed
+/// exactly as `standard_normal` one at a time would. A candidate depends on its word alone,
+/// which is why they can all be made before it is known which words start a normal.
+/// Allocates once, at construction.
 pub struct Ahead {
-    /// `AHEAD` little-endian `u64`s (what `fill_bytes` writes); `pos..len` are held.
-    bytes: Box<[u8; 8 * AHEAD]>,
+    words: Box<[u64; AHEAD]>,
+    /// `fast`'s candidate for each held word.
+    candidates: Box<[f64; AHEAD + CHUNK]>,
+    /// Bit `k % 64` of `accepted[k / 64]`: whether the fast path accepts word `k` (clear from
+    /// `len` on).
+    accepted: [u64; AHEAD.div_ceil(64)],
+    /// `pos..len` are held.
     pos: usize,
     len: usize,
-    /// Draws handed to `StandardNormal`, those of them that read past the held words, and the
-    /// top-ups (for the tests' coverage checks).
-    /// Then the rejections at each place of a chunk.
+    /// Draws handed to `StandardNormal`, those of them that read past the held words, the
+    /// top-ups, and those that started off the block grid (for the tests' coverage checks).
     #[cfg(test)]
-    pub(crate) counts: [usize; 3 + CHUNK],
+    pub(crate) counts: [usize; 4],
 }
 
 impl Default for Ahead {
@@ -199,89 +158,160 @@ impl Ahead {
     /// Nothing held yet.
     pub fn new() -> Self {
         Ahead {
-            bytes: Box::new([0; 8 * AHEAD]),
+            words: Box::new([0; AHEAD]),
+            candidates: Box::new([0.0; AHEAD + CHUNK]),
+            accepted: [0; AHEAD.div_ceil(64)],
             pos: 0,
             len: 0,
             #[cfg(test)]
-            counts: [0; 3 + CHUNK],
+            counts: [0; 4],
         }
-    }
-
-    /// Word `k` of the buffer.
-    #[inline(always)]
-    fn word(&self, k: usize) -> u64 {
-        let b: [u8; 8] = self.bytes[8 * k..8 * k + 8].try_into().expect("8 bytes");
-        u64::from_le_bytes(b)
-    }
-
-    /// Words `k..k + CHUNK` of the buffer.
-    #[inline(always)]
-    fn chunk(&self, k: usize) -> &[u8; 8 * CHUNK] {
-        self.bytes[8 * k..8 * (k + CHUNK)]
-            .try_into()
-            .expect("CHUNK words")
     }
 
     /// The next `n` standard normals of the stream (the words held, then `rng`), as `n` calls
     /// of [`standard_normal`] would draw them; words drawn ahead and not used stay held for
-    /// the next call. `store(r, x)` receives candidates for normals `r..r + CHUNK`: only
-    /// those below `n` and below the `r` of the next `store` are final (later calls overwrite
-    /// the rest), so the destination needs `CHUNK - 1` spare places past `n`. `isa`: the
-    /// instruction set the caller is compiled for (`fast_chunk`).
+    /// the next call. `store(r, xs)` receives normals `r..r + xs.len()`, in order, `xs` a
+    /// whole number of [`CHUNK`]s (a branch-free copy): only those below `n` and below the
+    /// `r` of the next `store` are final (later calls overwrite the rest), so the destination
+    /// needs `CHUNK - 1` spare places past `n`. `isa`: the instruction set the caller is
+    /// compiled for (`Lane::within`), which draws the words (`keystream::fill`) and makes the
+    /// candidates (`mark`).
     #[inline(always)]
-    pub fn normals<R: Rng>(
+    pub fn normals(
         &mut self,
-        rng: &mut R,
+        rng: &mut ChaCha8Rng,
         n: usize,
         isa: Isa,
-        mut store: impl FnMut(usize, [f64; CHUNK]),
+        mut store: impl FnMut(usize, &[f64]),
     ) {
         let mut r = 0;
-        // `self.pos`, kept in a register between the calls out.
-        let mut pos = self.pos;
         while r < n {
-            if self.len - pos < CHUNK {
-                self.pos = pos;
-                self.top_up(rng);
-                pos = self.pos;
+            if self.pos == self.len {
+                self.top_up(rng, isa);
             }
-            let (x, accepted) = fast_chunk(self.chunk(pos), isa);
-            store(r, x);
-            // The accepted prefix (a rejected word ends it), never past the `n`-th normal.
-            let k = (accepted.trailing_ones() as usize).min(n - r);
+            // The accepted words from `pos` on, never past the `n`-th normal.
+            let k = self.accepted_run().min(n - r);
+            let whole = k.next_multiple_of(CHUNK);
+            store(r, &self.candidates[self.pos..self.pos + whole]);
             r += k;
-            pos += k;
-            if k < CHUNK && r < n {
-                let bits = self.word(pos);
-                self.pos = pos + 1;
+            self.pos += k;
+            if r < n && self.pos < self.len {
+                // The word at `pos` is rejected: the whole draw is StandardNormal's.
+                let bits = self.words[self.pos];
+                self.pos += 1;
                 #[cfg(test)]
                 {
                     self.counts[0] += 1;
-                    self.counts[3 + k] += 1;
                 }
                 let x = slow(&mut Held { ahead: self, rng }, bits);
-                pos = self.pos;
-                store(r, [x; CHUNK]);
+                store(r, &[x; CHUNK]);
                 r += 1;
             }
         }
-        self.pos = pos;
     }
 
-    /// Keep the held words (fewer than `CHUNK`) at the front and fill the rest from `rng`:
-    /// `fill_bytes` writes the stream's next `u32`s little-endian, so each 8 bytes are the
-    /// `u64` that `next_u64` would have returned (its low half first).
+    /// How many words from `pos` on the fast path accepts in a row.
+    #[inline(always)]
+    fn accepted_run(&self) -> usize {
+        let mut k = self.pos;
+        while k < self.len {
+            let s = k % 64;
+            // Ones from bit `s` up (the shifted-in zeros end the run at the word's top).
+            let ones = (!(self.accepted[k / 64] >> s)).trailing_zeros() as usize;
+            k += ones;
+            if ones < 64 - s {
+                break;
+            }
+        }
+        k.min(self.len) - self.pos
+    }
+
+    /// Draw the next words (nothing is held), and their candidates.
     #[cold]
     #[inline(never)]
-    fn top_up<R: Rng>(&mut self, rng: &mut R) {
-        let held = self.len - self.pos;
-        self.bytes.copy_within(8 * self.pos..8 * self.len, 0);
-        rng.fill_bytes(&mut self.bytes[8 * held..]);
-        self.pos = 0;
-        self.len = AHEAD;
+    fn top_up(&mut self, rng: &mut ChaCha8Rng, isa: Isa) {
+        debug_assert_eq!(self.pos, self.len, "top-up with words held");
         #[cfg(test)]
         {
             self.counts[2] += 1;
+            self.counts[3] += !rng.get_word_pos().is_multiple_of(16) as usize;
+        }
+        self.len = keystream::fill(rng, &mut self.words[..], isa);
+        self.pos = 0;
+        self.mark(isa);
+    }
+
+    /// `fast` on words `0..len`: the candidates and the accepted bits. On AVX2 (`isa` not
+    /// the baseline: the caller runs compiled for it) four words per vector pass with the
+    /// layer edges gathered, the same operations (one product, one comparison) and so the
+    /// same bits.
+    #[inline(always)]
+    fn mark(&mut self, isa: Isa) {
+        self.accepted = [0; AHEAD.div_ceil(64)];
+        #[cfg(target_arch = "x86_64")]
+        if isa != Isa::Baseline {
+            // SAFETY: AVX2 is available (`isa` is AVX2 or AVX-512, whose CPUs have it).
+            unsafe { self.mark_avx2() };
+        } else {
+            self.mark_scalar();
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = isa;
+            self.mark_scalar();
+        }
+        // Words past `len` (the last vector pass may read some) are never accepted.
+        for (i, bits) in self.accepted.iter_mut().enumerate() {
+            let valid = self.len.saturating_sub(64 * i);
+            if valid < 64 {
+                *bits &= (1u64 << valid) - 1;
+            }
+        }
+    }
+
+    fn mark_scalar(&mut self) {
+        for k in 0..self.len {
+            let (x, ok) = fast(self.words[k]);
+            self.candidates[k] = x;
+            self.accepted[k / 64] |= (ok as u64) << (k % 64);
+        }
+    }
+
+    /// `mark` in AVX2 instructions.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn mark_avx2(&mut self) {
+        use std::arch::x86_64::*;
+        let table = ZIG_NORM_X.as_ptr();
+        let (words, candidates) = (self.words.as_ptr(), self.candidates.as_mut_ptr());
+        for m in 0..self.len.div_ceil(MARK) {
+            let mut bits = 0;
+            for q in 0..MARK / 4 {
+                let k = MARK * m + 4 * q;
+                // SAFETY: words `k..k + 4` are in the buffer (`AHEAD` is a multiple of `MARK`).
+                let w = unsafe { _mm256_loadu_si256(words.add(k).cast()) };
+                let i = _mm256_and_si256(w, _mm256_set1_epi64x(0xff));
+                let b = _mm256_or_si256(_mm256_srli_epi64::<12>(w), _mm256_set1_epi64x(1024 << 52));
+                let u = _mm256_sub_pd(_mm256_castsi256_pd(b), _mm256_set1_pd(3.0));
+                // SAFETY: every index is at most 255 and the table has 257 entries.
+                let (edge, next) = unsafe {
+                    (
+                        _mm256_i64gather_pd::<8>(table, i),
+                        _mm256_i64gather_pd::<8>(table.add(1), i),
+                    )
+                };
+                let x = _mm256_mul_pd(u, edge);
+                let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), x);
+                let ok = _mm256_cmp_pd::<_CMP_LT_OQ>(abs, next);
+                // SAFETY: candidates `k..k + 4` are in the buffer.
+                unsafe { _mm256_storeu_pd(candidates.add(k), x) };
+                bits |= (_mm256_movemask_pd(ok) as u64) << (4 * q);
+            }
+            self.accepted[m * MARK / 64] |= bits << (m * MARK % 64);
         }
     }
 
@@ -290,7 +320,7 @@ impl Ahead {
     pub fn next_u64<R: Rng>(&mut self, rng: &mut R) -> u64 {
         if self.pos < self.len {
             self.pos += 1;
-            self.word(self.pos - 1)
+            self.words[self.pos - 1]
         } else {
             rng.next_u64()
         }
@@ -432,11 +462,11 @@ mod tests {
 
     #[test]
     fn ahead_matches_rand_distr() {
-        // Runs of every length from 1 to 130 normals (chunks cut short at the run's end, words
+        // Runs of every length from 1 to 130 normals (cut short at the run's end, words
         // carried over to the next run), a few words taken one by one between runs, over
         // several streams, on every instruction set this CPU has: bit for bit against
         // `StandardNormal`, the streams left in step.
-        let mut counts = [0usize; 3 + CHUNK];
+        let mut counts = [0usize; 4];
         let mut tail = 0;
         let isas = Isa::ALL.into_iter().filter(|i| i.supported());
         for (isa, index) in isas.flat_map(|i| [0u64, 3, 77, u64::MAX].map(|s| (i, s))) {
@@ -445,7 +475,10 @@ mod tests {
             let mut out = [f64::NAN; 130 + CHUNK - 1];
             let (mut total, mut n) = (0, 1);
             while total < 600_000 {
-                ahead.normals(&mut a, n, isa, |r, x| out[r..r + CHUNK].copy_from_slice(&x));
+                out.fill(f64::NAN);
+                ahead.normals(&mut a, n, isa, |r, x| {
+                    out[r..r + x.len()].copy_from_slice(x)
+                });
                 for (r, x) in out[..n].iter().enumerate() {
                     let y: f64 = b.sample(StandardNormal);
                     assert_eq!(x.to_bits(), y.to_bits(), "{isa:?} {index} run of {n}, {r}");
@@ -468,13 +501,13 @@ mod tests {
                 *c += a;
             }
         }
-        // Rejections (1.2 %: wedges and tail) at every place of a chunk; some read past the
-        // words held; the tail drawn; many top-ups.
-        let [slow, past, top_ups, at @ ..] = counts;
-        assert!(slow > 20_000 && at.iter().all(|&n| n > 1000), "{counts:?}");
+        // Rejections (1.2 %: wedges and tail), some reading past the words held; the tail
+        // drawn; many top-ups, some of them off the block grid (after a read past).
+        let [slow, past, top_ups, off_grid] = counts;
         assert!(
-            past > 10 && top_ups > 5000 && tail > 50,
+            slow > 20_000 && past > 10 && tail > 50,
             "{counts:?} tail {tail}"
         );
+        assert!(top_ups > 5000 && off_grid > 10, "{counts:?}");
     }
 }
