@@ -66,7 +66,7 @@ pub unsafe fn fill_wide(rng: &mut ChaCha8Rng, dst: &mut [u64]) {
     let groups = (dst.len() - head) / WIDE;
     if groups > 0 {
         let (key, stream) = (key_words(&rng.get_seed()), rng.get_stream());
-        let start = rng.get_word_pos();
+        let start = at + 2 * head as u128;
         let first = (start / BLOCK_WORDS) as u64;
         for (g, out) in dst[head..head + groups * WIDE]
             .chunks_exact_mut(WIDE)

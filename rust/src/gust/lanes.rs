@@ -19,13 +19,14 @@ use crate::lane::Lane;
 /// Most lanes a lane-set carries (the widest lane type).
 pub const MAX_LANES: usize = 8;
 
-/// Rows of the normals buffer: one row is one normal of every lane. A refill draws as many
-/// whole steps' worth (`ROWS / per_step` steps) as fit.
+/// Normals the buffer holds per lane. A refill draws as many whole steps' worth
+/// (`ROWS / per_step` steps) as fit.
 const ROWS: usize = 256;
 
-/// The normals buffer: `ROWS` rows and the `CHUNK - 1` spare ones `Ahead::normals` may write
-/// past the last.
-type Rows = [[f64; MAX_LANES]; ROWS + CHUNK - 1];
+/// The normals buffer, lane by lane (`rows[l][r]`: lane `l`'s `r`-th buffered normal, so a
+/// lane's draw is one contiguous copy): `ROWS` per lane and the `CHUNK - 1` spare ones
+/// `Ahead::normals` may write past the last.
+type Rows = [[f64; ROWS + CHUNK - 1]; MAX_LANES];
 
 /// One axis's filter as lane values (padded to order 3 like `GustFilter`).
 #[derive(Clone, Copy)]
@@ -59,7 +60,7 @@ pub struct LaneGust<'a, L> {
     sources: Vec<Source<'a>>,
     /// Each seeded lane's words drawn ahead (unused for given innovations).
     ahead: Vec<Ahead>,
-    /// Row `r` holds the `r`-th buffered normal of every lane.
+    /// `rows[l][r]`: lane `l`'s `r`-th buffered normal.
     rows: Box<Rows>,
     /// Next unread row, and the rows filled (a whole number of steps).
     next: usize,
@@ -144,7 +145,7 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             at: 0,
             ahead: (0..L::LANES).map(|_| Ahead::new()).collect(),
             sources,
-            rows: Box::new([[0.0; MAX_LANES]; ROWS + CHUNK - 1]),
+            rows: Box::new([[0.0; ROWS + CHUNK - 1]; MAX_LANES]),
             next: 0,
             filled: 0,
         })
@@ -274,18 +275,17 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                     isa,
                     #[inline(always)]
                     |r, xs| {
-                        let to = rows[r..r + xs.len()].chunks_exact_mut(CHUNK);
+                        // Whole chunks (`xs` is), so no call to memcpy.
+                        let to = rows[l][r..r + xs.len()].chunks_exact_mut(CHUNK);
                         for (to, xs) in to.zip(xs.chunks_exact(CHUNK)) {
-                            for (row, x) in to.iter_mut().zip(xs) {
-                                row[l] = *x;
-                            }
+                            to.copy_from_slice(xs);
                         }
                     },
                 ),
                 Source::Given { xi, next } => {
                     let mut given = super::wind::Given::new(xi, *next);
-                    for row in rows[..n].iter_mut() {
-                        row[l] = given.normal();
+                    for x in rows[l][..n].iter_mut() {
+                        *x = given.normal();
                     }
                     *next = given.next();
                 }
@@ -302,13 +302,13 @@ impl<L: Lane> Component<L> {
     }
 }
 
-/// Row `r` of the buffer as a lane value.
+/// The `r`-th buffered normal of every lane, as a lane value.
 #[inline(always)]
 fn row_lanes<L: Lane>(rows: &Rows, r: usize) -> L {
-    let row = &rows[r];
+    assert!(r < ROWS + CHUNK - 1);
     L::from_fn(
         #[inline(always)]
-        |l| row[l],
+        |l| rows[l][r],
     )
 }
 
@@ -393,7 +393,7 @@ mod tests {
             };
             for r in set.next..set.filled {
                 let want = super::super::normal::standard_normal(&mut rng);
-                assert_eq!(set.rows[r][l].to_bits(), want.to_bits(), "lane {l} row {r}");
+                assert_eq!(set.rows[l][r].to_bits(), want.to_bits(), "lane {l} row {r}");
             }
             for k in 0..300 {
                 let word = set.ahead[l].next_u64(lane_rng);
