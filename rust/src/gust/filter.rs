@@ -499,10 +499,14 @@ impl GustFilter {
         x
     }
 
-    /// Gust velocity (m/s) for a state: `sigma c.x`.
+    /// Gust velocity (m/s) for a state: `sigma c.x`, summed over the filter's `order()`
+    /// states in index order (the padding beyond them is zero).
     #[inline]
     pub fn output(&self, state: &[f64; 3]) -> f64 {
-        self.out[0] * state[0] + self.out[1] * state[1] + self.out[2] * state[2]
+        let terms = self.out.iter().zip(state).take(self.order);
+        terms
+            .skip(1)
+            .fold(self.out[0] * state[0], |y, (c, x)| y + c * x)
     }
 
     /// Advance the state one step with `order()` fresh normals from `rng`.
@@ -664,8 +668,8 @@ pub(super) fn step_fixed<const N: usize>(
     }
     let mut y = [0.0; N];
     for i in 0..N {
-        let mut acc = 0.0;
-        for j in 0..N {
+        let mut acc = phi[i][0] * x[0] + g[i][0] * n[0];
+        for j in 1..N {
             acc += phi[i][j] * x[j] + g[i][j] * n[j];
         }
         y[i] = acc;

@@ -168,21 +168,23 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             // Three iterations, unrolled: `w` stays in registers.
             for (w, c) in w.iter_mut().zip(components.iter_mut()) {
                 let r = row + c.offset;
-                match c.order {
+                *w += match c.order {
                     0 => continue,
                     1 => advance::<L, 1>(c, rows, r),
                     2 => advance::<L, 2>(c, rows, r),
                     _ => advance::<L, 3>(c, rows, r),
-                }
-                *w += c.output();
+                };
             }
             self.at = step;
         } else {
             self.advance_to(step);
             for (w, c) in w.iter_mut().zip(self.components.iter()) {
-                if c.order > 0 {
-                    *w += c.output();
-                }
+                *w += match c.order {
+                    0 => continue,
+                    1 => c.output::<1>(),
+                    2 => c.output::<2>(),
+                    _ => c.output::<3>(),
+                };
             }
         }
         match self.axes {
@@ -221,9 +223,15 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                 let r = row + c.offset;
                 match c.order {
                     0 => {}
-                    1 => advance::<L, 1>(c, rows, r),
-                    2 => advance::<L, 2>(c, rows, r),
-                    _ => advance::<L, 3>(c, rows, r),
+                    1 => {
+                        advance::<L, 1>(c, rows, r);
+                    }
+                    2 => {
+                        advance::<L, 2>(c, rows, r);
+                    }
+                    _ => {
+                        advance::<L, 3>(c, rows, r);
+                    }
                 }
             }
             self.at += 1;
@@ -295,10 +303,14 @@ impl<'a, L: Lane> LaneGust<'a, L> {
 }
 
 impl<L: Lane> Component<L> {
-    /// `GustFilter::output` on lane values (all three terms, as there).
+    /// `GustFilter::output` on lane values: the `N = order` states, summed as there.
     #[inline(always)]
-    fn output(&self) -> L {
-        self.out[0] * self.x[0] + self.out[1] * self.x[1] + self.out[2] * self.x[2]
+    fn output<const N: usize>(&self) -> L {
+        let mut y = self.out[0] * self.x[0];
+        for j in 1..N {
+            y += self.out[j] * self.x[j];
+        }
+        y
     }
 }
 
@@ -313,19 +325,19 @@ fn row_lanes<L: Lane>(rows: &Rows, r: usize) -> L {
 }
 
 /// `step_fixed::<N>` on lane values, the normals from rows `r..r + N`: `x' = Phi x + G n`,
-/// summed in the same order.
+/// summed in the same order; returns the new output.
 #[inline(always)]
 // Element by element, not `copy_from_slice`: lane values stay in registers (no memcpy).
 #[allow(clippy::needless_range_loop, clippy::manual_memcpy)]
-fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize) {
+fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize) -> L {
     let mut n = [L::splat(0.0); N];
     for (j, n) in n.iter_mut().enumerate() {
         *n = row_lanes(rows, r + j);
     }
     let mut y = [L::splat(0.0); N];
     for i in 0..N {
-        let mut acc = L::splat(0.0);
-        for j in 0..N {
+        let mut acc = c.phi[i][0] * c.x[0] + c.g[i][0] * n[0];
+        for j in 1..N {
             acc += c.phi[i][j] * c.x[j] + c.g[i][j] * n[j];
         }
         y[i] = acc;
@@ -333,6 +345,7 @@ fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize)
     for i in 0..N {
         c.x[i] = y[i];
     }
+    c.output::<N>()
 }
 
 #[cfg(test)]
