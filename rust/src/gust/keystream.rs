@@ -20,6 +20,7 @@ use rand_chacha::ChaCha8Rng;
 pub const WIDE: usize = 64;
 
 /// `u32` words of one ChaCha block.
+#[cfg(target_arch = "x86_64")]
 const BLOCK_WORDS: u128 = 16;
 
 /// Fill a prefix of `dst` with the next `u64`s of `rng`'s stream, advancing it past them, and
@@ -97,6 +98,7 @@ fn fill_from(rng: &mut ChaCha8Rng, dst: &mut [u64]) {
 }
 
 /// The seed as ChaCha's eight key words.
+#[cfg(target_arch = "x86_64")]
 fn key_words(seed: &[u8; 32]) -> [u32; 8] {
     std::array::from_fn(|i| u32::from_le_bytes(seed[4 * i..4 * i + 4].try_into().expect("4")))
 }
@@ -212,7 +214,7 @@ unsafe fn blocks8(key: &[u32; 8], stream: u64, block: u64, out: &mut [u64; WIDE]
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
     use crate::gust::realisation_rng;
