@@ -1,7 +1,7 @@
 //! The keystream of a realisation's `ChaCha8Rng`, eight blocks at a time in AVX2, written
 //! straight into the caller's buffer: the same `u64`s `fill_bytes` gives, from the same
-//! generator state, at about two thirds of the instructions and without rand_chacha's copy out
-//! of its own buffer.
+//! generator state, without rand_chacha's copy out of its own buffer (about 13 instructions
+//! per word against 16 with the copy: docs/performance.md, "Third step").
 //!
 //! Hand-written because no maintained crate offers it: rand_chacha (through ppv-lite86) lays
 //! four blocks out row-wise, two to a vector, which costs shuffles every round and a copy on
