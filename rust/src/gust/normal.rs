@@ -116,7 +116,7 @@ fn fast(bits: u64) -> (f64, bool) {
 
 /// Words an [`Ahead`] holds at most: a top-up draws up to the next block boundary (at most
 /// seven words) and then whole groups of the wide keystream (a multiple of `MARK`).
-const AHEAD: usize = 4 * WIDE + MARK;
+const AHEAD: usize = 2 * WIDE + MARK;
 
 /// Words one pass of `mark_avx2` makes candidates of.
 const MARK: usize = 16;
