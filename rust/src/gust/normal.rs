@@ -241,24 +241,23 @@ impl Ahead {
         self.mark(isa);
     }
 
-    /// `fast` on words `0..len`: the candidates and the accepted bits. On AVX2 (`isa` not
-    /// the baseline: the caller runs compiled for it) four words per vector pass with the
-    /// layer edges gathered, the same operations (one product, one comparison) and so the
-    /// same bits.
+    /// `fast` on words `0..len`: the candidates and the accepted bits. On AVX2 and AVX-512
+    /// (`isa` not the baseline: the caller runs compiled for it) four or eight words per
+    /// vector pass with the layer edges gathered, the same operations (one product, one
+    /// comparison) and so the same bits.
     #[inline(always)]
     fn mark(&mut self, isa: Isa) {
         self.accepted = [0; AHEAD.div_ceil(64)];
-        #[cfg(target_arch = "x86_64")]
-        if isa != Isa::Baseline {
-            // SAFETY: AVX2 is available (`isa` is AVX2 or AVX-512, whose CPUs have it).
-            unsafe { self.mark_avx2() };
-        } else {
-            self.mark_scalar();
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            let _ = isa;
-            self.mark_scalar();
+        let (words, candidates) = (self.words.as_ptr(), self.candidates.as_mut_ptr());
+        let (accepted, passes) = (self.accepted.as_mut_ptr(), self.len.div_ceil(MARK));
+        // SAFETY: the buffers hold `passes * MARK` words, candidates and bits (`AHEAD` is a
+        // multiple of `MARK`), and the CPU has the instruction set of the kernel called.
+        match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { mark4(words, passes, candidates, accepted) },
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { mark8(words, passes, candidates, accepted) },
+            _ => self.mark_scalar(),
         }
         // Words past `len` (the last vector pass may read some) are never accepted.
         for (i, bits) in self.accepted.iter_mut().enumerate() {
@@ -277,44 +276,6 @@ impl Ahead {
         }
     }
 
-    /// `mark` in AVX2 instructions.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    unsafe fn mark_avx2(&mut self) {
-        use std::arch::x86_64::*;
-        let table = ZIG_NORM_X.as_ptr();
-        let (words, candidates) = (self.words.as_ptr(), self.candidates.as_mut_ptr());
-        for m in 0..self.len.div_ceil(MARK) {
-            let mut bits = 0;
-            for q in 0..MARK / 4 {
-                let k = MARK * m + 4 * q;
-                // SAFETY: words `k..k + 4` are in the buffer (`AHEAD` is a multiple of `MARK`).
-                let w = unsafe { _mm256_loadu_si256(words.add(k).cast()) };
-                let i = _mm256_and_si256(w, _mm256_set1_epi64x(0xff));
-                let b = _mm256_or_si256(_mm256_srli_epi64::<12>(w), _mm256_set1_epi64x(1024 << 52));
-                let u = _mm256_sub_pd(_mm256_castsi256_pd(b), _mm256_set1_pd(3.0));
-                // SAFETY: every index is at most 255 and the table has 257 entries.
-                let (edge, next) = unsafe {
-                    (
-                        _mm256_i64gather_pd::<8>(table, i),
-                        _mm256_i64gather_pd::<8>(table.add(1), i),
-                    )
-                };
-                let x = _mm256_mul_pd(u, edge);
-                let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), x);
-                let ok = _mm256_cmp_pd::<_CMP_LT_OQ>(abs, next);
-                // SAFETY: candidates `k..k + 4` are in the buffer.
-                unsafe { _mm256_storeu_pd(candidates.add(k), x) };
-                bits |= (_mm256_movemask_pd(ok) as u64) << (4 * q);
-            }
-            self.accepted[m * MARK / 64] |= bits << (m * MARK % 64);
-        }
-    }
-
     /// The stream's next `u64`: a held word, else `rng`'s.
     #[inline]
     pub fn next_u64<R: Rng>(&mut self, rng: &mut R) -> u64 {
@@ -324,6 +285,99 @@ impl Ahead {
         } else {
             rng.next_u64()
         }
+    }
+}
+
+/// `fast` on `passes * MARK` words in AVX2 instructions, four per vector: the candidates to
+/// `candidates`, the accepted bits or-ed into `accepted` (bit `k % 64` of word `k / 64`). A
+/// C-ABI leaf, so `scripts/emulated_kernels.py` can compare it with `mark8`.
+///
+/// # Safety
+/// The CPU must support AVX2; the pointers must be valid for `passes * MARK` words,
+/// candidates and bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+unsafe extern "C" fn mark4(
+    words: *const u64,
+    passes: usize,
+    candidates: *mut f64,
+    accepted: *mut u64,
+) {
+    use std::arch::x86_64::*;
+    let table = ZIG_NORM_X.as_ptr();
+    for m in 0..passes {
+        let mut bits = 0;
+        for q in 0..MARK / 4 {
+            let k = MARK * m + 4 * q;
+            // SAFETY: words `k..k + 4` are in the buffer (this function's contract).
+            let w = unsafe { _mm256_loadu_si256(words.add(k).cast()) };
+            let i = _mm256_and_si256(w, _mm256_set1_epi64x(0xff));
+            let b = _mm256_or_si256(_mm256_srli_epi64::<12>(w), _mm256_set1_epi64x(1024 << 52));
+            let u = _mm256_sub_pd(_mm256_castsi256_pd(b), _mm256_set1_pd(3.0));
+            // SAFETY: every index is at most 255 and the table has 257 entries.
+            let (edge, next) = unsafe {
+                (
+                    _mm256_i64gather_pd::<8>(table, i),
+                    _mm256_i64gather_pd::<8>(table.add(1), i),
+                )
+            };
+            let x = _mm256_mul_pd(u, edge);
+            let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), x);
+            let ok = _mm256_cmp_pd::<_CMP_LT_OQ>(abs, next);
+            // SAFETY: candidates `k..k + 4` are in the buffer.
+            unsafe { _mm256_storeu_pd(candidates.add(k), x) };
+            bits |= (_mm256_movemask_pd(ok) as u64) << (4 * q);
+        }
+        // SAFETY: bit word `m * MARK / 64` is in the buffer.
+        unsafe { *accepted.add(m * MARK / 64) |= bits << (m * MARK % 64) };
+    }
+}
+
+/// `mark4` in AVX-512 instructions, eight words per vector, the comparison straight into a
+/// mask register: the same operations, so the same candidates and bits.
+///
+/// # Safety
+/// The CPU must support AVX-512F; the pointers as for `mark4`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline(never)]
+unsafe extern "C" fn mark8(
+    words: *const u64,
+    passes: usize,
+    candidates: *mut f64,
+    accepted: *mut u64,
+) {
+    use std::arch::x86_64::*;
+    let table = ZIG_NORM_X.as_ptr();
+    for m in 0..passes {
+        let mut bits = 0;
+        for q in 0..MARK / 8 {
+            let k = MARK * m + 8 * q;
+            // SAFETY: words `k..k + 8` are in the buffer (this function's contract).
+            let w = unsafe { _mm512_loadu_si512(words.add(k).cast()) };
+            let i = _mm512_and_si512(w, _mm512_set1_epi64(0xff));
+            let b = _mm512_or_si512(_mm512_srli_epi64::<12>(w), _mm512_set1_epi64(1024 << 52));
+            let u = _mm512_sub_pd(_mm512_castsi512_pd(b), _mm512_set1_pd(3.0));
+            // SAFETY: every index is at most 255 and the table has 257 entries.
+            let (edge, next) = unsafe {
+                (
+                    _mm512_i64gather_pd::<8>(i, table),
+                    _mm512_i64gather_pd::<8>(i, table.add(1)),
+                )
+            };
+            let x = _mm512_mul_pd(u, edge);
+            let abs = _mm512_castsi512_pd(_mm512_andnot_si512(
+                _mm512_castpd_si512(_mm512_set1_pd(-0.0)),
+                _mm512_castpd_si512(x),
+            ));
+            let ok = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(abs, next);
+            // SAFETY: candidates `k..k + 8` are in the buffer.
+            unsafe { _mm512_storeu_pd(candidates.add(k), x) };
+            bits |= (ok as u64) << (8 * q);
+        }
+        // SAFETY: bit word `m * MARK / 64` is in the buffer.
+        unsafe { *accepted.add(m * MARK / 64) |= bits << (m * MARK % 64) };
     }
 }
 
