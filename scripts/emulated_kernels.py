@@ -156,9 +156,10 @@ class Machine:
             out += bytes(self.bochs.memory.virt_read(self.pml4, gva + len(out), k))
         return out
 
-    def call(self, entry: int, args: list[int]) -> None:
+    def call(self, entry: int, args: list[int]) -> int:
         """Run the C function at `entry` with up to four integer arguments; it must return to
-        the trap (a `hlt`, which faults at user level and stops the run)."""
+        the trap (a `hlt`, which faults at user level and stops the run). Returns the
+        instructions it executed."""
         bochscpu = self.bochs
         trap, stack = DATA, DATA + 16 * PAGE - 64
         self.write(trap, b"\xf4")
@@ -188,7 +189,13 @@ class Machine:
             faults.append((int(vector), int(code)))
             sess.stop()
 
+        executed = [0]
+
+        def after(_sess: Any, _cpu: int, _insn: Any) -> None:
+            executed[0] += 1
+
         hook.exception = exception
+        hook.after_execution = after
         session.run([hook])
         rip = session.cpu.state.rip
         if rip not in (trap, trap + 1) or faults != [(13, 0)]:
@@ -196,6 +203,7 @@ class Machine:
                 f"the kernel did not return: stopped at {rip:#x} (entry {entry:#x}) with "
                 f"exceptions {faults} (6: invalid opcode, 13: the trap's fault)"
             )
+        return executed[0] - 1  # the trap's
 
 
 def main() -> int:
@@ -219,12 +227,15 @@ def main() -> int:
         for name, (entry, blocks) in kernels.items():
             machine.write(key_at, struct.pack("<8I", *key))
             machine.write(out_at, bytes(8 * 8 * blocks))
-            machine.call(BASE + entry, [key_at, stream, block, out_at])
+            executed = machine.call(BASE + entry, [key_at, stream, block, out_at])
             got = struct.unpack(f"<{8 * blocks}Q", machine.read(out_at, 64 * blocks))
             want = [w for b in range(blocks) for w in chacha8_words(key, stream, block + b)]
             bad = [k for k in range(len(want)) if got[k] != want[k]]
             status = "ok" if not bad else f"{len(bad)} words differ, first at {bad[0]}"
-            print(f"{name:>8}  stream {stream:#018x}  block {block:#018x}: {status}")
+            print(
+                f"{name:>8}  stream {stream:#018x}  block {block:#018x}: {status}"
+                f"  ({executed / (8 * blocks):.2f} instructions per u64)"
+            )
             failures += bool(bad)
     failures += compare_marks(machine, args.extension)
     print("all kernels agree" if not failures else f"{failures} cases differ")
@@ -242,17 +253,22 @@ def compare_marks(machine: Machine, extension: Path) -> int:
     # The edges of the layers and the wedges: the top and bottom of the 52-bit fraction.
     for k in range(0, n, 7):
         words[k] = words[k] | 0xFFFF_F000_0000_0000 if k % 2 else words[k] & 0xFFF
-    results = {}
+    results, executed = {}, {}
     for name in ("mark4", "mark8"):
         machine.write(words_at, struct.pack(f"<{n}Q", *words))
         machine.write(out_at, bytes(8 * n))
         machine.write(bits_at, bytes(8 * (n // 64 + 1)))
-        machine.call(BASE + symbol(extension, name), [words_at, passes, out_at, bits_at])
+        executed[name] = machine.call(
+            BASE + symbol(extension, name), [words_at, passes, out_at, bits_at]
+        )
         results[name] = (machine.read(out_at, 8 * n), machine.read(bits_at, 8 * (n // 64)))
     (x4, b4), (x8, b8) = results["mark4"], results["mark8"]
     accepted = sum(bin(b).count("1") for b in struct.unpack(f"<{n // 64}Q", b4))
     same = x4 == x8 and b4 == b8
-    print(f"   mark8  {n} words, {accepted} accepted by mark4: {'ok' if same else 'differs'}")
+    print(
+        f"   mark8  {n} words, {accepted} accepted by mark4: {'ok' if same else 'differs'}"
+        f"  ({executed['mark4'] / n:.2f} and {executed['mark8'] / n:.2f} instructions per u64)"
+    )
     # Most accepted, and some rejected (the forced edges), or the comparison proves little.
     return 0 if same and n // 2 < accepted < n else 1
 
