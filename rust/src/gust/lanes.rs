@@ -415,8 +415,8 @@ mod tests {
         }
     }
 
-    /// The lane types of the AVX2 and AVX-512 paths, where this CPU has them (their draws
-    /// take the gathering fast path, `normal::fast_chunk`).
+    /// The lane types of the AVX2 and AVX-512 paths, where this CPU has them (their draws go
+    /// through the wide keystream and candidate kernels, `keystream` and `normal::mark`).
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn the_wide_paths_draw_the_same_gust() {
