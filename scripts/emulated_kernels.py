@@ -131,19 +131,18 @@ class Machine:
         self.pml4 = 0x10_0000
         for hva, table_gpa in table.commit(self.pml4):
             bochscpu.memory.page_insert(table_gpa, hva)
-        self.fresh = True
         for vaddr, data in segments:
-            self.write(BASE + vaddr, data)
-        self.fresh = False
+            # Fresh pages hold zeros already.
+            self.write(BASE + vaddr, data, skip_zeros=True)
 
-    def write(self, gva: int, data: bytes) -> None:
+    def write(self, gva: int, data: bytes, skip_zeros: bool = False) -> None:
         """Copy `data` to `gva`, page by page (bochscpu's `virt_write` does not cross pages),
-        skipping the zeros the fresh pages already hold."""
+        with `skip_zeros` leaving out the pieces that are all zero."""
         at = 0
         while at < len(data):
             n = min(len(data) - at, PAGE - (gva + at) % PAGE)
             chunk = data[at : at + n]
-            if chunk.strip(b"\0") or not self.fresh:
+            if not skip_zeros or chunk.strip(b"\0"):
                 if not self.bochs.memory.virt_write(self.pml4, gva + at, list(chunk)):
                     raise RuntimeError(f"cannot write {n} bytes at {gva + at:#x}")
             at += n

@@ -1,7 +1,7 @@
 //! The keystream of a realisation's `ChaCha8Rng`, eight blocks at a time in AVX2 and sixteen
 //! in AVX-512, written straight into the caller's buffer: the same `u64`s `fill_bytes` gives,
-//! from the same generator state, without rand_chacha's copy out of its own buffer (10.5 and
-//! 4.2 instructions per word, against 16 with the copy: docs/performance.md, "Third step" and
+//! from the same generator state, without rand_chacha's copy out of its own buffer (the
+//! kernels take 10.5 and 4.2 instructions per word: docs/performance.md, "Third step" and
 //! "Fourth step").
 //!
 //! Hand-written because no maintained crate offers it: rand_chacha (through ppv-lite86) lays

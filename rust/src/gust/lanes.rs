@@ -167,24 +167,17 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             } = self;
             // Three iterations, unrolled: `w` stays in registers.
             for (w, c) in w.iter_mut().zip(components.iter_mut()) {
-                let r = row + c.offset;
-                *w += match c.order {
-                    0 => continue,
-                    1 => advance::<L, 1>(c, rows, r),
-                    2 => advance::<L, 2>(c, rows, r),
-                    _ => advance::<L, 3>(c, rows, r),
-                };
+                if c.order > 0 {
+                    *w += c.advance(rows, row);
+                }
             }
             self.at = step;
         } else {
             self.advance_to(step);
             for (w, c) in w.iter_mut().zip(self.components.iter()) {
-                *w += match c.order {
-                    0 => continue,
-                    1 => c.output::<1>(),
-                    2 => c.output::<2>(),
-                    _ => c.output::<3>(),
-                };
+                if c.order > 0 {
+                    *w += c.output();
+                }
             }
         }
         match self.axes {
@@ -219,20 +212,8 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             let LaneGust {
                 components, rows, ..
             } = self;
-            for c in components.iter_mut() {
-                let r = row + c.offset;
-                match c.order {
-                    0 => {}
-                    1 => {
-                        advance::<L, 1>(c, rows, r);
-                    }
-                    2 => {
-                        advance::<L, 2>(c, rows, r);
-                    }
-                    _ => {
-                        advance::<L, 3>(c, rows, r);
-                    }
-                }
+            for c in components.iter_mut().filter(|c| c.order > 0) {
+                c.advance(rows, row);
             }
             self.at += 1;
         }
@@ -303,9 +284,31 @@ impl<'a, L: Lane> LaneGust<'a, L> {
 }
 
 impl<L: Lane> Component<L> {
-    /// `GustFilter::output` on lane values: the `N = order` states, summed as there.
+    /// Advance one step, the normals from the step's rows starting at `row` (this
+    /// component's at `row + offset`), and return the new output. Order 1 to 3.
     #[inline(always)]
-    fn output<const N: usize>(&self) -> L {
+    fn advance(&mut self, rows: &Rows, row: usize) -> L {
+        let r = row + self.offset;
+        match self.order {
+            1 => advance::<L, 1>(self, rows, r),
+            2 => advance::<L, 2>(self, rows, r),
+            _ => advance::<L, 3>(self, rows, r),
+        }
+    }
+
+    /// `GustFilter::output` on lane values. Order 1 to 3.
+    #[inline(always)]
+    fn output(&self) -> L {
+        match self.order {
+            1 => self.output_of::<1>(),
+            2 => self.output_of::<2>(),
+            _ => self.output_of::<3>(),
+        }
+    }
+
+    /// `GustFilter::output` for `N = order`: the `N` states, summed as there.
+    #[inline(always)]
+    fn output_of<const N: usize>(&self) -> L {
         let mut y = self.out[0] * self.x[0];
         for j in 1..N {
             y += self.out[j] * self.x[j];
@@ -345,7 +348,7 @@ fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize)
     for i in 0..N {
         c.x[i] = y[i];
     }
-    c.output::<N>()
+    c.output_of::<N>()
 }
 
 #[cfg(test)]

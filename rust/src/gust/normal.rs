@@ -134,7 +134,7 @@ fn fast(bits: u64) -> (f64, bool) {
 /// seven words) and then whole groups of the wide keystream (a multiple of `MARK`).
 const AHEAD: usize = 2 * WIDE + MARK;
 
-/// Words one pass of `mark_avx2` makes candidates of.
+/// Words one pass of `mark4` or `mark8` makes candidates of.
 const MARK: usize = 16;
 
 /// The normals [`Ahead::normals`] hands out at once (the copy's unit).
