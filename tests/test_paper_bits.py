@@ -46,3 +46,14 @@ def test_only_the_cpu_dependent_outputs_are_recorded_per_cpu():
             assert case.startswith("batch."), case
             for key in digests:
                 assert key.startswith("spectra.") or case.startswith("batch.dispersed."), key
+
+
+def test_delivery_preset_numbers_are_bit_identical_to_the_recorded_ones():
+    """The delivery preset's flights (PD, SMC) and a batch, every trace and metric column,
+    recorded after round 4 made the closing row hold the last step's wind
+    (``scripts/paper_bits.py --delivery --write tests/data/delivery_bits.json``); the same on
+    every SIMD path (checked with QUADRS_SIMD=avx2 and baseline when written)."""
+    want = paper_bits.reference(ROOT / "tests" / "data" / "delivery_bits.json")
+    assert {"delivery.pd", "delivery.smc", "batch.delivery"} <= set(want)
+    got = paper_bits.compute(list(want))
+    assert paper_bits.compare(want, got) == []
