@@ -1500,7 +1500,13 @@ mod tests {
             .unwrap();
         let wind = engine.craft.wind();
         let mut max_x = 0.0_f64;
-        for (k, row) in tr.data.chunks(tr.width).enumerate() {
+        let rows: Vec<&[f64]> = tr.data.chunks(tr.width).collect();
+        let (last, flown) = rows.split_last().unwrap();
+        // The closing row holds the last step's wind: no step follows it.
+        for c in ["wind_x", "wind_y", "wind_z"] {
+            assert_eq!(col(last, c), col(flown[flown.len() - 1], c));
+        }
+        for (k, row) in flown.iter().enumerate() {
             let z = col(row, "z");
             let m = wind.mean_at(z);
             let g = wind.discrete_gusts(k as u64);
