@@ -351,11 +351,14 @@ def subset_simulation(
     threshold = check_threshold(threshold)
     length = round(1.0 / p0)
     seeds = per_level // length
-    # States, candidates and a product of them, the running best, a non-final level's
-    # failures (fewer than `seeds`).
+    # Measured with tracemalloc (tests/test_hostile_r4.py): about six chain-sized arrays of
+    # rows (states, candidates, the running best and its pool, the seeds); per sample about
+    # seven numbers (the level's values, their copies, indicators, sort order, copy counts);
+    # and the failure samples, up to a whole level's rows, held twice while joined.
     check_memory(
-        f"subset simulation in {dimension} dimensions with {seeds} chains",
-        5 * seeds * dimension * _F8,
+        f"subset simulation in {dimension} dimensions with {seeds} chains of {per_level} "
+        f"samples a level",
+        (6 * seeds * dimension + 7 * per_level + 2 * per_level * dimension) * _F8,
     )
 
     rng = np.random.default_rng(seed)
