@@ -103,7 +103,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.guard import check_int
     from quadrs.mission import mission_report
     from quadrs.montecarlo import monte_carlo
-    from quadrs.saving import check_outputs, save
+    from quadrs.saving import check_directories, check_outputs, save
 
     scenario = load_scenario(args)
     if args.out is not None and args.out.suffix.lower() != ".parquet":
@@ -114,6 +114,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
             raise ValueError(f"--{name} must be >= 1, got {value}")
     check_int("--seed", args.seed)
     check_outputs(args.out)
+    check_directories(args.plots)
     mc = monte_carlo(
         scenario,
         runs=args.runs,

@@ -485,6 +485,12 @@ impl Engine {
     /// under key `QUADRS_SIMD` if that variable forces a path this CPU cannot run).
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        Self::of_valid(cfg)
+    }
+
+    /// `new` for a scenario already validated (`Config::from_json`, `Dispersion::config`):
+    /// the checks are not run a second time.
+    pub fn of_valid(cfg: Config) -> Result<Self, ConfigError> {
         let isa = Isa::active().map_err(|message| ConfigError {
             key: crate::lane::isa::ENV.into(),
             message,
