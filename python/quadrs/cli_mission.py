@@ -40,15 +40,15 @@ def _positive(text: str) -> float:
     return _number(text, lambda v: math.isfinite(v) and v > 0, "finite and > 0")
 
 
-def mission_limit(text: str) -> float:
-    """``--limit 5`` or ``--limit max_accel=5``: the parcel's acceleration limit, m/s^2 (the
-    METRIC=THRESHOLD form of ``quadrs report``, for max_accel)."""
-    metric, sep, value = text.rpartition("=")
-    if sep and metric.strip() != "max_accel":
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: mission's limit is on max_accel (m/s^2): give A or max_accel=A"
-        )
-    return _positive(value if sep else text)
+def mission_limit(text: str) -> tuple[str, float]:
+    """``--limit 5`` (max_accel, m/s^2) or ``--limit METRIC=X``, as in ``quadrs report``: any
+    metric the engine names, X in the unit every table shows (degrees for swing)."""
+    from quadrs.cli import _limit
+
+    metric, value = _limit(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return metric, value
 
 
 def _fraction(text: str) -> float:
@@ -79,9 +79,10 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--limit",
         type=mission_limit,
-        default=DEFAULT_LIMIT,
+        default=("max_accel", DEFAULT_LIMIT),
         metavar="A",
-        help="payload acceleration limit, m/s^2, as A or max_accel=A (default: %(default)s, 1 g)",
+        help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
+        f"metric (degrees for swing) (default: {DEFAULT_LIMIT}, 1 g)",
     )
     p.add_argument(
         "--track-limit",
@@ -164,7 +165,8 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
-    report = mission_report(mc, args.limit, args.controller, args.quantile,
+    metric, limit = args.limit
+    report = mission_report(mc, limit, args.controller, args.quantile, metric=metric,
                             track_limit=args.track_limit,
                             cross_track_limit=args.cross_track_limit)  # fmt: skip
     if mc.interrupted:
@@ -200,7 +202,9 @@ def _plots(mc: Any, report: Any, directory: Path) -> None:
     from quadrs.terminal import terminal_text
 
     figures: list[tuple[str, Callable[[], Any]]] = [("mission_risk", lambda: mission_risk(report))]
-    for metric, marks in (("max_accel", [report.limit]), ("max_swing", []), ("max_tension", [])):
+    shown = [(m, [report.limit] if m == report.metric else []) for m in
+             dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
+    for metric, marks in shown:
         if metric in mc.runs:
             figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
     files: list[Path] = []

@@ -104,6 +104,8 @@ class MissionReport:
     statuses: tuple[tuple[str, int], ...] = ()
     #: Does the scenario fly a route (``trajectory.interpolation = "route"``)?
     routed: bool = True
+    #: The parcel metric ``limit`` applies to (the ``acceleration`` table's).
+    metric: str = "max_accel"
 
     @property
     def route_flown(self) -> bool:
@@ -139,8 +141,8 @@ class MissionReport:
         """One line: what was asked and the whole flight's answer."""
         p = self.acceleration.loc[self.whole]
         return (
-            f"<MissionReport {self.controller.upper()}, {self.runs} realisations: P(max_accel > "
-            f"{self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
+            f"<MissionReport {self.controller.upper()}, {self.runs} realisations: "
+            f"P({self.metric} > {self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
             f"[{100 * p['ci_low']:.3g}, {100 * p['ci_high']:.3g}]>"
         )
 
@@ -190,7 +192,8 @@ class MissionReport:
         parts += [
             fill(head),
             "",
-            f"Parcel acceleration (m/s^2): P(max_accel > {self.limit:g}) in % and its {qp}",
+            f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) in % "
+            f"and its {qp}",
             _fit(_acceleration_text(self.acceleration, qp), width),
             fill(_joint_line(self.joint, "acceleration", f"exceeded {self.limit:g} m/s^2")),
         ]
@@ -223,12 +226,18 @@ def mission_report(
     confidence: float = 0.95,
     track_limit: float = TRACK_LIMIT,
     cross_track_limit: float | None = None,
+    metric: str = "max_accel",
 ) -> MissionReport:
     """The per-phase answer of :class:`MissionReport` for one controller of ``mc`` (default:
     its first). ``limit``: the payload acceleration limit (m/s^2); ``track_limit`` and
     ``cross_track_limit`` (m, default the tracking one): how far from its reference a flight
-    may stray and still count as flying the route."""
-    from quadrs.risk import check_threshold
+    may stray and still count as flying the route. ``metric``: the parcel's metric ``limit``
+    applies to (default max_accel; any metric of the results, in its stored unit)."""
+    from quadrs.risk import check_metric, check_threshold
+
+    check_metric(metric)
+    if metric not in mc.runs:
+        raise ValueError(f"metric {metric!r}: these results have no such column")
 
     limit = check_threshold(limit)
     cross_track_limit = track_limit if cross_track_limit is None else cross_track_limit
@@ -268,7 +277,7 @@ def mission_report(
     present = set(runs.columns)
     acc_rows, pay_rows, trk_rows = [], [], []
     for phase in rows:
-        x = values("max_accel", phase)
+        x = values(metric, phase)
         e = exceedance_stats(np.where(np.isinf(x), np.nan, x), limit, np.isinf(x), confidence)
         _, qv, qlo, qhi = quantile_interval(x, quantile, confidence)
         acc_rows.append({"phase": phase, "n": e.n, "exceedances": e.k, "diverged": e.diverged,
@@ -294,7 +303,8 @@ def mission_report(
         trk_rows.append(trk)
     route = _route_table(rows, values, wide, runs, present, confidence, track_limit,
                          cross_track_limit)  # fmt: skip
-    joint = _joint(own, values, present, limit, confidence, track_limit, cross_track_limit)
+    joint = _joint(own, values, present, limit, confidence, track_limit, cross_track_limit,
+                   metric)  # fmt: skip
     whole_rows = runs[runs["phase"] == whole] if whole != ALL_PHASES else runs
     statuses: tuple[tuple[str, int], ...] = ()
     if "status" in runs:
@@ -312,7 +322,7 @@ def mission_report(
     return MissionReport(ctrl, limit, float(quantile), float(confidence),
                          int(runs["realisation"].nunique()), whole, acceleration, payload,
                          tracking, route, joint, float(track_limit), float(cross_track_limit),
-                         statuses, routed)  # fmt: skip
+                         statuses, routed, metric)  # fmt: skip
 
 
 def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
@@ -379,7 +389,7 @@ def _route_table(
 
 def _joint(
     own: list[str], values: Any, present: set[str], limit: float, confidence: float,
-    track_limit: float, cross_limit: float,
+    track_limit: float, cross_limit: float, metric: str = "max_accel",
 ) -> pd.DataFrame:  # fmt: skip
     """Flights that exceeded the acceleration limit (or left the route) in any of ``own``."""
     from quadrs.risk import exceedance_interval
@@ -388,7 +398,7 @@ def _joint(
     acc = np.zeros(0, bool)
     off = np.zeros(0, bool)
     for i, phase in enumerate(own):
-        x = values("max_accel", phase)
+        x = values(metric, phase)
         hit = np.isinf(x) | np.where(np.isnan(x), False, x > limit)
         acc = hit if i == 0 else acc | hit
         if {"max_tracking", "max_cross_track"} & present:
@@ -441,6 +451,22 @@ def _interval(v: float, lo: float, hi: float, scale: float = 1.0, digits: int = 
     if math.isnan(v):
         return ""
     return f"{_g(scale * v, digits)} [{_g(scale * lo, digits)}, {_g(scale * hi, digits)}]"
+
+
+def _shown_name(metric: str) -> str:
+    """``acceleration (m/s^2)`` for max_accel; ``max_swing (deg)``; ``max_tension (N)``."""
+    from quadrs.plots_base import UNITS
+
+    if metric == "max_accel":
+        return "acceleration (m/s^2)"
+    unit = UNITS.get(metric, "").replace("²", "^2")
+    return f"{metric} ({unit})" if unit else metric
+
+
+def _shown_limit(report: MissionReport) -> str:
+    from quadrs.plots_base import display_scale
+
+    return f"{display_scale(report.metric) * report.limit:g}"
 
 
 def _pct(p: float) -> str:

@@ -1,0 +1,273 @@
+"""A delivery engineer's first hour (issue 41): long commands that say what they cost, a
+mission answer that leads with whether the route was flown, one unit per quantity, reports of
+mission files, whole figures, a parcel below the ground, honest help and docs. One test (or
+more) per item; each fails on the code before issue 41."""
+
+from __future__ import annotations
+
+import importlib
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import quadrs
+from quadrs.cli import main
+from quadrs.mission import ANY_PHASE, FLIGHT_PHASE, mission_report
+
+ROOT = Path(__file__).resolve().parents[1]
+opt_module = importlib.import_module("quadrs.optimize")
+
+#: A short route (a 20 m dog-leg at 5 m), phases per leg, in about 12 s of flight.
+SHORT_ROUTE = {
+    "trajectory.route": [[0.0, 0.0, 2.0], [0.0, 0.0, 5.0], [20.0, 0.0, 5.0], [20.0, 10.0, 5.0]],
+    "trajectory.hold": [0.5, 0.0, 0.0, 0.5],
+    "trajectory.names": ["lift", "climb", "leg", "dog", "drop"],
+    "gust.end": 30.0,
+    "integrator.duration": 30.0,
+    "integrator.dt": 0.002,
+}
+
+
+@pytest.fixture(scope="module")
+def route() -> quadrs.Scenario:
+    return quadrs.Scenario.preset("delivery").override(SHORT_ROUTE)
+
+
+@pytest.fixture(scope="module")
+def route_mc(route: quadrs.Scenario) -> quadrs.MonteCarloResult:
+    return quadrs.monte_carlo(route, runs=12, seed=0, controllers=("pd",), progress=False,
+                              spectra=False)  # fmt: skip
+
+
+def cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def route_file(tmp_path: Path, scenario: quadrs.Scenario) -> str:
+    path = tmp_path / "route.toml"
+    path.write_text(scenario.to_toml())
+    return str(path)
+
+
+# -- 1. long commands say what they fly and how long; Ctrl-C keeps what finished ---------------
+def test_mission_says_up_front_what_it_flies_and_how_long(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], route: quadrs.Scenario
+) -> None:
+    code, _, err = cli(capsys, "mission", "--scenario", route_file(tmp_path, route),
+                       "--runs", "4")  # fmt: skip
+    assert code == 0
+    first = err.splitlines()[0]
+    assert re.match(r"quadrs mission: 4 realisations of a 30 s flight \(4 flights\): about \d+ s",
+                    first)  # fmt: skip
+    assert "calibration flights" in first and "Ctrl-C keeps what finished" in first
+
+
+def test_rare_says_up_front_what_a_level_costs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], short: quadrs.Scenario
+) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(short.to_toml())
+    code, _, err = cli(capsys, "rare", "--scenario", str(path), "--metric", "max_accel",
+                       "--phase", "P2", "--threshold", "1e6", "--per-level", "100",
+                       "--max-levels", "2")  # fmt: skip
+    assert code == 0
+    first = err.splitlines()[0]
+    assert first.startswith("quadrs rare: 100 flights a level, about ")
+    assert "at most 2 (190 flights, about " in first and "Ctrl-C keeps the finished" in first
+
+
+def test_tune_says_up_front_how_many_candidates_and_how_long(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tests.test_tune_cli import SHORT, TUNE
+
+    code, _, err = cli(capsys, "tune", "--preset", "paper_stable_lateral", *SHORT, *TUNE,
+                       "--out", str(tmp_path / "t.toml"))  # fmt: skip
+    assert code == 0
+    # --popsize 3 x 1 parameter x (--maxiter 2 + 1) = 9 candidates of 2 flights, 3 checks.
+    assert "quadrs tune: up to 9 candidates of 2 flights, then 3 checks (24 flights): about" in err
+
+
+def test_tune_interrupted_keeps_the_candidates_flown_without_history(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tests.test_tune_cli import SHORT, TUNE
+
+    real = opt_module.monte_carlo
+    calls: list[int] = []
+
+    def interrupted_on_the_fourth(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(opt_module, "monte_carlo", interrupted_on_the_fourth)
+    out = tmp_path / "tuned.toml"
+    code, _, err = cli(capsys, "tune", "--preset", "paper_stable_lateral", *SHORT, *TUNE,
+                       "--out", str(out))  # fmt: skip
+    assert code == 130
+    history = tmp_path / "tuned-history.csv"
+    assert f"the 3 candidates evaluated are in {history}" in err
+    import pandas as pd
+
+    assert len(pd.read_csv(history)) == 3
+
+
+def test_tune_interrupted_in_its_first_candidate_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tests.test_tune_cli import SHORT, TUNE
+
+    def interrupted(*args: object, **kwargs: object) -> object:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(opt_module, "monte_carlo", interrupted)
+    code, _, err = cli(capsys, "tune", "--preset", "paper_stable_lateral", *SHORT, *TUNE,
+                       "--out", str(tmp_path / "t.toml"))  # fmt: skip
+    assert code == 130 and "no candidate finished" in err
+
+
+def test_the_eta_of_counted_pieces() -> None:
+    from quadrs.cost import Calibration, Eta, announce, duration
+
+    assert [duration(s) for s in (0.2, 40, 420, 5.4 * 3600)] == ["1 s", "40 s", "7 min", "5.4 h"]
+    line = announce("tune", "336 candidates", 67_200, Calibration(8, 2.32, 2))
+    assert "(67,200 flights): about 5.4 h (0.29 s a flight on 2 threads" in line
+    eta = Eta(4)
+    assert eta.step().startswith("1 of 4 after ") and "left" in eta.step()
+
+
+# -- 2. the mission's answer leads with whether the route was flown -----------------------------
+def test_the_answer_leads_with_the_route_and_says_what_it_does_not_measure(
+    route_mc: quadrs.MonteCarloResult,
+) -> None:
+    r = mission_report(route_mc, 9.81)
+    assert r.route is not None and r.route_flown
+    text = r.to_text()
+    assert text.startswith("Route: flown in all 12 flights")
+    assert text.index("Route") < text.index("Parcel acceleration")
+    assert "Time near the tilt limit: not measured by this engine" in text
+    # The route's table: worst tracking and cross-track per phase, time at the thrust limit.
+    for m in ("max_tracking", "max_cross_track"):
+        sel = route_mc.runs[route_mc.runs["phase"] == "leg"][m]
+        assert r.route.loc["leg", f"{m}_worst"] == pytest.approx(sel.max())
+    assert "saturated_time_mean" in r.route
+
+
+def test_a_route_not_held_is_the_first_thing_said(route_mc: quadrs.MonteCarloResult) -> None:
+    worst = float(route_mc.runs.loc[route_mc.runs["phase"] == FLIGHT_PHASE, "max_tracking"].max())
+    limit = float(np.median(route_mc.runs.loc[route_mc.runs["phase"] == FLIGHT_PHASE,
+                                              "max_tracking"]))  # fmt: skip
+    r = mission_report(route_mc, 9.81, track_limit=limit, cross_track_limit=1e3)
+    off = int((route_mc.runs.loc[route_mc.runs["phase"] == FLIGHT_PHASE, "max_tracking"]
+               > limit).sum())  # fmt: skip
+    assert not r.route_flown and r.route.loc[FLIGHT_PHASE, "off_route"] == off
+    first = r.to_text().splitlines()[0]
+    assert first.startswith(f"Route: NOT FLOWN in {off} of 12 flights")
+    assert f"worst tracking {worst:.3g} m" in r.to_text().replace("\n", " ")
+
+
+def test_mission_track_limit_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], route: quadrs.Scenario
+) -> None:
+    code, out, _ = cli(capsys, "mission", "--scenario", route_file(tmp_path, route), "--runs",
+                       "3", "--track-limit", "0.001")  # fmt: skip
+    assert code == 0 and out.startswith("Route: NOT FLOWN in 3 of 3 flights")
+    code, _, err = cli(capsys, "mission", "--track-limit", "-1")
+    assert code == 2 and "--track-limit" in err
+
+
+# -- 3. mission flies a route by default ---------------------------------------------------------
+def test_mission_defaults_to_the_delivery_preset(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import quadrs.cli_mission as cm
+    import quadrs.montecarlo as montecarlo
+
+    seen: list[quadrs.Scenario] = []
+    real = montecarlo.monte_carlo
+
+    def spy(scenario: quadrs.Scenario, *args: object, **kwargs: object) -> object:
+        seen.append(scenario)
+        kwargs["runs"] = 1
+        return real(scenario.override(SHORT_ROUTE), *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(montecarlo, "monte_carlo", spy)
+    monkeypatch.setattr(cm, "_announce", lambda *a: None)
+    code, _, _ = cli(capsys, "mission", "--runs", "1")
+    assert code == 0 and seen[0] == quadrs.Scenario.preset("delivery")
+
+
+# -- issue 42's mission items: zeros are not intervals; per-phase intervals are not joint -------
+def test_a_count_that_never_happened_is_a_one_sided_bound(
+    route_mc: quadrs.MonteCarloResult,
+) -> None:
+    r = mission_report(route_mc, 1e3)
+    bound = 100 * (1 - 0.05 ** (1 / 12))  # Clopper-Pearson, one-sided, k = 0
+    text = r.to_text()
+    assert f"0 of 12 flights, P <= {bound:.3g}" in text
+    assert "0 [0, 0]" not in text
+    from quadrs.mission import one_sided_upper
+
+    assert one_sided_upper(0, 200) == pytest.approx(1 - 0.05 ** (1 / 200), rel=1e-12)
+    assert one_sided_upper(3, 200) > one_sided_upper(0, 200)
+
+
+def test_any_phase_is_the_joint_count_and_the_rows_say_they_are_not_joint(
+    route_mc: quadrs.MonteCarloResult,
+) -> None:
+    legs = ["lift", "climb", "leg", "dog", "drop"]
+    runs = route_mc.runs[route_mc.runs["phase"].isin(legs)]
+    limit = float(np.quantile(runs["max_accel"], 0.9))
+    r = mission_report(route_mc, limit)
+    wide = runs.pivot(index="realisation", columns="phase", values="max_accel")
+    joint = int((wide > limit).any(axis=1).sum())
+    assert r.joint is not None and int(r.joint.loc["acceleration", "count"]) == joint
+    from quadrs.risk import exceedance_interval
+
+    _, lo, hi = exceedance_interval(joint, 12)
+    assert r.joint.loc["acceleration", "ci_low"] == pytest.approx(lo)
+    assert r.joint.loc["acceleration", "ci_high"] == pytest.approx(hi)
+    text = r.to_text().replace("\n", " ")
+    assert f"{ANY_PHASE}: {joint} of 12 flights" in text
+    assert "for that phase alone, not joint over the phases" in text
+
+
+# -- 13. --limit in both forms in both commands ------------------------------------------------
+def test_limit_in_both_forms_in_mission_and_report(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], route: quadrs.Scenario
+) -> None:
+    src = route_file(tmp_path, route)
+    out = tmp_path / "m.parquet"
+    code, a, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit",
+                     "max_accel=1.2", "--out", str(out))  # fmt: skip
+    assert code == 0 and "P(max_accel > 1.2)" in a
+    code, b, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit", "1.2")
+    assert code == 0 and "P(max_accel > 1.2)" in b
+    code, _, err = cli(capsys, "mission", "--limit", "no_such_metric=3")
+    assert code == 2 and "no_such_metric" in err and len(err.strip().splitlines()) == 1
+    # Another metric, in the unit the tables show (degrees for swing).
+    code, e, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit",
+                     "max_swing=30")  # fmt: skip
+    assert code == 0 and "Parcel max_swing (deg): P(max_swing > 30)" in e
+    code, c, _ = cli(capsys, "report", str(out), "--limit", "1.2")
+    assert code == 0 and "P(max_accel > 1.2)" in c
+    code, d, _ = cli(capsys, "report", str(out), "--limit", "max_accel=1.2")
+    assert code == 0 and "P(max_accel > 1.2)" in d
+
+
+def test_limit_parsing_is_general_over_metric_names() -> None:
+    from quadrs.cli import _limit
+
+    assert _limit("2.5") == ("max_accel", 2.5)
+    assert _limit("max_tension=7") == ("max_tension", 7.0)
+    # Any metric the engine names is accepted (a new one too, with no change here).
+    for name in quadrs._core.METRIC_NAMES:
+        assert _limit(f"{name}=1")[0] == name
+    assert math.isfinite(_limit("max_swing=30")[1])
