@@ -271,3 +271,147 @@ def test_limit_parsing_is_general_over_metric_names() -> None:
     for name in quadrs._core.METRIC_NAMES:
         assert _limit(f"{name}=1")[0] == name
     assert math.isfinite(_limit("max_swing=30")[1])
+
+
+# -- 4. one unit per quantity: swing in degrees wherever a person reads it ----------------------
+def test_swing_is_degrees_in_figures_and_limits(
+    route_mc: quadrs.MonteCarloResult, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from quadrs import plots
+    from quadrs.plots_base import label_with_unit
+
+    assert label_with_unit("max_swing").endswith("(deg)")
+    fig = plots.exceedance_curves(route_mc.runs, "max_swing")
+    worst = math.degrees(float(route_mc.runs.loc[route_mc.runs["phase"] == "leg",
+                                                 "max_swing"].max()))  # fmt: skip
+    ax = fig.axes[2]  # lift, climb, leg: the leg's panel
+    right = max(max(line.get_xdata()) for line in ax.get_lines() if len(line.get_xdata()))
+    assert right == pytest.approx(worst)
+    out = tmp_path / "m.parquet"
+    route_mc.to_parquet(out)
+    code, text, _ = cli(capsys, "report", str(out), "--limit", "max_swing=30")
+    table = text[text.index("P(metric > threshold)") :]
+    assert code == 0 and " 30 " in table and "deg" in table
+
+
+# -- 5. report on a mission file prints the mission's tables -------------------------------------
+def test_report_on_a_mission_file_prints_the_mission(
+    route_mc: quadrs.MonteCarloResult, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "m.parquet"
+    route_mc.to_parquet(out)
+    code, text, _ = cli(capsys, "report", str(out))
+    assert code == 0
+    assert "Route: flown in all 12 flights" in text and "Swing (deg) and tension (N)" in text
+    assert "Table 3" not in text and "IAE" not in text
+
+
+# -- 6. exceedance figures: the whole flight's panel, curves to the worst value ----------------
+def test_exceedance_figure_has_the_flight_panel_and_reaches_the_worst(
+    route_mc: quadrs.MonteCarloResult,
+) -> None:
+    from quadrs import plots
+
+    fig = plots.exceedance_curves(route_mc.runs, "max_accel")
+    titles = [a.get_title() for a in fig.axes]
+    assert any(t.startswith(f"Exceedance, {FLIGHT_PHASE} ") for t in titles)
+    ax = next(a for a in fig.axes if a.get_title().startswith(f"Exceedance, {FLIGHT_PHASE} "))
+    worst = float(route_mc.runs.loc[route_mc.runs["phase"] == FLIGHT_PHASE, "max_accel"].max())
+    right = max(max(line.get_xdata()) for line in ax.get_lines() if len(line.get_xdata()))
+    assert right == pytest.approx(worst)
+
+
+# -- 7. a parcel that starts below the ground warns --------------------------------------------
+def test_a_parcel_below_the_ground_warns() -> None:
+    with pytest.warns(quadrs.PlausibilityWarning, match="parcel starts below the ground"):
+        quadrs.Scenario.preset("delivery").override({"payload.cable_length": 2.0})
+
+
+# -- 9. the paper command and report do not claim to reproduce ----------------------------------
+def test_paper_help_and_report_do_not_claim_to_reproduce(
+    capsys: pytest.CaptureFixture[str], short: quadrs.Scenario
+) -> None:
+    from quadrs.paper import _head, _ordering_lines, paper_phases
+
+    code, out, _ = cli(capsys, "paper", "--help")
+    assert code == 0 and "Reproduce" not in out and "not the paper's" in out
+    assert "reproduced" not in "\n".join(_head(10, 10, 0))
+    mc = quadrs.monte_carlo(short, runs=3, progress=False)
+    summ = paper_phases(mc.summary())
+    assert FLIGHT_PHASE not in summ.index.get_level_values("phase")
+    text = "\n".join(_ordering_lines(mc.summary()))
+    assert "nan" not in text
+
+
+# -- 10. marginal modes, notebooks, API roles, re-flown failures ---------------------------------
+def test_a_marginal_mode_never_reads_plus_zero() -> None:
+    from quadrs.stability import _pole
+
+    assert _pole(3.1e-4, 2.0) == "+3.1e-04 ± 2.00j"
+    assert _pole(0.04, 2.98) == "+0.04 ± 2.98j"
+
+
+def test_no_ipywidgets_means_the_text_bar(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    from quadrs.cost import tqdm_class
+
+    monkeypatch.setitem(sys.modules, "ipywidgets", None)  # not installed
+    import tqdm.std
+
+    assert tqdm_class() is tqdm.std.tqdm
+
+
+def test_the_docs_site_shows_roles_as_code() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hooks", ROOT / "scripts/mkdocs_hooks.py")
+    assert spec is not None and spec.loader is not None
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    assert hooks.strip_roles("see :func:<code>quadrs.simulate</code>") == (
+        "see <code>quadrs.simulate</code>"
+    )
+    assert "scripts/mkdocs_hooks.py" in (ROOT / "mkdocs.yml").read_text()
+
+
+def test_a_reflown_failure_is_not_called_realisation_0(short: quadrs.Scenario) -> None:
+    r = quadrs.rare_event(short, controller="pd", metric="max_accel", phase="P2",
+                          threshold=0.0, per_level=100, p0=0.1, max_levels=1)  # fmt: skip
+    flight = r.flight(0)
+    assert "realisation 0" not in repr(flight) and "failure sample 0" in repr(flight)
+
+
+# -- 13. a preset turned into a route --------------------------------------------------------------
+def test_a_preset_overridden_into_a_route_drops_its_waypoints(tmp_path: Path) -> None:
+    route = {"trajectory.interpolation": "route", "trajectory.route": [[0, 0, 0], [0, 0, 2]],
+             "trajectory.speed": 1.0, "trajectory.acceleration": 1.0,
+             "trajectory.hold": [1.0, 0.0], "phases": "legs"}  # fmt: skip
+    s = quadrs.Scenario.paper().override(route)
+    assert str(s["trajectory.interpolation"]) == "route"
+    path = tmp_path / "r.toml"
+    path.write_text('base = "paper"\nphases = "legs"\n[trajectory]\ninterpolation = "route"\n'
+                    "route = [[0.0, 0.0, 0.0], [0.0, 0.0, 2.0]]\nspeed = 1.0\n"
+                    "acceleration = 1.0\nhold = [1.0, 0.0]\n")  # fmt: skip
+    assert quadrs.Scenario.from_toml(path) == s
+
+
+# -- 15. the whole-flight row: documented, and the phases alone -----------------------------------
+def test_the_phases_alone(short: quadrs.Scenario) -> None:
+    mc = quadrs.monte_carlo(short, runs=2, controllers=("pd",), progress=False)
+    assert FLIGHT_PHASE in set(mc.runs["phase"])
+    alone = mc.phases_only()
+    assert list(pd_unique(alone["phase"])) == ["P1", "P2", "P3"]
+    f = quadrs.simulate(short, "pd", seed=0)
+    assert list(f.phases_only()["phase"]) == ["P1", "P2", "P3"]
+    # Documented where the API reference (docs/api/runs.md) and README show it.
+    for text in (quadrs.MonteCarloResult.__doc__, quadrs.Flight.__doc__,
+                 (ROOT / "README.md").read_text()):  # fmt: skip
+        flat = " ".join(str(text).split())
+        assert "phases_only" in flat and "counts the flight twice" in flat
+
+
+def pd_unique(values: object) -> list[object]:
+    import pandas as pd
+
+    return list(pd.unique(values))  # type: ignore[call-overload]

@@ -412,8 +412,9 @@ def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
         "paper",
         parents=[common],
         help="every table and figure of the paper, and report.md",
-        description="Reproduce the paper's Figs. 4-16 and Table 3 (with Monte Carlo versions) "
-        "into DIR, with report.md setting our Table 3 beside the paper's.",
+        description="Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo "
+        "versions) into DIR, with report.md setting our Table 3 beside the paper's. The numbers "
+        "are not the paper's (see docs/paper-calibration.md).",
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument(

@@ -228,7 +228,8 @@ def add_legend(ax: Axes, **kwargs: Any) -> None:
 
 
 def flight_title(label: str, flight: Flight) -> str:
-    return f"{controller_label(label)}: seed {flight.seed}, realisation {flight.realisation}"
+    what = flight.label or f"seed {flight.seed}, realisation {flight.realisation}"
+    return f"{controller_label(label)}: {what}"
 
 
 def shade_gust(ax: Axes, flight: Flight) -> None:
