@@ -564,7 +564,8 @@ def exceedance_curves(
             # P(value > x) stays at its last non-zero value up to the largest value flown.
             xs, ps = np.r_[x[shown], x[-1]], np.r_[p[shown], p[shown][-1:]]
             a.step(xs, ps, where="post", lw=1.2, **style)
-            a.plot(x[-1:], ps[-1:], marker="|", ms=10, color=style["color"], ls="none")
+            a.plot(x[-1:], ps[-1:], marker="|", ms=10, color=style["color"],
+                   ls=style.get("linestyle", "-"), label="_worst")  # fmt: skip
             a.fill_between(
                 x,
                 curve["ci_low"].to_numpy(float),
