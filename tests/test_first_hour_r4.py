@@ -55,8 +55,24 @@ def route_file(tmp_path: Path, scenario: quadrs.Scenario) -> str:
 
 
 # -- 1. long commands say what they fly and how long; Ctrl-C keeps what finished ---------------
-def test_mission_says_up_front_what_it_flies_and_how_long(
+@pytest.fixture
+def announce_all(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Announce every job (these are short: a long one is announced anyway)."""
+    import quadrs.cost
+
+    monkeypatch.setattr(quadrs.cost, "ANNOUNCE_AFTER", 0.0)
+
+
+def test_a_short_job_is_not_announced(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], route: quadrs.Scenario
+) -> None:
+    code, _, err = cli(capsys, "mission", "--scenario", route_file(tmp_path, route),
+                       "--runs", "2")  # fmt: skip
+    assert code == 0 and "calibration" not in err
+
+
+def test_mission_says_up_front_what_it_flies_and_how_long(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], route: quadrs.Scenario, announce_all: None
 ) -> None:
     code, _, err = cli(capsys, "mission", "--scenario", route_file(tmp_path, route),
                        "--runs", "4")  # fmt: skip
@@ -68,7 +84,7 @@ def test_mission_says_up_front_what_it_flies_and_how_long(
 
 
 def test_rare_says_up_front_what_a_level_costs(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], short: quadrs.Scenario
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], short: quadrs.Scenario, announce_all: None
 ) -> None:
     path = tmp_path / "s.toml"
     path.write_text(short.to_toml())
@@ -82,7 +98,7 @@ def test_rare_says_up_front_what_a_level_costs(
 
 
 def test_tune_says_up_front_how_many_candidates_and_how_long(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], announce_all: None
 ) -> None:
     from tests.test_tune_cli import SHORT, TUNE
 

@@ -343,13 +343,13 @@ def tune_budget(args: argparse.Namespace, n_params: int) -> tuple[int, int]:
 
 def _announce_tune(args: argparse.Namespace, scenario: Any, n_params: int) -> None:
     """Say before the search what it flies and roughly how long, from a short calibration."""
-    from quadrs.cost import announce, calibrate
+    from quadrs.cost import announce, calibrate, say
 
     candidates, flights = tune_budget(args, n_params)
     cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
                     flights=min(args.runs, 16))  # fmt: skip
     what = f"up to {candidates} candidates of {args.runs} flights, then 3 checks"
-    print(terminal_text(announce("tune", what, flights, cal)), file=sys.stderr, flush=True)
+    say(announce("tune", what, flights, cal), cal.estimate(flights))
 
 
 def _infeasible_count(searched: Any, result: Any) -> str:

@@ -179,14 +179,13 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
 
 def _announce(scenario: Any, args: argparse.Namespace) -> None:
     """What the command flies and roughly how long, from a short calibration, on stderr."""
-    from quadrs.cost import announce, calibrate
-    from quadrs.terminal import terminal_text
+    from quadrs.cost import announce, calibrate, say
 
     cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
                     flights=min(args.runs, 8))  # fmt: skip
     duration = float(scenario["integrator.duration"])
     what = f"{args.runs} realisations of a {duration:g} s flight"
-    print(terminal_text(announce("mission", what, args.runs, cal)), file=sys.stderr, flush=True)
+    say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))
 
 
 def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:

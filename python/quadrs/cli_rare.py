@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.cli_common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
-from quadrs.cost import Eta, duration
+from quadrs.cost import Eta, duration, say
 from quadrs.guard import CONTROLLERS
-from quadrs.terminal import terminal_text
 
 LoadScenario = Callable[[argparse.Namespace], Any]
 
@@ -251,9 +250,11 @@ def calibrate_rare(scenario: Any, args: argparse.Namespace, controller: str) -> 
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rare_event(scenario, controller=controller, metric=args.metric, phase=args.phase,
-                   threshold=args.threshold, per_level=flights, p0=0.5, seed=args.seed,
-                   max_levels=1, workers=args.workers)  # fmt: skip
+        r = rare_event(scenario, controller=controller, metric=args.metric, phase=args.phase,
+                       threshold=args.threshold, per_level=flights, p0=0.5, seed=args.seed,
+                       max_levels=1, workers=args.workers)  # fmt: skip
+    if getattr(r, "interrupted", False):  # Ctrl-C in the calibration stops the command
+        raise KeyboardInterrupt
     return Calibration(flights, time.perf_counter() - start, _workers(args.workers))
 
 
@@ -271,13 +272,13 @@ def _announce(
     level = cal.estimate(args.per_level * len(controllers))
     deepest = rare_budget(args.per_level, p0, max_levels, len(controllers))
     example = math.ceil(math.log(1e-4) / math.log(p0))
-    print(terminal_text(
+    say(
         f"quadrs rare: {args.per_level} flights a level{' per controller' * (len(controllers) > 1)}"
         f", about {duration(level)} a level here ({cal.per_flight:.2g} s a flight, from "
         f"{cal.flights} calibration flights); a probability p takes about log(p)/log({p0:g}) "
         f"levels (1e-4: {example}), at most {max_levels} ({deepest:,} flights, about "
-        f"{duration(cal.estimate(deepest))}); Ctrl-C keeps the finished levels"),
-        file=sys.stderr, flush=True)  # fmt: skip
+        f"{duration(cal.estimate(deepest))}); Ctrl-C keeps the finished levels",
+        cal.estimate(deepest))  # fmt: skip
     return level
 
 

@@ -16,7 +16,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Calibration", "Eta", "announce", "calibrate", "duration"]
+__all__ = ["ANNOUNCE_AFTER", "Calibration", "Eta", "announce", "calibrate", "duration", "say"]
+
+#: A job estimated to take at least this long (s) is announced before it starts; a shorter
+#: one just runs.
+ANNOUNCE_AFTER = 10.0
 
 
 @dataclass(frozen=True)
@@ -59,8 +63,10 @@ def calibrate(
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        monte_carlo(scenario, runs=count, seed=seed, controllers=tuple(controllers),
-                    workers=workers, progress=False, spectra=False)  # fmt: skip
+        mc = monte_carlo(scenario, runs=count, seed=seed, controllers=tuple(controllers),
+                         workers=workers, progress=False, spectra=False)  # fmt: skip
+    if mc.interrupted:  # Ctrl-C in the calibration stops the command
+        raise KeyboardInterrupt
     seconds = time.perf_counter() - start
     # One flight per controller: a paired batch of c controllers is c flights per realisation.
     return Calibration(count * len(controllers), seconds, n_workers)
@@ -87,6 +93,16 @@ def announce(command: str, what: str, flights: int, calibration: Calibration) ->
         f"{'s' * (calibration.workers != 1)}, from {calibration.flights} calibration flights); "
         "Ctrl-C keeps what finished"
     )
+
+
+def say(line: str, seconds: float) -> None:
+    """Print ``line`` to stderr (now: before the work) if the job it announces is long."""
+    import sys
+
+    from quadrs.terminal import terminal_text
+
+    if seconds >= ANNOUNCE_AFTER:
+        print(terminal_text(line), file=sys.stderr, flush=True)
 
 
 class Eta:
