@@ -335,6 +335,14 @@ def test_exceedance_figure_has_the_flight_panel_and_reaches_the_worst(
     worst = float(route_mc.runs.loc[route_mc.runs["phase"] == FLIGHT_PHASE, "max_accel"].max())
     right = max(max(line.get_xdata()) for line in ax.get_lines() if len(line.get_xdata()))
     assert right == pytest.approx(worst)
+    # The tail is drawn one flight at a time: the last step is 1 of n, whatever n.
+    from quadrs.risk import survival_curve
+
+    x = np.random.default_rng(0).normal(size=1000)
+    curve = survival_curve(x)
+    shown = curve[curve["probability"] > 0]
+    assert shown["probability"].iloc[-1] == pytest.approx(1 / 1000)
+    assert curve["threshold"].iloc[-1] == x.max()
 
 
 # -- 7. a parcel that starts below the ground warns --------------------------------------------
@@ -431,3 +439,73 @@ def pd_unique(values: object) -> list[object]:
     import pandas as pd
 
     return list(pd.unique(values))  # type: ignore[call-overload]
+
+
+# -- must show: every documented command runs as written, or its cost is stated ----------------
+DOC_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: Inline mentions that name a command or an option, not a command to run.
+FRAGMENTS = re.compile(r"^quadrs (\w+|mc --out|mc --sampling \.\.\.|mc --plots DIR|"
+                       r"linearize --wind|run --trace FILE\.parquet|rare --controller pd,smc|"
+                       r"scenario show --preset|rare: .*|report|"
+                       r"tune --preset delivery --controller smc)$")  # fmt: skip
+#: A time stated beside a command: "about 7 min", "(1 min)", "5-12 h", "30 s".
+COST = re.compile(r"\b\d+(?:[.,]\d+)?(?:-\d+)? ?(?:s|min|minutes|h|hours?)\b")
+#: Commands that take long enough that the docs must say how long (a subcommand, or a size).
+LONG_SUBCOMMANDS = {"rare", "tune", "paper", "sensitivity"}
+
+
+def documented_commands() -> list[tuple[str, str, str]]:
+    """(file, command, its context) for every ``quadrs`` command in README.md and docs/*.md:
+    each line of a code block (continuations joined, ``# comments`` and ``[optional]`` parts
+    dropped) and each inline code span that is a whole command; the context is the block with
+    the paragraph after it, or the inline span's paragraph."""
+    out = []
+    for path in DOC_FILES:
+        text = path.read_text()
+        for m in re.finditer(r"^```[a-z]*\n(.*?)^```", text, re.S | re.M):
+            after = text[m.end() : m.end() + 900].split("\n\n```")[0]
+            context = m.group(1) + after
+            for line in m.group(1).replace("\\\n", " ").splitlines():
+                line = line.strip().removeprefix("$ ")
+                found = re.search(r"(?:^|&& )(?:\.venv/bin/)?(quadrs .*)", line)
+                if found:
+                    cmd = re.sub(r"\s+#.*$", "", found.group(1))
+                    cmd = re.sub(r"\s*\[--[^\]]*\]", "", cmd)
+                    out.append((path.name, " ".join(cmd.split()), context))
+        prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+        for para in prose.split("\n\n"):
+            for span in re.findall(r"`((?:\.venv/bin/)?quadrs [^`]+)`", para):
+                cmd = " ".join(span.removeprefix(".venv/bin/").split())
+                if not FRAGMENTS.match(cmd):
+                    out.append((path.name, cmd, para))
+    return out
+
+
+def test_every_documented_command_parses_as_written() -> None:
+    import shlex
+
+    from quadrs.cli import build_parser
+
+    commands = documented_commands()
+    assert len(commands) > 40
+    bad = []
+    for name, cmd, _ in commands:
+        try:
+            build_parser().parse_args(shlex.split(cmd)[1:])
+        except SystemExit:
+            bad.append((name, cmd))
+    assert bad == []
+
+
+def test_every_long_documented_command_states_its_cost() -> None:
+    import shlex
+
+    missing = []
+    for name, cmd, context in documented_commands():
+        argv = shlex.split(cmd)
+        runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 0
+        long = argv[1] in LONG_SUBCOMMANDS or runs >= 2000 or (
+            argv[1] == "mission" and runs >= 200 and "--preset paper" not in cmd)  # fmt: skip
+        if long and not COST.search(context):
+            missing.append((name, cmd))
+    assert missing == []
