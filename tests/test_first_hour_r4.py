@@ -458,13 +458,14 @@ def documented_commands() -> list[tuple[str, str, str]]:
     """(file, command, its context) for every ``quadrs`` command in README.md and docs/*.md:
     each line of a code block (continuations joined, ``# comments`` and ``[optional]`` parts
     dropped) and each inline code span that is a whole command; the context is the block with
-    the paragraph after it, or the inline span's paragraph."""
+    the text just before it and the paragraph after it, or the inline span's paragraph."""
     out = []
     for path in DOC_FILES:
         text = path.read_text()
         for m in re.finditer(r"^```[a-z]*\n(.*?)^```", text, re.S | re.M):
+            before = text[max(0, m.start() - 300) : m.start()].split("```")[-1]
             after = text[m.end() : m.end() + 900].split("\n\n```")[0]
-            context = m.group(1) + after
+            context = before + m.group(1) + after
             for line in m.group(1).replace("\\\n", " ").splitlines():
                 line = line.strip().removeprefix("$ ")
                 found = re.search(r"(?:^|&& )(?:\.venv/bin/)?(quadrs .*)", line)
