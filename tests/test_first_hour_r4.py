@@ -510,3 +510,52 @@ def test_every_long_documented_command_states_its_cost() -> None:
         if long and not COST.search(context):
             missing.append((name, cmd))
     assert missing == []
+
+
+def test_the_notebook_shows_swing_in_degrees(route_mc: quadrs.MonteCarloResult) -> None:
+    r = mission_report(route_mc, 9.81)
+    html = r._repr_html_()
+    assert "swing (deg)" in html and "(rad" not in html
+    worst = math.degrees(float(r.payload.loc["leg", "max_swing_worst"]))
+    assert f"{worst:.3g}" in html
+
+
+# -- 11. the docs say what the code does today ---------------------------------------------------
+def test_delivery_md_paper_example_is_what_the_command_prints() -> None:
+    """docs/delivery.md's paper-preset table: 200 flights, limit 5 m/s^2 (a few seconds)."""
+    mc = quadrs.monte_carlo(quadrs.Scenario.paper(), runs=200, seed=0, controllers=("pd",),
+                            progress=False, spectra=False)  # fmt: skip
+    text = mission_report(mc, 5.0).to_text()
+    doc = (ROOT / "docs/delivery.md").read_text()
+    table = text[text.index("Parcel acceleration") :]
+    for phase in ("P1", "P2", "P3", FLIGHT_PHASE):
+        printed = next(line for line in table.splitlines() if line.startswith(f"{phase} "))
+        assert printed in doc, printed
+    assert "every flight (about 5.77" not in doc
+
+
+def test_gust_md_says_the_wind_follows_the_vehicle() -> None:
+    text = " ".join((ROOT / "docs/gust.md").read_text().split())
+    assert "built for one airspeed and one altitude" not in text
+    assert "it follows both every step" in text
+
+
+# -- 12. README: the scope as it is, the presets as shipped ---------------------------------------
+def test_readme_describes_the_scope_and_every_preset() -> None:
+    readme = (ROOT / "README.md").read_text()
+    what = readme[readme.index("## What it is") : readme.index("```python")]
+    for word in ("cable", "route", "mission", "rare", "rotors"):
+        assert word in what, word
+    presets = readme[readme.index("Presets:") :]
+    for name in quadrs.scenario.presets():
+        assert f"`{name}`" in presets, name
+    assert "takes about 14 s" not in readme and "about 30 s" in readme
+
+
+# -- 14. the slung preset says why its PD is unstable, with the engine's numbers ------------------
+def test_the_slung_preset_says_why_its_pd_is_unstable() -> None:
+    report = quadrs.stability(quadrs.Scenario.preset("slung"), "pd")
+    assert not report.stable
+    pole = report.excited_unstable_modes()[0].split(" ", 2)[-1]  # "+0.04 ± 2.98j"
+    text = (ROOT / "python/quadrs/presets/slung.toml").read_text()
+    assert "UNSTABLE" in text and pole.replace("±", "+/-") in text

@@ -147,20 +147,20 @@ class MissionReport:
         )
 
     def _repr_html_(self) -> str:
-        """In a notebook: the three tables, as HTML."""
+        """In a notebook: the tables of :meth:`to_text` (swing in degrees), as HTML; the
+        numbers themselves are the frames ``route``, ``acceleration``, ``payload`` and
+        ``tracking`` (SI: swing in radians)."""
         from quadrs.display import render
 
-        tables = [] if self.route is None else [(self.verdict(), self.route)]
-        tables.append(("payload acceleration", self.acceleration))
+        qp = f"q{100 * self.quantile:g}"
+        tables = [] if self.route is None else [(self.verdict(), _route_text(self.route))]
+        tables.append((f"parcel {_shown_name(self.metric)}, P(> {_shown_limit(self)}) in %",
+                       _acceleration_text(self.acceleration, qp)))  # fmt: skip
         if len(self.payload.columns):
-            tables.append(
-                (
-                    "swing (rad; the text tables show degrees), tension (N), durations (s)",
-                    self.payload,
-                )
-            )
+            tables.append(("swing (deg), tension (N), slack time (s)",
+                           _payload_text(self.payload, qp)))  # fmt: skip
         if len(self.tracking.columns):
-            tables.append(("tracking errors (m)", self.tracking))
+            tables.append(("tracking errors (m)", _tracking_text(self.tracking)))
         return render(repr(self), tables)
 
     def to_text(self, width: int = 100) -> str:
