@@ -378,7 +378,7 @@ def test_a_marginal_mode_never_reads_plus_zero() -> None:
 def test_no_ipywidgets_means_the_text_bar(monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 
-    from quadrs.cost import tqdm_class
+    from quadrs.terminal import tqdm_class
 
     monkeypatch.setitem(sys.modules, "ipywidgets", None)  # not installed
     import tqdm.std

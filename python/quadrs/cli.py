@@ -357,18 +357,10 @@ def _limit_options(p: argparse.ArgumentParser) -> None:
 
 
 def _limit(text: str) -> tuple[str, float]:
-    """``METRIC=X`` (any metric the engine names) or a bare ``X`` for max_accel; X in the unit
-    the tables show (degrees for swing), returned in the results' unit (radians)."""
-    from quadrs.plots_base import display_scale
-    from quadrs.risk import parse_limit
+    """``--limit`` (quadrs.cli_common.limit_option)."""
+    from quadrs.cli_common import limit_option
 
-    if "=" not in text:
-        text = f"max_accel={text}"
-    try:
-        metric, value = parse_limit(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
-    return metric, value / display_scale(metric)
+    return limit_option(text)
 
 
 def _half_width(text: str) -> float:

@@ -43,9 +43,9 @@ def _positive(text: str) -> float:
 def mission_limit(text: str) -> tuple[str, float]:
     """``--limit 5`` (max_accel, m/s^2) or ``--limit METRIC=X``, as in ``quadrs report``: any
     metric the engine names, X in the unit every table shows (degrees for swing)."""
-    from quadrs.cli import _limit
+    from quadrs.cli_common import limit_option
 
-    metric, value = _limit(text)
+    metric, value = limit_option(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
     return metric, value

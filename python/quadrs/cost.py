@@ -123,16 +123,3 @@ class Eta:
             left = elapsed / self.done * (self.total - self.done)
             text += f", about {duration(left)} left"
         return text
-
-
-def tqdm_class() -> Any:
-    """The progress bar class: the notebook widget (``tqdm.auto``) where ipywidgets is
-    installed, else the text bar; never the "IProgress not found" warning box that
-    ``tqdm.auto`` shows in a notebook without ipywidgets."""
-    try:
-        import ipywidgets  # type: ignore[import-not-found]  # noqa: F401
-    except ImportError:
-        from tqdm.std import tqdm
-    else:
-        from tqdm.auto import tqdm
-    return tqdm

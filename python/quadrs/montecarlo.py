@@ -176,7 +176,7 @@ def _fly(
     todo: list[tuple[int, int]],
 ) -> MonteCarloResult:
     """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
-    from quadrs.cost import tqdm_class
+    from quadrs.terminal import tqdm_class
 
     tqdm = tqdm_class()
 

@@ -277,7 +277,7 @@ def optimize(
     violating flown candidate is returned with ``feasible=False`` and an
     :class:`InfeasibleWarning`.
     """
-    from quadrs.cost import tqdm_class
+    from quadrs.terminal import tqdm_class
 
     tqdm = tqdm_class()
 

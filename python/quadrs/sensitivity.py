@@ -206,7 +206,7 @@ def sensitivity(
         else np.zeros(len(u), dtype=np.uint64)
     )
     workers = default_workers() if workers is None else int(workers)
-    from quadrs.cost import tqdm_class
+    from quadrs.terminal import tqdm_class
 
     tqdm = tqdm_class()
 

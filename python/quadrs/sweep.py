@@ -249,7 +249,7 @@ def sweep(
 
 
 def _points_bar(total: int, progress: bool) -> Any:
-    from quadrs.cost import tqdm_class
+    from quadrs.terminal import tqdm_class
 
     tqdm = tqdm_class()
 
