@@ -15,10 +15,12 @@ import pytest
 
 import quadrs
 from quadrs.cli import main
-from quadrs.mission import ANY_PHASE, FLIGHT_PHASE, mission_report
+from quadrs.mission import FLIGHT_PHASE, mission_report
 
 ROOT = Path(__file__).resolve().parents[1]
 opt_module = importlib.import_module("quadrs.optimize")
+#: The mission's joint row (quadrs.mission.ANY_PHASE).
+ANY_PHASE = "any phase"
 
 #: A short route (a 20 m dog-leg at 5 m), phases per leg, in about 12 s of flight.
 SHORT_ROUTE = {
