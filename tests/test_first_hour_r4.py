@@ -446,7 +446,7 @@ def pd_unique(values: object) -> list[object]:
 # -- must show: every documented command runs as written, or its cost is stated ----------------
 DOC_FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 #: Inline mentions that name a command or an option, not a command to run.
-FRAGMENTS = re.compile(r"^quadrs (\w+|mc --out|mc --sampling \.\.\.|mc --plots DIR|"
+FRAGMENTS = re.compile(r"^quadrs (\w+|\w+ --[\w-]+|mc --sampling \.\.\.|mc --plots DIR|"
                        r"linearize --wind|run --trace FILE\.parquet|rare --controller pd,smc|"
                        r"scenario show --preset|rare: .*|report|"
                        r"tune --preset delivery --controller smc)$")  # fmt: skip

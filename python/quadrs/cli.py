@@ -695,6 +695,8 @@ def cmd_mc(args: argparse.Namespace) -> int:
         if any(args.checkpoint.iterdir()):
             raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
     _check_outputs(args.out)
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
     with dask_client(args.scheduler) as client:
         mc = monte_carlo(
             scenario,
@@ -723,6 +725,28 @@ def cmd_mc(args: argparse.Namespace) -> int:
     if args.plots is not None and not mc.runs.empty:
         _mc_plots(mc, args.plots, args.limit)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+
+
+def _announce_batch(
+    command: str,
+    scenario: Any,
+    controllers: Sequence[str],
+    runs: int,
+    workers: int | None,
+    seed: int,
+    extra: int = 0,
+    what: str = "",
+) -> None:
+    """Say on stderr what a long batch flies and roughly how long (quadrs.cost): ``runs``
+    realisations of each controller, plus ``extra`` flights."""
+    from quadrs.cost import announce, calibrate, precheck, say
+
+    precheck(scenario, controllers, runs, workers, seed)
+    cal = calibrate(scenario, controllers, workers, seed, flights=min(runs, 8))
+    flights = runs * len(controllers) + extra
+    names = " and ".join(c.upper() for c in controllers)
+    what = what or f"{runs} realisations x {names}"
+    say(announce(command, what, flights, cal), cal.estimate(flights))
 
 
 def _print_dispersions(mc: Any) -> None:
@@ -930,6 +954,15 @@ def cmd_paper(args: argparse.Namespace) -> int:
     _check_positive("--runs", args.runs, 2)
     _check_positive("--sweep-runs", args.sweep_runs, 2)
     _check_positive("--workers", args.workers)
+    sweep_runs = max(2, args.runs // 10) if args.sweep_runs is None else args.sweep_runs
+    from quadrs.paper import _check as check_paper
+
+    check_paper(args.runs, sweep_runs, args.seed, args.frequencies, args.masses, scenario)
+    extra = 2 * sweep_runs * len(args.frequencies)
+    what = (f"{args.runs} realisations x PD and SMC, a sweep of {len(args.frequencies)} "
+            f"frequencies x {sweep_runs}")  # fmt: skip
+    _announce_batch("paper", scenario, ("pd", "smc"), args.runs, args.workers, args.seed,
+                    extra, what)  # fmt: skip
     result = paper(
         args.out,
         scenario,

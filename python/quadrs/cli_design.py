@@ -343,8 +343,9 @@ def tune_budget(args: argparse.Namespace, n_params: int) -> tuple[int, int]:
 
 def _announce_tune(args: argparse.Namespace, scenario: Any, n_params: int) -> None:
     """Say before the search what it flies and roughly how long, from a short calibration."""
-    from quadrs.cost import announce, calibrate, say
+    from quadrs.cost import announce, calibrate, precheck, say
 
+    precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
     candidates, flights = tune_budget(args, n_params)
     cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
                     flights=min(args.runs, 16))  # fmt: skip

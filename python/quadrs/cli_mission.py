@@ -179,8 +179,9 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
 
 def _announce(scenario: Any, args: argparse.Namespace) -> None:
     """What the command flies and roughly how long, from a short calibration, on stderr."""
-    from quadrs.cost import announce, calibrate, say
+    from quadrs.cost import announce, calibrate, precheck, say
 
+    precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
     cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
                     flights=min(args.runs, 8))  # fmt: skip
     duration = float(scenario["integrator.duration"])

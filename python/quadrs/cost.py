@@ -42,9 +42,23 @@ class Calibration:
 
 
 def _workers(workers: int | None) -> int:
-    import os
+    from quadrs.guard import default_workers
 
-    return max(1, workers if workers is not None else (os.cpu_count() or 1))
+    return max(1, workers if workers is not None else default_workers())
+
+
+def precheck(scenario: Any, controllers: Sequence[str], runs: int, workers: int | None,
+             seed: int = 0) -> None:  # fmt: skip
+    """The checks :func:`quadrs.monte_carlo` makes before it flies, with its messages: a batch
+    that will be refused is neither calibrated nor announced (bad input stays one line)."""
+    from quadrs.guard import I64_MAX, MAX_WORKERS, check_int, check_memory, default_workers
+    from quadrs.montecarlo import ROW_BYTES
+
+    runs = check_int("runs", runs, 1, I64_MAX)
+    check_int("seed", seed)
+    check_int("workers", default_workers() if workers is None else workers, 1, MAX_WORKERS)
+    rows = runs * len(controllers) * len(scenario.phase_names)
+    check_memory(f"the result table of runs = {runs} ({rows} rows)", rows * ROW_BYTES)
 
 
 def calibrate(
@@ -55,17 +69,21 @@ def calibrate(
     flights: int | None = None,
 ) -> Calibration:
     """Fly ``flights`` realisations (default: a few per thread) of ``scenario`` with
-    ``controllers`` and time them. Warnings (the stability note) are left to the real run."""
-    from quadrs.montecarlo import monte_carlo
+    ``controllers`` in the engine and time them (realisations from 10**12 on, so that a
+    batch's own flights are not re-used; with random sampling of any dispersions). Ctrl-C
+    raises KeyboardInterrupt."""
+    from quadrs.chunk import Design, run_range
 
     n_workers = _workers(workers)
     count = flights if flights is not None else 4 * n_workers
+    first = 10**12
+    values = Design("random", first, count).values(scenario, seed, first, count)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        mc = monte_carlo(scenario, runs=count, seed=seed, controllers=tuple(controllers),
-                         workers=workers, progress=False, spectra=False)  # fmt: skip
-    if mc.interrupted:  # Ctrl-C in the calibration stops the command
+        _, interrupted = run_range(scenario, tuple(controllers), seed, first, count, n_workers,
+                                   spectra=False, values=values)  # fmt: skip
+    if interrupted:  # Ctrl-C in the calibration stops the command
         raise KeyboardInterrupt
     seconds = time.perf_counter() - start
     # One flight per controller: a paired batch of c controllers is c flights per realisation.
