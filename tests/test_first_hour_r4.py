@@ -111,6 +111,29 @@ def test_tune_says_up_front_how_many_candidates_and_how_long(
     assert "quadrs tune: up to 9 candidates of 2 flights, then 3 checks (24 flights): about" in err
 
 
+def test_mc_and_paper_say_up_front_what_they_fly(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], short: quadrs.Scenario, announce_all: None
+) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(short.to_toml())
+    code, _, err = cli(capsys, "mc", "--scenario", str(path), "--runs", "3")
+    assert code == 0
+    assert err.startswith("quadrs mc: 3 realisations x PD and SMC (6 flights): about ")
+    # Bad input is refused before any calibration: one line, no announcement.
+    code, _, err = cli(capsys, "mc", "--scenario", str(path), "--runs", str(10**12))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "calibration" not in err
+    code, _, err = cli(capsys, "paper", "--scenario", str(path), "--runs", "2", "--out",
+                       str(tmp_path / "p"), "--frequencies", "-2")  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_the_calibration_flies_in_the_engine_not_the_batch(short: quadrs.Scenario) -> None:
+    from quadrs.cost import calibrate
+
+    cal = calibrate(short, ("pd", "smc"), workers=1, flights=2)
+    assert cal.flights == 4 and cal.workers == 1 and cal.per_flight > 0
+
+
 def test_tune_interrupted_keeps_the_candidates_flown_without_history(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -459,22 +482,30 @@ LONG_SUBCOMMANDS = {"rare", "tune", "paper", "sensitivity"}
 def documented_commands() -> list[tuple[str, str, str]]:
     """(file, command, its context) for every ``quadrs`` command in README.md and docs/*.md:
     each line of a code block (continuations joined, ``# comments`` and ``[optional]`` parts
-    dropped) and each inline code span that is a whole command; the context is the block with
-    the text just before it and the paragraph after it, or the inline span's paragraph."""
+    dropped) and each inline code span that is a whole command; the context is the command's
+    own line with its comments (and, for a block of one command, the text just before it and
+    the paragraph after it), or the inline span's paragraph."""
     out = []
     for path in DOC_FILES:
         text = path.read_text()
         for m in re.finditer(r"^```[a-z]*\n(.*?)^```", text, re.S | re.M):
             before = text[max(0, m.start() - 300) : m.start()].split("```")[-1]
             after = text[m.end() : m.end() + 900].split("\n\n```")[0]
-            context = before + m.group(1) + after
-            for line in m.group(1).replace("\\\n", " ").splitlines():
-                line = line.strip().removeprefix("$ ")
-                found = re.search(r"(?:^|&& )(?:\.venv/bin/)?(quadrs .*)", line)
-                if found:
-                    cmd = re.sub(r"\s+#.*$", "", found.group(1))
+            # Each command with its own comment lines (continuations joined).
+            found: list[tuple[str, str]] = []
+            for raw in m.group(1).replace("\\\n", " ").splitlines():
+                line = raw.strip().removeprefix("$ ")
+                hit = re.search(r"(?:^|&& )(?:\.venv/bin/)?(quadrs .*)", line)
+                if hit:
+                    cmd = re.sub(r"\s+#.*$", "", hit.group(1))
                     cmd = re.sub(r"\s*\[--[^\]]*\]", "", cmd)
-                    out.append((path.name, " ".join(cmd.split()), context))
+                    found.append((" ".join(cmd.split()), line))
+                elif line.startswith("#") and found:
+                    found[-1] = (found[-1][0], found[-1][1] + " " + line)
+            for cmd, own in found:
+                # The text around the block speaks for it when it holds one command.
+                context = own + (before + after if len(found) == 1 else "")
+                out.append((path.name, cmd, context))
         prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
         for para in prose.split("\n\n"):
             for span in re.findall(r"`((?:\.venv/bin/)?quadrs [^`]+)`", para):
