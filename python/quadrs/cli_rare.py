@@ -168,8 +168,12 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     show = not args.no_progress and sys.stderr.isatty()
     flying = [-1]  # which controller's levels are reported (level 0 starts the next one)
     _, p0, max_levels = check_settings(args.per_level, args.p0, args.max_levels)
-    per_level_seconds = _announce(scenario, args, controllers, p0, max_levels, client=None)
+    # A cluster's speed is not this machine's: no estimate there.
+    per_level_seconds = (math.nan if args.scheduler is not None
+                         else _announce(scenario, args, controllers, p0, max_levels))  # fmt: skip
     eta = Eta(None)
+    per_level = (f", about {duration(per_level_seconds)} a level here"
+                 if math.isfinite(per_level_seconds) else "")  # fmt: skip
 
     def on_level(level: Level) -> None:
         flying[0] += level.level == 0
@@ -177,8 +181,8 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         if show:
             print(f"quadrs rare{who}: level {level.level} done: cut {level.threshold:.4g}, "
                   f"conditional p {level.conditional_p:.3g}, acceptance "
-                  f"{level.acceptance_rate:.2f}, {level.flights} flights; levels {eta.step()}, "
-                  f"about {duration(per_level_seconds)} a level",
+                  f"{level.acceptance_rate:.2f}, {level.flights} flights; levels {eta.step()}"
+                  f"{per_level}",
                   file=sys.stderr, flush=True)  # fmt: skip
 
     with dask_client(args.scheduler) as client:
@@ -216,7 +220,8 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         who = f" ({interrupted[0]})" if len(controllers) > 1 else ""
         print(f"quadrs rare{who}: interrupted after {done} finished "
               f"level{'s' * (done != 1)} ({result.flights} flights), no estimate{note}; "
-              f"a level is {args.per_level} flights, about {duration(per_level_seconds)} here",
+              f"a level is {args.per_level} flights{per_level.removesuffix(' a level here')}"
+              f"{' here' * bool(per_level)}",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT
     for name, result in results.items():
@@ -264,7 +269,6 @@ def _announce(
     controllers: tuple[str, ...],
     p0: float,
     max_levels: int,
-    client: Any,
 ) -> float:
     """Say what the run flies and roughly how long, from a short calibration (on stderr);
     the seconds of one level of every controller."""
