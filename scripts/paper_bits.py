@@ -9,6 +9,7 @@ bit of any value does.
     python scripts/paper_bits.py                  # print the digests as JSON
     python scripts/paper_bits.py --check FILE     # compare with a saved run; exit 1 on change
     python scripts/paper_bits.py --write FILE     # save them
+    python scripts/paper_bits.py --delivery --write tests/data/delivery_bits.json
 
 tests/test_paper_bits.py runs the check against tests/data/paper_bits.json (written before the
 model-seams redesign).
@@ -84,21 +85,28 @@ def own_phases(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[frame["phase"] != FLIGHT].reset_index(drop=True)
 
 
-def flight_case(s: quadrs.Scenario, controller: str, seed: int, realisation: int) -> dict:
+def flight_case(s: quadrs.Scenario, controller: str, seed: int, realisation: int,
+                every_column: bool = False) -> dict:  # fmt: skip
+    """A flight's trace, metrics and spectra; ``every_column``: all the trace's and metrics'
+    columns (the delivery preset), else the paper model's round-2 columns."""
     f = quadrs.simulate(s, controller, seed, realisation=realisation, record_every=37)
-    out = frame_digests("trace", f.trace, TRACE)
-    out.update(frame_digests("metrics", own_phases(f.metrics), METRICS))
+    trace = list(f.trace.columns) if every_column else TRACE
+    metrics = list(quadrs._core.METRIC_NAMES) if every_column else METRICS
+    out = frame_digests("trace", f.trace, trace)
+    out.update(frame_digests("metrics", own_phases(f.metrics), metrics))
     out["diverged_at"] = digest([f.diverged_at])
     for phase, spec in f.spectra.items():
         out[f"spectrum.{phase}"] = digest(spec["amplitude"].to_numpy())
     return out
 
 
-def batch_case(s: quadrs.Scenario, runs: int, seed: int, **kw: Any) -> dict:
+def batch_case(s: quadrs.Scenario, runs: int, seed: int, every_column: bool = False,
+               **kw: Any) -> dict:  # fmt: skip
     mc = quadrs.monte_carlo(s, runs=runs, seed=seed, progress=False, workers=2, **kw)
     rows = own_phases(mc.runs.sort_values(["realisation", "controller", "phase"]))
+    metrics = list(quadrs._core.METRIC_NAMES) if every_column else METRICS
     out = {
-        f"runs.{c}": digest(rows[c].to_numpy(dtype=np.float64)) for c in [*METRICS, *s.dispersions]
+        f"runs.{c}": digest(rows[c].to_numpy(dtype=np.float64)) for c in [*metrics, *s.dispersions]
     }
     out["runs.diverged"] = digest(rows["diverged"].to_numpy(dtype=np.float64))
     spectra = getattr(mc, "spectra", None)
@@ -135,6 +143,7 @@ def gust_case() -> dict:
 
 def cases() -> dict[str, Callable[[], dict]]:
     paper = quadrs.Scenario.paper()
+    delivery = quadrs.Scenario.preset("delivery")
     lateral = short(
         quadrs.Scenario.preset("paper_stable_lateral").override(
             {
@@ -174,13 +183,26 @@ def cases() -> dict[str, Callable[[], dict]]:
         "linear.pd": lambda: linear_case(paper, "pd"),
         "linear.smc": lambda: linear_case(paper, "smc"),
         "gust": gust_case,
+        # The delivery preset (cable, rotors, whole-flight wind, route): every column.
+        # tests/data/delivery_bits.json; no ensemble spectra (their last bits follow the CPU).
+        "delivery.pd": lambda: flight_case(delivery, "pd", 3, 5, every_column=True),
+        "delivery.smc": lambda: flight_case(delivery, "smc", 3, 5, every_column=True),
+        "batch.delivery": lambda: batch_case(
+            delivery, 4, 1, every_column=True, controllers=("pd",), spectra=False
+        ),
     }
+
+
+#: The paper model's cases (the delivery preset's are computed when asked for by name).
+PAPER_CASES = ("paper.pd", "paper.smc", "lateral.pd", "lateral.smc", "diverging.smc",
+               "batch.paper", "batch.lateral", "batch.dispersed.random", "batch.dispersed.lhs",
+               "batch.diverging", "linear.pd", "linear.smc", "gust")  # fmt: skip
 
 
 def compute(only: list[str] | None = None) -> dict[str, dict[str, str]]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return {name: f() for name, f in cases().items() if not only or name in only}
+        return {name: f() for name, f in cases().items() if name in (only or PAPER_CASES)}
 
 
 def compare(want: dict[str, dict[str, str]], got: dict[str, dict[str, str]]) -> list[str]:
@@ -193,13 +215,43 @@ def compare(want: dict[str, dict[str, str]], got: dict[str, dict[str, str]]) -> 
     ]
 
 
+#: Outputs whose last bits depend on the CPU, recorded per CPU class beside the reference: the
+#: ensemble spectra are sums over realisations taken a lane-set at a time (four lanes on AVX2,
+#: eight on AVX-512: another order of the same additions), and a lognormal dispersion's values
+#: come from numpy's exp, which has its own AVX-512 kernel. Each flight, trace and per-flight
+#: metric is the same on every CPU.
+CPU_FILE = "paper_bits_cpu.json"
+
+
+def cpu_class() -> str:
+    """``engine-<SIMD path>/numpy-<avx512|avx2>``: what decides those outputs' last bits."""
+    from numpy._core._multiarray_umath import __cpu_features__ as numpy_cpu
+
+    numpy_path = "avx512" if numpy_cpu.get("AVX512_SKX") else "avx2"
+    return f"engine-{quadrs._core.simd_path()}/numpy-{numpy_path}"
+
+
+def reference(path: Path) -> dict[str, dict[str, str]]:
+    """The recorded digests (``path``, written on an AVX2 machine) with this CPU class's own
+    values of the CPU-dependent outputs (``CPU_FILE`` beside it), where recorded."""
+    want = json.loads(path.read_text())
+    cpu = path.with_name(CPU_FILE)
+    if cpu.exists():
+        for case, digests in json.loads(cpu.read_text()).get(cpu_class(), {}).items():
+            want.setdefault(case, {}).update(digests)
+    return want
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", type=Path, help="compare with a saved run; exit 1 on change")
     ap.add_argument("--write", type=Path, help="save the digests to this file")
+    ap.add_argument("--delivery", action="store_true",
+                    help="the delivery preset's cases instead of the paper model's")  # fmt: skip
     args = ap.parse_args(argv)
-    want = json.loads(args.check.read_text()) if args.check else None
-    got = compute(list(want) if want else None)
+    want = reference(args.check) if args.check else None
+    delivery = [name for name in cases() if "delivery" in name]
+    got = compute(list(want) if want else (delivery if args.delivery else None))
     if args.write:
         args.write.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
     if want is None:

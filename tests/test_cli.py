@@ -24,7 +24,7 @@ from quadrs.sweep import SweepResult
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
            "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track"]  # fmt: skip
+           "max_cross_track", "max_specific_force"]  # fmt: skip
 RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at", "status"]
 TABLE3_COLUMNS = [
     "phase", "IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %",

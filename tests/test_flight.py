@@ -13,7 +13,7 @@ TRACE = [*STATES, "x_ref", "y_ref", "z_ref", "psi_ref", "U1", "tau_phi", "tau_th
 METRICS = ["phase", "iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency",
            "peak_amplitude", "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension",
            "min_tension", "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track"]  # fmt: skip
+           "max_cross_track", "max_specific_force"]  # fmt: skip
 
 
 def hover(paper: Scenario) -> Scenario:

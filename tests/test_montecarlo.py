@@ -17,7 +17,7 @@ from quadrs.report import ratio_ci, summarise
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
            "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track"]  # fmt: skip
+           "max_cross_track", "max_specific_force"]  # fmt: skip
 
 
 def test_runs_table_layout(short: Scenario) -> None:

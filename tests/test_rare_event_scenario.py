@@ -138,7 +138,7 @@ def test_subset_agrees_with_plain_monte_carlo(short: quadrs.Scenario) -> None:
     assert isinstance(r, RareEventResult) and r.probability is not None and r.cov is not None
     z = math.log(r.probability / p_mc) / math.sqrt(math.log1p(r.cov**2) + math.log1p(cov_mc**2))
     assert abs(z) < 3.5, (r.probability, p_mc, r.cov, cov_mc)
-    assert r.flights == 200 + (len(r.levels) - 1) * 180
+    assert r.flights == r.run.pilot_flights + 200 + (len(r.levels) - 1) * 180
 
 
 def test_saved_scenario_run_re_flies_after_reading(
@@ -156,14 +156,21 @@ def test_ctrl_c_keeps_the_levels_done(tmp_path: Path) -> None:
     """A KeyboardInterrupt from the model (what run_cancellable raises on Ctrl-C) stops the
     run: the finished levels, no estimate, and the file says so."""
     calls = 0
+    stop_at = 0
 
     def f(x: np.ndarray) -> np.ndarray:
         nonlocal calls
         calls += 1
-        if calls == 15:  # level 0 is 10 calls of 10 rows; this is level 1's fifth step
+        if calls == stop_at:
             raise KeyboardInterrupt
         return np.asarray(x.sum(axis=1) / math.sqrt(x.shape[1]))
 
+    # The pilot (which places the levels) makes the first calls: count them once.
+    whole = quadrs.rare_event(limit_state=f, dimension=50, threshold=4.0, per_level=100)
+    assert isinstance(whole, RareEventResult)
+    pilot = whole.run.pilot_flights
+    # The main run's level 0 is 10 calls of 10 rows; stop at level 1's fifth step.
+    calls, stop_at = 0, pilot // 10 + 15
     seen: list[int] = []
     r = quadrs.rare_event(limit_state=f, dimension=50, threshold=4.0, per_level=100,
                           on_level=lambda level: seen.append(level.level))  # fmt: skip
@@ -171,7 +178,7 @@ def test_ctrl_c_keeps_the_levels_done(tmp_path: Path) -> None:
     assert r.interrupted and seen == [0] and len(r.levels) == 1
     assert r.probability is None and r.cov is None
     assert r.upper_bound == r.levels["conditional_p"].iloc[0]
-    assert r.flights == 140  # level 0 and four steps of ten chains
+    assert r.flights == pilot + 140  # the pilot, level 0 and four steps of ten chains
     assert "interrupted after 1 levels" in repr(r)
     path = tmp_path / "cut.parquet"
     r.to_parquet(path)
@@ -179,7 +186,7 @@ def test_ctrl_c_keeps_the_levels_done(tmp_path: Path) -> None:
     assert back.interrupted and back.upper_bound == r.upper_bound and len(back.levels) == 1
     assert back.closest == r.closest
     # Stopped before the first level: nothing to report but that.
-    calls = 0
+    calls, stop_at = 0, 15
     # (p0 = 0.05: level 0 is 20 calls of 10 rows, so the 15th is inside it.)
     early = quadrs.rare_event(limit_state=f, dimension=50, threshold=4.0, per_level=200, p0=0.05)
     assert isinstance(early, RareEventResult) and early.interrupted

@@ -312,8 +312,8 @@ def summary_rows(result: Any) -> list[tuple[str, str]]:
     """(label, value) rows of the printed table of a :class:`RareEventResult`."""
     rows: list[tuple[str, str]] = []
     if result.probability is None:
-        rows.append(("estimate", "no failure found"))
-        rows.append(("upper bound (last cut reached)", f"{result.upper_bound:.3g}"))
+        rows.append(("estimate", f"no failure in {result.flights} flights"))
+        rows.append(("95 % upper confidence bound", f"P <= {result.upper_bound:.3g}"))
         rows.append(("largest value seen", f"{result.closest:.6g}"))
     else:
         lo, hi = result.interval
@@ -322,6 +322,8 @@ def summary_rows(result: Any) -> list[tuple[str, str]]:
         rows.append(("95 % interval", f"[{lo:.3g}, {hi:.3g}]"))
     rows.append(("levels", str(len(result.levels))))
     rows.append(("flights", str(result.flights)))
+    if result.run.pilot_flights:
+        rows.append(("  of which placing the levels", str(result.run.pilot_flights)))
     need = result.monte_carlo_flights
     if need is not None:
         rows.append(("Monte Carlo flights, same CoV", f"{need:.3g} ({need / result.flights:.1f}x)"))

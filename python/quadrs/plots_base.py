@@ -44,6 +44,7 @@ UNITS = {
     "max_tracking": "m",
     "rms_cross_track": "m",
     "max_cross_track": "m",
+    "max_specific_force": "m/s²",
     # every scenario key, from the package's one table of them (quadrs.units)
     **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
 }
@@ -72,6 +73,7 @@ PLAIN_LABELS = {
     "max_tracking": "Peak 3-D tracking error (m)",
     "rms_cross_track": "RMS cross-track error (m)",
     "max_cross_track": "Peak cross-track error (m)",
+    "max_specific_force": "Peak specific force on the payload, |a - g| (m/s²)",
     "max_swing": "Peak swing angle of the line (deg)",
     "rms_swing": "RMS swing angle of the line (deg)",
     "max_tension": "Peak line tension (N)",
@@ -104,6 +106,7 @@ SHORT_NAMES = {
     "peak_amplitude": "Spectral peak amplitude",
     "max_accel": "Peak payload acceleration",
     "rms_accel": "RMS payload acceleration",
+    "max_specific_force": "Peak payload specific force",
 }
 #: What the trace's e_o = (zc - z) + d0 is called on a figure.
 DISPLACEMENT = "payload relative displacement"

@@ -136,6 +136,7 @@ METRIC_LABELS = {
     "peak_amplitude": ("spectral peak amplitude", "m"),
     "max_accel": ("peak payload acceleration", "m/s²"),
     "rms_accel": ("RMS payload acceleration", "m/s²"),
+    "max_specific_force": ("peak payload specific force |a - g|", "m/s²"),
 }
 
 

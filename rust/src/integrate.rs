@@ -790,6 +790,7 @@ impl Engine {
         let extra = &mut extra[..Act::SIGNALS.len()];
         // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
         let blows = crafts.iter().any(|c| c.wind.blows());
+        let mut held = [zero; 3];
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -820,50 +821,58 @@ impl Engine {
                     vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
                 }
             };
-            // The lane-set's turbulence when `lane_gust` flies it (else the per-lane values).
-            let mut wind_set: Option<[L; 3]> = None;
-            if let Some(prescribed) = &self.prescribed_wind {
-                wind_lanes = [prescribed[k]; MAX_LANES];
-                if blows {
-                    for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
-                        let d = c.wind.deterministic(k as u64, &at(lane)());
-                        *v = [0, 1, 2].map(|i| v[i] + d[i]);
-                    }
-                }
-            } else if let Some(g) = lane_gust.as_mut() {
-                // No lane's wind blows outside the window here (`LaneGust::new`).
-                wind_set = if (gust_from..gust_to).contains(&(k as u64)) {
-                    Some(g.sample(k as u64))
-                } else {
-                    None
-                };
-            } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
-                for (lane, ((ws, v), c)) in winds
-                    .iter_mut()
-                    .zip(wind_lanes.iter_mut())
-                    .zip(crafts)
-                    .enumerate()
-                {
-                    *v = c.wind.sample_at(ws, k as u64, at(lane));
-                }
+            // The row at t_k holds the wind of step k. The last row (t = duration) has no step
+            // after it: it holds the last step's wind (the hold runs to its end), so no metric
+            // sees a wind that no step flies, and no innovation is drawn for it.
+            let w: [L; 3] = if k == self.steps && k > 0 {
+                held
             } else {
-                wind_lanes = [[0.0; 3]; MAX_LANES];
-            }
-            #[inline(always)]
-            fn wind_of<L: Lane>(lanes: &[[f64; 3]; MAX_LANES], c: usize) -> L {
-                L::from_fn(
-                    #[inline(always)]
-                    |lane| lanes[lane][c],
-                )
-            }
-            let w: [L; 3] = match wind_set {
-                Some(w) => w,
-                None => [
-                    wind_of(&wind_lanes, 0),
-                    wind_of(&wind_lanes, 1),
-                    wind_of(&wind_lanes, 2),
-                ],
+                // The lane-set's turbulence when `lane_gust` flies it (else the per-lane values).
+                let mut wind_set: Option<[L; 3]> = None;
+                if let Some(prescribed) = &self.prescribed_wind {
+                    wind_lanes = [prescribed[k]; MAX_LANES];
+                    if blows {
+                        for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
+                            let d = c.wind.deterministic(k as u64, &at(lane)());
+                            *v = [0, 1, 2].map(|i| v[i] + d[i]);
+                        }
+                    }
+                } else if let Some(g) = lane_gust.as_mut() {
+                    // No lane's wind blows outside the window here (`LaneGust::new`).
+                    wind_set = if (gust_from..gust_to).contains(&(k as u64)) {
+                        Some(g.sample(k as u64))
+                    } else {
+                        None
+                    };
+                } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
+                    for (lane, ((ws, v), c)) in winds
+                        .iter_mut()
+                        .zip(wind_lanes.iter_mut())
+                        .zip(crafts)
+                        .enumerate()
+                    {
+                        *v = c.wind.sample_at(ws, k as u64, at(lane));
+                    }
+                } else {
+                    wind_lanes = [[0.0; 3]; MAX_LANES];
+                }
+                #[inline(always)]
+                fn wind_of<L: Lane>(lanes: &[[f64; 3]; MAX_LANES], c: usize) -> L {
+                    L::from_fn(
+                        #[inline(always)]
+                        |lane| lanes[lane][c],
+                    )
+                }
+                match wind_set {
+                    Some(w) => w,
+                    None => [
+                        wind_of(&wind_lanes, 0),
+                        wind_of(&wind_lanes, 1),
+                        wind_of(&wind_lanes, 2),
+                    ],
+                }
             };
+            held = w;
             let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
             let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
             let e = [
@@ -874,6 +883,9 @@ impl Engine {
             let [ax, ay, az] = out.accel;
             // |a| without the square root's rounding where the acceleration is vertical only.
             let accel = (ax * ax + ay * ay + az * az).sqrt();
+            // The specific force a - g (g = (0, 0, -g)): what an accelerometer on the payload reads.
+            let fz = az + vehicle.body.g;
+            let specific_force = (ax * ax + ay * ay + fz * fz).sqrt();
             acc.sample(
                 k,
                 t,
@@ -882,6 +894,7 @@ impl Engine {
                     tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
                     cross_sq: cross_track_sq(&rigid.pos, &line),
                     accel,
+                    specific_force,
                     swing: out.swing,
                     tension: out.tension,
                     slack: L::select(out.tension.cmp_le(zero), one, zero),

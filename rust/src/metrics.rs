@@ -1,6 +1,7 @@
 //! Per-phase indices of the relative oscillation e_o, accumulated online (docs/model.md section 5),
 //! and the whole vehicle's (section 11): the magnitude of the payload's inertial acceleration
-//! (`max_accel`, `rms_accel`: what a fragile cargo feels; docs/risk.md), the 3-D tracking error,
+//! (`max_accel`, `rms_accel`), the specific force an accelerometer on the payload reads
+//! (`max_specific_force`, |a - g|: how fragility is specified; docs/risk.md), the 3-D tracking error,
 //! the attachment's swing and tension, slack and actuator saturation times.
 //!
 //! Integrals use the trapezoidal rule on the step grid. The amplitude spectrum needs the signal,
@@ -12,7 +13,7 @@ use crate::trajectory::PhaseSteps;
 use rustfft::{num_complex::Complex, FftPlanner};
 
 /// Column order of every metrics array the engine returns.
-pub const METRIC_NAMES: [&str; 18] = [
+pub const METRIC_NAMES: [&str; 19] = [
     "iae",
     "itae",
     "max_abs",
@@ -31,6 +32,7 @@ pub const METRIC_NAMES: [&str; 18] = [
     "max_tracking",
     "rms_cross_track",
     "max_cross_track",
+    "max_specific_force",
 ];
 pub const N_METRICS: usize = METRIC_NAMES.len();
 
@@ -53,6 +55,7 @@ struct Sums<L> {
     max_tracking_sq: L,
     cross_sq: L,
     max_cross_sq: L,
+    max_specific_force: L,
 }
 
 /// What the flight loop hands the accumulator at one step (lane values).
@@ -67,6 +70,9 @@ pub struct Sample<L> {
     pub cross_sq: L,
     /// m/s^2, the magnitude of the payload's inertial acceleration.
     pub accel: L,
+    /// m/s^2, the magnitude of the payload's specific force |a - g| (g pointing down): what an
+    /// accelerometer on the payload reads (g at rest, 0 in free fall).
+    pub specific_force: L,
     /// rad, the attachment's angle from the vertical.
     pub swing: L,
     /// N, the force the attachment carries.
@@ -113,6 +119,7 @@ impl<L: Lane> PhaseAccumulator<L> {
                     max_tracking_sq: zero,
                     cross_sq: zero,
                     max_cross_sq: zero,
+                    max_specific_force: zero,
                 };
                 phases.len()
             ],
@@ -152,6 +159,7 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.max_tracking_sq = sums.max_tracking_sq.max(x.tracking_sq);
                 sums.cross_sq += x.cross_sq * w;
                 sums.max_cross_sq = sums.max_cross_sq.max(x.cross_sq);
+                sums.max_specific_force = sums.max_specific_force.max(x.specific_force);
             }
         }
         self.block_sum += e_o;
@@ -212,6 +220,7 @@ impl<L: Lane> PhaseAccumulator<L> {
                 s.max_tracking_sq.lane(lane).sqrt(),
                 (s.cross_sq.lane(lane) / span).sqrt(),
                 s.max_cross_sq.lane(lane).sqrt(),
+                s.max_specific_force.lane(lane),
             ]);
         }
         rows
@@ -311,6 +320,7 @@ mod tests {
                     tracking_sq: 0.0,
                     cross_sq: 0.0,
                     accel: 2.0 * t,
+                    specific_force: 9.81 - t,
                     swing: 0.1 * t,
                     tension: 5.0 - 10.0 * t,
                     slack: 1.0 - flag,
@@ -332,5 +342,7 @@ mod tests {
         assert_eq!((row[11], row[12]), (5.0, -5.0));
         assert!((row[13] - 71.0 * dt).abs() < 1e-12);
         assert!((row[14] - 30.0 * dt).abs() < 1e-12);
+        // specific force 9.81 - t: its peak at t = 0.
+        assert_eq!(row[18], 9.81);
     }
 }

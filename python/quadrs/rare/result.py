@@ -78,15 +78,19 @@ class RareEventResult:
 
     @property
     def interval(self) -> tuple[float, float] | None:
-        """The 95 % interval (lognormal, from :attr:`cov`); (0, upper_bound) if no failure
-        was found."""
+        """The 95 % interval, inside [0, 1]: lognormal from :attr:`cov` with a t quantile on
+        the failures' independent ancestries (Clopper-Pearson when plain Monte Carlo reached
+        the threshold); (0, upper_bound) if no failure was found; None when interrupted."""
+        if self.run.interval is not None:
+            return self.run.interval
         if self.run.probability is None or self.run.cov is None:
             return None if self.run.upper_bound is None else (0.0, self.run.upper_bound)
         return lognormal_interval(self.run.probability, self.run.cov, self.confidence)
 
     @property
     def upper_bound(self) -> float | None:
-        """Without a failure: the estimated probability of the highest level reached."""
+        """Without a failure: a 95 % upper confidence bound on the probability (when
+        interrupted: the estimated probability of the last cut reached, no bound)."""
         return self.run.upper_bound
 
     @property
@@ -205,6 +209,9 @@ class RareEventResult:
             "probability": run.probability,
             "cov": run.cov,
             "upper_bound": run.upper_bound,
+            "interval": None if run.interval is None else list(run.interval),
+            "pilot_flights": run.pilot_flights,
+            "clusters": run.clusters,
             "interrupted": run.interrupted,
             "levels": [dataclasses.asdict(level) for level in run.levels],
         }
@@ -303,6 +310,9 @@ class RareEventResult:
                 seed=meta["seed"],
                 max_levels=meta["max_levels"],
                 interrupted=interrupted,
+                interval=_pair(meta.get("interval")),
+                pilot_flights=int(meta.get("pilot_flights", 0)),
+                clusters=int(meta.get("clusters", 0)),
             )
         except (KeyError, TypeError, ValueError) as e:
             raise _fail(path, f"its rare-event tables are malformed ({e})") from None
@@ -319,8 +329,9 @@ class RareEventResult:
             )
         if run.probability is None:
             return (
-                f"no failure found: P({self.value_name} > {run.threshold:g}) <= about "
-                f"{run.upper_bound:.3g} (highest level reached; largest value {run.closest:.4g})"
+                f"no failure in {run.flights} flights: P({self.value_name} > "
+                f"{run.threshold:g}) <= {run.upper_bound:.3g} (95 % upper confidence bound; "
+                f"largest value {run.closest:.4g})"
             )
         lo, hi = self.interval or (math.nan, math.nan)
         return (
@@ -418,6 +429,18 @@ def _closest(value: Any, nothing_flown: bool) -> float:
     if value is None:
         return -math.inf if nothing_flown else math.inf
     return float(value)
+
+
+def _pair(value: Any) -> tuple[float, float] | None:
+    """A saved interval: two numbers in [0, 1], low <= high; None if absent."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != 2:
+        raise ValueError(f"interval must be two numbers, got {value!r}")
+    lo, hi = (float(v) for v in value)
+    if not 0.0 <= lo <= hi <= 1.0:
+        raise ValueError(f"interval must lie in [0, 1], got {value!r}")
+    return lo, hi
 
 
 def _number(value: Any) -> float | None:

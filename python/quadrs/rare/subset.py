@@ -27,6 +27,7 @@ import numpy.typing as npt
 from quadrs.guard import check_int, check_memory
 
 __all__ = [
+    "CONFIDENCE",
     "MIN_SEEDS",
     "TARGET_ACCEPTANCE",
     "Level",
@@ -34,6 +35,7 @@ __all__ = [
     "SubsetRun",
     "check_settings",
     "check_threshold",
+    "pilot_size",
     "subset_simulation",
 ]
 
@@ -104,6 +106,14 @@ class SubsetRun:
     #: Level 0's samples above its cut (the threshold if it was the last level), in the order
     #: drawn: paired runs share level 0, and their ratio's interval uses its correlation.
     first_above: np.ndarray | None = None
+    #: The 95 % interval (or, with no failure, (0, the 95 % upper confidence bound)), inside
+    #: [0, 1]; None when interrupted. See :func:`subset_simulation`.
+    interval: tuple[float, float] | None = None
+    #: Flights of the pilot run that placed the levels (included in ``flights``).
+    pilot_flights: int = 0
+    #: Independent ancestries (level-0 samples) the failures descend from; the interval's t
+    #: quantile has ``clusters - 1`` degrees of freedom.
+    clusters: int = 0
 
     @property
     def reached(self) -> bool:
@@ -312,54 +322,25 @@ def _lognormal_s(cov: float) -> float:
     return math.sqrt(math.log1p(cov * cov))
 
 
-def subset_simulation(
-    model: Model,
+def _adaptive(
+    evaluate: _Evaluator,
     dimension: int,
     threshold: float,
-    *,
-    per_level: int = 1000,
-    p0: float = 0.1,
-    seed: int = 0,
-    max_levels: int | None = None,
-    name: str = "the model",
-    on_level: Callable[[Level], None] | None = None,
+    per_level: int,
+    p0: float,
+    seed: int,
+    max_levels: int,
+    rng: np.random.Generator,
 ) -> SubsetRun:
-    """Estimate P(model(xi) > threshold) for xi ~ N(0, I_dimension) by subset simulation.
-
-    Level 0 is plain Monte Carlo with ``per_level`` samples. Each later level starts
-    ``p0 * per_level`` Markov chains from the previous level's best samples (the seeds, each
-    the first sample of its chain) and moves them ``1/p0 - 1`` steps by preconditioned
-    Crank-Nicolson: candidate = sqrt(1 - sigma^2) x + sigma z, z ~ N(0, I), kept if its value
-    lies above the level's cut, else the chain repeats its state. The candidate of a standard
-    normal x is exactly standard normal in any dimension, so only the cut rejects and the
-    acceptance does not collapse as the dimension grows. sigma is the same for every chain and
-    every step of a level (so the kernel leaves the level's conditional law invariant) and is
-    steered between levels towards TARGET_ACCEPTANCE. It is deliberately the same in every
-    component: scaling it by the seeds' per-component spread (Papaioannou et al.'s aCS) makes
-    the kernel depend on the states it starts from, which in 1000 dimensions with 100 seeds
-    biases a sum-of-squares tail low by a factor of five (docs/rare-events.md).
-
-    Evaluations: ``per_level + (levels - 1) * per_level * (1 - p0)``, exactly.
-
-    ``on_level(level)`` is called as each level is done (progress). Ctrl-C (a
-    KeyboardInterrupt from the model or between its calls) stops the run and returns what the
-    finished levels found, with ``interrupted=True`` (see :class:`SubsetRun`).
-    """
-    per_level, p0, max_levels = check_settings(per_level, p0, max_levels)
-    dimension = check_int("dimension", dimension, 1, 2**40)
-    seed = check_int("seed", seed)
-    threshold = check_threshold(threshold)
+    """The adaptive subset simulation of Au & Beck (2001), used as the pilot that places the
+    levels: each cut between the (p0 N)-th largest value of its level and the next; chains of
+    1/p0 samples started from the level's best p0 N by preconditioned Crank-Nicolson, sigma
+    steered between levels towards TARGET_ACCEPTANCE, the same in every component (scaling it
+    per component by the seeds' spread biases a sum-of-squares tail low five-fold in 1000
+    dimensions: docs/rare-events.md). Its own estimate is biased (order 1/N per level) and is
+    not reported: only its cuts and steps are used."""
     length = round(1.0 / p0)
     seeds = per_level // length
-    # States, candidates and a product of them, the running best, a non-final level's
-    # failures (fewer than `seeds`).
-    check_memory(
-        f"subset simulation in {dimension} dimensions with {seeds} chains",
-        5 * seeds * dimension * _F8,
-    )
-
-    rng = np.random.default_rng(seed)
-    evaluate = _Evaluator(model, name)
     levels: list[Level] = []
     spread = INITIAL_SPREAD
     seeds_xi = np.empty((0, dimension))
@@ -453,8 +434,6 @@ def subset_simulation(
             flights = per_level if level == 0 else seeds * (length - 1)
             levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level,
                                 spread if level else math.nan))  # fmt: skip
-            if on_level is not None:
-                on_level(levels[-1])
             if last:
                 if not n_fail:
                     return result(None, product * p, _none(dimension))
@@ -472,6 +451,325 @@ def subset_simulation(
         bound = math.prod(lv.conditional_p for lv in levels) if levels else None
         return result(None, bound, _none(dimension), interrupted=True)
     raise AssertionError("unreachable: the last level returns")  # pragma: no cover
+
+
+#: Confidence of every interval and bound the sampler states.
+CONFIDENCE = 0.95
+
+
+def pilot_size(per_level: int, p0: float) -> int:
+    """The pilot's samples per level: a fifth of ``per_level``, a whole number of chains, and
+    at least MIN_SEEDS of them."""
+    length = round(1.0 / p0)
+    return max(MIN_SEEDS * length, (per_level // 5) // length * length)
+
+
+class _Reservoir:
+    """A uniform random subset (without replacement) of the samples offered, of at most
+    ``size``; with fewer offered, all of them. Each survivor of a level is then equally
+    likely to seed the next one, which keeps the product of the levels' fractions unbiased."""
+
+    def __init__(self, size: int, dimension: int, rng: np.random.Generator) -> None:
+        self.xi = np.empty((size, dimension))
+        self.values = np.empty(size)
+        self.eve = np.empty(size, dtype=np.int64)
+        self.seen = 0
+        self.rng = rng
+
+    def offer(self, xi: np.ndarray, values: np.ndarray, eve: np.ndarray, up: np.ndarray) -> None:
+        """Offer the rows ``up`` (a mask) of ``xi``, ``values``, ``eve``, one at a time (no
+        copy of the block)."""
+        size = len(self.values)
+        for i in np.flatnonzero(up):
+            slot = self.seen if self.seen < size else int(self.rng.integers(0, self.seen + 1))
+            if slot < size:
+                self.xi[slot] = xi[i]
+                self.values[slot] = values[i]
+                self.eve[slot] = eve[i]
+            self.seen += 1
+
+    def seeds(self, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``count`` seeds (xi, values, eve, group): each held sample floor(count / held)
+        times, a random subset of them once more (so each is picked count / held times on
+        average); ``group`` numbers the held sample a seed copies."""
+        held = min(self.seen, len(self.values))
+        base = np.repeat(np.arange(held), count // held)
+        extra = self.rng.choice(held, size=count - len(base), replace=False)
+        pick = np.concatenate([base, extra])
+        return self.xi[pick].copy(), self.values[pick].copy(), self.eve[pick].copy(), pick
+
+
+def _steps_of(pilot: SubsetRun) -> list[float]:
+    """The proposal's step on each conditional level of the main run: the pilot's own step
+    on that level, and past its last, its rule applied once more."""
+    steps = [lv.sigma for lv in pilot.levels[1:]]
+    if len(pilot.levels) > 1:
+        last = pilot.levels[-1]
+        steps.append(min(last.sigma * math.exp(last.acceptance_rate - TARGET_ACCEPTANCE), 1.0))
+    steps.append(INITIAL_SPREAD)
+    return [x if math.isfinite(x) and 0 < x <= 1 else INITIAL_SPREAD for x in steps]
+
+
+def _upper_bound_zero(n: int, confidence: float) -> float:
+    """The one-sided upper confidence bound on a probability with 0 events in n independent
+    trials (Clopper-Pearson): 1 - (1 - confidence)^(1/n)."""
+    return -math.expm1(math.log1p(-confidence) / n)
+
+
+def _interval(probability: float, cov: float, clusters: int) -> tuple[float, float]:
+    """Lognormal interval P exp(-+ q s), s^2 = log(1 + cov^2), q the t quantile with
+    ``clusters - 1`` degrees of freedom (the failures' independent ancestries), the upper
+    end at most 1."""
+    from scipy.stats import t as student
+
+    q = float(student.ppf(0.5 + CONFIDENCE / 2, max(clusters - 1, 1)))
+    s = _lognormal_s(cov)
+    return probability * math.exp(-q * s), min(1.0, probability * math.exp(q * s))
+
+
+def _binomial_interval(k: int, n: int) -> tuple[float, float]:
+    """Clopper-Pearson (exact) interval of k events in n independent trials."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(k, n).proportion_ci(confidence_level=CONFIDENCE, method="exact")
+    return float(ci.low), float(ci.high)
+
+
+def subset_simulation(
+    model: Model,
+    dimension: int,
+    threshold: float,
+    *,
+    per_level: int = 1000,
+    p0: float = 0.1,
+    seed: int = 0,
+    max_levels: int | None = None,
+    name: str = "the model",
+    on_level: Callable[[Level], None] | None = None,
+    pilot: int | None = None,
+) -> SubsetRun:
+    """Estimate P(model(xi) > threshold) for xi ~ N(0, I_dimension) by subset simulation,
+    in two stages, so that the estimate is unbiased and its interval honest.
+
+    1. A *pilot*: adaptive subset simulation (Au & Beck 2001) with ``pilot`` samples per level
+       (default :func:`pilot_size`, a fifth of ``per_level``) places the levels b_1 < b_2 < ...
+       below the threshold and the proposal's step on each. Its estimate is discarded: with
+       cuts set by the same samples that are counted, adaptive subset simulation reads high by
+       order (levels (1 - p0)/(N p0)) (1 + gamma) (Cerou et al. 2012), 1.1-1.3x on flights at
+       N = 500.
+    2. The *main run*, with those levels fixed: level 0 is plain Monte Carlo of ``per_level``
+       samples; each later level starts ``p0 * per_level`` chains from survivors of the level
+       below (v > b_j), drawn uniformly among all of them, and moves them ``1/p0 - 1`` steps by
+       preconditioned Crank-Nicolson (candidate = sqrt(1 - sigma^2) x + sigma z, kept if above
+       b_j). The estimate, the product of the levels' fractions above their cuts, is then
+       exactly unbiased (a Feynman-Kac particle estimate with fixed levels and kernels that
+       leave each conditional law invariant; Del Moral 2004, Cerou et al. 2012).
+
+    Its coefficient of variation is the larger of Au & Beck's (the levels' variances with
+    the chains' correlation gamma, floored at 0, summed) and the spread of the failures over
+    their independent ancestries: every failure descends from one level-0 sample, and the
+    estimate is (1/N) sum_i Z_i over those iid samples (Z_i: N P times sample i's share of the
+    failures; Chan & Lai 2013). The second sees what the first cannot: chains started from one
+    state, and levels that share ancestors. The interval is lognormal with a t quantile on
+    ``clusters - 1`` degrees of freedom (few ancestries, wide interval), its upper end at most
+    1. One level (the threshold reached by plain Monte Carlo): the Clopper-Pearson interval.
+    No failure: ``probability`` None and ``interval`` (0, a 95 % upper confidence bound).
+
+    Evaluations: the pilot's plus ``per_level + (levels - 1) * per_level * (1 - p0)``.
+    ``on_level(level)`` is called as each level of the main run is done. Ctrl-C (a
+    KeyboardInterrupt from the model or between its calls) stops the run and returns what the
+    finished levels found, with ``interrupted=True``.
+    """
+    per_level, p0, max_levels = check_settings(per_level, p0, max_levels)
+    dimension = check_int("dimension", dimension, 1, 2**40)
+    seed = check_int("seed", seed)
+    threshold = check_threshold(threshold)
+    length = round(1.0 / p0)
+    if pilot is None:
+        pilot = pilot_size(per_level, p0)
+    pilot, _, _ = check_settings(pilot, p0, max_levels)
+    seeds = per_level // length
+    # States, candidates and a product of them, the seeds' reservoir, the failures of a level.
+    check_memory(
+        f"subset simulation in {dimension} dimensions with {seeds} chains",
+        6 * seeds * dimension * _F8,
+    )
+    evaluate = _Evaluator(model, name)
+    pilot_rng, main_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    first = _adaptive(evaluate, dimension, threshold, pilot, p0, seed, max_levels, pilot_rng)
+    pilot_flights = evaluate.count
+
+    def run_of(**found: object) -> SubsetRun:
+        base: dict[str, object] = dict(
+            probability=None, cov=None, upper_bound=None, levels=[], flights=evaluate.count,
+            failure_xi=np.empty((0, dimension)), failure_values=np.empty(0),
+            failure_copies=np.empty(0, dtype=np.int64), failure_chain=np.empty(0, dtype=np.int64),
+            failure_step=np.empty(0, dtype=np.int64), closest=-math.inf, dimension=dimension,
+            threshold=threshold, per_level=per_level, p0=p0, seed=seed, max_levels=max_levels,
+            pilot_flights=pilot_flights,
+        )  # fmt: skip
+        base.update(found)
+        return SubsetRun(**base)  # type: ignore[arg-type]
+
+    if first.interrupted:
+        return run_of(interrupted=True, closest=first.closest)
+    cuts = [lv.threshold for lv in first.levels if lv.threshold < threshold]
+    if first.reached and len(cuts) >= 1 and first.levels[-1].conditional_p >= 0.5:
+        # The pilot's last cut lies just below the threshold (most of its last level crossed):
+        # a level there would spend a whole level's flights on a fraction near 1.
+        cuts = cuts[:-1]
+    # At most max_levels levels in all: the cuts, then the threshold.
+    cuts = (
+        cuts[: min(len(first.levels), max_levels) - 1] if first.reached else cuts[: max_levels - 1]
+    )
+    return _fixed(evaluate, dimension, threshold, cuts, _steps_of(first), per_level, p0,
+                  main_rng, on_level, run_of)  # fmt: skip
+
+
+def _fixed(
+    evaluate: _Evaluator,
+    dimension: int,
+    threshold: float,
+    cuts: list[float],
+    steps: list[float],
+    per_level: int,
+    p0: float,
+    rng: np.random.Generator,
+    on_level: Callable[[Level], None] | None,
+    run_of: Callable[..., SubsetRun],
+) -> SubsetRun:
+    """The main run of :func:`subset_simulation`: levels at ``cuts`` (then ``threshold``)."""
+    length = round(1.0 / p0)
+    seeds = per_level // length
+    targets = [*cuts, threshold]
+    levels: list[Level] = []
+    product = 1.0
+    var_sum = 0.0
+    closest = -math.inf
+    first_above: np.ndarray | None = None
+    reservoir: _Reservoir | None = None
+    try:
+        for level, cut in enumerate(targets):
+            last = level == len(targets) - 1
+            nxt = _Reservoir(seeds, dimension, rng)
+            failures = _Failures(seeds, per_level)
+            values = np.empty((length, seeds))  # sample l of chain c (level 0: block l, row c)
+            eves = np.empty((length, seeds), dtype=np.int64)
+            accepted = 0
+            groups = None
+            if level == 0:
+                for block in range(length):
+                    xi = rng.standard_normal((seeds, dimension))
+                    v = evaluate(xi)
+                    eve = np.arange(block * seeds, (block + 1) * seeds)
+                    values[block], eves[block] = v, eve
+                    up = v > cut
+                    nxt.offer(xi, v, eve, up)
+                    if last:
+                        failures.add(xi[up], v[up], eve[up], 0, False)
+            else:
+                assert reservoir is not None
+                state, value, eve, groups = reservoir.seeds(seeds)
+                reservoir = None  # its states are the chains' now
+                below = targets[level - 1]
+                sigma = steps[min(level - 1, len(steps) - 1)]
+                rho = math.sqrt(1.0 - sigma * sigma)
+                values[0], eves[:] = value, eve
+                up = value > cut
+                nxt.offer(state, value, eve, up)
+                if last:
+                    failures.add(state[up], value[up], np.flatnonzero(up), 0)
+                candidate = np.empty_like(state)
+                for step in range(1, length):
+                    rng.standard_normal(out=candidate)
+                    candidate *= sigma
+                    candidate += rho * state
+                    v = evaluate(candidate)
+                    move = v > below
+                    accepted += int(move.sum())
+                    state[move] = candidate[move]
+                    value[move] = v[move]
+                    values[step] = value
+                    up = value > cut
+                    nxt.offer(state, value, eve, up)
+                    if last:
+                        new, held = move & up, ~move & up
+                        failures.add(state[new], value[new], np.flatnonzero(new), step)
+                        failures.hold(np.flatnonzero(held))
+            flat = values.ravel()
+            closest = max(closest, float(flat.max()))
+            above = int((flat > cut).sum())
+            p = above / per_level
+            if level == 0:
+                first_above = flat > cut
+            gamma = 0.0
+            if level and 0 < above < per_level:
+                # Negative estimates are noise (chains of one level do not anti-correlate):
+                # floored at 0, so 1 + gamma never cancels.
+                gamma = max(0.0, chain_gamma(values > cut, groups))
+            cov_level = (
+                math.sqrt((1.0 - p) / (per_level * p) * (1.0 + gamma)) if above else math.inf
+            )
+            rate = accepted / (seeds * (length - 1)) if level else math.nan
+            flights = per_level if level == 0 else seeds * (length - 1)
+            sigma_used = steps[min(level - 1, len(steps) - 1)] if level else math.nan
+            levels.append(Level(level, cut, p, above, rate, flights, gamma, cov_level, sigma_used))
+            if on_level is not None:
+                on_level(levels[-1])
+            if above == 0:
+                return _no_failure(levels, product, var_sum, seeds, per_level, closest,
+                                   first_above, run_of)  # fmt: skip
+            product *= p
+            var_sum += cov_level**2
+            if last:
+                fx, fv, fc, fch, fst = failures.arrays(dimension)
+                eve_of = eves.ravel()[flat > cut]
+                clusters = len(np.unique(eve_of))
+                if level == 0:
+                    interval = _binomial_interval(above, per_level)
+                    cov = math.sqrt((1.0 - p) / (per_level * p))
+                else:
+                    counts = np.bincount(eve_of, minlength=per_level).astype(np.float64)
+                    z = per_level * product * counts / counts.sum()
+                    spread = float(((z - product) ** 2).sum()) / per_level**2
+                    cov = max(math.sqrt(var_sum), math.sqrt(spread) / product)
+                    interval = _interval(product, cov, clusters)
+                return run_of(probability=product, cov=cov, levels=levels, failure_xi=fx,
+                              failure_values=fv, failure_copies=fc, failure_chain=fch,
+                              failure_step=fst, closest=closest, first_above=first_above,
+                              interval=interval, clusters=clusters)  # fmt: skip
+            reservoir = nxt
+    except KeyboardInterrupt:
+        bound = math.prod(lv.conditional_p for lv in levels) if levels else None
+        return run_of(levels=levels, upper_bound=bound, closest=closest, interrupted=True,
+                      first_above=first_above)  # fmt: skip
+    raise AssertionError("unreachable: the last level returns")  # pragma: no cover
+
+
+def _no_failure(
+    levels: list[Level],
+    product: float,
+    var_sum: float,
+    seeds: int,
+    per_level: int,
+    closest: float,
+    first_above: np.ndarray | None,
+    run_of: Callable[..., SubsetRun],
+) -> SubsetRun:
+    """No sample of the last level reached lies above its cut: a 95 % upper confidence bound.
+    On level 0, 0 of ``per_level`` independent flights (Clopper-Pearson). Deeper, the product
+    of the fractions so far (its lognormal 97.5 % upper end) times the bound for 0 events in
+    the level's chains counted as independent trials (97.5 %; Bonferroni: 95 % together)."""
+    if len(levels) == 1:
+        bound = _upper_bound_zero(per_level, CONFIDENCE)
+    else:
+        tail = 1.0 - (1.0 - CONFIDENCE) / 2
+        from scipy.stats import norm
+
+        reached = product * math.exp(float(norm.ppf(tail)) * _lognormal_s(math.sqrt(var_sum)))
+        bound = min(1.0, reached * _upper_bound_zero(seeds, tail))
+    return run_of(levels=levels, upper_bound=bound, closest=closest, first_above=first_above,
+                  interval=(0.0, bound))  # fmt: skip
 
 
 def lognormal_interval(

@@ -582,13 +582,15 @@ impl WindField {
 
     /// How many unit normals a flight of `steps` steps draws (its innovations): the active
     /// components' orders, at the onset and at every later step of the window up to the last
-    /// step of the flight. Zero when the gust is off.
+    /// step flown (step `steps - 1`: the closing row holds that step's wind and draws nothing).
+    /// Zero when the gust is off.
     pub fn innovations(&self, steps: usize) -> usize {
         if !self.enabled {
             return 0;
         }
         let per_step: usize = self.filters.iter().flatten().map(|f| f.order()).sum();
-        let last = (steps as u64).min(self.end_step.saturating_sub(1));
+        let last_flown = (steps as u64).max(1) - 1;
+        let last = last_flown.min(self.end_step.saturating_sub(1));
         let sampled = (last + 1).saturating_sub(self.start_step) as usize;
         per_step * sampled
     }
