@@ -195,7 +195,13 @@ class MissionReport:
             f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) in % "
             f"and its {qp}",
             _fit(_acceleration_text(self.acceleration, qp), width),
-            fill(_joint_line(self.joint, "acceleration", f"exceeded {self.limit:g} m/s^2")),
+            fill(
+                _joint_line(
+                    self.joint,
+                    "acceleration",
+                    f"exceeded {_shown_limit(self)} {_unit(self.metric)}",
+                )
+            ),
         ]
         if not self.payload.empty and len(self.payload.columns):
             parts += ["", "Swing (deg) and tension (N); slack time in s", _fit(
@@ -461,6 +467,12 @@ def _shown_name(metric: str) -> str:
         return "acceleration (m/s^2)"
     unit = UNITS.get(metric, "").replace("²", "^2")
     return f"{metric} ({unit})" if unit else metric
+
+
+def _unit(metric: str) -> str:
+    from quadrs.plots_base import UNITS
+
+    return UNITS.get(metric, "").replace("²", "^2")
 
 
 def _shown_limit(report: MissionReport) -> str:
