@@ -3,6 +3,7 @@ panic, hang, abort or silent NaN."""
 
 import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -251,3 +252,72 @@ def test_any_dispersion_flies_or_names_its_key(short: Scenario, data: st.DataObj
     ok = mc.runs[~mc.runs["diverged"]]
     assert np.isfinite(ok[["iae", "itae", "max_abs", "rms"]].to_numpy()).all()
     assert np.isfinite(mc.runs[key].to_numpy()).all()
+
+
+# -- the fourth round: the delivery vehicle's tables, arrays for tables, extreme values --------
+#: Subnormal, tiny, huge and near-overflow values (and their negatives) for every key.
+extremes = st.sampled_from([5e-324, -5e-324, 1e-310, 1e-300, 1e155, 1e300, -1e300,
+                            1.7976931348623157e308, 0.0, -0.0, 1e-12])  # fmt: skip
+#: Every table of a scenario (an array given for one is refused, never read by position).
+TABLES = ["vehicle", "payload", "environment", "initial", "controller", "controller.pd",
+          "controller.smc", "actuator", "trajectory", "gust", "wind", "integrator", "metrics",
+          "divergence", "ground"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def short_delivery() -> Scenario:
+    """The delivery preset (rotors, cable, sheared wind, route, ground) on a 6 s climb."""
+    return Scenario.preset("delivery").override({
+        "trajectory.route": [[0.0, 0.0, 2.0], [0.0, 0.0, 6.0]], "trajectory.hold": [1.0, 0.0],
+        "trajectory.names": None, "trajectory.speed": 2.0, "trajectory.acceleration": 1.0,
+        "integrator.duration": 6.0, "integrator.dt": 0.002, "gust.end": 6.0,
+        "wind.gusts": [{"start": 2.0, "duration": 1.0, "amplitude": [0.0, 1.0, 0.0]}],
+    })  # fmt: skip
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_delivery_overrides_with_extreme_values_run_or_name_their_key(
+    short_delivery: Scenario, data: st.DataObject
+) -> None:
+    """Every key of the delivery scenario (actuator, wind, ground, the cable, the route) with
+    subnormal, huge or arbitrary values: it flies (finite, or flagged) or names its key."""
+    key = data.draw(st.sampled_from(leaf_keys(short_delivery)), label="key")
+    value = data.draw(st.one_of(extremes, values, st.lists(extremes, max_size=4)), label="value")
+    try:
+        s = short_delivery.override({key: value})
+    except ScenarioError as e:
+        head = key.split("[")[0].split(".")[0]
+        assert head in str(e), (key, str(e))
+        return
+    check_flight(s, data.draw(st.sampled_from(["pd", "smc"]), label="controller"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    table=st.sampled_from(TABLES),
+    items=st.lists(st.one_of(numbers, extremes, st.text(max_size=3)), max_size=4),
+    base=st.sampled_from(["delivery", "paper", "slung"]),
+)
+def test_an_array_for_any_table_is_refused_by_name(table: str, items: list, base: str) -> None:
+    """`wind = [5.0, 2.0]` flew 5 m/s toward 2 degrees: a table expected is a table required,
+    through override and through a TOML file alike."""
+    with pytest.raises(ScenarioError, match=rf"^{re.escape(table)}\b") as e:
+        Scenario.preset(base).override({table: items})
+    assert e.value.key.startswith(table), (table, e.value.key)
+    head, _, sub = table.partition(".")
+    line = f"{sub} = {json.dumps(items)}" if sub else f"{head} = {json.dumps(items)}"
+    text = f'base = "{base}"\n' + (f"[{head}]\n{line}\n" if sub else f"{line}\n")
+    try:
+        parsed = tomllib_loads(text)
+    except ValueError:  # the items are not TOML (json's NaN, Infinity)
+        return
+    del parsed
+    with pytest.raises(ScenarioError, match=re.escape(table)):
+        Scenario.from_toml_string(text)
+
+
+def tomllib_loads(text: str) -> dict:
+    import tomllib
+
+    return tomllib.loads(text)

@@ -638,6 +638,14 @@ def _check_outputs(*paths: Path | None) -> None:
     check_outputs(*paths)
 
 
+def _check_directories(*paths: Path | None, option: str = "--plots") -> None:
+    """Before any work: the figure directories can be written
+    (:func:`quadrs.saving.check_directories`)."""
+    from quadrs.saving import check_directories
+
+    check_directories(*paths, option=option)
+
+
 def _save(write: Any, path: Path) -> bool:
     """``write(path)``, or a recovery copy named on stderr (:func:`quadrs.saving.save`)."""
     from quadrs.saving import save
@@ -654,6 +662,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args)
     _check_suffix(args.trace, (".parquet", ".csv"), "--trace")
     _check_outputs(args.trace)
+    _check_directories(args.plot, option="--plot")
     flight = simulate(scenario, args.controller, args.seed, realisation=args.realisation)
     print(f"{args.controller.upper()}, seed {args.seed}, realisation {args.realisation}")
     _print_frame(flight.metrics.set_index("phase"))
@@ -695,6 +704,7 @@ def cmd_mc(args: argparse.Namespace) -> int:
         if any(args.checkpoint.iterdir()):
             raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
     _check_outputs(args.out)
+    _check_directories(args.plots)
     if args.scheduler is None:  # a cluster's speed is not this machine's
         _announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
     with dask_client(args.scheduler) as client:
@@ -834,6 +844,14 @@ def _sweep_plots(result: Any, directory: Path) -> None:
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
+def _is_rare_event_file(path: Path) -> bool:
+    """True if ``path`` is a Parquet file written by ``RareEventResult.to_parquet``."""
+    from quadrs.parquet import read_meta
+
+    meta = read_meta(path, b"quadrs")
+    return isinstance(meta, dict) and meta.get("kind") == "rare_event"
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """Reprint a saved batch's (or sweep's) summary; figures from it."""
     from quadrs.montecarlo import MonteCarloResult
@@ -846,6 +864,11 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
     elif not args.file.exists():
         raise BadInput(f"{str(args.file)!r}: no such file")
+    if not args.file.is_dir() and _is_rare_event_file(args.file):
+        raise BadInput(
+            f"{str(args.file)!r} is a rare-event result (quadrs rare --out): report reads "
+            f"Monte Carlo and sweep files; read it with RareEventResult.read_parquet"
+        )
     if not args.file.is_dir() and is_sweep_file(args.file):
         result = SweepResult.read_parquet(args.file)
         _print_frame(result.compact())
@@ -958,6 +981,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from quadrs.paper import _check as check_paper
 
     check_paper(args.runs, sweep_runs, args.seed, args.frequencies, args.masses, scenario)
+    _check_directories(args.out, option="--out")  # refused before the estimate, not after
     extra = 2 * sweep_runs * len(args.frequencies)
     what = (f"{args.runs} realisations x PD and SMC, a sweep of {len(args.frequencies)} "
             f"frequencies x {sweep_runs}")  # fmt: skip

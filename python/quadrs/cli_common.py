@@ -41,8 +41,10 @@ def dask_client(address: str | None) -> Iterator[Any]:
         raise BadInput("--scheduler needs Dask: pip install 'quadrs[dask]'") from None
     try:
         client = Client(address, timeout="10s")
-    except (OSError, TimeoutError) as e:
-        raise BadInput(f"--scheduler {address}: cannot connect ({e})") from None
+    except Exception as e:
+        # (a bad port, an unknown protocol, TLS without a context, inproc:// from outside)
+        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
     with client:
         yield client
 

@@ -136,7 +136,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.guard import check_int
     from quadrs.mission import mission_report
     from quadrs.montecarlo import monte_carlo
-    from quadrs.saving import check_outputs, save
+    from quadrs.saving import check_directories, check_outputs, save
 
     if args.preset is None and args.scenario is None:
         args.preset = DEFAULT_PRESET  # a mission is a route: the delivery preset's
@@ -149,6 +149,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
             raise ValueError(f"--{name} must be >= 1, got {value}")
     check_int("--seed", args.seed)
     check_outputs(args.out)
+    check_directories(args.plots)
     _announce(scenario, args)
     mc = monte_carlo(
         scenario,

@@ -164,7 +164,9 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     controllers: tuple[str, ...] = args.controller
     paths = paired_paths(args.out, controllers) if args.out is not None else {}
     check_outputs(*paths.values())
-    value_name = f"{args.metric} in {args.phase}"
+    from quadrs.terminal import terminal_text
+
+    value_name = terminal_text(f"{args.metric} in {args.phase}")
     show = not args.no_progress and sys.stderr.isatty()
     flying = [-1]  # which controller's levels are reported (level 0 starts the next one)
     _, p0, max_levels = check_settings(args.per_level, args.p0, args.max_levels)
@@ -212,6 +214,14 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         if name in paths:
             saved = save(result.to_parquet, paths[name]) and saved
     interrupted = [name for name, r in results.items() if r.interrupted]
+    # The controllers that finished before a Ctrl-C keep their estimates: printed first.
+    for name, result in results.items():
+        if result.interrupted:
+            continue
+        print(f"P({value_name} > {args.threshold:g}), {name}, seed {args.seed}, "
+              f"{_inputs(result)} a flight")  # fmt: skip
+        for label, text in summary_rows(result):
+            print(f"  {label:<34} {text}")
     if interrupted:
         result = results[interrupted[0]]
         done = len(result.levels)
@@ -224,11 +234,6 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
               f"{' here' * bool(per_level)}",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT
-    for name, result in results.items():
-        print(f"P({value_name} > {args.threshold:g}), {name}, seed {args.seed}, "
-              f"{_inputs(result)} a flight")  # fmt: skip
-        for label, text in summary_rows(result):
-            print(f"  {label:<34} {text}")
     if isinstance(out, RareEventComparison):
         base = controllers[0]
         for name in controllers[1:]:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import matplotlib
+import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -135,10 +136,18 @@ def save(fig: Figure, path: str | Path, formats: Sequence[str] = FORMATS) -> lis
         for fmt in formats:
             target = path.with_suffix(f".{fmt}")
             meta = {"Date": None} if fmt == "svg" else None
-            atomic_write(
-                target,
-                lambda f, fmt=fmt, meta=meta: fig.savefig(f, format=fmt, dpi=120, metadata=meta),  # type: ignore[misc]
-            )
+            try:
+                atomic_write(
+                    target,
+                    lambda f, fmt=fmt, meta=meta: fig.savefig(
+                        f, format=fmt, dpi=120, metadata=meta
+                    ),  # type: ignore[misc]
+                )
+            except ValueError as e:
+                if "log-scaled" not in str(e):
+                    raise
+                raise ValueError("nothing to draw on a log scale: the data has no positive, "
+                                 "finite value") from None  # fmt: skip
             written.append(target)
     return written
 
@@ -225,8 +234,17 @@ def short_label(name: str) -> str:
     return SHORT_NAMES.get(name) or label_with_unit(name).split(" (")[0]
 
 
+#: What an empty panel says instead of a legend.
+NO_DATA = "nothing to draw: no finished, non-diverged flight has values here"
+
+
 def add_legend(ax: Axes, **kwargs: Any) -> None:
-    """A legend of every labelled artist (call after drawing them all)."""
+    """A legend of every labelled artist (call after drawing them all); a panel with none says
+    that it has nothing to draw (not matplotlib's "No artists with labels")."""
+    if not ax.get_legend_handles_labels()[0]:
+        ax.text(0.5, 0.5, NO_DATA, transform=ax.transAxes, ha="center", va="center",
+                color="0.4", fontsize="small")  # fmt: skip
+        return
     ax.legend(loc="best", fontsize="small", **kwargs)
 
 
@@ -242,6 +260,20 @@ def shade_gust(ax: Axes, flight: Flight) -> None:
 
 
 def loglog_axes(a: Axes, fmax: float) -> None:
+    """Log-log axes up to ``fmax``; a ValueError saying what the data lacks if no line has a
+    point with both coordinates positive and finite (nothing a log scale can show)."""
+    drawable = False
+    for line in a.get_lines():
+        x = np.asarray(line.get_xdata(), dtype=float)
+        y = np.asarray(line.get_ydata(), dtype=float)
+        drawable = drawable or bool((np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)).any())
+    if not drawable:
+        title = a.get_title()
+        where = f" ({title})" if title else ""
+        raise ValueError(
+            f"nothing to draw on log axes{where}: no positive, finite value (no flight finished "
+            f"without diverging, or every value is zero)"
+        )
     a.set_xscale("log")
     a.set_yscale("log")
     a.set_xlim(right=fmax)

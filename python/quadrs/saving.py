@@ -20,6 +20,18 @@ def check_outputs(*paths: Path | None) -> None:
             check_writable(path)
 
 
+def check_directories(*paths: Path | None, option: str = "--plots") -> None:
+    """Before any work: each figure directory must be a directory or creatable, and accept a
+    new file (an existing file there is refused now, not after the whole batch flew)."""
+    for path in paths:
+        if path is None:
+            continue
+        if path.exists() and not path.is_dir():
+            raise NotADirectoryError(20, f"{option}: exists and is not a directory", str(path))
+        path.mkdir(parents=True, exist_ok=True)
+        check_writable(path / "figure")
+
+
 def save(write: Callable[[Path], object], path: Path) -> bool:
     """``write(path)``; if that fails (full disk, permissions), save to a fresh recovery
     directory instead and say where. Returns True if ``path`` was written."""

@@ -324,15 +324,53 @@ def _dotted(path: tuple[str, ...]) -> str:
     return ".".join(json.dumps(p) if not _SEGMENT.match(p) else p for p in path)
 
 
+def _preset_document(preset: str, flat: bool) -> Any:
+    """The preset's text as a tomlkit document; ``flat``: with its ``base`` chain merged in
+    (tables key by key, the preset's own lines over its base's), so that it holds every key."""
+    import tomlkit
+    from tomlkit.items import Table
+
+    doc = tomlkit.parse(_preset_text(preset))
+    base = doc.get(_BASE_KEY)
+    if not flat or base is None:
+        return doc
+    whole = _preset_document(str(base), flat=True)
+
+    def merge(into: Any, extra: Any) -> None:
+        for key, item in extra.items():
+            if isinstance(item, Table) and isinstance(into.get(key), Table):
+                merge(into[key], item)
+            else:
+                into[key] = item
+
+    del doc[_BASE_KEY]
+    merge(whole, doc)
+    return whole
+
+
 def _layout_like(scenario: Scenario, preset: str) -> str:
     """``scenario`` written over the text of ``preset`` (see :meth:`Scenario.to_toml`)."""
     import tomlkit
-    from tomlkit.items import Item
+    from tomlkit.items import Item, Table
 
-    doc = tomlkit.parse(_preset_text(preset))
     base = Scenario.preset(preset)
+    differences = _differences(scenario._data, base._data)
+    doc = _preset_document(preset, flat=False)
+
+    def held(parts: tuple[str, ...]) -> bool:
+        node: Any = doc
+        for part in parts:
+            if not isinstance(node, dict) or part not in node:
+                return False
+            node = node[part]
+        return True
+
+    # A key the preset only inherits through `base` cannot be removed from a file that bases
+    # on it: then write the whole scenario, laid out like the preset with its base merged in.
+    if any(new is None and not held(p) for p, (_, new) in differences.items()):
+        doc = _preset_document(preset, flat=True)
     added: set[int] = set()  # tables the preset lacks: their lines need no "preset: not set"
-    for parts, (old, new) in _differences(scenario._data, base._data).items():
+    for parts, (old, new) in differences.items():
         node: Any = doc
         for part in parts[:-1]:
             if part not in node:
@@ -353,14 +391,28 @@ def _layout_like(scenario: Scenario, preset: str) -> str:
         else:
             item = tomlkit.item(new)
             if not fresh:
-                held = node.get(last)
-                before = held.trivia.comment.lstrip("# ") if isinstance(held, Item) else ""
+                held_item = node.get(last)
+                before = (
+                    held_item.trivia.comment.lstrip("# ") if isinstance(held_item, Item) else ""
+                )
                 was = f"{preset}: {'not set' if old is None else toml_value(old)}"
                 item.comment(f"{before}; {was}" if before else was)
                 # The preset aligns its comments at one column: keep them aligned.
                 width = len(f"{last} = {item.as_string()}")
                 item.trivia.comment_ws = " " * max(1, _COMMENT_COLUMN - width)
             node[last] = item
+
+    # Tables of the preset this scenario does not have (the delivery's [ground] under a paper
+    # scenario) go whole, not as empty tables that would read back as a different scenario.
+    def prune(node: Any, data: Any) -> None:
+        for key in list(node.keys()):
+            if isinstance(node[key], Table):
+                if not isinstance(data, dict) or key not in data:
+                    del node[key]
+                else:
+                    prune(node[key], data[key])
+
+    prune(doc, scenario._data)
     # A blank line before every table header, as in the presets.
     return re.sub(r"(?<=[^\n])\n(?=\[)", "\n\n", tomlkit.dumps(doc))
 
@@ -586,7 +638,11 @@ class Scenario:
     @cached_property
     def _derived(self) -> _core.Description:
         # Validation and derived numbers only: no engine, no gust filters.
-        return _core.describe(self.to_json())
+        derived = _core.describe(self.to_json())
+        # Shared by every flight and batch of this scenario: nobody may change them in place.
+        for frequencies in derived["spectrum_frequencies"]:
+            frequencies.flags.writeable = False
+        return derived
 
     @property
     def engine(self) -> _core.Engine:
@@ -661,7 +717,8 @@ class Scenario:
 
     @property
     def spectrum_frequencies(self) -> list[Any]:
-        """Per phase, the frequencies (Hz) of its amplitude-spectrum bins."""
+        """Per phase, the frequencies (Hz) of its amplitude-spectrum bins (read-only arrays,
+        shared by every flight of this scenario: ``np.array(f)`` for a copy to change)."""
         return list(self._derived["spectrum_frequencies"])
 
     def __eq__(self, other: object) -> bool:

@@ -180,6 +180,11 @@ class StabilityReport:
             if excited and mode.startswith("lateral"):
                 said += ": " + ", ".join(self.lateral_sources)
             modes.append(f"{mode} mode {pole} (excited by this scenario: {said})")
+        if not modes:  # never a bare "UNSTABLE: "; say what the poles lack
+            finite = bool(np.isfinite(self.poles[["real", "imag"]].to_numpy(float)).all())
+            why = ("no mode could be named (see the poles)" if finite and len(self.poles)
+                   else "the linearisation at hover has no finite poles")  # fmt: skip
+            modes.append(why)
         return f"{name}: {self.verdict.upper()}: " + "; ".join(modes)
 
     @property

@@ -67,7 +67,8 @@ impl Dispersion {
     /// naming the key, the realisation and the value.
     pub fn config(&self, row: usize, first: u64) -> Result<Config, ConfigError> {
         let cfg = self.patched(row, first)?;
-        cfg.validate().map_err(|e| ConfigError {
+        // The base scenario was validated whole; a row changes no fixed key.
+        cfg.validate_realisation().map_err(|e| ConfigError {
             message: format!(
                 "dispersions: realisation {} drew a value the scenario refuses: {} \
                  (narrow or truncate the distribution)",

@@ -485,6 +485,12 @@ impl Engine {
     /// under key `QUADRS_SIMD` if that variable forces a path this CPU cannot run).
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        Self::of_valid(cfg)
+    }
+
+    /// `new` for a scenario already validated (`Config::from_json`, `Dispersion::config`):
+    /// the checks are not run a second time.
+    pub fn of_valid(cfg: Config) -> Result<Self, ConfigError> {
         let isa = Isa::active().map_err(|message| ConfigError {
             key: crate::lane::isa::ENV.into(),
             message,
@@ -1500,7 +1506,13 @@ mod tests {
             .unwrap();
         let wind = engine.craft.wind();
         let mut max_x = 0.0_f64;
-        for (k, row) in tr.data.chunks(tr.width).enumerate() {
+        let rows: Vec<&[f64]> = tr.data.chunks(tr.width).collect();
+        let (last, flown) = rows.split_last().unwrap();
+        // The closing row holds the last step's wind: no step follows it.
+        for c in ["wind_x", "wind_y", "wind_z"] {
+            assert_eq!(col(last, c), col(flown[flown.len() - 1], c));
+        }
+        for (k, row) in flown.iter().enumerate() {
             let z = col(row, "z");
             let m = wind.mean_at(z);
             let g = wind.discrete_gusts(k as u64);

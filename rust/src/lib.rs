@@ -120,10 +120,25 @@ mod _core {
         crate::lane::isa::Isa::active().map_err(PyValueError::new_err)
     }
 
+    /// Most worker threads a call may ask for (quadrs.guard.MAX_WORKERS): a pool of a million
+    /// threads would swamp the machine, not speed anything up.
+    const MAX_WORKERS: usize = 4096;
+
+    /// `workers` in [1, MAX_WORKERS], or a ValueError naming it.
+    fn check_workers(workers: usize) -> PyResult<()> {
+        if (1..=MAX_WORKERS).contains(&workers) {
+            Ok(())
+        } else {
+            Err(PyValueError::new_err(format!(
+                "workers must be between 1 and {MAX_WORKERS}, got {workers}"
+            )))
+        }
+    }
+
     fn engine(config_json: &str) -> PyResult<Engine> {
         isa()?;
         let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-        Engine::new(cfg).map_err(scenario_error)
+        Engine::of_valid(cfg).map_err(scenario_error)
     }
 
     fn controllers(names: &[String]) -> PyResult<Vec<ControllerKind>> {
@@ -470,9 +485,7 @@ mod _core {
             if count == 0 {
                 return Err(PyValueError::new_err("runs must be >= 1, got 0"));
             }
-            if workers == 0 {
-                return Err(PyValueError::new_err("workers must be >= 1, got 0"));
-            }
+            check_workers(workers)?;
             let e = match fused {
                 false => e,
                 true => Cow::Owned(
@@ -595,9 +608,7 @@ mod _core {
             let dispersion = innovations_dispersion(e, dispersion_keys, values.as_ref(), n)?;
             let workers = workers
                 .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            if workers == 0 {
-                return Err(PyValueError::new_err("workers must be >= 1, got 0"));
-            }
+            check_workers(workers)?;
             let rows: Vec<&[f64]> = match xi.as_slice() {
                 Some(flat) if dim > 0 => flat.chunks(dim).collect(),
                 Some(_) => vec![&[][..]; n],
@@ -710,7 +721,7 @@ mod _core {
             if let Some(d) = innovations_dispersion(&e, dispersion_keys, values.as_ref(), 1)? {
                 // The fixed scenario of the row: exactly what an override of the keys flies.
                 let cfg = d.config(0, 0).map_err(scenario_error)?;
-                e = Cow::Owned(Engine::new(cfg).map_err(scenario_error)?);
+                e = Cow::Owned(Engine::of_valid(cfg).map_err(scenario_error)?);
             }
         } else if !dispersion_keys.is_empty() || dispersion_values.is_some() {
             return Err(PyValueError::new_err(
@@ -965,9 +976,7 @@ mod _core {
         workers: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let filter = gust_filter(model, component, sigma, length_scale, airspeed, dt)?;
-        if workers == 0 {
-            return Err(PyValueError::new_err("workers must be >= 1, got 0"));
-        }
+        check_workers(workers)?;
         let len = (realisations as u128) * (steps as u128);
         let mut buf = usize::try_from(len)
             .map_err(|_| format!("gust samples (steps * realisations): {len} values"))

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from quadrs import _core
-from quadrs.dispersion import dispersed_keys, distribution
+from quadrs.dispersion import check_range, dispersed_keys, distribution
 from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.rare.engine import engine_function, run_rows
 from quadrs.scenario import Scenario
@@ -111,6 +111,7 @@ class ScenarioModel:
         self._dimension: int | None = None
         #: The dispersed keys (sorted), each driven by one standard normal after the gust's.
         self.parameter_keys: tuple[str, ...] = tuple(dispersed_keys(scenario))
+        check_range(scenario, "a rare-event run")  # any value of the range may be drawn
         #: Threads flying a batch (None: all cores); results do not depend on it.
         self.workers = None if workers is None else check_int("workers", workers, 1, MAX_WORKERS)
         #: A dask.distributed Client: each batch's rows are spread over its workers.

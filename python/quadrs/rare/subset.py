@@ -589,10 +589,15 @@ def subset_simulation(
         pilot = pilot_size(per_level, p0)
     pilot, _, _ = check_settings(pilot, p0, max_levels)
     seeds = per_level // length
-    # States, candidates and a product of them, the seeds' reservoir, the failures of a level.
+    # Measured with tracemalloc (tests/test_hostile_r4.py): about seven chain-sized arrays of
+    # rows (states, candidates, the pilot's running best and its pool, the seeds' reservoir);
+    # per sample about eight numbers (the level's values, their copies, indicators, ancestries,
+    # sort order, copy counts); and the failure samples, up to a whole level's rows, held
+    # twice while joined.
     check_memory(
-        f"subset simulation in {dimension} dimensions with {seeds} chains",
-        6 * seeds * dimension * _F8,
+        f"subset simulation in {dimension} dimensions with {seeds} chains of {per_level} "
+        f"samples a level",
+        (7 * seeds * dimension + 8 * per_level + 2 * per_level * dimension) * _F8,
     )
     evaluate = _Evaluator(model, name)
     pilot_rng, main_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))

@@ -7,6 +7,7 @@ pub mod keys;
 pub mod route;
 pub mod wind;
 
+use crate::model::actuator::rotors;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -550,40 +551,84 @@ pub const MAX_STEPS: f64 = 2.0e9;
 impl Config {
     /// Parse and validate the engine's JSON form of a scenario.
     pub fn from_json(text: &str) -> Result<Self, ConfigError> {
-        // `phases = "legs"`: the route's schedule gives the phases, once the rest is valid.
-        let legs = serde_json::from_str::<serde_json::Value>(text)
-            .ok()
-            .is_some_and(|v| v.get("phases").and_then(|p| p.as_str()) == Some(LEGS));
+        let (mut cfg, legs) = Self::parse(text)?;
+        cfg.validate()?;
+        // `phases = "legs"`: the route's schedule gives the phases, once the rest is valid
+        // (`parse` left a placeholder phase covering the flight).
         if legs {
-            let mut v: serde_json::Value = serde_json::from_str(text).expect("parsed above");
-            let whole = v
-                .pointer("/integrator/duration")
-                .cloned()
-                .unwrap_or(serde_json::Value::Null);
-            v["phases"] = serde_json::json!([{"name": LEGS, "start": 0.0, "end": whole}]);
-            let mut cfg = Self::from_json(&v.to_string())?;
             cfg.phases = route::leg_phases(&cfg)?;
-            cfg.validate()?;
-            return Ok(cfg);
+            cfg.validate_phases()?;
         }
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let cfg: Config = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.inner().to_string();
-            // serde_json appends " at line L column C": meaningless to a TOML user.
+        Ok(cfg)
+    }
+
+    /// The JSON form read into a `Config`, not validated: every table given as a table (an
+    /// array where a table is expected is refused, never read by position) and every
+    /// fixed-length array of its length. `phases = "legs"` becomes one placeholder phase named
+    /// `LEGS` over the whole flight (then the flag is true).
+    fn parse(text: &str) -> Result<(Self, bool), ConfigError> {
+        let mut value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+            let inner = e.to_string();
             let inner = inner
                 .split(" at line ")
                 .next()
                 .unwrap_or(&inner)
                 .to_string();
-            if key == "." || key.is_empty() {
-                ConfigError::new("", format!("scenario: {inner}"))
-            } else {
-                ConfigError::new(key.clone(), format!("{key}: {inner}"))
-            }
+            ConfigError::new("", format!("scenario: {inner}"))
         })?;
-        cfg.validate()?;
-        Ok(cfg)
+        let legs = value.get("phases").and_then(|p| p.as_str()) == Some(LEGS);
+        if legs {
+            let whole = value
+                .pointer("/integrator/duration")
+                .cloned()
+                .unwrap_or(serde_json::Value::Null);
+            value["phases"] = serde_json::json!([{"name": LEGS, "start": 0.0, "end": whole}]);
+        }
+        if let Some(key) = static_array_for_table(&value) {
+            return Err(ConfigError::new(
+                key.clone(),
+                format!("{key} must be a table, got an array"),
+            ));
+        }
+        let cfg: Config = serde_path_to_error::deserialize(&value).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.inner().to_string();
+            if key == "." || key.is_empty() {
+                return ConfigError::new("", format!("scenario: {inner}"));
+            }
+            let given = at_path(&value, &key);
+            let message = match given {
+                // serde reads a struct from an array by position: never accept that.
+                Some(serde_json::Value::Array(a)) if inner.contains("expected struct") => {
+                    format!("{key} must be a table, got an array of {}", a.len())
+                }
+                // A fixed-length array ([x, y, z], a waypoint's 5 numbers) of another length.
+                Some(serde_json::Value::Array(a)) if inner.starts_with("invalid length") => {
+                    let wanted = inner
+                        .rsplit("array of length ")
+                        .next()
+                        .and_then(|n| n.parse::<usize>().ok())
+                        .unwrap_or(if key.starts_with("trajectory.waypoints") {
+                            5
+                        } else {
+                            3
+                        });
+                    format!("{key} must have {wanted} numbers, got {}", a.len())
+                }
+                _ => format!("{key}: {inner}"),
+            };
+            ConfigError::new(key, message)
+        })?;
+        // serde also reads a table from an array silently where the fields have defaults
+        // (`wind = [5.0, 2.0]`, `ground = []`): every table of the scenario must be one.
+        let shape = serde_json::to_value(&cfg).expect("a Config always serialises");
+        if let Some(key) = array_for_table(&value, &shape, String::new()) {
+            return Err(ConfigError::new(
+                key.clone(),
+                format!("{key} must be a table, got an array"),
+            ));
+        }
+        Ok((cfg, legs))
     }
 
     pub fn to_json(&self) -> String {
@@ -620,6 +665,18 @@ impl Config {
 
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_values(true)
+    }
+
+    /// `validate` without the keys no realisation of a batch may change (`keys::FIXED_PREFIXES`:
+    /// the trajectory, its route and schedule, the phases): for a dispersed realisation of a
+    /// scenario `validate` has accepted, so that a long route is checked once, not per
+    /// realisation.
+    pub fn validate_realisation(&self) -> Result<(), ConfigError> {
+        self.validate_values(false)
+    }
+
+    fn validate_values(&self, fixed: bool) -> Result<(), ConfigError> {
         let v = &self.vehicle;
         positive("vehicle.mass", v.mass)?;
         for (i, x) in v.inertia.iter().enumerate() {
@@ -710,9 +767,12 @@ impl Config {
         }
 
         self.validate_controller()?;
-        self.validate_trajectory()?;
+        if fixed {
+            self.validate_trajectory()?;
+        }
         self.validate_gust()?;
         self.wind.validate()?;
+        self.validate_shear()?;
 
         let it = &self.integrator;
         positive("integrator.dt", it.dt)?;
@@ -735,8 +795,10 @@ impl Config {
                 ),
             ));
         }
-        route::schedule(self)?;
-        self.validate_phases()?;
+        if fixed {
+            route::schedule(self)?;
+            self.validate_phases()?;
+        }
         self.validate_actuator()?;
 
         positive("metrics.spectrum_rate", self.metrics.spectrum_rate)?;
@@ -746,6 +808,26 @@ impl Config {
         positive("divergence.max_rate", self.divergence.max_rate)?;
         self.validate_ground()?;
         dispersions::validate(self)
+    }
+
+    /// `wind.roughness` gives a finite shear factor at every height a flight can reach (up to
+    /// `divergence.max_distance`): a subnormal z0 passes the bounds but makes ln(h / z0)
+    /// infinite. Checked whatever `wind.shear` says (one set of rules).
+    fn validate_shear(&self) -> Result<(), ConfigError> {
+        let z0 = self.wind.roughness;
+        let top = self.divergence.max_distance.max(wind::REFERENCE_HEIGHT);
+        let reference = wind::shear_factor(Shear::Log, wind::REFERENCE_HEIGHT, z0);
+        let highest = wind::shear_factor(Shear::Log, top, z0);
+        if !(reference.is_finite() && reference > 0.0 && highest.is_finite() && highest > 0.0) {
+            return Err(ConfigError::new(
+                "wind.roughness",
+                format!(
+                    "wind.roughness gives no finite log shear factor up to {top:?} m \
+                     (divergence.max_distance): too small, got {z0:?}"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn validate_ground(&self) -> Result<(), ConfigError> {
@@ -846,6 +928,35 @@ impl Config {
                 ),
             ));
         }
+        // M^-1 must exist and be finite, and M M^-1 must be the identity: a huge arm or a
+        // subnormal torque ratio overflows or underflows the inverse (NaN thrusts otherwise).
+        let m = rotors::allocation(a.layout, l, a.torque_ratio);
+        let inverse = rotors::allocation_inverse(&m)
+            .filter(|inv| inv.iter().flatten().all(|x| x.is_finite()))
+            .filter(|inv| {
+                (0..4).all(|i| {
+                    (0..4).all(|j| {
+                        let mij: f64 = (0..4).map(|k| m[i][k] * inv[k][j]).sum();
+                        (mij - if i == j { 1.0 } else { 0.0 }).abs() < 1e-9
+                    })
+                })
+            });
+        if inverse.is_none() {
+            let (key, x) = if (1e-6..=1e3).contains(&l) {
+                ("actuator.torque_ratio", a.torque_ratio)
+            } else {
+                ("vehicle.arm_length", l)
+            };
+            return Err(ConfigError::new(
+                key,
+                format!(
+                    "{key} makes the rotors' allocation (vehicle.arm_length = {l:?} m, \
+                     actuator.torque_ratio = {:?} m) impossible to invert in floating point, \
+                     got {x:?}",
+                    a.torque_ratio
+                ),
+            ));
+        }
         let dt = self.integrator.dt;
         if a.time_constant < dt {
             return Err(ConfigError::new(
@@ -931,6 +1042,7 @@ impl Config {
                 "phases must name at least one time window, got none",
             ));
         }
+        let mut seen = std::collections::HashSet::with_capacity(self.phases.len());
         for (i, ph) in self.phases.iter().enumerate() {
             if ph.name.trim().is_empty() {
                 return Err(ConfigError::new(
@@ -947,7 +1059,7 @@ impl Config {
                     ),
                 ));
             }
-            if self.phases[..i].iter().any(|p| p.name == ph.name) {
+            if !seen.insert(ph.name.as_str()) {
                 return Err(ConfigError::new(
                     format!("phases[{i}].name"),
                     format!("phases[{i}].name must be unique, got {:?} twice", ph.name),
@@ -1050,6 +1162,90 @@ impl Config {
 }
 
 /// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
+/// The value at a dotted key (`trajectory.route[1]`, as serde_path_to_error prints it).
+fn at_path<'v>(value: &'v serde_json::Value, key: &str) -> Option<&'v serde_json::Value> {
+    let mut node = value;
+    for seg in keys::parse_key(key)? {
+        node = match seg {
+            keys::Seg::Field(f) => node.get(f.as_str())?,
+            keys::Seg::Index(i) => node.get(i)?,
+        };
+    }
+    Some(node)
+}
+
+/// The scenario's tables, by dotted key (`phases[i]`, `wind.gusts[i]` and each
+/// `dispersions` entry are tables too).
+const TABLES: [&str; 16] = [
+    "vehicle",
+    "payload",
+    "environment",
+    "initial",
+    "controller",
+    "controller.pd",
+    "controller.smc",
+    "actuator",
+    "trajectory",
+    "gust",
+    "wind",
+    "integrator",
+    "metrics",
+    "divergence",
+    "ground",
+    "dispersions",
+];
+
+/// The first table of the scenario given as an array (checked before serde, which would read
+/// a struct from an array by position).
+fn static_array_for_table(value: &serde_json::Value) -> Option<String> {
+    if let Some(key) = TABLES
+        .iter()
+        .find(|k| at_path(value, k).is_some_and(|v| v.is_array()))
+    {
+        return Some(key.to_string());
+    }
+    let rows = |key: &str| -> Option<String> {
+        let rows = at_path(value, key)?.as_array()?;
+        let i = rows.iter().position(|r| r.is_array())?;
+        Some(format!("{key}[{i}]"))
+    };
+    if let Some(key) = rows("phases").or_else(|| rows("wind.gusts")) {
+        return Some(key);
+    }
+    let table = value.get("dispersions")?.as_object()?;
+    let (key, _) = table.iter().find(|(_, v)| v.is_array())?;
+    Some(format!("dispersions.{key}"))
+}
+
+/// The first key where `shape` (the parsed scenario, serialised) holds a table and `given`
+/// (what was sent) an array.
+fn array_for_table(
+    given: &serde_json::Value,
+    shape: &serde_json::Value,
+    key: String,
+) -> Option<String> {
+    use serde_json::Value;
+    let join = |k: &str| {
+        if key.is_empty() {
+            k.to_string()
+        } else {
+            format!("{key}.{k}")
+        }
+    };
+    match (given, shape) {
+        (Value::Array(_), Value::Object(_)) => Some(key),
+        (Value::Object(g), Value::Object(s)) => s
+            .iter()
+            .find_map(|(k, v)| array_for_table(g.get(k)?, v, join(k))),
+        (Value::Array(g), Value::Array(s)) if s.first().is_some_and(Value::is_object) => g
+            .iter()
+            .zip(s)
+            .enumerate()
+            .find_map(|(i, (g, s))| array_for_table(g, s, format!("{key}[{i}]"))),
+        _ => None,
+    }
+}
+
 fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() {
         Ok(())
@@ -1214,6 +1410,84 @@ pub(crate) mod tests {
         assert_eq!(e.key, "actuator.layout");
         let e = with(|v| v["actuator"]["model"] = "jets".into()).unwrap_err();
         assert_eq!(e.key, "actuator.model");
+    }
+
+    #[test]
+    fn a_table_given_as_an_array_is_refused_by_name() {
+        use serde_json::json;
+        for (key, value) in [
+            ("wind", json!([5.0, 2.0])),
+            ("wind", json!([])),
+            ("actuator", json!([])),
+            ("ground", json!([])),
+            ("environment", json!([3.71])),
+        ] {
+            let e = with(|v| v[key] = value.clone()).unwrap_err();
+            assert_eq!(e.key, key, "{e}");
+            assert_eq!(e.message, format!("{key} must be a table, got an array"));
+        }
+        let e = with(|v| v["phases"][1] = json!(["P2", 25.0, 40.0])).unwrap_err();
+        assert_eq!(e.key, "phases[1]", "{e}");
+        let e = with(|v| v["controller"]["pd"] = json!([[1, 1, 1]])).unwrap_err();
+        assert!(
+            e.message.starts_with("controller.pd must be a table"),
+            "{e}"
+        );
+        let e = with(|v| v["initial"]["position"] = json!([0, 0, 0, 1])).unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            (
+                "initial.position",
+                "initial.position must have 3 numbers, got 4"
+            )
+        );
+        let e = with(|v| v["trajectory"]["waypoints"][1] = json!([1, 0, 0])).unwrap_err();
+        assert_eq!(
+            e.message,
+            "trajectory.waypoints[1] must have 5 numbers, got 3"
+        );
+    }
+
+    #[test]
+    fn rotor_geometry_the_allocation_cannot_invert_is_refused() {
+        let rotors = |edit: fn(&mut Config)| {
+            let mut c = paper();
+            c.actuator.model = ActuatorModelName::Rotors;
+            edit(&mut c);
+            c.validate()
+        };
+        for (edit, key) in [
+            (
+                (|c: &mut Config| c.vehicle.arm_length = 1e155) as fn(&mut Config),
+                "vehicle.arm_length",
+            ),
+            (
+                |c| c.actuator.torque_ratio = 5e-324,
+                "actuator.torque_ratio",
+            ),
+            (
+                |c| c.actuator.torque_ratio = 1e-310,
+                "actuator.torque_ratio",
+            ),
+        ] {
+            let e = rotors(edit).unwrap_err();
+            assert_eq!(e.key, key, "{e}");
+            assert!(e.message.contains("impossible to invert"), "{e}");
+        }
+        rotors(|c| c.vehicle.arm_length = 2.0).expect("a large but invertible vehicle");
+    }
+
+    #[test]
+    fn a_roughness_without_a_finite_shear_factor_is_refused() {
+        for z0 in [5e-324, 1e-310] {
+            let mut c = paper();
+            c.wind.roughness = z0;
+            let e = c.validate().unwrap_err();
+            assert_eq!(e.key, "wind.roughness", "{e}");
+        }
+        let mut c = paper();
+        c.wind.roughness = 1e-6;
+        c.validate().expect("a smooth surface");
     }
 
     #[test]

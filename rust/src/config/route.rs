@@ -330,14 +330,21 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
                 format!(
                     "trajectory.names must name each of the route's {} segments in order ({}), got {}",
                     out.len(),
-                    defaults.join(", "),
+                    abridged(&defaults),
                     tr.names.len()
                 ),
             ));
         }
+        let mut seen = std::collections::HashSet::with_capacity(tr.names.len());
         for (i, name) in tr.names.iter().enumerate() {
             let key = format!("trajectory.names[{i}]");
-            if name.trim().is_empty() || name == FLIGHT_PHASE {
+            if name.trim().is_empty() {
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} must not be blank, got {name:?}"),
+                ));
+            }
+            if name == FLIGHT_PHASE {
                 return Err(ConfigError::new(
                     &key,
                     format!(
@@ -345,7 +352,7 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
                     ),
                 ));
             }
-            if tr.names[..i].contains(name) {
+            if !seen.insert(name.as_str()) {
                 return Err(ConfigError::new(
                     &key,
                     format!("{key} must be unique, got {name:?} twice"),
@@ -357,6 +364,21 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
         }
     }
     Ok(out)
+}
+
+/// `a, b, c` for a few names; the first and last few around a count for many (a message
+/// stays one short line whatever the route's length).
+fn abridged(names: &[&str]) -> String {
+    const FEW: usize = 8;
+    if names.len() <= FEW {
+        return names.join(", ");
+    }
+    format!(
+        "{}, ... {} more ..., {}",
+        names[..FEW - 2].join(", "),
+        names.len() - FEW,
+        names[names.len() - 2..].join(", ")
+    )
 }
 
 /// `phases = "legs"`: one phase per segment of the schedule, covering the flight.
@@ -653,5 +675,39 @@ mod tests {
         })
         .unwrap_err();
         assert_eq!(e.key, "phases[0].name");
+    }
+
+    #[test]
+    fn long_routes_validate_in_one_pass_with_short_messages() {
+        let points = 20_000;
+        let long = |names: usize| {
+            route_cfg(move |c| {
+                let route: Vec<[f64; 3]> = (0..points).map(|i| [i as f64, 0.0, 10.0]).collect();
+                c["trajectory"]["route"] = json!(route);
+                c["trajectory"]["hold"] = json!(Vec::<f64>::new());
+                c["trajectory"]["speed"] = json!(20.0);
+                c["trajectory"]["acceleration"] = json!(100.0);
+                c["integrator"]["dt"] = json!(0.01);
+                c["integrator"]["duration"] = json!(1e5);
+                let names: Vec<String> = (0..names).map(|i| format!("n{i}")).collect();
+                c["trajectory"]["names"] = json!(names);
+            })
+        };
+        // One name per leg and the final hold: unique names checked in linear time.
+        let cfg = long(points).expect("a long named route");
+        assert_eq!(cfg.phases.len(), points);
+        let e = long(points - 1).unwrap_err();
+        assert_eq!(e.key, "trajectory.names");
+        assert!(e.message.len() < 300, "{} characters", e.message.len());
+        assert!(e.message.contains("more"), "{e}");
+        let e =
+            route_cfg(|c| c["trajectory"]["names"] = json!(["a", " ", "b", "c", "d"])).unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            (
+                "trajectory.names[1]",
+                "trajectory.names[1] must not be blank, got \" \""
+            )
+        );
     }
 }

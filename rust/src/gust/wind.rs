@@ -1283,7 +1283,8 @@ mod tests {
         let steps = 400;
         let xi = f.innovations_of(8, 2, steps);
         let (mut a, mut b) = (f.realisation(8, 2), f.given(&xi));
-        for n in 0..=steps as u64 {
+        // Steps 0..steps are flown; the closing row draws nothing (`innovations`).
+        for n in 0..steps as u64 {
             let z = 1.0 + 0.1 * n as f64;
             let k = at(z, [0.3, -0.1, 0.5]);
             assert_eq!(f.sample_at(&mut a, n, &k), f.sample_at(&mut b, n, &k));
