@@ -268,7 +268,8 @@ def test_plots_into_an_existing_file_is_refused_before_flying(
     monkeypatch.setattr(quadrs.montecarlo, "monte_carlo", no_flights)
     plots = tmp_path / "figures"
     plots.write_text("mine")
-    extra = ["--controllers", "pd"] if command == "mc" else ["--limit", "8"]
+    # mission flies the delivery route unless told otherwise (issue 41): the paper's here
+    extra = ["--controllers", "pd"] if command == "mc" else ["--preset", "paper", "--limit", "8"]
     code, _, err = run_cli(command, *TINY_CLI, "--runs", "2", "--no-progress", *extra,
                            "--plots", str(plots), capsys=capsys)  # fmt: skip
     assert code == 2, err

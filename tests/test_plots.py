@@ -359,7 +359,7 @@ def figure_makers(flights, mc, swept, short) -> dict:
         "sweep_metric": (3, lambda ax=None: plots.sweep_metric(summ, "iae", ax=ax)),
         "max_amplitude": (2, lambda ax=None: plots.max_amplitude(summ, ax=ax)),
         "exceedance_curves": (
-            3,
+            4,  # P1, P2, P3 and the whole flight
             lambda ax=None: plots.exceedance_curves(mc.runs, "max_abs", [0.01], ax=ax),
         ),
         "dispersion_scatter": (

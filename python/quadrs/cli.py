@@ -317,9 +317,11 @@ def _values(text: str) -> list[Any]:
 def _add_report(sub: Any) -> None:
     p = sub.add_parser(
         "report",
-        help="reprint the summary of a saved Monte Carlo or sweep file",
+        help="reprint the summary of a saved Monte Carlo, mission or sweep file",
         description="Reprint the Table-3 summary (or a sweep's summary) from a Parquet file "
-        "written by `quadrs mc --out` or `quadrs sweep --out`.",
+        "written by `quadrs mc --out` or `quadrs sweep --out`; for the flights of a route "
+        "(`quadrs mission --out`), the mission's tables at the first --limit (default "
+        "max_accel=9.81).",
     )
     p.add_argument(
         "file",
@@ -340,7 +342,8 @@ def _limit_options(p: argparse.ArgumentParser) -> None:
         type=_limit,
         default=[],
         help="print P(METRIC > THRESHOLD) per controller and phase with its exact 95%% "
-        "interval and the runs needed for a chosen width, e.g. max_accel=2.0 (m/s^2); "
+        "interval and the runs needed for a chosen width, e.g. max_accel=2.0 (m/s^2; a bare "
+        "2.0 means max_accel), max_swing=30 (degrees); "
         "repeatable; a run counts as exceeding in the phase it diverged in and later ones",
     )
     p.add_argument(
@@ -354,12 +357,10 @@ def _limit_options(p: argparse.ArgumentParser) -> None:
 
 
 def _limit(text: str) -> tuple[str, float]:
-    from quadrs.risk import parse_limit
+    """``--limit`` (quadrs.cli_common.limit_option)."""
+    from quadrs.cli_common import limit_option
 
-    try:
-        return parse_limit(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e)) from None
+    return limit_option(text)
 
 
 def _half_width(text: str) -> float:
@@ -382,7 +383,15 @@ def _print_limits(result: Any, args: argparse.Namespace) -> None:
         "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; a diverged run counts as "
         "exceeding from the phase it diverged in:"
     )
-    _print_frame(limits_table(result, args.limit, args.half_width / 100))
+    table = limits_table(result, args.limit, args.half_width / 100)
+    if "threshold" in table:  # in the unit the tables show (degrees for swing)
+        from quadrs.plots_base import UNITS, display_scale
+
+        scale = [display_scale(str(m)) for m in table.index]
+        table["threshold"] = table["threshold"].to_numpy(float) * scale
+        table.insert(list(table.columns).index("threshold") + 1, "unit",
+                     [UNITS.get(str(m), "") for m in table.index])  # fmt: skip
+    _print_frame(table)
     if {"pd", "smc"} <= set(result.controllers):
         print("\nSMC - PD, paired on the same gusts (Newcombe interval, exact McNemar p):")
         _print_frame(limits_difference_table(result, args.limit))
@@ -395,8 +404,9 @@ def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
         "paper",
         parents=[common],
         help="every table and figure of the paper, and report.md",
-        description="Reproduce the paper's Figs. 4-16 and Table 3 (with Monte Carlo versions) "
-        "into DIR, with report.md setting our Table 3 beside the paper's.",
+        description="Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo "
+        "versions) into DIR, with report.md setting our Table 3 beside the paper's. The numbers "
+        "are not the paper's (see docs/paper-calibration.md).",
     )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument(
@@ -695,6 +705,8 @@ def cmd_mc(args: argparse.Namespace) -> int:
             raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
     _check_outputs(args.out)
     _check_directories(args.plots)
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
     with dask_client(args.scheduler) as client:
         mc = monte_carlo(
             scenario,
@@ -715,11 +727,36 @@ def cmd_mc(args: argparse.Namespace) -> int:
         saved = _save(mc.to_parquet, args.out)
     if not mc.runs.empty:
         _print_dispersions(mc)
-        _print_table3(mc, args)
+        if _is_mission(mc):
+            _print_mission(mc, args)
+        else:
+            _print_table3(mc, args)
         _print_limits(mc, args)
     if args.plots is not None and not mc.runs.empty:
         _mc_plots(mc, args.plots, args.limit)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+
+
+def _announce_batch(
+    command: str,
+    scenario: Any,
+    controllers: Sequence[str],
+    runs: int,
+    workers: int | None,
+    seed: int,
+    extra: int = 0,
+    what: str = "",
+) -> None:
+    """Say on stderr what a long batch flies and roughly how long (quadrs.cost): ``runs``
+    realisations of each controller, plus ``extra`` flights."""
+    from quadrs.cost import announce, calibrate, precheck, say
+
+    precheck(scenario, controllers, runs, workers, seed)
+    cal = calibrate(scenario, controllers, workers, seed, flights=min(runs, 8))
+    flights = runs * len(controllers) + extra
+    names = " and ".join(c.upper() for c in controllers)
+    what = what or f"{runs} realisations x {names}"
+    say(announce(command, what, flights, cal), cal.estimate(flights))
 
 
 def _print_dispersions(mc: Any) -> None:
@@ -844,11 +881,31 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
         if mc.runs.empty:  # a run stopped before its first realisation finished
             return EXIT_OK
-        _print_table3(mc, args)
+        if _is_mission(mc):
+            _print_mission(mc, args)
+        else:
+            _print_table3(mc, args)
         _print_limits(mc, args)
         if args.plots is not None:
             _mc_plots(mc, args.plots, args.limit)
     return EXIT_OK
+
+
+def _is_mission(mc: Any) -> bool:
+    """A batch of a route (``quadrs mission``, or ``mc`` of a routed scenario): its answer is
+    the mission's tables, not the paper's Table 3 of the spring's displacement."""
+    return str(mc.scenario["trajectory.interpolation"]) == "route"
+
+
+def _print_mission(mc: Any, args: argparse.Namespace) -> None:
+    """The mission's tables of each controller, at the first --limit (default max_accel at
+    1 g)."""
+    from quadrs.cli_mission import DEFAULT_LIMIT
+    from quadrs.mission import mission_report
+
+    metric, limit = args.limit[0] if args.limit else ("max_accel", DEFAULT_LIMIT)
+    for ctrl in mc.controllers:
+        print(mission_report(mc, limit, ctrl, metric=metric).to_text(width=100))
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> int:
@@ -920,6 +977,16 @@ def cmd_paper(args: argparse.Namespace) -> int:
     _check_positive("--runs", args.runs, 2)
     _check_positive("--sweep-runs", args.sweep_runs, 2)
     _check_positive("--workers", args.workers)
+    sweep_runs = max(2, args.runs // 10) if args.sweep_runs is None else args.sweep_runs
+    from quadrs.paper import _check as check_paper
+
+    check_paper(args.runs, sweep_runs, args.seed, args.frequencies, args.masses, scenario)
+    _check_directories(args.out, option="--out")  # refused before the estimate, not after
+    extra = 2 * sweep_runs * len(args.frequencies)
+    what = (f"{args.runs} realisations x PD and SMC, a sweep of {len(args.frequencies)} "
+            f"frequencies x {sweep_runs}")  # fmt: skip
+    _announce_batch("paper", scenario, ("pd", "smc"), args.runs, args.workers, args.seed,
+                    extra, what)  # fmt: skip
     result = paper(
         args.out,
         scenario,

@@ -59,3 +59,19 @@ def seed_and_workers(p: argparse.ArgumentParser) -> None:
         metavar="W",
         help="worker threads (default: every core this process may use)",
     )
+
+
+def limit_option(text: str) -> tuple[str, float]:
+    """``--limit METRIC=X`` (any metric the engine names) or a bare ``X`` for max_accel, in
+    ``quadrs mc``, ``sweep``, ``report`` and ``mission`` alike; X in the unit the tables show
+    (degrees for swing), returned in the results' unit (radians)."""
+    from quadrs.plots_base import display_scale
+    from quadrs.risk import parse_limit
+
+    if "=" not in text:
+        text = f"max_accel={text}"
+    try:
+        metric, value = parse_limit(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    return metric, value / display_scale(metric)

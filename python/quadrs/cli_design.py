@@ -233,25 +233,39 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     middle = {k: (lo + hi) / 2 for k, (lo, hi) in params.items()}
     _tuned_toml(args, args.out, list(expand(middle)), scenario.override(expand(middle)))
     progress = sys.stderr.isatty()
+    _announce_tune(args, scenario, len(params))
+    history = args.history if args.history is not None else _default_history(args.out)
+    flown: list[dict[str, Any]] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
-        result = optimize(
-            scenario,
-            args.controller,
-            params,
-            args.objective,
-            phases,
-            runs=args.runs,
-            seed=args.seed,
-            require_stable=not args.allow_unstable,
-            method=args.method,
-            maxiter=args.maxiter,
-            workers=args.workers,
-            progress=progress,
-            popsize=args.popsize,
-            constraints=args.constraint,
-        )
+        try:
+            result = optimize(
+                scenario,
+                args.controller,
+                params,
+                args.objective,
+                phases,
+                runs=args.runs,
+                seed=args.seed,
+                require_stable=not args.allow_unstable,
+                method=args.method,
+                maxiter=args.maxiter,
+                workers=args.workers,
+                progress=progress,
+                popsize=args.popsize,
+                constraints=args.constraint,
+                callback=flown.append,
+            )
+        except KeyboardInterrupt:
+            print("quadrs tune: interrupted during the first candidate: no candidate finished, "
+                  "nothing to keep", file=sys.stderr)  # fmt: skip
+            return EXIT_INTERRUPT
     h = result.history
+    if result.interrupted and args.history is None:
+        # Ctrl-C keeps the candidates flown: beside --out when --history was not given.
+        if _save_text(lambda p: atomic_write_frame(h, p, index=False), history):
+            print(f"quadrs tune: the {len(flown)} candidates evaluated are in {history}",
+                  file=sys.stderr)  # fmt: skip
     searched = result.evaluations
     rejected = searched["unstable_modes"].astype(bool) & ~searched["flown"]
     modes = ", ".join(
@@ -282,6 +296,11 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         table = table.drop(columns=["controller"])
         print(terminal_text(table.to_string(float_format=lambda v: f"{v:.4g}")))
     best_row = h[h["role"] == "best"].iloc[0]
+    status = EXIT_OK
+    if args.history is not None and not _save_text(
+        lambda p: atomic_write_frame(h, p, index=False), args.history
+    ):
+        status = EXIT_FAIL
     if result.constraints and not result.feasible and not bool(best_row["penalised"]):
         broken = "; ".join(str(c) for c in result.constraints)
         print(terminal_text(f"quadrs tune: no candidate met every constraint ({broken}): "
@@ -297,17 +316,41 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     # The file must give back exactly the tuned scenario.
     if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
         raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
-    status = EXIT_OK
     if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
-        status = EXIT_FAIL
-    if args.history is not None and not _save_text(
-        lambda p: atomic_write_frame(h, p, index=False), args.history
-    ):
         status = EXIT_FAIL
     if result.interrupted:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
         return EXIT_INTERRUPT
     return status
+
+
+def _default_history(out: Path) -> Path:
+    """Where an interrupted tune without --history keeps its candidates: FILE-history.csv."""
+    return out.with_name(f"{out.stem}-history.csv")
+
+
+def tune_budget(args: argparse.Namespace, n_params: int) -> tuple[int, int]:
+    """(candidates, flights) a tune will fly at most: the search's candidates, then the
+    untuned scenario, the best on the held-out seed and the best again for the per-phase
+    effects (three more batches of --runs)."""
+    if args.method == "differential_evolution":
+        generations = 20 if args.maxiter is None else args.maxiter
+        candidates = args.popsize * n_params * (generations + 1)
+    else:
+        candidates = 100 if args.maxiter is None else args.maxiter
+    return candidates, (candidates + 3) * args.runs
+
+
+def _announce_tune(args: argparse.Namespace, scenario: Any, n_params: int) -> None:
+    """Say before the search what it flies and roughly how long, from a short calibration."""
+    from quadrs.cost import announce, calibrate, precheck, say
+
+    precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
+    candidates, flights = tune_budget(args, n_params)
+    cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
+                    flights=min(args.runs, 16))  # fmt: skip
+    what = f"up to {candidates} candidates of {args.runs} flights, then 3 checks"
+    say(announce("tune", what, flights, cal), cal.estimate(flights))
 
 
 def _infeasible_count(searched: Any, result: Any) -> str:

@@ -20,6 +20,10 @@ from quadrs.guard import CONTROLLERS
 
 #: Default payload acceleration limit: 1 g (m/s^2).
 DEFAULT_LIMIT = 9.81
+#: Default route tracking limit, m (quadrs.mission.TRACK_LIMIT).
+TRACK_LIMIT = 10.0
+#: The scenario mission flies without --preset or --scenario.
+DEFAULT_PRESET = "delivery"
 
 
 def _number(text: str, ok: Callable[[float], bool], expected: str) -> float:
@@ -36,6 +40,17 @@ def _positive(text: str) -> float:
     return _number(text, lambda v: math.isfinite(v) and v > 0, "finite and > 0")
 
 
+def mission_limit(text: str) -> tuple[str, float]:
+    """``--limit 5`` (max_accel, m/s^2) or ``--limit METRIC=X``, as in ``quadrs report``: any
+    metric the engine names, X in the unit every table shows (degrees for swing)."""
+    from quadrs.cli_common import limit_option
+
+    metric, value = limit_option(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return metric, value
+
+
 def _fraction(text: str) -> float:
     return _number(text, lambda v: 0 < v < 1, "in (0, 1)")
 
@@ -45,8 +60,10 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         "mission",
         parents=[common],
         help="will the parcel survive this route? per-leg risk of a Monte Carlo batch",
-        description="Fly --runs gust realisations of the scenario with one controller and "
-        'print, per phase (a route\'s legs and holds under phases = "legs") and for the '
+        description="Fly --runs gust realisations of the scenario (default: --preset "
+        "delivery) with one controller and print, first, whether the route was flown (tracking "
+        "and cross-track error against --track-limit, divergence, time at the thrust limit), "
+        'then per phase (a route\'s legs and holds under phases = "legs") and for the '
         "whole flight: the probability that the payload's peak acceleration exceeds --limit "
         "(exact 95% interval), the worst and the --quantile of the swing and the cable "
         "tension, slack and saturated time, and the tracking errors, with intervals "
@@ -61,10 +78,26 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--limit",
-        type=_positive,
-        default=DEFAULT_LIMIT,
+        type=mission_limit,
+        default=("max_accel", DEFAULT_LIMIT),
         metavar="A",
-        help="payload acceleration limit, m/s^2 (default: %(default)s, 1 g)",
+        help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
+        f"metric (degrees for swing) (default: {DEFAULT_LIMIT}, 1 g)",
+    )
+    p.add_argument(
+        "--track-limit",
+        type=_positive,
+        default=TRACK_LIMIT,
+        metavar="M",
+        help="a flight whose tracking error (3-D distance from its reference) passes M metres "
+        "in a phase is off its route there (default: %(default)s)",
+    )
+    p.add_argument(
+        "--cross-track-limit",
+        type=_positive,
+        default=None,
+        metavar="M",
+        help="likewise for the cross-track error, m (default: the --track-limit)",
     )
     p.add_argument(
         "--quantile",
@@ -105,6 +138,8 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.montecarlo import monte_carlo
     from quadrs.saving import check_directories, check_outputs, save
 
+    if args.preset is None and args.scenario is None:
+        args.preset = DEFAULT_PRESET  # a mission is a route: the delivery preset's
     scenario = load_scenario(args)
     if args.out is not None and args.out.suffix.lower() != ".parquet":
         raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
@@ -115,6 +150,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     check_int("--seed", args.seed)
     check_outputs(args.out)
     check_directories(args.plots)
+    _announce(scenario, args)
     mc = monte_carlo(
         scenario,
         runs=args.runs,
@@ -130,13 +166,28 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
-    report = mission_report(mc, args.limit, args.controller, args.quantile)
+    metric, limit = args.limit
+    report = mission_report(mc, limit, args.controller, args.quantile, metric=metric,
+                            track_limit=args.track_limit,
+                            cross_track_limit=args.cross_track_limit)  # fmt: skip
     if mc.interrupted:
         print(f"(interrupted: {report.runs} of {args.runs} realisations finished)")
     print(report.to_text(width=100))
     if args.plots is not None:
         _plots(mc, report, args.plots)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+
+
+def _announce(scenario: Any, args: argparse.Namespace) -> None:
+    """What the command flies and roughly how long, from a short calibration, on stderr."""
+    from quadrs.cost import announce, calibrate, precheck, say
+
+    precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
+    cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
+                    flights=min(args.runs, 8))  # fmt: skip
+    duration = float(scenario["integrator.duration"])
+    what = f"{args.runs} realisations of a {duration:g} s flight"
+    say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))
 
 
 def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
@@ -152,7 +203,9 @@ def _plots(mc: Any, report: Any, directory: Path) -> None:
     from quadrs.terminal import terminal_text
 
     figures: list[tuple[str, Callable[[], Any]]] = [("mission_risk", lambda: mission_risk(report))]
-    for metric, marks in (("max_accel", [report.limit]), ("max_swing", []), ("max_tension", [])):
+    shown = [(m, [report.limit] if m == report.metric else []) for m in
+             dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
+    for metric, marks in shown:
         if metric in mc.runs:
             figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
     files: list[Path] = []

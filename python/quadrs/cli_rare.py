@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.cli_common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
+from quadrs.cost import Eta, duration, say
 from quadrs.guard import CONTROLLERS
 
 LoadScenario = Callable[[argparse.Namespace], Any]
@@ -168,6 +169,13 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     value_name = terminal_text(f"{args.metric} in {args.phase}")
     show = not args.no_progress and sys.stderr.isatty()
     flying = [-1]  # which controller's levels are reported (level 0 starts the next one)
+    _, p0, max_levels = check_settings(args.per_level, args.p0, args.max_levels)
+    # A cluster's speed is not this machine's: no estimate there.
+    per_level_seconds = (math.nan if args.scheduler is not None
+                         else _announce(scenario, args, controllers, p0, max_levels))  # fmt: skip
+    eta = Eta(None)
+    per_level = (f", about {duration(per_level_seconds)} a level here"
+                 if math.isfinite(per_level_seconds) else "")  # fmt: skip
 
     def on_level(level: Level) -> None:
         flying[0] += level.level == 0
@@ -175,7 +183,8 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         if show:
             print(f"quadrs rare{who}: level {level.level} done: cut {level.threshold:.4g}, "
                   f"conditional p {level.conditional_p:.3g}, acceptance "
-                  f"{level.acceptance_rate:.2f}, {level.flights} flights",
+                  f"{level.acceptance_rate:.2f}, {level.flights} flights; levels {eta.step()}"
+                  f"{per_level}",
                   file=sys.stderr, flush=True)  # fmt: skip
 
     with dask_client(args.scheduler) as client:
@@ -220,7 +229,9 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         note = "" if bound is None else f"; P <= about {bound:.3g} (the last cut reached)"
         who = f" ({interrupted[0]})" if len(controllers) > 1 else ""
         print(f"quadrs rare{who}: interrupted after {done} finished "
-              f"level{'s' * (done != 1)} ({result.flights} flights), no estimate{note}",
+              f"level{'s' * (done != 1)} ({result.flights} flights), no estimate{note}; "
+              f"a level is {args.per_level} flights{per_level.removesuffix(' a level here')}"
+              f"{' here' * bool(per_level)}",
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT
     if isinstance(out, RareEventComparison):
@@ -228,6 +239,56 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         for name in controllers[1:]:
             print(ratio_line(out, name, base))
     return EXIT_OK if saved else EXIT_FAIL
+
+
+def rare_budget(per_level: int, p0: float, max_levels: int, controllers: int = 1) -> int:
+    """Flights of a run that goes to its deepest level: ``per_level`` for level 0, then
+    ``per_level * (1 - p0)`` new flights per level (the seeds are kept), per controller."""
+    return controllers * round(per_level * (1 + (max_levels - 1) * (1 - p0)))
+
+
+def calibrate_rare(scenario: Any, args: argparse.Namespace, controller: str) -> Any:
+    """Time one small level of the same sampler (20 flights; its flights cost more than a
+    Monte Carlo batch's: each draws its own innovations)."""
+    import time
+    import warnings
+
+    from quadrs.cost import Calibration, _workers
+    from quadrs.rare import rare_event
+
+    flights = 20
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = rare_event(scenario, controller=controller, metric=args.metric, phase=args.phase,
+                       threshold=args.threshold, per_level=flights, p0=0.5, seed=args.seed,
+                       max_levels=1, workers=args.workers)  # fmt: skip
+    if getattr(r, "interrupted", False):  # Ctrl-C in the calibration stops the command
+        raise KeyboardInterrupt
+    return Calibration(flights, time.perf_counter() - start, _workers(args.workers))
+
+
+def _announce(
+    scenario: Any,
+    args: argparse.Namespace,
+    controllers: tuple[str, ...],
+    p0: float,
+    max_levels: int,
+) -> float:
+    """Say what the run flies and roughly how long, from a short calibration (on stderr);
+    the seconds of one level of every controller."""
+    cal = calibrate_rare(scenario, args, controllers[0])
+    level = cal.estimate(args.per_level * len(controllers))
+    deepest = rare_budget(args.per_level, p0, max_levels, len(controllers))
+    example = math.ceil(math.log(1e-4) / math.log(p0))
+    say(
+        f"quadrs rare: {args.per_level} flights a level{' per controller' * (len(controllers) > 1)}"
+        f", about {duration(level)} a level here ({cal.per_flight:.2g} s a flight, from "
+        f"{cal.flights} calibration flights); a probability p takes about log(p)/log({p0:g}) "
+        f"levels (1e-4: {example}), at most {max_levels} ({deepest:,} flights, about "
+        f"{duration(cal.estimate(deepest))}); Ctrl-C keeps the finished levels",
+        cal.estimate(deepest))  # fmt: skip
+    return level
 
 
 def _inputs(result: Any) -> str:

@@ -66,7 +66,9 @@ def metrics_frame(phases: list[str], values: np.ndarray) -> pd.DataFrame:
 class Flight:
     """One simulated flight.
 
-    ``metrics``: one row per phase (``phase`` and the metric columns). ``trace``: indexed by
+    ``metrics``: one row per phase (``phase`` and the metric columns), then the whole
+    flight's row ``flight`` (every scenario has it: it is not one more phase, so a sum over
+    the rows counts the flight twice; :meth:`phases_only` leaves it out). ``trace``: indexed by
     time ``t`` (s): states, references, controls, wind, ``e_o``, the magnitude of the payload's
     inertial acceleration ``accel_c`` (m/s^2), the vertical drag on the quadrotor ``drag_z``
     (N, the force the engine's dynamics use), the attachment's ``swing`` (rad) and ``tension``
@@ -88,6 +90,15 @@ class Flight:
     #: Why the flight ended: "ok", or what ran away ("non_finite", "distance", "tilt",
     #: "speed", "rate"; ``_core.EXIT_MESSAGES`` says each in a sentence).
     status: str = "ok"
+    #: What this flight is, when not realisation ``realisation`` of ``seed`` (a re-flown
+    #: rare-event failure sample: ``"failure sample 3 of a rare-event run"``).
+    label: str = ""
+
+    def phases_only(self) -> pd.DataFrame:
+        """``metrics`` without the whole flight's ``flight`` row: the scenario's phases alone."""
+        from quadrs.route import FLIGHT_PHASE
+
+        return self.metrics[self.metrics["phase"] != FLIGHT_PHASE].reset_index(drop=True)
 
     def __repr__(self) -> str:
         """A summary, not the frames: controller, gust realisation, span, outcome."""
@@ -98,10 +109,8 @@ class Flight:
             if self.diverged
             else "did not diverge"
         )
-        return (
-            f"<Flight {self.controller.upper()}, seed {self.seed}, realisation "
-            f"{self.realisation}, {span}, {end}; {self.scenario!r}>"
-        )
+        what = self.label or f"seed {self.seed}, realisation {self.realisation}"
+        return f"<Flight {self.controller.upper()}, {what}, {span}, {end}; {self.scenario!r}>"
 
     def _repr_html_(self) -> str:
         """In a notebook: the per-phase metrics as an HTML table."""

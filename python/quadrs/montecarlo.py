@@ -176,7 +176,9 @@ def _fly(
     todo: list[tuple[int, int]],
 ) -> MonteCarloResult:
     """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
-    from tqdm.auto import tqdm
+    from quadrs.terminal import tqdm_class
+
+    tqdm = tqdm_class()
 
     if client is not None:
         from quadrs.distributed import total_threads

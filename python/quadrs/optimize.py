@@ -277,7 +277,9 @@ def optimize(
     violating flown candidate is returned with ``feasible=False`` and an
     :class:`InfeasibleWarning`.
     """
-    from tqdm.auto import tqdm
+    from quadrs.terminal import tqdm_class
+
+    tqdm = tqdm_class()
 
     from quadrs.stability import stability
 

@@ -100,7 +100,30 @@ def findings(data: dict[str, Any]) -> list[str]:
             f"{_fmt('gust.altitude', altitude)} is above the low-altitude Dryden model's "
             "1000 ft (305 m): feet?"
         )
+    below = _parcel_below_ground(data)
+    if below:
+        out.append(below)
     return out
+
+
+def _parcel_below_ground(data: dict[str, Any]) -> str:
+    """A cable payload hanging below the ground at the start (an empty string if not)."""
+    if _value(data, "payload.model") != "cable" or _value(data, "ground.enabled") is not True:
+        return ""
+    position = _value(data, "initial.position")
+    length = _value(data, "payload.cable_length")
+    offset = _value(data, "payload.attachment_offset") or 0.0
+    ground = _value(data, "ground.altitude") or 0.0
+    if not isinstance(position, list) or len(position) != 3 or length is None:
+        return ""
+    bottom = position[2] - offset - length
+    if bottom >= ground:
+        return ""
+    return (
+        f"the parcel starts below the ground: initial.position[2] = {position[2]:g} m - "
+        f"payload.attachment_offset = {offset:g} m - payload.cable_length = {length:g} m = "
+        f"{bottom:.3g} m < ground.altitude = {ground:g} m: start higher or shorten the line"
+    )
 
 
 def check(data: dict[str, Any]) -> None:

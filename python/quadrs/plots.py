@@ -38,6 +38,7 @@ from quadrs.plots_base import (
     Flights,
     add_legend,
     controller_label,
+    display_scale,
     finish_figure,
     flight_title,
     flights_by_label,
@@ -76,6 +77,12 @@ welch_psd = _psd.welch_psd
 def _phases(flight: Flight, phases: Sequence[str] | None) -> list[str]:
     """The phases asked for; by default the scenario's own (the whole flight on request)."""
     return list(phases) if phases is not None else flight.scenario.scenario_phases
+
+
+def _all_phases(df: pd.DataFrame) -> list[str]:
+    """Every phase of a table, the whole-flight phase (if any) last."""
+    own = _own_phases(df)
+    return own + ([FLIGHT_PHASE] if (df["phase"] == FLIGHT_PHASE).any() else [])
 
 
 def _own_phases(df: pd.DataFrame) -> list[str]:
@@ -411,7 +418,7 @@ def _point_label(point: Sequence[Any]) -> str:
 
 def _finite(runs: pd.DataFrame, phase: str, ctrl: str, metric: str) -> np.ndarray:
     sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)][metric]
-    values = sel.to_numpy(float)
+    values = sel.to_numpy(float) * display_scale(metric)
     return values[np.isfinite(values)]
 
 
@@ -464,6 +471,7 @@ def sweep_metric(
                 style = line_style(ctrl, i, markers=True)
                 if len(keys) > 1:
                     style["color"] = CYCLE[j % len(CYCLE)]
+                sub.attrs["scale"] = display_scale(metric)
                 _errorline(a, sub, keys[0], ctrl, style, sub_label)
         # The long label wrapped to fit beside one panel: unwrapped it overlaps its neighbours'.
         ylabel = textwrap.fill(label_with_unit(metric), 28)
@@ -489,9 +497,10 @@ def _errorline(
     ax: Axes, sub: pd.DataFrame, key: str, ctrl: str, style: dict[str, Any], suffix: str
 ) -> None:
     x = sub[key].to_numpy()
-    mean = sub[f"{ctrl}_mean"].to_numpy(float)
-    lo = mean - sub[f"{ctrl}_ci_low"].to_numpy(float)
-    hi = sub[f"{ctrl}_ci_high"].to_numpy(float) - mean
+    k = float(sub.attrs.get("scale", 1.0))
+    mean = k * sub[f"{ctrl}_mean"].to_numpy(float)
+    lo = mean - k * sub[f"{ctrl}_ci_low"].to_numpy(float)
+    hi = k * sub[f"{ctrl}_ci_high"].to_numpy(float) - mean
     err = np.nan_to_num(np.vstack([lo, hi]))
     style = {**style, "label": f"{style['label']}{suffix}"}
     ax.errorbar(x, mean, yerr=err, capsize=3, lw=1.0, **style)
@@ -526,11 +535,15 @@ def exceedance_curves(
     """Empirical exceedance curves P(metric > x) = 1 - CDF, log y, one panel per phase, one line
     per controller, with a band of pointwise exact (Clopper-Pearson) ``confidence`` intervals
     (:func:`quadrs.risk.survival_curve`; pointwise, not simultaneous). Diverged realisations
-    count as exceeding every x. ``thresholds`` are marked as vertical lines."""
+    count as exceeding every x. ``thresholds`` (in the metric's stored unit) are marked as
+    vertical lines. Default ``phases``: every phase, the whole flight's last. Each curve runs
+    to the largest value flown (marked), where its chance of being exceeded falls to 0.
+    Angles (swing) are drawn in degrees."""
     from quadrs.risk import check_metric, survival_curve
 
     check_metric(metric)
-    phases = list(phases) if phases is not None else _own_phases(runs)
+    scale = display_scale(metric)
+    phases = list(phases) if phases is not None else _all_phases(runs)
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
     fig, axes = panel_axes(ax, len(phases))
     floor = 1.0
@@ -545,9 +558,14 @@ def exceedance_curves(
             n = int(curve["n"].iloc[0])
             note = f", {int(div.sum())} diverged (counted as exceeding)" if div.any() else ""
             style["label"] = f"{style['label']} (n = {n}{note})"
-            x, p = curve["threshold"].to_numpy(float), curve["probability"].to_numpy(float)
+            x = scale * curve["threshold"].to_numpy(float)
+            p = curve["probability"].to_numpy(float)
             shown = p > 0
-            a.step(x[shown], p[shown], where="post", lw=1.2, **style)
+            # P(value > x) stays at its last non-zero value up to the largest value flown.
+            xs, ps = np.r_[x[shown], x[-1]], np.r_[p[shown], p[shown][-1:]]
+            a.step(xs, ps, where="post", lw=1.2, **style)
+            a.plot(x[-1:], ps[-1:], marker="|", ms=10, color=style["color"],
+                   ls=style.get("linestyle", "-"), label="_worst")  # fmt: skip
             a.fill_between(
                 x,
                 curve["ci_low"].to_numpy(float),
@@ -559,7 +577,8 @@ def exceedance_curves(
             )
             floor = min(floor, 0.5 / max(n, 1))
         for k, t in enumerate(thresholds):
-            a.axvline(float(t), color="black", lw=0.8, ls=":", label="limit" if k == 0 else "_")
+            a.axvline(scale * float(t), color="black", lw=0.8, ls=":",
+                      label="limit" if k == 0 else "_")  # fmt: skip
         a.set_yscale("log")
         a.set_ylim(floor, 1.05)
         a.set(
@@ -599,14 +618,14 @@ def dispersion_scatter(
                 style = line_style(ctrl, i)
                 a.scatter(
                     sel.loc[ok, key],
-                    sel.loc[ok, metric],
+                    sel.loc[ok, metric] * display_scale(metric),
                     s=6,
                     alpha=0.5,
                     color=style["color"],
                     label=style["label"],
                 )
                 if (~ok).any():
-                    top = np.nanmax(sel[metric]) if ok.any() else 1.0
+                    top = np.nanmax(sel[metric]) * display_scale(metric) if ok.any() else 1.0
                     a.scatter(
                         sel.loc[~ok, key],
                         np.full((~ok).sum(), top),

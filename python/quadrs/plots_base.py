@@ -36,8 +36,8 @@ UNITS = {
     "peak_amplitude": "m",
     "max_accel": "m/s²",
     "rms_accel": "m/s²",
-    "max_swing": "rad",
-    "rms_swing": "rad",
+    "max_swing": "deg",
+    "rms_swing": "deg",
     "max_tension": "N",
     "min_tension": "N",
     "slack_time": "s",
@@ -49,6 +49,18 @@ UNITS = {
     # every scenario key, from the package's one table of them (quadrs.units)
     **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
 }
+#: Metrics the results hold in radians and every figure and table shows in degrees (one unit
+#: per quantity in everything a person reads: the mission tables, the figures, --limit).
+DEGREE_METRICS = ("max_swing", "rms_swing")
+
+
+def display_scale(name: str) -> float:
+    """The factor from a metric's stored (SI) value to the value shown: 180/pi for angles."""
+    import math
+
+    return 180.0 / math.pi if name in DEGREE_METRICS else 1.0
+
+
 #: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
 #: labels a metric or key through these (a key not listed shows as itself).
 PLAIN_LABELS = {
@@ -63,8 +75,8 @@ PLAIN_LABELS = {
     "rms_cross_track": "RMS cross-track error (m)",
     "max_cross_track": "Peak cross-track error (m)",
     "max_specific_force": "Peak specific force on the payload, |a - g| (m/s²)",
-    "max_swing": "Peak swing angle of the line (rad)",
-    "rms_swing": "RMS swing angle of the line (rad)",
+    "max_swing": "Peak swing angle of the line (deg)",
+    "rms_swing": "RMS swing angle of the line (deg)",
     "max_tension": "Peak line tension (N)",
     "min_tension": "Lowest line tension (N)",
     "slack_time": "Time with the line slack (s)",
@@ -237,7 +249,8 @@ def add_legend(ax: Axes, **kwargs: Any) -> None:
 
 
 def flight_title(label: str, flight: Flight) -> str:
-    return f"{controller_label(label)}: seed {flight.seed}, realisation {flight.realisation}"
+    what = flight.label or f"seed {flight.seed}, realisation {flight.realisation}"
+    return f"{controller_label(label)}: {what}"
 
 
 def shade_gust(ax: Axes, flight: Flight) -> None:

@@ -44,7 +44,8 @@ def wind_met(flight: Flight, path: str | Path | None = None, *, ax: AxesArg = No
         a.set(xlabel="time (s)", ylabel=f"wind {name} (m/s)")
         a.grid(True, alpha=0.3)
         add_legend(a)
-    axes[0].set_title(f"Wind met ({flight.controller.upper()}, realisation {flight.realisation})")
+    what = flight.label or f"realisation {flight.realisation}"
+    axes[0].set_title(f"Wind met ({flight.controller.upper()}, {what})")
     return finish_figure(fig, path)
 
 

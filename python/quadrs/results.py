@@ -45,7 +45,10 @@ def empty_runs(scenario: Scenario) -> pd.DataFrame:
 class MonteCarloResult(RunTables):
     """Everything a batch produced.
 
-    ``runs``: one row per (realisation, controller, phase) with the metric columns,
+    ``runs``: one row per (realisation, controller, phase) with the metric columns, the
+    whole flight's phase ``flight`` included (for every scenario, the paper's too: it is not
+    one more phase, so summing a metric over a realisation's rows counts the flight twice;
+    :meth:`phases_only` gives the scenario's phases alone), with
     ``diverged`` and ``diverged_at`` (s, NaN if it did not), on every row of the flight. The
     phases that ended before a flight diverged keep their metrics; the one in progress and
     the later ones are NaN (:func:`quadrs.report.phase_diverged`, docs/model.md section 6).
@@ -63,6 +66,12 @@ class MonteCarloResult(RunTables):
     #: The engine's arithmetic: "exact" (default; bit-identical on every machine) or "fused"
     #: (``monte_carlo(fused=True)``: fused multiply-adds, faster, not bit-identical).
     arithmetic: str = "exact"
+
+    def phases_only(self) -> pd.DataFrame:
+        """``runs`` without the whole flight's ``flight`` rows: the scenario's phases alone."""
+        from quadrs.route import FLIGHT_PHASE
+
+        return self.runs[self.runs["phase"] != FLIGHT_PHASE].reset_index(drop=True)
 
     @property
     def dispersed_keys(self) -> list[str]:

@@ -459,6 +459,10 @@ def quantile_difference_table(
     return pd.DataFrame(rows)
 
 
+#: The largest values every exceedance curve shows one by one (its tail, to the worst).
+TAIL_POINTS = 20
+
+
 def survival_curve(
     values: np.ndarray,
     diverged: np.ndarray | None = None,
@@ -466,15 +470,19 @@ def survival_curve(
     points: int = 120,
 ) -> pd.DataFrame:
     """The empirical exceedance curve P(value > x) at up to ``points`` thresholds x spread over
-    the sample (its order statistics), with pointwise exact (Clopper-Pearson) intervals from
-    :func:`exceedance_stats`: columns ``threshold``, ``probability``, ``ci_low``, ``ci_high``,
-    ``n``. Diverged runs exceed every threshold."""
+    the sample (its order statistics) and at each of its ``TAIL_POINTS`` largest values, with
+    pointwise exact (Clopper-Pearson) intervals from :func:`exceedance_stats`: columns
+    ``threshold``, ``probability``, ``ci_low``, ``ci_high``, ``n``. Diverged runs exceed every
+    threshold."""
     values = np.asarray(values, dtype=float)
     div = np.zeros(values.shape, bool) if diverged is None else np.asarray(diverged, bool)
     finite = np.sort(values[np.isfinite(values) & ~div])
     if len(finite) == 0:
         return pd.DataFrame(columns=["threshold", "probability", "ci_low", "ci_high", "n"])
-    idx = np.unique(np.linspace(0, len(finite) - 1, min(points, len(finite))).round().astype(int))
+    n = len(finite)
+    # Spread over the sample, and every one of the largest values: the tail is what is read.
+    spread = np.linspace(0, n - 1, min(points, n)).round().astype(int)
+    idx = np.unique(np.r_[spread, np.arange(max(0, n - TAIL_POINTS), n)])
     xs = np.unique(np.r_[finite[0] - 1e-12 * (1 + abs(finite[0])), finite[idx]])
     rows = []
     for x in xs:

@@ -274,14 +274,26 @@ def _frozen(value: Any) -> Any:
 
 
 def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-    """Tables merge key by key; anything else (arrays, values) replaces."""
+    """Tables merge key by key; anything else (arrays, values) replaces. A file that turns
+    its base into a route (``trajectory.interpolation = "route"``) drops the base's
+    waypoints, as :meth:`Scenario.override` does."""
     out = copy.deepcopy(base)
     for k, v in extra.items():
         if isinstance(v, Mapping) and isinstance(out.get(k), dict):
             out[k] = _merge(out[k], v)
         else:
             out[k] = copy.deepcopy(v)
+    trajectory = extra.get("trajectory")
+    if isinstance(trajectory, Mapping) and isinstance(out.get("trajectory"), dict):
+        _route_drops_waypoints(out["trajectory"], trajectory)
     return out
+
+
+def _route_drops_waypoints(merged: dict[str, Any], given: Mapping[str, Any]) -> None:
+    """A scenario made a route on top of a waypoint base flies the route: the base's
+    ``waypoints`` (which a route refuses) go, unless given alongside."""
+    if given.get("interpolation") == "route" and "waypoints" not in given:
+        merged.pop("waypoints", None)
 
 
 def _leaves(data: Mapping[str, Any], path: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
@@ -525,10 +537,15 @@ class Scenario:
         "payload.mass": 0.44, "phases[2].end": 65.0}``. Setting ``payload.stiffness``
         drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
         ``gust.intensity``); a value of None removes an
-        optional key (``controller.thrust_max``)."""
+        optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
+        "route" drops the base's ``trajectory.waypoints`` unless they are given too."""
         data = copy.deepcopy(self._data)
         keys = canonical_keys(changes, "override")
         changes = dict(zip(keys, changes.values(), strict=True))
+        if changes.get("trajectory.interpolation") == "route":
+            given = {k.removeprefix("trajectory."): v for k, v in changes.items()
+                     if k.startswith("trajectory.")}  # fmt: skip
+            _route_drops_waypoints(data.get("trajectory", {}), given)
         for key, value in changes.items():
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)

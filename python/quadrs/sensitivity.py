@@ -206,7 +206,9 @@ def sensitivity(
         else np.zeros(len(u), dtype=np.uint64)
     )
     workers = default_workers() if workers is None else int(workers)
-    from tqdm.auto import tqdm
+    from quadrs.terminal import tqdm_class
+
+    tqdm = tqdm_class()
 
     with tqdm(total=len(u), unit="run", desc="quadrs sensitivity", disable=not progress) as bar:
 

@@ -107,9 +107,12 @@ def warn_before_running(
 
 
 def _pole(real: float, imag: float) -> str:
+    """``+0.04 ± 2.98j``; a real part that two decimals would show as 0.00 keeps two
+    significant digits (``+3.1e-04``), so a mode called unstable never reads "+0.00"."""
+    re_text = f"{real:+.2f}" if real == 0.0 or abs(real) >= 0.005 else f"{real:+.1e}"
     if abs(imag) > 0.0:
-        return f"{real:+.2f} ± {abs(imag):.2f}j"
-    return f"{real:+.2f}"
+        return f"{re_text} ± {abs(imag):.2f}j"
+    return re_text
 
 
 @dataclass(frozen=True)
@@ -157,7 +160,11 @@ class StabilityReport:
         """(mode, pole, excited) per non-stable mode; a complex pair is shown once."""
         rows = self.unstable
         rows = rows[rows["imag"] >= 0]
-        return [(r.mode, _pole(r.real, r.imag), bool(r.excited)) for r in rows.itertuples()]
+        return [
+            (r.mode, _pole(r.real, r.imag) + (" (marginal)" if r.status == "marginal" else ""),
+             bool(r.excited))
+            for r in rows.itertuples()
+        ]  # fmt: skip
 
     def __str__(self) -> str:
         name = self.controller.upper()

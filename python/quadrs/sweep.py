@@ -249,7 +249,9 @@ def sweep(
 
 
 def _points_bar(total: int, progress: bool) -> Any:
-    from tqdm.auto import tqdm
+    from quadrs.terminal import tqdm_class
+
+    tqdm = tqdm_class()
 
     return tqdm(total=total, unit="point", desc="quadrs sweep", delay=1.0, disable=not progress)
 

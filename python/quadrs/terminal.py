@@ -18,3 +18,16 @@ def terminal_text(text: str) -> str:
         return repr(c)[1:-1] if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
 
     return "".join(safe(c) for c in text) if not text.isprintable() else text
+
+
+def tqdm_class() -> type:
+    """The progress bar class: the notebook widget (``tqdm.auto``) where ipywidgets is
+    installed, else the text bar; never the "IProgress not found" warning box that
+    ``tqdm.auto`` shows in a notebook without ipywidgets."""
+    try:
+        import ipywidgets  # type: ignore[import-not-found]  # noqa: F401
+    except ImportError:
+        from tqdm.std import tqdm
+    else:
+        from tqdm.auto import tqdm
+    return tqdm

@@ -183,7 +183,11 @@ class RareEventResult:
                 "limit_state function, which has no flight: its failure sample k is "
                 "result.xi[k] and its value result.failures.loc[k]"
             )
-        return self.model.fly(self.run.failure_xi[int(k)])
+        import dataclasses
+
+        flight = self.model.fly(self.run.failure_xi[int(k)])
+        # Not realisation 0 of a seed: the sampler's k-th failure, flown from its innovations.
+        return dataclasses.replace(flight, label=f"failure sample {int(k)} of a rare-event run")
 
     # -- files ----------------------------------------------------------------------------
     def metadata(self) -> dict[str, Any]:
