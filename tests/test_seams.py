@@ -73,9 +73,10 @@ def test_innovations_count_is_the_filters_orders_over_the_window(short):
     assert _core.innovations_dimension(short.to_json()) == 2 * steps
     three = short.override({"gust.components": ["longitudinal", "lateral", "vertical"]})
     assert _core.innovations_dimension(three.to_json()) == (1 + 2 + 2) * steps
-    # a window past the end of the flight counts the steps flown
+    # a window past the end of the flight counts the steps flown (the closing row, which
+    # holds the last step's wind, draws none)
     late = short.override({"gust.start": 5.0, "gust.end": 9.0})
-    n = round((6.0 - 5.0) / short["integrator.dt"]) + 1
+    n = round((6.0 - 5.0) / short["integrator.dt"])
     assert _core.innovations_dimension(late.to_json()) == 2 * n
     assert _core.innovations_dimension(short.override({"gust.enabled": False}).to_json()) == 0
 

@@ -30,7 +30,6 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "DISTRIBUTIONS",
     "SAMPLINGS",
-    "check_range",
     "describe",
     "dispersed_keys",
     "distribution",
@@ -81,49 +80,6 @@ def distribution(spec: Mapping[str, Any]) -> Any:
         lo, hi = spec["low"], spec["high"]
         return stats.triang(c=(spec["mode"] - lo) / (hi - lo), loc=lo, scale=hi - lo)
     raise ValueError(f"unknown distribution {d!r}")  # the engine refuses it first
-
-
-#: At most this many dispersed keys are checked at every corner of their ranges together
-#: (2**keys scenarios); more are checked one key at a time.
-_CORNER_KEYS = 4
-
-
-def check_range(scenario: Scenario, what: str) -> None:
-    """Before a run that may draw any value of each dispersed key's distribution (a rare-event
-    run: theta = F^-1(Phi(z)) for z anywhere, Phi(z) held in [1e-16, 1 - 1e-16]): the
-    scenario must accept the ends of every key's range, else a ScenarioError naming the key,
-    the end and why, before anything flies. The ends of a few keys are tried in every
-    combination; of many, one key at a time."""
-    import itertools
-    import warnings
-
-    from quadrs.scenario import ScenarioError, scenario_error
-
-    keys = dispersed_keys(scenario)
-    if not keys:
-        return
-    table = scenario.dispersions
-    ends = {k: [float(x) for x in distribution(table[k]).ppf([_EDGE, 1.0 - _EDGE])]
-            for k in keys}  # fmt: skip
-    if len(keys) <= _CORNER_KEYS:
-        trials = [dict(zip(keys, c, strict=True)) for c in itertools.product(*ends.values())]
-    else:
-        trials = [{k: x} for k in keys for x in ends[k]]
-    for values in trials:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                scenario.fixed(values)
-        except ScenarioError as e:
-            named = getattr(e, "key", None)
-            key = named if named in values else next(iter(values))
-            lo, hi = ends[key]
-            raise scenario_error(
-                f"dispersions: {key} ranges over [{lo:.6g}, {hi:.6g}] and {what} may draw any "
-                f"value of it; at {values[key]:.6g} the scenario refuses it: {e} (narrow or "
-                f"truncate the distribution)",
-                f"dispersions.{key}",
-            ) from None
 
 
 def describe(scenario: Scenario) -> list[str]:

@@ -22,15 +22,17 @@ An engine built without them raises NotImplementedError naming what is missing.
 
 from __future__ import annotations
 
+import itertools
+import warnings
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from quadrs import _core
-from quadrs.dispersion import check_range, dispersed_keys, distribution
+from quadrs.dispersion import dispersed_keys, distribution
 from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.rare.engine import engine_function, run_rows
-from quadrs.scenario import Scenario
+from quadrs.scenario import Scenario, ScenarioError, scenario_error
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
@@ -61,6 +63,44 @@ def parameters_of_normals(scenario: Scenario, z: np.ndarray) -> np.ndarray:
         u = np.clip(norm.cdf(z[..., j]), _EDGE, 1.0 - _EDGE)
         theta[..., j] = distribution(table[key]).ppf(u)
     return theta
+
+
+#: At most this many dispersed keys are checked at every corner of their ranges together
+#: (2**keys scenarios); more are checked one key at a time.
+_CORNER_KEYS = 4
+
+
+def check_range(scenario: Scenario, what: str) -> None:
+    """Before a run that may draw any value of each dispersed key's distribution (a rare-event
+    run: theta = F^-1(Phi(z)) for z anywhere, Phi(z) held in [1e-16, 1 - 1e-16]): the
+    scenario must accept the ends of every key's range, else a ScenarioError naming the key,
+    the end and why, before anything flies. The ends of a few keys are tried in every
+    combination; of many, one key at a time."""
+    keys = dispersed_keys(scenario)
+    if not keys:
+        return
+    table = scenario.dispersions
+    ends = {k: [float(x) for x in distribution(table[k]).ppf([_EDGE, 1.0 - _EDGE])]
+            for k in keys}  # fmt: skip
+    if len(keys) <= _CORNER_KEYS:
+        trials = [dict(zip(keys, c, strict=True)) for c in itertools.product(*ends.values())]
+    else:
+        trials = [{k: x} for k in keys for x in ends[k]]
+    for values in trials:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                scenario.fixed(values)
+        except ScenarioError as e:
+            named = getattr(e, "key", None)
+            key = named if named in values else next(iter(values))
+            lo, hi = ends[key]
+            raise scenario_error(
+                f"dispersions: {key} ranges over [{lo:.6g}, {hi:.6g}] and {what} may draw any "
+                f"value of it; at {values[key]:.6g} the scenario refuses it: {e} (narrow or "
+                f"truncate the distribution)",
+                f"dispersions.{key}",
+            ) from None
 
 
 class RareEventModel(Protocol):

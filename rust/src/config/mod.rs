@@ -2,12 +2,12 @@
 //! JSON the Python layer sends, then validated here so that every entry point of the engine
 //! guards itself. Field names mirror the TOML keys, so an error names the user's key.
 
+pub mod allocation;
 pub mod dispersions;
 pub mod keys;
 pub mod route;
 pub mod wind;
 
-use crate::model::actuator::rotors;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -930,8 +930,8 @@ impl Config {
         }
         // M^-1 must exist and be finite, and M M^-1 must be the identity: a huge arm or a
         // subnormal torque ratio overflows or underflows the inverse (NaN thrusts otherwise).
-        let m = rotors::allocation(a.layout, l, a.torque_ratio);
-        let inverse = rotors::allocation_inverse(&m)
+        let m = allocation::allocation(a.layout, l, a.torque_ratio);
+        let inverse = allocation::allocation_inverse(&m)
             .filter(|inv| inv.iter().flatten().all(|x| x.is_finite()))
             .filter(|inv| {
                 (0..4).all(|i| {

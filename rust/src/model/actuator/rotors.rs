@@ -9,46 +9,12 @@
 //! feels M (kf w^2) at every RK4 stage.
 
 use super::{Actuator, ActuatorModel, AnyActuator};
-use crate::config::{Config, RotorLayout};
+use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State};
-use nalgebra::Matrix4;
 
-/// Spin directions s_i: rotor i's yaw reaction torque is s_i cq T_i.
-pub const SPIN: [f64; 4] = [1.0, -1.0, 1.0, -1.0];
-
-/// (cos a_i, sin a_i) of the four arms, exact (no rounding of 90-degree multiples).
-pub fn arm_directions(layout: RotorLayout) -> [[f64; 2]; 4] {
-    match layout {
-        RotorLayout::Plus => [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]],
-        RotorLayout::X => {
-            let h = std::f64::consts::FRAC_1_SQRT_2;
-            [[h, h], [-h, h], [-h, -h], [h, -h]]
-        }
-    }
-}
-
-/// The allocation matrix M: row 0 is U1, rows 1-3 the torques about body x, y, z; column i is
-/// rotor i. `arm` is l (m), `torque_ratio` cq (m).
-pub fn allocation(layout: RotorLayout, arm: f64, torque_ratio: f64) -> [[f64; 4]; 4] {
-    let d = arm_directions(layout);
-    [
-        [1.0; 4],
-        [0, 1, 2, 3].map(|i| arm * d[i][1]),
-        [0, 1, 2, 3].map(|i| -arm * d[i][0]),
-        SPIN.map(|s| torque_ratio * s),
-    ]
-}
-
-/// M^-1 (row i: rotor i's thrust per unit of U1, tau_phi, tau_theta, tau_psi), or None if M is
-/// singular (l or cq zero: refused by `Config::validate`).
-pub fn allocation_inverse(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
-    let inv = Matrix4::from_fn(|i, j| m[i][j]).try_inverse()?;
-    Some(std::array::from_fn(|i| {
-        std::array::from_fn(|j| inv[(i, j)])
-    }))
-}
+pub use crate::config::allocation::{allocation, allocation_inverse, arm_directions, SPIN};
 
 /// The rotors' parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -255,7 +221,7 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
 mod tests {
     use super::*;
     use crate::config::tests::paper;
-    use crate::config::ActuatorModelName;
+    use crate::config::{ActuatorModelName, RotorLayout};
     use crate::model::payload::Spring;
     use crate::model::{Parts, Trig, Vehicle};
 

@@ -1,0 +1,41 @@
+//! The rotors' allocation matrix and its inverse (docs/model.md section 8): geometry only, here
+//! so that validating a scenario (`Config::validate`) can check that the inverse exists
+//! without the config depending on the model; `model::actuator::rotors` flies with them.
+
+use crate::config::RotorLayout;
+use nalgebra::Matrix4;
+
+/// Spin directions s_i: rotor i's yaw reaction torque is s_i cq T_i.
+pub const SPIN: [f64; 4] = [1.0, -1.0, 1.0, -1.0];
+
+/// (cos a_i, sin a_i) of the four arms, exact (no rounding of 90-degree multiples).
+pub fn arm_directions(layout: RotorLayout) -> [[f64; 2]; 4] {
+    match layout {
+        RotorLayout::Plus => [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]],
+        RotorLayout::X => {
+            let h = std::f64::consts::FRAC_1_SQRT_2;
+            [[h, h], [-h, h], [-h, -h], [h, -h]]
+        }
+    }
+}
+
+/// The allocation matrix M: row 0 is U1, rows 1-3 the torques about body x, y, z; column i is
+/// rotor i. `arm` is l (m), `torque_ratio` cq (m).
+pub fn allocation(layout: RotorLayout, arm: f64, torque_ratio: f64) -> [[f64; 4]; 4] {
+    let d = arm_directions(layout);
+    [
+        [1.0; 4],
+        [0, 1, 2, 3].map(|i| arm * d[i][1]),
+        [0, 1, 2, 3].map(|i| -arm * d[i][0]),
+        SPIN.map(|s| torque_ratio * s),
+    ]
+}
+
+/// M^-1 (row i: rotor i's thrust per unit of U1, tau_phi, tau_theta, tau_psi), or None if M is
+/// singular (l or cq zero: refused by `Config::validate`).
+pub fn allocation_inverse(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
+    let inv = Matrix4::from_fn(|i, j| m[i][j]).try_inverse()?;
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| inv[(i, j)])
+    }))
+}
