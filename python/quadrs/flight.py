@@ -222,7 +222,8 @@ def simulate(
 
     ``wind``: a prescribed wind (m/s, inertial x, y, z; z up) flown instead of the gust model
     (the ``gust`` keys are then ignored), shape ``(scenario.steps + 1, 3)``: row k is held over
-    the step starting at t = k * dt (the last row only shows in the trace). For deterministic
+    the step starting at t = k * dt. The last row is not flown (no step follows it): the
+    trace's closing row holds the last step's wind, like every other wind. For deterministic
     inputs, e.g. a sinusoid to measure a frequency response (docs/design-loop.md).
     """
     check_controller(controller)
