@@ -270,7 +270,7 @@ def short_delivery() -> Scenario:
     return Scenario.preset("delivery").override({
         "trajectory.route": [[0.0, 0.0, 2.0], [0.0, 0.0, 6.0]], "trajectory.hold": [1.0, 0.0],
         "trajectory.names": None, "trajectory.speed": 2.0, "trajectory.acceleration": 1.0,
-        "integrator.duration": 6.0, "integrator.dt": 0.002, "gust.end": 6.0,
+        "integrator.duration": 8.0, "integrator.dt": 0.002, "gust.end": 8.0,
         "wind.gusts": [{"start": 2.0, "duration": 1.0, "amplitude": [0.0, 1.0, 0.0]}],
     })  # fmt: skip
 
