@@ -266,12 +266,12 @@ TABLES = ["vehicle", "payload", "environment", "initial", "controller", "control
 
 @pytest.fixture(scope="module")
 def short_delivery() -> Scenario:
-    """The delivery preset (rotors, cable, sheared wind, route, ground) on a 7 s climb (its
+    """The delivery preset (rotors, cable, sheared wind, route, ground) on an 8 s climb (its
     hold and leg take 6.66 s)."""
     return Scenario.preset("delivery").override({
         "trajectory.route": [[0.0, 0.0, 2.0], [0.0, 0.0, 6.0]], "trajectory.hold": [1.0, 0.0],
         "trajectory.names": None, "trajectory.speed": 2.0, "trajectory.acceleration": 1.0,
-        "integrator.duration": 7.0, "integrator.dt": 0.002, "gust.end": 7.0,
+        "integrator.duration": 8.0, "integrator.dt": 0.002, "gust.end": 8.0,
         "wind.gusts": [{"start": 2.0, "duration": 1.0, "amplitude": [0.0, 1.0, 0.0]}],
     })  # fmt: skip
 
