@@ -176,6 +176,8 @@ def test_rare_event_memory_check_covers_what_a_run_allocates(
     """The estimate checked before a run is at least the peak a run allocates (tracemalloc),
     at large per_level and low dimension, where it was about 1/15 of it. Threshold 0: half
     the first level fails, the most failure samples a run holds."""
+    import scipy.stats  # noqa: F401  (imported before measuring: a module is not the run's)
+
     from quadrs.rare import subset
 
     asked: list[int] = []

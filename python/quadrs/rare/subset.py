@@ -528,11 +528,14 @@ def _interval(probability: float, cov: float, clusters: int) -> tuple[float, flo
 
 
 def _binomial_interval(k: int, n: int) -> tuple[float, float]:
-    """Clopper-Pearson (exact) interval of k events in n independent trials."""
-    from scipy.stats import binomtest
+    """Clopper-Pearson (exact) interval of k events in n independent trials, from the beta
+    quantiles directly (scipy's binomtest also computes a p-value, over arrays of size n)."""
+    from scipy.stats import beta
 
-    ci = binomtest(k, n).proportion_ci(confidence_level=CONFIDENCE, method="exact")
-    return float(ci.low), float(ci.high)
+    tail = (1.0 - CONFIDENCE) / 2
+    low = 0.0 if k == 0 else float(beta.ppf(tail, k, n - k + 1))
+    high = 1.0 if k == n else float(beta.ppf(1.0 - tail, k + 1, n - k))
+    return low, high
 
 
 def subset_simulation(

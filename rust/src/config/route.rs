@@ -273,6 +273,22 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
         if i + 1 < n {
             let profile = Profile::new(length(tr.route[i], tr.route[i + 1]), speed, accel);
             let span = profile.duration();
+            if !span.is_finite() {
+                // A subnormal speed or acceleration: the leg would never end.
+                let (key, x) = if speed <= accel {
+                    ("trajectory.speed", speed)
+                } else {
+                    ("trajectory.acceleration", accel)
+                };
+                return Err(ConfigError::new(
+                    key,
+                    format!(
+                        "{key} is too small: the leg to trajectory.route[{}] would last {span:?} s, \
+                         got {x:?}",
+                        i + 1
+                    ),
+                ));
+            }
             if span < MIN_STEPS * dt {
                 let key = format!("trajectory.route[{}]", i + 1);
                 return Err(ConfigError::new(
@@ -606,6 +622,15 @@ mod tests {
         );
         assert_eq!(
             key(|c| c["trajectory"]["acceleration"] = json!(-1.0)),
+            "trajectory.acceleration"
+        );
+        // Subnormal: positive, but the leg would never end.
+        assert_eq!(
+            key(|c| c["trajectory"]["speed"] = json!(5e-324)),
+            "trajectory.speed"
+        );
+        assert_eq!(
+            key(|c| c["trajectory"]["acceleration"] = json!(5e-324)),
             "trajectory.acceleration"
         );
         let e = route_cfg(|c| {
