@@ -322,6 +322,29 @@ def _lognormal_s(cov: float) -> float:
     return math.sqrt(math.log1p(cov * cov))
 
 
+def _move(
+    rng: np.random.Generator,
+    evaluate: _Evaluator,
+    state: np.ndarray,
+    value: np.ndarray,
+    candidate: np.ndarray,
+    sigma: float,
+    rho: float,
+    cut: float,
+) -> np.ndarray:
+    """One preconditioned Crank-Nicolson step of every chain, in place: candidate =
+    rho x + sigma z, kept where its value lies above ``cut``; returns which chains moved.
+    ``candidate`` is the only temporary of the chains' size."""
+    rng.standard_normal(out=candidate)
+    candidate *= sigma
+    candidate += rho * state
+    v = evaluate(candidate)
+    move = v > cut
+    state[move] = candidate[move]
+    value[move] = v[move]
+    return move
+
+
 def _adaptive(
     evaluate: _Evaluator,
     dimension: int,
@@ -401,15 +424,8 @@ def _adaptive(
                 failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
                 candidate = np.empty_like(state)
                 for step in range(1, length):
-                    # In place: no temporary of the chains' size beyond the candidate itself.
-                    rng.standard_normal(out=candidate)
-                    candidate *= sigma
-                    candidate += rho * state
-                    v = evaluate(candidate)
-                    move = v > cut
+                    move = _move(rng, evaluate, state, value, candidate, sigma, rho, cut)
                     accepted += int(move.sum())
-                    state[move] = candidate[move]
-                    value[move] = v[move]
                     values[step] = value
                     best.offer(state, value)
                     # A chain's failure state is recorded when reached, then its copies counted.
@@ -689,14 +705,8 @@ def _fixed(
                     failures.add(state[up], value[up], np.flatnonzero(up), 0)
                 candidate = np.empty_like(state)
                 for step in range(1, length):
-                    rng.standard_normal(out=candidate)
-                    candidate *= sigma
-                    candidate += rho * state
-                    v = evaluate(candidate)
-                    move = v > below
+                    move = _move(rng, evaluate, state, value, candidate, sigma, rho, below)
                     accepted += int(move.sum())
-                    state[move] = candidate[move]
-                    value[move] = v[move]
                     values[step] = value
                     up = value > cut
                     nxt.offer(state, value, eve, up)
