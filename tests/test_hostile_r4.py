@@ -18,18 +18,11 @@ import quadrs
 from quadrs import Scenario, ScenarioError
 from quadrs.integrity import run_identity
 from tests.test_guarantees import TINY, run_cli
+from tests.test_reliability_r3 import TINY_CLI
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore::quadrs.StabilityWarning", "ignore::quadrs.StepSizeWarning"
 )
-
-#: TINY as --set options of the command line.
-TINY_CLI = [
-    "--set", "integrator.duration=2", "--set", "integrator.dt=0.01",
-    "--set", "trajectory.waypoints=[[0,0,0,2,0],[1,0,0,1,0]]",
-    "--set", 'phases=[{name="P1",start=0.0,end=1.0},{name="P2",start=1.0,end=2.0}]',
-    "--set", "gust.start=0.5", "--set", "gust.end=1.5",
-]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
