@@ -224,3 +224,31 @@ def test_repr_is_one_line_and_html_has_the_tables() -> None:
     html = r._repr_html_()
     # route, acceleration, tracking, and the payload's table when the engine gives its columns
     assert html.count("<table") == 3 + bool(len(r.payload.columns))
+
+
+def test_an_acceleration_limit_is_taken_and_shown_in_standard_g() -> None:
+    """Fragility is stated in g (ISTA, ASTM D4169): ``--limit max_specific_force=1.5g`` is
+    1.5 standard gravities, and the parcel table shows the quantile and the worst in g too;
+    a g on an angle is refused naming the metric."""
+    import argparse
+
+    from quadrs.cli_common import limit_option
+    from quadrs.plots_base import STANDARD_GRAVITY
+
+    assert limit_option("max_specific_force=1.5g") == ("max_specific_force", 1.5 * 9.80665)
+    assert limit_option("2 G") == ("max_accel", 2 * 9.80665)
+    assert limit_option("max_accel=3") == ("max_accel", 3.0)
+    with pytest.raises(argparse.ArgumentTypeError, match="max_swing"):
+        limit_option("max_swing=2g")
+    mc = batch(12)
+    r = mission_report(mc, 1.5 * STANDARD_GRAVITY, metric="max_specific_force")
+    text = r.to_text(width=200)
+    assert "14.71 m/s^2 (1.5 g)" in text.replace("14.7099", "14.71")
+    worst = r.acceleration["worst"].to_numpy(float)
+    assert (worst > 9.0).all()  # |a - g| is about g at hover
+    parcel = text[text.index("Parcel max_specific_force") :].splitlines()
+    assert parcel[1].split()[-2:] == ["worst", "(g)"]
+    calm = next(ln for ln in parcel if ln.startswith("calm"))
+    assert calm.split()[-1] == f"{worst[0] / STANDARD_GRAVITY:.3g}"
+    swing = mission_report(mc, 0.1, metric="max_swing").to_text(width=200)
+    assert "worst (g)" not in swing

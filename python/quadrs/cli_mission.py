@@ -82,7 +82,8 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         default=("max_accel", DEFAULT_LIMIT),
         metavar="A",
         help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
-        f"metric (degrees for swing) (default: {DEFAULT_LIMIT}, 1 g)",
+        "metric (degrees for swing; an acceleration also in g: max_specific_force=2g) "
+        f"(default: {DEFAULT_LIMIT}, 1 g)",
     )
     p.add_argument(
         "--track-limit",

@@ -52,6 +52,15 @@ UNITS = {
 #: Metrics the results hold in radians and every figure and table shows in degrees (one unit
 #: per quantity in everything a person reads: the mission tables, the figures, --limit).
 DEGREE_METRICS = ("max_swing", "rms_swing")
+#: Standard gravity (m/s²), what "g" means where an acceleration is also shown or given in g
+#: (``--limit max_specific_force=2g``, the mission tables' g column): packaging fragility is
+#: stated in multiples of it (ISTA, ASTM D4169), whatever the scenario's own gravity.
+STANDARD_GRAVITY = 9.80665
+
+
+def in_g(name: str) -> bool:
+    """Whether metric ``name`` is an acceleration (m/s²), so also shown and accepted in g."""
+    return UNITS.get(name) == "m/s²" and name in PLAIN_LABELS
 
 
 def display_scale(name: str) -> float:
