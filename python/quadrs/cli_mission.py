@@ -114,6 +114,14 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         help="controller (default: pd; the paper's SMC loses its attitude on the delivery "
         "route, docs/model.md)",
     )
+    p.add_argument(
+        "--plan",
+        type=Path,
+        metavar="FILE",
+        help="fly the route of a QGroundControl .plan mission (waypoints about its planned "
+        "home: x east, y north, z above home) or of a .csv of points (x,y,z or lat,lon,alt; "
+        "optional hold), at the file's speed; docs/delivery.md",
+    )
     seed_and_workers(p)
     p.add_argument(
         "--out",

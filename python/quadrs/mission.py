@@ -546,14 +546,11 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
 
 
 def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
-    """The parcel's table; an acceleration's quantile and worst also in standard g."""
+    """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
+    the heading: a column more would not fit 100 columns)."""
     from quadrs.plots_base import STANDARD_GRAVITY, in_g
 
-    g = (
-        {f"{qp} (g)": [_g(v / STANDARD_GRAVITY) for v in t["quantile"]],
-         "worst (g)": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]}
-        if in_g(metric) else {}
-    )  # fmt: skip
+    g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
     return pd.DataFrame(
         {
             "runs": t["n"].astype(int),
