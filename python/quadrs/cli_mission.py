@@ -111,8 +111,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         "--controller",
         choices=CONTROLLERS,
         default="pd",
-        help="controller (default: pd; the paper's SMC loses its attitude on the delivery "
-        "route, docs/model.md)",
+        help="controller (default: pd)",
     )
     p.add_argument(
         "--plan",
