@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 
 import quadrs
 
-METRICS = list(quadrs.flight.METRIC_COLUMNS)
+METRICS = list(quadrs.runs.flight.METRIC_COLUMNS)
 CABLE_STATES = ["xc", "yc", "zc", "vxc", "vyc", "vzc"]
 
 

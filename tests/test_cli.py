@@ -1,4 +1,4 @@
-"""The command line end to end: `quadrs.cli.main([...])` in process, and `python -m quadrs.cli`
+"""The command line end to end: `quadrs.cli.main.main([...])` in process, and `python -m quadrs.cli`
 in a subprocess for what only a real process shows (exit status, stderr, Ctrl-C)."""
 
 import argparse
@@ -17,9 +17,9 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario
-from quadrs.cli import build_parser, main
-from quadrs.scenario import parse_value
-from quadrs.sweep import SweepResult
+from quadrs.cli.main import build_parser, main
+from quadrs.runs.sweep import SweepResult
+from quadrs.scenario.scenario import parse_value
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
@@ -163,7 +163,7 @@ def test_mc_writes_parquet_and_report_reprints_it(tmp_path, capsys) -> None:
 
 
 def test_mc_ctrl_c_saves_what_finished_and_exits_130(tmp_path, monkeypatch, capsys) -> None:
-    import quadrs.montecarlo as montecarlo
+    import quadrs.runs.montecarlo as montecarlo
 
     real = montecarlo.monte_carlo
 
@@ -181,7 +181,7 @@ def test_mc_ctrl_c_saves_what_finished_and_exits_130(tmp_path, monkeypatch, caps
 
 
 def test_keyboard_interrupt_anywhere_exits_130(monkeypatch, capsys) -> None:
-    import quadrs.flight as flight
+    import quadrs.runs.flight as flight
 
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
@@ -239,7 +239,7 @@ def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:
 
 
 def test_no_progress_bar_unless_stderr_is_a_terminal(monkeypatch) -> None:
-    import quadrs.montecarlo as montecarlo
+    import quadrs.runs.montecarlo as montecarlo
 
     asked = []
     real = montecarlo.monte_carlo
@@ -387,7 +387,7 @@ def test_paper_writes_every_table_and_figure(tmp_path, capsys) -> None:
 
 
 def test_paper_ctrl_c_keeps_the_batch(tmp_path, monkeypatch) -> None:
-    import quadrs.paper as paper
+    import quadrs.paper.pipeline as paper
 
     real = paper.monte_carlo
 
@@ -592,7 +592,7 @@ def _fake_summary() -> pd.DataFrame:
 
 
 def test_paper_comparison_and_ordering() -> None:
-    from quadrs.report import ordering, paper_comparison
+    from quadrs.present.table3 import ordering, paper_comparison
 
     comp = paper_comparison(_fake_summary())
     assert comp.loc[("iae", "P1"), "paper_P"] == 35.40
@@ -607,7 +607,7 @@ def test_paper_comparison_and_ordering() -> None:
 
 
 def test_to_markdown_and_toml_value() -> None:
-    from quadrs.report import to_markdown, toml_value
+    from quadrs.present.table3 import to_markdown, toml_value
 
     text = to_markdown(pd.DataFrame({"a": [1.23456, float("nan")], "b": ["x|y", None]}))
     assert text.splitlines() == [

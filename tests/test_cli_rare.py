@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from quadrs.cli import main
+from quadrs.cli.main import main
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
 from tests.test_cli import SHORT, one_error_line, run_cli

@@ -12,7 +12,7 @@ import pytest
 
 import quadrs
 from quadrs import _core
-from quadrs.compiled import compiled
+from quadrs.engine.compiled import compiled
 from tests.conftest import SHORT
 
 

@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 import quadrs
-from quadrs.cli import main
-from quadrs.constraints import Constraint, constraints_from, parse_constraint
-from quadrs.optimize import InfeasibleWarning, optimize
+from quadrs.cli.main import main
+from quadrs.design.constraints import Constraint, constraints_from, parse_constraint
+from quadrs.design.optimize import InfeasibleWarning, optimize
 from tests.test_optimize import KEY, RUNS, short
 from tests.test_tune_cli import SHORT
 
@@ -39,7 +39,7 @@ def sweep() -> dict[str, np.ndarray]:
             "accel": np.array(accel)}  # fmt: skip
 
 
-def _lands_on(res: quadrs.optimize.OptimizeResult, grid: np.ndarray, feasible: np.ndarray,
+def _lands_on(res: quadrs.design.optimize.OptimizeResult, grid: np.ndarray, feasible: np.ndarray,
               values: np.ndarray) -> None:  # fmt: skip
     k = int(np.argmin(np.where(feasible, values, np.inf)))
     spacing = grid[1] - grid[0]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import quadrs
-from quadrs.route import FLIGHT_PHASE
+from quadrs.scenario.route import FLIGHT_PHASE
 
 
 @pytest.fixture(scope="module")

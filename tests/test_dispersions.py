@@ -6,7 +6,7 @@ import pytest
 from scipy import stats
 
 import quadrs
-from quadrs.dispersion import distribution, draw
+from quadrs.scenario.dispersion import distribution, draw
 
 UNIFORM_MASS = {"dist": "uniform", "low": 0.1, "high": 0.4}
 DISPERSIONS = {
@@ -15,7 +15,7 @@ DISPERSIONS = {
     "vehicle.inertia[2]": {"dist": "triangular", "low": 0.04, "mode": 0.05, "high": 0.07},
     "gust.w20": {"dist": "lognormal", "mu": 2.3, "sigma": 0.3},
 }
-METRICS = list(quadrs.flight.METRIC_COLUMNS)
+METRICS = list(quadrs.runs.flight.METRIC_COLUMNS)
 
 
 @pytest.fixture(scope="module")
@@ -184,7 +184,7 @@ def test_realisations_a_dispersion_makes_diverge_are_flagged_and_the_rest_kept(s
 
 
 def test_cli_disperses_samples_and_ranks(tmp_path, capsys):
-    from quadrs.cli import main, parse_distribution
+    from quadrs.cli.main import main, parse_distribution
     from tests.test_cli import SHORT
 
     assert parse_distribution("normal(mean=2, std=0.2)") == {
@@ -218,7 +218,7 @@ def test_cli_disperses_samples_and_ranks(tmp_path, capsys):
 def test_every_named_distribution_is_what_the_engine_and_the_sampler_take() -> None:
     """``dispersion.DISTRIBUTIONS`` (the command line's vocabulary) against the engine's
     validation and the sampler: each one's parameters are exactly what both need."""
-    from quadrs.dispersion import DISTRIBUTIONS, distribution
+    from quadrs.scenario.dispersion import DISTRIBUTIONS, distribution
 
     value = {"low": 0.1, "high": 0.4, "mean": 0.2, "std": 0.02, "mu": -1.6, "sigma": 0.1}
     value["mode"] = 0.25

@@ -13,7 +13,7 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario
-from quadrs.store import RunStore, missing_ranges
+from quadrs.runs.store import RunStore, missing_ranges
 
 
 def test_missing_ranges() -> None:
@@ -172,7 +172,7 @@ def test_dask_fused_run_equals_local_fused_run(short: Scenario, cluster) -> None
 
 
 def test_cli_scheduler_and_checkpoint(cluster, tmp_path) -> None:
-    from quadrs.cli import main
+    from quadrs.cli.main import main
 
     from .test_cli import SHORT
 
@@ -194,8 +194,8 @@ def test_concurrent_dask_calls_do_not_share_tasks(short: Scenario, cluster) -> N
     rows: every input of a chunk is in its task key."""
     from dask.distributed import Client
 
-    from quadrs.distributed import run_on_dask
-    from quadrs.montecarlo import Design
+    from quadrs.runs.distributed import run_on_dask
+    from quadrs.runs.montecarlo import Design
 
     with Client(cluster) as client:
         ranges, d = [(0, 4), (4, 4)], Design()

@@ -15,8 +15,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 import quadrs
 from quadrs import plots
-from quadrs.cli import build_parser, main
-from quadrs.scenario import Scenario
+from quadrs.cli.main import build_parser, main
+from quadrs.scenario.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -50,7 +50,7 @@ def diverging(short: Scenario) -> quadrs.MonteCarloResult:
 
 # -- 1. the first command's output ------------------------------------------------------------
 def test_table3_says_under_its_heading_why_p_differs_from_the_paper(short: Scenario) -> None:
-    from quadrs.report import format_table3
+    from quadrs.present.table3 import format_table3
 
     mc = quadrs.monte_carlo(short, runs=4, progress=False)
     text = format_table3(mc.summary(), paper=True)
@@ -62,7 +62,7 @@ def test_table3_says_under_its_heading_why_p_differs_from_the_paper(short: Scena
 
 
 def test_unexcited_unstable_modes_give_a_short_calm_note(short: Scenario) -> None:
-    from quadrs.stability import StabilityNote
+    from quadrs.hover.stability import StabilityNote
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -78,7 +78,7 @@ def test_unexcited_unstable_modes_give_a_short_calm_note(short: Scenario) -> Non
 def test_the_cli_prints_the_note_as_a_note_and_keeps_the_loud_warning(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], short: Scenario
 ) -> None:
-    from quadrs.stability import StabilityNote
+    from quadrs.hover.stability import StabilityNote
 
     with warnings.catch_warnings():
         warnings.simplefilter("default", StabilityNote)  # the test suite ignores it
@@ -154,7 +154,7 @@ def test_diverged_flights_keep_the_phases_that_ended_before(
 
 
 def test_the_footer_counts_per_controller_and_phase(diverging: quadrs.MonteCarloResult) -> None:
-    from quadrs.report import format_table3
+    from quadrs.present.table3 import format_table3
 
     text = format_table3(diverging.summary(), paper=False)
     assert "n (realisations in the means): PD 8 in every phase; SMC P1 8, P2 8, P3 0" in text
@@ -245,7 +245,7 @@ def test_implausible_values_warn_once_with_the_likely_slip(
 def test_plausible_scenarios_are_silent() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", quadrs.PlausibilityWarning)
-        for name in quadrs.scenario.presets():
+        for name in quadrs.scenario.scenario.presets():
             Scenario.preset(name)
 
 
@@ -300,7 +300,7 @@ def test_sweep_takes_limit(
 def test_the_paper_column_is_for_the_paper_preset_only(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], paper: Scenario, short: Scenario
 ) -> None:
-    from quadrs.report import shows_paper
+    from quadrs.present.table3 import shows_paper
 
     assert shows_paper(paper) and shows_paper(paper.override({"integrator.dt": 0.001}))
     assert not shows_paper(short)  # phases named P1-P3, another problem
@@ -345,9 +345,9 @@ def test_scenario_keys_shows_every_unit(capsys: pytest.CaptureFixture[str]) -> N
 
 
 def test_every_key_of_every_preset_has_a_unit() -> None:
-    from quadrs.units import unit
+    from quadrs.scenario.units import unit
 
-    for name in quadrs.scenario.presets():
+    for name in quadrs.scenario.scenario.presets():
         s = Scenario.preset(name)
         extra = s.override({"controller.thrust_min": 1.0, "controller.thrust_max": 40.0})
         for key in extra.keys():

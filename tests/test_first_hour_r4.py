@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 import quadrs
-from quadrs.cli import main
-from quadrs.mission import FLIGHT_PHASE, mission_report
+from quadrs.cli.main import main
+from quadrs.design.mission import FLIGHT_PHASE, mission_report
 
 ROOT = Path(__file__).resolve().parents[1]
-opt_module = importlib.import_module("quadrs.optimize")
-#: The mission's joint row (quadrs.mission.ANY_PHASE).
+opt_module = importlib.import_module("quadrs.design.optimize")
+#: The mission's joint row (quadrs.design.mission.ANY_PHASE).
 ANY_PHASE = "any phase"
 
 #: A short route (a 20 m dog-leg at 5 m), phases per leg, in about 12 s of flight.
@@ -60,9 +60,9 @@ def route_file(tmp_path: Path, scenario: quadrs.Scenario) -> str:
 @pytest.fixture
 def announce_all(monkeypatch: pytest.MonkeyPatch) -> None:
     """Announce every job (these are short: a long one is announced anyway)."""
-    import quadrs.cost
+    import quadrs.cli.cost
 
-    monkeypatch.setattr(quadrs.cost, "ANNOUNCE_AFTER", 0.0)
+    monkeypatch.setattr(quadrs.cli.cost, "ANNOUNCE_AFTER", 0.0)
 
 
 def test_a_short_job_is_not_announced(
@@ -128,7 +128,7 @@ def test_mc_and_paper_say_up_front_what_they_fly(
 
 
 def test_the_calibration_flies_in_the_engine_not_the_batch(short: quadrs.Scenario) -> None:
-    from quadrs.cost import calibrate
+    from quadrs.cli.cost import calibrate
 
     cal = calibrate(short, ("pd", "smc"), workers=1, flights=2)
     assert cal.flights == 4 and cal.workers == 1 and cal.per_flight > 0
@@ -175,7 +175,7 @@ def test_tune_interrupted_in_its_first_candidate_says_so(
 
 
 def test_the_eta_of_counted_pieces() -> None:
-    from quadrs.cost import Calibration, Eta, announce, duration
+    from quadrs.cli.cost import Calibration, Eta, announce, duration
 
     assert [duration(s) for s in (0.2, 40, 420, 5.4 * 3600)] == ["1 s", "40 s", "7 min", "5.4 h"]
     line = announce("tune", "336 candidates", 67_200, Calibration(8, 2.32, 2))
@@ -228,8 +228,8 @@ def test_mission_track_limit_option(
 def test_mission_defaults_to_the_delivery_preset(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import quadrs.cli_mission as cm
-    import quadrs.montecarlo as montecarlo
+    import quadrs.cli.mission as cm
+    import quadrs.runs.montecarlo as montecarlo
 
     seen: list[quadrs.Scenario] = []
     real = montecarlo.monte_carlo
@@ -254,7 +254,7 @@ def test_a_count_that_never_happened_is_a_one_sided_bound(
     text = r.to_text()
     assert f"0 of 12 flights, P <= {bound:.3g}" in text
     assert "0 [0, 0]" not in text
-    from quadrs.mission import one_sided_upper
+    from quadrs.design.mission import one_sided_upper
 
     assert one_sided_upper(0, 200) == pytest.approx(1 - 0.05 ** (1 / 200), rel=1e-12)
     assert one_sided_upper(3, 200) > one_sided_upper(0, 200)
@@ -270,7 +270,7 @@ def test_any_phase_is_the_joint_count_and_the_rows_say_they_are_not_joint(
     wide = runs.pivot(index="realisation", columns="phase", values="max_accel")
     joint = int((wide > limit).any(axis=1).sum())
     assert r.joint is not None and int(r.joint.loc["acceleration", "count"]) == joint
-    from quadrs.risk import exceedance_interval
+    from quadrs.stats.risk import exceedance_interval
 
     _, lo, hi = exceedance_interval(joint, 12)
     assert r.joint.loc["acceleration", "ci_low"] == pytest.approx(lo)
@@ -304,7 +304,7 @@ def test_limit_in_both_forms_in_mission_and_report(
 
 
 def test_limit_parsing_is_general_over_metric_names() -> None:
-    from quadrs.cli import _limit
+    from quadrs.cli.main import _limit
 
     assert _limit("2.5") == ("max_accel", 2.5)
     assert _limit("max_tension=7") == ("max_tension", 7.0)
@@ -319,7 +319,7 @@ def test_swing_is_degrees_in_figures_and_limits(
     route_mc: quadrs.MonteCarloResult, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from quadrs import plots
-    from quadrs.plots_base import label_with_unit
+    from quadrs.plots.base import label_with_unit
 
     assert label_with_unit("max_swing").endswith("(deg)")
     fig = plots.exceedance_curves(route_mc.runs, "max_swing")
@@ -361,7 +361,7 @@ def test_exceedance_figure_has_the_flight_panel_and_reaches_the_worst(
     right = max(max(line.get_xdata()) for line in ax.get_lines() if len(line.get_xdata()))
     assert right == pytest.approx(worst)
     # The tail is drawn one flight at a time: the last step is 1 of n, whatever n.
-    from quadrs.risk import survival_curve
+    from quadrs.stats.risk import survival_curve
 
     x = np.random.default_rng(0).normal(size=1000)
     curve = survival_curve(x)
@@ -380,7 +380,7 @@ def test_a_parcel_below_the_ground_warns() -> None:
 def test_paper_help_and_report_do_not_claim_to_reproduce(
     capsys: pytest.CaptureFixture[str], short: quadrs.Scenario
 ) -> None:
-    from quadrs.paper import _head, _ordering_lines, paper_phases
+    from quadrs.paper.pipeline import _head, _ordering_lines, paper_phases
 
     code, out, _ = cli(capsys, "paper", "--help")
     assert code == 0 and "Reproduce" not in out and "not the paper's" in out
@@ -394,7 +394,7 @@ def test_paper_help_and_report_do_not_claim_to_reproduce(
 
 # -- 10. marginal modes, notebooks, API roles, re-flown failures ---------------------------------
 def test_a_marginal_mode_never_reads_plus_zero() -> None:
-    from quadrs.stability import _pole
+    from quadrs.hover.stability import _pole
 
     assert _pole(3.1e-4, 2.0) == "+3.1e-04 ± 2.00j"
     assert _pole(0.04, 2.98) == "+0.04 ± 2.98j"
@@ -403,7 +403,7 @@ def test_a_marginal_mode_never_reads_plus_zero() -> None:
 def test_no_ipywidgets_means_the_text_bar(monkeypatch: pytest.MonkeyPatch) -> None:
     import sys
 
-    from quadrs.terminal import tqdm_class
+    from quadrs.present.terminal import tqdm_class
 
     monkeypatch.setitem(sys.modules, "ipywidgets", None)  # not installed
     import tqdm.std
@@ -518,7 +518,7 @@ def documented_commands() -> list[tuple[str, str, str]]:
 def test_every_documented_command_parses_as_written() -> None:
     import shlex
 
-    from quadrs.cli import build_parser
+    from quadrs.cli.main import build_parser
 
     commands = documented_commands()
     assert len(commands) > 40
@@ -580,7 +580,7 @@ def test_readme_describes_the_scope_and_every_preset() -> None:
     for word in ("cable", "route", "mission", "rare", "rotors"):
         assert word in what, word
     presets = readme[readme.index("Presets:") :]
-    for name in quadrs.scenario.presets():
+    for name in quadrs.scenario.scenario.presets():
         assert f"`{name}`" in presets, name
     assert "takes about 14 s" not in readme and "about 30 s" in readme
 

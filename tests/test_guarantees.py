@@ -17,9 +17,9 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError, _core
-from quadrs.cli import main
-from quadrs.montecarlo import run_range
-from quadrs.store import RunStore
+from quadrs.cli.main import main
+from quadrs.runs.montecarlo import run_range
+from quadrs.runs.store import RunStore
 
 TINY = {
     "integrator.duration": 2.0,
@@ -50,7 +50,7 @@ def test_checkpoint_refuses_a_foreign_part(tiny: Scenario, tmp_path: Path, capsy
     quadrs.monte_carlo(tiny, runs=4, seed=2, progress=False, out=theirs, first=4)
     (part,) = RunStore(theirs).parts()
     (ours / part.name).write_bytes(part.read_bytes())
-    from quadrs.integrity import CorruptRunError
+    from quadrs.io.integrity import CorruptRunError
 
     with pytest.raises(CorruptRunError, match="does not belong to the run"):
         MonteCarloResult.read_parquet(ours)
@@ -182,7 +182,7 @@ def test_base_chains_resolve_and_cycles_are_refused(monkeypatch) -> None:
         s["controller.smc.lambda"]
         == Scenario.preset("paper_stable_lateral")["controller.smc.lambda"]
     )
-    from quadrs import scenario as mod
+    from quadrs.scenario import scenario as mod
 
     texts = {"a": 'base = "b"\n', "b": 'base = "a"\n'}
     monkeypatch.setattr(mod, "_preset_text", lambda name: texts[name])
@@ -270,7 +270,7 @@ def test_sigterm_saves_what_finished(tmp_path: Path) -> None:
 
 
 def test_ctrl_c_during_a_write_is_delivered_after_it(tmp_path: Path) -> None:
-    from quadrs.parquet import atomic_write
+    from quadrs.io.parquet import atomic_write
 
     target = tmp_path / "f.bin"
 

@@ -132,7 +132,7 @@ def test_gust_psd_integrates_to_the_variance_and_matches_the_series() -> None:
     """The formula integrates to sigma^2 and the generated series' Welch PSD follows it."""
     from scipy.signal import welch
 
-    from quadrs.gust import gust_psd, gust_series
+    from quadrs.runs.gust import gust_psd, gust_series
 
     sigma, length, speed, dt = 1.3, 4.0, 8.0, 0.01
     f = np.linspace(0.0, 2000.0, 400_001)
@@ -155,7 +155,7 @@ def test_gust_psd_integrates_to_the_variance_and_matches_the_series() -> None:
 
 
 def test_gust_psd_refuses_bad_frequency() -> None:
-    from quadrs.gust import gust_psd
+    from quadrs.runs.gust import gust_psd
 
     with pytest.raises(ValueError, match="frequency"):
         gust_psd([1.0, -2.0])

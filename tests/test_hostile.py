@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import quadrs
 from quadrs import EngineError, Scenario, ScenarioError
-from quadrs.stability import StepSizeWarning
+from quadrs.hover.stability import StepSizeWarning
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
@@ -124,7 +124,7 @@ def test_engine_json_is_checked_even_when_python_is_bypassed(paper: Scenario) ->
 )
 # Some of these excite unstable or marginal modes on purpose (a lateral gust under the paper's
 # SMC, a near-zero payload frequency): the loud warning is right there, and not under test.
-@pytest.mark.filterwarnings("ignore::quadrs.stability.StabilityWarning")
+@pytest.mark.filterwarnings("ignore::quadrs.hover.stability.StabilityWarning")
 def test_extreme_but_legal_values(short: Scenario, changes: dict) -> None:
     s = short.override(changes)
     for controller in ("pd", "smc"):

@@ -16,7 +16,7 @@ import pytest
 
 import quadrs
 from quadrs import Scenario, ScenarioError
-from quadrs.integrity import run_identity
+from quadrs.io.integrity import run_identity
 from tests.test_guarantees import TINY, run_cli
 from tests.test_reliability_r3 import TINY_CLI
 
@@ -83,7 +83,7 @@ def test_rotors_whose_allocation_cannot_be_inverted_are_refused(
 
 
 def test_stability_never_prints_an_unstable_verdict_without_a_mode() -> None:
-    from quadrs.stability import StabilityReport
+    from quadrs.hover.stability import StabilityReport
 
     poles = pd.DataFrame({"real": [np.nan] * 2, "imag": [np.nan] * 2, "frequency_hz": np.nan,
                           "damping": np.nan, "mode": ["vertical", "yaw"], "dominant": "z",
@@ -255,12 +255,12 @@ def test_ctrl_c_during_the_second_controller_keeps_the_first_estimate(
 def test_plots_into_an_existing_file_is_refused_before_flying(
     command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:
-    import quadrs.montecarlo
+    import quadrs.runs.montecarlo
 
     def no_flights(*args, **kwargs):
         raise AssertionError("flew before checking --plots")
 
-    monkeypatch.setattr(quadrs.montecarlo, "monte_carlo", no_flights)
+    monkeypatch.setattr(quadrs.runs.montecarlo, "monte_carlo", no_flights)
     plots = tmp_path / "figures"
     plots.write_text("mine")
     # mission flies the delivery route unless told otherwise (issue 41): the paper's here

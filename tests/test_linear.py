@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import quadrs
-from quadrs.linear import OUTPUT_NAMES, LinearModel, equivalent_wind, linearize
+from quadrs.hover.linear import OUTPUT_NAMES, LinearModel, equivalent_wind, linearize
 
 T = 24.0
 DT = 1e-3

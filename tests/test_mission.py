@@ -1,4 +1,4 @@
-"""``quadrs mission`` and :func:`quadrs.mission.mission_report`: the per-phase answers equal
+"""``quadrs mission`` and :func:`quadrs.design.mission.mission_report`: the per-phase answers equal
 direct counts on the runs, the whole flight is the worst over the phases (or the results' own
 ``flight`` phase), metric columns the results lack are left out, an independent batch agrees
 within its standard error, and the command saves, draws, fits 100 columns and exits 130 on
@@ -14,8 +14,8 @@ import pandas as pd
 import pytest
 
 import quadrs
-from quadrs.cli import main
-from quadrs.mission import ALL_PHASES, FLIGHT_PHASE, mission_report
+from quadrs.cli.main import main
+from quadrs.design.mission import ALL_PHASES, FLIGHT_PHASE, mission_report
 
 TWO_PHASES = [
     "--set", "initial.position=[0.0,0.0,2.0]",
@@ -35,7 +35,7 @@ def two_phases() -> quadrs.Scenario:
     changes = {}
     for key, value in zip(TWO_PHASES[1::2], TWO_PHASES[1::2], strict=True):
         k, _, v = value.partition("=")
-        changes[k] = quadrs.scenario.parse_value(v)
+        changes[k] = quadrs.scenario.scenario.parse_value(v)
         assert key == value
     return quadrs.Scenario.preset("paper_stable_lateral").override(changes)
 
@@ -182,7 +182,7 @@ def test_the_command_on_a_scenario_of_ones_own_phases(
 def test_ctrl_c_keeps_what_finished_and_exits_130(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import quadrs.montecarlo as montecarlo
+    import quadrs.runs.montecarlo as montecarlo
 
     real = montecarlo.monte_carlo
 

@@ -12,7 +12,7 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario
-from quadrs.report import ratio_ci, summarise
+from quadrs.present.table3 import ratio_ci, summarise
 
 METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 import quadrs
-from quadrs.optimize import _metric_values, optimize
+from quadrs.design.optimize import _metric_values, optimize
 
 KEY = "controller.smc.epsilon[2]"
 RUNS = 6

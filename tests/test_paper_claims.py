@@ -2,7 +2,7 @@
 
 import pandas as pd
 
-from quadrs.paper import claims
+from quadrs.paper.pipeline import claims
 
 
 def summary(rows: list[tuple[str, str, float, float, float]]) -> pd.DataFrame:

@@ -13,8 +13,9 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 import quadrs
-from quadrs import Scenario, paper, plots
-from quadrs.sweep import SweepResult
+from quadrs import Scenario, plots
+from quadrs.paper import pipeline as paper
+from quadrs.runs.sweep import SweepResult
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

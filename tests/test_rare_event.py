@@ -15,8 +15,8 @@ from scipy.stats import binom, chi2, norm
 
 import quadrs
 from quadrs import _core
-from quadrs.integrity import CorruptRunError
-from quadrs.parquet import read_frame, write_frame
+from quadrs.io.integrity import CorruptRunError
+from quadrs.io.parquet import read_frame, write_frame
 from quadrs.rare import RareEventComparison, RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
 from quadrs.rare.subset import chain_gamma, pilot_size, subset_simulation

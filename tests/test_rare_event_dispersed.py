@@ -12,9 +12,9 @@ from scipy.stats import kstest, norm
 
 import quadrs
 from quadrs import _core
-from quadrs.dispersion import distribution
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel, parameters_of_normals
+from quadrs.scenario.dispersion import distribution
 
 METRIC, PHASE = "max_accel", "P2"
 #: One key per kind of distribution, a gust key among them (its filters are rebuilt per row).

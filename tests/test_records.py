@@ -12,10 +12,10 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario, _core
-from quadrs.chunk import Design, SpectrumSums, fly_chunk
-from quadrs.distributed import run_chunk
-from quadrs.integrity import CorruptRunError
-from quadrs.parquet import write_frame
+from quadrs.io.integrity import CorruptRunError
+from quadrs.io.parquet import write_frame
+from quadrs.runs.chunk import Design, SpectrumSums, fly_chunk
+from quadrs.runs.distributed import run_chunk
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore::quadrs.StabilityWarning", "ignore::quadrs.StepSizeWarning"
@@ -82,7 +82,7 @@ def test_files_of_the_previous_format_are_refused_clearly(
 def test_a_foreign_spectrum_table_is_refused(
     mc: MonteCarloResult, short: Scenario, tmp_path: Path
 ) -> None:
-    from quadrs.chunk import SPECTRA_KEY, spectra_attachment
+    from quadrs.runs.chunk import SPECTRA_KEY, spectra_attachment
 
     other = quadrs.monte_carlo(short, runs=6, seed=4, workers=2, progress=False)
     ours, _ = spectra_attachment(mc.spectrum_sums, mc.record)
@@ -113,7 +113,7 @@ def test_a_checkpoint_part_of_the_previous_format_is_refused_clearly(
     short: Scenario, tmp_path: Path
 ) -> None:
     """Checkpoint parts written before parts carried a content digest."""
-    from quadrs.store import RunStore
+    from quadrs.runs.store import RunStore
 
     out = tmp_path / "run"
     new = quadrs.monte_carlo(short, runs=4, seed=2, workers=2, progress=False, out=out)
@@ -145,8 +145,8 @@ def test_every_result_file_records_its_run_the_same_way(
 
 # -- names from the engine, keys in errors ----------------------------------------------------
 def test_controller_names_come_from_the_engine() -> None:
-    from quadrs.cli import build_parser
-    from quadrs.guard import CONTROLLERS
+    from quadrs.cli.main import build_parser
+    from quadrs.engine.calls import CONTROLLERS
 
     assert CONTROLLERS == tuple(_core.CONTROLLER_NAMES) == ("pd", "smc")
     args = build_parser().parse_args(["mc"])
@@ -186,7 +186,7 @@ def test_list_columns_are_bound_to_the_digest_too():
     """Lists of numbers (a rare-event result's failure samples) count bit for bit."""
     import pyarrow as pa
 
-    from quadrs.parquet import _rows_digest
+    from quadrs.io.parquet import _rows_digest
 
     a = pa.table({"xi": pa.array([[0.1, 0.2], [0.3]]), "k": [1, 2]})
     b = pa.table({"xi": pa.array([[0.1, 0.2], [0.30000000000000004]]), "k": [1, 2]})

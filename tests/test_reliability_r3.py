@@ -23,8 +23,8 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError
-from quadrs.integrity import CorruptRunError
-from quadrs.store import RunStore
+from quadrs.io.integrity import CorruptRunError
+from quadrs.runs.store import RunStore
 from tests.test_guarantees import TINY, run_cli
 
 pytestmark = pytest.mark.filterwarnings(
@@ -135,7 +135,7 @@ def test_tuned_or_swept_keys_cannot_be_dispersed_or_repeated(
 ) -> None:
     import importlib
 
-    opt_module = importlib.import_module("quadrs.optimize")
+    opt_module = importlib.import_module("quadrs.design.optimize")
     flown = []
     real = opt_module.monte_carlo
     monkeypatch.setattr(opt_module, "monte_carlo", lambda *a, **k: flown.append(1) or real(*a, **k))
@@ -199,13 +199,14 @@ def test_saved_results_are_bound_to_their_rows_spectra_and_metadata(
 def test_trace_and_sweep_files_are_bound_to_their_contents(tiny: Scenario, tmp_path: Path):
     flight = quadrs.simulate(tiny, "pd", seed=1)
     path = tmp_path / "trace.parquet"
-    for change in ({"metrics": (flight.metrics[list(quadrs.flight.METRIC_COLUMNS)] * 0).to_numpy()
+    columns = list(quadrs.runs.flight.METRIC_COLUMNS)
+    for change in ({"metrics": (flight.metrics[columns] * 0).to_numpy()
                     .tolist()}, {"diverged_at": 1.0}):  # fmt: skip
         flight.to_parquet(path)
         rewrite(path, **change)
         with pytest.raises(CorruptRunError, match="not those it was written with"):
             quadrs.Flight.read_parquet(path)
-    from quadrs.sweep import SweepResult
+    from quadrs.runs.sweep import SweepResult
 
     sw = quadrs.sweep(tiny, {"gust.w20": [5.0]}, runs=2, progress=False)
     sw.to_parquet(path)
@@ -261,7 +262,7 @@ def test_single_flight_of_a_dispersed_realisation_equals_its_batch_row(tiny: Sce
     }})  # fmt: skip
     runs = 48
     mc = quadrs.monte_carlo(dispersed, runs=runs, seed=7, controllers=["pd"], progress=False)
-    metrics = list(quadrs.flight.METRIC_COLUMNS)
+    metrics = list(quadrs.runs.flight.METRIC_COLUMNS)
     for i in range(runs):
         alone = quadrs.simulate(dispersed, "pd", seed=7, realisation=i)
         row = mc.runs[mc.runs["realisation"] == i][metrics].to_numpy()
@@ -311,7 +312,7 @@ def test_design_loop_bad_input_is_one_line(tiny: Scenario, tmp_path: Path, capsy
 def test_report_on_odd_saved_files_is_one_line_or_a_summary(
     tiny: Scenario, tmp_path: Path, capsys
 ) -> None:
-    from quadrs.parquet import write_frame
+    from quadrs.io.parquet import write_frame
 
     mc = quadrs.monte_carlo(tiny, runs=2, seed=1, progress=False, spectra=False)
     nested = tmp_path / "nested.parquet"
@@ -338,7 +339,7 @@ def test_report_on_odd_saved_files_is_one_line_or_a_summary(
 
 
 def test_repr_of_a_sensitivity_result_without_any_index(tiny: Scenario) -> None:
-    from quadrs.sensitivity import INDEX_COLUMNS, SensitivityResult
+    from quadrs.design.sensitivity import INDEX_COLUMNS, SensitivityResult
 
     rows = pd.DataFrame([["pd", "P1", "iae", "payload.mass"] + [np.nan] * 4], columns=INDEX_COLUMNS)
     sa = SensitivityResult(tiny, 0, 4, ("payload.mass",), rows, pd.DataFrame())
@@ -395,7 +396,7 @@ def test_bad_outputs_of_design_commands_are_refused_before_flying(tmp_path: Path
 def test_sensitivity_on_a_full_disk_keeps_a_recovery_copy(tmp_path: Path, monkeypatch, capsys):
     import errno
 
-    from quadrs.sensitivity import SensitivityResult
+    from quadrs.design.sensitivity import SensitivityResult
 
     target = tmp_path / "sa.parquet"
     real = SensitivityResult.to_parquet

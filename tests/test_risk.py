@@ -8,8 +8,9 @@ import pytest
 from scipy import stats
 
 import quadrs
-from quadrs import Scenario, risk
-from quadrs.cli import main
+from quadrs import Scenario
+from quadrs.cli.main import main
+from quadrs.stats import risk
 
 
 # -- the acceleration metrics --------------------------------------------------------------------

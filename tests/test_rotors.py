@@ -182,7 +182,7 @@ def _maneuver(paper: quadrs.Scenario, tau: float | None) -> quadrs.Scenario:
     )
 
 
-@pytest.mark.filterwarnings("ignore::quadrs.stability.StepSizeWarning")
+@pytest.mark.filterwarnings("ignore::quadrs.hover.stability.StepSizeWarning")
 def test_rotors_reduce_to_ideal_actuators_as_the_lag_vanishes(paper) -> None:
     """With limits that never bind, the rotor flight tends to the ideal flight at the same dt
     as tau (and dt with it) -> 0, at first order: halving tau halves the difference."""
@@ -248,7 +248,7 @@ def test_rotor_keys_disperse_per_realisation(climb) -> None:
         }
     )
     mc = quadrs.monte_carlo(d, runs=5, seed=1, progress=False, spectra=False, controllers=["pd"])
-    metrics = list(quadrs.flight.METRIC_COLUMNS)
+    metrics = list(quadrs.runs.flight.METRIC_COLUMNS)
     assert mc.runs["actuator.thrust_max"].nunique() == 5
     for i in (0, 3):
         fixed = mc.scenario_of(i)
@@ -336,7 +336,7 @@ def test_a_binding_limit_holds_every_rotor_and_counts_saturated_time(climb, tmp_
 
 def test_saturated_intervals_are_the_runs_of_the_flag() -> None:
     from quadrs import plots  # noqa: F401  (quadrs.plots imports plots_rotors)
-    from quadrs.plots_rotors import saturated_intervals
+    from quadrs.plots.rotors import saturated_intervals
 
     t = np.arange(8) * 0.5
     assert saturated_intervals(t, [1, 1, 0, 0, 1, 0, 1, 1], 0.5) == [

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 import quadrs
 from quadrs import Scenario, ScenarioError, plots
-from quadrs.route import Route
+from quadrs.scenario.route import Route
 
 POINTS = [[0.0, 0.0, 0.0], [0.0, 0.0, 3.0], [24.0, 7.0, 3.0], [24.0, 7.0, 1.0]]
 SPEED, ACCEL = 3.0, 1.0
@@ -195,7 +195,7 @@ def test_route_figures(flight, tmp_path: Path) -> None:
 
 
 def test_along_track_projects_onto_the_polyline() -> None:
-    from quadrs.plots_route import along_track
+    from quadrs.plots.route import along_track
 
     pts = np.array([[0, 0, 0], [0, 0, 5], [3, 4, 5], [3, 10, 5]], float)
     x = np.array([0.0, 1.5, 3.0, 4.0, 3.0])

@@ -6,7 +6,7 @@ import pytest
 
 import quadrs
 from quadrs import Scenario, ScenarioError
-from quadrs.scenario import parse_value, presets
+from quadrs.scenario.scenario import parse_value, presets
 
 
 def test_paper_preset_is_model_md(paper: Scenario) -> None:

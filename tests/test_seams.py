@@ -35,8 +35,10 @@ def _tight(scenario: quadrs.Scenario, key: str, value: float) -> quadrs.Scenario
         ("controller.pd.kp[2]", 1e308, "non_finite"),
     ],
 )
-@pytest.mark.filterwarnings("ignore::quadrs.stability.StabilityWarning")  # kp = 1e308: NaN poles
-@pytest.mark.filterwarnings("ignore::quadrs.stability.StepSizeWarning")
+@pytest.mark.filterwarnings(
+    "ignore::quadrs.hover.stability.StabilityWarning"
+)  # kp = 1e308: NaN poles
+@pytest.mark.filterwarnings("ignore::quadrs.hover.stability.StepSizeWarning")
 def test_status_names_the_bound_that_ended_the_flight(short, key, value, status):
     s = _tight(short.override({"initial.attitude": [0.02, -0.01, 0.5]}), key, value)
     f = quadrs.simulate(s, "pd", seed=0)

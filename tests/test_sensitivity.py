@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import quadrs
-from quadrs.sensitivity import GUST_FACTOR, sobol_design, sobol_indices
+from quadrs.design.sensitivity import GUST_FACTOR, sobol_design, sobol_indices
 
 
 def test_ishigami_indices_through_the_same_code_path():

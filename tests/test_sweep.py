@@ -8,9 +8,9 @@ import pytest
 
 import quadrs
 from quadrs import MonteCarloResult, Scenario
-from quadrs.sweep import SweepResult, check_grid, grid_points, is_sweep_file
+from quadrs.runs.sweep import SweepResult, check_grid, grid_points, is_sweep_file
 
-sweep_module = importlib.import_module("quadrs.sweep")  # `quadrs.sweep` is the function
+sweep_module = importlib.import_module("quadrs.runs.sweep")
 
 KEY = "payload.natural_frequency"
 

@@ -11,8 +11,8 @@ import pyarrow.parquet as pq
 import pytest
 
 import quadrs
-from quadrs.flight import Flight
-from quadrs.integrity import CorruptRunError
+from quadrs.io.integrity import CorruptRunError
+from quadrs.runs.flight import Flight
 
 
 @pytest.fixture(scope="module")

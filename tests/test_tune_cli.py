@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 import quadrs
-from quadrs.cli import main
+from quadrs.cli.main import main
 
-opt_module = importlib.import_module("quadrs.optimize")
+opt_module = importlib.import_module("quadrs.design.optimize")
 
 SHORT = [
     "--set", "initial.position=[0.0,0.0,2.0]",

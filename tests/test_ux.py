@@ -9,7 +9,7 @@ import pytest
 
 import quadrs
 from quadrs import Scenario, ScenarioError, StepSizeWarning
-from quadrs.stability import STEP_ACCURACY, step_error, warn_before_running
+from quadrs.hover.stability import STEP_ACCURACY, step_error, warn_before_running
 
 
 def test_reprs_summarise(short: Scenario) -> None:
@@ -28,9 +28,9 @@ def test_every_result_repr_is_one_short_line(short: Scenario, tmp_path) -> None:
     """Results summarise themselves instead of dumping their frames or matrices."""
     import pandas as pd
 
-    from quadrs.optimize import OptimizeResult
-    from quadrs.paper import PaperOutput
-    from quadrs.sensitivity import SensitivityResult
+    from quadrs.design.optimize import OptimizeResult
+    from quadrs.design.sensitivity import SensitivityResult
+    from quadrs.paper.pipeline import PaperOutput
 
     sweep = quadrs.sweep(short, {"payload.mass": [0.1, 0.2]}, runs=2, controllers=("pd",),
                          progress=False)  # fmt: skip
@@ -113,9 +113,10 @@ def test_min_jerk_paper_flight_takes_off_holds_and_lands(paper: Scenario) -> Non
 
 def test_version_is_fast_and_imports_nothing_heavy() -> None:
     code = (
-        "import sys; from quadrs.cli import main; "
+        "import sys; from quadrs.cli.main import main; "
         "assert main(['--version']) == 0; "
-        "heavy = [m for m in ('scipy.stats', 'matplotlib', 'quadrs.paper') if m in sys.modules]; "
+        "heavy = [m for m in ('scipy.stats', 'matplotlib', 'quadrs.paper.pipeline')"
+        " if m in sys.modules]; "
         "assert not heavy, heavy"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

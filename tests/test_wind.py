@@ -11,7 +11,7 @@ import pytest
 
 import quadrs
 from quadrs import Scenario, ScenarioError, plots
-from quadrs.plots_wind import gust_spectra, mean_wind, wind_met
+from quadrs.plots.wind import gust_spectra, mean_wind, wind_met
 
 Z0 = 0.0457
 GUSTS = [

@@ -4,24 +4,24 @@ The public API; see the README for a tour.
 """
 
 from quadrs._core import EngineError, ScenarioError, __version__
-from quadrs.constraints import Constraint
-from quadrs.flight import Flight, simulate
-from quadrs.gust import gust_scales, gust_series
-from quadrs.linear import LinearModel, linearize
-from quadrs.montecarlo import MonteCarloResult, monte_carlo
-from quadrs.optimize import InfeasibleWarning, OptimizeResult, optimize
-from quadrs.plausibility import PlausibilityWarning
-from quadrs.rare import RareEventComparison, RareEventResult, rare_event
-from quadrs.scenario import Scenario
-from quadrs.sensitivity import SensitivityResult, sensitivity
-from quadrs.stability import (
+from quadrs.design.constraints import Constraint
+from quadrs.design.optimize import InfeasibleWarning, OptimizeResult, optimize
+from quadrs.design.sensitivity import SensitivityResult, sensitivity
+from quadrs.hover.linear import LinearModel, linearize
+from quadrs.hover.stability import (
     StabilityNote,
     StabilityReport,
     StabilityWarning,
     StepSizeWarning,
     stability,
 )
-from quadrs.sweep import sweep
+from quadrs.rare import RareEventComparison, RareEventResult, rare_event
+from quadrs.runs.flight import Flight, simulate
+from quadrs.runs.gust import gust_scales, gust_series
+from quadrs.runs.montecarlo import MonteCarloResult, monte_carlo
+from quadrs.runs.sweep import sweep
+from quadrs.scenario.plausibility import PlausibilityWarning
+from quadrs.scenario.scenario import Scenario
 
 __all__ = [
     "Constraint",

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from quadrs.guard import check_int, check_memory
+from quadrs.engine.calls import check_int, check_memory
 
 __all__ = [
     "CONFIDENCE",
