@@ -270,7 +270,7 @@ def test_sigterm_saves_what_finished(tmp_path: Path) -> None:
 
 
 def test_ctrl_c_during_a_write_is_delivered_after_it(tmp_path: Path) -> None:
-    from quadrs.io.parquet import atomic_write
+    from quadrs.io.files import atomic_write
 
     target = tmp_path / "f.bin"
 

@@ -19,7 +19,7 @@ from quadrs.rare import RareEventComparison, RareEventResult, rare_event
 from quadrs.runs.flight import Flight, simulate
 from quadrs.runs.gust import gust_scales, gust_series
 from quadrs.runs.montecarlo import MonteCarloResult, monte_carlo
-from quadrs.runs.sweep import sweep
+from quadrs.runs.sweep import SweepResult, sweep
 from quadrs.scenario.plausibility import PlausibilityWarning
 from quadrs.scenario.scenario import Scenario
 
@@ -41,6 +41,7 @@ __all__ = [
     "StabilityReport",
     "StabilityWarning",
     "StepSizeWarning",
+    "SweepResult",
     "__version__",
     "gust_scales",
     "gust_series",

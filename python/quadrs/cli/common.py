@@ -65,7 +65,7 @@ def limit_option(text: str) -> tuple[str, float]:
     """``--limit METRIC=X`` (any metric the engine names) or a bare ``X`` for max_accel, in
     ``quadrs mc``, ``sweep``, ``report`` and ``mission`` alike; X in the unit the tables show
     (degrees for swing), returned in the results' unit (radians)."""
-    from quadrs.plots.base import display_scale
+    from quadrs.present.labels import display_scale
     from quadrs.stats.risk import parse_limit
 
     if "=" not in text:

@@ -210,7 +210,7 @@ LoadScenario = Callable[[argparse.Namespace], Any]
 def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     from quadrs.design.optimize import InfeasibleWarning, _canonical_params, expand, optimize
     from quadrs.engine.calls import check_int
-    from quadrs.io.parquet import atomic_write_bytes, atomic_write_frame, check_writable
+    from quadrs.io.files import atomic_write_bytes, atomic_write_frame, check_writable
     from quadrs.scenario.scenario import Scenario
 
     if args.out.suffix != ".toml":
@@ -405,7 +405,7 @@ def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     import numpy as np
 
     from quadrs.hover.linear import OUTPUT_NAMES, equivalent_wind, linearize
-    from quadrs.io.parquet import atomic_write, check_writable
+    from quadrs.io.files import atomic_write, check_writable
 
     scenario = load_scenario(args)
     wind = equivalent_wind(scenario) if args.wind is None else args.wind

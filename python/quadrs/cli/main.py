@@ -385,7 +385,7 @@ def _print_limits(result: Any, args: argparse.Namespace) -> None:
     )
     table = limits_table(result, args.limit, args.half_width / 100)
     if "threshold" in table:  # in the unit the tables show (degrees for swing)
-        from quadrs.plots.base import UNITS, display_scale
+        from quadrs.present.labels import UNITS, display_scale
 
         scale = [display_scale(str(m)) for m in table.index]
         table["threshold"] = table["threshold"].to_numpy(float) * scale
@@ -1006,16 +1006,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
 
 def cmd_stability(args: argparse.Namespace) -> int:
     """Closed-loop poles at hover, per controller."""
-    import quadrs
+    from quadrs.hover.stability import stability as check
 
     scenario = load_scenario(args)
-    check = getattr(quadrs, "stability", None)
-    if check is None:
-        print(
-            "quadrs stability: error: quadrs.stability is not available in this build",
-            file=sys.stderr,
-        )
-        return EXIT_FAIL
     controllers = _controller_names() if args.controller == "both" else (args.controller,)
     unstable = False
     for controller in controllers:

@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from quadrs.io.parquet import check_writable
+from quadrs.io.files import check_writable
 
 
 def check_outputs(*paths: Path | None) -> None:

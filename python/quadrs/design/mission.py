@@ -461,7 +461,7 @@ def _interval(v: float, lo: float, hi: float, scale: float = 1.0, digits: int = 
 
 def _shown_name(metric: str) -> str:
     """``acceleration (m/s^2)`` for max_accel; ``max_swing (deg)``; ``max_tension (N)``."""
-    from quadrs.plots.base import UNITS
+    from quadrs.present.labels import UNITS
 
     if metric == "max_accel":
         return "acceleration (m/s^2)"
@@ -470,13 +470,13 @@ def _shown_name(metric: str) -> str:
 
 
 def _unit(metric: str) -> str:
-    from quadrs.plots.base import UNITS
+    from quadrs.present.labels import UNITS
 
     return UNITS.get(metric, "").replace("²", "^2")
 
 
 def _shown_limit(report: MissionReport) -> str:
-    from quadrs.plots.base import display_scale
+    from quadrs.present.labels import display_scale
 
     return f"{display_scale(report.metric) * report.limit:g}"
 

@@ -17,7 +17,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from quadrs import _core, plots
-from quadrs.io.parquet import atomic_write_bytes, atomic_write_frame
+from quadrs.io.files import atomic_write_bytes, atomic_write_frame
 from quadrs.paper.grid import FREQUENCIES, MASSES
 from quadrs.present.table3 import (
     PAPER_TABLE3,
@@ -625,12 +625,9 @@ def _gust_check(scenario: Scenario, flights: dict[str, Flight]) -> list[str]:
 
 
 def _stability_section(scenario: Scenario) -> list[str]:
-    import quadrs
+    from quadrs.hover.stability import stability as check
 
     lines = ["## Closed-loop stability at hover", ""]
-    check = getattr(quadrs, "stability", None)
-    if check is None:
-        return [*lines, "Not available in this build (`quadrs.stability`).", ""]
     for controller in ("pd", "smc"):
         try:
             verdict = str(check(scenario, controller=controller))

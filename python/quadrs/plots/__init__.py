@@ -36,7 +36,6 @@ from quadrs.plots.base import (
     Flights,
     add_legend,
     controller_label,
-    display_scale,
     finish_figure,
     flight_title,
     flights_by_label,
@@ -48,6 +47,7 @@ from quadrs.plots.base import (
     shade_gust,
     short_label,
 )
+from quadrs.present.labels import display_scale
 from quadrs.present.table3 import phase_diverged
 from quadrs.runs import psd as _psd
 from quadrs.runs.flight import Flight

@@ -1,6 +1,7 @@
 """What every figure module shares: the paper's styles, plain-English labels with units,
 the Agg-backed figure and its panels, saving, and small drawing helpers. Imported by
-:mod:`quadrs.plots` and every ``plots_*`` module (none of which imports another)."""
+:mod:`quadrs.plots` and every figure module beside it (none of which imports another).
+Units as shown come from :mod:`quadrs.present.labels`."""
 
 from __future__ import annotations
 
@@ -14,9 +15,9 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from quadrs.io.parquet import atomic_write
+from quadrs.io.files import atomic_write
+from quadrs.present.labels import UNITS
 from quadrs.runs.flight import Flight
-from quadrs.scenario.units import UNITS as KEY_UNITS
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
 FMAX = 10.0
@@ -25,42 +26,6 @@ STYLE: dict[str, dict[str, Any]] = {
     "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
     "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
 }
-#: Units of the metric columns and of common sweep keys, for axis labels.
-UNITS = {
-    "iae": "m s",
-    "itae": "m s²",
-    "max_abs": "m",
-    "rms": "m",
-    "tracking_rms": "m",
-    "peak_frequency": "Hz",
-    "peak_amplitude": "m",
-    "max_accel": "m/s²",
-    "rms_accel": "m/s²",
-    "max_swing": "deg",
-    "rms_swing": "deg",
-    "max_tension": "N",
-    "min_tension": "N",
-    "slack_time": "s",
-    "saturated_time": "s",
-    "max_tracking": "m",
-    "rms_cross_track": "m",
-    "max_cross_track": "m",
-    "max_specific_force": "m/s²",
-    # every scenario key, from the package's one table of them (quadrs.scenario.units)
-    **{key: unit.replace("^2", "²").replace("^3", "³") for key, unit in KEY_UNITS.items()},
-}
-#: Metrics the results hold in radians and every figure and table shows in degrees (one unit
-#: per quantity in everything a person reads: the mission tables, the figures, --limit).
-DEGREE_METRICS = ("max_swing", "rms_swing")
-
-
-def display_scale(name: str) -> float:
-    """The factor from a metric's stored (SI) value to the value shown: 180/pi for angles."""
-    import math
-
-    return 180.0 / math.pi if name in DEGREE_METRICS else 1.0
-
-
 #: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
 #: labels a metric or key through these (a key not listed shows as itself).
 PLAIN_LABELS = {

@@ -199,7 +199,7 @@ class Flight:
         """Write the trace as plain CSV (header ``t,x,...``, values at 12 significant digits, so
         0.1 + 0.05 prints 0.15). CSV has no place for metadata: :meth:`to_parquet` keeps what
         produced the flight and checks it on reading."""
-        from quadrs.io.parquet import atomic_write_frame
+        from quadrs.io.files import atomic_write_frame
 
         atomic_write_frame(self.trace, path)
 

@@ -36,15 +36,9 @@ from typing import Any
 
 import pandas as pd
 
+from quadrs.io.files import MAX_JSON_BYTES, atomic_create, loads_json, read_regular
 from quadrs.io.integrity import CorruptRunError, RunRecord, check_rows
-from quadrs.io.parquet import (
-    MAX_JSON_BYTES,
-    atomic_create,
-    loads_json,
-    read_file,
-    read_regular,
-    write_frame,
-)
+from quadrs.io.parquet import read_file, write_frame
 from quadrs.runs.chunk import (
     SPECTRA_KEY,
     Chunk,

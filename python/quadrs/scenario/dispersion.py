@@ -18,14 +18,21 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-    from quadrs.scenario.scenario import Scenario
+
+class ScenarioLike(Protocol):
+    """What this module reads of a scenario: ``get("dispersions")``. A
+    :class:`~quadrs.scenario.scenario.Scenario` is one; typed by what is read so that the
+    scenario module, which draws through this one, is not imported back."""
+
+    def get(self, key: str, default: Any = None) -> Any: ...
+
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -56,7 +63,7 @@ _STREAM_TAG = 0x51D15
 _EDGE = 1e-16
 
 
-def dispersed_keys(scenario: Scenario) -> list[str]:
+def dispersed_keys(scenario: ScenarioLike) -> list[str]:
     """The scenario's dispersed keys, sorted (the design's dimensions, the result columns)."""
     return sorted(scenario.get("dispersions", {}) or {})
 
@@ -82,7 +89,7 @@ def distribution(spec: Mapping[str, Any]) -> Any:
     raise ValueError(f"unknown distribution {d!r}")  # the engine refuses it first
 
 
-def describe(scenario: Scenario) -> list[str]:
+def describe(scenario: ScenarioLike) -> list[str]:
     """One line per dispersed key: ``payload.mass ~ uniform(low=0.1, high=0.4)``."""
     table = scenario.get("dispersions", {}) or {}
     lines = []
@@ -144,7 +151,7 @@ def unit_design(
 
 
 def draw(
-    scenario: Scenario,
+    scenario: ScenarioLike,
     seed: int,
     first: int,
     count: int,
