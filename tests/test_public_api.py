@@ -128,3 +128,30 @@ def test_the_documented_subcommands_exist():
     documented = {"run", "mc", "sweep", "report", "paper", "stability", "scenario",
                   "sensitivity", "tune", "linearize", "rare", "mission"}  # fmt: skip
     assert documented <= set(choices)
+
+
+def test_the_lazy_face_names_each_object_once():
+    """Every name ``__getattr__`` serves is in ``__all__`` and in ``__dir__``, and comes from
+    the module ``_WHERE`` names (the TYPE_CHECKING imports mypy reads are checked by mypy)."""
+    where = quadrs._WHERE  # type: ignore[attr-defined]
+    assert sorted(quadrs.__all__) == sorted({"EngineError", "ScenarioError", "__version__",
+                                             *where})  # fmt: skip
+    for name, module in where.items():
+        assert getattr(importlib.import_module(module), name) is getattr(quadrs, name)
+    assert set(quadrs.__all__) <= set(dir(quadrs))
+
+
+def test_import_quadrs_loads_nothing_heavy():
+    """``import quadrs`` loads the engine's bindings and nothing of pandas, scipy, matplotlib
+    or pyarrow (their cost comes with the first flight, table or figure); ``quadrs --version``
+    neither."""
+    import subprocess
+    import sys
+
+    heavy = ("pandas", "scipy", "matplotlib", "pyarrow", "quadrs.runs.flight")
+    for code in ("import quadrs",
+                 "from quadrs.cli.main import main; assert main(['--version']) == 0"):  # fmt: skip
+        check = f"import sys; {code}; print([m for m in {heavy!r} if m in sys.modules])"
+        out = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True,
+                             check=True)  # fmt: skip
+        assert out.stdout.strip().splitlines()[-1] == "[]", (code, out.stdout)

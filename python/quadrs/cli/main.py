@@ -1124,6 +1124,13 @@ def _bad_input_types() -> tuple[type[BaseException], ...]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``quadrs`` with ``argv`` (default: the process's arguments); returns the exit
     status (the console script exits with it)."""
+    if list(sys.argv[1:] if argv is None else argv) == ["--version"]:
+        # answered before the parser is built: its choices come from modules that load
+        # pandas and the design loop (seconds on a cold start)
+        from quadrs._core import __version__
+
+        print(f"quadrs {__version__}")
+        return EXIT_OK
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

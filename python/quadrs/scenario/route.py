@@ -8,9 +8,10 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-import pandas as pd
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
 
 #: The whole-flight phase every result has after the scenario's own phases.
 FLIGHT_PHASE = "flight"
@@ -76,4 +77,6 @@ class Route:
 
     def table(self) -> pd.DataFrame:
         """One row per segment, indexed by name."""
+        import pandas as pd
+
         return pd.DataFrame([asdict(s) for s in self.segments]).set_index("name")
