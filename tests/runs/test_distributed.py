@@ -173,8 +173,7 @@ def test_dask_fused_run_equals_local_fused_run(short: Scenario, cluster) -> None
 
 def test_cli_scheduler_and_checkpoint(cluster, tmp_path) -> None:
     from quadrs.cli.main import main
-
-    from .test_cli import SHORT
+    from tests.cli.test_main import SHORT
 
     remote, local = tmp_path / "remote.parquet", tmp_path / "local.parquet"
     args = ["mc", "--runs", "8", "--seed", "2", "--no-progress", *SHORT]

@@ -18,7 +18,7 @@ from quadrs import plots
 from quadrs.cli.main import build_parser, main
 from quadrs.scenario.scenario import Scenario
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: A 1 m sideways step at t = 2.2 s sets off the SMC's unstable lateral modes: its tilt passes
 #: 0.3 rad at about 4.6 s, in P3, after P1 and P2 ended; PD makes the step within 0.2 rad.

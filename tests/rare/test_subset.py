@@ -356,7 +356,7 @@ def test_scenario_run_without_the_engine_interface_says_so(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """An engine built without the innovations interface: NotImplementedError naming it, not
-    an AttributeError (the scenario path itself: tests/test_rare_event_scenario.py)."""
+    an AttributeError (the scenario path itself: tests/rare/test_scenario_model.py)."""
     monkeypatch.delattr(_core, "run_innovations")
     with pytest.raises(NotImplementedError, match="run_innovations"):
         quadrs.rare_event(quadrs.Scenario.paper(), controller="pd", metric="max_accel",
@@ -392,7 +392,7 @@ def test_saved_scenario_run_keeps_its_model_and_refuses_edits(
     """A scenario run's file carries its run identity; read back, its model is the scenario's,
     so flight(k) re-flies; an edited file is refused. (The run itself is of a limit state, to
     be fast; the file only records what produced it. A real scenario run saved and re-flown:
-    tests/test_rare_event_scenario.py.)"""
+    tests/rare/test_scenario_model.py.)"""
     s = quadrs.Scenario.paper()
     run = subset_simulation(linear, 30, 2.5, per_level=100, seed=1)
     r = RareEventResult(run, value_name="max_accel_P2",

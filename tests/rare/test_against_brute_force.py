@@ -19,7 +19,7 @@ from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
 from quadrs.rare.subset import subset_simulation
 
-BRUTE = json.loads((Path(__file__).parent / "data" / "rare_brute_force.json").read_text())
+BRUTE = json.loads((Path(__file__).parents[1] / "data" / "rare_brute_force.json").read_text())
 
 
 def linear(x: np.ndarray) -> np.ndarray:

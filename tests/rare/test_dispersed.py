@@ -2,7 +2,7 @@
 the standard-normal space through their inverse CDF (theta = F^-1(Phi(z))), the engine flies
 per-row parameter values (``dispersion_keys``/``dispersion_values`` of ``run_innovations``,
 ``simulate_innovations``) exactly as the overridden fixed scenario, and refuses what it
-cannot honour. (The Dask path, ``client=``: tests/test_distributed.py.)"""
+cannot honour. (The Dask path, ``client=``: tests/runs/test_distributed.py.)"""
 
 from __future__ import annotations
 

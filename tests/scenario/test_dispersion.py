@@ -185,7 +185,7 @@ def test_realisations_a_dispersion_makes_diverge_are_flagged_and_the_rest_kept(s
 
 def test_cli_disperses_samples_and_ranks(tmp_path, capsys):
     from quadrs.cli.main import main, parse_distribution
-    from tests.test_cli import SHORT
+    from tests.cli.test_main import SHORT
 
     assert parse_distribution("normal(mean=2, std=0.2)") == {
         "dist": "normal",

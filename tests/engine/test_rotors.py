@@ -94,7 +94,7 @@ class _Plant:
 
 def _windy(climb: quadrs.Scenario) -> quadrs.Scenario:
     """The climb through test_wind's sheared mean wind with one ramp and one pulse gust."""
-    from tests.test_wind import WIND
+    from tests.engine.test_wind import WIND
 
     long = {"integrator.duration": 11.0, "phases": [{"name": "all", "start": 0.0, "end": 11.0}]}
     return climb.override({**{f"wind.{k}": v for k, v in WIND.items()}, **long})
@@ -106,7 +106,7 @@ def test_a_climb_with_binding_limits_matches_an_independent_integration(climb, a
     from the equations, by a hand RK4: the states agree to 1e-9 over the whole climb, in still
     air and through a sheared mean wind with a 1-cosine ramp and pulse (the wind held per step
     as the engine met it, itself checked against the formulas of test_wind)."""
-    from tests.test_wind import expected_wind, held
+    from tests.engine.test_wind import expected_wind, held
 
     if air != "still":
         climb = _windy(climb)

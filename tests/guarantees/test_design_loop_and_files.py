@@ -25,7 +25,7 @@ import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError
 from quadrs.io.integrity import CorruptRunError
 from quadrs.runs.store import RunStore
-from tests.test_guarantees import TINY, run_cli
+from tests.guarantees.test_guarantees import TINY, run_cli
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore::quadrs.StabilityWarning", "ignore::quadrs.StepSizeWarning"

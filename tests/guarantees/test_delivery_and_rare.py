@@ -17,8 +17,8 @@ import pytest
 import quadrs
 from quadrs import Scenario, ScenarioError
 from quadrs.io.integrity import run_identity
-from tests.test_guarantees import TINY, run_cli
-from tests.test_reliability_r3 import TINY_CLI
+from tests.guarantees.test_design_loop_and_files import TINY_CLI
+from tests.guarantees.test_guarantees import TINY, run_cli
 
 pytestmark = pytest.mark.filterwarnings(
     "ignore::quadrs.StabilityWarning", "ignore::quadrs.StepSizeWarning"

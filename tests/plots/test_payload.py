@@ -7,7 +7,7 @@ import pytest
 
 import quadrs
 from quadrs import plots
-from tests.test_plots import assert_images
+from tests.plots.test_figures import assert_images
 
 
 @pytest.fixture(scope="module")

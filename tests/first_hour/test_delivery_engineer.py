@@ -17,7 +17,7 @@ import quadrs
 from quadrs.cli.main import main
 from quadrs.design.mission import FLIGHT_PHASE, mission_report
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 opt_module = importlib.import_module("quadrs.design.optimize")
 #: The mission's joint row (quadrs.design.mission.ANY_PHASE).
 ANY_PHASE = "any phase"
@@ -102,7 +102,7 @@ def test_rare_says_up_front_what_a_level_costs(
 def test_tune_says_up_front_how_many_candidates_and_how_long(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], announce_all: None
 ) -> None:
-    from tests.test_tune_cli import SHORT, TUNE
+    from tests.cli.test_design import SHORT, TUNE
 
     code, _, err = cli(capsys, "tune", "--preset", "paper_stable_lateral", *SHORT, *TUNE,
                        "--out", str(tmp_path / "t.toml"))  # fmt: skip
@@ -137,7 +137,7 @@ def test_the_calibration_flies_in_the_engine_not_the_batch(short: quadrs.Scenari
 def test_tune_interrupted_keeps_the_candidates_flown_without_history(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from tests.test_tune_cli import SHORT, TUNE
+    from tests.cli.test_design import SHORT, TUNE
 
     real = opt_module.monte_carlo
     calls: list[int] = []
@@ -163,7 +163,7 @@ def test_tune_interrupted_keeps_the_candidates_flown_without_history(
 def test_tune_interrupted_in_its_first_candidate_says_so(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from tests.test_tune_cli import SHORT, TUNE
+    from tests.cli.test_design import SHORT, TUNE
 
     def interrupted(*args: object, **kwargs: object) -> object:
         raise KeyboardInterrupt

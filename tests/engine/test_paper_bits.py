@@ -12,7 +12,7 @@ import importlib.util
 import json
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 spec = importlib.util.spec_from_file_location("paper_bits", ROOT / "scripts" / "paper_bits.py")
 assert spec and spec.loader
 paper_bits = importlib.util.module_from_spec(spec)

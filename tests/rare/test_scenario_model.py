@@ -111,7 +111,7 @@ def test_paired_controllers_give_a_ratio(paired: RareEventComparison) -> None:
     independent = math.log1p(pd_.cov**2) + math.log1p(smc.cov**2)
     assert width == pytest.approx(math.sqrt(independent - 2 * c0))
     # Paired: one seed, so level 0 flew the same innovations under both controllers (that
-    # paired runs share their first level is tested in test_rare_event.py).
+    # paired runs share their first level is tested in rare/test_subset.py).
     assert pd_.seed == smc.seed == 3 and pd_.levels["flights"].iloc[0] == 200
     assert isinstance(pd_.model, ScenarioModel) and isinstance(smc.model, ScenarioModel)
     assert (pd_.model.controller, smc.model.controller) == ("pd", "smc")

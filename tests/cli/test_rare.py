@@ -1,6 +1,6 @@
 """``quadrs rare`` end to end: in a subprocess for what only a real process shows (exit status,
 stderr, a real Ctrl-C), in process for bad input. The scenario is the short one of
-tests/test_cli.py (1000 innovations a flight)."""
+tests/cli/test_main.py (1000 innovations a flight)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import pytest
 from quadrs.cli.main import main
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
-from tests.test_cli import SHORT, one_error_line, run_cli
+from tests.cli.test_main import SHORT, one_error_line, run_cli
 
 RARE = ["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]
 

@@ -14,8 +14,8 @@ import quadrs
 from quadrs.cli.main import main
 from quadrs.design.constraints import Constraint, constraints_from, parse_constraint
 from quadrs.design.optimize import InfeasibleWarning, optimize
-from tests.test_optimize import KEY, RUNS, short
-from tests.test_tune_cli import SHORT
+from tests.cli.test_design import SHORT
+from tests.design.test_optimize import KEY, RUNS, short
 
 LOW, HIGH = 0.05, 3.0
 
