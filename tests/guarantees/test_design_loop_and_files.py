@@ -5,12 +5,18 @@ One test (or a few) per class of failure; each failed before the fix it proves
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pty
+import re
+import select
 import shutil
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import threading
 import time
 from pathlib import Path
@@ -270,19 +276,61 @@ def test_single_flight_of_a_dispersed_realisation_equals_its_batch_row(tiny: Sce
 
 
 # -- a second Ctrl-C never loses the batch ----------------------------------------------------
+def _read_until(master: int, pattern: bytes, seen: bytes = b"") -> bytes:
+    """What the pseudo-terminal ``master`` shows until ``pattern`` (a regex) appears in it."""
+    while re.search(pattern, seen) is None:
+        ready, _, _ = select.select([master], [], [], 120)
+        assert ready, f"no {pattern!r} within 120 s: {seen[-500:]!r}"
+        chunk = os.read(master, 4096)
+        assert chunk, seen
+        seen += chunk
+    return seen
+
+
+def _read_rest(master: int, seen: bytes, proc: subprocess.Popen, timeout: float) -> bytes:
+    """The rest of what the terminal shows, read while ``proc`` runs (so that its writes
+    never block on a full terminal) and after it exits."""
+    deadline = time.monotonic() + timeout
+    while True:
+        running = proc.poll() is None
+        assert time.monotonic() < deadline, f"still running after {timeout} s: {seen[-500:]!r}"
+        if select.select([master], [], [], 0.2)[0]:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # the terminal closed with the process
+                chunk = b""
+            seen += chunk
+            if chunk or running:
+                continue
+        if not running:
+            return seen
+
+
 @pytest.mark.parametrize("delay", [0.0, 0.003, 0.007, 0.015, 0.05])
 def test_a_second_ctrl_c_soon_after_the_first_keeps_the_batch(tmp_path: Path, delay: float):
+    """The first Ctrl-C lands once the progress bar has counted a finished realisation (well
+    into the batch, however loaded the machine), the second ``delay`` seconds after it, while
+    the engine is being cancelled or the finished rows are assembled. stderr is a
+    pseudo-terminal, so the progress bar is drawn."""
     out = tmp_path / "runs.parquet"
+    master, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
     proc = subprocess.Popen(
         [sys.executable, "-m", "quadrs.cli", "mc", "--runs", "200000", "--workers", "1",
-         "--no-progress", "--controllers", "pd", *TINY_CLI, "--out", str(out)],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+         "--controllers", "pd", *TINY_CLI, "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=terminal,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
-    time.sleep(2.5)  # well into the batch
-    proc.send_signal(signal.SIGINT)
-    time.sleep(delay)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    os.close(terminal)
+    try:
+        seen = _read_until(master, rb"quadrs mc.*\| *[1-9][0-9]*/200000")
+        proc.send_signal(signal.SIGINT)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        err = _read_rest(master, seen, proc, timeout=120).decode(errors="replace")
+    finally:
+        proc.kill()
+        os.close(master)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "IndexError" not in err, err
     saved = MonteCarloResult.read_parquet(out)
