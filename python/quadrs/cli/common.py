@@ -1,6 +1,6 @@
 """What every ``quadrs`` subcommand module shares: the bad-input error and the Dask client
-of ``--scheduler``. Imported by :mod:`quadrs.cli.main` and the ``cli_*`` modules alike, so that
-none of them imports another."""
+of ``--scheduler``. Imported by :mod:`quadrs.cli.main` and the other command modules beside it
+alike, so that none of them imports another."""
 
 from __future__ import annotations
 

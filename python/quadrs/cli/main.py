@@ -164,9 +164,10 @@ def build_parser() -> argparse.ArgumentParser:
     common = _scenario_options()
     parser = Parser(
         prog="quadrs",
-        description="Quadrotor with a spring-attached payload through a Dryden gust: single "
-        "flights, Monte Carlo batches, sweeps and the paper's figures. Units are SI "
-        "(m, s, kg, N, rad; frequencies in Hz).",
+        description="A quadrotor with a spring-attached or cable-slung payload through "
+        "turbulence, wind and gusts: single flights, paired Monte Carlo batches, sweeps, "
+        "stability and tuning, mission risk along a route, rare events and the paper's "
+        "figures. Units are SI (m, s, kg, N, rad; frequencies in Hz).",
         epilog="Exit status: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C (what "
         "finished is saved).",
     )

@@ -1,5 +1,5 @@
-"""Guards shared by the entry points: argument ranges, memory budgets, and running engine calls
-so that Ctrl-C (or a failing progress callback) cancels them promptly.
+"""Calling the engine safely, for every entry point: argument ranges, memory budgets, and engine
+calls run so that Ctrl-C (or a failing progress callback) cancels them promptly.
 
 See docs/guarantees.md for what these promise.
 """

@@ -1,4 +1,6 @@
-"""Summaries of Monte Carlo runs: the paper's Table 3 with confidence intervals."""
+"""The paper's Table 3 for people: a summary's means with confidence intervals and P = 100
+SMC/PD as text and Markdown, beside the paper's own values. The statistics are
+:mod:`quadrs.stats.summary`'s."""
 
 from __future__ import annotations
 
