@@ -227,3 +227,20 @@ def test_the_engine_has_no_module_cycle():
     assert "config" in graph["integrate"]  # the walker sees `crate::` paths
     cycle = find_cycle(graph)
     assert cycle is None, "engine module cycle: " + " -> ".join(cycle or [])
+
+
+#: Test folders that are not a layer: the suites that cut across the package, by topic, and
+#: the data the tests read.
+CROSS_CUTTING = {"guarantees", "first_hour", "data"}
+
+
+def test_the_tests_mirror_the_package():
+    """Each folder under tests/ is a layer of the package (tests/runs for quadrs.runs, ...) or a
+    cross-cutting suite named by its topic; a test file sits in one of them or, for the
+    package as a whole (its face, its layers, its examples), at the top."""
+    tests = Path(__file__).resolve().parent
+    layers = {layer.removeprefix(PACKAGE + ".") for layer in LAYERS[1:-1]}
+    folders = {p.name for p in tests.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
+    assert folders - layers - CROSS_CUTTING == set()
+    top = {p.name for p in tests.glob("test_*.py")}
+    assert top <= {"test_imports.py", "test_public_api.py", "test_examples.py"}, top
