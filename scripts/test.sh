@@ -7,8 +7,8 @@
 #
 # Once the wheel is built, the Rust checks and the other Pythons run in the background beside
 # the Python checks and pytest (each compiles or installs while pytest leaves a core idle);
-# their output is printed, and their status checked, at the end. Arguments go to pytest:
-# `bash scripts/test.sh -m "not slow"` leaves out the slowest tests (README, "Tests").
+# their output is printed, and their status checked, at the end. Arguments go to pytest. The
+# tests marked slow (each repeats what a faster one checks) run with QUADRS_SLOW=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Elapsed time at each stage, so a slow stage shows in the CI log.
@@ -79,7 +79,9 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 stage "pytest"
-.venv/bin/python -m pytest -q --durations=15 "$@"
+# The tests marked slow repeat what faster ones check (pyproject.toml): QUADRS_SLOW=1 runs them.
+if [ -n "${QUADRS_SLOW:-}" ]; then only=(); else only=(-m "not slow"); fi
+.venv/bin/python -m pytest -q --durations=15 ${only[@]+"${only[@]}"} "$@"
 stage "background checks"
 finish_background
 stage "done"

@@ -159,7 +159,16 @@ def test_run_innovations_caps_its_workers(tiny: Scenario) -> None:
     for workers in (0, 4097, 10**6):  # 0 first: main refused it, and only it
         with pytest.raises(ValueError, match=rf"workers must be between 1 and 4096, got {workers}"):
             engine.run_innovations("pd", xi, None, workers, [], None)
-    assert engine.run_innovations("pd", xi, None, 4096, [], None).shape[0] == 1
+    assert engine.run_innovations("pd", xi, None, 1, [], None).shape[0] == 1
+
+
+@pytest.mark.slow
+def test_run_innovations_runs_at_its_most_workers(tiny: Scenario) -> None:
+    """The bound itself is accepted (a pool of 4096 threads: half a minute to start)."""
+    from quadrs.rare.scenario_model import ScenarioModel
+
+    xi = np.zeros((1, ScenarioModel(tiny, "pd", "iae", "P1").dimension))
+    assert tiny.engine.run_innovations("pd", xi, None, 4096, [], None).shape[0] == 1
 
 
 @pytest.mark.parametrize("per_level, dimension", [(100_000, 1), (100_000, 4), (20_000, 200)])

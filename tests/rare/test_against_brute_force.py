@@ -26,7 +26,9 @@ def linear(x: np.ndarray) -> np.ndarray:
     return np.asarray(x.sum(axis=1) / math.sqrt(x.shape[1]))
 
 
-@pytest.mark.parametrize("threshold", ["7.0", "4.9"])
+# 7.0 is the discriminating case (the one the two-stage estimator fixed); 4.9, an easier tail,
+# repeats the check at a minute's cost.
+@pytest.mark.parametrize("threshold", ["7.0", pytest.param("4.9", marks=pytest.mark.slow)])
 def test_flights_centre_on_brute_force_and_their_intervals_cover(
     short: quadrs.Scenario, threshold: str
 ) -> None:
