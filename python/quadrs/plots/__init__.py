@@ -1,4 +1,6 @@
-"""Figures a reader of the paper will recognise (its Figs. 4-16), and their Monte Carlo versions.
+"""Figures: those a reader of the paper will recognise (its Figs. 4-16) and their Monte Carlo
+versions, and, from the modules beside this one, those of routes, rotors, wind, slung payloads
+and missions.
 
 Every function returns a :class:`matplotlib.figure.Figure` built without pyplot (no global
 figure state, rendered by Agg), and saves it as PNG and SVG when given ``path`` (a path

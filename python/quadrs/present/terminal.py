@@ -1,4 +1,5 @@
-"""Text for the terminal: what a scenario holds (phase names, keys) is shown, never obeyed."""
+"""Text for the terminal: what a scenario holds (phase names, keys) is shown, never obeyed; and
+the progress bar every long call draws."""
 
 from __future__ import annotations
 
