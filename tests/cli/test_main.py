@@ -191,6 +191,19 @@ def test_keyboard_interrupt_anywhere_exits_130(monkeypatch, capsys) -> None:
     assert "interrupted" in capsys.readouterr().err
 
 
+def test_ctrl_c_while_the_parser_is_built_exits_130_in_one_line(monkeypatch, capsys) -> None:
+    """Building the parser imports what its choices come from (a second or two on a cold
+    start): a Ctrl-C then is one line and exit 130, not a traceback."""
+    import quadrs.cli.main as cli_main
+
+    def boom():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_main, "build_parser", boom)
+    assert main(["run", *SHORT]) == 130
+    assert capsys.readouterr().err == "quadrs: interrupted\n"
+
+
 def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:
     """A real Ctrl-C (SIGINT) while the batch runs: exit 130 and the finished runs saved.
     stderr is a pseudo-terminal, so the progress bar is drawn (it is not in a pipe)."""

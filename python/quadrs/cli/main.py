@@ -1132,11 +1132,16 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         print(f"quadrs {__version__}")
         return EXIT_OK
-    parser = build_parser()
     try:
+        # building the parser imports the libraries its choices come from (a second or two
+        # on a cold start): a Ctrl-C meanwhile is an interruption, not a traceback
+        parser = build_parser()
         args = parser.parse_args(argv)
     except SystemExit as e:  # --help, --version or a usage error
         return int(e.code) if isinstance(e.code, int) else EXIT_USAGE
+    except KeyboardInterrupt:
+        print("quadrs: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPT
     prog = f"quadrs {args.command}"
     terminated: list[int] = []
     try:
