@@ -7,10 +7,14 @@
 #
 # Once the wheel is built, the Rust checks and the other Pythons run in the background beside
 # the Python checks and pytest (each compiles or installs while pytest leaves a core idle);
-# their output is printed, and their status checked, at the end. Arguments go to pytest. The
-# tests marked slow (each repeats what a faster one checks) run with QUADRS_SLOW=1.
+# their output is printed, and their status checked, at the end. The tests marked slow
+# (pyproject.toml) run with `--slow` (or QUADRS_SLOW=1); other arguments go to pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = "--slow" ]; then
+    QUADRS_SLOW=1
+    shift
+fi
 # Elapsed time at each stage, so a slow stage shows in the CI log.
 stage() { echo "== $(date -u +%T) (+${SECONDS}s) $*"; }
 
@@ -79,7 +83,7 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 stage "pytest"
-# The tests marked slow repeat what faster ones check (pyproject.toml): QUADRS_SLOW=1 runs them.
+# The tests marked slow (pyproject.toml) run with --slow.
 if [ -n "${QUADRS_SLOW:-}" ]; then only=(); else only=(-m "not slow"); fi
 .venv/bin/python -m pytest -q --durations=15 ${only[@]+"${only[@]}"} "$@"
 stage "background checks"

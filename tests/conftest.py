@@ -22,6 +22,18 @@ SHORT = {
     "gust.end": 3.5,
 }
 
+# The delivery preset over its drop point: a 2 m descent to 5 m, then the preset's 15 s hover
+# (vehicle, parcel on its line, rotors, sheared crosswind and turbulence at the vehicle's own
+# altitude and airspeed as the preset flies them), 19 s a flight.
+DELIVERY_DROP = {
+    "trajectory.route": [[0.0, 0.0, 7.0], [0.0, 0.0, 5.0]],
+    "trajectory.hold": [0.0, 15.0],
+    "trajectory.names": ["descent", "drop"],
+    "initial.position": [0.0, 0.0, 7.0],
+    "integrator.duration": 19.0,
+    "gust.end": 19.0,
+}
+
 
 @pytest.fixture(scope="session")
 def paper() -> quadrs.Scenario:

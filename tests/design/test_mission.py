@@ -151,7 +151,7 @@ def test_the_command_on_the_paper_preset_saves_draws_and_fits_100_columns(
     text = capsys.readouterr().out
     assert rc == 0
     assert all(len(line) <= 100 for line in text.splitlines())
-    assert "P(max_accel > 5)" in text and FLIGHT_PHASE in text
+    assert "P(max_accel > 5 m/s^2 (0.51 g))" in text and FLIGHT_PHASE in text
     saved = quadrs.MonteCarloResult.read_parquet(out)
     assert saved.controllers == ("pd",) and len(saved.realisations) == 12
     assert saved.scenario == quadrs.Scenario.preset("paper")
@@ -224,3 +224,31 @@ def test_repr_is_one_line_and_html_has_the_tables() -> None:
     html = r._repr_html_()
     # route, acceleration, tracking, and the payload's table when the engine gives its columns
     assert html.count("<table") == 3 + bool(len(r.payload.columns))
+
+
+def test_an_acceleration_limit_is_taken_and_shown_in_standard_g() -> None:
+    """Fragility is stated in g (ISTA, ASTM D4169): ``--limit max_specific_force=1.5g`` is
+    1.5 standard gravities, and the parcel table shows the worst in g too;
+    a g on an angle is refused naming the metric."""
+    import argparse
+
+    from quadrs.cli.common import limit_option
+    from quadrs.present.labels import STANDARD_GRAVITY
+
+    assert limit_option("max_specific_force=1.5g") == ("max_specific_force", 1.5 * 9.80665)
+    assert limit_option("2 G") == ("max_accel", 2 * 9.80665)
+    assert limit_option("max_accel=3") == ("max_accel", 3.0)
+    with pytest.raises(argparse.ArgumentTypeError, match="max_swing"):
+        limit_option("max_swing=2g")
+    mc = batch(12)
+    r = mission_report(mc, 1.5 * STANDARD_GRAVITY, metric="max_specific_force")
+    text = r.to_text(width=200)
+    assert "14.71 m/s^2 (1.5 g)" in text.replace("14.7099", "14.71")
+    worst = r.acceleration["worst"].to_numpy(float)
+    assert (worst > 9.0).all()  # |a - g| is about g at hover
+    parcel = text[text.index("Parcel max_specific_force") :].splitlines()
+    assert parcel[1].split()[-2:] == ["worst", "g"]
+    calm = next(ln for ln in parcel if ln.startswith("calm"))
+    assert calm.split()[-1] == f"{worst[0] / STANDARD_GRAVITY:.3g}"
+    swing = mission_report(mc, 0.1, metric="max_swing").to_text(width=200)
+    assert "worst g" not in swing

@@ -288,19 +288,19 @@ def test_limit_in_both_forms_in_mission_and_report(
     out = tmp_path / "m.parquet"
     code, a, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit",
                      "max_accel=1.2", "--out", str(out))  # fmt: skip
-    assert code == 0 and "P(max_accel > 1.2)" in a
+    assert code == 0 and "P(max_accel > 1.2 m/s^2" in a
     code, b, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit", "1.2")
-    assert code == 0 and "P(max_accel > 1.2)" in b
+    assert code == 0 and "P(max_accel > 1.2 m/s^2" in b
     code, _, err = cli(capsys, "mission", "--limit", "no_such_metric=3")
     assert code == 2 and "no_such_metric" in err and len(err.strip().splitlines()) == 1
     # Another metric, in the unit the tables show (degrees for swing).
     code, e, _ = cli(capsys, "mission", "--scenario", src, "--runs", "3", "--limit",
                      "max_swing=30")  # fmt: skip
-    assert code == 0 and "Parcel max_swing (deg): P(max_swing > 30)" in e
+    assert code == 0 and "Parcel max_swing (deg): P(max_swing > 30 deg)" in e
     code, c, _ = cli(capsys, "report", str(out), "--limit", "1.2")
-    assert code == 0 and "P(max_accel > 1.2)" in c
+    assert code == 0 and "P(max_accel > 1.2 m/s^2" in c
     code, d, _ = cli(capsys, "report", str(out), "--limit", "max_accel=1.2")
-    assert code == 0 and "P(max_accel > 1.2)" in d
+    assert code == 0 and "P(max_accel > 1.2 m/s^2" in d
 
 
 def test_limit_parsing_is_general_over_metric_names() -> None:

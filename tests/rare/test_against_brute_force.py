@@ -18,6 +18,7 @@ import quadrs
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
 from quadrs.rare.subset import subset_simulation
+from tests.conftest import DELIVERY_DROP
 
 BRUTE = json.loads((Path(__file__).parents[1] / "data" / "rare_brute_force.json").read_text())
 
@@ -50,6 +51,28 @@ def test_flights_centre_on_brute_force_and_their_intervals_cover(
     covered = sum(r.interval is not None and r.interval[0] <= p <= r.interval[1] for r in runs)
     assert covered >= 92, covered
     assert all(0 < r.interval[0] <= r.interval[1] <= 1 for r in runs if r.interval)
+
+
+@pytest.mark.slow
+def test_the_delivery_vehicle_over_its_drop_point_centres_and_covers() -> None:
+    """The same on the delivery preset's vehicle, wind and turbulence over its drop point
+    (tests/conftest.py DELIVERY_DROP; benches/rare_cases.py "delivery-drop"): the parcel's
+    swing in the 15 s hover past the case's threshold, 100 seeds at per_level = 200, against
+    the brute-force value of tests/data/rare_brute_force.json (benches/brute_force.py
+    --case delivery-drop). About 50,000 flights: slow."""
+    case = BRUTE["cases"]["delivery-drop"]
+    threshold = case["checked"]
+    ref = case["thresholds"][threshold]
+    p = ref["p"]
+    s = quadrs.Scenario.preset("delivery").override(DELIVERY_DROP)
+    model = ScenarioModel(s, "pd", "max_swing", "drop", workers=2)
+    runs = [subset_simulation(model.evaluate, model.dimension, float(threshold),
+                              per_level=200, seed=seed) for seed in range(100)]  # fmt: skip
+    est = np.array([r.probability or 0.0 for r in runs], dtype=float)
+    se = est.std(ddof=1) / math.sqrt(len(est))
+    assert abs(est.mean() - p) < 3 * se + (ref["high"] - ref["low"]) / 2, (est.mean() / p, se / p)
+    covered = sum(r.interval is not None and r.interval[0] <= p <= r.interval[1] for r in runs)
+    assert covered >= 92, covered
 
 
 def stepped(x: np.ndarray) -> np.ndarray:

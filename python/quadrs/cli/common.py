@@ -64,14 +64,19 @@ def seed_and_workers(p: argparse.ArgumentParser) -> None:
 def limit_option(text: str) -> tuple[str, float]:
     """``--limit METRIC=X`` (any metric the engine names) or a bare ``X`` for max_accel, in
     ``quadrs mc``, ``sweep``, ``report`` and ``mission`` alike; X in the unit the tables show
-    (degrees for swing), returned in the results' unit (radians)."""
-    from quadrs.present.labels import display_scale
+    (degrees for swing; for an acceleration m/s², or g with a ``g`` suffix: ``2g``), returned
+    in the results' unit (radians, m/s²)."""
+    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
     from quadrs.stats.risk import parse_limit
 
     if "=" not in text:
         text = f"max_accel={text}"
+    name, _, raw = text.partition("=")
+    scale, raw = 1.0, raw.strip()
+    if in_g(name.strip()) and raw[-1:] in ("g", "G"):  # 2g: in standard gravities
+        scale, raw = STANDARD_GRAVITY, raw[:-1].strip()
     try:
-        metric, value = parse_limit(text)
+        metric, value = parse_limit(f"{name}={raw}")
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
-    return metric, value / display_scale(metric)
+    return metric, scale * value / display_scale(metric)

@@ -549,7 +549,8 @@ def _base_preset(args: argparse.Namespace) -> str:
 
 
 def load_scenario(args: argparse.Namespace) -> Any:
-    """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once."""
+    """The scenario of ``--preset``/``--scenario`` with every ``--set`` applied at once, then
+    flying the route of ``--plan`` if the command has it (quadrs.scenario.route_files)."""
     from quadrs.scenario.scenario import Scenario, canonical_key, parse_value
 
     if args.scenario is not None and args.preset is not None:
@@ -575,7 +576,13 @@ def load_scenario(args: argparse.Namespace) -> Any:
                 raise BadInput(f"--disperse {item!r}: expected KEY=DIST(ARGS)")
             table[canonical_key(key.strip())] = parse_distribution(spec)  # replaces the base's
         changes["dispersions"] = table
-    return base.override(changes) if changes else base
+    plan = getattr(args, "plan", None)
+    if plan is None:
+        return base.override(changes) if changes else base
+    from quadrs.scenario.route_files import read_route_file
+
+    start = changes.get("initial.position", base["initial.position"])
+    return read_route_file(plan, start_height=float(start[2])).apply(base, changes)
 
 
 def parse_distribution(text: str) -> dict[str, Any]:

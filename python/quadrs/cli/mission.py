@@ -51,6 +51,19 @@ def mission_limit(text: str) -> tuple[str, float]:
     return metric, value
 
 
+def laws(text: str) -> tuple[str, ...]:
+    """``pd`` or ``pd,smc,...``: control laws the engine has, each once."""
+    names = tuple(n.strip() for n in text.split(","))
+    for n in names:
+        if n not in CONTROLLERS:
+            raise argparse.ArgumentTypeError(
+                f"{n!r} is not a control law: one of {', '.join(CONTROLLERS)}"
+            )
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"each law once, got {text!r}")
+    return names
+
+
 def _fraction(text: str) -> float:
     return _number(text, lambda v: 0 < v < 1, "in (0, 1)")
 
@@ -82,7 +95,8 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         default=("max_accel", DEFAULT_LIMIT),
         metavar="A",
         help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
-        f"metric (degrees for swing) (default: {DEFAULT_LIMIT}, 1 g)",
+        "metric (degrees for swing; an acceleration also in g: max_specific_force=2g) "
+        f"(default: {DEFAULT_LIMIT}, 1 g)",
     )
     p.add_argument(
         "--track-limit",
@@ -108,10 +122,19 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--controller",
-        choices=CONTROLLERS,
-        default="pd",
-        help="controller (default: pd; the paper's SMC loses its attitude on the delivery "
-        "route, docs/model.md)",
+        type=laws,
+        default=("pd",),
+        metavar="LAW[,LAW...]",
+        help=f"control law, one of {', '.join(CONTROLLERS)} (default: pd); several, "
+        "comma-separated, fly the same gusts and are compared leg by leg against the first",
+    )
+    p.add_argument(
+        "--plan",
+        type=Path,
+        metavar="FILE",
+        help="fly the route of a QGroundControl .plan mission (waypoints about its planned "
+        "home: x east, y north, z above home) or of a .csv of points (x,y,z or lat,lon,alt; "
+        "optional hold), at the file's speed; docs/delivery.md",
     )
     seed_and_workers(p)
     p.add_argument(
@@ -155,7 +178,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         scenario,
         runs=args.runs,
         seed=args.seed,
-        controllers=(args.controller,),
+        controllers=args.controller,
         workers=args.workers,
         progress=not args.no_progress and sys.stderr.isatty(),
         spectra=False,
@@ -167,14 +190,24 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
     metric, limit = args.limit
-    report = mission_report(mc, limit, args.controller, args.quantile, metric=metric,
-                            track_limit=args.track_limit,
-                            cross_track_limit=args.cross_track_limit)  # fmt: skip
+    if len(args.controller) > 1:
+        from quadrs.design.mission_compare import compare_laws
+
+        compared = compare_laws(mc, limit, args.controller, metric, args.quantile,
+                                track_limit=args.track_limit,
+                                cross_track_limit=args.cross_track_limit)  # fmt: skip
+        reports = list(compared.reports.values())
+        text = compared.to_text(width=100)
+    else:
+        reports = [mission_report(mc, limit, args.controller[0], args.quantile, metric=metric,
+                                  track_limit=args.track_limit,
+                                  cross_track_limit=args.cross_track_limit)]  # fmt: skip
+        text = reports[0].to_text(width=100)
     if mc.interrupted:
-        print(f"(interrupted: {report.runs} of {args.runs} realisations finished)")
-    print(report.to_text(width=100))
+        print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
+    print(text)
     if args.plots is not None:
-        _plots(mc, report, args.plots)
+        _plots(mc, reports, args.plots)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
 
 
@@ -182,8 +215,8 @@ def _announce(scenario: Any, args: argparse.Namespace) -> None:
     """What the command flies and roughly how long, from a short calibration, on stderr."""
     from quadrs.cli.cost import announce, calibrate, precheck, say
 
-    precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
-    cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
+    precheck(scenario, args.controller, args.runs, args.workers, args.seed)
+    cal = calibrate(scenario, args.controller, args.workers, args.seed,
                     flights=min(args.runs, 8))  # fmt: skip
     duration = float(scenario["integrator.duration"])
     what = f"{args.runs} realisations of a {duration:g} s flight"
@@ -196,13 +229,21 @@ def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
     return lambda: plots.exceedance_curves(runs, metric, marks)
 
 
-def _plots(mc: Any, report: Any, directory: Path) -> None:
-    """Per-phase risk with intervals, and the exceedance curves of the payload's peaks."""
+def _plots(mc: Any, reports: list[Any], directory: Path) -> None:
+    """Per-phase risk with intervals (one figure per law), and the exceedance curves of the
+    payload's peaks (every law on each)."""
     from quadrs import plots
     from quadrs.plots.mission import mission_risk
     from quadrs.present.terminal import terminal_text
 
-    figures: list[tuple[str, Callable[[], Any]]] = [("mission_risk", lambda: mission_risk(report))]
+    def risk(r: Any) -> Callable[[], Any]:
+        return lambda: mission_risk(r)
+
+    one = len(reports) == 1
+    figures: list[tuple[str, Callable[[], Any]]] = [
+        ("mission_risk" if one else f"mission_risk_{r.controller}", risk(r)) for r in reports
+    ]
+    report = reports[0]
     shown = [(m, [report.limit] if m == report.metric else []) for m in
              dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
     for metric, marks in shown:

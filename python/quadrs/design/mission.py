@@ -155,7 +155,7 @@ class MissionReport:
         qp = f"q{100 * self.quantile:g}"
         tables = [] if self.route is None else [(self.verdict(), _route_text(self.route))]
         tables.append((f"parcel {_shown_name(self.metric)}, P(> {_shown_limit(self)}) in %",
-                       _acceleration_text(self.acceleration, qp)))  # fmt: skip
+                       _acceleration_text(self.acceleration, qp, self.metric)))  # fmt: skip
         if len(self.payload.columns):
             tables.append(("swing (deg), tension (N), slack time (s)",
                            _payload_text(self.payload, qp)))  # fmt: skip
@@ -194,12 +194,12 @@ class MissionReport:
             "",
             f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) in % "
             f"and its {qp}",
-            _fit(_acceleration_text(self.acceleration, qp), width),
+            _fit(_acceleration_text(self.acceleration, qp, self.metric), width),
             fill(
                 _joint_line(
                     self.joint,
                     "acceleration",
-                    f"exceeded {_shown_limit(self)} {_unit(self.metric)}",
+                    f"exceeded {_shown_limit(self)}",
                 )
             ),
         ]
@@ -476,9 +476,13 @@ def _unit(metric: str) -> str:
 
 
 def _shown_limit(report: MissionReport) -> str:
-    from quadrs.present.labels import display_scale
+    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
 
-    return f"{display_scale(report.metric) * report.limit:g}"
+    shown = f"{display_scale(report.metric) * report.limit:g}"
+    if in_g(report.metric):
+        return f"{shown} m/s^2 ({report.limit / STANDARD_GRAVITY:.3g} g)"
+    unit = _unit(report.metric)
+    return f"{shown} {unit}" if unit else shown
 
 
 def _pct(p: float) -> str:
@@ -541,7 +545,12 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _acceleration_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
+def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
+    """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
+    the heading: a column more would not fit 100 columns)."""
+    from quadrs.present.labels import STANDARD_GRAVITY, in_g
+
+    g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
     return pd.DataFrame(
         {
             "runs": t["n"].astype(int),
@@ -553,6 +562,7 @@ def _acceleration_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
             ],
             qp: [_interval(r.quantile, r.q_low, r.q_high) for r in t.itertuples()],
             "worst": [_g(v) for v in t["worst"]],
+            **g,
         },
         index=t.index,
     )

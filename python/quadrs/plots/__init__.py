@@ -49,6 +49,7 @@ from quadrs.plots.base import (
     shade_gust,
     short_label,
 )
+from quadrs.present import labels as _labels
 from quadrs.present.labels import display_scale
 from quadrs.present.table3 import phase_diverged
 from quadrs.runs import psd as _psd
@@ -64,7 +65,7 @@ _MODEL_NAMES = {"dryden": "Dryden", "von_karman": "von Kármán"}
 #: quadrs.plots.base, the signal processing in quadrs.runs.psd): ``plots.save`` and the rest stay.
 FMAX = _base.FMAX
 FORMATS = _base.FORMATS
-PLAIN_LABELS = _base.PLAIN_LABELS
+PLAIN_LABELS = _labels.PLAIN_LABELS
 SHORT_NAMES = _base.SHORT_NAMES
 new_figure = _base.new_figure
 save = _base.save

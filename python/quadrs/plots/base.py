@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from quadrs.io.files import atomic_write
-from quadrs.present.labels import UNITS
+from quadrs.present.labels import PLAIN_LABELS, UNITS
 from quadrs.runs.flight import Flight
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
@@ -25,41 +25,6 @@ FORMATS = ("png", "svg")
 STYLE: dict[str, dict[str, Any]] = {
     "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
     "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
-}
-#: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
-#: labels a metric or key through these (a key not listed shows as itself).
-PLAIN_LABELS = {
-    "max_accel": "Payload acceleration peak (m/s²)",
-    "rms_accel": "Payload acceleration RMS (m/s²)",
-    "max_abs": "Peak |payload relative displacement| (m)",
-    "rms": "RMS payload relative displacement (m)",
-    "iae": "Integrated absolute displacement, IAE (m s)",
-    "itae": "Time-weighted IAE, ITAE (m s²)",
-    "tracking_rms": "RMS 3-D tracking error (m)",
-    "max_tracking": "Peak 3-D tracking error (m)",
-    "rms_cross_track": "RMS cross-track error (m)",
-    "max_cross_track": "Peak cross-track error (m)",
-    "max_specific_force": "Peak specific force on the payload, |a - g| (m/s²)",
-    "max_swing": "Peak swing angle of the line (deg)",
-    "rms_swing": "RMS swing angle of the line (deg)",
-    "max_tension": "Peak line tension (N)",
-    "min_tension": "Lowest line tension (N)",
-    "slack_time": "Time with the line slack (s)",
-    "saturated_time": "Time with a rotor at its limit (s)",
-    "peak_frequency": "Frequency of the displacement's spectral peak (Hz)",
-    "peak_amplitude": "Amplitude of the displacement's spectral peak (m)",
-    "payload.natural_frequency": "Attachment natural frequency (Hz)",
-    "payload.stiffness": "Attachment stiffness (N/m)",
-    "payload.mass": "Payload mass (kg)",
-    "payload.damping": "Attachment damping (N s/m)",
-    "payload.drag_area": "Payload drag area (m²)",
-    "gust.w20": "Wind at 20 ft (m/s)",
-    "gust.airspeed": "Airspeed (m/s)",
-    "gust.altitude": "Altitude of the gust model (m)",
-    "gust.air_density": "Air density (kg/m³)",
-    "vehicle.mass": "Quadrotor mass (kg)",
-    "vehicle.drag_area": "Quadrotor drag area (m²)",
-    "integrator.dt": "Integration step (s)",
 }
 #: Short names for titles (the label without its unit, where that is long).
 SHORT_NAMES = {
