@@ -36,7 +36,7 @@ import warnings
 
 import quadrs
 from quadrs import _core
-from quadrs.montecarlo import default_workers
+from quadrs.runs.montecarlo import default_workers
 
 
 def cpu_model() -> str:

@@ -7,7 +7,7 @@ import sys
 import warnings
 
 import quadrs
-from quadrs.report import format_table3
+from quadrs.present.table3 import format_table3
 
 runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
 s = quadrs.Scenario.paper().override({"integrator.dt": 0.002})  # coarser than the paper's

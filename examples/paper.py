@@ -7,7 +7,7 @@ import sys
 import warnings
 
 import quadrs
-from quadrs.paper import paper
+from quadrs.paper.pipeline import paper
 
 out = sys.argv[1] if len(sys.argv) > 1 else "paper_output"
 runs = int(sys.argv[2]) if len(sys.argv) > 2 else 8

@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 import quadrs
-from quadrs.report import PAPER_TABLE3
+from quadrs.present.table3 import PAPER_TABLE3
 
 RUNS = 16
 PARAMS = {

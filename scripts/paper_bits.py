@@ -11,8 +11,8 @@ bit of any value does.
     python scripts/paper_bits.py --write FILE     # save them
     python scripts/paper_bits.py --delivery --write tests/data/delivery_bits.json
 
-tests/test_paper_bits.py runs the check against tests/data/paper_bits.json (written before the
-model-seams redesign).
+tests/engine/test_paper_bits.py runs the check against tests/data/paper_bits.json (written before
+the model-seams redesign).
 """
 
 from __future__ import annotations

@@ -2,12 +2,37 @@
 # Install everything the tests need into .venv (the engine as a built wheel, not editable), then run every check: Rust format, lints and
 # unit tests; the Python package built with maturin; ruff, mypy, the stub check, the
 # documentation site (mkdocs build --strict: warnings are errors) and pytest;
-# then the package built, installed and smoke-tested on the lowest supported and the newest
+# then the package installed and smoke-tested on the lowest supported and the newest
 # installed Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
+#
+# Once the wheel is built, the Rust checks and the other Pythons run in the background beside
+# the Python checks and pytest (each compiles or installs while pytest leaves a core idle);
+# their output is printed, and their status checked, at the end. The tests marked slow
+# (pyproject.toml) run with `--slow` (or QUADRS_SLOW=1); other arguments go to pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = "--slow" ]; then
+    QUADRS_SLOW=1
+    shift
+fi
 # Elapsed time at each stage, so a slow stage shows in the CI log.
 stage() { echo "== $(date -u +%T) (+${SECONDS}s) $*"; }
+
+# A fresh clone gains nothing from incremental compilation (it only writes its caches).
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
+background=()
+logs=()
+finish_background() { # wait for each background check, print its log, fail if it failed
+    local failed=0 i
+    for i in ${background[@]+"${!background[@]}"}; do
+        if ! wait "${background[$i]}"; then failed=1; fi
+        cat "${logs[$i]}"
+    done
+    background=()
+    return "$failed"
+}
+# stop what still runs in the background if a check fails first
+trap 'for p in ${background[@]+"${background[@]}"}; do kill "$p" 2>/dev/null || true; done' EXIT
 
 stage "install"
 python3 -m venv .venv
@@ -25,12 +50,28 @@ wheel=$(ls target/ci-wheel/quadrs-*.whl)
 .venv/bin/python -m pip install -q --no-deps --force-reinstall "$wheel"
 export QUADRS_WHEEL="$wheel"
 
-stage "rust checks and tests"
+stage "rust checks and tests (in the background)"
 cargo fmt --check
-cargo clippy --all-targets -q -- -D warnings
-# Unit tests at optimisation without LTO (same arithmetic, minutes less to link); the doc
-# comments hold no examples, so no doctest build.
-cargo test --profile dev-opt --lib -q
+logs+=("$(mktemp)")
+(
+    set -e
+    echo "== rust checks and tests (background)"
+    s=$SECONDS
+    cargo clippy --all-targets -q -- -D warnings
+    # Unit tests at optimisation without LTO (same arithmetic, minutes less to link), reusing
+    # the wheel's dependencies; the doc comments hold no examples, so no doctest build.
+    cargo test --profile dev-opt --lib -q
+    echo "== rust checks and tests took $((SECONDS - s)) s"
+) >"${logs[-1]}" 2>&1 &
+background+=($!)
+if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
+    logs+=("$(mktemp)")
+    (
+        echo "== other pythons (background)"
+        bash scripts/other_pythons.sh
+    ) >"${logs[-1]}" 2>&1 &
+    background+=($!)
+fi
 
 stage "python checks"
 .venv/bin/ruff check python tests benches examples scripts
@@ -42,9 +83,9 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 stage "pytest"
-.venv/bin/python -m pytest -q --durations=15 "$@"
-if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
-    stage "other pythons"
-    bash scripts/other_pythons.sh
-fi
+# The tests marked slow (pyproject.toml) run with --slow.
+if [ -n "${QUADRS_SLOW:-}" ]; then only=(); else only=(-m "not slow"); fi
+.venv/bin/python -m pytest -q --durations=15 ${only[@]+"${only[@]}"} "$@"
+stage "background checks"
+finish_background
 stage "done"

@@ -1,9 +1,12 @@
-"""The package's import graph has no cycles, lazy (in-function) imports included.
+"""The package's layers, checked from its source: every module belongs to one layer by its
+package prefix, no module imports a higher layer, and no import closes a cycle.
 
-Every module under python/quadrs is parsed with ``ast``; each ``import quadrs...`` and
-``from quadrs... import ...`` anywhere in it (module level, in functions, in try/except)
-becomes an edge, except those under ``if TYPE_CHECKING:``, which never run. A cycle is
-reported as the chain of modules that closes it.
+Every ``.py`` under python/quadrs is parsed with ``ast`` (nothing is imported, so no module
+can be missed by an import that happens not to run); each ``import quadrs...`` and
+``from quadrs... import ...`` anywhere in it becomes an edge: at module level, inside
+functions, in try/except and under ``if TYPE_CHECKING:`` (a type-only import is still a
+dependency: of the reader, of mypy, and of whoever moves the module). The layers, lowest
+first, are :data:`LAYERS`; docs/architecture.md draws them.
 """
 
 from __future__ import annotations
@@ -13,6 +16,26 @@ from pathlib import Path
 
 PACKAGE = "quadrs"
 ROOT = Path(__file__).resolve().parent.parent / "python" / PACKAGE
+
+#: The layers, lowest first: a module may import its own layer and those below it, never one
+#: above. A module's layer is the longest prefix here that names it (``quadrs.runs.flight`` is
+#: in ``quadrs.runs``); ``quadrs`` itself, the public face, is the top and nothing imports it.
+LAYERS = (
+    "quadrs._core",  # the compiled engine (Rust), seen through its stub
+    "quadrs.engine",  # the compiled handle and the guarded calls into it
+    "quadrs.scenario",  # what to fly: the validated scenario, dispersions, routes, units
+    "quadrs.io",  # files: atomic writes, Parquet with metadata, run identity
+    "quadrs.stats",  # statistics of runs tables: intervals, risk, tables per group
+    "quadrs.present",  # text and HTML for people, from frames: Table 3, notebook display
+    "quadrs.hover",  # the closed loop at hover: poles and the linear model
+    "quadrs.runs",  # flights and batches: one flight, Monte Carlo, chunks, stores, sweeps
+    "quadrs.design",  # the design loop: optimize, constraints, sensitivity, missions
+    "quadrs.rare",  # rare events by subset simulation
+    "quadrs.plots",  # figures
+    "quadrs.paper",  # the paper's tables and figures in one call
+    "quadrs.cli",  # the command line
+    "quadrs",  # the public face (quadrs/__init__.py)
+)
 
 
 def module_names() -> dict[str, Path]:
@@ -26,31 +49,13 @@ def module_names() -> dict[str, Path]:
     return names
 
 
-def _is_type_checking(test: ast.expr) -> bool:
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
-    )
-
-
-def _runtime_nodes(tree: ast.AST):
-    """Every node except the bodies of ``if TYPE_CHECKING:`` blocks."""
-    stack = [tree]
-    while stack:
-        node = stack.pop()
-        yield node
-        if isinstance(node, ast.If) and _is_type_checking(node.test):
-            stack.extend(node.orelse)
-            continue
-        stack.extend(ast.iter_child_nodes(node))
-
-
 def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The package modules `name` imports when it runs (any depth, any function)."""
+    """The package modules `name` imports (any depth, any function, type-only included)."""
     if path.suffix == ".pyi":
         return set()
     is_package = path.name == "__init__.py"
     found: set[str] = set()
-    for node in _runtime_nodes(ast.parse(path.read_text(), filename=str(path))):
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -69,6 +74,8 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
         else:
             continue
         for target in targets:
+            if target != PACKAGE and not target.startswith(PACKAGE + "."):
+                continue
             # `import quadrs.results.x` means the longest known module on that path
             while target and target not in modules:
                 target = target.rpartition(".")[0]
@@ -80,6 +87,28 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
 def import_graph() -> dict[str, set[str]]:
     modules = module_names()
     return {name: imports_of(name, path, modules) for name, path in modules.items()}
+
+
+def layer_of(module: str) -> int | None:
+    """The index in LAYERS of the longest prefix naming ``module``; None if no layer does
+    (only the face is ``quadrs`` alone: a module directly under it belongs to none)."""
+    for index in sorted(range(len(LAYERS)), key=lambda i: -len(LAYERS[i])):
+        layer = LAYERS[index]
+        if module == layer or (layer != PACKAGE and module.startswith(layer + ".")):
+            return index
+    return None
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    """One line per module in no layer and per import of a higher layer."""
+    bad = [f"{m} is in no layer of LAYERS" for m in sorted(graph) if layer_of(m) is None]
+    for module in sorted(graph):
+        own = layer_of(module)
+        for target in sorted(graph[module]):
+            theirs = layer_of(target)
+            if own is not None and theirs is not None and theirs > own:
+                bad.append(f"{module} ({LAYERS[own]}) imports {target} ({LAYERS[theirs]})")
+    return bad
 
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -105,18 +134,69 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-def test_the_walker_sees_lazy_imports_and_finds_cycles():
-    graph = import_graph()
-    assert "quadrs.flight" in graph and "quadrs.scenario" in graph["quadrs.flight"]
-    # cli imports its commands' modules inside functions only
-    assert "quadrs.sweep" in graph["quadrs.cli"]
+def test_the_walker_sees_every_kind_of_import(tmp_path):
+    """Lazy, type-only, relative and ``from package import module`` imports are all edges."""
+    pkg = tmp_path / PACKAGE
+    (pkg / "low").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "low" / "__init__.py").write_text("")
+    (pkg / "low" / "a.py").write_text(
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n    from quadrs.low.b import B\n"
+        "def f():\n    from . import c\n    import quadrs.low.d.x\n"
+    )
+    for leaf in "bcd":
+        (pkg / "low" / f"{leaf}.py").write_text("import os\n")
+    modules = {
+        ".".join(p.relative_to(tmp_path).with_suffix("").parts).removesuffix(".__init__"): p
+        for p in pkg.rglob("*.py")
+    }
+    found = imports_of("quadrs.low.a", pkg / "low" / "a.py", modules)
+    assert found == {"quadrs.low.b", "quadrs.low.c", "quadrs.low.d"}
+
+
+def test_layers_are_read_by_prefix():
+    assert layer_of("quadrs") == len(LAYERS) - 1
+    assert layer_of("quadrs.runs.flight") == LAYERS.index("quadrs.runs")
+    assert layer_of("quadrs.rare") == LAYERS.index("quadrs.rare")
+    assert layer_of("quadrs.flight") is None  # a flat module belongs to no layer
+    assert layer_of("quadrs.runsx") is None
+    graph = {"quadrs.runs.a": {"quadrs.plots.b"}, "quadrs.plots.b": {"quadrs.runs.a"}}
+    assert layer_violations(graph) == [
+        "quadrs.runs.a (quadrs.runs) imports quadrs.plots.b (quadrs.plots)"
+    ]
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
 
 
+def test_every_module_sits_in_a_layer_and_imports_none_above_it():
+    graph = import_graph()
+    assert len(graph) > 40 and "quadrs._core" in graph  # the walker found the package
+    bad = layer_violations(graph)
+    assert not bad, "layer rule broken:\n" + "\n".join(bad)
+
+
 def test_no_import_cycles():
+    """No cycle between modules, type-only imports included."""
     cycle = find_cycle(import_graph())
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_the_package_init_files_below_the_face_stay_light():
+    """A subpackage's ``__init__`` imports nothing heavy on its own, so that importing one
+    module of a layer does not load the layer: it holds a docstring (and, for the packages
+    whose face it is, ``rare`` and ``plots``, their code)."""
+    for path in sorted(ROOT.rglob("__init__.py")):
+        package = ".".join(path.relative_to(ROOT.parent).parent.parts)
+        if package in (PACKAGE, "quadrs.rare", "quadrs.plots"):
+            continue
+        tree = ast.parse(path.read_text())
+        code = [
+            n for n in tree.body
+            if not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant))
+        ]  # fmt: skip
+        assert not code, f"{package}/__init__.py holds code; keep it a docstring"
+        assert ast.get_docstring(tree), f"{package}/__init__.py has no docstring"
 
 
 RUST = Path(__file__).resolve().parent.parent / "rust" / "src"
@@ -149,74 +229,18 @@ def test_the_engine_has_no_module_cycle():
     assert cycle is None, "engine module cycle: " + " -> ".join(cycle or [])
 
 
-#: Modules that only present results (tables, figures, notebook display, the command line).
-PRESENTATION = {
-    "quadrs.report",
-    "quadrs.plots",
-    "quadrs.paper",
-    "quadrs._paper_grid",
-    "quadrs.display",
-    "quadrs.cli",
-    "quadrs.cli_design",
-}
-#: The core: scenarios, engine calls, results, storage and integrity.
-CORE = {
-    "quadrs.scenario",
-    "quadrs.flight",
-    "quadrs.montecarlo",
-    "quadrs.chunk",
-    "quadrs.results",
-    "quadrs.compiled",
-    "quadrs.tables",
-    "quadrs.summary",
-    "quadrs.store",
-    "quadrs.integrity",
-    "quadrs.parquet",
-    "quadrs.dispersion",
-    "quadrs.guard",
-    "quadrs.gust",
-    "quadrs.linear",
-    "quadrs.stability",
-}
+#: Test folders that are not a layer: the suites that cut across the package, by topic, and
+#: the data the tests read.
+CROSS_CUTTING = {"guarantees", "first_hour", "data"}
 
 
-def reachable(graph: dict[str, set[str]], start: str) -> set[str]:
-    seen: set[str] = set()
-    stack = [start]
-    while stack:
-        for nxt in graph.get(stack.pop(), ()):
-            if nxt not in seen:
-                seen.add(nxt)
-                stack.append(nxt)
-    return seen
-
-
-def display_imports_outside_repr_html(path: Path) -> list[int]:
-    """Lines where ``path`` imports quadrs.display other than inside a ``_repr_html_``."""
-    tree = ast.parse(path.read_text())
-    allowed: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.FunctionDef) and node.name == "_repr_html_":
-            allowed.update(id(n) for n in ast.walk(node))
-    bad = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("display"):
-            if id(node) not in allowed:
-                bad.append(node.lineno)
-    return bad
-
-
-def test_the_core_imports_no_presentation_module():
-    """The core never imports tables, figures or the command line, lazily or not. The one hook
-    is the notebook display: Jupyter looks for ``_repr_html_`` on the result's class, so a
-    result type may import ``quadrs.display`` inside that method, and nowhere else."""
-    graph = import_graph()
-    assert CORE <= set(graph) and PRESENTATION <= set(graph)
-    modules = module_names()
-    core_graph = {m: deps - {"quadrs.display"} for m, deps in graph.items()}
-    for module in sorted(CORE):
-        bad = reachable(core_graph, module) & PRESENTATION
-        assert not bad, f"{module} imports presentation modules {sorted(bad)}"
-        lines = display_imports_outside_repr_html(modules[module])
-        assert not lines, f"{module} imports quadrs.display outside _repr_html_ (lines {lines})"
-    assert reachable({"a": {"b"}, "b": {"c"}}, "a") == {"b", "c"}
+def test_the_tests_mirror_the_package():
+    """Each folder under tests/ is a layer of the package (tests/runs for quadrs.runs, ...) or a
+    cross-cutting suite named by its topic; a test file sits in one of them or, for the
+    package as a whole (its face, its layers, its examples), at the top."""
+    tests = Path(__file__).resolve().parent
+    layers = {layer.removeprefix(PACKAGE + ".") for layer in LAYERS[1:-1]}
+    folders = {p.name for p in tests.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
+    assert folders - layers - CROSS_CUTTING == set()
+    top = {p.name for p in tests.glob("test_*.py")}
+    assert top <= {"test_imports.py", "test_public_api.py", "test_examples.py"}, top

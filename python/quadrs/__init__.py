@@ -1,27 +1,70 @@
-"""quadrs: Monte Carlo of a quadrotor carrying a spring-attached payload through Dryden gusts.
+"""quadrs: Monte Carlo simulation of a quadrotor carrying a payload (a spring-attached mass as
+in Geronel, Botez & Bueno 2023, or a cable-slung load) through turbulence, wind and gusts, with
+a Rust engine: single flights, paired Monte Carlo batches, sweeps, stability and linear models
+at hover, tuning, sensitivity, mission risk along a route, and rare events by subset
+simulation.
 
-The public API; see the README for a tour.
+The public API; see the README for a tour. The names below load on first use (PEP 562), so
+``import quadrs`` is quick: pandas, scipy and matplotlib come with the first flight, table or
+figure.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from quadrs._core import EngineError, ScenarioError, __version__
-from quadrs.constraints import Constraint
-from quadrs.flight import Flight, simulate
-from quadrs.gust import gust_scales, gust_series
-from quadrs.linear import LinearModel, linearize
-from quadrs.montecarlo import MonteCarloResult, monte_carlo
-from quadrs.optimize import InfeasibleWarning, OptimizeResult, optimize
-from quadrs.plausibility import PlausibilityWarning
-from quadrs.rare import RareEventComparison, RareEventResult, rare_event
-from quadrs.scenario import Scenario
-from quadrs.sensitivity import SensitivityResult, sensitivity
-from quadrs.stability import (
-    StabilityNote,
-    StabilityReport,
-    StabilityWarning,
-    StepSizeWarning,
-    stability,
-)
-from quadrs.sweep import sweep
+
+if TYPE_CHECKING:  # what mypy and editors see: the same names, imported eagerly
+    from quadrs.design.constraints import Constraint
+    from quadrs.design.optimize import InfeasibleWarning, OptimizeResult, optimize
+    from quadrs.design.sensitivity import SensitivityResult, sensitivity
+    from quadrs.hover.linear import LinearModel, linearize
+    from quadrs.hover.stability import (
+        StabilityNote,
+        StabilityReport,
+        StabilityWarning,
+        StepSizeWarning,
+        stability,
+    )
+    from quadrs.rare import RareEventComparison, RareEventResult, rare_event
+    from quadrs.runs.flight import Flight, simulate
+    from quadrs.runs.gust import gust_scales, gust_series
+    from quadrs.runs.montecarlo import MonteCarloResult, monte_carlo
+    from quadrs.runs.sweep import SweepResult, sweep
+    from quadrs.scenario.plausibility import PlausibilityWarning
+    from quadrs.scenario.scenario import Scenario
+
+#: Public name -> the module that defines it (imported on first access).
+_WHERE = {
+    "Constraint": "quadrs.design.constraints",
+    "InfeasibleWarning": "quadrs.design.optimize",
+    "OptimizeResult": "quadrs.design.optimize",
+    "optimize": "quadrs.design.optimize",
+    "SensitivityResult": "quadrs.design.sensitivity",
+    "sensitivity": "quadrs.design.sensitivity",
+    "LinearModel": "quadrs.hover.linear",
+    "linearize": "quadrs.hover.linear",
+    "StabilityNote": "quadrs.hover.stability",
+    "StabilityReport": "quadrs.hover.stability",
+    "StabilityWarning": "quadrs.hover.stability",
+    "StepSizeWarning": "quadrs.hover.stability",
+    "stability": "quadrs.hover.stability",
+    "RareEventComparison": "quadrs.rare",
+    "RareEventResult": "quadrs.rare",
+    "rare_event": "quadrs.rare",
+    "Flight": "quadrs.runs.flight",
+    "simulate": "quadrs.runs.flight",
+    "gust_scales": "quadrs.runs.gust",
+    "gust_series": "quadrs.runs.gust",
+    "MonteCarloResult": "quadrs.runs.montecarlo",
+    "monte_carlo": "quadrs.runs.montecarlo",
+    "SweepResult": "quadrs.runs.sweep",
+    "sweep": "quadrs.runs.sweep",
+    "PlausibilityWarning": "quadrs.scenario.plausibility",
+    "Scenario": "quadrs.scenario.scenario",
+}
 
 __all__ = [
     "Constraint",
@@ -41,6 +84,7 @@ __all__ = [
     "StabilityReport",
     "StabilityWarning",
     "StepSizeWarning",
+    "SweepResult",
     "__version__",
     "gust_scales",
     "gust_series",
@@ -53,3 +97,17 @@ __all__ = [
     "stability",
     "sweep",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A public name, imported from its module on first use and then kept here."""
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'quadrs' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_WHERE})

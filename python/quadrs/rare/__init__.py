@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from quadrs.guard import check_int
+from quadrs.engine.calls import check_int
 from quadrs.rare.result import RareEventComparison, RareEventResult
 from quadrs.rare.scenario_model import RareEventModel, ScenarioModel
 from quadrs.rare.subset import Level, Model, check_settings, check_threshold, subset_simulation
-from quadrs.scenario import Scenario
+from quadrs.scenario.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
@@ -128,7 +128,7 @@ def rare_event(
         raise ValueError("give workers= or client=, not both: with a client, each Dask "
                          "worker's threads fly its rows")  # fmt: skip
     models = [ScenarioModel(scenario, c, metric, phase, workers, client) for c in names]
-    from quadrs.stability import warn_before_running
+    from quadrs.hover.stability import warn_before_running
 
     warn_before_running(scenario, names, gains=True, stacklevel=2)
     results: dict[str, RareEventResult] = {}

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadrs.distributed import total_threads, worker_threads
 from quadrs.rare.engine import run_rows
+from quadrs.runs.distributed import total_threads, worker_threads
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client

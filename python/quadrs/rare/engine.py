@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 
 from quadrs import _core
-from quadrs.compiled import compiled
-from quadrs.guard import run_cancellable
+from quadrs.engine.calls import run_cancellable
+from quadrs.engine.compiled import compiled
 
 __all__ = ["engine_function", "run_rows"]
 

@@ -16,8 +16,8 @@ import pandas as pd
 from quadrs.rare.subset import Level, SubsetRun, lognormal_interval
 
 if TYPE_CHECKING:  # pragma: no cover
-    from quadrs.flight import Flight
     from quadrs.rare.scenario_model import RareEventModel
+    from quadrs.runs.flight import Flight
 
 __all__ = ["RareEventComparison", "RareEventResult"]
 
@@ -228,7 +228,7 @@ class RareEventResult:
         model = self.model
         if not isinstance(model, ScenarioModel):
             return None
-        from quadrs.integrity import RunRecord
+        from quadrs.io.integrity import RunRecord
 
         run = self.run
         extra = {"metric": model.metric, "phase": model.phase, "threshold": run.threshold,
@@ -240,8 +240,8 @@ class RareEventResult:
         """Write :attr:`failures` with each sample's standard normals (column ``xi``) and
         :meth:`metadata` (the estimate, the levels, the settings); written to a temporary
         file, then renamed, so never half-written."""
-        from quadrs.flight import _json_safe
-        from quadrs.parquet import write_frame
+        from quadrs.io.parquet import write_frame
+        from quadrs.runs.flight import _json_safe
 
         frame = self.failures
         frame["xi"] = list(self.run.failure_xi)
@@ -250,10 +250,10 @@ class RareEventResult:
     @classmethod
     def read_parquet(cls, path: str | Path) -> RareEventResult:
         """Read a file written by :meth:`to_parquet`. A scenario run's file must match its
-        run identity (else :class:`quadrs.integrity.CorruptRunError`) and comes back with its
+        run identity (else :class:`quadrs.io.integrity.CorruptRunError`) and comes back with its
         model, so ``flight(k)`` re-flies its failures."""
-        from quadrs.integrity import RunRecord, _fail
-        from quadrs.parquet import read_frame
+        from quadrs.io.integrity import RunRecord, _fail
+        from quadrs.io.parquet import read_frame
 
         frame, meta = read_frame(path, _META_KEY)
         if not isinstance(meta, dict) or meta.get("kind") != "rare_event":

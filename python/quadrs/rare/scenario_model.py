@@ -7,7 +7,7 @@ The protocol the sampler relies on (:class:`RareEventModel`):
 - ``dimension``: standard normals per flight;
 - ``evaluate(xi)``: (N, dimension) -> (N,) metric values, one batch of flights; a diverged
   flight counts as +inf (an exceedance, as in ``MonteCarloResult.exceedance``);
-- ``fly(xi_row)``: the :class:`~quadrs.flight.Flight` of one row, with its trace.
+- ``fly(xi_row)``: the :class:`~quadrs.runs.flight.Flight` of one row, with its trace.
 
 The engine functions, in ``_core`` (see docs/rare-events.md, "The engine interface"):
 
@@ -29,27 +29,28 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from quadrs import _core
-from quadrs.dispersion import dispersed_keys, distribution
-from quadrs.guard import MAX_WORKERS, check_controller, check_int, run_cancellable
+from quadrs.engine.calls import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.rare.engine import engine_function, run_rows
-from quadrs.scenario import Scenario, ScenarioError, scenario_error
+from quadrs.scenario.dispersion import dispersed_keys, distribution
+from quadrs.scenario.scenario import Scenario, ScenarioError, scenario_error
 
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
 
-    from quadrs.flight import Flight
+    from quadrs.runs.flight import Flight
 
 __all__ = ["RareEventModel", "ScenarioModel", "engine_function", "parameters_of_normals"]
 
 #: Phi(z) is held this far inside (0, 1), as monte_carlo's uniforms are
-#: (quadrs.dispersion): an unbounded distribution's quantile stays finite (|z| <= about 8.2).
+#: (quadrs.scenario.dispersion): an unbounded distribution's quantile stays finite
+#: (|z| <= about 8.2).
 _EDGE = 1e-16
 
 
 def parameters_of_normals(scenario: Scenario, z: np.ndarray) -> np.ndarray:
     """The dispersed keys' values (N, keys) of standard normals ``z`` (N, keys), keys sorted:
     theta_j = F_j^-1(Phi(z_j)) with F_j the key's distribution exactly as monte_carlo draws it
-    (:func:`quadrs.dispersion.distribution`, scipy.stats ``ppf``), Phi(z) held in
+    (:func:`quadrs.scenario.dispersion.distribution`, scipy.stats ``ppf``), Phi(z) held in
     [1e-16, 1 - 1e-16] like monte_carlo's uniforms. So z ~ N(0, 1) gives theta ~ F_j."""
     from scipy.stats import norm
 
@@ -128,7 +129,7 @@ class ScenarioModel:
         workers: int | None = None,
         client: Client | None = None,
     ) -> None:
-        from quadrs.flight import METRIC_COLUMNS
+        from quadrs.runs.flight import METRIC_COLUMNS
 
         if not isinstance(scenario, Scenario):
             raise ValueError(f"scenario must be a quadrs.Scenario, got {type(scenario).__name__}")
@@ -213,7 +214,7 @@ class ScenarioModel:
         """The flight of one row of innovations, with its trace (about one row a millisecond)."""
         import pandas as pd
 
-        from quadrs.flight import Flight, metrics_frame
+        from quadrs.runs.flight import Flight, metrics_frame
 
         row = np.ascontiguousarray(xi_row, dtype=np.float64)
         if row.shape != (self.dimension,):

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from quadrs.guard import check_int, check_memory
+from quadrs.engine.calls import check_int, check_memory
 
 __all__ = [
     "CONFIDENCE",
@@ -608,8 +608,9 @@ def subset_simulation(
         pilot = pilot_size(per_level, p0)
     pilot, _, _ = check_settings(pilot, p0, max_levels)
     seeds = per_level // length
-    # Measured with tracemalloc (tests/test_hostile_r4.py): about seven chain-sized arrays of
-    # rows (states, candidates, the pilot's running best and its pool, the seeds' reservoir);
+    # Measured with tracemalloc (tests/guarantees/test_delivery_and_rare.py): about seven
+    # chain-sized arrays of rows (states, candidates, the pilot's running best and its pool,
+    # the seeds' reservoir);
     # per sample about eight numbers (the level's values, their copies, indicators, ancestries,
     # sort order, copy counts); and the failure samples, up to a whole level's rows, held
     # twice while joined.

@@ -1,0 +1,259 @@
+"""``quadrs mission``: will my parcel survive this route? One command over a Monte Carlo
+batch: per phase (a route's legs and holds) and for the whole flight, the probability that
+the payload's acceleration exceeds ``--limit``, the worst and a high quantile of swing and
+tension, the tracking errors, with intervals (:mod:`quadrs.design.mission`; docs/delivery.md).
+
+Kept apart from :mod:`quadrs.cli.main`, which registers the subcommand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, seed_and_workers
+from quadrs.engine.calls import CONTROLLERS
+
+#: Default payload acceleration limit: 1 g (m/s^2).
+DEFAULT_LIMIT = 9.81
+#: Default route tracking limit, m (quadrs.design.mission.TRACK_LIMIT).
+TRACK_LIMIT = 10.0
+#: The scenario mission flies without --preset or --scenario.
+DEFAULT_PRESET = "delivery"
+
+
+def _number(text: str, ok: Callable[[float], bool], expected: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"must be {expected}, got {text!r}")
+    return value
+
+
+def _positive(text: str) -> float:
+    return _number(text, lambda v: math.isfinite(v) and v > 0, "finite and > 0")
+
+
+def mission_limit(text: str) -> tuple[str, float]:
+    """``--limit 5`` (max_accel, m/s^2) or ``--limit METRIC=X``, as in ``quadrs report``: any
+    metric the engine names, X in the unit every table shows (degrees for swing)."""
+    from quadrs.cli.common import limit_option
+
+    metric, value = limit_option(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return metric, value
+
+
+def laws(text: str) -> tuple[str, ...]:
+    """``pd`` or ``pd,smc,...``: control laws the engine has, each once."""
+    names = tuple(n.strip() for n in text.split(","))
+    for n in names:
+        if n not in CONTROLLERS:
+            raise argparse.ArgumentTypeError(
+                f"{n!r} is not a control law: one of {', '.join(CONTROLLERS)}"
+            )
+    if len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"each law once, got {text!r}")
+    return names
+
+
+def _fraction(text: str) -> float:
+    return _number(text, lambda v: 0 < v < 1, "in (0, 1)")
+
+
+def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "mission",
+        parents=[common],
+        help="will the parcel survive this route? per-leg risk of a Monte Carlo batch",
+        description="Fly --runs gust realisations of the scenario (default: --preset "
+        "delivery) with one controller and print, first, whether the route was flown (tracking "
+        "and cross-track error against --track-limit, divergence, time at the thrust limit), "
+        'then per phase (a route\'s legs and holds under phases = "legs") and for the '
+        "whole flight: the probability that the payload's peak acceleration exceeds --limit "
+        "(exact 95% interval), the worst and the --quantile of the swing and the cable "
+        "tension, slack and saturated time, and the tracking errors, with intervals "
+        "(see docs/delivery.md). Diverged flights count as exceeding.",
+    )
+    p.add_argument(
+        "--runs",
+        type=int,
+        default=200,
+        metavar="N",
+        help="gust realisations (default: %(default)s)",
+    )
+    p.add_argument(
+        "--limit",
+        type=mission_limit,
+        default=("max_accel", DEFAULT_LIMIT),
+        metavar="A",
+        help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
+        "metric (degrees for swing; an acceleration also in g: max_specific_force=2g) "
+        f"(default: {DEFAULT_LIMIT}, 1 g)",
+    )
+    p.add_argument(
+        "--track-limit",
+        type=_positive,
+        default=TRACK_LIMIT,
+        metavar="M",
+        help="a flight whose tracking error (3-D distance from its reference) passes M metres "
+        "in a phase is off its route there (default: %(default)s)",
+    )
+    p.add_argument(
+        "--cross-track-limit",
+        type=_positive,
+        default=None,
+        metavar="M",
+        help="likewise for the cross-track error, m (default: the --track-limit)",
+    )
+    p.add_argument(
+        "--quantile",
+        type=_fraction,
+        default=0.95,
+        metavar="Q",
+        help="the high quantile shown beside the worst (default: %(default)s)",
+    )
+    p.add_argument(
+        "--controller",
+        type=laws,
+        default=("pd",),
+        metavar="LAW[,LAW...]",
+        help=f"control law, one of {', '.join(CONTROLLERS)} (default: pd); several, "
+        "comma-separated, fly the same gusts and are compared leg by leg against the first",
+    )
+    p.add_argument(
+        "--plan",
+        type=Path,
+        metavar="FILE",
+        help="fly the route of a QGroundControl .plan mission (waypoints about its planned "
+        "home: x east, y north, z above home) or of a .csv of points (x,y,z or lat,lon,alt; "
+        "optional hold), at the file's speed; docs/delivery.md",
+    )
+    seed_and_workers(p)
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="FILE.parquet",
+        help="write the runs with their run record (as quadrs mc --out; quadrs report reads it)",
+    )
+    p.add_argument("--plots", type=Path, metavar="DIR", help="write the figures here")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none anyway unless stderr is a terminal)",
+    )
+
+
+#: How the command line turns its options into a scenario (quadrs.cli.main.load_scenario).
+LoadScenario = Callable[[argparse.Namespace], Any]
+
+
+def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+    from quadrs.cli.outputs import check_directories, check_outputs, save
+    from quadrs.design.mission import mission_report
+    from quadrs.engine.calls import check_int
+    from quadrs.runs.montecarlo import monte_carlo
+
+    if args.preset is None and args.scenario is None:
+        args.preset = DEFAULT_PRESET  # a mission is a route: the delivery preset's
+    scenario = load_scenario(args)
+    if args.out is not None and args.out.suffix.lower() != ".parquet":
+        raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
+    for name in ("runs", "workers"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ValueError(f"--{name} must be >= 1, got {value}")
+    check_int("--seed", args.seed)
+    check_outputs(args.out)
+    check_directories(args.plots)
+    _announce(scenario, args)
+    mc = monte_carlo(
+        scenario,
+        runs=args.runs,
+        seed=args.seed,
+        controllers=args.controller,
+        workers=args.workers,
+        progress=not args.no_progress and sys.stderr.isatty(),
+        spectra=False,
+    )
+    saved = True
+    if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+        saved = save(mc.to_parquet, args.out)
+    if mc.runs.empty:
+        print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
+        return EXIT_INTERRUPT
+    metric, limit = args.limit
+    if len(args.controller) > 1:
+        from quadrs.design.mission_compare import compare_laws
+
+        compared = compare_laws(mc, limit, args.controller, metric, args.quantile,
+                                track_limit=args.track_limit,
+                                cross_track_limit=args.cross_track_limit)  # fmt: skip
+        reports = list(compared.reports.values())
+        text = compared.to_text(width=100)
+    else:
+        reports = [mission_report(mc, limit, args.controller[0], args.quantile, metric=metric,
+                                  track_limit=args.track_limit,
+                                  cross_track_limit=args.cross_track_limit)]  # fmt: skip
+        text = reports[0].to_text(width=100)
+    if mc.interrupted:
+        print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
+    print(text)
+    if args.plots is not None:
+        _plots(mc, reports, args.plots)
+    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+
+
+def _announce(scenario: Any, args: argparse.Namespace) -> None:
+    """What the command flies and roughly how long, from a short calibration, on stderr."""
+    from quadrs.cli.cost import announce, calibrate, precheck, say
+
+    precheck(scenario, args.controller, args.runs, args.workers, args.seed)
+    cal = calibrate(scenario, args.controller, args.workers, args.seed,
+                    flights=min(args.runs, 8))  # fmt: skip
+    duration = float(scenario["integrator.duration"])
+    what = f"{args.runs} realisations of a {duration:g} s flight"
+    say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))
+
+
+def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
+    from quadrs import plots
+
+    return lambda: plots.exceedance_curves(runs, metric, marks)
+
+
+def _plots(mc: Any, reports: list[Any], directory: Path) -> None:
+    """Per-phase risk with intervals (one figure per law), and the exceedance curves of the
+    payload's peaks (every law on each)."""
+    from quadrs import plots
+    from quadrs.plots.mission import mission_risk
+    from quadrs.present.terminal import terminal_text
+
+    def risk(r: Any) -> Callable[[], Any]:
+        return lambda: mission_risk(r)
+
+    one = len(reports) == 1
+    figures: list[tuple[str, Callable[[], Any]]] = [
+        ("mission_risk" if one else f"mission_risk_{r.controller}", risk(r)) for r in reports
+    ]
+    report = reports[0]
+    shown = [(m, [report.limit] if m == report.metric else []) for m in
+             dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
+    for metric, marks in shown:
+        if metric in mc.runs:
+            figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
+    files: list[Path] = []
+    for name, make in figures:
+        try:
+            files += plots.save(make(), directory / name)
+        except ValueError as e:  # nothing to draw (every flight diverged): the others still are
+            print(terminal_text(f"quadrs: warning: figure {name} not drawn ({e})"),
+                  file=sys.stderr)  # fmt: skip
+    print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)

@@ -1,0 +1,335 @@
+"""``quadrs rare``: a rare-event probability by subset simulation on the command line.
+
+Kept apart from :mod:`quadrs.cli.main`, which registers the subcommand (see docs/rare-events.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
+from quadrs.cli.cost import Eta, duration, say
+from quadrs.engine.calls import CONTROLLERS
+
+LoadScenario = Callable[[argparse.Namespace], Any]
+
+#: The library's argument names -> the options that set them, in the sampler's messages.
+OPTION_WORDS = (("per_level", "--per-level"), ("max_levels", "--max-levels"), ("p0", "--p0"))
+
+
+def _threshold(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"--threshold {text!r}: expected a finite number")
+    return value
+
+
+def _controllers(text: str) -> tuple[str, ...]:
+    """``pd`` or a comma-separated list of distinct controllers, ``pd,smc``."""
+    names = tuple(n.strip() for n in text.split(","))
+    bad = [n for n in names if n not in CONTROLLERS]
+    if bad or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected one of {', '.join(CONTROLLERS)} or a comma-separated list of "
+            f"distinct ones (e.g. pd,smc)"
+        )
+    return names
+
+
+def paired_paths(out: Path, controllers: tuple[str, ...]) -> dict[str, Path]:
+    """Where ``--out FILE.parquet`` writes each controller's result: FILE itself for one
+    controller, FILE-<controller>.parquet beside it for several."""
+    if len(controllers) == 1:
+        return {controllers[0]: out}
+    return {c: out.with_name(f"{out.stem}-{c}{out.suffix}") for c in controllers}
+
+
+def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
+    from quadrs import _core
+
+    p = sub.add_parser(
+        "rare",
+        parents=[common],
+        help="a small probability P(metric > threshold) by subset simulation",
+        description="Estimate P(METRIC in PHASE > THRESHOLD) over the gust's randomness by "
+        "subset simulation: far fewer flights than plain Monte Carlo for small probabilities. "
+        "Prints the estimate, its coefficient of variation and 95% interval, the levels and "
+        "the flights, and the flights plain Monte Carlo would need for the same precision. "
+        "A diverged flight counts as an exceedance (see docs/rare-events.md).",
+    )
+    p.add_argument(
+        "--metric",
+        required=True,
+        choices=list(_core.METRIC_NAMES),
+        metavar="M",
+        help=f"the metric, one of {', '.join(_core.METRIC_NAMES)}",
+    )
+    p.add_argument("--phase", required=True, metavar="P", help="the phase it is taken in")
+    p.add_argument(
+        "--threshold",
+        required=True,
+        type=_threshold,
+        metavar="X",
+        help="estimate P(metric > X), X in the metric's SI unit",
+    )
+    p.add_argument(
+        "--controller",
+        type=_controllers,
+        default=("pd",),
+        metavar="C",
+        help="controller, or a comma-separated list flown on the same gusts (pd,smc: paired "
+        "runs and the ratio of their probabilities) (default: pd)",
+    )
+    p.add_argument(
+        "--per-level",
+        type=int,
+        default=1000,
+        metavar="N",
+        help="flights per level, a multiple of 1/p0 (default: 1000)",
+    )
+    p.add_argument(
+        "--p0",
+        type=float,
+        default=0.1,
+        metavar="P",
+        help="conditional probability of a level, 1/L for a whole L (default: 0.1)",
+    )
+    p.add_argument(
+        "--max-levels",
+        type=int,
+        default=None,
+        metavar="K",
+        help="deepest level tried (default: enough for about 1e-12)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default: 0)")
+    p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="FILE.parquet",
+        help="write the result here (the failure samples with their innovations, the levels "
+        "and the run record; RareEventResult.read_parquet reads it); with several "
+        "controllers, FILE-<controller>.parquet each",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="fly each level's flights on a Dask cluster, e.g. tcp://10.0.0.5:8786 (needs pip "
+        "install quadrs[dask]); the result is the same as on one machine",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no per-level progress lines")
+
+
+def _option_words(text: str) -> str:
+    for name, option in OPTION_WORDS:
+        # The name as the subject ("p0 must", "per_level = 105"), not inside "1/p0".
+        text = re.sub(rf"(?<![/\w]){name}(?= must| =|,)", option, text)
+    return text
+
+
+def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+    """Subset simulation of one controller, or of several paired on the same gusts (each
+    one's table, then the ratios to the first): optional Parquet; 130 if interrupted (the
+    finished levels are reported and saved)."""
+    from quadrs.cli.common import dask_client
+    from quadrs.cli.outputs import check_outputs, save
+    from quadrs.rare import rare_event
+    from quadrs.rare.result import RareEventComparison, RareEventResult
+    from quadrs.rare.subset import Level, check_settings
+
+    if args.out is not None and args.out.suffix.lower() != ".parquet":
+        raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
+    for option, value, low in (("--seed", args.seed, 0), ("--workers", args.workers, 1)):
+        if value is not None and value < low:
+            raise ValueError(f"{option} must be >= {low}, got {value}")
+    if args.scheduler is not None and args.workers is not None:
+        raise ValueError("--workers and --scheduler: give one (a cluster's workers set "
+                         "their own threads)")  # fmt: skip
+    try:
+        check_settings(args.per_level, args.p0, args.max_levels)
+    except ValueError as e:
+        raise ValueError(_option_words(str(e))) from None
+    scenario = load_scenario(args)
+    if args.phase not in scenario.phase_names:
+        raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+    controllers: tuple[str, ...] = args.controller
+    paths = paired_paths(args.out, controllers) if args.out is not None else {}
+    check_outputs(*paths.values())
+    from quadrs.present.terminal import terminal_text
+
+    value_name = terminal_text(f"{args.metric} in {args.phase}")
+    show = not args.no_progress and sys.stderr.isatty()
+    flying = [-1]  # which controller's levels are reported (level 0 starts the next one)
+    _, p0, max_levels = check_settings(args.per_level, args.p0, args.max_levels)
+    # A cluster's speed is not this machine's: no estimate there.
+    per_level_seconds = (math.nan if args.scheduler is not None
+                         else _announce(scenario, args, controllers, p0, max_levels))  # fmt: skip
+    eta = Eta(None)
+    per_level = (f", about {duration(per_level_seconds)} a level here"
+                 if math.isfinite(per_level_seconds) else "")  # fmt: skip
+
+    def on_level(level: Level) -> None:
+        flying[0] += level.level == 0
+        who = f" ({controllers[flying[0]]})" if len(controllers) > 1 else ""
+        if show:
+            print(f"quadrs rare{who}: level {level.level} done: cut {level.threshold:.4g}, "
+                  f"conditional p {level.conditional_p:.3g}, acceptance "
+                  f"{level.acceptance_rate:.2f}, {level.flights} flights; levels {eta.step()}"
+                  f"{per_level}",
+                  file=sys.stderr, flush=True)  # fmt: skip
+
+    with dask_client(args.scheduler) as client:
+        out = rare_event(
+            scenario,
+            controller=controllers[0],
+            metric=args.metric,
+            phase=args.phase,
+            threshold=args.threshold,
+            per_level=args.per_level,
+            p0=args.p0,
+            seed=args.seed,
+            max_levels=args.max_levels,
+            workers=args.workers,
+            on_level=on_level,
+            controllers=controllers if len(controllers) > 1 else None,
+            client=client,
+        )
+    results: dict[str, RareEventResult]
+    if isinstance(out, RareEventComparison):
+        results = dict(out.results)
+    else:
+        assert isinstance(out, RareEventResult)
+        results = {controllers[0]: out}
+    saved = True
+    for name, result in results.items():  # saved first: a second Ctrl-C keeps them
+        if name in paths:
+            saved = save(result.to_parquet, paths[name]) and saved
+    interrupted = [name for name, r in results.items() if r.interrupted]
+    # The controllers that finished before a Ctrl-C keep their estimates: printed first.
+    for name, result in results.items():
+        if result.interrupted:
+            continue
+        print(f"P({value_name} > {args.threshold:g}), {name}, seed {args.seed}, "
+              f"{_inputs(result)} a flight")  # fmt: skip
+        for label, text in summary_rows(result):
+            print(f"  {label:<34} {text}")
+    if interrupted:
+        result = results[interrupted[0]]
+        done = len(result.levels)
+        bound = result.upper_bound
+        note = "" if bound is None else f"; P <= about {bound:.3g} (the last cut reached)"
+        who = f" ({interrupted[0]})" if len(controllers) > 1 else ""
+        print(f"quadrs rare{who}: interrupted after {done} finished "
+              f"level{'s' * (done != 1)} ({result.flights} flights), no estimate{note}; "
+              f"a level is {args.per_level} flights{per_level.removesuffix(' a level here')}"
+              f"{' here' * bool(per_level)}",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPT
+    if isinstance(out, RareEventComparison):
+        base = controllers[0]
+        for name in controllers[1:]:
+            print(ratio_line(out, name, base))
+    return EXIT_OK if saved else EXIT_FAIL
+
+
+def rare_budget(per_level: int, p0: float, max_levels: int, controllers: int = 1) -> int:
+    """Flights of a run that goes to its deepest level: ``per_level`` for level 0, then
+    ``per_level * (1 - p0)`` new flights per level (the seeds are kept), per controller."""
+    return controllers * round(per_level * (1 + (max_levels - 1) * (1 - p0)))
+
+
+def calibrate_rare(scenario: Any, args: argparse.Namespace, controller: str) -> Any:
+    """Time one small level of the same sampler (20 flights; its flights cost more than a
+    Monte Carlo batch's: each draws its own innovations)."""
+    import time
+    import warnings
+
+    from quadrs.cli.cost import Calibration, _workers
+    from quadrs.rare import rare_event
+
+    flights = 20
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = rare_event(scenario, controller=controller, metric=args.metric, phase=args.phase,
+                       threshold=args.threshold, per_level=flights, p0=0.5, seed=args.seed,
+                       max_levels=1, workers=args.workers)  # fmt: skip
+    if getattr(r, "interrupted", False):  # Ctrl-C in the calibration stops the command
+        raise KeyboardInterrupt
+    return Calibration(flights, time.perf_counter() - start, _workers(args.workers))
+
+
+def _announce(
+    scenario: Any,
+    args: argparse.Namespace,
+    controllers: tuple[str, ...],
+    p0: float,
+    max_levels: int,
+) -> float:
+    """Say what the run flies and roughly how long, from a short calibration (on stderr);
+    the seconds of one level of every controller."""
+    cal = calibrate_rare(scenario, args, controllers[0])
+    level = cal.estimate(args.per_level * len(controllers))
+    deepest = rare_budget(args.per_level, p0, max_levels, len(controllers))
+    example = math.ceil(math.log(1e-4) / math.log(p0))
+    say(
+        f"quadrs rare: {args.per_level} flights a level{' per controller' * (len(controllers) > 1)}"
+        f", about {duration(level)} a level here ({cal.per_flight:.2g} s a flight, from "
+        f"{cal.flights} calibration flights); a probability p takes about log(p)/log({p0:g}) "
+        f"levels (1e-4: {example}), at most {max_levels} ({deepest:,} flights, about "
+        f"{duration(cal.estimate(deepest))}); Ctrl-C keeps the finished levels",
+        cal.estimate(deepest))  # fmt: skip
+    return level
+
+
+def _inputs(result: Any) -> str:
+    """What a flight's standard normals drive: ``1000 innovations`` or ``1000 innovations
+    and 1 parameter (payload.mass)``."""
+    keys = getattr(result.model, "parameter_keys", ())
+    gust = result.dimension - len(keys)
+    if not keys:
+        return f"{gust} innovations"
+    plural = "s" * (len(keys) != 1)
+    return f"{gust} innovations and {len(keys)} parameter{plural} ({', '.join(keys)})"
+
+
+def ratio_line(comparison: Any, a: str, b: str) -> str:
+    """``ratio smc / pd ...``: P_a / P_b with its 95 % interval, or why there is none."""
+    r = comparison.ratio(a, b)
+    if r["ratio"] is None:
+        return f"ratio {a} / {b}: none (a run found no failure)"
+    corr = r["first_level_correlation"]
+    note = "" if corr is None else f"; first-level correlation {corr:.2f}"
+    return (f"ratio {a} / {b}: {r['ratio']:.3g}, 95 % [{r['low']:.3g}, {r['high']:.3g}]"
+            f"{note}")  # fmt: skip
+
+
+def summary_rows(result: Any) -> list[tuple[str, str]]:
+    """(label, value) rows of the printed table of a :class:`RareEventResult`."""
+    rows: list[tuple[str, str]] = []
+    if result.probability is None:
+        rows.append(("estimate", f"no failure in {result.flights} flights"))
+        rows.append(("95 % upper confidence bound", f"P <= {result.upper_bound:.3g}"))
+        rows.append(("largest value seen", f"{result.closest:.6g}"))
+    else:
+        lo, hi = result.interval
+        rows.append(("estimate", f"{result.probability:.3g}"))
+        rows.append(("coefficient of variation", f"{result.cov:.3f}"))
+        rows.append(("95 % interval", f"[{lo:.3g}, {hi:.3g}]"))
+    rows.append(("levels", str(len(result.levels))))
+    rows.append(("flights", str(result.flights)))
+    if result.run.pilot_flights:
+        rows.append(("  of which placing the levels", str(result.run.pilot_flights)))
+    need = result.monte_carlo_flights
+    if need is not None:
+        rows.append(("Monte Carlo flights, same CoV", f"{need:.3g} ({need / result.flights:.1f}x)"))
+    return rows

@@ -1,0 +1,3 @@
+"""The design loop on Monte Carlo batches: tuning and calibration (``optimize``, with
+``constraints``), Sobol' sensitivity (``sensitivity``) and the mission report
+(``mission``: will the parcel survive this route?)."""

@@ -1,0 +1,629 @@
+"""Will the parcel survive this route? Per phase of a Monte Carlo batch (a route's legs and
+holds under ``phases = "legs"``, or any scenario's own phases) and for the whole flight: the
+probability that the payload's peak acceleration exceeds a limit, the worst and a high
+quantile of the swing and the cable tension, and the tracking errors, each with an interval.
+
+Built on the batch's runs table with :mod:`quadrs.stats.risk` (exact Clopper-Pearson intervals for
+probabilities, order-statistic intervals for quantiles) and :func:`quadrs.stats.summary.mean_ci`
+(Student-t intervals for means). A realisation that diverged counts as exceeding every limit
+and as +inf in quantiles and worst values, from the phase it diverged in on (as everywhere in
+quadrs). Metric columns the results lack (an older engine, a model without them) are left
+out, never shown as zeros.
+
+The whole flight: the results' own ``flight`` phase when they have one; otherwise the worst
+over the scenario's phases (``all phases``; only the per-flight extremes are shown there, and
+it covers the flight only where the phases do).
+
+The answer leads with whether the route was flown at all (:attr:`MissionReport.route`): a
+flight is off its route in a phase if its tracking error (``max_tracking``, the 3-D distance
+from the reference) or its cross-track error (``max_cross_track``) passed the user's limit, or
+if it diverged; the time at the thrust limit (``saturated_time``) is shown beside it. The
+engine measures no time near the controller's tilt limit: only a flight past
+``divergence.max_tilt`` is counted (as diverged, status "tilt").
+
+Each per-phase interval is a 95 % interval on its own, not a joint one: the "any phase" line
+(:attr:`MissionReport.joint`) is the fraction of flights that exceeded in at least one phase,
+with its own interval. A count that is zero in every flight is shown as "0 of N flights,
+P <= x %" with the one-sided Clopper-Pearson bound, not as an interval "0 [0, 0]".
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from quadrs.present.terminal import terminal_text
+from quadrs.runs.montecarlo_result import MonteCarloResult
+from quadrs.stats.risk import exceedance_stats, quantile_interval
+from quadrs.stats.summary import mean_ci, phase_diverged
+
+__all__ = ["ALL_PHASES", "ANY_PHASE", "FLIGHT_PHASE", "MissionReport", "mission_report"]
+
+#: The whole-flight phase of results that carry one.
+FLIGHT_PHASE = "flight"
+#: The row standing for the whole flight when the results have no FLIGHT_PHASE.
+ALL_PHASES = "all phases"
+#: The joint row: a flight counted once if it exceeded in any of the scenario's phases.
+ANY_PHASE = "any phase"
+#: Default tracking (and cross-track) limit of the route, m.
+TRACK_LIMIT = 10.0
+#: Payload metrics whose worst realisation is its largest value (and a high quantile).
+PEAKS = ("max_swing", "max_tension")
+#: ... and whose worst is its smallest value.
+LOWS = ("min_tension",)
+#: Time spent in a bad state (s): the mean with its interval and the worst.
+DURATIONS = ("slack_time", "saturated_time")
+#: Shown in degrees: angles in the results are radians.
+DEGREES = ("max_swing", "rms_swing")
+
+
+def _tracking_metrics(columns: Sequence[str]) -> list[str]:
+    """The tracking-error metrics the results have (3-D RMS, and any per-leg maximum or
+    cross-track error the engine adds)."""
+    return [c for c in columns if "tracking" in c or "cross_track" in c]
+
+
+@dataclass(frozen=True)
+class MissionReport:
+    """The answer, per phase (rows, ``whole`` last): numeric tables.
+
+    ``acceleration``: ``n``, ``exceedances``, ``diverged``, ``probability`` of max_accel >
+    ``limit`` with ``ci_low``/``ci_high`` (exact), ``worst`` and the ``quantile``-quantile
+    ``q`` with ``q_low``/``q_high``. ``payload``: per payload metric present, ``{m}_worst``
+    and for peaks ``{m}_q`` (``_q_low``, ``_q_high``); for durations ``{m}_mean`` with
+    ``{m}_ci_low``/``{m}_ci_high``. ``tracking``: per tracking metric ``{m}_mean`` with its
+    interval and ``{m}_worst``. ``whole``: the row standing for the whole flight.
+    """
+
+    controller: str
+    limit: float
+    quantile: float
+    confidence: float
+    runs: int
+    whole: str
+    acceleration: pd.DataFrame
+    payload: pd.DataFrame
+    tracking: pd.DataFrame
+    #: Was the route flown? Per phase: ``n``, ``diverged``, ``off_route`` (tracking or
+    #: cross-track past its limit, or diverged), ``probability``/``ci_low``/``ci_high`` (exact,
+    #: two-sided) and ``p_max`` (one-sided upper bound), the worst ``max_tracking`` and
+    #: ``max_cross_track`` and the ``saturated_time`` mean and worst where the results have them.
+    route: pd.DataFrame | None = None
+    #: The joint rows (index ``acceleration`` and ``route``): the fraction of flights that
+    #: exceeded (or left the route) in any of the scenario's phases, with its interval.
+    joint: pd.DataFrame | None = None
+    track_limit: float = TRACK_LIMIT
+    cross_track_limit: float = TRACK_LIMIT
+    #: Why diverged flights ended (status -> count), over the whole flight.
+    statuses: tuple[tuple[str, int], ...] = ()
+    #: Does the scenario fly a route (``trajectory.interpolation = "route"``)?
+    routed: bool = True
+    #: The parcel metric ``limit`` applies to (the ``acceleration`` table's).
+    metric: str = "max_accel"
+
+    @property
+    def route_flown(self) -> bool:
+        """True if no flight left its route or diverged, anywhere."""
+        if self.route is None:
+            return True
+        return int(self.route.loc[self.whole, "off_route"]) == 0
+
+    def verdict(self) -> str:
+        """The first line of the answer: was the route flown, in how many flights."""
+        if self.route is None:
+            return "Route: the results have no tracking metrics (an older file): not judged"
+        r = self.route.loc[self.whole]
+        n, k = int(r["n"]), int(r["off_route"])
+        limits = _limits_text(self.track_limit, self.cross_track_limit)
+        kind = "" if self.routed else " (this scenario flies waypoints, not a route)"
+        if k == 0:
+            return (f"Route{kind}: flown in all {n} flights (tracking and cross-track within "
+                    f"{limits}, none diverged): P(off route) <= {_pct(r['p_max'])} %")  # fmt: skip
+        why = []
+        strayed = k - int(r["diverged"])
+        if strayed:
+            worst = f"worst tracking {_g(r.get('max_tracking_worst', math.nan))} m"
+            why.append(f"{strayed} strayed beyond {limits} ({worst})")
+        if int(r["diverged"]):
+            causes = ", ".join(f"{s} {c}" for s, c in self.statuses)
+            why.append(f"{int(r['diverged'])} diverged" + (f" ({causes})" if causes else ""))
+        return (f"Route{kind}: NOT FLOWN in {k} of {n} flights, P(off route) = "
+                f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %: "
+                + "; ".join(why))  # fmt: skip
+
+    def __repr__(self) -> str:
+        """One line: what was asked and the whole flight's answer."""
+        p = self.acceleration.loc[self.whole]
+        return (
+            f"<MissionReport {self.controller.upper()}, {self.runs} realisations: "
+            f"P({self.metric} > {self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
+            f"[{100 * p['ci_low']:.3g}, {100 * p['ci_high']:.3g}]>"
+        )
+
+    def _repr_html_(self) -> str:
+        """In a notebook: the tables of :meth:`to_text` (swing in degrees), as HTML; the
+        numbers themselves are the frames ``route``, ``acceleration``, ``payload`` and
+        ``tracking`` (SI: swing in radians)."""
+        from quadrs.present.html import render
+
+        qp = f"q{100 * self.quantile:g}"
+        tables = [] if self.route is None else [(self.verdict(), _route_text(self.route))]
+        tables.append((f"parcel {_shown_name(self.metric)}, P(> {_shown_limit(self)}) in %",
+                       _acceleration_text(self.acceleration, qp, self.metric)))  # fmt: skip
+        if len(self.payload.columns):
+            tables.append(("swing (deg), tension (N), slack time (s)",
+                           _payload_text(self.payload, qp)))  # fmt: skip
+        if len(self.tracking.columns):
+            tables.append(("tracking errors (m)", _tracking_text(self.tracking)))
+        return render(repr(self), tables)
+
+    def to_text(self, width: int = 100) -> str:
+        """The tables for a terminal, each at most ``width`` columns wide (split into blocks
+        of columns when needed)."""
+        level = f"{self.confidence:.0%}"
+        qp = f"q{100 * self.quantile:g}"
+        head = (
+            f"Parcel: {self.controller.upper()}, {self.runs} realisations; {level} intervals "
+            "(probabilities exact, quantiles distribution-free, means Student t; an open bound "
+            "shows as inf: too few runs to bound it); diverged flights count as exceeding"
+        )
+
+        def fill(text: str) -> str:
+            return textwrap.fill(terminal_text(text), width) if text else ""
+
+        limits = _limits_text(self.track_limit, self.cross_track_limit)
+        parts = [fill(self.verdict()), ""]
+        if self.route is not None:
+            parts += [
+                fill(f"Route: off route = tracking or cross-track error past {limits}, or "
+                     "diverged; P in %; time at the thrust limit in s"),
+                _fit(_route_text(self.route), width),
+                fill(_joint_line(self.joint, "route", "left the route")),
+                fill("Time near the tilt limit: not measured by this engine (a flight past "
+                     "divergence.max_tilt counts as diverged, status tilt)."),
+                "",
+            ]  # fmt: skip
+        parts += [
+            fill(head),
+            "",
+            f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) in % "
+            f"and its {qp}",
+            _fit(_acceleration_text(self.acceleration, qp, self.metric), width),
+            fill(
+                _joint_line(
+                    self.joint,
+                    "acceleration",
+                    f"exceeded {_shown_limit(self)}",
+                )
+            ),
+        ]
+        if not self.payload.empty and len(self.payload.columns):
+            parts += ["", "Swing (deg) and tension (N); slack time in s", _fit(
+                _payload_text(self.payload, qp), width)]  # fmt: skip
+        if not self.tracking.empty and len(self.tracking.columns):
+            parts += ["", "Tracking errors (m): mean [interval] and worst",
+                      _fit(_tracking_text(self.tracking), width)]  # fmt: skip
+        parts += [
+            "",
+            fill(
+                f"Each row's interval is {level} for that phase alone, not joint over the phases; "
+                f"the '{ANY_PHASE}' lines count a flight once if it exceeded in any phase. "
+                f"'0 of N flights, P <= x %': none in N, x the one-sided {level} bound."
+            ),
+        ]
+        if self.whole == ALL_PHASES:
+            note = (f"'{ALL_PHASES}': the worst over the phases (these results have no "
+                    "whole-flight phase); blank where that is not defined")  # fmt: skip
+            parts += ["", fill(note)]
+        return "\n".join(parts)
+
+
+def mission_report(
+    mc: MonteCarloResult,
+    limit: float,
+    controller: str | None = None,
+    quantile: float = 0.95,
+    confidence: float = 0.95,
+    track_limit: float = TRACK_LIMIT,
+    cross_track_limit: float | None = None,
+    metric: str = "max_accel",
+) -> MissionReport:
+    """The per-phase answer of :class:`MissionReport` for one controller of ``mc`` (default:
+    its first). ``limit``: the payload acceleration limit (m/s^2); ``track_limit`` and
+    ``cross_track_limit`` (m, default the tracking one): how far from its reference a flight
+    may stray and still count as flying the route. ``metric``: the parcel's metric ``limit``
+    applies to (default max_accel; any metric of the results, in its stored unit)."""
+    from quadrs.stats.risk import check_metric, check_threshold
+
+    check_metric(metric)
+    if metric not in mc.runs:
+        raise ValueError(f"metric {metric!r}: these results have no such column")
+
+    limit = check_threshold(limit)
+    cross_track_limit = track_limit if cross_track_limit is None else cross_track_limit
+    for name, v in (("track_limit", track_limit), ("cross_track_limit", cross_track_limit)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be finite and > 0 (m), got {v}")
+    if not 0 < quantile < 1:
+        raise ValueError(f"quantile must be in (0, 1), got {quantile}")
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
+    ctrl = controller or mc.controllers[0]
+    if ctrl not in mc.controllers:
+        raise ValueError(f"controller must be one of {mc.controllers}, got {ctrl!r}")
+    runs = mc.runs[mc.runs["controller"] == ctrl]
+    names = list(mc.scenario.phase_names)
+    if FLIGHT_PHASE not in names and (runs["phase"] == FLIGHT_PHASE).any():
+        names.append(FLIGHT_PHASE)  # results that carry the whole flight without naming it
+    phases = [p for p in names if (runs["phase"] == p).any()]
+    whole = FLIGHT_PHASE if FLIGHT_PHASE in phases else ALL_PHASES
+    own = [p for p in phases if p != FLIGHT_PHASE]
+    rows = [*own, whole]
+    wide = {p: runs[runs["phase"] == p].set_index("realisation").sort_index() for p in phases}
+
+    def values(metric: str, phase: str, worst: str = "max") -> np.ndarray:
+        """Per realisation, diverged as +inf (-inf for a low); the worst over the phases for
+        ALL_PHASES (NaN if undefined there)."""
+        sign = 1.0 if worst == "max" else -1.0
+        if phase != ALL_PHASES:
+            sel = wide[phase]
+            x = sel[metric].to_numpy(float).copy()
+            x[phase_diverged(sel.reset_index())] = sign * np.inf
+            return x
+        cols = pd.DataFrame({p: pd.Series(values(metric, p, worst), index=wide[p].index)
+                             for p in own})  # fmt: skip
+        return (cols.max(axis=1) if worst == "max" else cols.min(axis=1)).to_numpy(float)
+
+    present = set(runs.columns)
+    acc_rows, pay_rows, trk_rows = [], [], []
+    for phase in rows:
+        x = values(metric, phase)
+        e = exceedance_stats(np.where(np.isinf(x), np.nan, x), limit, np.isinf(x), confidence)
+        _, qv, qlo, qhi = quantile_interval(x, quantile, confidence)
+        acc_rows.append({"phase": phase, "n": e.n, "exceedances": e.k, "diverged": e.diverged,
+                         "probability": e.probability, "ci_low": e.ci_low,
+                         "ci_high": e.ci_high, "worst": _worst(x, "max"), "quantile": qv,
+                         "q_low": qlo, "q_high": qhi})  # fmt: skip
+        pay: dict[str, object] = {"phase": phase}
+        for m in [m for m in PEAKS if m in present]:
+            x = values(m, phase)
+            _, qv, qlo, qhi = quantile_interval(x, quantile, confidence)
+            pay.update({f"{m}_worst": _worst(x, "max"), f"{m}_q": qv, f"{m}_q_low": qlo,
+                        f"{m}_q_high": qhi})  # fmt: skip
+        for m in [m for m in LOWS if m in present]:
+            pay[f"{m}_worst"] = _worst(values(m, phase, "min"), "min")
+        for m in [m for m in DURATIONS if m in present]:
+            pay.update(_mean_columns(m, phase, wide, confidence))
+        pay_rows.append(pay)
+        trk: dict[str, object] = {"phase": phase}
+        for m in _tracking_metrics(list(runs.columns)):
+            trk.update(_mean_columns(m, phase, wide, confidence))
+            trk[f"{m}_worst"] = _worst(values(m, phase), "max") if phase != ALL_PHASES or (
+                m.startswith("max_")) else math.nan  # fmt: skip
+        trk_rows.append(trk)
+    route = _route_table(rows, values, wide, runs, present, confidence, track_limit,
+                         cross_track_limit)  # fmt: skip
+    joint = _joint(own, values, present, limit, confidence, track_limit, cross_track_limit,
+                   metric)  # fmt: skip
+    whole_rows = runs[runs["phase"] == whole] if whole != ALL_PHASES else runs
+    statuses: tuple[tuple[str, int], ...] = ()
+    if "status" in runs:
+        per = whole_rows.drop_duplicates("realisation")["status"].astype(str)
+        counts = per[per != "ok"].value_counts()
+        statuses = tuple((str(k), int(v)) for k, v in counts.items())
+    routed = str(mc.scenario["trajectory.interpolation"]) == "route"
+    acceleration = pd.DataFrame(acc_rows).set_index("phase")
+    payload = pd.DataFrame(pay_rows).set_index("phase")
+    tracking = pd.DataFrame(trk_rows).set_index("phase")
+    if whole == ALL_PHASES:  # a per-phase mean or duration has no whole-flight value here
+        for frame in (payload, tracking):
+            cols = [c for c in frame.columns if "_mean" in c or "_ci_" in c]
+            frame.loc[ALL_PHASES, cols] = math.nan
+    return MissionReport(ctrl, limit, float(quantile), float(confidence),
+                         int(runs["realisation"].nunique()), whole, acceleration, payload,
+                         tracking, route, joint, float(track_limit), float(cross_track_limit),
+                         statuses, routed, metric)  # fmt: skip
+
+
+def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
+    """The one-sided exact (Clopper-Pearson) upper bound of a probability seen ``k`` times in
+    ``n``: ``1 - (1 - confidence)**(1/n)`` for k = 0 (3/n, the "rule of three", for large n)."""
+    from scipy import stats
+
+    if n <= 0:
+        return math.nan
+    if k >= n:
+        return 1.0
+    return float(stats.beta.ppf(confidence, k + 1, n - k))
+
+
+def _off_route(
+    values: Any, phase: str, present: set[str], track_limit: float, cross_limit: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per realisation: (off the route in ``phase``, defined); diverged counts as off."""
+    off: np.ndarray | None = None
+    for metric, lim in (("max_tracking", track_limit), ("max_cross_track", cross_limit)):
+        if metric not in present:
+            continue
+        x = values(metric, phase)
+        hit = np.where(np.isnan(x), False, x > lim)
+        off = hit if off is None else off | hit
+    assert off is not None
+    return off, np.ones(off.shape, bool)
+
+
+def _route_table(
+    rows: list[str], values: Any, wide: dict[str, pd.DataFrame], runs: pd.DataFrame,
+    present: set[str], confidence: float, track_limit: float, cross_limit: float,
+) -> pd.DataFrame | None:  # fmt: skip
+    """Per row: was the route flown (see :attr:`MissionReport.route`); None if the results
+    have no tracking maxima (older files)."""
+    from quadrs.stats.risk import exceedance_interval
+
+    if not {"max_tracking", "max_cross_track"} & present:
+        return None
+    out = []
+    for phase in rows:
+        off, _ = _off_route(values, phase, present, track_limit, cross_limit)
+        ref = values("max_tracking" if "max_tracking" in present else "max_cross_track", phase)
+        diverged = int(np.isinf(ref).sum())
+        n, k = len(off), int(off.sum())
+        p, lo, hi = exceedance_interval(k, n, confidence)
+        row: dict[str, Any] = {"phase": phase, "n": n, "diverged": diverged, "off_route": k,
+                               "probability": p, "ci_low": lo, "ci_high": hi,
+                               "p_max": one_sided_upper(k, n, confidence)}  # fmt: skip
+        for m in ("max_tracking", "max_cross_track"):
+            if m in present:
+                row[f"{m}_worst"] = _worst(values(m, phase), "max")
+        if "saturated_time" in present:
+            row.update(_mean_columns("saturated_time", phase, wide, confidence))
+            if phase != ALL_PHASES:
+                sel = wide[phase]
+                x = sel["saturated_time"].to_numpy(float)[~phase_diverged(sel.reset_index())]
+                row["saturated_time_worst"] = _worst(x, "max")
+                row["saturated_time_flights"] = int((x > 0).sum())
+                row["saturated_time_n"] = int(x.size)
+        out.append(row)
+    return pd.DataFrame(out).set_index("phase")
+
+
+def _joint(
+    own: list[str], values: Any, present: set[str], limit: float, confidence: float,
+    track_limit: float, cross_limit: float, metric: str = "max_accel",
+) -> pd.DataFrame:  # fmt: skip
+    """Flights that exceeded the acceleration limit (or left the route) in any of ``own``."""
+    from quadrs.stats.risk import exceedance_interval
+
+    rows = []
+    acc = np.zeros(0, bool)
+    off = np.zeros(0, bool)
+    for i, phase in enumerate(own):
+        x = values(metric, phase)
+        hit = np.isinf(x) | np.where(np.isnan(x), False, x > limit)
+        acc = hit if i == 0 else acc | hit
+        if {"max_tracking", "max_cross_track"} & present:
+            o, _ = _off_route(values, phase, present, track_limit, cross_limit)
+            off = o if i == 0 else off | o
+    for name, hit in (("acceleration", acc), ("route", off)):
+        if not hit.size:
+            continue
+        n, k = len(hit), int(hit.sum())
+        p, lo, hi = exceedance_interval(k, n, confidence)
+        rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
+                     "ci_high": hi, "p_max": one_sided_upper(k, n, confidence)})  # fmt: skip
+    return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
+                                       "ci_high", "p_max"]).set_index("table")  # fmt: skip
+
+
+def _worst(x: np.ndarray, worst: str) -> float:
+    x = x[~np.isnan(x)]
+    if not x.size:
+        return math.nan
+    return float(x.max() if worst == "max" else x.min())
+
+
+def _mean_columns(
+    metric: str, phase: str, wide: dict[str, pd.DataFrame], confidence: float
+) -> dict[str, float]:
+    if phase == ALL_PHASES:
+        return {f"{metric}_mean": math.nan, f"{metric}_ci_low": math.nan,
+                f"{metric}_ci_high": math.nan}  # fmt: skip
+    sel = wide[phase]
+    x = sel[metric].to_numpy(float)
+    x = x[~phase_diverged(sel.reset_index())]
+    _, mean, lo, hi = mean_ci(x, confidence)
+    out = {f"{metric}_mean": mean, f"{metric}_ci_low": lo, f"{metric}_ci_high": hi}
+    if metric in DURATIONS:  # how many flights spent any time there (0: "0 of N flights")
+        out |= {f"{metric}_flights": float((x > 0).sum()), f"{metric}_n": float(x.size)}
+    return out
+
+
+# -- text ---------------------------------------------------------------------------------------
+def _g(v: float, digits: int = 3) -> str:
+    if isinstance(v, float) and math.isnan(v):
+        return ""
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return f"{v:.{digits}g}"
+
+
+def _interval(v: float, lo: float, hi: float, scale: float = 1.0, digits: int = 3) -> str:
+    if math.isnan(v):
+        return ""
+    return f"{_g(scale * v, digits)} [{_g(scale * lo, digits)}, {_g(scale * hi, digits)}]"
+
+
+def _shown_name(metric: str) -> str:
+    """``acceleration (m/s^2)`` for max_accel; ``max_swing (deg)``; ``max_tension (N)``."""
+    from quadrs.present.labels import UNITS
+
+    if metric == "max_accel":
+        return "acceleration (m/s^2)"
+    unit = UNITS.get(metric, "").replace("²", "^2")
+    return f"{metric} ({unit})" if unit else metric
+
+
+def _unit(metric: str) -> str:
+    from quadrs.present.labels import UNITS
+
+    return UNITS.get(metric, "").replace("²", "^2")
+
+
+def _shown_limit(report: MissionReport) -> str:
+    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
+
+    shown = f"{display_scale(report.metric) * report.limit:g}"
+    if in_g(report.metric):
+        return f"{shown} m/s^2 ({report.limit / STANDARD_GRAVITY:.3g} g)"
+    unit = _unit(report.metric)
+    return f"{shown} {unit}" if unit else shown
+
+
+def _pct(p: float) -> str:
+    return _g(100 * float(p))
+
+
+def _limits_text(track: float, cross: float) -> str:
+    return f"{track:g} m" if track == cross else f"{track:g} m and {cross:g} m"
+
+
+def _count_or_interval(k: int, n: int, p: float, lo: float, hi: float) -> str:
+    """``0 of 200 flights, P <= 1.49`` when nothing happened, else ``p [lo, hi]`` (in %)."""
+    if k == 0 and n > 0:
+        return f"0 of {n} flights, P <= {_pct(one_sided_upper(0, n))}"
+    return _interval(p, lo, hi, 100.0)
+
+
+def _joint_line(joint: pd.DataFrame | None, table: str, what: str) -> str:
+    if joint is None or table not in joint.index:
+        return ""
+    r = joint.loc[table]
+    n, k = int(r["n"]), int(r["count"])
+    if k == 0:
+        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (one-sided 95 %)"
+    else:
+        said = (f"{k} of {n} flights, P = "
+                f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %")  # fmt: skip
+    return f"{ANY_PHASE}: {said} {what} in at least one phase (a joint statement)"
+
+
+def _route_text(t: pd.DataFrame) -> pd.DataFrame:
+    out = pd.DataFrame(
+        {
+            "runs": t["n"].astype(int),
+            "diverged": t["diverged"].astype(int),
+            "off route": t["off_route"].astype(int),
+            "P off route %": [
+                _count_or_interval(int(r.off_route), int(r.n), r.probability, r.ci_low, r.ci_high)
+                for r in t.itertuples()
+            ],
+        },
+        index=t.index,
+    )
+    for m, name in (("max_tracking", "tracking worst m"), ("max_cross_track", "cross worst m")):
+        if f"{m}_worst" in t:
+            out[name] = [_g(v) for v in t[f"{m}_worst"]]
+    if "saturated_time_mean" in t:
+        cells = []
+        for r in t.itertuples():
+            flights = getattr(r, "saturated_time_flights", math.nan)
+            n = getattr(r, "saturated_time_n", math.nan)
+            if isinstance(flights, (int, float)) and flights == 0 and n and n == n:
+                cells.append(f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}")
+            else:
+                cells.append(_interval(r.saturated_time_mean, r.saturated_time_ci_low,
+                                       r.saturated_time_ci_high))  # fmt: skip
+        out["at thrust limit s"] = cells
+        out["thrust worst s"] = [_g(v) for v in t["saturated_time_worst"]] if (
+            "saturated_time_worst" in t) else ""  # fmt: skip
+    return out
+
+
+def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
+    """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
+    the heading: a column more would not fit 100 columns)."""
+    from quadrs.present.labels import STANDARD_GRAVITY, in_g
+
+    g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
+    return pd.DataFrame(
+        {
+            "runs": t["n"].astype(int),
+            "diverged": t["diverged"].astype(int),
+            "exceed": t["exceedances"].astype(int),
+            "P exceed %": [
+                _count_or_interval(int(r.exceedances), int(r.n), r.probability, r.ci_low, r.ci_high)
+                for r in t.itertuples()
+            ],
+            qp: [_interval(r.quantile, r.q_low, r.q_high) for r in t.itertuples()],
+            "worst": [_g(v) for v in t["worst"]],
+            **g,
+        },
+        index=t.index,
+    )
+
+
+def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
+    out = pd.DataFrame(index=t.index)
+    for m in PEAKS:
+        if f"{m}_worst" not in t:
+            continue
+        scale = 180 / math.pi if m in DEGREES else 1.0
+        name = m.removeprefix("max_")
+        out[f"{name} {qp}"] = [
+            _interval(a, b, c, scale)
+            for a, b, c in zip(t[f"{m}_q"], t[f"{m}_q_low"], t[f"{m}_q_high"], strict=True)
+        ]
+        out[f"{name} worst"] = [_g(scale * v) for v in t[f"{m}_worst"]]
+    for m in LOWS:
+        if f"{m}_worst" in t:
+            out["tension lowest"] = [_g(v) for v in t[f"{m}_worst"]]
+    for m in ("slack_time",):  # the time at the thrust limit is in the route's table
+        if f"{m}_mean" in t:
+            out[f"{m} mean"] = [
+                f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}"
+                if n == n and n > 0 and k == 0 else _interval(a, b, c)
+                for a, b, c, k, n in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"],
+                                         t.get(f"{m}_flights", pd.Series(math.nan, t.index)),
+                                         t.get(f"{m}_n", pd.Series(math.nan, t.index)),
+                                         strict=True)
+            ]  # fmt: skip
+    return out
+
+
+def _tracking_text(t: pd.DataFrame) -> pd.DataFrame:
+    out = pd.DataFrame(index=t.index)
+    for col in [c for c in t.columns if c.endswith("_mean")]:
+        m = col.removesuffix("_mean")
+        out[f"{m} mean"] = [
+            _interval(a, b, c)
+            for a, b, c in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"], strict=True)
+        ]
+        out[f"{m} worst"] = [_g(v) for v in t[f"{m}_worst"]]
+    return out
+
+
+def _fit(frame: pd.DataFrame, width: int) -> str:
+    """``frame`` as text in blocks of columns, each at most ``width`` wide (the index repeated
+    in each; a single column wider than ``width`` gets a block of its own)."""
+
+    def render(cols: list[str]) -> str:
+        return terminal_text(frame[cols].to_string())
+
+    blocks: list[str] = []
+    current: list[str] = []
+    for col in frame.columns:
+        trial = [*current, col]
+        if current and max(len(line) for line in render(trial).splitlines()) > width:
+            blocks.append(render(current))
+            current = [col]
+        else:
+            current = trial
+    if current or not blocks:
+        blocks.append(render(current) if current else terminal_text(frame.to_string()))
+    return "\n\n".join(blocks)

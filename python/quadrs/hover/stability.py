@@ -1,0 +1,267 @@
+"""Is this gain set stable? Closed-loop poles of the model linearised at hover (docs/model.md §8).
+
+The engine linearises ds/dt = f(s, u(s, r)) at the hover equilibrium (reference at the first
+waypoint, psi = 0, zero wind; continuous time) and finds its 14 poles; see docs/stability.md.
+A pole is *excited* when the scenario drives its mode: vertical, payload and yaw modes always
+are; lateral ones only if something moves the vehicle sideways (a lateral waypoint, a horizontal
+gust component or mean wind, an initial tilt or offset). Otherwise x and y stay exactly zero and
+an unstable lateral mode never shows, as in the paper's vertical flights.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from quadrs.engine.calls import check_controller
+from quadrs.scenario.scenario import Scenario
+
+POLE_COLUMNS = ("real", "imag", "frequency_hz", "damping", "mode", "dominant", "status", "excited")
+
+
+class StabilityWarning(UserWarning):
+    """A gain set is not asymptotically stable at hover (issued before a Monte Carlo run)."""
+
+
+class StabilityNote(StabilityWarning):
+    """A gain set is unstable at hover only in modes the scenario does not excite: those
+    states stay exactly zero, so the flight is unaffected (a note, not an alarm)."""
+
+
+class StepSizeWarning(UserWarning):
+    """``integrator.dt`` is too large for the fastest closed-loop mode (issued before running)."""
+
+
+#: Largest |pole| * dt considered safe for stability. RK4 alone is stable up to about 2.8
+#: (2.83 on the imaginary axis, 2.79 on the real one), but the controls are held over each step,
+#: which narrows the margin.
+STEP_LIMIT = 1.0
+#: Largest accuracy indicator (see :func:`step_error`) accepted without a warning. Holding the
+#: controls over a step delays them by dt/2 on average, a phase lag of |pole| dt / 2 at a mode;
+#: 0.05 rad corresponds, for the paper preset's fastest excited mode (the payload pair,
+#: |pole| ~ 13 1/s), to dt ~ 8 ms, where take-off (P1) IAE has moved by about 1 % from its
+#: dt -> 0 value (6 % at dt = 0.05 s; docs/stability.md).
+STEP_ACCURACY = 0.05
+
+
+def step_error(pole: complex, dt: float) -> float:
+    """Accuracy indicator of one step ``dt`` at a closed-loop ``pole`` (1/s): the larger of the
+    half-step lag of the held controls, |pole| dt / 2 (rad), and RK4's own relative error per
+    step, |R(z) exp(-z) - 1| with z = pole dt and R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24 (about
+    |z|^5 / 120; far smaller until |z| nears RK4's stability bound)."""
+    z = complex(pole) * dt
+    rk4 = 1 + z + z * z / 2 + z**3 / 6 + z**4 / 24
+    rk4_error = abs(rk4 * np.exp(-z) - 1) if abs(z) < 50 else math.inf
+    return max(abs(z) / 2, rk4_error)
+
+
+def step_size_warning(scenario: Scenario, reports: list[StabilityReport]) -> str:
+    """Why ``integrator.dt`` is too large for these controllers' fastest excited modes ("" if
+    it is fine): beyond RK4's stability margin (|pole| dt > :data:`STEP_LIMIT`), or accurate
+    to less than :data:`STEP_ACCURACY` (see :func:`step_error`). Modes the scenario does not
+    excite are ignored: their states stay exactly zero."""
+    dt = float(scenario["integrator.dt"])
+    worst = max(
+        ((float(np.hypot(r.real, r.imag)), r.mode, rep.controller, complex(r.real, r.imag))
+         for rep in reports for r in rep.poles.itertuples() if r.excited),
+        default=(0.0, "", "", 0j),
+        key=lambda row: row[0],
+    )  # fmt: skip
+    speed, mode, controller, pole = worst
+    where = f"the {controller.upper()} closed loop's fastest excited mode ({mode}, |pole| = "
+    where += f"{speed:.4g} 1/s)"
+    if speed * dt > STEP_LIMIT:
+        return (
+            f"integrator.dt = {dt:g} s is too large for {where}: |pole| dt = {speed * dt:.3g} > "
+            f"{STEP_LIMIT:g}. RK4 with held controls may be inaccurate or go unstable (flagged "
+            f"as diverged); use integrator.dt <= {STEP_LIMIT / speed:.3g} s."
+        )
+    error = step_error(pole, dt)
+    if error <= STEP_ACCURACY:
+        return ""
+    return (
+        f"integrator.dt = {dt:g} s is coarse for {where}: the controls held over a step lag it "
+        f"by {error:.2g} rad (> {STEP_ACCURACY:g}), so the metrics depend on dt by more than "
+        f"about 1 %; integrator.dt <= {2 * STEP_ACCURACY / speed:.2g} s keeps them within it."
+    )
+
+
+def warn_before_running(
+    scenario: Scenario, controllers: tuple[str, ...], *, gains: bool, stacklevel: int
+) -> None:
+    """Warn about a step too large for the fastest excited mode and about unstable gains:
+    loudly whenever the scenario excites an unstable mode (the flight will diverge), and, with
+    ``gains``, in one short line when it does not."""
+    reports = [stability(scenario, c) for c in controllers]
+    for report in reports:
+        if not report.stable and (gains or report.excited_unstable):
+            category = StabilityWarning if report.excited_unstable else StabilityNote
+            warnings.warn(report.warning(), category, stacklevel=stacklevel + 1)
+    message = step_size_warning(scenario, reports)
+    if message:
+        warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
+
+
+def _pole(real: float, imag: float) -> str:
+    """``+0.04 ± 2.98j``; a real part that two decimals would show as 0.00 keeps two
+    significant digits (``+3.1e-04``), so a mode called unstable never reads "+0.00"."""
+    re_text = f"{real:+.2f}" if real == 0.0 or abs(real) >= 0.005 else f"{real:+.1e}"
+    if abs(imag) > 0.0:
+        return f"{re_text} ± {abs(imag):.2f}j"
+    return re_text
+
+
+@dataclass(frozen=True)
+class StabilityReport:
+    """Closed-loop poles of one controller at hover.
+
+    ``verdict``: "stable" (every real part < -tolerance), "marginal" (none > tolerance, some
+    within it: e.g. a position without feedback) or "unstable". ``poles``: one row per pole,
+    least stable first: ``real``, ``imag`` (1/s), ``frequency_hz`` (natural frequency |s|/2pi),
+    ``damping`` (-real/|s|), ``mode`` ("lateral x/pitch", "lateral y/roll", "vertical",
+    "payload" or "yaw"), ``dominant`` (largest state in the eigenvector), ``status`` and
+    ``excited`` (whether this scenario drives the mode). ``lateral_sources``: what moves this
+    scenario sideways (empty: x and y stay exactly zero). ``jacobian``: the 14x14 closed-loop
+    matrix, states in ``quadrs._core.STATE_NAMES`` order. ``residual``: |ds/dt| at the
+    linearisation point (0 unless the closed loop has no hover equilibrium).
+    """
+
+    controller: str
+    stable: bool
+    verdict: str
+    poles: pd.DataFrame
+    lateral_sources: tuple[str, ...]
+    tolerance: float
+    jacobian: np.ndarray = field(repr=False)
+    residual: float = field(default=0.0, repr=False)
+
+    def __repr__(self) -> str:
+        """One line: the verdict and the least stable pole (``print`` gives the modes)."""
+        worst = self.poles.iloc[0] if len(self.poles) else None
+        pole = f", least stable {_pole(worst['real'], worst['imag'])}" if worst is not None else ""
+        return f"<StabilityReport {self.controller.upper()} {self.verdict}{pole}>"
+
+    def _repr_html_(self) -> str:
+        """In a notebook: the verdict and the poles, as HTML."""
+        from quadrs.present.html import stability
+
+        return stability(self)
+
+    @property
+    def unstable(self) -> pd.DataFrame:
+        """The poles that are not asymptotically stable (unstable and marginal ones)."""
+        return self.poles[self.poles["status"] != "stable"]
+
+    def _unstable_modes(self) -> list[tuple[str, str, bool]]:
+        """(mode, pole, excited) per non-stable mode; a complex pair is shown once."""
+        rows = self.unstable
+        rows = rows[rows["imag"] >= 0]
+        return [
+            (r.mode, _pole(r.real, r.imag) + (" (marginal)" if r.status == "marginal" else ""),
+             bool(r.excited))
+            for r in rows.itertuples()
+        ]  # fmt: skip
+
+    def __str__(self) -> str:
+        name = self.controller.upper()
+        if self.residual > 1e-6:
+            name += " (no hover equilibrium: linearised at the reference point)"
+        if self.stable:
+            slow = self.poles.iloc[0]
+            mode = f"{slow['mode']} {_pole(slow['real'], slow['imag'])}"
+            return f"{name}: stable: slowest-decaying mode {mode}, damping {slow['damping']:.2f}"
+        modes = []
+        for mode, pole, excited in self._unstable_modes():
+            said = "yes" if excited else "no"
+            if excited and mode.startswith("lateral"):
+                said += ": " + ", ".join(self.lateral_sources)
+            modes.append(f"{mode} mode {pole} (excited by this scenario: {said})")
+        if not modes:  # never a bare "UNSTABLE: "; say what the poles lack
+            finite = bool(np.isfinite(self.poles[["real", "imag"]].to_numpy(float)).all())
+            why = ("no mode could be named (see the poles)" if finite and len(self.poles)
+                   else "the linearisation at hover has no finite poles")  # fmt: skip
+            modes.append(why)
+        return f"{name}: {self.verdict.upper()}: " + "; ".join(modes)
+
+    @property
+    def excited_unstable(self) -> bool:
+        """True if this scenario excites a mode that is not asymptotically stable."""
+        return bool(self.unstable["excited"].any())
+
+    @property
+    def excited_poles(self) -> pd.DataFrame:
+        """The poles of the modes this scenario excites (the ones its flights can show)."""
+        return self.poles[self.poles["excited"]]
+
+    def excited_unstable_modes(self) -> list[str]:
+        """``"mode pole"`` for each mode that this scenario excites and that is not
+        asymptotically stable, e.g. ``["lateral x/pitch +1.31 ± 3.90j"]`` (a pair once)."""
+        return [f"{mode} {pole}" for mode, pole, excited in self._unstable_modes() if excited]
+
+    def warning(self) -> str:
+        """The message of the :class:`StabilityWarning` for this report ("" if stable): one
+        short, calm line (a :class:`StabilityNote`) when the scenario excites none of the
+        unstable modes, a loud one (naming what excites them and how fast they grow) when it
+        does."""
+        if self.stable:
+            return ""
+        modes = self._unstable_modes()
+        name = f"{self.controller.upper()} gains are {self.verdict.upper()} at hover"
+        if not any(excited for _, _, excited in modes):
+            names = ", ".join(dict.fromkeys(mode for mode, _, _ in modes))
+            return (
+                f"{self.controller.upper()}: unstable at hover only in modes this flight does "
+                f"not excite ({names}): no effect here."
+            )
+        poles = ", ".join(f"{mode} {pole}" for mode, pole, excited in modes if excited)
+        growth = self.unstable[self.unstable["excited"]]["real"].max()
+        sources = ", ".join(self.lateral_sources)
+        by = f" ({sources})" if sources else ""
+        fast = f", the fastest growing e-fold every {1 / growth:.2g} s" if growth > 0 else ""
+        return (
+            f"{name} and this scenario EXCITES them{by}: {poles}{fast}. Expect diverged "
+            "flights (flagged in the runs' diverged column); the preset paper_stable_lateral is "
+            "a stable retune; see the stability analysis (quadrs.stability, `quadrs stability`)."
+        )
+
+
+def stability(scenario: Scenario, controller: str = "smc") -> StabilityReport:
+    """Closed-loop poles of ``controller`` ("pd" or "smc") linearised at hover, with a verdict.
+
+    ``print(quadrs.stability(s, "smc"))`` gives a one-line summary; see
+    :class:`StabilityReport` for the tables.
+    """
+    check_controller(controller)
+    raw = scenario.engine.stability(controller)
+    real = np.asarray(raw["real"], dtype=float)
+    imag = np.asarray(raw["imag"], dtype=float)
+    magnitude = np.hypot(real, imag)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        damping = np.where(magnitude > 0.0, -real / magnitude, np.nan)
+    poles = pd.DataFrame(
+        {
+            "real": real,
+            "imag": imag,
+            "frequency_hz": magnitude / (2.0 * math.pi),
+            "damping": damping,
+            "mode": list(raw["mode"]),
+            "dominant": list(raw["dominant"]),
+            "status": list(raw["status"]),
+            "excited": np.asarray(raw["excited"], dtype=bool),
+        },
+        columns=list(POLE_COLUMNS),
+    )
+    return StabilityReport(
+        controller=controller,
+        stable=bool(raw["stable"]),
+        verdict=str(raw["verdict"]),
+        poles=poles,
+        lateral_sources=tuple(raw["lateral_sources"]),
+        tolerance=float(raw["tolerance"]),
+        jacobian=np.asarray(raw["jacobian"]),
+        residual=float(raw["residual"]),
+    )

@@ -1,0 +1,34 @@
+"""Text for the terminal: what a scenario holds (phase names, keys) is shown, never obeyed; and
+the progress bar every long call draws."""
+
+from __future__ import annotations
+
+import unicodedata
+
+__all__ = ["terminal_text"]
+
+
+def terminal_text(text: str) -> str:
+    """``text`` safe to show on a terminal: control characters (escape sequences, backspaces,
+    carriage returns, bidirectional overrides; all but newline and tab) as ``\\xNN``/``\\uNNNN``
+    escapes, so a scenario string (a phase name, a key) cannot drive the terminal."""
+
+    def safe(c: str) -> str:
+        if c in "\n\t" or unicodedata.category(c) not in ("Cc", "Cf"):
+            return c
+        return repr(c)[1:-1] if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
+
+    return "".join(safe(c) for c in text) if not text.isprintable() else text
+
+
+def tqdm_class() -> type:
+    """The progress bar class: the notebook widget (``tqdm.auto``) where ipywidgets is
+    installed, else the text bar; never the "IProgress not found" warning box that
+    ``tqdm.auto`` shows in a notebook without ipywidgets."""
+    try:
+        import ipywidgets  # type: ignore[import-not-found]  # noqa: F401
+    except ImportError:
+        from tqdm.std import tqdm
+    else:
+        from tqdm.auto import tqdm
+    return tqdm

@@ -1,0 +1,140 @@
+"""Plausibility of a scenario the engine accepts: refuse what cannot fly, warn on unit slips.
+
+The engine checks that every value is legal (positive masses, increasing times, ...). Legal
+is not plausible: a thrust limit below the weight lets the vehicle fall for the whole flight,
+and a payload typed in grams (220 kg) flies without complaint. :func:`check` runs wherever a
+:class:`~quadrs.scenario.scenario.Scenario` is validated:
+
+- what cannot fly raises :class:`~quadrs.ScenarioError` naming the keys and the numbers;
+- what is implausible issues one :class:`PlausibilityWarning` per finding, naming the key,
+  its value and unit and the likely slip. Python shows each distinct warning once per
+  session (the command line once per run); silence them with
+  ``warnings.simplefilter("ignore", quadrs.PlausibilityWarning)``.
+
+The thresholds are deliberately loose (docs/model.md, "Plausibility"): they catch a factor of
+1000 or of 57, not an unusual design.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+from quadrs._core import ScenarioError
+from quadrs.scenario.units import unit
+
+
+class PlausibilityWarning(UserWarning):
+    """A scenario value is legal but implausible, most likely a unit slip (grams for kg,
+    rad/s for Hz, degrees for rad)."""
+
+
+#: Largest plausible vehicle mass (kg): a heavier "vehicle" was most likely typed in grams.
+MAX_VEHICLE_MASS = 100.0
+#: Largest plausible payload natural frequency (Hz) on a spring below a multirotor.
+MAX_NATURAL_FREQUENCY = 50.0
+#: Largest plausible w20 (m/s): MIL-F-8785C's "severe" is 45 kt (23 m/s) at 20 ft.
+MAX_W20 = 30.0
+#: Upper end of the Dryden low-altitude model (m): 1000 ft.
+MAX_GUST_ALTITUDE = 304.8
+
+
+def _value(data: dict[str, Any], key: str) -> Any:
+    node: Any = data
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def _fmt(key: str, value: float) -> str:
+    return f"{key} = {value:g} {unit(key)}"
+
+
+def refusals(data: dict[str, Any]) -> list[tuple[str, str]]:
+    """(key, message) for each thing in ``data`` (a scenario's nested mapping) that cannot
+    fly."""
+    out = []
+    thrust_max = _value(data, "controller.thrust_max")
+    m, mc, g = (_value(data, k) for k in ("vehicle.mass", "payload.mass", "environment.gravity"))
+    if thrust_max is not None and None not in (m, mc, g):
+        weight = (m + mc) * g
+        if thrust_max < weight:
+            out.append((
+                "controller.thrust_max",
+                f"controller.thrust_max = {thrust_max:g} N is below the weight "
+                f"(vehicle.mass + payload.mass) * environment.gravity = ({m:g} + {mc:g}) kg * "
+                f"{g:g} m/s^2 = {weight:.4g} N: the vehicle cannot hover",
+            ))  # fmt: skip
+    return out
+
+
+def findings(data: dict[str, Any]) -> list[str]:
+    """One short message per implausible value in ``data``, each naming the key, the value
+    with its unit and the likely slip."""
+    out = []
+    m, mc = _value(data, "vehicle.mass"), _value(data, "payload.mass")
+    if m is not None and m > MAX_VEHICLE_MASS:
+        out.append(f"{_fmt('vehicle.mass', m)} (> {MAX_VEHICLE_MASS:g}): typed in grams?")
+    if m is not None and mc is not None and mc > m:
+        out.append(f"{_fmt('payload.mass', mc)} exceeds vehicle.mass = {m:g} kg: typed in grams?")
+    fn = _value(data, "payload.natural_frequency")
+    if fn is not None and fn > MAX_NATURAL_FREQUENCY:
+        out.append(
+            f"{_fmt('payload.natural_frequency', fn)} (> {MAX_NATURAL_FREQUENCY:g}): the key is "
+            "in Hz; rad/s or wrong unit?"
+        )
+    attitude = _value(data, "initial.attitude")  # roll and pitch: the engine bounds them
+    if isinstance(attitude, list) and len(attitude) == 3 and abs(attitude[2]) > 2 * math.pi:
+        out.append(f"initial.attitude[2] (yaw) = {attitude[2]:g} rad (> 2 pi): degrees?")
+    w20 = _value(data, "gust.w20")
+    if w20 is not None and w20 > MAX_W20:
+        out.append(
+            f"{_fmt('gust.w20', w20)} is beyond severe turbulence (45 kt = 23 m/s): knots or ft/s?"
+        )
+    altitude = _value(data, "gust.altitude")  # or "vehicle": clamped by the engine
+    if isinstance(altitude, int | float) and altitude > MAX_GUST_ALTITUDE:
+        out.append(
+            f"{_fmt('gust.altitude', altitude)} is above the low-altitude Dryden model's "
+            "1000 ft (305 m): feet?"
+        )
+    below = _parcel_below_ground(data)
+    if below:
+        out.append(below)
+    return out
+
+
+def _parcel_below_ground(data: dict[str, Any]) -> str:
+    """A cable payload hanging below the ground at the start (an empty string if not)."""
+    if _value(data, "payload.model") != "cable" or _value(data, "ground.enabled") is not True:
+        return ""
+    position = _value(data, "initial.position")
+    length = _value(data, "payload.cable_length")
+    offset = _value(data, "payload.attachment_offset") or 0.0
+    ground = _value(data, "ground.altitude") or 0.0
+    if not isinstance(position, list) or len(position) != 3 or length is None:
+        return ""
+    bottom = position[2] - offset - length
+    if bottom >= ground:
+        return ""
+    return (
+        f"the parcel starts below the ground: initial.position[2] = {position[2]:g} m - "
+        f"payload.attachment_offset = {offset:g} m - payload.cable_length = {length:g} m = "
+        f"{bottom:.3g} m < ground.altitude = {ground:g} m: start higher or shorten the line"
+    )
+
+
+def check(data: dict[str, Any]) -> None:
+    """Refuse what cannot fly (:class:`~quadrs.ScenarioError` naming the keys, with the
+    numbers); warn once per implausible value (:class:`PlausibilityWarning`)."""
+    refused = refusals(data)
+    if refused:
+        error = ScenarioError("; ".join(m for _, m in refused))
+        error.key = ", ".join(k for k, _ in refused)  # as the engine's errors name theirs
+        raise error
+    for message in findings(data):
+        # Attributed to this line, not the caller's: Python's default filter then shows each
+        # message once per session, however many scenarios (a sweep's points) repeat it.
+        warnings.warn(message, PlausibilityWarning, stacklevel=1)

@@ -1,0 +1,747 @@
+"""The validated scenario: presets, TOML in and out, dotted-key overrides.
+
+A Scenario is an immutable nested mapping shaped exactly like its TOML file. Values are
+checked by the engine itself (one set of rules, in Rust), so a Scenario that exists is one
+the engine accepts; every error names the dotted key and the offending value.
+"""
+
+from __future__ import annotations
+
+import contextvars
+import copy
+import json
+import math
+import os
+import re
+import sys
+from collections.abc import Iterable, Iterator, Mapping
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
+    import tomli as tomllib
+
+from quadrs import _core
+from quadrs.scenario import plausibility
+from quadrs.scenario.route import FLIGHT_PHASE, Route
+
+ScenarioError = _core.ScenarioError
+
+
+def scenario_error(message: str, key: str | None) -> ScenarioError:
+    """A :class:`ScenarioError` whose ``key`` attribute names the dotted key at fault (as
+    the engine's own do), None when no single key is."""
+    error = ScenarioError(message)
+    error.key = key
+    return error
+
+
+#: Top-level tables the engine fills with defaults when a scenario omits them (so that
+#: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
+OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
+
+_PRESET_DIR = "presets"
+_BASE_KEY = "base"
+#: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
+_BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
+    "_BASE_CHAIN", default=()
+)
+# Pairs of keys that give one thing two ways (the attachment; the turbulence's W20): setting
+# one replaces the other.
+_EXCLUSIVE = {
+    "payload.stiffness": "payload.natural_frequency",
+    "payload.natural_frequency": "payload.stiffness",
+    "gust.w20": "gust.intensity",
+    "gust.intensity": "gust.w20",
+}
+#: Column at which the presets start their end-of-line comments.
+_COMMENT_COLUMN = 38
+_SEGMENT = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?P<index>(\[\d+\])*)$")
+
+
+def presets() -> list[str]:
+    """Names of the presets shipped with quadrs."""
+    files = resources.files("quadrs").joinpath(_PRESET_DIR).iterdir()
+    return sorted(f.name.removesuffix(".toml") for f in files if f.name.endswith(".toml"))
+
+
+def _preset_text(name: str) -> str:
+    if name not in presets():
+        raise ScenarioError(f"preset must be one of {presets()}, got {name!r}")
+    return resources.files("quadrs").joinpath(_PRESET_DIR).joinpath(f"{name}.toml").read_text()
+
+
+def base_preset(path: str | Path) -> str | None:
+    """The preset a scenario file starts from: its ``base`` if that names a preset, followed
+    through files that base on other files; None if there is none or the file is unreadable
+    (reading the scenario itself reports why)."""
+    path, seen = Path(path), set()
+    while _real(path) not in seen:
+        seen.add(_real(path))
+        try:
+            base = tomllib.loads(_read_text(path)).get(_BASE_KEY)
+        except (OSError, ValueError, RecursionError):
+            return None
+        if not isinstance(base, str):
+            return None
+        if base in presets():
+            return base
+        path = path.parent / base
+    return None
+
+
+def _real(path: Path) -> Path:
+    """``path`` with its symlinks resolved as far as they go (a loop does not raise: reading
+    the file then reports it)."""
+    return Path(os.path.realpath(path))
+
+
+def _read_text(path: Path) -> str:
+    """A scenario file's text: at most MAX_FILE_BYTES are read (a device such as /dev/zero
+    is refused, not read forever; a pipe, ``<(...)``, is read); UTF-8. ScenarioError naming
+    the file otherwise."""
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except OSError as e:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} cannot be read: {e.strerror or e}"
+        ) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
+        )
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise ScenarioError(
+            f"scenario file {str(path)!r} is not UTF-8 text (byte {e.start}): not a scenario"
+        ) from None
+
+
+def parse_value(text: str) -> Any:
+    """A command-line value: TOML syntax (numbers, booleans, arrays, quoted strings), else a
+    bare string. ``"2"`` -> 2, ``"[1, 2]"`` -> [1, 2], ``"min_jerk"`` -> "min_jerk"."""
+    try:
+        value = tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+    except RecursionError:
+        raise scenario_error(f"{text[:40]!r}...: a value nested too deeply", None) from None
+    return value
+
+
+def _split_key(key: str) -> list[str | int]:
+    """``"phases[1].end"`` -> ["phases", 1, "end"]."""
+    if not isinstance(key, str) or not key:
+        raise scenario_error(f"scenario keys are dotted strings, got {key!r}", None)
+    parts: list[str | int] = []
+    for segment in key.split("."):
+        m = _SEGMENT.match(segment)
+        if m is None:
+            raise scenario_error(f"{key}: not a valid dotted key (segment {segment!r})", key)
+        parts.append(m["name"])
+        parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", m["index"]))
+    return parts
+
+
+def canonical_key(key: str) -> str:
+    """The one spelling of a dotted key: ``"controller.pd.kp[02]"`` -> ``"controller.pd.kp[2]"``
+    (indices without leading zeros). Every key a user gives (dispersions, ``override``,
+    sweeps, optimised parameters) goes through it, so two spellings never name two keys."""
+    out = ""
+    for part in _split_key(key):
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else part)
+    return out
+
+
+def canonical_keys(keys: Iterable[str], what: str) -> list[str]:
+    """``keys`` in their canonical spelling; ScenarioError naming both spellings if two of
+    them are one key (``what``: where they were given, for the message)."""
+    seen: dict[str, str] = {}
+    out = []
+    for key in keys:
+        canon = canonical_key(key)
+        if canon in seen:
+            raise scenario_error(
+                f"{what}: {seen[canon]!r} and {key!r} are the same key ({canon}); give it once",
+                canon,
+            )
+        seen[canon] = key
+        out.append(canon)
+    return out
+
+
+def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]:
+    """Keys a design-loop command sets on ``scenario`` (swept, tuned): canonical, each once
+    (:func:`canonical_keys`), and not dispersed, since a dispersion would override every
+    value set and the command would compare identical batches. ScenarioError naming the key
+    and ``what`` (the option or argument) otherwise; checked before anything flies."""
+    keys = canonical_keys(keys, what)
+    dispersed = set(scenario.dispersions)
+    for key in keys:
+        if key in dispersed:
+            raise scenario_error(
+                f"{what}: {key} is also dispersed ([dispersions] or --disperse): its drawn "
+                "values would replace every value set; remove one of the two",
+                key,
+            )
+    return keys
+
+
+#: Deepest nesting of tables and arrays a scenario may have (the presets use 3).
+MAX_DEPTH = 32
+#: Largest scenario file read (bytes): a binary or endless file is refused, not read forever.
+MAX_FILE_BYTES = 1 << 20
+#: Integers in a scenario lie in [-2**63, 2**63).
+_INT_LIMIT = 1 << 63
+
+
+def _plain(value: Any, key: str = "") -> Any:
+    """Tuples and numpy scalars -> plain TOML-able Python values, checked on the way: only
+    tables, arrays, strings, booleans, finite numbers and integers within 64 bits, nested at
+    most MAX_DEPTH deep (dates, times and other objects are refused, naming the key). Walks
+    with an explicit stack, so no input can exhaust Python's recursion limit."""
+    root: list[Any] = [None]
+    stack: list[tuple[Any, str, Any, Any, int]] = [(value, key, root, 0, 0)]
+    while stack:
+        v, k, parent, slot, depth = stack.pop()
+        where = k or "scenario"
+        if depth > MAX_DEPTH:
+            raise scenario_error(f"{where}: nested more than {MAX_DEPTH} levels deep", k or None)
+        if isinstance(v, Mapping):
+            table: dict[str, Any] = {}
+            parent[slot] = table
+            for kk, vv in v.items():
+                kk = str(kk)
+                table[kk] = None
+                stack.append((vv, f"{k}.{kk}" if k else kk, table, kk, depth + 1))
+            continue
+        if isinstance(v, list | tuple):
+            array: list[Any] = [None] * len(v)
+            parent[slot] = array
+            stack.extend((vv, f"{k}[{i}]", array, i, depth + 1) for i, vv in enumerate(v))
+            continue
+        if not isinstance(v, str | bytes) and hasattr(v, "item") and callable(v.item):
+            v = v.item()  # numpy scalar
+        if isinstance(v, float) and not math.isfinite(v):
+            raise scenario_error(f"{where} must be a finite number, got {v!r}", k or None)
+        if isinstance(v, int) and not isinstance(v, bool) and not -_INT_LIMIT <= v < _INT_LIMIT:
+            raise scenario_error(f"{where} must be an integer within 64 bits, got {v}", k or None)
+        if not isinstance(v, bool | int | float | str):
+            raise scenario_error(
+                f"{where}: a scenario holds numbers, booleans, strings, arrays and tables, "
+                f"got {type(v).__name__} {v!r}",
+                k or None,
+            )
+        parent[slot] = v
+    return root[0]
+
+
+def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str, Any]:
+    """``data`` on top of the preset its ``base`` names, which may itself have a base: the
+    chain is followed to its end; a cycle is refused."""
+    data = dict(data)
+    base = data.pop(_BASE_KEY, None)
+    if base is None:
+        return data
+    if not isinstance(base, str):
+        raise scenario_error(f"base must name a preset, got {base!r}", "base")
+    if base in chain:
+        raise scenario_error(f"base: presets based on each other in a cycle: "
+                             f"{' -> '.join((*chain, base))}", "base")  # fmt: skip
+    text = _preset_text(base)
+    try:
+        parent = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:  # pragma: no cover - shipped presets parse
+        raise scenario_error(f"base: preset {base!r} is not valid TOML: {e}", "base") from e
+    return _merge(_resolve_base(parent, (*chain, base)), data)
+
+
+def _frozen(value: Any) -> Any:
+    """A hashable image of a plain value that is equal exactly when the values are equal
+    (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
+    if isinstance(value, dict):
+        return frozenset((k, _frozen(v)) for k, v in value.items())
+    if isinstance(value, list):
+        return tuple(_frozen(v) for v in value)
+    return value
+
+
+def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """Tables merge key by key; anything else (arrays, values) replaces. A file that turns
+    its base into a route (``trajectory.interpolation = "route"``) drops the base's
+    waypoints, as :meth:`Scenario.override` does."""
+    out = copy.deepcopy(base)
+    for k, v in extra.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    trajectory = extra.get("trajectory")
+    if isinstance(trajectory, Mapping) and isinstance(out.get("trajectory"), dict):
+        _route_drops_waypoints(out["trajectory"], trajectory)
+    return out
+
+
+def _route_drops_waypoints(merged: dict[str, Any], given: Mapping[str, Any]) -> None:
+    """A scenario made a route on top of a waypoint base flies the route: the base's
+    ``waypoints`` (which a route refuses) go, unless given alongside."""
+    if given.get("interpolation") == "route" and "waypoints" not in given:
+        merged.pop("waypoints", None)
+
+
+def _leaves(data: Mapping[str, Any], path: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
+    """Every value below nested tables by its path; arrays (of tables too) are one value."""
+    out: dict[tuple[str, ...], Any] = {}
+    for k, v in data.items():
+        here = (*path, k)
+        if isinstance(v, Mapping):
+            out.update(_leaves(v, here))
+        else:
+            out[here] = v
+    return out
+
+
+def _differences(
+    data: Mapping[str, Any], base: Mapping[str, Any]
+) -> dict[tuple[str, ...], tuple[Any, Any]]:
+    mine, theirs = _leaves(data), _leaves(base)
+    return {
+        path: (theirs.get(path), mine.get(path))
+        for path in [*theirs, *(p for p in mine if p not in theirs)]
+        if mine.get(path) != theirs.get(path)
+    }
+
+
+def _dotted(path: tuple[str, ...]) -> str:
+    """A path as a dotted key, quoting parts that hold a dot (``dispersions."payload.mass"``)."""
+    return ".".join(json.dumps(p) if not _SEGMENT.match(p) else p for p in path)
+
+
+def _preset_document(preset: str, flat: bool) -> Any:
+    """The preset's text as a tomlkit document; ``flat``: with its ``base`` chain merged in
+    (tables key by key, the preset's own lines over its base's), so that it holds every key."""
+    import tomlkit
+    from tomlkit.items import Table
+
+    doc = tomlkit.parse(_preset_text(preset))
+    base = doc.get(_BASE_KEY)
+    if not flat or base is None:
+        return doc
+    whole = _preset_document(str(base), flat=True)
+
+    def merge(into: Any, extra: Any) -> None:
+        for key, item in extra.items():
+            if isinstance(item, Table) and isinstance(into.get(key), Table):
+                merge(into[key], item)
+            else:
+                into[key] = item
+
+    del doc[_BASE_KEY]
+    merge(whole, doc)
+    return whole
+
+
+def _layout_like(scenario: Scenario, preset: str) -> str:
+    """``scenario`` written over the text of ``preset`` (see :meth:`Scenario.to_toml`)."""
+    import tomlkit
+    from tomlkit.items import Item, Table
+
+    base = Scenario.preset(preset)
+    differences = _differences(scenario._data, base._data)
+    doc = _preset_document(preset, flat=False)
+
+    def held(parts: tuple[str, ...]) -> bool:
+        node: Any = doc
+        for part in parts:
+            if not isinstance(node, dict) or part not in node:
+                return False
+            node = node[part]
+        return True
+
+    # A key the preset only inherits through `base` cannot be removed from a file that bases
+    # on it: then write the whole scenario, laid out like the preset with its base merged in.
+    if any(new is None and not held(p) for p, (_, new) in differences.items()):
+        doc = _preset_document(preset, flat=True)
+    added: set[int] = set()  # tables the preset lacks: their lines need no "preset: not set"
+    for parts, (old, new) in differences.items():
+        node: Any = doc
+        for part in parts[:-1]:
+            if part not in node:
+                node[part] = tomlkit.table()
+                added.add(id(node[part]))
+            node = node[part]
+        fresh = id(node) in added
+        last = parts[-1]
+        if new is None:
+            del node[last]
+        elif isinstance(new, list) and new and all(isinstance(v, dict) for v in new):
+            tables = tomlkit.aot()
+            for row in new:
+                table = tomlkit.table()
+                table.update(row)
+                tables.append(table)
+            node[last] = tables
+        else:
+            item = tomlkit.item(new)
+            if not fresh:
+                held_item = node.get(last)
+                before = (
+                    held_item.trivia.comment.lstrip("# ") if isinstance(held_item, Item) else ""
+                )
+                was = f"{preset}: {'not set' if old is None else toml_value(old)}"
+                item.comment(f"{before}; {was}" if before else was)
+                # The preset aligns its comments at one column: keep them aligned.
+                width = len(f"{last} = {item.as_string()}")
+                item.trivia.comment_ws = " " * max(1, _COMMENT_COLUMN - width)
+            node[last] = item
+
+    # Tables of the preset this scenario does not have (the delivery's [ground] under a paper
+    # scenario) go whole, not as empty tables that would read back as a different scenario.
+    def prune(node: Any, data: Any) -> None:
+        for key in list(node.keys()):
+            if isinstance(node[key], Table):
+                if not isinstance(data, dict) or key not in data:
+                    del node[key]
+                else:
+                    prune(node[key], data[key])
+
+    prune(doc, scenario._data)
+    # A blank line before every table header, as in the presets.
+    return re.sub(r"(?<=[^\n])\n(?=\[)", "\n\n", tomlkit.dumps(doc))
+
+
+def toml_value(value: Any) -> str:
+    """``value`` in TOML syntax on one line (what ``quadrs --set KEY=VALUE`` accepts back)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return json.dumps(str(value))
+
+
+class Scenario:
+    """A complete, validated scenario. Build one from a preset, a TOML file or a mapping;
+    derive variants with :meth:`override`. Instances are immutable and compare by value."""
+
+    def __init__(self, data: Mapping[str, Any]) -> None:
+        data = _plain(data)
+        if not isinstance(data, dict):
+            raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        table = data.get("dispersions")
+        if isinstance(table, dict) and table:
+            keys = canonical_keys(table, "dispersions")
+            data["dispersions"] = dict(zip(keys, table.values(), strict=True))
+        self._data: dict[str, Any] = data
+        _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
+        plausibility.check(data)  # and one that can fly; implausible values warn
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def paper(cls) -> Scenario:
+        """The paper preset of docs/model.md (vertical flight, vertical Dryden gust, Table 2
+        gains)."""
+        return cls.preset("paper")
+
+    @classmethod
+    def preset(cls, name: str) -> Scenario:
+        """A shipped preset by name (see :func:`quadrs.scenario.scenario.presets`)."""
+        return cls.from_toml_string(_preset_text(name))
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        """Read a scenario file. A file may start from a preset with ``base = "paper"`` and
+        give only what differs; otherwise it must be complete. Unknown keys are rejected."""
+        text = _read_text(Path(path))
+        return cls.from_toml_string(text, source=str(path))
+
+    @classmethod
+    def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
+        """Parse TOML text. ``base`` may name a preset or, unlike in :meth:`from_dict`, another
+        scenario file (``base = "tuned.toml"``, relative to ``source``'s directory)."""
+        if len(text) > MAX_FILE_BYTES:
+            raise ScenarioError(f"{source} is larger than {MAX_FILE_BYTES} characters")
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise ScenarioError(f"{source} is not valid TOML: {e}") from e
+        except RecursionError:
+            raise ScenarioError(f"{source}: values nested too deeply") from None
+        base = data.get(_BASE_KEY)
+        if isinstance(base, str) and base.endswith(".toml") and base not in presets():
+            path = Path(base)
+            if not path.is_absolute() and source != "<string>":
+                path = Path(source).parent / path
+            chain = _BASE_CHAIN.get()
+            if _real(path) in chain:
+                raise scenario_error(
+                    f"base = {base!r} in {source}: a scenario file bases on itself", "base"
+                )
+            token = _BASE_CHAIN.set((*chain, _real(path)))
+            try:
+                parent = cls.from_toml(path)
+            finally:
+                _BASE_CHAIN.reset(token)
+            del data[_BASE_KEY]
+            return cls(_merge(parent._data, _plain(data)))
+        return cls.from_dict(data)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """From a nested mapping shaped like the TOML file (``base`` allowed)."""
+        data = _plain(data)
+        if not isinstance(data, dict):
+            raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        return cls(_resolve_base(data))
+
+    # -- output -------------------------------------------------------------------------
+    def to_toml(self, like: str | None = None) -> str:
+        """The complete scenario as TOML; ``Scenario.from_toml_string(s.to_toml()) == s``.
+
+        ``like``: a preset name whose layout, compact arrays, units and comments to keep;
+        values that differ from it carry the preset's value in their comment
+        (``mass = 0.3  # kg ...; paper: 0.22``). The result parses back to this scenario.
+        """
+        if like is None:
+            return tomli_w.dumps(self._data)
+        return _layout_like(self, like)
+
+    def differences(self, base: Scenario) -> dict[str, tuple[Any, Any]]:
+        """Dotted keys whose value differs from ``base``: key -> (base value, this value),
+        ``None`` where a side does not set the key. Arrays (and ``phases``) compare whole."""
+        return {_dotted(p): change for p, change in _differences(self._data, base._data).items()}
+
+    def to_dict(self) -> dict[str, Any]:
+        """A deep copy of the nested mapping."""
+        return copy.deepcopy(self._data)
+
+    def to_json(self) -> str:
+        """The engine's form (what is handed to Rust)."""
+        return json.dumps(self._data, allow_nan=False)
+
+    # -- variants -----------------------------------------------------------------------
+    def override(self, changes: Mapping[str, Any]) -> Scenario:
+        """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
+        "payload.mass": 0.44, "phases[2].end": 65.0}``. Setting ``payload.stiffness``
+        drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
+        ``gust.intensity``); a value of None removes an
+        optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
+        "route" drops the base's ``trajectory.waypoints`` unless they are given too."""
+        data = copy.deepcopy(self._data)
+        keys = canonical_keys(changes, "override")
+        changes = dict(zip(keys, changes.values(), strict=True))
+        if changes.get("trajectory.interpolation") == "route":
+            given = {k.removeprefix("trajectory."): v for k, v in changes.items()
+                     if k.startswith("trajectory.")}  # fmt: skip
+            _route_drops_waypoints(data.get("trajectory", {}), given)
+        for key, value in changes.items():
+            parts = _split_key(key)
+            other = _EXCLUSIVE.get(key)
+            if other is not None and other not in changes:
+                table, name = other.split(".")
+                data.get(table, {}).pop(name, None)
+            parent: Any = data
+            for i, part in enumerate(parts[:-1]):
+                if i == 0 and part in OPTIONAL_TABLES and part not in parent:
+                    parent[part] = {}  # a table the scenario leaves at its defaults
+                try:
+                    parent = parent[part]
+                except (KeyError, IndexError, TypeError):
+                    where = key if i == len(parts) - 2 else ".".join(map(str, parts[: i + 1]))
+                    raise scenario_error(f"{key}: unknown scenario key ({where})", key) from None
+            last = parts[-1]
+            if isinstance(parent, dict) and isinstance(last, str):
+                if value is None:
+                    parent.pop(last, None)
+                else:
+                    parent[last] = _plain(value, key)
+            elif isinstance(parent, list) and isinstance(last, int) and last < len(parent):
+                parent[last] = _plain(value, key)
+            else:
+                raise scenario_error(f"{key}: unknown scenario key", key)
+        return Scenario(data)
+
+    # -- uncertain parameters -----------------------------------------------------------
+    @property
+    def dispersions(self) -> dict[str, dict[str, Any]]:
+        """The ``[dispersions]`` table: dotted key -> distribution (empty when fixed)."""
+        return copy.deepcopy(self._data.get("dispersions", {}))
+
+    @property
+    def dispersed(self) -> bool:
+        """True if some key carries a distribution."""
+        return bool(self._data.get("dispersions"))
+
+    def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
+        """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
+        realisation drew) set: the scenario one realisation of a dispersed batch flies."""
+        data = copy.deepcopy(self._data)
+        data.pop("dispersions", None)
+        fixed = Scenario(data)
+        return fixed.override(dict(values)) if values else fixed
+
+    def realisation(self, seed: int, realisation: int) -> Scenario:
+        """The fixed scenario realisation ``realisation`` of master ``seed`` flies under
+        ``sampling="random"`` (its draws depend only on (seed, realisation)); itself when
+        nothing is dispersed. For a design (lhs, sobol) use ``MonteCarloResult.scenario_of``."""
+        if not self.dispersed:
+            return self
+        from quadrs.scenario.dispersion import draw
+
+        row = draw(self, seed, realisation, 1).iloc[0]
+        return self.fixed({k: float(v) for k, v in row.items()})
+
+    # -- reading ------------------------------------------------------------------------
+    def __getitem__(self, key: str) -> Any:
+        """A value by dotted key: ``s["gust.w20"]``, ``s["phases[0].name"]``."""
+        node: Any = self._data
+        for part in _split_key(key):
+            try:
+                node = node[part]
+            except (KeyError, IndexError, TypeError):
+                raise KeyError(key) from None
+        return copy.deepcopy(node)
+
+    def get(self, key: str, default: Any = None) -> Any:
+        try:
+            return self[key]
+        except KeyError:
+            return default
+
+    def keys(self) -> Iterator[str]:
+        """Every leaf as a dotted key (arrays of tables indexed: ``phases[0].end``)."""
+
+        def walk(node: Any, prefix: str) -> Iterator[str]:
+            if isinstance(node, dict):
+                for k, v in node.items():
+                    yield from walk(v, f"{prefix}.{k}" if prefix else k)
+            elif isinstance(node, list) and node and all(isinstance(v, dict) for v in node):
+                for i, v in enumerate(node):
+                    yield from walk(v, f"{prefix}[{i}]")
+            else:
+                yield prefix
+
+        return walk(self._data, "")
+
+    @cached_property
+    def _derived(self) -> _core.Description:
+        # Validation and derived numbers only: no engine, no gust filters.
+        derived = _core.describe(self.to_json())
+        # Shared by every flight and batch of this scenario: nobody may change them in place.
+        for frequencies in derived["spectrum_frequencies"]:
+            frequencies.flags.writeable = False
+        return derived
+
+    @property
+    def engine(self) -> _core.Engine:
+        """The compiled engine (:mod:`quadrs.engine.compiled`): built on first use, then shared by
+        every flight, batch, stability analysis and linearisation of this scenario."""
+        engine = self.__dict__.get("_engine")
+        if engine is None:
+            from quadrs.engine.compiled import compiled
+
+            engine = self.__dict__["_engine"] = compiled(self.to_json())
+        return engine
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its engine (rebuilt, or found in the cache, where it is used)."""
+        state = self.__dict__.copy()
+        state.pop("_engine", None)
+        return state
+
+    @property
+    def stiffness(self) -> float:
+        """Attachment stiffness kc (N/m), whichever way it was given."""
+        return float(self._derived["stiffness"])
+
+    @property
+    def hover_offset(self) -> float:
+        """Static stretch d0 = mc g / kc (m): the payload hangs this far below at hover."""
+        return float(self._derived["hover_offset"])
+
+    @property
+    def turbulence_w20(self) -> float:
+        """W20 of the turbulence (m/s): ``gust.w20``, or the level ``gust.intensity`` names."""
+        return float(self._derived["turbulence_w20"])
+
+    @property
+    def steps(self) -> int:
+        """RK4 steps of one flight."""
+        return int(self._derived["steps"])
+
+    @property
+    def state_names(self) -> list[str]:
+        """The states of this scenario's vehicle, in the engine's order."""
+        return list(self._derived["state_names"])
+
+    @property
+    def trace_columns(self) -> list[str]:
+        """The columns of a flight's trace (after the time index)."""
+        return list(self._derived["trace_columns"])
+
+    @property
+    def phase_names(self) -> list[str]:
+        """The phases every result has a row for: the scenario's own (``scenario_phases``),
+        then ``"flight"``, the whole flight (docs/model.md, "Routes")."""
+        return list(self._derived["phases"])
+
+    @property
+    def scenario_phases(self) -> list[str]:
+        """The phases the scenario itself names (``phases``, or a route's legs and holds under
+        ``phases = "legs"``), without the whole-flight phase."""
+        return [p for p in self.phase_names if p != FLIGHT_PHASE]
+
+    @property
+    def phase_windows(self) -> dict[str, tuple[float, float]]:
+        """Each phase's time window (s, both ends included), ``"flight"`` last."""
+        return {str(n): (float(a), float(b)) for n, a, b in self._derived["phase_windows"]}
+
+    @property
+    def route(self) -> Route | None:
+        """The schedule of a route (``trajectory.interpolation = "route"``): its legs and
+        holds with their times, lengths and arrival; None for waypoint trajectories."""
+        segments = self._derived["route"]
+        return Route.from_engine(segments) if segments else None
+
+    @property
+    def spectrum_frequencies(self) -> list[Any]:
+        """Per phase, the frequencies (Hz) of its amplitude-spectrum bins (read-only arrays,
+        shared by every flight of this scenario: ``np.array(f)`` for a copy to change)."""
+        return list(self._derived["spectrum_frequencies"])
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Scenario) and self._data == other._data
+
+    def __hash__(self) -> int:
+        # Agrees with __eq__: equal mappings give equal frozen images, whatever their key
+        # order or number types (1 == 1.0).
+        return hash(_frozen(self._data))
+
+    def __repr__(self) -> str:
+        p, g = self._data["payload"], self._data["gust"]
+        attach = (
+            f"fn={p['natural_frequency']} Hz"
+            if "natural_frequency" in p
+            else f"kc={p['stiffness']} N/m"
+        )
+        if p.get("model") == "cable":
+            attach = f"on a {p['cable_length']} m cable, {attach}"
+        level = f"w20={g['w20']} m/s" if "w20" in g else f"{g.get('intensity')}"
+        gust = f"{g['model']} {level}" if g["enabled"] else "off"
+        dt = self["integrator.dt"]
+        n = len(self._data.get("dispersions", {}))
+        spread = f", {n} dispersed key{'s' if n > 1 else ''}" if n else ""
+        return f"<Scenario payload {p['mass']} kg {attach}, gust {gust}, dt={dt}{spread}>"

@@ -1,0 +1,161 @@
+"""``quadrs rare`` end to end: in a subprocess for what only a real process shows (exit status,
+stderr, a real Ctrl-C), in process for bad input. The scenario is the short one of
+tests/cli/test_main.py (1000 innovations a flight)."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import pty
+import re
+import select
+import signal
+import struct
+import subprocess
+import sys
+import termios
+from pathlib import Path
+
+import pytest
+
+from quadrs.cli.main import main
+from quadrs.rare import RareEventResult
+from quadrs.rare.scenario_model import ScenarioModel
+from tests.cli.test_main import SHORT, one_error_line, run_cli
+
+RARE = ["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]
+
+
+def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
+    out = tmp_path / "rare.parquet"
+    proc = run_cli(*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2",
+                   "--workers", "1", "--out", str(out))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    # stderr is no terminal: no progress lines, only where the file went.
+    assert proc.stderr.strip() == f"wrote {out}"
+    r = RareEventResult.read_parquet(out)
+    assert r.probability is not None and r.cov is not None and r.interval is not None
+    model = r.model
+    assert isinstance(model, ScenarioModel)
+    assert (model.controller, model.metric, model.phase) == ("pd", "max_accel", "P2")
+    assert (r.seed, r.threshold, r.run.per_level, r.run.p0) == (2, 3.5, 100, 0.1)
+    # "  label   value" rows: the label and the value are two or more spaces apart.
+    rows = dict(line.strip().split("  ", 1) for line in proc.stdout.splitlines()[1:])
+    rows = {label: value.strip() for label, value in rows.items()}
+    assert proc.stdout.startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    assert rows["estimate"] == f"{r.probability:.3g}"
+    assert rows["coefficient of variation"] == f"{r.cov:.3f}"
+    assert rows["95 % interval"] == f"[{r.interval[0]:.3g}, {r.interval[1]:.3g}]"
+    assert rows["levels"] == str(len(r.levels)) and rows["flights"] == str(r.flights)
+    need = (1 - r.probability) / (r.probability * r.cov**2)
+    assert rows["Monte Carlo flights, same CoV"].startswith(f"{need:.3g} (")
+
+
+def test_paired_controllers_print_both_and_their_ratio(tmp_path: Path) -> None:
+    """--controller pd,smc: the same gusts for both, a table each, the ratio with its
+    interval, and one file per controller beside --out."""
+    out = tmp_path / "rare.parquet"
+    proc = run_cli(*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2",
+                   "--workers", "1", "--controller", "pd,smc", "--out", str(out))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    results = {c: RareEventResult.read_parquet(tmp_path / f"rare-{c}.parquet")
+               for c in ("pd", "smc")}  # fmt: skip
+    assert not out.exists()
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    heads = [line for line in lines if line.startswith("P(")]
+    assert [h.split(", ")[1] for h in heads] == ["pd", "smc"]
+    pd_, smc = results["pd"], results["smc"]
+    assert pd_.probability is not None and smc.probability is not None
+    # Level 0 flew the same gusts: the same innovations in any failure both found there.
+    assert pd_.levels["flights"].iloc[0] == smc.levels["flights"].iloc[0] == 100
+    ratio = [line for line in lines if line.startswith("ratio smc / pd: ")]
+    assert len(ratio) == 1 and f"{smc.probability / pd_.probability:.3g}" in ratio[0]
+    assert "95 % [" in ratio[0] and "first-level correlation" in ratio[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--threshold", "nan"], ["--threshold", "'nan'"]),
+        (["--threshold", "3", "--p0", "0.3"], ["--p0", "0.3"]),
+        (["--threshold", "3", "--per-level", "105"], ["--per-level", "105"]),
+        (["--threshold", "3", "--per-level", "50"], ["--per-level", "50"]),
+        (["--threshold", "3", "--max-levels", "0"], ["--max-levels", "0"]),
+        (["--threshold", "3", "--seed", "-1"], ["--seed", "-1"]),
+        (["--threshold", "3", "--workers", "0"], ["--workers", "0"]),
+        (["--threshold", "3", "--out", "r.csv"], ["--out", "r.csv"]),
+        (["--threshold", "3", "--phase", "P9"], ["--phase", "P9"]),
+        (["--threshold", "3", "--metric", "accel"], ["--metric", "accel"]),
+        (["--threshold", "3", "--controller", "lqr"], ["--controller", "lqr"]),
+        (["--threshold", "3", "--set", "gust.enabled=false"], ["gust.enabled"]),
+        (["--threshold", "3", "--controller", "pd,pd"], ["--controller", "pd,pd"]),
+        (["--threshold", "3", "--workers", "1", "--scheduler", "tcp://x:1"], ["--scheduler"]),
+        (["--threshold", "3", "--set", "integrator.dt=-1"], ["integrator.dt", "-1"]),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    args: list[str], needles: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main([*RARE, *args]) == 2
+    captured = capsys.readouterr()
+    one_error_line(captured.err, "quadrs rare", *needles)
+    assert captured.out == ""
+
+
+def test_a_missing_required_option_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["rare", *SHORT, "--metric", "max_accel", "--phase", "P2"]) == 2
+    one_error_line(capsys.readouterr().err, "--threshold")
+
+
+def test_real_sigint_keeps_the_levels_done(tmp_path: Path) -> None:
+    """A real Ctrl-C after the first level: exit 130, one line saying how far it got, and
+    the finished levels saved. stderr is a pseudo-terminal, so the level lines are drawn."""
+    out = tmp_path / "cut.parquet"
+    master, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    # A threshold no flight reaches in a few levels, and levels long enough (1000 flights)
+    # that a fast build cannot finish them all before the signal lands: stopped mid-way.
+    command = [sys.executable, "-m", "quadrs.cli", *RARE, "--threshold", "40",
+               "--per-level", "1000", "--workers", "1", "--out", str(out)]  # fmt: skip
+    # The child starts with Ctrl-C at its default, as from a terminal: a test process whose
+    # SIGINT is ignored (something imported during collection sets that) would pass SIG_IGN on.
+    proc = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=terminal,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    os.close(terminal)
+    seen = b""
+    try:
+        while b"level 0 done" not in seen:
+            ready, _, _ = select.select([master], [], [], 60)
+            assert ready, f"no level line within 60 s: {seen!r}"
+            chunk = os.read(master, 4096)
+            assert chunk, seen
+            seen += chunk
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+        while True:  # the rest of stderr
+            ready, _, _ = select.select([master], [], [], 1)
+            if not ready:
+                break
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # the terminal closed with the process
+                break
+            if not chunk:
+                break
+            seen += chunk
+    finally:
+        proc.kill()
+        os.close(master)
+    assert proc.returncode == 130, seen
+    text = seen.decode()
+    assert re.search(r"quadrs rare: interrupted after [1-9]\d* finished levels? \(\d+ flights\)",
+                     text), text  # fmt: skip
+    assert "Traceback" not in text
+    r = RareEventResult.read_parquet(out)
+    assert r.interrupted and len(r.levels) >= 1 and r.probability is None
+    assert r.upper_bound is not None and 0 < r.upper_bound <= 0.1 ** (len(r.levels) - 1)
