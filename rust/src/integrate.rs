@@ -4,7 +4,7 @@
 //! payload's outputs, the layout gives the state names and runaway bounds.
 
 use crate::config::{Config, ConfigError};
-use crate::control::{Control, ControllerKind, Pd, Smc};
+use crate::control::{Control, Controller, ControllerKind, ControllerVisitor, Laws};
 use crate::gust::{Kinematics, LaneGust, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
@@ -13,7 +13,7 @@ use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, Sample, N_METRICS};
 use crate::model::{
     dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, Bound, Inputs,
-    Parts, Payload, PayloadKind, State, StateVar, Trig, Vehicle, VehicleVisitor,
+    Parts, Payload, PayloadKind, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
@@ -257,8 +257,8 @@ pub struct LaneResult {
 #[derive(Clone)]
 pub struct Craft {
     pub parts: Parts,
-    pd: Pd,
-    smc: Smc,
+    /// Every controller kind's law (`Laws::get`): a batch flies each through the same gusts.
+    pub laws: Laws,
     wind: WindField,
     /// The initial state (the layout's order).
     pub x0: Vec<f64>,
@@ -287,8 +287,7 @@ impl Craft {
         let d = &cfg.divergence;
         Ok(Self {
             parts,
-            pd: Pd::new(cfg),
-            smc: Smc::new(cfg),
+            laws: Laws::new(cfg),
             wind,
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
@@ -706,18 +705,49 @@ impl Engine {
         };
         let parts: Vec<&Parts> = crafts.iter().map(|c| &c.parts).collect();
         let vehicle = Parts::gather::<L, Pay, Act>(&parts);
-        match req.kind {
-            ControllerKind::Pd => {
-                let each: Vec<&Pd> = crafts.iter().map(|c| &c.pd).collect();
-                let ctrl = Pd::gather::<L>(&each);
-                self.fly_loop::<L, _, _, _, N>(&vehicle, &ctrl, crafts, req, trace, planner)
-            }
-            ControllerKind::Smc => {
-                let each: Vec<&Smc> = crafts.iter().map(|c| &c.smc).collect();
-                let ctrl = Smc::gather::<L>(&each);
-                self.fly_loop::<L, _, _, _, N>(&vehicle, &ctrl, crafts, req, trace, planner)
+        struct Law<'e, 'v, 'c, 'r, 't, L: KernelOps, Pay, Act, const N: usize> {
+            engine: &'e Engine,
+            vehicle: &'v Vehicle<L, Pay, Act>,
+            crafts: &'c [&'c Craft],
+            req: &'r FlightRequest<'r>,
+            trace: Option<&'t mut Trace>,
+            planner: &'t mut FftPlanner<f64>,
+        }
+        impl<L: KernelOps, Pay, Act, const N: usize> ControllerVisitor
+            for Law<'_, '_, '_, '_, '_, L, Pay, Act, N>
+        where
+            Pay: crate::model::PayloadModel<L>,
+            Act: ActuatorModel<L>,
+        {
+            type Output = Option<Vec<LaneResult>>;
+            #[inline(always)]
+            fn visit<C: Controller>(self) -> Self::Output {
+                let kind = self.req.kind;
+                let each: Vec<&C> = self
+                    .crafts
+                    .iter()
+                    .map(|c| c.laws.get(kind).get::<C>())
+                    .collect();
+                let ctrl = C::gather::<L>(&each);
+                self.engine.fly_loop::<L, Pay, Act, C::At<L>, N>(
+                    self.vehicle,
+                    &ctrl,
+                    self.crafts,
+                    self.req,
+                    self.trace,
+                    self.planner,
+                )
             }
         }
+        let law = Law::<L, _, _, N> {
+            engine: self,
+            vehicle: &vehicle,
+            crafts,
+            req,
+            trace,
+            planner,
+        };
+        crate::control::dispatch(req.kind, law)
     }
 
     #[inline(always)]
@@ -815,8 +845,9 @@ impl Engine {
                 );
             }
             let trig = Trig::of(&s);
-            let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r);
-            let cmd = vehicle.actuator.command(&u);
+            let tick = Tick { step: k, t };
+            let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r, tick);
+            let cmd = vehicle.actuator.command(&u, tick);
             // Outside the gust window `sample_at` returns zeros without touching the state
             // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
             // window is open and nothing else blows (most of a paper flight).

@@ -65,7 +65,10 @@ mod _core {
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
         m.add(
             "CONTROLLER_NAMES",
-            ControllerKind::ALL.map(ControllerKind::name).to_vec(),
+            ControllerKind::ALL
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
         )?;
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
@@ -143,9 +146,14 @@ mod _core {
 
     fn controllers(names: &[String]) -> PyResult<Vec<ControllerKind>> {
         if names.is_empty() {
-            return Err(PyValueError::new_err(
-                "controllers must name at least one of 'pd', 'smc'",
-            ));
+            let names: Vec<String> = ControllerKind::ALL
+                .iter()
+                .map(|k| format!("'{}'", k.name()))
+                .collect();
+            return Err(PyValueError::new_err(format!(
+                "controllers must name at least one of {}",
+                names.join(", ")
+            )));
         }
         names
             .iter()

@@ -1,5 +1,12 @@
-//! Cascade controllers (docs/model.md section 2): an outer loop gives the thrust U1 and virtual
-//! inputs Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop.
+//! Controllers (docs/model.md section 2): a kind family like the payloads and actuators. Each
+//! law is one file implementing `Controller` (its parameters for one vehicle, built once from
+//! the scenario and gathered one vehicle per lane) and `Control` (the law itself, on the
+//! rigid-body view), and one line of `controllers!` below registers it: that line gives it its
+//! `ControllerKind` variant, its public name (`Controller::NAME`), its `AnyController` variant
+//! and its arm of `dispatch`, which the flight loop and the linearisation both go through.
+//!
+//! The PD and SMC laws are cascades: an outer loop gives the thrust U1 and virtual inputs
+//! Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop (`Shared`).
 
 mod pd;
 mod smc;
@@ -9,51 +16,162 @@ pub use smc::Smc;
 
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
-/// A control law: inputs for the state `s` and reference `r`, computed once per step. Its
-/// gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per lane).
+/// A control law: inputs for the state `s` and reference `r` at the step `at`, computed once
+/// per step. Its gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per
+/// lane).
 pub trait Control<P = f64>: Sync {
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>;
 
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference) -> Inputs<L>
+    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference, at: Tick) -> Inputs<L>
     where
         P: Param<L>,
     {
-        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r)
+        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r, at)
     }
 }
 
-/// Which law to fly; the names are the public ones ("pd", "smc").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ControllerKind {
-    Pd,
-    Smc,
+/// A controller kind: its parameters for one vehicle, resolved once from a validated scenario
+/// (`new`), and the same law with one vehicle per lane (`gather`). `Self` is the law on `f64`
+/// gains, which the linearisation flies on plain and dual numbers.
+pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static {
+    /// The public name (`controller="pd"`, `_core.CONTROLLER_NAMES`, `--controller`).
+    const NAME: &'static str;
+    /// The law with gains of lane type `L`, one vehicle per lane.
+    type At<L: Lane>: Control<L>;
+
+    fn new(cfg: &Config) -> Self;
+    /// One vehicle per lane: lane `l` of every gain is `each[l]`'s.
+    fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
+}
+
+/// Work to do with a controller whose kind is known at compile time (the flight loop, the
+/// closed loop of the linearisation).
+pub trait ControllerVisitor {
+    type Output;
+    fn visit<C: Controller>(self) -> Self::Output;
+}
+
+/// The registration of every controller kind: `Variant(Type)`, in the order the Python layer
+/// lists them. One line per kind; everything else about a kind lives in its own file.
+macro_rules! controllers {
+    ($($Variant:ident($Ty:ty)),+ $(,)?) => {
+        /// Which law to fly; `name` is the kind's public name (`Controller::NAME`).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ControllerKind {
+            $($Variant),+
+        }
+
+        impl ControllerKind {
+            /// Every controller, in the order the Python layer lists them.
+            pub const ALL: &'static [Self] = &[$(Self::$Variant),+];
+
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$Variant => <$Ty as Controller>::NAME),+
+                }
+            }
+        }
+
+        /// One controller kind's parameters for one vehicle.
+        #[derive(Clone, Debug)]
+        pub enum AnyController {
+            $($Variant($Ty)),+
+        }
+
+        impl AnyController {
+            /// The law `kind` of a validated scenario.
+            pub fn new(kind: ControllerKind, cfg: &Config) -> Self {
+                match kind {
+                    $(ControllerKind::$Variant => Self::$Variant(<$Ty as Controller>::new(cfg))),+
+                }
+            }
+
+            pub fn kind(&self) -> ControllerKind {
+                match self {
+                    $(Self::$Variant(_) => ControllerKind::$Variant),+
+                }
+            }
+
+            /// The parameters as kind `C` (`dispatch` matched the kind: anything else is a bug).
+            pub fn get<C: Controller>(&self) -> &C {
+                let any: &dyn std::any::Any = match self {
+                    $(Self::$Variant(c) => c),+
+                };
+                any.downcast_ref::<C>().unwrap_or_else(|| {
+                    panic!("controller {} asked for as {}", self.kind().name(), C::NAME)
+                })
+            }
+        }
+
+        /// The one dispatch point from a controller's name to the code compiled for it. Always
+        /// inlined, like `model::dispatch`: the flight loop must be compiled inside the
+        /// caller's instruction-set function.
+        #[inline(always)]
+        pub fn dispatch<V: ControllerVisitor>(kind: ControllerKind, v: V) -> V::Output {
+            match kind {
+                $(ControllerKind::$Variant => v.visit::<$Ty>()),+
+            }
+        }
+    };
+}
+
+controllers! {
+    Pd(Pd),
+    Smc(Smc),
 }
 
 impl ControllerKind {
-    /// Every controller, in the order the Python layer lists them.
-    pub const ALL: [Self; 2] = [Self::Pd, Self::Smc];
-
+    /// The kind named `name` (its `Controller::NAME`).
     pub fn parse(name: &str) -> Result<Self, String> {
-        match name {
-            "pd" => Ok(Self::Pd),
-            "smc" => Ok(Self::Smc),
-            other => Err(format!("controller must be 'pd' or 'smc', got {other:?}")),
-        }
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<String> = Self::ALL
+                    .iter()
+                    .map(|k| format!("'{}'", k.name()))
+                    .collect();
+                format!(
+                    "controller must be one of {}, got {name:?}",
+                    names.join(", ")
+                )
+            })
+    }
+}
+
+/// Every kind's law for one vehicle, in the order of `ControllerKind::ALL`: a craft carries
+/// them all, so that one batch flies every law through the same gusts.
+#[derive(Clone, Debug)]
+pub struct Laws(Vec<AnyController>);
+
+impl Laws {
+    pub fn new(cfg: &Config) -> Self {
+        Self(
+            ControllerKind::ALL
+                .iter()
+                .map(|&k| AnyController::new(k, cfg))
+                .collect(),
+        )
     }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Pd => "pd",
-            Self::Smc => "smc",
-        }
+    /// The law of kind `kind`.
+    pub fn get(&self, kind: ControllerKind) -> &AnyController {
+        &self.0[kind as usize]
     }
 }
 
@@ -194,7 +312,7 @@ mod tests {
             psi: 0.3,
             ..Reference::default()
         };
-        c.control(&s, &r)
+        c.control(&s, &r, Tick::START)
     }
 
     #[test]

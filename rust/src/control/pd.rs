@@ -1,9 +1,9 @@
 //! PD cascade (paper eqs. 4-7).
 
-use super::{position_errors, Control, Shared};
+use super::{position_errors, Control, Controller, Shared};
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Pd::gather`).
@@ -17,8 +17,11 @@ pub struct Pd<P = f64> {
     kd_attitude: [P; 3],
 }
 
-impl Pd {
-    pub fn new(cfg: &Config) -> Self {
+impl Controller for Pd {
+    const NAME: &'static str = "pd";
+    type At<L: Lane> = Pd<L>;
+
+    fn new(cfg: &Config) -> Self {
         let k = &cfg.controller.pd;
         Self {
             shared: Shared::new(cfg),
@@ -29,8 +32,7 @@ impl Pd {
         }
     }
 
-    /// One vehicle per lane (see `Parts::gather`).
-    pub fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
+    fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
         let at3 =
             |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i])) };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
@@ -46,7 +48,13 @@ impl Pd {
 
 impl<P: Copy + Sync> Control<P> for Pd<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -92,7 +100,7 @@ mod tests {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
-        let u = pd.control(&s, &r);
+        let u = pd.control(&s, &r, Tick::START);
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         assert!((u.u1 - mt * (9.81 + 1.5 * 0.1)).abs() < 1e-12);
     }

@@ -1,9 +1,9 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
-use super::{position_errors, Control, Shared};
+use super::{position_errors, Control, Controller, Shared};
 use crate::config::Config;
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Smc::gather`).
@@ -21,8 +21,11 @@ pub struct Smc<P = f64> {
     gamma: P,
 }
 
-impl Smc {
-    pub fn new(cfg: &Config) -> Self {
+impl Controller for Smc {
+    const NAME: &'static str = "smc";
+    type At<L: Lane> = Smc<L>;
+
+    fn new(cfg: &Config) -> Self {
         let k = &cfg.controller.smc;
         Self {
             shared: Shared::new(cfg),
@@ -36,8 +39,7 @@ impl Smc {
         }
     }
 
-    /// One vehicle per lane (see `Parts::gather`).
-    pub fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
+    fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
         let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] {
             [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
         };
@@ -71,7 +73,13 @@ impl<P: Copy> Smc<P> {
 
 impl<P: Copy + Sync> Control<P> for Smc<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -130,7 +138,7 @@ mod tests {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
-        let u = smc.control(&s, &r);
+        let u = smc.control(&s, &r, Tick::START);
         let (e, ed) = (0.1, -0.05);
         let sz = 3.2 * e + ed;
         let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;
