@@ -40,7 +40,7 @@ mod _core {
     use crate::gust;
     use crate::integrate::{trace_columns, Craft, Engine, ExitStatus, FlightRequest};
     use crate::memory;
-    use crate::metrics::{METRIC_NAMES, N_METRICS};
+    use crate::metrics::{METRICS, METRIC_NAMES, N_METRICS};
     use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
     use crate::montecarlo::{pool, run_batch as batch, Batch};
     use numpy::ndarray::{Array1, Array2, Array4};
@@ -63,6 +63,15 @@ mod _core {
         m.add("ScenarioError", scenario_error)?;
         m.add("EngineError", m.py().get_type::<EngineError>())?;
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
+        let units = PyDict::new(m.py());
+        let labels = PyDict::new(m.py());
+        for metric in &METRICS {
+            units.set_item(metric.name, metric.unit)?;
+            labels.set_item(metric.name, metric.label)?;
+        }
+        m.add("METRIC_UNITS", units)?;
+        m.add("METRIC_LABELS", labels)?;
         m.add(
             "CONTROLLER_NAMES",
             ControllerKind::ALL
