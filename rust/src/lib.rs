@@ -72,6 +72,16 @@ mod _core {
         }
         m.add("METRIC_UNITS", units)?;
         m.add("METRIC_LABELS", labels)?;
+        // The unit and label of every key a kind owns (dotted, indices dropped), from the
+        // kind's own declaration (`config::params!`).
+        let units = PyDict::new(m.py());
+        let labels = PyDict::new(m.py());
+        for (key, k) in crate::config::ControllerConfig::keys() {
+            units.set_item(&key, k.unit)?;
+            labels.set_item(&key, k.label)?;
+        }
+        m.add("KEY_UNITS", units)?;
+        m.add("KEY_LABELS", labels)?;
         m.add(
             "CONTROLLER_NAMES",
             ControllerKind::ALL

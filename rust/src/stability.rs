@@ -23,7 +23,7 @@
 //! eigenvectors, and each pole keeps an unambiguous mode label.
 
 use crate::config::{Config, GustComponent};
-use crate::control::{Control, Controller, ControllerKind, ControllerVisitor};
+use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
     dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State, StateVar, Tick, Trig,
@@ -201,6 +201,7 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
             let vars = crate::model::state_vars(cfg.payload.model, cfg.actuator.model);
             struct Law<'a, Pay, Act, const N: usize> {
                 cfg: &'a Config,
+                kind: ControllerKind,
                 parts: Parts,
                 vars: Vec<StateVar>,
                 r: Reference,
@@ -213,13 +214,14 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
                         vars: self.vars,
                         plain: self.parts.vehicle::<Pay, Act>(),
                         dual: Parts::gather::<Dual, Pay, Act>(&[&self.parts]),
-                        ctrl: C::new(self.cfg),
+                        ctrl: AnyController::new(self.kind, self.cfg).get::<C>().clone(),
                         r: self.r,
                     })
                 }
             }
             let law = Law::<Pay, Act, N> {
                 cfg,
+                kind,
                 parts,
                 vars,
                 r,

@@ -1,10 +1,26 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
-use super::{position_errors, Control, Controller, Shared};
-use crate::config::Config;
+use super::{non_negative3, position_errors, Control, Controller, Shared};
+use crate::config::params::params;
+use crate::config::{positive, Config, ConfigError};
 use crate::lane::{Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
+
+params! {
+    /// `[controller.smc]`: the sliding-mode law's gains (x, y, z channels, then roll, pitch,
+    /// yaw), every one >= 0, and its boundary layer.
+    pub struct SmcGains {
+        epsilon: [f64; 3] => "m/s^2 (x, y, z)", "SMC switching gains (x, y, z)";
+        lambda: [f64; 3] => "1/s", "SMC sliding-surface slopes (x, y, z)";
+        eta: [f64; 3] => "1/s", "SMC reaching gains (x, y, z)";
+        epsilon_attitude: [f64; 3] => "rad/s^2", "SMC switching gains (roll, pitch, yaw)";
+        lambda_attitude: [f64; 3] => "1/s", "SMC sliding-surface slopes (roll, pitch, yaw)";
+        eta_attitude: [f64; 3] => "1/s", "SMC reaching gains (roll, pitch, yaw)";
+        /// Boundary-layer width of sat(s) = s / (|s| + gamma), > 0.
+        gamma: f64 => "m/s (x, y, z) or rad/s", "SMC boundary-layer width";
+    }
+}
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Smc::gather`).
 #[derive(Clone, Debug)]
@@ -22,11 +38,20 @@ pub struct Smc<P = f64> {
 }
 
 impl Controller for Smc {
-    const NAME: &'static str = "smc";
+    type Params = SmcGains;
     type At<L: Lane> = Smc<L>;
 
-    fn new(cfg: &Config) -> Self {
-        let k = &cfg.controller.smc;
+    fn validate(k: &SmcGains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+        non_negative3(key, "epsilon", &k.epsilon)?;
+        non_negative3(key, "lambda", &k.lambda)?;
+        non_negative3(key, "eta", &k.eta)?;
+        non_negative3(key, "epsilon_attitude", &k.epsilon_attitude)?;
+        non_negative3(key, "lambda_attitude", &k.lambda_attitude)?;
+        non_negative3(key, "eta_attitude", &k.eta_attitude)?;
+        positive(format_args!("{key}.gamma"), k.gamma)
+    }
+
+    fn new(k: &SmcGains, cfg: &Config) -> Self {
         Self {
             shared: Shared::new(cfg),
             epsilon: k.epsilon,
@@ -130,7 +155,7 @@ mod tests {
     #[test]
     fn sliding_surface_law_by_hand() {
         let cfg = paper();
-        let smc = Smc::new(&cfg);
+        let smc = Smc::new(&cfg.controller.smc, &cfg);
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
         s.vel[2] = 0.05;
