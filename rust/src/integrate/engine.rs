@@ -231,7 +231,7 @@ impl Engine {
 
     /// Realisations per lane-set of the batch path (`fly_set`): the widest vector of
     /// `self.isa` (8 with AVX-512, else 4).
-    pub fn set_lanes(&self) -> usize {
+    pub fn lanes_per_set(&self) -> usize {
         self.isa.set_lanes()
     }
 }

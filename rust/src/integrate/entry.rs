@@ -3,7 +3,7 @@
 
 use super::*;
 
-/// `fly_any` compiled with target features: one `unsafe fn $name` per (name, features).
+/// `fly_kinds` compiled with target features: one `unsafe fn $name` per (name, features).
 /// Safety of each: the CPU must support the features.
 macro_rules! flight_loop_for {
     ($($(#[$doc:meta])* $name:ident, $features:literal;)+) => {$(
@@ -19,7 +19,7 @@ macro_rules! flight_loop_for {
             trace: Option<&mut Trace>,
             planner: &mut FftPlanner<f64>,
         ) -> Option<Vec<LaneResult>> {
-            self.fly_any::<L>(req, trace, planner)
+            self.fly_kinds::<L>(req, trace, planner)
         }
     )+};
 }
@@ -49,7 +49,7 @@ macro_rules! portable_entry {
                 trace: Option<&mut Trace>,
                 planner: &mut FftPlanner<f64>,
             ) -> Option<Vec<LaneResult>> {
-                engine.fly_any::<Self>(req, trace, planner)
+                engine.fly_kinds::<Self>(req, trace, planner)
             }
         }
     )+};
@@ -100,7 +100,7 @@ impl Engine {
         self.fly_on::<L>(req, trace, planner)
     }
 
-    /// Fly `set_lanes()` realisations at once on the widest SIMD lane type of this engine's
+    /// Fly `lanes_per_set()` realisations at once on the widest SIMD lane type of this engine's
     /// instruction set (`self.isa`): the batch path. Every path gives bit-identical numbers.
     pub fn fly_set(
         &self,
@@ -109,7 +109,7 @@ impl Engine {
     ) -> Option<Vec<LaneResult>> {
         assert_eq!(
             req.indices.len(),
-            self.set_lanes(),
+            self.lanes_per_set(),
             "one realisation index per lane"
         );
         // Each lane type below enters the loop compiled for its own instruction set
@@ -147,12 +147,12 @@ impl Engine {
     }
 
     flight_loop_for! {
-        /// `fly_any` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
+        /// `fly_kinds` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
         fly_avx2, "avx2";
-        /// `fly_any` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
+        /// `fly_kinds` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
         /// `Lane::mul_add` of `F64x4Fma` fuses; Rust never contracts the other operations).
         fly_avx2_fma, "avx2,fma";
-        /// `fly_any` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
+        /// `fly_kinds` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
         /// the default mode: the lane operations never fuse, whatever the enabled features.
         fly_avx512, "avx512f,avx512dq";
     }

@@ -36,7 +36,7 @@ const CANCEL_CHECK_STEPS: usize = 4096;
 impl Engine {
     /// Fly on the vehicle kinds of the scenario (`model::dispatch`).
     #[inline(always)]
-    pub(super) fn fly_any<L: KernelOps>(
+    pub(super) fn fly_kinds<L: KernelOps>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -54,7 +54,7 @@ impl Engine {
             #[inline(always)]
             fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
                 self.engine
-                    .fly_vehicle::<L, Pay, Act, N>(self.req, self.trace, self.planner)
+                    .fly_law::<L, Pay, Act, N>(self.req, self.trace, self.planner)
             }
         }
         let cfg = &self.cfg;
@@ -70,7 +70,7 @@ impl Engine {
 
     /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
     #[inline(always)]
-    fn fly_vehicle<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
+    fn fly_law<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,

@@ -2,6 +2,12 @@
 //! held over its four stages (a digital controller at 1/dt Hz), metrics taken online. The loop
 //! knows no model's details: the vehicle (`model::Vehicle`) gives the derivative and the
 //! payload's outputs, the layout gives the state names and runaway bounds.
+//!
+//! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
+//! and controller kinds, `fly_loop` flies them); `entry` the way in, one copy of the loop per
+//! instruction set (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled
+//! scenario (`Engine`, `Craft`, `FlightRequest`); `trace` the trace's columns and rows;
+//! `status` why a flight ended (`ExitStatus`).
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, Controller, ControllerKind, ControllerVisitor, Laws};

@@ -273,10 +273,10 @@ fn simd_lanes_match_scalar_flights() {
                 sets.flat_map(|set| f(&FlightRequest::new(kind, 7, set)))
                     .collect::<Vec<_>>()
             };
-            let set_lanes = engine.set_lanes();
+            let lanes_per_set = engine.lanes_per_set();
             runs.push(flown(
                 &mut |req| engine.fly_set(req, &mut planner).unwrap(),
-                set_lanes,
+                lanes_per_set,
             ));
             runs.push(flown(
                 &mut |req| engine.fly::<F64x4>(req, None, &mut planner).unwrap(),
@@ -390,7 +390,7 @@ fn fused_mode_is_close_to_the_default_and_refused_without_fma() {
             );
             continue;
         }
-        let indices: Vec<u64> = (0..engine.set_lanes() as u64).collect();
+        let indices: Vec<u64> = (0..engine.lanes_per_set() as u64).collect();
         let req = FlightRequest::new(ControllerKind::Pd, 1, &indices);
         let exact = engine.fly_set(&req, &mut planner).unwrap();
         let engine = engine.with_fused(true).unwrap();
