@@ -92,7 +92,7 @@ fn bench_set(
     planner: &mut FftPlanner<f64>,
     want_spectra: bool,
 ) {
-    let lanes = engine.set_lanes();
+    let lanes = engine.lanes_per_set();
     g.throughput(Throughput::Elements(
         (KINDS.len() * lanes * engine.steps) as u64,
     ));

@@ -40,9 +40,11 @@ mod _core {
     use crate::gust;
     use crate::integrate::{trace_columns, Craft, Engine, ExitStatus, FlightRequest};
     use crate::memory;
-    use crate::metrics::{METRIC_NAMES, N_METRICS};
+    use crate::metrics::{METRICS, METRIC_NAMES, N_METRICS};
     use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
-    use crate::montecarlo::{pool, run_batch as batch, Batch};
+    use crate::montecarlo::{
+        pool, run_batch as batch, run_innovations as innovations_batch, Batch,
+    };
     use numpy::ndarray::{Array1, Array2, Array4};
     use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
     use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyTypeError, PyValueError};
@@ -63,9 +65,31 @@ mod _core {
         m.add("ScenarioError", scenario_error)?;
         m.add("EngineError", m.py().get_type::<EngineError>())?;
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
+        let units = PyDict::new(m.py());
+        let labels = PyDict::new(m.py());
+        for metric in &METRICS {
+            units.set_item(metric.name, metric.unit)?;
+            labels.set_item(metric.name, metric.label)?;
+        }
+        m.add("METRIC_UNITS", units)?;
+        m.add("METRIC_LABELS", labels)?;
+        // The unit and label of every key a kind owns (dotted, indices dropped), from the
+        // kind's own declaration (`config::params!`).
+        let units = PyDict::new(m.py());
+        let labels = PyDict::new(m.py());
+        for (key, k) in crate::config::ControllerConfig::keys() {
+            units.set_item(&key, k.unit)?;
+            labels.set_item(&key, k.label)?;
+        }
+        m.add("KEY_UNITS", units)?;
+        m.add("KEY_LABELS", labels)?;
         m.add(
             "CONTROLLER_NAMES",
-            ControllerKind::ALL.map(ControllerKind::name).to_vec(),
+            ControllerKind::ALL
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
         )?;
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
@@ -143,9 +167,14 @@ mod _core {
 
     fn controllers(names: &[String]) -> PyResult<Vec<ControllerKind>> {
         if names.is_empty() {
-            return Err(PyValueError::new_err(
-                "controllers must name at least one of 'pd', 'smc'",
-            ));
+            let names: Vec<String> = ControllerKind::ALL
+                .iter()
+                .map(|k| format!("'{}'", k.name()))
+                .collect();
+            return Err(PyValueError::new_err(format!(
+                "controllers must name at least one of {}",
+                names.join(", ")
+            )));
         }
         names
             .iter()
@@ -500,7 +529,7 @@ mod _core {
                 count as u128 * (row + kinds.len() + 1) as u128,
                 8,
             )
-            .and_then(|()| flight_memory(&e, e.set_lanes(), workers))
+            .and_then(|()| flight_memory(&e, e.lanes_per_set(), workers))
             .map_err(PyMemoryError::new_err)?;
             let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
                 (true, None) => None,
@@ -599,7 +628,6 @@ mod _core {
         ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
             let e = &self.engine;
             use numpy::ndarray::Array3;
-            use rayon::prelude::*;
             let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
             let xi = xi.as_array();
             let (n, dim) = (xi.nrows(), xi.ncols());
@@ -615,8 +643,6 @@ mod _core {
                 None => return Err(PyValueError::new_err("xi must be C-contiguous")),
             };
             let n_phase = e.phase_count();
-            let row = n_phase * N_METRICS;
-            let mut metrics = vec![f64::NAN; n * row];
             let (done, cancel) = match progress {
                 Some(p) => (p.get().done.clone(), p.get().cancel.clone()),
                 None => (
@@ -624,60 +650,16 @@ mod _core {
                     Arc::new(AtomicBool::new(false)),
                 ),
             };
-            let lanes = e.set_lanes();
-            let finished = py.detach(|| {
+            let flown = py.detach(|| {
                 guarded("run_innovations", || {
-                    pool(workers).install(|| {
-                        metrics
-                            .par_chunks_mut(lanes * row)
-                            .enumerate()
-                            .map_init(FftPlanner::new, |planner, (set, out)| {
-                                // Pad the last lane-set by repeating its final row.
-                                let mine: Vec<&[f64]> = (0..lanes)
-                                    .map(|l| rows[(set * lanes + l).min(n - 1)])
-                                    .collect();
-                                let indices: Vec<u64> = (0..lanes as u64).collect();
-                                // A dispersed scenario: each lane's craft of its row's values, with
-                                // the scenario's gust filters unless a gust key is dispersed.
-                                let crafts: Option<Vec<Craft>> = dispersion.as_ref().map(|d| {
-                                    let wind = (!d.touches_wind()).then_some(&e.craft);
-                                    (0..lanes)
-                                        .map(|l| {
-                                            let j = (set * lanes + l).min(n - 1);
-                                            let cfg = d.patched(j, 0).expect("checked above");
-                                            Craft::with_wind_of(&cfg, wind).expect("checked above")
-                                        })
-                                        .collect()
-                                });
-                                let craft_refs: Option<Vec<&Craft>> =
-                                    crafts.as_ref().map(|c| c.iter().collect());
-                                let req = FlightRequest {
-                                    cancel: Some(&cancel),
-                                    crafts: craft_refs.as_deref(),
-                                    innovations: Some(&mine),
-                                    ..FlightRequest::new(kind, 0, &indices)
-                                };
-                                let Some(res) = e.fly_set(&req, planner) else {
-                                    return false;
-                                };
-                                for (l, r) in res.iter().take(out.len() / row).enumerate() {
-                                    for (p, m) in r.metrics.iter().enumerate() {
-                                        let at = l * row + p * N_METRICS;
-                                        out[at..at + N_METRICS].copy_from_slice(m);
-                                    }
-                                }
-                                done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
-                                true
-                            })
-                            .all(|ok| ok)
-                    })
+                    innovations_batch(e, kind, &rows, dispersion.as_ref(), workers, &done, &cancel)
                 })
             })?;
-            if !finished {
+            let Some(metrics) = flown else {
                 return Err(PyKeyboardInterrupt::new_err(
                     "run_innovations was cancelled",
                 ));
-            }
+            };
             Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
                 .expect("shape")
                 .into_pyarray(py))

@@ -12,50 +12,206 @@ use crate::lane::Lane;
 use crate::trajectory::PhaseSteps;
 use rustfft::{num_complex::Complex, FftPlanner};
 
-/// Column order of every metrics array the engine returns.
-pub const METRIC_NAMES: [&str; 19] = [
-    "iae",
-    "itae",
-    "max_abs",
-    "rms",
-    "tracking_rms",
-    "peak_frequency",
-    "peak_amplitude",
-    "max_accel",
-    "rms_accel",
-    "max_swing",
-    "rms_swing",
-    "max_tension",
-    "min_tension",
-    "slack_time",
-    "saturated_time",
-    "max_tracking",
-    "rms_cross_track",
-    "max_cross_track",
-    "max_specific_force",
-];
-pub const N_METRICS: usize = METRIC_NAMES.len();
+/// One metric: its column name, its unit (SI, as the engine stores it; "-" for none), a
+/// plain-English label (no unit: figures and tables add theirs) and its value from one
+/// phase's running sums. The one place a metric is defined: the column order of every metrics
+/// array, `_core.METRIC_NAMES`, `_core.METRIC_UNITS` and `_core.METRIC_LABELS` come from
+/// `METRICS`.
+pub struct Metric {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub label: &'static str,
+    value: fn(&Totals) -> f64,
+}
 
-#[derive(Clone, Copy)]
-struct Sums<L> {
-    iae: L,
-    itae: L,
-    sq: L,
-    tracking_sq: L,
-    max_abs: L,
-    accel_sq: L,
-    max_accel: L,
-    swing_sq: L,
-    max_swing: L,
-    max_tension: L,
-    min_tension: L,
+/// One lane's running sums over one phase, and what a value needs besides them.
+pub struct Totals {
+    s: Sums<f64>,
+    /// s, the phase's length.
+    span: f64,
+    /// s, the step.
+    dt: f64,
+    /// Hz and m: the largest bin of e_o's amplitude spectrum (NaN when there is none).
+    peak: (f64, f64),
+}
+
+impl Totals {
+    /// sqrt(integral / span): the RMS of a signal whose squared integral is `sq`.
+    fn rms(&self, sq: f64) -> f64 {
+        (sq / self.span).sqrt()
+    }
+}
+
+/// Every metric, in column order.
+pub const METRICS: [Metric; 19] = [
+    Metric {
+        name: "iae",
+        unit: "m s",
+        label: "Integrated absolute displacement, IAE",
+        value: |t| t.s.iae,
+    },
+    Metric {
+        name: "itae",
+        unit: "m s^2",
+        label: "Time-weighted IAE, ITAE",
+        value: |t| t.s.itae,
+    },
+    Metric {
+        name: "max_abs",
+        unit: "m",
+        label: "Peak |payload relative displacement|",
+        value: |t| t.s.max_abs,
+    },
+    Metric {
+        name: "rms",
+        unit: "m",
+        label: "RMS payload relative displacement",
+        value: |t| t.rms(t.s.sq),
+    },
+    Metric {
+        name: "tracking_rms",
+        unit: "m",
+        label: "RMS 3-D tracking error",
+        value: |t| t.rms(t.s.tracking_sq),
+    },
+    Metric {
+        name: "peak_frequency",
+        unit: "Hz",
+        label: "Frequency of the displacement's spectral peak",
+        value: |t| t.peak.0,
+    },
+    Metric {
+        name: "peak_amplitude",
+        unit: "m",
+        label: "Amplitude of the displacement's spectral peak",
+        value: |t| t.peak.1,
+    },
+    Metric {
+        name: "max_accel",
+        unit: "m/s^2",
+        label: "Payload acceleration peak",
+        value: |t| t.s.max_accel,
+    },
+    Metric {
+        name: "rms_accel",
+        unit: "m/s^2",
+        label: "Payload acceleration RMS",
+        value: |t| t.rms(t.s.accel_sq),
+    },
+    Metric {
+        name: "max_swing",
+        unit: "rad",
+        label: "Peak swing angle of the line",
+        value: |t| t.s.max_swing,
+    },
+    Metric {
+        name: "rms_swing",
+        unit: "rad",
+        label: "RMS swing angle of the line",
+        value: |t| t.rms(t.s.swing_sq),
+    },
+    Metric {
+        name: "max_tension",
+        unit: "N",
+        label: "Peak line tension",
+        value: |t| t.s.max_tension,
+    },
+    Metric {
+        name: "min_tension",
+        unit: "N",
+        label: "Lowest line tension",
+        value: |t| t.s.min_tension,
+    },
+    Metric {
+        name: "slack_time",
+        unit: "s",
+        label: "Time with the line slack",
+        value: |t| t.s.slack_steps * t.dt,
+    },
+    Metric {
+        name: "saturated_time",
+        unit: "s",
+        label: "Time with a rotor at its limit",
+        value: |t| t.s.saturated_steps * t.dt,
+    },
+    Metric {
+        name: "max_tracking",
+        unit: "m",
+        label: "Peak 3-D tracking error",
+        value: |t| t.s.max_tracking_sq.sqrt(),
+    },
+    Metric {
+        name: "rms_cross_track",
+        unit: "m",
+        label: "RMS cross-track error",
+        value: |t| t.rms(t.s.cross_sq),
+    },
+    Metric {
+        name: "max_cross_track",
+        unit: "m",
+        label: "Peak cross-track error",
+        value: |t| t.s.max_cross_sq.sqrt(),
+    },
+    Metric {
+        name: "max_specific_force",
+        unit: "m/s^2",
+        label: "Peak specific force on the payload, |a - g|",
+        value: |t| t.s.max_specific_force,
+    },
+];
+pub const N_METRICS: usize = METRICS.len();
+
+/// Column order of every metrics array the engine returns (`METRICS`' names).
+pub const METRIC_NAMES: [&str; N_METRICS] = {
+    let mut names = [""; N_METRICS];
+    let mut i = 0;
+    while i < N_METRICS {
+        names[i] = METRICS[i].name;
+        i += 1;
+    }
+    names
+};
+
+/// The running sums of one phase, each starting at its initial value: a struct of lane values
+/// (`Sums<L>`), and one lane's values of them (`Sums<f64>`, `lane`).
+macro_rules! sums {
+    ($($(#[$doc:meta])* $field:ident: $init:expr,)+) => {
+        #[derive(Clone, Copy)]
+        struct Sums<L> {
+            $($(#[$doc])* $field: L,)+
+        }
+
+        impl<L: Lane> Sums<L> {
+            fn new() -> Self {
+                Self { $($field: L::splat($init),)+ }
+            }
+
+            fn lane(&self, lane: usize) -> Sums<f64> {
+                Sums { $($field: self.$field.lane(lane),)+ }
+            }
+        }
+    };
+}
+
+sums! {
+    iae: 0.0,
+    itae: 0.0,
+    sq: 0.0,
+    tracking_sq: 0.0,
+    max_abs: 0.0,
+    accel_sq: 0.0,
+    max_accel: 0.0,
+    swing_sq: 0.0,
+    max_swing: 0.0,
+    max_tension: f64::NEG_INFINITY,
+    min_tension: f64::INFINITY,
     /// Steps (at t_k) with the attachment slack, and with an actuator command clamped.
-    slack_steps: L,
-    saturated_steps: L,
-    max_tracking_sq: L,
-    cross_sq: L,
-    max_cross_sq: L,
-    max_specific_force: L,
+    slack_steps: 0.0,
+    saturated_steps: 0.0,
+    max_tracking_sq: 0.0,
+    cross_sq: 0.0,
+    max_cross_sq: 0.0,
+    max_specific_force: 0.0,
 }
 
 /// What the flight loop hands the accumulator at one step (lane values).
@@ -101,28 +257,7 @@ impl<L: Lane> PhaseAccumulator<L> {
         let zero = L::splat(0.0);
         Self {
             phases: phases.to_vec(),
-            sums: vec![
-                Sums {
-                    iae: zero,
-                    itae: zero,
-                    sq: zero,
-                    tracking_sq: zero,
-                    max_abs: zero,
-                    accel_sq: zero,
-                    max_accel: zero,
-                    swing_sq: zero,
-                    max_swing: zero,
-                    max_tension: L::splat(f64::NEG_INFINITY),
-                    min_tension: L::splat(f64::INFINITY),
-                    slack_steps: zero,
-                    saturated_steps: zero,
-                    max_tracking_sq: zero,
-                    cross_sq: zero,
-                    max_cross_sq: zero,
-                    max_specific_force: zero,
-                };
-                phases.len()
-            ],
+            sums: vec![Sums::new(); phases.len()],
             dt,
             decimation: decimation.max(1),
             block_left: decimation.max(1),
@@ -172,7 +307,7 @@ impl<L: Lane> PhaseAccumulator<L> {
         }
     }
 
-    /// The indices of lane `lane`, one row per phase, columns as METRIC_NAMES.
+    /// The indices of lane `lane`, one row per phase, columns as `METRICS`.
     /// `spectra` receives each phase's amplitude spectrum when given (see `spectrum_grid`).
     pub fn finish(
         &self,
@@ -201,27 +336,13 @@ impl<L: Lane> PhaseAccumulator<L> {
             if let Some(out) = spectra.as_deref_mut() {
                 out[p] = amp;
             }
-            rows.push([
-                s.iae.lane(lane),
-                s.itae.lane(lane),
-                s.max_abs.lane(lane),
-                (s.sq.lane(lane) / span).sqrt(),
-                (s.tracking_sq.lane(lane) / span).sqrt(),
-                peak_f,
-                peak_a,
-                s.max_accel.lane(lane),
-                (s.accel_sq.lane(lane) / span).sqrt(),
-                s.max_swing.lane(lane),
-                (s.swing_sq.lane(lane) / span).sqrt(),
-                s.max_tension.lane(lane),
-                s.min_tension.lane(lane),
-                s.slack_steps.lane(lane) * self.dt,
-                s.saturated_steps.lane(lane) * self.dt,
-                s.max_tracking_sq.lane(lane).sqrt(),
-                (s.cross_sq.lane(lane) / span).sqrt(),
-                s.max_cross_sq.lane(lane).sqrt(),
-                s.max_specific_force.lane(lane),
-            ]);
+            let totals = Totals {
+                s: s.lane(lane),
+                span,
+                dt: self.dt,
+                peak: (peak_f, peak_a),
+            };
+            rows.push(METRICS.map(|m| (m.value)(&totals)));
         }
         rows
     }
@@ -344,5 +465,22 @@ mod tests {
         assert!((row[14] - 30.0 * dt).abs() < 1e-12);
         // specific force 9.81 - t: its peak at t = 0.
         assert_eq!(row[18], 9.81);
+    }
+
+    /// Every metric names its unit and its label, and no two share a name: a new metric
+    /// cannot reach the tables and figures without them.
+    #[test]
+    fn every_metric_has_a_unit_and_a_label() {
+        for (i, m) in METRICS.iter().enumerate() {
+            assert!(!m.unit.trim().is_empty(), "{} has no unit", m.name);
+            assert!(!m.label.trim().is_empty(), "{} has no label", m.name);
+            assert!(
+                !m.label.contains('('),
+                "{}: the label carries no unit",
+                m.name
+            );
+            assert_eq!(METRIC_NAMES[i], m.name);
+            assert!(!METRIC_NAMES[..i].contains(&m.name), "{} twice", m.name);
+        }
     }
 }

@@ -1,7 +1,8 @@
 //! The batch: realisations in parallel, one SIMD lane-set at a time (four realisations, eight
-//! on AVX-512: `Engine::set_lanes`), every controller flown through the same gust (common
+//! on AVX-512: `Engine::lanes_per_set`), every controller flown through the same gust (common
 //! random numbers). Only per-phase metrics and running spectrum sums are kept, so memory does
-//! not grow with the number of realisations beyond the result table.
+//! not grow with the number of realisations beyond the result table. `run_innovations` flies
+//! given standard normals instead of seeded realisations (rare events), the same way.
 
 use crate::config::ConfigError;
 use crate::control::ControllerKind;
@@ -159,6 +160,71 @@ impl<'a> Batch<'a> {
     }
 }
 
+/// One flight of `kind` per row of `rows` (each a flight's standard normals,
+/// `Engine::innovations` of them), in lane-sets on `workers` threads: metrics row-major
+/// (rows, phases, N_METRICS), NaN after a divergence. With `dispersion`, row j flies the
+/// scenario with its row j of values (checked by the caller: `Dispersion::config` accepts
+/// every row). `done` counts finished rows; None if `cancel` was set.
+pub fn run_innovations(
+    engine: &Engine,
+    kind: ControllerKind,
+    rows: &[&[f64]],
+    dispersion: Option<&Dispersion>,
+    workers: usize,
+    done: &AtomicU64,
+    cancel: &AtomicBool,
+) -> Option<Vec<f64>> {
+    let e = engine;
+    let n = rows.len();
+    let row = e.phase_count() * N_METRICS;
+    let mut metrics = vec![f64::NAN; n * row];
+    let lanes = e.lanes_per_set();
+    let finished = pool(workers).install(|| {
+        metrics
+            .par_chunks_mut(lanes * row)
+            .enumerate()
+            .map_init(FftPlanner::new, |planner, (set, out)| {
+                // Pad the last lane-set by repeating its final row.
+                let mine: Vec<&[f64]> = (0..lanes)
+                    .map(|l| rows[(set * lanes + l).min(n - 1)])
+                    .collect();
+                let indices: Vec<u64> = (0..lanes as u64).collect();
+                // A dispersed scenario: each lane's craft of its row's values, with the
+                // scenario's gust filters unless a gust key is dispersed.
+                let crafts: Option<Vec<Craft>> = dispersion.map(|d| {
+                    let wind = (!d.touches_wind()).then_some(&e.craft);
+                    (0..lanes)
+                        .map(|l| {
+                            let j = (set * lanes + l).min(n - 1);
+                            let cfg = d.patched(j, 0).expect("checked by the caller");
+                            Craft::with_wind_of(&cfg, wind).expect("checked by the caller")
+                        })
+                        .collect()
+                });
+                let craft_refs: Option<Vec<&Craft>> = crafts.as_ref().map(|c| c.iter().collect());
+                let req = FlightRequest {
+                    cancel: Some(cancel),
+                    crafts: craft_refs.as_deref(),
+                    innovations: Some(&mine),
+                    ..FlightRequest::new(kind, 0, &indices)
+                };
+                let Some(res) = e.fly_set(&req, planner) else {
+                    return false;
+                };
+                for (l, r) in res.iter().take(out.len() / row).enumerate() {
+                    for (p, m) in r.metrics.iter().enumerate() {
+                        let at = l * row + p * N_METRICS;
+                        out[at..at + N_METRICS].copy_from_slice(m);
+                    }
+                }
+                done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
+                true
+            })
+            .all(|ok| ok)
+    });
+    finished.then_some(metrics)
+}
+
 /// Fly `batch` (checked with `Batch::check`). `progress` counts finished realisations; setting
 /// `cancel` stops work promptly and leaves `done` false for whatever had not finished.
 pub fn run_batch(
@@ -183,7 +249,7 @@ pub fn run_batch(
     let mut diverged_at = vec![f64::NAN; count * n_ctrl];
     let mut status = vec![ExitStatus::Ok as u8; count * n_ctrl];
     let mut done = vec![false; count];
-    let lanes_per_set = engine.set_lanes();
+    let lanes_per_set = engine.lanes_per_set();
 
     // Each lane-set writes its rows straight into the output (disjoint chunks): nothing per set
     // is kept on the heap, so memory is the output arrays plus a few buffers per thread.
@@ -345,6 +411,36 @@ mod tests {
         );
     }
 
+    /// Flying the innovations seeded realisations draw gives those realisations' metrics, bit
+    /// for bit, however the rows fall into lane-sets and threads; a cancel flag set beforehand
+    /// returns None.
+    #[test]
+    fn innovations_fly_the_seeded_realisations() {
+        let engine = Engine::new(short()).unwrap();
+        let n = 5;
+        let seeded = batch(&engine, 0, n, 1);
+        let xi: Vec<Vec<f64>> = (0..n as u64).map(|i| engine.innovations_of(3, i)).collect();
+        let rows: Vec<&[f64]> = xi.iter().map(|r| r.as_slice()).collect();
+        let (done, cancel) = (AtomicU64::new(0), AtomicBool::new(false));
+        for kind in [ControllerKind::Pd, ControllerKind::Smc] {
+            for workers in [1, 2] {
+                let got = run_innovations(&engine, kind, &rows, None, workers, &done, &cancel)
+                    .expect("not cancelled");
+                let per = engine.phase_count() * N_METRICS;
+                let c = kind as usize;
+                for j in 0..n {
+                    let want = &seeded.metrics[(j * 2 + c) * per..(j * 2 + c + 1) * per];
+                    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&got[j * per..(j + 1) * per]), bits(want), "row {j}");
+                }
+            }
+        }
+        assert_eq!(done.load(Ordering::Relaxed), 4 * n as u64);
+        cancel.store(true, Ordering::Relaxed);
+        let kind = ControllerKind::Pd;
+        assert!(run_innovations(&engine, kind, &rows, None, 1, &done, &cancel).is_none());
+    }
+
     /// The spectrum counts equal the finished, non-diverged realisations per controller, even
     /// when a cancel lands between the controllers of a lane-set.
     #[test]
@@ -357,7 +453,7 @@ mod tests {
                 // Cancel as soon as the first set is published: the second set is then (almost
                 // always) inside its PD flight, so its SMC flight never starts.
                 scope.spawn(|| {
-                    while p.load(Ordering::Relaxed) < engine.set_lanes() as u64 {
+                    while p.load(Ordering::Relaxed) < engine.lanes_per_set() as u64 {
                         std::hint::spin_loop();
                     }
                     c.store(true, Ordering::Relaxed);
@@ -365,13 +461,13 @@ mod tests {
                 {
                     let b = Batch {
                         want_spectra: true,
-                        ..Batch::new(&kinds, 3, 0, 3 * engine.set_lanes())
+                        ..Batch::new(&kinds, 3, 0, 3 * engine.lanes_per_set())
                     };
                     pool(1).install(|| run_batch(&engine, &b, &p, &c))
                 }
             });
             for k in 0..kinds.len() {
-                let finished = (0..3 * engine.set_lanes())
+                let finished = (0..3 * engine.lanes_per_set())
                     .filter(|&i| out.done[i] && out.diverged_at[i * kinds.len() + k].is_nan())
                     .count() as u64;
                 assert_eq!(out.spectra.count[k], finished, "controller {k}: {out:?}");

@@ -23,10 +23,10 @@
 //! eigenvectors, and each pole keeps an unambiguous mode label.
 
 use crate::config::{Config, GustComponent};
-use crate::control::{Control, ControllerKind, Pd, Smc};
+use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
-    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State, StateVar, Trig,
+    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State, StateVar, Tick, Trig,
     Vehicle, VehicleVisitor,
 };
 use crate::trajectory::Reference;
@@ -158,8 +158,13 @@ impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<Pay, Act, C, 
         f64: crate::lane::Param<L>,
     {
         let s: State<L, N> = s.try_into().expect("one value per state");
-        let u = ctrl.control(&Vehicle::<L, Pay::At<L>, Act::At<L>>::rigid(&s), r);
-        let cmd = v.actuator.command(&u);
+        // Hover is time-invariant: the law and the actuators are asked at the flight's start.
+        let u = ctrl.control(
+            &Vehicle::<L, Pay::At<L>, Act::At<L>>::rigid(&s),
+            r,
+            Tick::START,
+        );
+        let cmd = v.actuator.command(&u, Tick::START);
         let trig = Trig::of(&s);
         let f = v.derivative(&s, &trig, &cmd, w);
         let out = v.payload_outputs(&s, &trig, u.u1, w);
@@ -194,24 +199,35 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
             let Build(cfg, kind, r) = self;
             let parts = Parts::new(cfg);
             let vars = crate::model::state_vars(cfg.payload.model, cfg.actuator.model);
-            fn boxed<Pay: Payload, Act: Actuator, C: Control + 'static, const N: usize>(
-                parts: &Parts,
+            struct Law<'a, Pay, Act, const N: usize> {
+                cfg: &'a Config,
+                kind: ControllerKind,
+                parts: Parts,
                 vars: Vec<StateVar>,
-                ctrl: C,
                 r: Reference,
-            ) -> Box<dyn ClosedLoop> {
-                Box::new(Loop::<Pay, Act, C, N> {
-                    vars,
-                    plain: parts.vehicle::<Pay, Act>(),
-                    dual: Parts::gather::<Dual, Pay, Act>(&[parts]),
-                    ctrl,
-                    r,
-                })
+                kinds: std::marker::PhantomData<(Pay, Act)>,
             }
-            match kind {
-                ControllerKind::Pd => boxed::<Pay, Act, _, N>(&parts, vars, Pd::new(cfg), r),
-                ControllerKind::Smc => boxed::<Pay, Act, _, N>(&parts, vars, Smc::new(cfg), r),
+            impl<Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor for Law<'_, Pay, Act, N> {
+                type Output = Box<dyn ClosedLoop>;
+                fn visit<C: Controller>(self) -> Box<dyn ClosedLoop> {
+                    Box::new(Loop::<Pay, Act, C, N> {
+                        vars: self.vars,
+                        plain: self.parts.vehicle::<Pay, Act>(),
+                        dual: Parts::gather::<Dual, Pay, Act>(&[&self.parts]),
+                        ctrl: AnyController::new(self.kind, self.cfg).get::<C>().clone(),
+                        r: self.r,
+                    })
+                }
             }
+            let law = Law::<Pay, Act, N> {
+                cfg,
+                kind,
+                parts,
+                vars,
+                r,
+                kinds: std::marker::PhantomData,
+            };
+            crate::control::dispatch(kind, law)
         }
     }
     dispatch(cfg.payload.model, cfg.actuator.model, Build(cfg, kind, r))

@@ -21,10 +21,8 @@ from quadrs.cli.main import build_parser, main
 from quadrs.runs.sweep import SweepResult
 from quadrs.scenario.scenario import parse_value
 
-METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
-           "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
-           "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track", "max_specific_force"]  # fmt: skip
+#: The metric columns, as the engine defines them (rust/src/metrics.rs).
+METRICS = list(quadrs._core.METRIC_NAMES)
 RUN_COLUMNS = ["realisation", "controller", "phase", *METRICS, "diverged", "diverged_at", "status"]
 TABLE3_COLUMNS = [
     "phase", "IAE PD", "IAE SMC", "P_IAE %", "paper P_IAE %",

@@ -10,10 +10,8 @@ STATES = ["x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q"
 TRACE = [*STATES, "x_ref", "y_ref", "z_ref", "psi_ref", "U1", "tau_phi", "tau_theta",
          "tau_psi", "wind_x", "wind_y", "wind_z", "e_o", "accel_c", "drag_z", "swing",
          "tension"]  # fmt: skip
-METRICS = ["phase", "iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency",
-           "peak_amplitude", "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension",
-           "min_tension", "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track", "max_specific_force"]  # fmt: skip
+#: The metrics table: the phase, then the engine's metric columns (rust/src/metrics.rs).
+METRICS = ["phase", *quadrs._core.METRIC_NAMES]
 
 
 def hover(paper: Scenario) -> Scenario:
@@ -117,3 +115,17 @@ def test_bad_call_arguments(short: Scenario) -> None:
         quadrs.simulate(short, "lqr")
     with pytest.raises(ValueError, match="record_every"):
         quadrs.simulate(short, "pd", record_every=0)
+
+
+def test_every_metric_has_a_unit_and_a_label_from_the_engine() -> None:
+    """The engine defines each metric once (name, unit, label); figures read them from it."""
+    from quadrs.present.labels import PLAIN_LABELS, UNITS
+
+    names = list(quadrs._core.METRIC_NAMES)
+    assert list(quadrs._core.METRIC_UNITS) == names
+    assert list(quadrs._core.METRIC_LABELS) == names
+    for m in names:
+        assert quadrs._core.METRIC_UNITS[m].strip() and quadrs._core.METRIC_LABELS[m].strip(), m
+        assert PLAIN_LABELS[m] == f"{quadrs._core.METRIC_LABELS[m]} ({UNITS[m]})"
+    assert UNITS["max_swing"] == "deg" and quadrs._core.METRIC_UNITS["max_swing"] == "rad"
+    assert PLAIN_LABELS["max_accel"] == "Payload acceleration peak (m/s²)"

@@ -14,10 +14,8 @@ import quadrs
 from quadrs import MonteCarloResult, Scenario
 from quadrs.present.table3 import ratio_ci, summarise
 
-METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "peak_amplitude",
-           "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
-           "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
-           "max_cross_track", "max_specific_force"]  # fmt: skip
+#: The metric columns, as the engine defines them (rust/src/metrics.rs).
+METRICS = list(quadrs._core.METRIC_NAMES)
 
 
 def test_runs_table_layout(short: Scenario) -> None:

@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import re
 
-#: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names.
+from quadrs import _core
+
+#: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The keys
+#: a kind owns (``controller.*``) come from the engine, which declares them with the kind.
 UNITS: dict[str, str] = {
+    **_core.KEY_UNITS,
     "vehicle.mass": "kg",
     "vehicle.inertia": "kg m^2",
     "vehicle.inertia_error": "kg m^2",
@@ -29,22 +33,6 @@ UNITS: dict[str, str] = {
     "environment.gravity": "m/s^2",
     "initial.position": "m",
     "initial.attitude": "rad",
-    "controller.mass_compensation": "-",
-    "controller.tilt_limit": "rad",
-    "controller.thrust_floor": "N",
-    "controller.thrust_min": "N",
-    "controller.thrust_max": "N",
-    "controller.pd.kp": "1/s^2",
-    "controller.pd.kd": "1/s",
-    "controller.pd.kp_attitude": "N m/rad",
-    "controller.pd.kd_attitude": "N m s/rad",
-    "controller.smc.epsilon": "m/s^2 (x, y, z)",
-    "controller.smc.lambda": "1/s",
-    "controller.smc.eta": "1/s",
-    "controller.smc.epsilon_attitude": "rad/s^2",
-    "controller.smc.lambda_attitude": "1/s",
-    "controller.smc.eta_attitude": "1/s",
-    "controller.smc.gamma": "m/s (x, y, z) or rad/s",
     "actuator.model": "-",
     "actuator.layout": "-",
     "actuator.thrust_coefficient": "N s^2/rad^2",

@@ -126,35 +126,7 @@ impl Config {
             ("environment", "gravity") => one(&mut self.environment.gravity, rest),
             ("initial", "position") => at3(&mut self.initial.position, rest),
             ("initial", "attitude") => at3(&mut self.initial.attitude, rest),
-            ("controller", f) => {
-                let c = &mut self.controller;
-                let sub = path.get(3..).unwrap_or(&[]);
-                match f {
-                    "mass_compensation" => flag(rest),
-                    "tilt_limit" => one(&mut c.tilt_limit, rest),
-                    "thrust_floor" => one(&mut c.thrust_floor, rest),
-                    "thrust_min" => optional(&mut c.thrust_min, rest),
-                    "thrust_max" => optional(&mut c.thrust_max, rest),
-                    "pd" => match field(2) {
-                        "kp" => at3(&mut c.pd.kp, sub),
-                        "kd" => at3(&mut c.pd.kd, sub),
-                        "kp_attitude" => at3(&mut c.pd.kp_attitude, sub),
-                        "kd_attitude" => at3(&mut c.pd.kd_attitude, sub),
-                        _ => Target::Missing,
-                    },
-                    "smc" => match field(2) {
-                        "epsilon" => at3(&mut c.smc.epsilon, sub),
-                        "lambda" => at3(&mut c.smc.lambda, sub),
-                        "eta" => at3(&mut c.smc.eta, sub),
-                        "epsilon_attitude" => at3(&mut c.smc.epsilon_attitude, sub),
-                        "lambda_attitude" => at3(&mut c.smc.lambda_attitude, sub),
-                        "eta_attitude" => at3(&mut c.smc.eta_attitude, sub),
-                        "gamma" => one(&mut c.smc.gamma, sub),
-                        _ => Target::Missing,
-                    },
-                    _ => Target::Missing,
-                }
-            }
+            ("controller", _) => self.controller.target(&path[1..]),
             ("actuator", f) => {
                 let a = &mut self.actuator;
                 match f {

@@ -5,9 +5,11 @@
 pub mod allocation;
 pub mod dispersions;
 pub mod keys;
+pub mod params;
 pub mod route;
 pub mod wind;
 
+pub use crate::control::ControllerConfig;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -235,48 +237,6 @@ pub struct Initial {
     pub position: [f64; 3],
     /// rad, roll, pitch, yaw.
     pub attitude: [f64; 3],
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ControllerConfig {
-    /// Use m + mc in the control laws (the paper's proposal) instead of m.
-    pub mass_compensation: bool,
-    /// rad, bound on the commanded roll and pitch.
-    pub tilt_limit: f64,
-    /// N, the thrust is never divided by less than this (guards Ux, Uy).
-    pub thrust_floor: f64,
-    /// N, optional saturation of the total thrust.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub thrust_min: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub thrust_max: Option<f64>,
-    pub pd: PdGains,
-    pub smc: SmcGains,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PdGains {
-    /// x, y, z position gains.
-    pub kp: [f64; 3],
-    pub kd: [f64; 3],
-    /// roll, pitch, yaw gains (torque per rad, per rad/s).
-    pub kp_attitude: [f64; 3],
-    pub kd_attitude: [f64; 3],
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SmcGains {
-    pub epsilon: [f64; 3],
-    pub lambda: [f64; 3],
-    pub eta: [f64; 3],
-    pub epsilon_attitude: [f64; 3],
-    pub lambda_attitude: [f64; 3],
-    pub eta_attitude: [f64; 3],
-    /// Boundary-layer width of sat(s) = s / (|s| + gamma).
-    pub gamma: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -590,7 +550,7 @@ impl Config {
                 format!("{key} must be a table, got an array"),
             ));
         }
-        let cfg: Config = serde_path_to_error::deserialize(&value).map_err(|e| {
+        let mut cfg: Config = serde_path_to_error::deserialize(&value).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.inner().to_string();
             if key == "." || key.is_empty() {
@@ -619,6 +579,7 @@ impl Config {
             };
             ConfigError::new(key, message)
         })?;
+        cfg.controller.fill_defaults();
         // serde also reads a table from an array silently where the fields have defaults
         // (`wind = [5.0, 2.0]`, `ground = []`): every table of the scenario must be one.
         let shape = serde_json::to_value(&cfg).expect("a Config always serialises");
@@ -766,7 +727,7 @@ impl Config {
             }
         }
 
-        self.validate_controller()?;
+        self.controller.validate(self)?;
         if fixed {
             self.validate_trajectory()?;
         }
@@ -845,56 +806,6 @@ impl Config {
             ));
         }
         Ok(())
-    }
-
-    fn validate_controller(&self) -> Result<(), ConfigError> {
-        let c = &self.controller;
-        let tl = c.tilt_limit;
-        positive("controller.tilt_limit", tl)?;
-        if tl > std::f64::consts::FRAC_PI_2 {
-            return Err(ConfigError::new(
-                "controller.tilt_limit",
-                format!("controller.tilt_limit must be at most pi/2 rad, got {tl:?}"),
-            ));
-        }
-        positive("controller.thrust_floor", c.thrust_floor)?;
-        if let Some(x) = c.thrust_min {
-            non_negative("controller.thrust_min", x)?;
-        }
-        if let Some(x) = c.thrust_max {
-            positive("controller.thrust_max", x)?;
-            if x <= c.thrust_min.unwrap_or(0.0) {
-                return Err(ConfigError::new(
-                    "controller.thrust_max",
-                    format!("controller.thrust_max must exceed controller.thrust_min, got {x:?}"),
-                ));
-            }
-        }
-        let pd = &c.pd;
-        for (name, arr) in [
-            ("kp", pd.kp),
-            ("kd", pd.kd),
-            ("kp_attitude", pd.kp_attitude),
-            ("kd_attitude", pd.kd_attitude),
-        ] {
-            for (i, x) in arr.iter().enumerate() {
-                non_negative(format_args!("controller.pd.{name}[{i}]"), *x)?;
-            }
-        }
-        let smc = &c.smc;
-        for (name, arr) in [
-            ("epsilon", smc.epsilon),
-            ("lambda", smc.lambda),
-            ("eta", smc.eta),
-            ("epsilon_attitude", smc.epsilon_attitude),
-            ("lambda_attitude", smc.lambda_attitude),
-            ("eta_attitude", smc.eta_attitude),
-        ] {
-            for (i, x) in arr.iter().enumerate() {
-                non_negative(format_args!("controller.smc.{name}[{i}]"), *x)?;
-            }
-        }
-        positive("controller.smc.gamma", smc.gamma)
     }
 
     /// `[actuator]`: every rotor key in range always; whether the rotors can hold this
@@ -1246,7 +1157,7 @@ fn array_for_table(
     }
 }
 
-fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() {
         Ok(())
     } else {
@@ -1258,7 +1169,7 @@ fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
 }
 
 /// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
-fn positive(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn positive(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x > 0.0 {
         Ok(())
     } else {
@@ -1270,7 +1181,7 @@ fn positive(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
 }
 
 /// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
-fn non_negative(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn non_negative(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x >= 0.0 {
         Ok(())
     } else {

@@ -1,5 +1,12 @@
-//! Cascade controllers (docs/model.md section 2): an outer loop gives the thrust U1 and virtual
-//! inputs Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop.
+//! Controllers (docs/model.md section 2): a kind family like the payloads and actuators. Each
+//! law is one file implementing `Controller` (its parameters for one vehicle, built once from
+//! the scenario and gathered one vehicle per lane) and `Control` (the law itself, on the
+//! rigid-body view), and one line of `controllers!` below registers it: that line gives it its
+//! `ControllerKind` variant, its public name (`Controller::NAME`), its `AnyController` variant
+//! and its arm of `dispatch`, which the flight loop and the linearisation both go through.
+//!
+//! The PD and SMC laws are cascades: an outer loop gives the thrust U1 and virtual inputs
+//! Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop (`Shared`).
 
 mod pd;
 mod smc;
@@ -7,53 +14,351 @@ mod smc;
 pub use pd::Pd;
 pub use smc::Smc;
 
-use crate::config::Config;
+use crate::config::keys::{Seg, Target};
+use crate::config::params::{Field, Key, Params, Table};
+use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
-/// A control law: inputs for the state `s` and reference `r`, computed once per step. Its
-/// gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per lane).
+/// A control law: inputs for the state `s` and reference `r` at the step `at`, computed once
+/// per step. Its gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per
+/// lane).
 pub trait Control<P = f64>: Sync {
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>;
 
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference) -> Inputs<L>
+    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference, at: Tick) -> Inputs<L>
     where
         P: Param<L>,
     {
-        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r)
+        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r, at)
     }
 }
 
-/// Which law to fly; the names are the public ones ("pd", "smc").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ControllerKind {
-    Pd,
-    Smc,
+/// A controller kind: its parameters (`Params`, its own table `[controller.<name>]`, declared
+/// with `config::params!`), their checks (`validate`), the law for one vehicle resolved once
+/// from a validated scenario (`new`), and the same law with one vehicle per lane (`gather`).
+/// `Self` is the law on `f64` gains, which the linearisation flies on plain and dual numbers.
+pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static {
+    /// The kind's table: its keys, units and labels (`Params::KEYS`).
+    type Params: Params + Clone + std::fmt::Debug + Serialize + DeserializeOwned;
+    /// The law with gains of lane type `L`, one vehicle per lane.
+    type At<L: Lane>: Control<L>;
+
+    /// The parameters a scenario that gives no table for this kind flies (None: it must give
+    /// one).
+    fn defaults() -> Option<Self::Params> {
+        None
+    }
+    /// Check every parameter; `key` is the table's dotted key (`"controller.pd"`), which every
+    /// message names as `{key}.{name}`.
+    fn validate(p: &Self::Params, key: &str, cfg: &Config) -> Result<(), ConfigError>;
+    fn new(p: &Self::Params, cfg: &Config) -> Self;
+    /// One vehicle per lane: lane `l` of every gain is `each[l]`'s.
+    fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
+}
+
+/// Work to do with a controller whose kind is known at compile time (the flight loop, the
+/// closed loop of the linearisation).
+pub trait ControllerVisitor {
+    type Output;
+    fn visit<C: Controller>(self) -> Self::Output;
+}
+
+/// The registration of every controller kind, `name => Type`, in the order the Python layer
+/// lists them: `name` is its public name (`controller="pd"`, `_core.CONTROLLER_NAMES`,
+/// `--controller`) and its table's (`[controller.pd]`); `Type` implements `Controller`. One line
+/// per kind generates its `ControllerKind` variant, its table in `ControllerConfig` (checked,
+/// defaulted, its keys typed and listed with their units), its `AnyController` variant and its
+/// arm of `dispatch`; everything else about a kind lives in its own file.
+macro_rules! controllers {
+    ($($name:ident => $Ty:ident),+ $(,)?) => {
+        /// Which law to fly.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ControllerKind {
+            $($Ty),+
+        }
+
+        impl ControllerKind {
+            /// Every controller, in the order the Python layer lists them.
+            pub const ALL: &'static [Self] = &[$(Self::$Ty),+];
+
+            /// The public name.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$Ty => stringify!($name)),+
+                }
+            }
+
+            /// The keys of the kind's table (`Params::KEYS`).
+            pub fn keys(self) -> &'static [Key] {
+                match self {
+                    $(Self::$Ty => <<$Ty as Controller>::Params as Params>::KEYS),+
+                }
+            }
+        }
+
+        /// `[controller]`: what every law shares, then one table per kind.
+        #[derive(Debug, Clone, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct ControllerConfig {
+            /// Use m + mc in the control laws (the paper's proposal) instead of m.
+            pub mass_compensation: bool,
+            /// rad, bound on the commanded roll and pitch.
+            pub tilt_limit: f64,
+            /// N, the thrust is never divided by less than this (guards Ux, Uy).
+            pub thrust_floor: f64,
+            /// N, optional saturation of the total thrust.
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub thrust_min: Option<f64>,
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub thrust_max: Option<f64>,
+            $(
+                #[serde(default, skip_serializing_if = "Table::is_absent")]
+                pub $name: Table<<$Ty as Controller>::Params>,
+            )+
+        }
+
+        impl ControllerConfig {
+            /// Give every kind whose table the scenario left out its defaults, if it has them.
+            pub fn fill_defaults(&mut self) {
+                $(
+                    if self.$name.is_absent() {
+                        self.$name = Table(<$Ty as Controller>::defaults());
+                    }
+                )+
+            }
+
+            /// Every kind's table is there and its values in range.
+            fn validate_kinds(&self, cfg: &Config) -> Result<(), ConfigError> {
+                $(
+                    let key = concat!("controller.", stringify!($name));
+                    match &self.$name.0 {
+                        Some(p) => <$Ty as Controller>::validate(p, key, cfg)?,
+                        None => return Err(ConfigError::new(
+                            key,
+                            format!("{key} must be given (the {} law's parameters)", stringify!($name)),
+                        )),
+                    }
+                )+
+                Ok(())
+            }
+
+            /// The typed target of `field` (then `rest`) of a kind's table.
+            fn kind_target(&mut self, name: &str, field: &str, rest: &[Seg]) -> Target<'_> {
+                match name {
+                    $(stringify!($name) => match &mut self.$name.0 {
+                        Some(p) => p.target(field, rest),
+                        None => Target::Missing,
+                    },)+
+                    _ => Target::Missing,
+                }
+            }
+        }
+
+        /// One controller kind's parameters for one vehicle.
+        #[derive(Clone, Debug)]
+        pub enum AnyController {
+            $($Ty($Ty)),+
+        }
+
+        impl AnyController {
+            /// The law `kind` of a validated scenario.
+            pub fn new(kind: ControllerKind, cfg: &Config) -> Self {
+                match kind {
+                    $(ControllerKind::$Ty => {
+                        Self::$Ty(<$Ty as Controller>::new(&cfg.controller.$name, cfg))
+                    })+
+                }
+            }
+
+            pub fn kind(&self) -> ControllerKind {
+                match self {
+                    $(Self::$Ty(_) => ControllerKind::$Ty),+
+                }
+            }
+
+            /// The parameters as kind `C` (`dispatch` matched the kind: anything else is a bug).
+            pub fn get<C: Controller>(&self) -> &C {
+                let any: &dyn std::any::Any = match self {
+                    $(Self::$Ty(c) => c),+
+                };
+                any.downcast_ref::<C>().unwrap_or_else(|| {
+                    panic!(
+                        "controller {} asked for as {}",
+                        self.kind().name(),
+                        std::any::type_name::<C>()
+                    )
+                })
+            }
+        }
+
+        /// The one dispatch point from a controller's name to the code compiled for it. Always
+        /// inlined, like `model::dispatch`: the flight loop must be compiled inside the
+        /// caller's instruction-set function.
+        #[inline(always)]
+        pub fn dispatch<V: ControllerVisitor>(kind: ControllerKind, v: V) -> V::Output {
+            match kind {
+                $(ControllerKind::$Ty => v.visit::<$Ty>()),+
+            }
+        }
+    };
+}
+
+controllers! {
+    pd => Pd,
+    smc => Smc,
+}
+
+/// The keys every law shares, directly under `[controller]`.
+pub const SHARED_KEYS: [Key; 5] = [
+    Key {
+        name: "mass_compensation",
+        unit: "-",
+        label: "Payload mass in the control laws",
+    },
+    Key {
+        name: "tilt_limit",
+        unit: "rad",
+        label: "Largest commanded roll and pitch",
+    },
+    Key {
+        name: "thrust_floor",
+        unit: "N",
+        label: "Least thrust the laws divide by",
+    },
+    Key {
+        name: "thrust_min",
+        unit: "N",
+        label: "Least total thrust",
+    },
+    Key {
+        name: "thrust_max",
+        unit: "N",
+        label: "Largest total thrust",
+    },
+];
+
+impl ControllerConfig {
+    /// Every key of `[controller]` with its unit and label, as dotted keys (indices dropped):
+    /// the shared ones, then each kind's.
+    pub fn keys() -> Vec<(String, Key)> {
+        let shared = SHARED_KEYS
+            .iter()
+            .map(|k| (format!("controller.{}", k.name), *k));
+        let kinds = ControllerKind::ALL.iter().flat_map(|kind| {
+            kind.keys()
+                .iter()
+                .map(move |k| (format!("controller.{}.{}", kind.name(), k.name), *k))
+        });
+        shared.chain(kinds).collect()
+    }
+
+    /// The typed target of the key `controller.<path>` (`path` after `controller`).
+    pub fn target(&mut self, path: &[Seg]) -> Target<'_> {
+        let field = |i: usize| match path.get(i) {
+            Some(Seg::Field(f)) => f.as_str(),
+            _ => "",
+        };
+        let rest = path.get(1..).unwrap_or(&[]);
+        match field(0) {
+            "mass_compensation" => self.mass_compensation.target(rest),
+            "tilt_limit" => self.tilt_limit.target(rest),
+            "thrust_floor" => self.thrust_floor.target(rest),
+            "thrust_min" => self.thrust_min.target(rest),
+            "thrust_max" => self.thrust_max.target(rest),
+            name => {
+                let (kind_field, sub) = (field(1), path.get(2..).unwrap_or(&[]));
+                self.kind_target(name, kind_field, sub)
+            }
+        }
+    }
+
+    /// Check every value: the shared keys, then each kind's table.
+    pub fn validate(&self, cfg: &Config) -> Result<(), ConfigError> {
+        let tl = self.tilt_limit;
+        positive("controller.tilt_limit", tl)?;
+        if tl > std::f64::consts::FRAC_PI_2 {
+            return Err(ConfigError::new(
+                "controller.tilt_limit",
+                format!("controller.tilt_limit must be at most pi/2 rad, got {tl:?}"),
+            ));
+        }
+        positive("controller.thrust_floor", self.thrust_floor)?;
+        if let Some(x) = self.thrust_min {
+            non_negative("controller.thrust_min", x)?;
+        }
+        if let Some(x) = self.thrust_max {
+            positive("controller.thrust_max", x)?;
+            if x <= self.thrust_min.unwrap_or(0.0) {
+                return Err(ConfigError::new(
+                    "controller.thrust_max",
+                    format!("controller.thrust_max must exceed controller.thrust_min, got {x:?}"),
+                ));
+            }
+        }
+        self.validate_kinds(cfg)
+    }
+}
+
+/// Each of the three numbers of `{key}.{name}` is >= 0 (for a kind's `validate`).
+pub(crate) fn non_negative3(key: &str, name: &str, values: &[f64; 3]) -> Result<(), ConfigError> {
+    for (i, x) in values.iter().enumerate() {
+        non_negative(format_args!("{key}.{name}[{i}]"), *x)?;
+    }
+    Ok(())
 }
 
 impl ControllerKind {
-    /// Every controller, in the order the Python layer lists them.
-    pub const ALL: [Self; 2] = [Self::Pd, Self::Smc];
-
+    /// The kind named `name`.
     pub fn parse(name: &str) -> Result<Self, String> {
-        match name {
-            "pd" => Ok(Self::Pd),
-            "smc" => Ok(Self::Smc),
-            other => Err(format!("controller must be 'pd' or 'smc', got {other:?}")),
-        }
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<String> = Self::ALL
+                    .iter()
+                    .map(|k| format!("'{}'", k.name()))
+                    .collect();
+                format!(
+                    "controller must be one of {}, got {name:?}",
+                    names.join(", ")
+                )
+            })
+    }
+}
+
+/// Every kind's law for one vehicle, in the order of `ControllerKind::ALL`: a craft carries
+/// them all, so that one batch flies every law through the same gusts.
+#[derive(Clone, Debug)]
+pub struct Laws(Vec<AnyController>);
+
+impl Laws {
+    pub fn new(cfg: &Config) -> Self {
+        Self(
+            ControllerKind::ALL
+                .iter()
+                .map(|&k| AnyController::new(k, cfg))
+                .collect(),
+        )
     }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Pd => "pd",
-            Self::Smc => "smc",
-        }
+    /// The law of kind `kind`.
+    pub fn get(&self, kind: ControllerKind) -> &AnyController {
+        &self.0[kind as usize]
     }
 }
 
@@ -194,17 +499,91 @@ mod tests {
             psi: 0.3,
             ..Reference::default()
         };
-        c.control(&s, &r)
+        c.control(&s, &r, Tick::START)
     }
 
     #[test]
     fn both_laws_hold_hover_with_total_weight() {
         let cfg = paper();
         let w = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
-        for u in [hover_inputs(&Pd::new(&cfg)), hover_inputs(&Smc::new(&cfg))] {
+        for u in [
+            hover_inputs(&Pd::new(&cfg.controller.pd, &cfg)),
+            hover_inputs(&Smc::new(&cfg.controller.smc, &cfg)),
+        ] {
             assert!((u.u1 - w).abs() < 1e-12, "U1 = {} vs weight {w}", u.u1);
             assert_eq!(u.tau, [0.0; 3]);
         }
+    }
+
+    /// Every key of `[controller]` has a unit and a label, names a field of the scenario
+    /// (a typed target of the paper preset) and is listed once; every field of every kind's
+    /// table is a listed key: the registration, the tables and the units cannot drift apart.
+    #[test]
+    fn every_controller_key_has_a_unit_a_label_and_a_target() {
+        use crate::config::keys::parse_key;
+        let cfg = paper();
+        let keys = ControllerConfig::keys();
+        for (i, (key, k)) in keys.iter().enumerate() {
+            assert!(!k.unit.trim().is_empty(), "{key} has no unit");
+            assert!(!k.label.trim().is_empty(), "{key} has no label");
+            assert!(
+                !keys[..i].iter().any(|(other, _)| other == key),
+                "{key} twice"
+            );
+            let mut c = cfg.clone();
+            let path = parse_key(key).unwrap();
+            let found = !matches!(c.target(&path), Target::Missing);
+            // An unset optional number is no key of this scenario.
+            let optional = key == "controller.thrust_min" || key == "controller.thrust_max";
+            assert!(found || optional, "{key} is no key of the paper scenario");
+        }
+        let json = serde_json::to_value(&cfg.controller).unwrap();
+        for kind in ControllerKind::ALL {
+            let table = json[kind.name()].as_object().expect("a table per kind");
+            let listed: Vec<&str> = kind.keys().iter().map(|k| k.name).collect();
+            let fields: Vec<&str> = table.keys().map(|k| k.as_str()).collect();
+            let mut sorted = listed.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, fields, "{}", kind.name());
+        }
+    }
+
+    #[test]
+    fn a_missing_controller_table_is_named() {
+        let mut v = crate::config::tests::paper_value();
+        v["controller"].as_object_mut().unwrap().remove("smc");
+        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        assert_eq!(e.key, "controller.smc");
+        assert_eq!(
+            e.message,
+            "controller.smc must be given (the smc law's parameters)"
+        );
+        let mut v = crate::config::tests::paper_value();
+        v["controller"]["pd"]["kq"] = serde_json::json!([1, 2, 3]);
+        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        assert_eq!(e.key, "controller.pd.kq");
+        assert!(e.message.contains("unknown field `kq`"), "{e}");
+        let mut v = crate::config::tests::paper_value();
+        v["controller"]["smc"]["eta"][1] = serde_json::json!(-1.0);
+        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        assert_eq!(e.key, "controller.smc.eta[1]");
+        assert_eq!(e.message, "controller.smc.eta[1] must be >= 0, got -1.0");
+    }
+
+    #[test]
+    fn a_kind_is_named_once() {
+        for &kind in ControllerKind::ALL {
+            assert_eq!(ControllerKind::parse(kind.name()), Ok(kind));
+            let cfg = paper();
+            assert_eq!(AnyController::new(kind, &cfg).kind(), kind);
+            assert_eq!(Laws::new(&cfg).get(kind).kind(), kind);
+        }
+        let e = ControllerKind::parse("lqr").unwrap_err();
+        assert!(
+            e.starts_with("controller must be one of 'pd', 'smc'"),
+            "{e}"
+        );
+        assert!(e.ends_with(", got \"lqr\""), "{e}");
     }
 
     #[test]

@@ -1,10 +1,23 @@
 //! PD cascade (paper eqs. 4-7).
 
-use super::{position_errors, Control, Shared};
-use crate::config::Config;
+use super::{non_negative3, position_errors, Control, Controller, Shared};
+use crate::config::params::params;
+use crate::config::{Config, ConfigError};
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
+
+params! {
+    /// `[controller.pd]`: the PD law's gains, every one >= 0.
+    pub struct PdGains {
+        /// x, y, z position gains.
+        kp: [f64; 3] => "1/s^2", "PD position gains (x, y, z)";
+        kd: [f64; 3] => "1/s", "PD velocity gains (x, y, z)";
+        /// roll, pitch, yaw gains (torque per rad, per rad/s).
+        kp_attitude: [f64; 3] => "N m/rad", "PD attitude gains (roll, pitch, yaw)";
+        kd_attitude: [f64; 3] => "N m s/rad", "PD body-rate gains (roll, pitch, yaw)";
+    }
+}
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Pd::gather`).
 #[derive(Clone, Debug)]
@@ -17,9 +30,18 @@ pub struct Pd<P = f64> {
     kd_attitude: [P; 3],
 }
 
-impl Pd {
-    pub fn new(cfg: &Config) -> Self {
-        let k = &cfg.controller.pd;
+impl Controller for Pd {
+    type Params = PdGains;
+    type At<L: Lane> = Pd<L>;
+
+    fn validate(k: &PdGains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+        non_negative3(key, "kp", &k.kp)?;
+        non_negative3(key, "kd", &k.kd)?;
+        non_negative3(key, "kp_attitude", &k.kp_attitude)?;
+        non_negative3(key, "kd_attitude", &k.kd_attitude)
+    }
+
+    fn new(k: &PdGains, cfg: &Config) -> Self {
         Self {
             shared: Shared::new(cfg),
             kp: k.kp,
@@ -29,8 +51,7 @@ impl Pd {
         }
     }
 
-    /// One vehicle per lane (see `Parts::gather`).
-    pub fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
+    fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
         let at3 =
             |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i])) };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
@@ -46,7 +67,13 @@ impl Pd {
 
 impl<P: Copy + Sync> Control<P> for Pd<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -85,14 +112,14 @@ mod tests {
     #[test]
     fn altitude_error_raises_thrust_by_kp() {
         let cfg = paper();
-        let pd = Pd::new(&cfg);
+        let pd = Pd::new(&cfg.controller.pd, &cfg);
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
         let r = Reference {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
-        let u = pd.control(&s, &r);
+        let u = pd.control(&s, &r, Tick::START);
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         assert!((u.u1 - mt * (9.81 + 1.5 * 0.1)).abs() < 1e-12);
     }

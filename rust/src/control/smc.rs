@@ -1,10 +1,26 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
-use super::{position_errors, Control, Shared};
-use crate::config::Config;
+use super::{non_negative3, position_errors, Control, Controller, Shared};
+use crate::config::params::params;
+use crate::config::{positive, Config, ConfigError};
 use crate::lane::{Lane, Param};
-use crate::model::{Inputs, Rigid, Trig};
+use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
+
+params! {
+    /// `[controller.smc]`: the sliding-mode law's gains (x, y, z channels, then roll, pitch,
+    /// yaw), every one >= 0, and its boundary layer.
+    pub struct SmcGains {
+        epsilon: [f64; 3] => "m/s^2 (x, y, z)", "SMC switching gains (x, y, z)";
+        lambda: [f64; 3] => "1/s", "SMC sliding-surface slopes (x, y, z)";
+        eta: [f64; 3] => "1/s", "SMC reaching gains (x, y, z)";
+        epsilon_attitude: [f64; 3] => "rad/s^2", "SMC switching gains (roll, pitch, yaw)";
+        lambda_attitude: [f64; 3] => "1/s", "SMC sliding-surface slopes (roll, pitch, yaw)";
+        eta_attitude: [f64; 3] => "1/s", "SMC reaching gains (roll, pitch, yaw)";
+        /// Boundary-layer width of sat(s) = s / (|s| + gamma), > 0.
+        gamma: f64 => "m/s (x, y, z) or rad/s", "SMC boundary-layer width";
+    }
+}
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Smc::gather`).
 #[derive(Clone, Debug)]
@@ -21,9 +37,21 @@ pub struct Smc<P = f64> {
     gamma: P,
 }
 
-impl Smc {
-    pub fn new(cfg: &Config) -> Self {
-        let k = &cfg.controller.smc;
+impl Controller for Smc {
+    type Params = SmcGains;
+    type At<L: Lane> = Smc<L>;
+
+    fn validate(k: &SmcGains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+        non_negative3(key, "epsilon", &k.epsilon)?;
+        non_negative3(key, "lambda", &k.lambda)?;
+        non_negative3(key, "eta", &k.eta)?;
+        non_negative3(key, "epsilon_attitude", &k.epsilon_attitude)?;
+        non_negative3(key, "lambda_attitude", &k.lambda_attitude)?;
+        non_negative3(key, "eta_attitude", &k.eta_attitude)?;
+        positive(format_args!("{key}.gamma"), k.gamma)
+    }
+
+    fn new(k: &SmcGains, cfg: &Config) -> Self {
         Self {
             shared: Shared::new(cfg),
             epsilon: k.epsilon,
@@ -36,8 +64,7 @@ impl Smc {
         }
     }
 
-    /// One vehicle per lane (see `Parts::gather`).
-    pub fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
+    fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
         let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] {
             [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
         };
@@ -71,7 +98,13 @@ impl<P: Copy> Smc<P> {
 
 impl<P: Copy + Sync> Control<P> for Smc<P> {
     #[inline(always)]
-    fn control_with<L: Lane>(&self, s: &Rigid<L>, trig: &Trig<L>, r: &Reference) -> Inputs<L>
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
     where
         P: Param<L>,
     {
@@ -122,7 +155,7 @@ mod tests {
     #[test]
     fn sliding_surface_law_by_hand() {
         let cfg = paper();
-        let smc = Smc::new(&cfg);
+        let smc = Smc::new(&cfg.controller.smc, &cfg);
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
         s.vel[2] = 0.05;
@@ -130,7 +163,7 @@ mod tests {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
-        let u = smc.control(&s, &r);
+        let u = smc.control(&s, &r, Tick::START);
         let (e, ed) = (0.1, -0.05);
         let sz = 3.2 * e + ed;
         let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;

@@ -73,6 +73,21 @@ pub fn state_from_fn<L: Copy, const N: usize>(mut f: impl FnMut(usize) -> L) -> 
     out
 }
 
+/// Where a flight is: step `step` of the flight loop, at time `t = step dt` (s). The controller
+/// and the actuator receive it once per step, so a gain schedule or a scheduled fault is a
+/// function of it inside one kind's file. The linearisation (`stability`) asks at `Tick::START`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Tick {
+    pub step: usize,
+    /// s.
+    pub t: f64,
+}
+
+impl Tick {
+    /// The start of a flight.
+    pub const START: Tick = Tick { step: 0, t: 0.0 };
+}
+
 /// Total thrust and body torques, as the controller commands them or as the plant feels them.
 #[derive(Clone, Copy, Debug)]
 pub struct Inputs<L> {

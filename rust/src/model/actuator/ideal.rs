@@ -5,7 +5,7 @@ use super::{Actuator, ActuatorModel, AnyActuator};
 use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::layout::StateVar;
-use crate::model::{Inputs, State};
+use crate::model::{Inputs, State, Tick};
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Ideal;
@@ -35,7 +35,7 @@ impl<L: Lane> ActuatorModel<L> for Ideal {
     type Command = Inputs<L>;
 
     #[inline(always)]
-    fn command(&self, u: &Inputs<L>) -> Inputs<L> {
+    fn command(&self, u: &Inputs<L>, _at: Tick) -> Inputs<L> {
         *u
     }
 

@@ -12,7 +12,7 @@ pub use ideal::Ideal;
 pub use rotors::Rotors;
 
 use super::layout::StateVar;
-use super::{Inputs, State};
+use super::{Inputs, State, Tick};
 use crate::config::{ActuatorModelName, Config};
 use crate::lane::Lane;
 
@@ -25,8 +25,9 @@ pub trait ActuatorModel<L: Lane>: Sync {
     /// The kind's extra trace columns, after the common ones (`signals` writes them).
     const SIGNALS: &'static [&'static str] = &[];
 
-    /// The held command for the controller's thrust and torques `u`.
-    fn command(&self, u: &Inputs<L>) -> Self::Command;
+    /// The held command for the controller's thrust and torques `u` at the step `at` (a
+    /// scheduled fault reads its time here).
+    fn command(&self, u: &Inputs<L>, at: Tick) -> Self::Command;
 
     /// The thrust and torques the airframe feels at state `s` (actuator states from `at`).
     fn inputs<const N: usize>(&self, cmd: &Self::Command, s: &State<L, N>, at: usize) -> Inputs<L>;

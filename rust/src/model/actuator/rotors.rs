@@ -12,7 +12,7 @@ use super::{Actuator, ActuatorModel, AnyActuator};
 use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
-use crate::model::{state_from_fn, Inputs, State};
+use crate::model::{state_from_fn, Inputs, State, Tick};
 
 pub use crate::config::allocation::{allocation, allocation_inverse, arm_directions, SPIN};
 
@@ -135,7 +135,7 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         &["thrust_1", "thrust_2", "thrust_3", "thrust_4", "saturated"];
 
     #[inline(always)]
-    fn command(&self, u: &Inputs<L>) -> RotorCommand<L> {
+    fn command(&self, u: &Inputs<L>, _at: Tick) -> RotorCommand<L> {
         let inv = &self.inverse;
         let wanted: [L; 4] = state_from_fn(
             #[inline(always)]
@@ -266,10 +266,13 @@ mod tests {
         for i in 0..4 {
             assert!((s[OMEGA + i] - w0).abs() < 1e-12 * w0);
         }
-        let cmd = v.actuator.command(&Inputs {
-            u1: weight(&cfg),
-            tau: [0.0; 3],
-        });
+        let cmd = v.actuator.command(
+            &Inputs {
+                u1: weight(&cfg),
+                tau: [0.0; 3],
+            },
+            Tick::START,
+        );
         let ds = v.derivative(&s, &Trig::of(&s), &cmd, &[0.0; 3]);
         for (i, d) in ds.iter().enumerate() {
             assert!(d.abs() < 1e-9, "state {i}: {d}");
@@ -288,7 +291,7 @@ mod tests {
                 u1: 26.0,
                 tau: [0.06, -0.04, 0.02],
             };
-            let cmd = v.actuator.command(&u);
+            let cmd = v.actuator.command(&u, Tick::START);
             assert_eq!(cmd.thrust.map(f64::to_bits), cmd.wanted.map(f64::to_bits));
             let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
             s[OMEGA..].copy_from_slice(&cmd.speed);
@@ -314,10 +317,13 @@ mod tests {
         let a = &cfg.actuator;
         // A hard roll: rotors 1, 2 (y > 0) asked for more than thrust_max, 3, 4 for less
         // than thrust_min.
-        let cmd = v.actuator.command(&Inputs {
-            u1: 30.0,
-            tau: [4.0, 0.0, 0.0],
-        });
+        let cmd = v.actuator.command(
+            &Inputs {
+                u1: 30.0,
+                tau: [4.0, 0.0, 0.0],
+            },
+            Tick::START,
+        );
         let wanted = cmd.wanted;
         assert!(
             wanted[0] > a.thrust_max && wanted[1] > a.thrust_max,
@@ -336,10 +342,13 @@ mod tests {
             assert!((cmd.speed[i] - want).abs() < 1e-12 * want);
         }
         assert_eq!(v.actuator.saturated(&cmd), 1.0);
-        let hover = v.actuator.command(&Inputs {
-            u1: weight(&cfg),
-            tau: [0.0; 3],
-        });
+        let hover = v.actuator.command(
+            &Inputs {
+                u1: weight(&cfg),
+                tau: [0.0; 3],
+            },
+            Tick::START,
+        );
         assert_eq!(v.actuator.saturated(&hover), 0.0);
         let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 2.0], [0.0; 3]);
         s[OMEGA..].copy_from_slice(&[500.0, 900.0, 1300.0, 700.0]);

@@ -1,0 +1,237 @@
+//! The compiled scenario (`Engine`): what may differ between realisations (`Craft`), a request
+//! to the flight loop (`FlightRequest`), and the engine's public methods.
+
+use super::*;
+
+/// What may differ between realisations: one vehicle's physical parameters, controllers,
+/// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
+/// scenario has one (`Engine::craft`); a dispersed batch builds one per realisation and the
+/// flight loop carries them one per lane.
+#[derive(Clone)]
+pub struct Craft {
+    pub parts: Parts,
+    /// Every controller kind's law (`Laws::get`): a batch flies each through the same gusts.
+    pub laws: Laws,
+    pub(super) wind: WindField,
+    /// The initial state (the layout's order).
+    pub x0: Vec<f64>,
+    /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
+    /// the order of `Bound`.
+    pub(super) limits: [f64; 4],
+    /// m, the flight ends below this z (`ground.*`; minus infinity when off).
+    pub(super) floor: f64,
+}
+
+impl Craft {
+    /// The craft of a validated config (`Config::validate` has run).
+    pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+        Self::with_wind_of(cfg, None)
+    }
+
+    /// The craft of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
+    /// step: its discretised filters are reused rather than rebuilt).
+    pub fn with_wind_of(cfg: &Config, other: Option<&Craft>) -> Result<Self, ConfigError> {
+        let parts = Parts::new(cfg);
+        let wind = match other {
+            Some(c) => c.wind.clone(),
+            None => WindField::new(cfg)?,
+        };
+        let x0 = initial_state(&parts, cfg);
+        let d = &cfg.divergence;
+        Ok(Self {
+            parts,
+            laws: Laws::new(cfg),
+            wind,
+            x0,
+            limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
+            floor: cfg.ground.floor(),
+        })
+    }
+}
+
+impl Craft {
+    /// The gust field.
+    pub fn wind(&self) -> &WindField {
+        &self.wind
+    }
+}
+
+/// The state a flight of `cfg` starts from: at rest at `initial.*`, payload and actuators at
+/// hover.
+pub fn initial_state(parts: &Parts, cfg: &Config) -> Vec<f64> {
+    struct Rest<'a>(&'a Parts, &'a Config);
+    impl VehicleVisitor for Rest<'_> {
+        type Output = Vec<f64>;
+        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
+            let Rest(parts, cfg) = self;
+            let s: State<f64, N> = parts
+                .vehicle::<Pay, Act>()
+                .rest_state(cfg.initial.position, cfg.initial.attitude);
+            s.to_vec()
+        }
+    }
+    dispatch(cfg.payload.model, cfg.actuator.model, Rest(parts, cfg))
+}
+
+/// One request to the flight loop: which law, which realisations (one per lane) and, for a
+/// dispersed batch, each realisation's craft (`None`: the engine's own, in every lane).
+#[derive(Clone, Copy)]
+pub struct FlightRequest<'a> {
+    pub kind: ControllerKind,
+    pub seed: u64,
+    pub indices: &'a [u64],
+    pub crafts: Option<&'a [&'a Craft]>,
+    pub want_spectra: bool,
+    pub cancel: Option<&'a AtomicBool>,
+    /// Per lane, the turbulence's innovations to fly instead of the seeded stream of
+    /// (`seed`, index): a flight as a function of its standard normals (rare events).
+    pub innovations: Option<&'a [&'a [f64]]>,
+}
+
+impl<'a> FlightRequest<'a> {
+    /// The engine's own craft in every lane, no spectra, no cancel flag.
+    pub fn new(kind: ControllerKind, seed: u64, indices: &'a [u64]) -> Self {
+        Self {
+            kind,
+            seed,
+            indices,
+            crafts: None,
+            want_spectra: false,
+            cancel: None,
+            innovations: None,
+        }
+    }
+}
+
+/// A validated scenario turned into everything the loop needs, built once and shared read-only.
+#[derive(Clone)]
+pub struct Engine {
+    pub cfg: Config,
+    /// The scenario's own vehicle (every realisation's, unless dispersed).
+    pub craft: Craft,
+    /// The states, in order (names, axes, runaway bounds).
+    pub vars: Vec<StateVar>,
+    pub(super) trajectory: Trajectory,
+    pub(super) phases: Vec<PhaseSteps>,
+    pub steps: usize,
+    pub dt: f64,
+    pub(super) decimation: usize,
+    /// The instruction set the flight loop runs on (`Isa::active()` unless set otherwise).
+    pub isa: Isa,
+    /// The opt-in fused mode (`with_fused`): the batch path fuses multiply-adds. Off by
+    /// default; its numbers are not bit-identical to the default mode's, nor across
+    /// instruction sets. Single flights (`fly::<f64>`) never fuse.
+    pub fused: bool,
+    /// A wind prescribed step by step (`with_wind`), flown instead of the gust model.
+    pub(super) prescribed_wind: Option<Vec<[f64; 3]>>,
+}
+
+/// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
+pub const MAX_LANES: usize = crate::gust::lanes::MAX_LANES;
+
+impl Engine {
+    /// The engine of a scenario, on the instruction set `Isa::active()` picks (an error
+    /// under key `QUADRS_SIMD` if that variable forces a path this CPU cannot run).
+    pub fn new(cfg: Config) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Self::of_valid(cfg)
+    }
+
+    /// `new` for a scenario already validated (`Config::from_json`, `Dispersion::config`):
+    /// the checks are not run a second time.
+    pub fn of_valid(cfg: Config) -> Result<Self, ConfigError> {
+        let isa = Isa::active().map_err(|message| ConfigError {
+            key: crate::lane::isa::ENV.into(),
+            message,
+        })?;
+        let dt = cfg.integrator.dt;
+        let steps = cfg.steps();
+        let decimation = cfg.decimation();
+        Ok(Self {
+            craft: Craft::new(&cfg)?,
+            vars: state_vars(cfg.payload.model, cfg.actuator.model),
+            trajectory: Trajectory::new(&cfg),
+            phases: phase_steps(&cfg),
+            steps,
+            dt,
+            decimation,
+            cfg,
+            isa,
+            fused: false,
+            prescribed_wind: None,
+        })
+    }
+
+    /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
+    pub fn innovations(&self) -> usize {
+        self.craft.wind().innovations(self.steps)
+    }
+
+    /// The innovations realisation `index` of `seed` draws.
+    pub fn innovations_of(&self, seed: u64, index: u64) -> Vec<f64> {
+        self.craft.wind().innovations_of(seed, index, self.steps)
+    }
+
+    /// Trace columns after `t`.
+    pub fn trace_columns(&self) -> Vec<&'static str> {
+        trace_columns(self.cfg.payload.model, self.cfg.actuator.model)
+    }
+
+    /// An empty trace for one flight, a row every `every` steps.
+    pub fn trace(&self, every: usize) -> Trace {
+        Trace::new(every, self.steps, self.trace_columns().len())
+    }
+
+    /// Fly the wind `wind` (m/s, inertial [x, y, z]; row k held over step k, one row per step
+    /// and one for the final time: `steps + 1` rows) instead of the scenario's gust model: the
+    /// `gust` block is then ignored. For deterministic inputs such as a sinusoid.
+    pub fn with_wind(mut self, wind: Vec<[f64; 3]>) -> Result<Self, String> {
+        if wind.len() != self.steps + 1 {
+            return Err(format!(
+                "wind must have steps + 1 = {} rows (one per step of the trace), got {}",
+                self.steps + 1,
+                wind.len()
+            ));
+        }
+        if let Some(k) = wind.iter().position(|w| !w.iter().all(|x| x.is_finite())) {
+            return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
+        }
+        self.prescribed_wind = Some(wind);
+        Ok(self)
+    }
+
+    /// The fused mode on or off (see `fused`): an error if this engine's instruction set has
+    /// no fused multiply-add on this CPU (the baseline path never has).
+    pub fn with_fused(mut self, fused: bool) -> Result<Self, String> {
+        if fused && !self.isa.fused_supported() {
+            return Err(format!(
+                "fused=True needs fused multiply-add on vectors (AVX2 with FMA, or AVX-512), as \
+                 --fused needs on the command line: \
+                 the {} path on this CPU has none",
+                self.isa.name()
+            ));
+        }
+        self.fused = fused;
+        Ok(self)
+    }
+
+    /// Integration steps per spectrum sample.
+    pub fn decimation(&self) -> usize {
+        self.decimation
+    }
+
+    pub fn phase_count(&self) -> usize {
+        self.phases.len()
+    }
+
+    /// Frequencies (Hz) of each phase's spectrum bins.
+    pub fn spectrum_grid(&self) -> Vec<Vec<f64>> {
+        crate::metrics::spectrum_grid(&self.phases, self.dt, self.decimation, self.steps)
+    }
+
+    /// Realisations per lane-set of the batch path (`fly_set`): the widest vector of
+    /// `self.isa` (8 with AVX-512, else 4).
+    pub fn lanes_per_set(&self) -> usize {
+        self.isa.set_lanes()
+    }
+}

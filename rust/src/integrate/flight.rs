@@ -1,0 +1,417 @@
+//! The flight loop: hold, step, check, accumulate, for every lane of a lane-set at once.
+
+use super::*;
+
+/// What one realisation of one controller produced.
+#[derive(Clone, Debug)]
+pub struct LaneResult {
+    /// One row per phase, columns as `metrics::METRIC_NAMES`; NaN when diverged.
+    pub metrics: Vec<[f64; N_METRICS]>,
+    /// Time (s) at which the state went non-finite or ran away; NaN if it never did.
+    pub diverged_at: f64,
+    /// Why the flight ended.
+    pub status: ExitStatus,
+    /// Amplitude spectrum of e_o per phase (empty unless asked for).
+    pub spectra: Vec<Vec<f64>>,
+}
+
+/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
+/// the point itself where the direction is zero): the squared cross-track error.
+#[inline(always)]
+fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
+    let (a, u) = line;
+    let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+    let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+    let q = [
+        d[0] - along * u[0],
+        d[1] - along * u[1],
+        d[2] - along * u[2],
+    ];
+    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+}
+
+/// How often (in steps) a flight looks at the cancel flag.
+const CANCEL_CHECK_STEPS: usize = 4096;
+
+impl Engine {
+    /// Fly on the vehicle kinds of the scenario (`model::dispatch`).
+    #[inline(always)]
+    pub(super) fn fly_kinds<L: KernelOps>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        struct Fly<'e, 'r, 't, L> {
+            engine: &'e Engine,
+            req: &'r FlightRequest<'r>,
+            trace: Option<&'t mut Trace>,
+            planner: &'t mut FftPlanner<f64>,
+            lanes: PhantomData<L>,
+        }
+        impl<L: KernelOps> VehicleVisitor for Fly<'_, '_, '_, L> {
+            type Output = Option<Vec<LaneResult>>;
+            #[inline(always)]
+            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+                self.engine
+                    .fly_law::<L, Pay, Act, N>(self.req, self.trace, self.planner)
+            }
+        }
+        let cfg = &self.cfg;
+        let fly = Fly {
+            engine: self,
+            req,
+            trace,
+            planner,
+            lanes: PhantomData::<L>,
+        };
+        dispatch(cfg.payload.model, cfg.actuator.model, fly)
+    }
+
+    /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
+    #[inline(always)]
+    fn fly_law<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
+        &self,
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        let own = [&self.craft; MAX_LANES];
+        let crafts: &[&Craft] = match req.crafts {
+            Some(c) => {
+                assert_eq!(c.len(), L::LANES, "one craft per lane");
+                c
+            }
+            None => &own[..L::LANES],
+        };
+        let parts: Vec<&Parts> = crafts.iter().map(|c| &c.parts).collect();
+        let vehicle = Parts::gather::<L, Pay, Act>(&parts);
+        struct Law<'e, 'v, 'c, 'r, 't, L: KernelOps, Pay, Act, const N: usize> {
+            engine: &'e Engine,
+            vehicle: &'v Vehicle<L, Pay, Act>,
+            crafts: &'c [&'c Craft],
+            req: &'r FlightRequest<'r>,
+            trace: Option<&'t mut Trace>,
+            planner: &'t mut FftPlanner<f64>,
+        }
+        impl<L: KernelOps, Pay, Act, const N: usize> ControllerVisitor
+            for Law<'_, '_, '_, '_, '_, L, Pay, Act, N>
+        where
+            Pay: crate::model::PayloadModel<L>,
+            Act: ActuatorModel<L>,
+        {
+            type Output = Option<Vec<LaneResult>>;
+            #[inline(always)]
+            fn visit<C: Controller>(self) -> Self::Output {
+                let kind = self.req.kind;
+                let each: Vec<&C> = self
+                    .crafts
+                    .iter()
+                    .map(|c| c.laws.get(kind).get::<C>())
+                    .collect();
+                let ctrl = C::gather::<L>(&each);
+                self.engine.fly_loop::<L, Pay, Act, C::At<L>, N>(
+                    self.vehicle,
+                    &ctrl,
+                    self.crafts,
+                    self.req,
+                    self.trace,
+                    self.planner,
+                )
+            }
+        }
+        let law = Law::<L, _, _, N> {
+            engine: self,
+            vehicle: &vehicle,
+            crafts,
+            req,
+            trace,
+            planner,
+        };
+        crate::control::dispatch(req.kind, law)
+    }
+
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn fly_loop<L, Pay, Act, C, const N: usize>(
+        &self,
+        vehicle: &Vehicle<L, Pay, Act>,
+        ctrl: &C,
+        crafts: &[&Craft],
+        req: &FlightRequest,
+        mut trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>>
+    where
+        L: KernelOps,
+        Pay: crate::model::PayloadModel<L>,
+        Act: ActuatorModel<L>,
+        C: Control<L>,
+    {
+        assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
+        let mut s = x0;
+        let mut winds: Vec<WindState> = match req.innovations {
+            Some(xi) => {
+                assert_eq!(xi.len(), L::LANES, "one row of innovations per lane");
+                xi.iter()
+                    .zip(crafts)
+                    .map(|(x, c)| c.wind.given(x))
+                    .collect()
+            }
+            None => req
+                .indices
+                .iter()
+                .zip(crafts)
+                .map(|(&i, c)| c.wind.realisation(req.seed, i))
+                .collect(),
+        };
+        // The turbulence of the whole lane-set at once where every lane's field allows it
+        // (`LaneGust::new`): the same numbers as the per-lane `sample_at`, drawn from the same
+        // sources. Else (and for a prescribed wind) the per-lane path below.
+        let mut lane_gust = if self.prescribed_wind.is_none() {
+            let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
+            LaneGust::<L>::new(&fields, winds.iter().map(|w| w.source()).collect())
+        } else {
+            None
+        };
+        let mut acc =
+            PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
+        let mut diverged_at = [f64::NAN; MAX_LANES];
+        let mut status = [ExitStatus::Ok; MAX_LANES];
+        let mut alive = L::LANES;
+        // Each state's runaway bound per lane (infinite where it has none: then only a
+        // non-finite value ends the flight). NaN compares false, so the masks also catch
+        // non-finite states.
+        let limit: State<L, N> = state_from_fn(|i| {
+            L::from_fn(|l| match self.vars[i].bound {
+                Some(b) => crafts[l].limits[b as usize],
+                None => f64::INFINITY,
+            })
+        });
+        let mut segment = 0;
+        let mut r = Reference::default();
+        let mut ref_changes = f64::NEG_INFINITY;
+        // The straight line of the current leg (a point, a unit direction): cross-track error.
+        let mut line = ([L::splat(0.0); 3], [L::splat(0.0); 3]);
+        let mut wind_lanes = [[0.0; 3]; MAX_LANES];
+        // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
+        let windy = || crafts.iter().filter(|c| c.wind.enabled());
+        let gust_from = windy().map(|c| c.wind.start_step()).min();
+        let gust_to = windy().map(|c| c.wind.end_step()).max();
+        let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
+        let floor = L::from_fn(|l| crafts[l].floor);
+        let grounded = crafts.iter().any(|c| c.floor > f64::NEG_INFINITY);
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
+        let extra = &mut extra[..Act::SIGNALS.len()];
+        // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
+        let blows = crafts.iter().any(|c| c.wind.blows());
+        let mut held = [zero; 3];
+
+        for k in 0..=self.steps {
+            let t = k as f64 * self.dt;
+            if t + TIME_SLACK >= ref_changes {
+                r = self.trajectory.at(t, &mut segment);
+                ref_changes = self.trajectory.next_change(segment);
+                // Each lane's line (they differ before the first waypoint, which each lane's
+                // own initial position leads to).
+                let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
+                for (l, c) in crafts.iter().enumerate() {
+                    lines[l] = self.trajectory.line(segment, [c.x0[0], c.x0[1], c.x0[2]]);
+                }
+                line = (
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].0[i])),
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].1[i])),
+                );
+            }
+            let trig = Trig::of(&s);
+            let tick = Tick { step: k, t };
+            let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r, tick);
+            let cmd = vehicle.actuator.command(&u, tick);
+            // Outside the gust window `sample_at` returns zeros without touching the state
+            // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
+            // window is open and nothing else blows (most of a paper flight).
+            let at = |lane: usize| {
+                let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                move || Kinematics {
+                    z: rigid.pos[2].lane(lane),
+                    vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
+                }
+            };
+            // The row at t_k holds the wind of step k. The last row (t = duration) has no step
+            // after it: it holds the last step's wind (the hold runs to its end), so no metric
+            // sees a wind that no step flies, and no innovation is drawn for it.
+            let w: [L; 3] = if k == self.steps && k > 0 {
+                held
+            } else {
+                // The lane-set's turbulence when `lane_gust` flies it (else the per-lane values).
+                let mut wind_set: Option<[L; 3]> = None;
+                if let Some(prescribed) = &self.prescribed_wind {
+                    wind_lanes = [prescribed[k]; MAX_LANES];
+                    if blows {
+                        for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
+                            let d = c.wind.deterministic(k as u64, &at(lane)());
+                            *v = [0, 1, 2].map(|i| v[i] + d[i]);
+                        }
+                    }
+                } else if let Some(g) = lane_gust.as_mut() {
+                    // No lane's wind blows outside the window here (`LaneGust::new`).
+                    wind_set = if (gust_from..gust_to).contains(&(k as u64)) {
+                        Some(g.sample(k as u64))
+                    } else {
+                        None
+                    };
+                } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
+                    for (lane, ((ws, v), c)) in winds
+                        .iter_mut()
+                        .zip(wind_lanes.iter_mut())
+                        .zip(crafts)
+                        .enumerate()
+                    {
+                        *v = c.wind.sample_at(ws, k as u64, at(lane));
+                    }
+                } else {
+                    wind_lanes = [[0.0; 3]; MAX_LANES];
+                }
+                #[inline(always)]
+                fn wind_of<L: Lane>(lanes: &[[f64; 3]; MAX_LANES], c: usize) -> L {
+                    L::from_fn(
+                        #[inline(always)]
+                        |lane| lanes[lane][c],
+                    )
+                }
+                match wind_set {
+                    Some(w) => w,
+                    None => [
+                        wind_of(&wind_lanes, 0),
+                        wind_of(&wind_lanes, 1),
+                        wind_of(&wind_lanes, 2),
+                    ],
+                }
+            };
+            held = w;
+            let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
+            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+            let e = [
+                rigid.pos[0] * -1.0 + r.pos[0],
+                rigid.pos[1] * -1.0 + r.pos[1],
+                rigid.pos[2] * -1.0 + r.pos[2],
+            ];
+            let [ax, ay, az] = out.accel;
+            // |a| without the square root's rounding where the acceleration is vertical only.
+            let accel = (ax * ax + ay * ay + az * az).sqrt();
+            // The specific force a - g (g = (0, 0, -g)): what an accelerometer on the payload reads.
+            let fz = az + vehicle.body.g;
+            let specific_force = (ax * ax + ay * ay + fz * fz).sqrt();
+            acc.sample(
+                k,
+                t,
+                &Sample {
+                    e_o: out.e_o,
+                    tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
+                    cross_sq: cross_track_sq(&rigid.pos, &line),
+                    accel,
+                    specific_force,
+                    swing: out.swing,
+                    tension: out.tension,
+                    slack: L::select(out.tension.cmp_le(zero), one, zero),
+                    saturated: vehicle.actuator.saturated(&cmd),
+                },
+            );
+            if let Some(tr) = trace.as_deref_mut() {
+                // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
+                if k % tr.every == 0 && diverged_at[0].is_nan() {
+                    let lay = Vehicle::<L, Pay, Act>::LAYOUT;
+                    vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
+                    tr.push(&TraceRow {
+                        t,
+                        s: &s,
+                        r: &r,
+                        u: &u,
+                        w: &w,
+                        e_o: out.e_o,
+                        accel_c: accel,
+                        drag_z: vehicle.body.vertical_drag(rigid.vel[2], w[2]),
+                        swing: out.swing,
+                        tension: out.tension,
+                        extra,
+                    });
+                }
+            }
+            if k == self.steps {
+                break;
+            }
+            s = rk4_step(vehicle, &s, &trig, &cmd, &w, self.dt);
+
+            let mut ok = L::ALL;
+            for i in 0..N {
+                ok &= s[i].abs().le_mask(limit[i]);
+            }
+            if grounded {
+                ok &= floor.le_mask(s[ix::Z]);
+            }
+            if ok != L::ALL {
+                for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
+                    if at.is_nan() && ok & (1 << lane) == 0 {
+                        *at = t + self.dt;
+                        alive -= 1;
+                        let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
+                        let c = crafts[lane];
+                        status[lane] = classify(&self.vars, &values, &c.limits, c.floor);
+                        // Park the lane on a benign state so its neighbours' arithmetic stays clean.
+                        for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
+                            x.set_lane(lane, *x0);
+                        }
+                    }
+                }
+                if alive == 0 {
+                    break;
+                }
+            }
+            if k % CANCEL_CHECK_STEPS == 0 && req.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+            {
+                return None;
+            }
+        }
+
+        let n_phase = self.phases.len();
+        let want_spectra = req.want_spectra;
+        Some(
+            (0..L::LANES)
+                .map(|lane| {
+                    let mut spectra = vec![Vec::new(); if want_spectra { n_phase } else { 0 }];
+                    let mut metrics = acc.finish(
+                        lane,
+                        planner,
+                        want_spectra.then_some(spectra.as_mut_slice()),
+                    );
+                    if !diverged_at[lane].is_nan() {
+                        // Phases that ended before the first bad step are real; NaN the rest
+                        // (over the whole bin grid: the flight may have stopped early).
+                        let bad = (diverged_at[lane] / self.dt).round() as usize;
+                        let grid = if want_spectra {
+                            self.spectrum_grid()
+                        } else {
+                            Vec::new()
+                        };
+                        for (i, ph) in self.phases.iter().enumerate() {
+                            if ph.last >= bad {
+                                metrics[i].fill(f64::NAN);
+                                if let Some(amp) = spectra.get_mut(i) {
+                                    *amp = vec![f64::NAN; grid[i].len()];
+                                }
+                            }
+                        }
+                    }
+                    LaneResult {
+                        metrics,
+                        diverged_at: diverged_at[lane],
+                        status: status[lane],
+                        spectra,
+                    }
+                })
+                .collect(),
+        )
+    }
+}

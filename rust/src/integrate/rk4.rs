@@ -1,0 +1,40 @@
+//! One classical RK4 step of the vehicle, its command and wind held over the four stages.
+
+use super::*;
+
+/// One RK4 step of the vehicle with the actuator command and wind held; `trig` are the sines
+/// and cosines of `s`'s angles (the controller needed them too). The later stages get theirs
+/// from these by angle addition (`Trig::advanced`).
+#[inline(always)]
+pub fn rk4_step<L: KernelOps, Pay, Act, const N: usize>(
+    vehicle: &Vehicle<L, Pay, Act>,
+    s: &State<L, N>,
+    trig: &Trig<L>,
+    cmd: &Act::Command,
+    w: &[L; 3],
+    dt: f64,
+) -> State<L, N>
+where
+    Pay: crate::model::PayloadModel<L>,
+    Act: ActuatorModel<L>,
+{
+    #[inline(always)]
+    fn stage<L: Lane, const N: usize>(base: &State<L, N>, k: &State<L, N>, h: f64) -> State<L, N> {
+        state_from_fn(
+            #[inline(always)]
+            |i| k[i].mul_add(L::splat(h), base[i]),
+        )
+    }
+    let k1 = vehicle.derivative(s, trig, cmd, w);
+    let s2 = stage(s, &k1, 0.5 * dt);
+    let k2 = vehicle.derivative(&s2, &trig.advanced(&k1, 0.5 * dt, &s2), cmd, w);
+    let s3 = stage(s, &k2, 0.5 * dt);
+    let k3 = vehicle.derivative(&s3, &trig.advanced(&k2, 0.5 * dt, &s3), cmd, w);
+    let s4 = stage(s, &k3, dt);
+    let k4 = vehicle.derivative(&s4, &trig.advanced(&k3, dt, &s4), cmd, w);
+    let h6 = dt / 6.0;
+    state_from_fn(
+        #[inline(always)]
+        |i| (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]).mul_add(L::splat(h6), s[i]),
+    )
+}
