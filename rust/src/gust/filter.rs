@@ -156,6 +156,74 @@ fn chol2(q11: f64, q12: f64, q22: f64) -> Matrix3<f64> {
     embed(&noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)))
 }
 
+/// The Dryden closed forms' `Phi` and `G` (padded) for the step `k` in scale lengths (capped at
+/// `K_MAX`): what [`GustFilter::new`] and [`GustFilter::rescaled_coefficients`] both use, so
+/// that the lane-set path and the per-realisation one fly the same bits.
+#[inline]
+fn dryden_matrices(component: GustComponent, k: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+    let k = k.min(K_MAX);
+    let e = (-k).exp();
+    let mut phi = Matrix3::zeros();
+    match component {
+        GustComponent::Longitudinal => {
+            phi[(0, 0)] = e;
+            let mut chol = Matrix3::zeros();
+            chol[(0, 0)] = (-(-2.0 * k).exp_m1()).sqrt();
+            (phi, chol)
+        }
+        GustComponent::Lateral | GustComponent::Vertical => {
+            phi[(0, 0)] = e * (1.0 + k);
+            phi[(0, 1)] = e * k;
+            phi[(1, 0)] = -e * k;
+            phi[(1, 1)] = e * (1.0 - k);
+            // I - Phi Phi^T with x = 2k:
+            //   Q11 = 1 - e^-x (1 + x + x^2/2) = e^-x S3(x)
+            //   Q22 = 1 - e^-x (1 - x + x^2/2) = e^-x (2x + S3(x))
+            //   Q12 = x^2/2 e^-x
+            let x = 2.0 * k;
+            let ex = (-x).exp();
+            let (q11, q22) = if x <= 2.0 {
+                let s3 = exp_tail3(x);
+                (ex * s3, ex * (2.0 * x + s3))
+            } else {
+                (
+                    1.0 - ex * (1.0 + x + 0.5 * x * x),
+                    1.0 - ex * (1.0 - x + 0.5 * x * x),
+                )
+            };
+            let q12 = 0.5 * x * x * ex;
+            (phi, chol2(q11, q12, q22))
+        }
+    }
+}
+
+/// The numbers one step of a filter applies, row-major and padded to order 3: `x' = phi x +
+/// g n`, `w = out . x` (`out = sigma c`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coefficients {
+    pub phi: [[f64; 3]; 3],
+    pub g: [[f64; 3]; 3],
+    pub out: [f64; 3],
+}
+
+impl Coefficients {
+    /// Every number NaN: what a step whose scales no filter can take flies
+    /// ([`GustFilter::poisoned`]'s).
+    pub const NAN: Self = Self {
+        phi: [[f64::NAN; 3]; 3],
+        g: [[f64::NAN; 3]; 3],
+        out: [f64::NAN; 3],
+    };
+
+    fn of(phi: &Matrix3<f64>, g: &Matrix3<f64>, out: [f64; 3]) -> Self {
+        Self {
+            phi: std::array::from_fn(|i| std::array::from_fn(|j| phi[(i, j)])),
+            g: std::array::from_fn(|i| std::array::from_fn(|j| g[(i, j)])),
+            out,
+        }
+    }
+}
+
 /// `S3(x) = sum_{n>=3} x^n / n! = e^x - 1 - x - x^2/2` without cancellation
 /// (used for `x <= 2` only).
 fn exp_tail3(x: f64) -> f64 {
@@ -353,13 +421,12 @@ impl GustFilter {
 
     /// The closed forms of docs/model.md section 4.
     fn dryden_closed_form(component: GustComponent, k: f64) -> Self {
-        let k = k.min(K_MAX);
-        let e = (-k).exp();
+        let (phi, chol) = dryden_matrices(component, k);
         match component {
             GustComponent::Longitudinal => {
                 let mut f = Self::blank(1);
-                f.phi[(0, 0)] = e;
-                f.chol[(0, 0)] = (-(-2.0 * k).exp_m1()).sqrt();
+                f.phi = phi;
+                f.chol = chol;
                 f.a[(0, 0)] = -1.0;
                 f.b[0] = 2.0_f64.sqrt();
                 f.c[0] = 1.0;
@@ -367,27 +434,8 @@ impl GustFilter {
             }
             GustComponent::Lateral | GustComponent::Vertical => {
                 let mut f = Self::blank(2);
-                f.phi[(0, 0)] = e * (1.0 + k);
-                f.phi[(0, 1)] = e * k;
-                f.phi[(1, 0)] = -e * k;
-                f.phi[(1, 1)] = e * (1.0 - k);
-                // I - Phi Phi^T with x = 2k:
-                //   Q11 = 1 - e^-x (1 + x + x^2/2) = e^-x S3(x)
-                //   Q22 = 1 - e^-x (1 - x + x^2/2) = e^-x (2x + S3(x))
-                //   Q12 = x^2/2 e^-x
-                let x = 2.0 * k;
-                let ex = (-x).exp();
-                let (q11, q22) = if x <= 2.0 {
-                    let s3 = exp_tail3(x);
-                    (ex * s3, ex * (2.0 * x + s3))
-                } else {
-                    (
-                        1.0 - ex * (1.0 + x + 0.5 * x * x),
-                        1.0 - ex * (1.0 - x + 0.5 * x * x),
-                    )
-                };
-                let q12 = 0.5 * x * x * ex;
-                f.chol = chol2(q11, q12, q22);
+                f.phi = phi;
+                f.chol = chol;
                 f.a[(0, 1)] = 1.0;
                 f.a[(1, 0)] = -1.0;
                 f.a[(1, 1)] = -2.0;
@@ -428,6 +476,45 @@ impl GustFilter {
             length_scale,
             airspeed,
             self.dt,
+        )
+    }
+
+    /// The `Phi`, `G` and `sigma c` of [`rescaled`](Self::rescaled)`(sigma, length_scale,
+    /// airspeed)`, bit for bit, or [`Coefficients::NAN`] where that errs (what
+    /// [`poisoned`](Self::poisoned) flies). Dryden without building a filter (no copies of the
+    /// whole filter, no allocation): what the lane-set path computes per lane and step.
+    #[inline]
+    pub fn rescaled_coefficients(
+        &self,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+    ) -> Coefficients {
+        match self.model {
+            GustModel::Dryden => {
+                match Self::check(self.model, sigma, length_scale, airspeed, self.dt) {
+                    Ok(k) => {
+                        let (phi, g) = dryden_matrices(self.component, k);
+                        // `new`'s `out = c * sigma`, element by element.
+                        let out = [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma];
+                        Coefficients::of(&phi, &g, out)
+                    }
+                    Err(_) => Coefficients::NAN,
+                }
+            }
+            GustModel::VonKarman => match self.rescaled(sigma, length_scale, airspeed) {
+                Ok(f) => f.coefficients(),
+                Err(_) => Coefficients::NAN,
+            },
+        }
+    }
+
+    /// This filter's `Phi`, `G` and `sigma c`.
+    pub fn coefficients(&self) -> Coefficients {
+        Coefficients::of(
+            &self.phi,
+            &self.chol,
+            [self.out[0], self.out[1], self.out[2]],
         )
     }
 
@@ -650,7 +737,7 @@ impl Normals for ChaCha8Rng {
     /// `StandardNormal`'s draw, its fast path inlined (`normal::standard_normal`).
     #[inline(always)]
     fn normal(&mut self) -> f64 {
-        super::normal::standard_normal(self)
+        crate::lane::random::normal::standard_normal(self)
     }
 }
 
@@ -1025,6 +1112,48 @@ pub(super) mod tests {
         let g11 = f.noise_chol()[(0, 0)];
         let x = 2.0 * k;
         assert!((g11 * g11 / (x * x * x / 6.0) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rescaled_coefficients_are_the_rescaled_filters_bit_for_bit() {
+        let bits = |c: &Coefficients| {
+            let mut v: Vec<u64> = c
+                .phi
+                .iter()
+                .chain(&c.g)
+                .flatten()
+                .map(|x| x.to_bits())
+                .collect();
+            v.extend(c.out.iter().map(|x| x.to_bits()));
+            v
+        };
+        let nan = f64::NAN;
+        // Ordinary scales, steps long and short in scale lengths (both branches of Q), and
+        // scales no filter takes (a runaway state): NaN numbers, as `poisoned` flies.
+        let scales = [
+            (1.3, 30.0, 10.0),
+            (0.4, 3.048, 1.0),
+            (2.0, 0.01, 500.0),
+            (1.0, 1e4, 1e-3),
+            (0.0, 5.0, 2.0),
+            (nan, 5.0, 2.0),
+            (1.0, nan, 2.0),
+            (1.0, 5.0, nan),
+            (1.0, 5.0, 0.0),
+            (-1.0, 5.0, 2.0),
+        ];
+        for model in MODELS {
+            for c in GustComponent::ALL {
+                let base = filt(model, c, 1.0, 0.2);
+                for (sigma, l, v) in scales {
+                    let got = base.rescaled_coefficients(sigma, l, v);
+                    match base.rescaled(sigma, l, v) {
+                        Ok(f) => assert_eq!(bits(&got), bits(&f.coefficients()), "{model:?} {c:?}"),
+                        Err(_) => assert_eq!(bits(&got), bits(&Coefficients::NAN)),
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -333,6 +333,7 @@ mod portable;
 pub mod dual;
 pub mod isa;
 pub mod kernels;
+pub mod random;
 
 #[cfg(test)]
 mod tests {
