@@ -139,43 +139,47 @@ fn noise_factor(q: &DMatrix<f64>) -> Result<DMatrix<f64>, String> {
 /// Cholesky, operation for operation (so the same bits), without its heap matrices, since
 /// scales that follow the vehicle rebuild it every step; `noise_factor` itself where a pivot
 /// is not positive.
-fn chol2(q11: f64, q12: f64, q22: f64) -> Matrix3<f64> {
+#[inline]
+fn chol2(q11: f64, q12: f64, q22: f64) -> [[f64; 3]; 3] {
     let l11 = q11.sqrt();
     let l21 = q12 / l11;
     let d = q22 - l21 * l21;
     let l22 = d.sqrt();
     if q11 > 0.0 && d > 0.0 && l21.is_finite() && l11.is_finite() && l22.is_finite() {
-        let mut g = Matrix3::zeros();
-        g[(0, 0)] = l11;
-        g[(1, 0)] = l21;
-        g[(1, 1)] = l22;
-        return g;
+        return [[l11, 0.0, 0.0], [l21, l22, 0.0], [0.0; 3]];
     }
     let q = DMatrix::from_row_slice(2, 2, &[q11, q12, q12, q22]);
     // q is finite by construction, so noise_factor cannot fail.
-    embed(&noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)))
+    rows(&embed(
+        &noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)),
+    ))
+}
+
+/// A padded matrix's rows.
+fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
 }
 
 /// The Dryden closed forms' `Phi` and `G` (padded) for the step `k` in scale lengths (capped at
 /// `K_MAX`): what [`GustFilter::new`] and [`GustFilter::rescaled_coefficients`] both use, so
 /// that the lane-set path and the per-realisation one fly the same bits.
 #[inline]
-fn dryden_matrices(component: GustComponent, k: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+fn dryden_matrices(component: GustComponent, k: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3]) {
     let k = k.min(K_MAX);
     let e = (-k).exp();
-    let mut phi = Matrix3::zeros();
+    let mut phi = [[0.0; 3]; 3];
     match component {
         GustComponent::Longitudinal => {
-            phi[(0, 0)] = e;
-            let mut chol = Matrix3::zeros();
-            chol[(0, 0)] = (-(-2.0 * k).exp_m1()).sqrt();
+            phi[0][0] = e;
+            let mut chol = [[0.0; 3]; 3];
+            chol[0][0] = (-(-2.0 * k).exp_m1()).sqrt();
             (phi, chol)
         }
         GustComponent::Lateral | GustComponent::Vertical => {
-            phi[(0, 0)] = e * (1.0 + k);
-            phi[(0, 1)] = e * k;
-            phi[(1, 0)] = -e * k;
-            phi[(1, 1)] = e * (1.0 - k);
+            phi[0][0] = e * (1.0 + k);
+            phi[0][1] = e * k;
+            phi[1][0] = -e * k;
+            phi[1][1] = e * (1.0 - k);
             // I - Phi Phi^T with x = 2k:
             //   Q11 = 1 - e^-x (1 + x + x^2/2) = e^-x S3(x)
             //   Q22 = 1 - e^-x (1 - x + x^2/2) = e^-x (2x + S3(x))
@@ -217,8 +221,8 @@ impl Coefficients {
 
     fn of(phi: &Matrix3<f64>, g: &Matrix3<f64>, out: [f64; 3]) -> Self {
         Self {
-            phi: std::array::from_fn(|i| std::array::from_fn(|j| phi[(i, j)])),
-            g: std::array::from_fn(|i| std::array::from_fn(|j| g[(i, j)])),
+            phi: rows(phi),
+            g: rows(g),
             out,
         }
     }
@@ -422,6 +426,10 @@ impl GustFilter {
     /// The closed forms of docs/model.md section 4.
     fn dryden_closed_form(component: GustComponent, k: f64) -> Self {
         let (phi, chol) = dryden_matrices(component, k);
+        let (phi, chol) = (
+            Matrix3::from_fn(|i, j| phi[i][j]),
+            Matrix3::from_fn(|i, j| chol[i][j]),
+        );
         match component {
             GustComponent::Longitudinal => {
                 let mut f = Self::blank(1);
@@ -492,15 +500,18 @@ impl GustFilter {
     ) -> Coefficients {
         match self.model {
             GustModel::Dryden => {
-                match Self::check(self.model, sigma, length_scale, airspeed, self.dt) {
-                    Ok(k) => {
-                        let (phi, g) = dryden_matrices(self.component, k);
-                        // `new`'s `out = c * sigma`, element by element.
-                        let out = [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma];
-                        Coefficients::of(&phi, &g, out)
-                    }
-                    Err(_) => Coefficients::NAN,
+                // `check`'s conditions, inline (`dt` was checked when `self` was built): the
+                // same `k`, and an error exactly where `check` errs.
+                let ok = |x: f64| x.is_finite() && x > 0.0;
+                let k = airspeed * self.dt / length_scale;
+                let valid = sigma.is_finite() && sigma >= 0.0;
+                if !(valid && ok(length_scale) && ok(airspeed) && ok(self.dt) && ok(k)) {
+                    return Coefficients::NAN;
                 }
+                let (phi, g) = dryden_matrices(self.component, k);
+                // `new`'s `out = c * sigma`, element by element.
+                let out = [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma];
+                Coefficients { phi, g, out }
             }
             GustModel::VonKarman => match self.rescaled(sigma, length_scale, airspeed) {
                 Ok(f) => f.coefficients(),
