@@ -398,20 +398,20 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             } else {
                 (zero, [zero; 3])
             };
-            for (l, (f, out)) in self
-                .fields
-                .iter()
-                .zip(self.coefficients.iter_mut())
-                .enumerate()
-            {
-                let kin = Kinematics {
+            let mut kin = [Kinematics::AT_REST; MAX_LANES];
+            for (l, k) in kin.iter_mut().enumerate().take(L::LANES) {
+                *k = Kinematics {
                     z: z.lane(l),
                     vel: [vel[0].lane(l), vel[1].lane(l), vel[2].lane(l)],
                 };
-                if let Some(m) = f.at_vehicle(&kin, rescale.then_some(out)) {
-                    steady[l] = m;
-                }
             }
+            at_vehicles(
+                &self.fields,
+                &kin,
+                rescale,
+                &mut self.coefficients,
+                &mut steady,
+            );
         }
         let mut w = match self.gust.as_mut() {
             Some(g) if turbulent => {
@@ -452,6 +452,25 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             }
         }
         w
+    }
+}
+
+/// Each lane's `WindField::at_vehicle` (the mean wind into `steady[l]`, the step's filter numbers
+/// into `coefficients[l]` if `rescale`): scalar work and libm calls, kept out of the flight
+/// loop's line so that the loop saves its vector registers once per step around it, not around
+/// every call it makes (every vector register is the caller's to save).
+#[inline(never)]
+fn at_vehicles(
+    fields: &[&WindField],
+    kin: &[Kinematics; MAX_LANES],
+    rescale: bool,
+    coefficients: &mut [[Coefficients; 3]; MAX_LANES],
+    steady: &mut [[f64; 3]; MAX_LANES],
+) {
+    for (l, (f, out)) in fields.iter().zip(coefficients.iter_mut()).enumerate() {
+        if let Some(m) = f.at_vehicle(&kin[l], rescale.then_some(out)) {
+            steady[l] = m;
+        }
     }
 }
 
