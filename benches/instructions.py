@@ -12,6 +12,13 @@ Modes: ``loop`` (4 realisations of a 4 s flight, one AVX2 lane-set), ``gust_off`
 ``fixed`` (160 x 0.2 s), ``dispersed`` (160 x 0.2 s, three non-gust keys dispersed),
 ``dispersed_gust`` (the same plus ``gust.w20``). Every mode: the paper preset with the gust on
 throughout, PD, one worker, no spectra. Prints the mode and its realisation-steps.
+
+The mission modes (``benches/throughput.py --mission``'s cases, issue 36): 8 whole flights (one
+AVX-512 lane-set, two AVX2 ones), PD, one worker, no spectra:
+``delivery`` (as shipped), ``delivery_fixed`` (turbulence at 30 m and 10 m/s, no mean wind),
+``delivery_mean`` (the mean wind only), ``delivery_calm`` (no wind), and ``paper_calm`` (the
+paper preset with the gust off); count them with
+``--toggle-collect='*fly_avx512*'`` (or ``fly_avx2`` on a CPU without AVX-512).
 """
 
 from __future__ import annotations
@@ -29,11 +36,35 @@ DISPERSIONS = {
 MODES = {"loop": (4.0, 4), "gust_off": (4.0, 4), "gust_three": (4.0, 4), "long": (4.0, 8)}
 MODES |= {"fixed": (0.2, 160)}
 MODES |= {"dispersed": (0.2, 160), "dispersed_gust": (0.2, 160)}
+#: The mission modes: the delivery preset's wind taken apart, and the paper preset calm.
+MISSION = {
+    "delivery": {},
+    "delivery_fixed": {"gust.altitude": 30.0, "gust.airspeed": 10.0, "wind.speed": 0.0},
+    "delivery_mean": {"gust.enabled": False},
+    "delivery_calm": {"gust.enabled": False, "wind.speed": 0.0},
+}
+MODES |= {name: (0.0, 8) for name in [*MISSION, "paper_calm"]}
+
+
+def mission(mode: str) -> None:
+    """A mission mode: 8 whole flights, PD, one worker, no spectra."""
+    runs = MODES[mode][1]
+    if mode == "paper_calm":
+        s = quadrs.Scenario.paper().override({"gust.enabled": False})
+    else:
+        s = quadrs.Scenario.preset("delivery").override(MISSION[mode])
+    quadrs.monte_carlo(s, runs=runs, seed=0, controllers=("pd",), workers=1, progress=False,
+                       spectra=False)  # fmt: skip
+    print(mode, runs * s.steps)
 
 
 def main(mode: str) -> None:
     if mode not in MODES:
         raise SystemExit(f"mode must be one of {sorted(MODES)}, got {mode!r}")
+    warnings.simplefilter("ignore")
+    if mode in MISSION or mode == "paper_calm":
+        mission(mode)
+        return
     duration, runs = MODES[mode]
     s = quadrs.Scenario.paper().override(
         {

@@ -11,6 +11,11 @@
     python benches/throughput.py --models      # 4 s flights of the vertical gust: spring/ideal,
                                                # cable, rotors, cable + rotors, as ratios to
                                                # the spring on ideal actuators (the paper's)
+    python benches/throughput.py --mission     # the delivery preset's wind, case by case
+                                               # (as shipped, turbulence at fixed h and V,
+                                               # mean wind only, no wind) and the paper preset
+                                               # with the gust off, as ratios to the delivery
+                                               # vehicle without wind (1 worker, PD)
     python benches/throughput.py --calls       # per-call cost of short engine calls: the
                                                # compiled engine (Scenario.engine) against a
                                                # call that compiles the scenario's JSON first
@@ -127,6 +132,12 @@ def main() -> None:
         help="4 s flights of each payload and actuator model, alternately (1 worker)",
     )
     ap.add_argument(
+        "--mission",
+        action="store_true",
+        help="the delivery preset with its wind, parts of it and none, and the paper preset "
+        "with the gust off, alternately (1 worker, PD)",
+    )
+    ap.add_argument(
         "--calls",
         action="store_true",
         help="per-call time of short flights and batches: compiled engine vs JSON, alternately",
@@ -159,6 +170,9 @@ def main() -> None:
 
     if args.paths:
         compare_paths(args)
+        return
+    if args.mission:
+        compare_mission(args)
         return
     timed(scenario, 4, 1, args.seed)  # warm-up: thread pool, page faults
     if args.dispersions:
@@ -323,6 +337,55 @@ def compare_turbulence(scenario: quadrs.Scenario, args: argparse.Namespace) -> N
         best = f", best / best off: {max(samples) / max(rates['off']):.3f}"
         print(
             f"  {name:9s}: {statistics.median(samples) / 1e6:.2f} M realisation-steps/s{vs}{best}"
+        )
+    print(f"load average after: {load()}")
+
+
+def mission_cases() -> dict[str, quadrs.Scenario]:
+    """The delivery preset's wind taken apart (issue 36's table): as shipped (turbulence at the
+    vehicle's altitude and relative airspeed, a sheared mean wind), its turbulence at a fixed
+    altitude and airspeed (30 m, 10 m/s: the transit's) with no mean wind, the mean wind only,
+    no wind; and the paper preset with the gust off."""
+    delivery = quadrs.Scenario.preset("delivery")
+    calm = {"wind.speed": 0.0}
+    return {
+        "delivery as shipped": delivery,
+        "turbulence at fixed h, V": delivery.override(
+            {"gust.altitude": 30.0, "gust.airspeed": 10.0, **calm}
+        ),
+        "mean wind only": delivery.override({"gust.enabled": False}),
+        "no wind": delivery.override({"gust.enabled": False, **calm}),
+        "paper, gust off": quadrs.Scenario.preset("paper").override({"gust.enabled": False}),
+    }
+
+
+def compare_mission(args: argparse.Namespace) -> None:
+    """Each case of ``mission_cases`` in turn (A B C D E A B C D E ...), one worker, PD only,
+    ``--sample-runs`` whole flights per timing: the rate (realisation-steps per second) and
+    its ratio to the same round's delivery-without-wind rate, median [min, max] over the
+    rounds, and the best rate over the best no-wind rate."""
+    cases = mission_cases()
+    runs = args.sample_runs
+    for s in cases.values():  # warm-up: compile each scenario's engine, page faults
+        quadrs.monte_carlo(s, runs=1, seed=args.seed, controllers=("pd",), workers=1,
+                           progress=False)  # fmt: skip
+    rates: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(args.repeat):
+        for name, s in cases.items():
+            t0 = time.perf_counter()
+            quadrs.monte_carlo(s, runs=runs, seed=args.seed, controllers=("pd",), workers=1,
+                               progress=False)  # fmt: skip
+            rates[name].append(runs * s.steps / (time.perf_counter() - t0))
+    ref = "no wind"
+    print(f"1 worker, PD, {args.repeat} rounds, {runs} whole flights per timing:")
+    print(f"  {'case':26s} {'M realisation-steps/s':>22s}   / delivery without wind")
+    for name, samples in rates.items():
+        ratios = [a / b for a, b in zip(samples, rates[ref], strict=True)]
+        print(
+            f"  {name:26s} {statistics.median(samples) / 1e6:8.2f} "
+            f"[{min(samples) / 1e6:.2f}, {max(samples) / 1e6:.2f}]   "
+            f"{statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}]; "
+            f"best / best: {max(samples) / max(rates[ref]):.3f}"
         )
     print(f"load average after: {load()}")
 

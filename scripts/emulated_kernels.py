@@ -1,6 +1,6 @@
 """Run the keystream kernels of a built quadrs extension in an emulated CPU that has AVX-512.
 
-The AVX-512 keystream kernel (`gust::keystream::blocks16`) runs only on CPUs with AVX-512F,
+The AVX-512 keystream kernel (`lane::random::keystream::blocks16`) runs only on CPUs with AVX-512F,
 where `cargo test` checks it against rand_chacha (`wide_matches_fill_bytes`). On a CPU without
 it, this script runs the kernel's machine code, as built, in Bochs' x86 emulator (which
 implements AVX-512) and compares every word with ChaCha8 computed here from RFC 8439, and

@@ -3,6 +3,10 @@
 //! Every entry point takes the scenario as JSON (validated here again, so the engine guards
 //! itself), runs with the GIL released, and hands results to numpy without copying.
 
+// Every `unsafe` block says why it is sound (they live in `lane/`, its random-number kernels
+// and the flight loop's instruction-set entry).
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 pub mod config;
 pub mod control;
 pub mod dispersion;

@@ -225,9 +225,22 @@ impl Wind {
 /// 6.096 m, and a NaN height gives NaN).
 #[inline]
 pub fn shear_factor(shear: Shear, h: f64, z0: f64) -> f64 {
+    shear_factor_with(shear, h, z0, shear_log_reference(z0))
+}
+
+/// ln(20 ft / z0): the log profile's denominator, for [`shear_factor_with`].
+#[inline]
+pub fn shear_log_reference(z0: f64) -> f64 {
+    (REFERENCE_HEIGHT / z0).ln()
+}
+
+/// [`shear_factor`] with its denominator computed once (`log_reference =
+/// shear_log_reference(z0)`): the same bits, one logarithm per call instead of two.
+#[inline]
+pub fn shear_factor_with(shear: Shear, h: f64, z0: f64, log_reference: f64) -> f64 {
     match shear {
         Shear::None => 1.0,
-        Shear::Log if h > z0 => (h / z0).ln() / (REFERENCE_HEIGHT / z0).ln(),
+        Shear::Log if h > z0 => (h / z0).ln() / log_reference,
         Shear::Log if h.is_nan() => f64::NAN,
         Shear::Log => 0.0,
     }

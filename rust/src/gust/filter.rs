@@ -139,21 +139,93 @@ fn noise_factor(q: &DMatrix<f64>) -> Result<DMatrix<f64>, String> {
 /// Cholesky, operation for operation (so the same bits), without its heap matrices, since
 /// scales that follow the vehicle rebuild it every step; `noise_factor` itself where a pivot
 /// is not positive.
-fn chol2(q11: f64, q12: f64, q22: f64) -> Matrix3<f64> {
+#[inline]
+fn chol2(q11: f64, q12: f64, q22: f64) -> [[f64; 3]; 3] {
     let l11 = q11.sqrt();
     let l21 = q12 / l11;
     let d = q22 - l21 * l21;
     let l22 = d.sqrt();
     if q11 > 0.0 && d > 0.0 && l21.is_finite() && l11.is_finite() && l22.is_finite() {
-        let mut g = Matrix3::zeros();
-        g[(0, 0)] = l11;
-        g[(1, 0)] = l21;
-        g[(1, 1)] = l22;
-        return g;
+        return [[l11, 0.0, 0.0], [l21, l22, 0.0], [0.0; 3]];
     }
     let q = DMatrix::from_row_slice(2, 2, &[q11, q12, q12, q22]);
     // q is finite by construction, so noise_factor cannot fail.
-    embed(&noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)))
+    rows(&embed(
+        &noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2)),
+    ))
+}
+
+/// A padded matrix's rows.
+fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+}
+
+/// The Dryden closed forms' `Phi` and `G` (padded) for the step `k` in scale lengths (capped at
+/// `K_MAX`): what [`GustFilter::new`] and [`GustFilter::rescaled_coefficients`] both use, so
+/// that the lane-set path and the per-realisation one fly the same bits.
+#[inline]
+fn dryden_matrices(component: GustComponent, k: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3]) {
+    let k = k.min(K_MAX);
+    let e = (-k).exp();
+    let mut phi = [[0.0; 3]; 3];
+    match component {
+        GustComponent::Longitudinal => {
+            phi[0][0] = e;
+            let mut chol = [[0.0; 3]; 3];
+            chol[0][0] = (-(-2.0 * k).exp_m1()).sqrt();
+            (phi, chol)
+        }
+        GustComponent::Lateral | GustComponent::Vertical => {
+            phi[0][0] = e * (1.0 + k);
+            phi[0][1] = e * k;
+            phi[1][0] = -e * k;
+            phi[1][1] = e * (1.0 - k);
+            // I - Phi Phi^T with x = 2k:
+            //   Q11 = 1 - e^-x (1 + x + x^2/2) = e^-x S3(x)
+            //   Q22 = 1 - e^-x (1 - x + x^2/2) = e^-x (2x + S3(x))
+            //   Q12 = x^2/2 e^-x
+            let x = 2.0 * k;
+            let ex = (-x).exp();
+            let (q11, q22) = if x <= 2.0 {
+                let s3 = exp_tail3(x);
+                (ex * s3, ex * (2.0 * x + s3))
+            } else {
+                (
+                    1.0 - ex * (1.0 + x + 0.5 * x * x),
+                    1.0 - ex * (1.0 - x + 0.5 * x * x),
+                )
+            };
+            let q12 = 0.5 * x * x * ex;
+            (phi, chol2(q11, q12, q22))
+        }
+    }
+}
+
+/// The numbers one step of a filter applies, row-major and padded to order 3: `x' = phi x +
+/// g n`, `w = out . x` (`out = sigma c`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coefficients {
+    pub phi: [[f64; 3]; 3],
+    pub g: [[f64; 3]; 3],
+    pub out: [f64; 3],
+}
+
+impl Coefficients {
+    /// Every number NaN: what a step whose scales no filter can take flies
+    /// ([`GustFilter::poisoned`]'s).
+    pub const NAN: Self = Self {
+        phi: [[f64::NAN; 3]; 3],
+        g: [[f64::NAN; 3]; 3],
+        out: [f64::NAN; 3],
+    };
+
+    fn of(phi: &Matrix3<f64>, g: &Matrix3<f64>, out: [f64; 3]) -> Self {
+        Self {
+            phi: rows(phi),
+            g: rows(g),
+            out,
+        }
+    }
 }
 
 /// `S3(x) = sum_{n>=3} x^n / n! = e^x - 1 - x - x^2/2` without cancellation
@@ -353,13 +425,16 @@ impl GustFilter {
 
     /// The closed forms of docs/model.md section 4.
     fn dryden_closed_form(component: GustComponent, k: f64) -> Self {
-        let k = k.min(K_MAX);
-        let e = (-k).exp();
+        let (phi, chol) = dryden_matrices(component, k);
+        let (phi, chol) = (
+            Matrix3::from_fn(|i, j| phi[i][j]),
+            Matrix3::from_fn(|i, j| chol[i][j]),
+        );
         match component {
             GustComponent::Longitudinal => {
                 let mut f = Self::blank(1);
-                f.phi[(0, 0)] = e;
-                f.chol[(0, 0)] = (-(-2.0 * k).exp_m1()).sqrt();
+                f.phi = phi;
+                f.chol = chol;
                 f.a[(0, 0)] = -1.0;
                 f.b[0] = 2.0_f64.sqrt();
                 f.c[0] = 1.0;
@@ -367,27 +442,8 @@ impl GustFilter {
             }
             GustComponent::Lateral | GustComponent::Vertical => {
                 let mut f = Self::blank(2);
-                f.phi[(0, 0)] = e * (1.0 + k);
-                f.phi[(0, 1)] = e * k;
-                f.phi[(1, 0)] = -e * k;
-                f.phi[(1, 1)] = e * (1.0 - k);
-                // I - Phi Phi^T with x = 2k:
-                //   Q11 = 1 - e^-x (1 + x + x^2/2) = e^-x S3(x)
-                //   Q22 = 1 - e^-x (1 - x + x^2/2) = e^-x (2x + S3(x))
-                //   Q12 = x^2/2 e^-x
-                let x = 2.0 * k;
-                let ex = (-x).exp();
-                let (q11, q22) = if x <= 2.0 {
-                    let s3 = exp_tail3(x);
-                    (ex * s3, ex * (2.0 * x + s3))
-                } else {
-                    (
-                        1.0 - ex * (1.0 + x + 0.5 * x * x),
-                        1.0 - ex * (1.0 - x + 0.5 * x * x),
-                    )
-                };
-                let q12 = 0.5 * x * x * ex;
-                f.chol = chol2(q11, q12, q22);
+                f.phi = phi;
+                f.chol = chol;
                 f.a[(0, 1)] = 1.0;
                 f.a[(1, 0)] = -1.0;
                 f.a[(1, 1)] = -2.0;
@@ -428,6 +484,48 @@ impl GustFilter {
             length_scale,
             airspeed,
             self.dt,
+        )
+    }
+
+    /// The `Phi`, `G` and `sigma c` of [`rescaled`](Self::rescaled)`(sigma, length_scale,
+    /// airspeed)`, bit for bit, or [`Coefficients::NAN`] where that errs (what
+    /// [`poisoned`](Self::poisoned) flies). Dryden without building a filter (no copies of the
+    /// whole filter, no allocation): what the lane-set path computes per lane and step.
+    #[inline]
+    pub fn rescaled_coefficients(
+        &self,
+        sigma: f64,
+        length_scale: f64,
+        airspeed: f64,
+    ) -> Coefficients {
+        match self.model {
+            GustModel::Dryden => {
+                // `check`'s conditions, inline (`dt` was checked when `self` was built): the
+                // same `k`, and an error exactly where `check` errs.
+                let ok = |x: f64| x.is_finite() && x > 0.0;
+                let k = airspeed * self.dt / length_scale;
+                let valid = sigma.is_finite() && sigma >= 0.0;
+                if !(valid && ok(length_scale) && ok(airspeed) && ok(self.dt) && ok(k)) {
+                    return Coefficients::NAN;
+                }
+                let (phi, g) = dryden_matrices(self.component, k);
+                // `new`'s `out = c * sigma`, element by element.
+                let out = [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma];
+                Coefficients { phi, g, out }
+            }
+            GustModel::VonKarman => match self.rescaled(sigma, length_scale, airspeed) {
+                Ok(f) => f.coefficients(),
+                Err(_) => Coefficients::NAN,
+            },
+        }
+    }
+
+    /// This filter's `Phi`, `G` and `sigma c`.
+    pub fn coefficients(&self) -> Coefficients {
+        Coefficients::of(
+            &self.phi,
+            &self.chol,
+            [self.out[0], self.out[1], self.out[2]],
         )
     }
 
@@ -650,7 +748,7 @@ impl Normals for ChaCha8Rng {
     /// `StandardNormal`'s draw, its fast path inlined (`normal::standard_normal`).
     #[inline(always)]
     fn normal(&mut self) -> f64 {
-        super::normal::standard_normal(self)
+        crate::lane::random::normal::standard_normal(self)
     }
 }
 
@@ -1025,6 +1123,48 @@ pub(super) mod tests {
         let g11 = f.noise_chol()[(0, 0)];
         let x = 2.0 * k;
         assert!((g11 * g11 / (x * x * x / 6.0) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rescaled_coefficients_are_the_rescaled_filters_bit_for_bit() {
+        let bits = |c: &Coefficients| {
+            let mut v: Vec<u64> = c
+                .phi
+                .iter()
+                .chain(&c.g)
+                .flatten()
+                .map(|x| x.to_bits())
+                .collect();
+            v.extend(c.out.iter().map(|x| x.to_bits()));
+            v
+        };
+        let nan = f64::NAN;
+        // Ordinary scales, steps long and short in scale lengths (both branches of Q), and
+        // scales no filter takes (a runaway state): NaN numbers, as `poisoned` flies.
+        let scales = [
+            (1.3, 30.0, 10.0),
+            (0.4, 3.048, 1.0),
+            (2.0, 0.01, 500.0),
+            (1.0, 1e4, 1e-3),
+            (0.0, 5.0, 2.0),
+            (nan, 5.0, 2.0),
+            (1.0, nan, 2.0),
+            (1.0, 5.0, nan),
+            (1.0, 5.0, 0.0),
+            (-1.0, 5.0, 2.0),
+        ];
+        for model in MODELS {
+            for c in GustComponent::ALL {
+                let base = filt(model, c, 1.0, 0.2);
+                for (sigma, l, v) in scales {
+                    let got = base.rescaled_coefficients(sigma, l, v);
+                    match base.rescaled(sigma, l, v) {
+                        Ok(f) => assert_eq!(bits(&got), bits(&f.coefficients()), "{model:?} {c:?}"),
+                        Err(_) => assert_eq!(bits(&got), bits(&Coefficients::NAN)),
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -1,6 +1,10 @@
-//! The turbulence of a whole lane-set at once: each lane's normals drawn in bulk from its own
-//! source (the realisation's seeded stream or its given innovations, exactly as
-//! [`WindField::sample_at`] would draw them), the forming filters advanced as lane values.
+//! The wind of a whole lane-set at once ([`LaneWind`]): the turbulence ([`LaneGust`]) with each
+//! lane's normals drawn in bulk from its own source (the realisation's seeded stream or its
+//! given innovations, exactly as [`WindField::sample_at`] would draw them) and the forming
+//! filters advanced as lane values; where the scales follow the vehicle, each lane's filter
+//! numbers for the step (the same scalar functions as the per-realisation path: libm's `exp`,
+//! `pow`, `ln` per lane, so the same bits); the `[wind]` mean wind per lane and the discrete
+//! gusts once per lane-set where the lanes share them.
 //!
 //! Per lane the arithmetic is operation for operation that of the per-realisation path
 //! (`WindField::sample_at`: `step_fixed`, `GustFilter::output`, the axes' turn), with the lane
@@ -10,10 +14,10 @@
 //! (no per-normal dispatch on the source, no per-step match on the filters' orders), and the
 //! filters of all lanes advance in one pass of vector arithmetic.
 
-use super::filter::Normals;
-use super::normal::{Ahead, CHUNK};
-use super::wind::{Source, WindField};
+use super::filter::{Coefficients, Normals};
+use super::wind::{Kinematics, Source, WindField};
 use crate::lane::isa::Isa;
+use crate::lane::random::normal::{Ahead, CHUNK};
 use crate::lane::Lane;
 
 /// Most lanes a lane-set carries (the widest lane type).
@@ -42,7 +46,8 @@ struct Component<L> {
 }
 
 /// The turbulence of one lane-set: built by [`LaneGust::new`] where every lane's field allows
-/// it (see there), sampled once per step inside the window by [`LaneGust::sample`].
+/// it (see there), sampled once per step inside the window by [`LaneGust::sample`], at the
+/// scales its fields were built for unless [`LaneGust::set_coefficients`] gives a step's.
 pub struct LaneGust<'a, L> {
     /// Per axis (longitudinal, lateral, vertical); order 0 where the axis has no turbulence.
     components: [Component<L>; 3],
@@ -54,6 +59,8 @@ pub struct LaneGust<'a, L> {
     /// (cos chi, sin chi) per lane, when the axes are turned.
     axes: Option<(L, L)>,
     start: u64,
+    /// First step after the window.
+    end: u64,
     started: bool,
     /// The step the filter states belong to (valid once started).
     at: u64,
@@ -69,16 +76,15 @@ pub struct LaneGust<'a, L> {
 
 impl<'a, L: Lane> LaneGust<'a, L> {
     /// The lane-set's turbulence, lane `l` drawing from `sources[l]`, with `fields[l]` its
-    /// wind field; `None` where the per-realisation path must fly it instead: where a field
-    /// has no turbulence, where its turbulence follows the vehicle (`gust.altitude =
-    /// "vehicle"`, `gust.airspeed = "relative"`) or another source blows (a `[wind]` mean
-    /// wind, a discrete gust), or where the lanes differ in window, components, orders or
-    /// whether the axes are turned.
+    /// wind field (its filters as built: where the scales follow the vehicle, [`LaneWind`]
+    /// sets each step's); `None` where the per-realisation path must fly it instead: where a
+    /// field has no turbulence, or where the lanes differ in window, components, orders or
+    /// whether the axes are turned. The other sources ([`LaneWind`]) are not its business.
     pub fn new(fields: &[&WindField], sources: Vec<Source<'a>>) -> Option<Self> {
         assert!(L::LANES <= MAX_LANES && fields.len() == L::LANES);
         assert_eq!(sources.len(), L::LANES, "one source per lane");
         let first = fields[0];
-        let usable = |f: &WindField| f.enabled() && !f.follows_vehicle() && !f.blows();
+        let usable = |f: &WindField| f.enabled();
         let alike = |f: &WindField| {
             f.start_step() == first.start_step()
                 && f.end_step() == first.end_step()
@@ -141,6 +147,7 @@ impl<'a, L: Lane> LaneGust<'a, L> {
             mean,
             axes,
             start: first.start_step(),
+            end: first.end_step(),
             started: false,
             at: 0,
             ahead: (0..L::LANES).map(|_| Ahead::new()).collect(),
@@ -187,6 +194,26 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                 w[0] * sin + w[1] * cos + self.mean[1],
                 w[2] + self.mean[2],
             ],
+        }
+    }
+
+    /// Whether step `step` is inside the window.
+    #[inline(always)]
+    fn active(&self, step: u64) -> bool {
+        self.start <= step && step < self.end
+    }
+
+    /// Fly the next steps with `per_lane[l][axis]` lane `l`'s filter numbers on each active
+    /// axis (scales that follow the vehicle: each step's).
+    #[inline(always)]
+    pub fn set_coefficients(&mut self, per_lane: &[[Coefficients; 3]; MAX_LANES]) {
+        for (axis, c) in self.components.iter_mut().enumerate() {
+            match c.order {
+                0 => {}
+                1 => c.set::<1>(per_lane, axis),
+                2 => c.set::<2>(per_lane, axis),
+                _ => c.set::<3>(per_lane, axis),
+            }
         }
     }
 
@@ -283,6 +310,170 @@ impl<'a, L: Lane> LaneGust<'a, L> {
     }
 }
 
+/// How a lane-set's discrete gusts are summed.
+enum Gusts {
+    None,
+    /// Every lane's the same (the same list, the same step): summed once, as lane 0's.
+    Shared,
+    /// Lane by lane.
+    PerLane,
+}
+
+/// The wind of one lane-set: [`WindField::sample_at`]'s, lane by lane and bit for bit (the
+/// turbulence with its scales following each lane's quadrotor where they do, the `[wind]`
+/// mean wind at each lane's altitude, the discrete gusts), built by [`LaneWind::new`] where
+/// the lanes' fields are alike enough (see there) and sampled at every step by
+/// [`LaneWind::sample`].
+pub struct LaneWind<'f, 'a, L> {
+    fields: Vec<&'f WindField>,
+    gust: Option<LaneGust<'a, L>>,
+    /// The turbulence's scales follow the vehicle (every lane's).
+    follow: bool,
+    /// A `[wind]` mean wind blows (in every lane).
+    steady: bool,
+    gusts: Gusts,
+    /// Some lane's source reads the quadrotor's altitude or velocity.
+    reads_vehicle: bool,
+    /// Each lane's filter numbers for the step (scales that follow the vehicle).
+    coefficients: Box<[[Coefficients; 3]; MAX_LANES]>,
+}
+
+impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
+    /// The lane-set's wind, lane `l` with the field `fields[l]` drawing from `sources[l]`;
+    /// `None` where the per-realisation path must fly it: where the lanes differ in whether
+    /// the turbulence is on and follows the vehicle, whether a mean wind blows, whether there
+    /// are discrete gusts, or in what [`LaneGust::new`] needs alike.
+    pub fn new(fields: &[&'f WindField], sources: Vec<Source<'a>>) -> Option<Self> {
+        assert!(L::LANES <= MAX_LANES && fields.len() == L::LANES);
+        let first = fields[0];
+        let alike = |f: &&WindField| {
+            f.enabled() == first.enabled()
+                && f.turbulence_follows() == first.turbulence_follows()
+                && f.has_steady() == first.has_steady()
+                && f.gusts().is_empty() == first.gusts().is_empty()
+        };
+        if !fields.iter().all(alike) {
+            return None;
+        }
+        let gust = match first.enabled() {
+            true => Some(LaneGust::new(fields, sources)?),
+            false => None,
+        };
+        let shared = fields
+            .iter()
+            .all(|f| f.gusts() == first.gusts() && f.dt().to_bits() == first.dt().to_bits());
+        let gusts = match (first.gusts().is_empty(), shared) {
+            (true, _) => Gusts::None,
+            (false, true) => Gusts::Shared,
+            (false, false) => Gusts::PerLane,
+        };
+        Some(LaneWind {
+            fields: fields.to_vec(),
+            gust,
+            follow: first.enabled() && first.turbulence_follows(),
+            steady: first.has_steady(),
+            gusts,
+            reads_vehicle: fields.iter().any(|f| f.follows_vehicle()),
+            coefficients: Box::new([[Coefficients::NAN; 3]; MAX_LANES]),
+        })
+    }
+
+    /// The wind (m/s, inertial) of every lane over the step `step`, the quadrotors where `at`
+    /// says (their altitudes and velocities, asked only if a source follows them): each
+    /// lane's `WindField::sample_at`, bit for bit. Call once per step in increasing step
+    /// order (as there). No allocation.
+    #[inline(always)]
+    pub fn sample(&mut self, step: u64, at: impl FnOnce() -> (L, [L; 3])) -> [L; 3] {
+        let zero = L::splat(0.0);
+        let turbulent = self.gust.as_ref().is_some_and(|g| g.active(step));
+        let blows = self.steady || !matches!(self.gusts, Gusts::None);
+        if !turbulent && !blows {
+            return [zero; 3];
+        }
+        let mut steady = [[0.0; 3]; MAX_LANES];
+        let rescale = turbulent && self.follow;
+        if self.steady || rescale {
+            let (z, vel) = if self.reads_vehicle {
+                at()
+            } else {
+                (zero, [zero; 3])
+            };
+            let mut kin = [Kinematics::AT_REST; MAX_LANES];
+            for (l, k) in kin.iter_mut().enumerate().take(L::LANES) {
+                *k = Kinematics {
+                    z: z.lane(l),
+                    vel: [vel[0].lane(l), vel[1].lane(l), vel[2].lane(l)],
+                };
+            }
+            at_vehicles(
+                &self.fields,
+                &kin,
+                rescale,
+                &mut self.coefficients,
+                &mut steady,
+            );
+        }
+        let mut w = match self.gust.as_mut() {
+            Some(g) if turbulent => {
+                if rescale {
+                    g.set_coefficients(&self.coefficients);
+                }
+                g.sample(step)
+            }
+            _ => [zero; 3],
+        };
+        if self.steady {
+            for (i, w) in w.iter_mut().enumerate() {
+                *w += L::from_fn(
+                    #[inline(always)]
+                    |l| steady[l][i],
+                );
+            }
+        }
+        match self.gusts {
+            Gusts::None => {}
+            Gusts::Shared => {
+                let g = self.fields[0].discrete_gusts(step);
+                for (w, g) in w.iter_mut().zip(g) {
+                    *w += L::splat(g);
+                }
+            }
+            Gusts::PerLane => {
+                let mut g = [[0.0; 3]; MAX_LANES];
+                for (g, f) in g.iter_mut().zip(&self.fields) {
+                    *g = f.discrete_gusts(step);
+                }
+                for (i, w) in w.iter_mut().enumerate() {
+                    *w += L::from_fn(
+                        #[inline(always)]
+                        |l| g[l][i],
+                    );
+                }
+            }
+        }
+        w
+    }
+}
+
+/// Each lane's `WindField::at_vehicle` (the mean wind into `steady[l]`, the step's filter numbers
+/// into `coefficients[l]` if `rescale`): scalar work and libm calls, kept out of the flight
+/// loop's line so that the loop saves its vector registers once per step around it, not around
+/// every call it makes (every vector register is the caller's to save).
+#[inline(never)]
+fn at_vehicles(
+    fields: &[&WindField],
+    kin: &[Kinematics; MAX_LANES],
+    rescale: bool,
+    coefficients: &mut [[Coefficients; 3]; MAX_LANES],
+    steady: &mut [[f64; 3]; MAX_LANES],
+) {
+    for (l, (f, out)) in fields.iter().zip(coefficients.iter_mut()).enumerate() {
+        if let Some(m) = f.at_vehicle(&kin[l], rescale.then_some(out)) {
+            steady[l] = m;
+        }
+    }
+}
+
 impl<L: Lane> Component<L> {
     /// Advance one step, the normals from the step's rows starting at `row` (this
     /// component's at `row + offset`), and return the new output. Order 1 to 3.
@@ -293,6 +484,27 @@ impl<L: Lane> Component<L> {
             1 => advance::<L, 1>(self, rows, r),
             2 => advance::<L, 2>(self, rows, r),
             _ => advance::<L, 3>(self, rows, r),
+        }
+    }
+
+    /// The order-`N` block of lane `l`'s numbers, `per_lane[l][axis]`, for every lane.
+    #[inline(always)]
+    fn set<const N: usize>(&mut self, per_lane: &[[Coefficients; 3]; MAX_LANES], axis: usize) {
+        for i in 0..N {
+            for j in 0..N {
+                self.phi[i][j] = L::from_fn(
+                    #[inline(always)]
+                    |l| per_lane[l][axis].phi[i][j],
+                );
+                self.g[i][j] = L::from_fn(
+                    #[inline(always)]
+                    |l| per_lane[l][axis].g[i][j],
+                );
+            }
+            self.out[i] = L::from_fn(
+                #[inline(always)]
+                |l| per_lane[l][axis].out[i],
+            );
         }
     }
 
@@ -408,7 +620,7 @@ mod tests {
                 unreachable!("seeded on both paths");
             };
             for r in set.next..set.filled {
-                let want = super::super::normal::standard_normal(&mut rng);
+                let want = crate::lane::random::normal::standard_normal(&mut rng);
                 assert_eq!(set.rows[l][r].to_bits(), want.to_bits(), "lane {l} row {r}");
             }
             for k in 0..300 {
@@ -518,21 +730,207 @@ mod tests {
         let plain = field(0.01, |_| {});
         assert!(LaneGust::<f64>::new(&[&plain], src(&plain)).is_some());
         let off = field(0.01, |c| c.gust.enabled = false);
+        assert!(LaneGust::<f64>::new(&[&off], src(&off)).is_none());
+        // Scales that follow the vehicle and other sources: the turbulence is the set's, the
+        // rest `LaneWind`'s.
         let vehicle = field(0.01, |c| c.gust.altitude = GustAltitude::Vehicle);
         let blows = field(0.01, |c| c.wind.speed = 2.0);
-        for f in [&off, &vehicle, &blows] {
-            assert!(LaneGust::<f64>::new(&[f], src(f)).is_none());
+        for f in [&off, &vehicle, &blows, &plain] {
+            assert!(LaneWind::<f64>::new(&[f], src(f)).is_some());
         }
         // Lanes that differ in their window or components.
         let later = field(0.01, |c| c.gust.start = 1.0);
         let three = field(0.01, |c| c.gust.components = GustComponent::ALL.to_vec());
-        for other in [&later, &three] {
+        // ... or in whether the turbulence is on or follows, or a mean wind or a gust blows.
+        let gusty = field(0.01, |c| c.wind.gusts = vec![ramp(0.2)]);
+        for other in [&later, &three, &off, &vehicle, &blows, &gusty] {
             let fields = [&plain, &plain, other, &plain];
             let sources = fields
                 .iter()
                 .map(|f| f.realisation(0, 0).source())
                 .collect();
-            assert!(LaneGust::<F64x4>::new(&fields, sources).is_none());
+            assert!(LaneWind::<F64x4>::new(&fields, sources).is_none());
         }
+    }
+
+    // ---- The whole wind of a lane-set --------------------------------------------------
+
+    use crate::config::{DiscreteGust, GustAirspeed, GustShape, Shear};
+
+    fn ramp(start: f64) -> DiscreteGust {
+        DiscreteGust {
+            start,
+            duration: 0.3,
+            amplitude: [1.0, -0.5, 0.25],
+            shape: GustShape::Ramp,
+        }
+    }
+
+    /// Lane `l` at step `n`: climbing from below 10 ft through the clamp, moving.
+    fn kin(n: u64, l: usize) -> Kinematics {
+        let t = n as f64;
+        Kinematics {
+            z: -0.5 + 0.05 * t + 0.7 * l as f64,
+            vel: [
+                3.0 + 0.1 * l as f64 - 0.01 * t,
+                -1.0 + 0.02 * t,
+                0.5 - 0.3 * l as f64,
+            ],
+        }
+    }
+
+    /// Every lane of `LaneWind` against `WindField::sample_at` of the same realisation, bit
+    /// for bit (NaN against NaN), over `steps` steps with the lanes at `kin`.
+    fn wind_matches<L: Lane>(
+        fields: &[&WindField],
+        sources: Vec<Source<'_>>,
+        mut one: Vec<super::super::wind::WindState<'_>>,
+        steps: u64,
+        kin: impl Fn(u64, usize) -> Kinematics,
+    ) {
+        let mut set = LaneWind::<L>::new(fields, sources).expect("alike lanes fly as a set");
+        for step in 0..steps {
+            let k: Vec<Kinematics> = (0..L::LANES).map(|l| kin(step, l)).collect();
+            let z = L::from_fn(|l| k[l].z);
+            let vel = [0, 1, 2].map(|i| L::from_fn(|l| k[l].vel[i]));
+            let w = set.sample(step, || (z, vel));
+            for (l, (st, f)) in one.iter_mut().zip(fields).enumerate() {
+                let want = f.sample_at(st, step, || k[l]);
+                for i in 0..3 {
+                    let got = w[i].lane(l);
+                    assert!(
+                        got.to_bits() == want[i].to_bits() || (got.is_nan() && want[i].is_nan()),
+                        "step {step} lane {l} axis {i}: {got} vs {}",
+                        want[i]
+                    );
+                }
+            }
+        }
+    }
+
+    fn seeded<'a>(
+        fields: &[&WindField],
+        seed: u64,
+    ) -> (Vec<Source<'a>>, Vec<super::super::wind::WindState<'a>>) {
+        let one: Vec<_> = (0..fields.len())
+            .map(|l| fields[l].realisation(seed, l as u64 * 3 + 1))
+            .collect();
+        (one.iter().map(|w| w.source()).collect(), one)
+    }
+
+    /// The delivery preset's wind and its variants: turbulence that follows the vehicle in
+    /// altitude, in airspeed or both, a sheared mean wind, discrete gusts, turned axes.
+    fn whole_flight_fields() -> Vec<WindField> {
+        let edits: [&dyn Fn(&mut Config); 7] = [
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.wind.speed = 5.0;
+                c.wind.heading = 90.0;
+                c.wind.shear = Shear::Log;
+            },
+            &|c| c.gust.altitude = GustAltitude::Vehicle,
+            &|c| {
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.gust.min_airspeed = 3.2;
+            },
+            &|c| {
+                c.gust.model = GustModel::VonKarman;
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.wind.speed = 3.0;
+            },
+            &|c| {
+                c.gust.enabled = false;
+                c.wind.speed = 4.0;
+                c.wind.shear = Shear::Log;
+                c.wind.gusts = vec![ramp(0.1), ramp(0.4)];
+            },
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.mean_wind = [0.25, -0.5, 0.125];
+                c.wind.heading = 30.0;
+                c.wind.gusts = vec![ramp(0.05)];
+            },
+            &|c| c.wind.gusts = vec![ramp(0.6)],
+        ];
+        edits
+            .iter()
+            .map(|edit| {
+                field(0.01, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    c.gust.start = 0.3;
+                    c.gust.end = 2.0;
+                    edit(c);
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_lane_set_flies_each_realisations_whole_flight_wind_bit_for_bit() {
+        for f in &whole_flight_fields() {
+            let (sources, one) = seeded(&[f], 4);
+            wind_matches::<f64>(&[f], sources, one, 260, kin);
+            let (sources, one) = seeded(&[f; 4], 4);
+            wind_matches::<F64x4>(&[f; 4], sources, one, 260, kin);
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_wide_paths_fly_the_same_whole_flight_wind() {
+        use crate::lane::{F64x4Avx, F64x8Avx512};
+        for f in &whole_flight_fields() {
+            if Isa::Avx2.supported() {
+                let (sources, one) = seeded(&[f; 4], 6);
+                wind_matches::<F64x4Avx>(&[f; 4], sources, one, 260, kin);
+            }
+            if Isa::Avx512.supported() {
+                let (sources, one) = seeded(&[f; 8], 6);
+                wind_matches::<F64x8Avx512>(&[f; 8], sources, one, 260, kin);
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_may_differ_in_their_wind_and_a_runaway_lane_flies_nan() {
+        // A dispersed batch: per-lane W20, mean wind, roughness and gust lists.
+        let fs: Vec<WindField> = (0..4)
+            .map(|l| {
+                field(0.01, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    c.gust.altitude = GustAltitude::Vehicle;
+                    c.gust.airspeed = GustAirspeed::Relative;
+                    c.gust.w20 = Some(4.0 + l as f64);
+                    c.wind.speed = 2.0 + l as f64;
+                    c.wind.shear = Shear::Log;
+                    c.wind.roughness = 0.03 * (l + 1) as f64;
+                    c.wind.gusts = vec![ramp(0.1 * l as f64)];
+                })
+            })
+            .collect();
+        let refs: Vec<&WindField> = fs.iter().collect();
+        let (sources, one) = seeded(&refs, 2);
+        wind_matches::<F64x4>(&refs, sources, one, 200, kin);
+        // Lane 2's state runs away (NaN) from step 120: NaN there on both paths, the other
+        // lanes untouched.
+        let runaway = |n: u64, l: usize| {
+            let mut k = kin(n, l);
+            if l == 2 && n >= 120 {
+                k.z = f64::NAN;
+            }
+            k
+        };
+        let (sources, one) = seeded(&refs, 2);
+        wind_matches::<F64x4>(&refs, sources, one, 200, runaway);
+        // Given innovations fly the seeded lanes.
+        let xi: Vec<Vec<f64>> = (0..4)
+            .map(|l| fs[l].innovations_of(2, l as u64 * 3 + 1, 200))
+            .collect();
+        let given: Vec<_> = (0..4).map(|l| fs[l].given(&xi[l])).collect();
+        let sources = given.iter().map(|w| w.source()).collect();
+        let (_, one) = seeded(&refs, 2);
+        wind_matches::<F64x4>(&refs, sources, one, 200, kin);
     }
 }

@@ -23,14 +23,12 @@
 //! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies).
 
 pub mod filter;
-pub mod keystream;
 pub mod lanes;
-pub mod normal;
 pub mod spectra;
 pub mod wind;
 
-pub use filter::GustFilter;
-pub use lanes::LaneGust;
+pub use filter::{Coefficients, GustFilter};
+pub use lanes::{LaneGust, LaneWind};
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
 pub use wind::{
     fill_series, realisation_rng, Kinematics, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,

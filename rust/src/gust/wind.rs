@@ -1,10 +1,10 @@
 //! The wind a flight sees (`WindField`: the scenario's components inside the gust window, one
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
-use super::filter::{step_fixed, GustFilter, Normals};
+use super::filter::{step_fixed, Coefficients, GustFilter, Normals};
 use super::spectra::low_altitude_scales;
 use super::spectra::METRES_PER_FOOT;
-use crate::config::wind::{discrete_gust, shear_factor};
+use crate::config::wind::{discrete_gust, shear_factor_with, shear_log_reference};
 use crate::config::{
     Config, ConfigError, DiscreteGust, GustAirspeed, GustAltitude, GustComponent, Shear,
 };
@@ -104,6 +104,8 @@ struct Steady {
     w20: f64,
     shear: Shear,
     roughness: f64,
+    /// ln(20 ft / z0), f(h)'s denominator, computed once (`shear_log_reference`).
+    log_reference: f64,
     cos: f64,
     sin: f64,
 }
@@ -111,7 +113,8 @@ struct Steady {
 impl Steady {
     #[inline]
     fn at(&self, h: f64) -> [f64; 3] {
-        let s = self.w20 * shear_factor(self.shear, h, self.roughness);
+        let f = shear_factor_with(self.shear, h, self.roughness, self.log_reference);
+        let s = self.w20 * f;
         [s * self.cos, s * self.sin, 0.0]
     }
 }
@@ -286,6 +289,7 @@ impl WindField {
             w20: wind.speed,
             shear: wind.shear,
             roughness: wind.roughness,
+            log_reference: shear_log_reference(wind.roughness),
             cos: chi.cos(),
             sin: chi.sin(),
         });
@@ -503,6 +507,22 @@ impl WindField {
     /// the wind is NaN and the flight ends as non-finite.
     #[inline]
     fn rescale(&self, f: &Follow, kin: &Kinematics, mean: [f64; 3]) -> [Option<GustFilter>; 3] {
+        let (sigma, length, v) = Self::follow_scales(f, kin, mean);
+        let mut out = self.filters;
+        for (i, slot) in out.iter_mut().enumerate() {
+            if let Some(base) = slot {
+                *slot = Some(
+                    base.rescaled(sigma[i], length[i], v)
+                        .unwrap_or_else(|_| base.poisoned()),
+                );
+            }
+        }
+        out
+    }
+
+    /// `rescale`'s scales: (sigma, L) per component and V.
+    #[inline]
+    fn follow_scales(f: &Follow, kin: &Kinematics, mean: [f64; 3]) -> ([f64; 3], [f64; 3], f64) {
         let (lo, hi) = VEHICLE_ALTITUDE_RANGE;
         let h = match f.altitude {
             GustAltitude::Fixed(h) => h,
@@ -518,16 +538,51 @@ impl WindField {
             }
         };
         let (sigma, length) = low_altitude_scales(h, f.w20);
-        let mut out = self.filters;
-        for (i, slot) in out.iter_mut().enumerate() {
-            if let Some(base) = slot {
-                *slot = Some(
-                    base.rescaled(sigma[i], length[i], v)
-                        .unwrap_or_else(|_| base.poisoned()),
-                );
+        (sigma, length, v)
+    }
+
+    /// [`sample_at`](Self::sample_at)'s work that reads the quadrotor, for the lane-set path
+    /// ([`super::lanes::LaneWind`]) to do per lane: the `[wind]` mean wind at the quadrotor
+    /// (`None` where it does not blow) and, when `coefficients` is given and the turbulence
+    /// follows the vehicle, the step's filter numbers (`rescale`'s, bit for bit, each active
+    /// component's slot written).
+    #[inline(always)]
+    pub(super) fn at_vehicle(
+        &self,
+        kin: &Kinematics,
+        coefficients: Option<&mut [Coefficients; 3]>,
+    ) -> Option<[f64; 3]> {
+        let kin = if self.follows_vehicle() {
+            *kin
+        } else {
+            Kinematics::AT_REST
+        };
+        let steady = self.steady.map(|m| m.at(kin.z));
+        if let (Some(out), Some(f)) = (coefficients, &self.follow) {
+            let (sigma, length, v) = Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]));
+            for ((slot, filter), i) in out.iter_mut().zip(&self.filters).zip(0..) {
+                if let Some(base) = filter {
+                    *slot = base.rescaled_coefficients(sigma[i], length[i], v);
+                }
             }
         }
-        out
+        steady
+    }
+
+    /// Whether the turbulence's scales follow the vehicle (`gust.altitude = "vehicle"` or
+    /// `gust.airspeed = "relative"`).
+    pub(super) fn turbulence_follows(&self) -> bool {
+        self.follow.is_some()
+    }
+
+    /// Whether the `[wind]` mean wind blows.
+    pub(super) fn has_steady(&self) -> bool {
+        self.steady.is_some()
+    }
+
+    /// The `[[wind.gusts]]`.
+    pub(super) fn gusts(&self) -> &[DiscreteGust] {
+        &self.gusts
     }
 
     /// `sample`'s work on a concrete source of normals.

@@ -166,12 +166,12 @@ impl Engine {
                 .map(|(&i, c)| c.wind.realisation(req.seed, i))
                 .collect(),
         };
-        // The turbulence of the whole lane-set at once where every lane's field allows it
-        // (`LaneGust::new`): the same numbers as the per-lane `sample_at`, drawn from the same
+        // The wind of the whole lane-set at once where the lanes' fields allow it
+        // (`LaneWind::new`): the same numbers as the per-lane `sample_at`, drawn from the same
         // sources. Else (and for a prescribed wind) the per-lane path below.
-        let mut lane_gust = if self.prescribed_wind.is_none() {
+        let mut lane_wind = if self.prescribed_wind.is_none() {
             let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
-            LaneGust::<L>::new(&fields, winds.iter().map(|w| w.source()).collect())
+            LaneWind::<L>::new(&fields, winds.iter().map(|w| w.source()).collect())
         } else {
             None
         };
@@ -194,6 +194,7 @@ impl Engine {
         let mut ref_changes = f64::NEG_INFINITY;
         // The straight line of the current leg (a point, a unit direction): cross-track error.
         let mut line = ([L::splat(0.0); 3], [L::splat(0.0); 3]);
+        let mut line_of = usize::MAX;
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
         // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
         let windy = || crafts.iter().filter(|c| c.wind.enabled());
@@ -215,15 +216,18 @@ impl Engine {
                 r = self.trajectory.at(t, &mut segment);
                 ref_changes = self.trajectory.next_change(segment);
                 // Each lane's line (they differ before the first waypoint, which each lane's
-                // own initial position leads to).
-                let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
-                for (l, c) in crafts.iter().enumerate() {
-                    lines[l] = self.trajectory.line(segment, [c.x0[0], c.x0[1], c.x0[2]]);
+                // own initial position leads to), once per segment: it depends on nothing else.
+                if segment != line_of {
+                    line_of = segment;
+                    let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
+                    for (l, c) in crafts.iter().enumerate() {
+                        lines[l] = self.trajectory.line(segment, [c.x0[0], c.x0[1], c.x0[2]]);
+                    }
+                    line = (
+                        [0, 1, 2].map(|i| L::from_fn(|l| lines[l].0[i])),
+                        [0, 1, 2].map(|i| L::from_fn(|l| lines[l].1[i])),
+                    );
                 }
-                line = (
-                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].0[i])),
-                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].1[i])),
-                );
             }
             let trig = Trig::of(&s);
             let tick = Tick { step: k, t };
@@ -245,7 +249,7 @@ impl Engine {
             let w: [L; 3] = if k == self.steps && k > 0 {
                 held
             } else {
-                // The lane-set's turbulence when `lane_gust` flies it (else the per-lane values).
+                // The lane-set's wind when `lane_wind` flies it (else the per-lane values).
                 let mut wind_set: Option<[L; 3]> = None;
                 if let Some(prescribed) = &self.prescribed_wind {
                     wind_lanes = [prescribed[k]; MAX_LANES];
@@ -255,13 +259,15 @@ impl Engine {
                             *v = [0, 1, 2].map(|i| v[i] + d[i]);
                         }
                     }
-                } else if let Some(g) = lane_gust.as_mut() {
-                    // No lane's wind blows outside the window here (`LaneGust::new`).
-                    wind_set = if (gust_from..gust_to).contains(&(k as u64)) {
-                        Some(g.sample(k as u64))
-                    } else {
-                        None
-                    };
+                } else if let Some(g) = lane_wind.as_mut() {
+                    wind_set = Some(g.sample(
+                        k as u64,
+                        #[inline(always)]
+                        || {
+                            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                            (rigid.pos[2], rigid.vel)
+                        },
+                    ));
                 } else if blows || (gust_from..gust_to).contains(&(k as u64)) {
                     for (lane, ((ws, v), c)) in winds
                         .iter_mut()

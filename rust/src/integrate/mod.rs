@@ -11,7 +11,7 @@
 
 use crate::config::{Config, ConfigError};
 use crate::control::{Control, Controller, ControllerKind, ControllerVisitor, Laws};
-use crate::gust::{Kinematics, LaneGust, WindField, WindState};
+use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]

@@ -333,6 +333,7 @@ mod portable;
 pub mod dual;
 pub mod isa;
 pub mod kernels;
+pub mod random;
 
 #[cfg(test)]
 mod tests {
@@ -421,6 +422,7 @@ mod tests {
             unsafe fn avx() {
                 pack_agrees_bitwise::<F64x4Avx>();
             }
+            // SAFETY: AVX2 is available (checked above).
             unsafe { avx() };
         }
         #[cfg(target_arch = "x86_64")]
@@ -430,6 +432,7 @@ mod tests {
             unsafe fn avx512() {
                 pack_agrees_bitwise::<F64x8Avx512>();
             }
+            // SAFETY: AVX-512F and DQ are available (checked above).
             unsafe { avx512() };
         } else {
             eprintln!("skipped F64x8Avx512: this CPU lacks AVX-512F/DQ");
@@ -471,6 +474,7 @@ mod tests {
             unsafe fn avx2() {
                 fused_kernels_are_accurate::<F64x4Fma>();
             }
+            // SAFETY: AVX2 and FMA are available (checked above).
             unsafe { avx2() };
         }
         #[cfg(target_arch = "x86_64")]
@@ -480,6 +484,7 @@ mod tests {
             unsafe fn avx512() {
                 fused_kernels_are_accurate::<F64x8Fma512>();
             }
+            // SAFETY: AVX-512F and DQ are available (checked above).
             unsafe { avx512() };
         } else {
             eprintln!("skipped F64x8Fma512: this CPU lacks AVX-512F/DQ");

@@ -112,11 +112,12 @@ macro_rules! x86_lane {
             /// Lanes from an array.
             #[inline(always)]
             pub fn from_array(a: [f64; [$($i),+].len()]) -> Self {
+                #[allow(unused_unsafe)]
                 // SAFETY: the type's instruction set is available; `a` holds `$per` f64 at
                 // each register's offset.
-                #[allow(unused_unsafe)]
-                let regs =
-                    unsafe { x86_lane!(@map_reg $regs, |r| $load(a.as_ptr().add(r * $per))) };
+                let regs = unsafe {
+                    x86_lane!(@map_reg $regs, |r| $load(a.as_ptr().add(r * $per)))
+                };
                 Self(regs)
             }
             #[inline(always)]

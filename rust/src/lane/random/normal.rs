@@ -266,12 +266,14 @@ impl Ahead {
         self.accepted = [0; AHEAD.div_ceil(64)];
         let (words, candidates) = (self.words.as_ptr(), self.candidates.as_mut_ptr());
         let (accepted, passes) = (self.accepted.as_mut_ptr(), self.len.div_ceil(MARK));
-        // SAFETY: the buffers hold `passes * MARK` words, candidates and bits (`AHEAD` is a
-        // multiple of `MARK`), and the CPU has the instruction set of the kernel called.
+        // The buffers hold `passes * MARK` words, candidates and bits (`AHEAD` is a multiple of
+        // `MARK`), and the CPU has the instruction set of the kernel called.
         match isa {
             #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above; `isa` is AVX2 only where the CPU has it.
             Isa::Avx2 => unsafe { mark4(words, passes, candidates, accepted) },
             #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above; `isa` is AVX-512 only where the CPU has AVX-512F and DQ.
             Isa::Avx512 => unsafe { mark8(words, passes, candidates, accepted) },
             _ => self.mark_scalar(),
         }
