@@ -12,7 +12,7 @@ import quadrs
 
 #: The names ``quadrs`` offers, with the members of each that the contract uses.
 PUBLIC: dict[str, tuple[str, ...]] = {
-    "Scenario": ("paper", "from_toml", "to_toml", "override"),
+    "Scenario": ("paper", "from_toml", "to_toml", "override", "from_plan"),
     "ScenarioError": (),
     "EngineError": (),
     "simulate": (),

@@ -183,3 +183,47 @@ def test_mission_flies_a_plan_and_refuses_a_bad_one(
     assert main([*common, str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "bad.plan: mission.items[0]: params[4]" in err
+
+
+def test_from_plan_is_the_file_applied_to_its_base(tmp_path: Path) -> None:
+    p = write(tmp_path, hundred_metres_north())
+    base = quadrs.Scenario.preset("delivery")
+    expected = read_plan(p, start_height=base["initial.position"][2]).apply(base)
+    assert quadrs.Scenario.from_plan(p) == expected  # base="delivery" by default
+    assert quadrs.Scenario.from_plan(p, base=base) == expected
+    slow = quadrs.Scenario.from_plan(p, base="delivery", changes={"trajectory.speed": 2.0})
+    assert slow["trajectory.speed"] == 2.0
+    assert slow["integrator.duration"] > expected["integrator.duration"]
+    toml = tmp_path / "mine.toml"
+    toml.write_text('base = "delivery"\n[payload]\nmass = 0.4\n')
+    mine = quadrs.Scenario.from_plan(p, base=toml)
+    assert mine["payload.mass"] == 0.4 and mine["trajectory.route"] == expected["trajectory.route"]
+
+
+def test_a_scenario_file_names_its_route_file(tmp_path: Path) -> None:
+    """``trajectory.route_file`` in a scenario file (relative to the file) or a mapping: the
+    scenario holds the file's points, as from_plan gives them; keys the file sets win."""
+    (tmp_path / "routes").mkdir()
+    csv = write(tmp_path / "routes", "x, y, z, hold\n0, 0, 2, 1\n0, 0, 20, 0\n300, 40, 20, 5\n",
+                "r.csv")  # fmt: skip
+    scenario = tmp_path / "s.toml"
+    scenario.write_text('base = "delivery"\n[trajectory]\nroute_file = "routes/r.csv"\n')
+    s = quadrs.Scenario.from_toml(scenario)
+    assert s == quadrs.Scenario.from_plan(csv, base="delivery")
+    assert s["trajectory.route"] == [[0, 0, 2], [0, 0, 20], [300, 40, 20]]
+    assert s["trajectory.hold"] == [1, 0, 5] and s["initial.position"] == [0, 0, 2]
+    assert "route_file" not in s.to_dict()["trajectory"]  # the points, not a path that can change
+    assert quadrs.Scenario.from_toml_string(s.to_toml()) == s
+    given = quadrs.Scenario.from_dict({
+        "base": "delivery",
+        "trajectory": {"route_file": str(csv), "hold": [0, 0, 9], "names": ["up", "out", "drop"]},
+        "integrator": {"duration": 100.0},
+    })  # fmt: skip
+    assert given["trajectory.hold"] == [0, 0, 9] and given["integrator.duration"] == 100.0
+    assert given["trajectory.names"] == ["up", "out", "drop"]
+    for table, says in [
+        ({"route_file": "missing.csv"}, r"trajectory\.route_file = 'missing\.csv': .*cannot read"),
+        ({"route_file": 3}, r"trajectory\.route_file must name a \.plan or \.csv file, got 3"),
+    ]:
+        with pytest.raises(ValueError, match=says):
+            quadrs.Scenario.from_dict({"base": "delivery", "trajectory": table})

@@ -264,6 +264,69 @@ def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str
     return _merge(_resolve_base(parent, (*chain, base)), data)
 
 
+#: Keys a route file sets that a scenario file may also give (they then win over the file's).
+_ROUTE_FILE_KEYS = ("trajectory.hold", "trajectory.speed", "trajectory.names",
+                    "initial.position", "integrator.duration", "gust.end")  # fmt: skip
+
+
+def _route_file_of(data: Mapping[str, Any]) -> Any:
+    """The ``trajectory.route_file`` a scenario table names, or None."""
+    trajectory = data.get("trajectory")
+    return trajectory.get("route_file") if isinstance(trajectory, Mapping) else None
+
+
+def _with_route_file(cls: type[Scenario], data: dict[str, Any], folder: Path,
+                     build: Any) -> Scenario:  # fmt: skip
+    """A scenario table with ``trajectory.route_file`` (a ``.plan`` or a CSV of points, relative
+    to ``folder``): the rest of the table built by ``build``, then the file's route applied
+    as ``Scenario.from_plan`` applies it; the route-dependent keys the table gives itself
+    (holds, names, speed, start, duration) win over the file's. The scenario holds the points
+    read, not the path: a saved run carries the route it flew."""
+    from quadrs.scenario.route_files import read_route_file
+
+    rest = copy.deepcopy(data)
+    trajectory = rest["trajectory"]
+    name = trajectory.pop("route_file")
+    if not isinstance(name, str) or not name:
+        raise scenario_error(
+            f"trajectory.route_file must name a .plan or .csv file, got {name!r}",
+            "trajectory.route_file",
+        )
+    given: dict[str, Any] = {}
+    for key in _ROUTE_FILE_KEYS:
+        section, leaf = key.split(".")
+        table = rest.get(section)
+        if isinstance(table, dict) and leaf in table:
+            # checked with the file's route (holds and names count its points, the duration
+            # covers it), not with the base's
+            given[key] = table[leaf] if key == "initial.position" else table.pop(leaf)
+    if "route" in trajectory:
+        raise scenario_error(
+            "trajectory.route and trajectory.route_file: give one or the other", "trajectory.route"
+        )
+    trajectory["interpolation"] = "route"
+    speed_from_file = False
+    try:
+        base = build(rest)  # on its base's route (the file's replaces it, with its holds)
+    except ScenarioError:
+        # No route to stand on (a complete file, a waypoint base): a placeholder leg, at a
+        # placeholder speed if none is given (then the file must give one).
+        speed_from_file = "speed" not in trajectory and "trajectory.speed" not in given
+        trajectory.update(route=[[0.0, 0.0, 1.0], [0.0, 0.0, 2.0]], hold=[0.0, 0.0])
+        trajectory.setdefault("speed", 1.0)
+        base = build(rest)
+    path = Path(name) if Path(name).is_absolute() else folder / name
+    height = float(given.get("initial.position", base["initial.position"])[2])
+    try:
+        route = read_route_file(path, start_height=height)
+        if speed_from_file and route.speed is None:
+            raise ValueError("trajectory.speed must be given: the file and the base give none")
+        return route.apply(base, given)
+    except ValueError as e:
+        raise scenario_error(f"trajectory.route_file = {name!r}: {e}",
+                             "trajectory.route_file") from None  # fmt: skip
+
+
 def _frozen(value: Any) -> Any:
     """A hashable image of a plain value that is equal exactly when the values are equal
     (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
@@ -480,6 +543,10 @@ class Scenario:
             raise ScenarioError(f"{source} is not valid TOML: {e}") from e
         except RecursionError:
             raise ScenarioError(f"{source}: values nested too deeply") from None
+        if _route_file_of(data) is not None:
+            folder = Path(source).parent if source != "<string>" else Path.cwd()
+            return _with_route_file(cls, data, folder, lambda rest: cls.from_toml_string(
+                tomli_w.dumps(rest), source))  # fmt: skip
         base = data.get(_BASE_KEY)
         if isinstance(base, str) and base.endswith(".toml") and base not in presets():
             path = Path(base)
@@ -505,7 +572,32 @@ class Scenario:
         data = _plain(data)
         if not isinstance(data, dict):
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
+        if _route_file_of(data) is not None:
+            return _with_route_file(cls, data, Path.cwd(), cls.from_dict)
         return cls(_resolve_base(data))
+
+    @classmethod
+    def from_plan(
+        cls,
+        path: str | Path,
+        base: str | Path | Scenario = "delivery",
+        changes: Mapping[str, Any] | None = None,
+    ) -> Scenario:
+        """``base`` (a preset name, a scenario file or a Scenario) flying the route of a
+        QGroundControl ``.plan`` mission or a CSV of points (quadrs.scenario.route_files):
+        the route, its holds and speed, the start at home at the base's initial height, and a
+        duration just long enough. ``changes`` (dotted keys) are applied with it and win."""
+        from quadrs.scenario.route_files import read_route_file
+
+        if isinstance(base, Scenario):
+            start = base
+        elif str(base) in presets():
+            start = cls.preset(str(base))
+        else:
+            start = cls.from_toml(base)
+        extra = dict(changes or {})
+        height = float(extra.get("initial.position", start["initial.position"])[2])
+        return read_route_file(path, start_height=height).apply(start, extra)
 
     # -- output -------------------------------------------------------------------------
     def to_toml(self, like: str | None = None) -> str:
