@@ -214,17 +214,26 @@ def rust_module_graph() -> dict[str, set[str]]:
         if rel == ("lib",) or rel[-1] == "tests" or rel[-1].endswith("_tests"):
             continue
         module = rel[0]
-        code = path.read_text().split("#[cfg(test)]\nmod tests")[0]
+        code = re.split(r"#\[cfg\((?:all\()?test\b[^\]]*\]\s*mod tests", path.read_text())[0]
         code = re.sub(r"//.*", "", code)
         uses = set(re.findall(r"\bcrate::(\w+)", code))
         graph.setdefault(module, set()).update(uses - {module})
     return graph
 
 
+#: Kind families whose tables the scenario (`config`) holds: each kind declares its table in
+#: its own file and is built from the whole scenario, so `config` and the family name each
+#: other by design (the one-file-per-kind seam of docs/architecture.md). That edge alone is
+#: left out; any other cycle, also through these families, fails.
+ASSEMBLED_KINDS = {"control"}
+
+
 def test_the_engine_has_no_module_cycle():
     graph = rust_module_graph()
     assert {"config", "model", "integrate", "montecarlo"} <= set(graph)
     assert "config" in graph["integrate"]  # the walker sees `crate::` paths
+    assert "gust" not in graph["lane"]  # unit tests (also `cfg(all(test, ...))`) are left out
+    graph["config"] -= ASSEMBLED_KINDS
     cycle = find_cycle(graph)
     assert cycle is None, "engine module cycle: " + " -> ".join(cycle or [])
 

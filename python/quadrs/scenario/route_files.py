@@ -33,12 +33,31 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, TypeVar
 
-if TYPE_CHECKING:
-    from quadrs.scenario.scenario import Scenario
+_S = TypeVar("_S", bound="RoutableScenario")
 
-__all__ = ["RouteFile", "RouteFileError", "read_plan", "read_route_csv", "read_route_file"]
+
+class RoutableScenario(Protocol):
+    """What :meth:`RouteFile.apply` reads of a scenario. A
+    :class:`~quadrs.scenario.scenario.Scenario` is one; typed by what is read so that the
+    scenario module, which reads route files through this one, is not imported back."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+    def override(self: _S, changes: Mapping[str, Any]) -> _S: ...
+    def __getitem__(self, key: str) -> Any: ...
+    @property
+    def route(self) -> Any: ...
+
+
+__all__ = [
+    "RoutableScenario",
+    "RouteFile",
+    "RouteFileError",
+    "read_plan",
+    "read_route_csv",
+    "read_route_file",
+]
 
 Point = tuple[float, float, float]
 
@@ -73,7 +92,7 @@ class RouteFile:
         """The route's length along its straight legs (m)."""
         return sum(math.dist(a, b) for a, b in zip(self.points, self.points[1:], strict=False))
 
-    def apply(self, base: Scenario, changes: Mapping[str, Any] | None = None) -> Scenario:
+    def apply(self, base: _S, changes: Mapping[str, Any] | None = None) -> _S:
         """``base`` flying this route: ``trajectory.route``, ``.hold`` and (if the file sets
         it) ``.speed``, the start at the route's first point, and ``integrator.duration`` just
         long enough for it. The base's leg names go (they named its own legs); a turbulence
