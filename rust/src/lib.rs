@@ -84,7 +84,8 @@ mod _core {
         let labels = PyDict::new(m.py());
         let owned = crate::config::ControllerConfig::keys()
             .into_iter()
-            .chain(crate::config::ActuatorConfig::keys());
+            .chain(crate::config::ActuatorConfig::keys())
+            .chain(crate::config::WindTable::keys());
         for (key, k) in owned {
             units.set_item(&key, k.unit)?;
             labels.set_item(&key, k.label)?;

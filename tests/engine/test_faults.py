@@ -232,7 +232,8 @@ def test_fault_keys_have_units_labels_and_disperse(drop) -> None:
     for i in range(3):
         single = quadrs.simulate(short.realisation(5, i), "pd", seed=5, realisation=i)
         row = runs[(runs["realisation"] == i) & (runs["phase"] == "flight")].iloc[0]
-        assert row["tracking_rms"] == single.metrics.set_index("phase").loc["flight", "tracking_rms"]
+        flight = single.metrics.set_index("phase").loc["flight"]
+        assert row["tracking_rms"] == flight["tracking_rms"]
     with pytest.raises(quadrs.ScenarioError, match="not a number"):
         drop.override(
             {

@@ -185,6 +185,20 @@ impl Config {
                     "heading" => one(&mut w.heading, rest),
                     "shear" => flag(rest),
                     "roughness" => one(&mut w.roughness, rest),
+                    "table" => match (&mut w.table, rest) {
+                        (None, _) => Target::Missing,
+                        (Some(_), []) => Target::NotNumber,
+                        (Some(_), [Seg::Field(f)]) if f == "by" => Target::NotNumber,
+                        (Some(t), [Seg::Field(f), more @ ..]) if f == "points" => match more {
+                            [] => Target::NotNumber,
+                            [Seg::Index(i)] if *i < t.points.len() => Target::NotNumber,
+                            [Seg::Index(i), Seg::Index(j)] if *i < t.points.len() && *j < 4 => {
+                                Target::Number(&mut t.points[*i][*j])
+                            }
+                            _ => Target::Missing,
+                        },
+                        _ => Target::Missing,
+                    },
                     "gusts" => match rest {
                         [] => Target::NotNumber,
                         [Seg::Index(i), tail @ ..] if *i < w.gusts.len() => {

@@ -14,7 +14,9 @@ pub use crate::model::actuator::rotors::RotorFault;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
-pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
+pub use wind::{
+    DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, TableBy, Wind, WindTable,
+};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]
