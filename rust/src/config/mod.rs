@@ -10,7 +10,6 @@ pub mod route;
 pub mod wind;
 
 pub use crate::control::ControllerConfig;
-pub use crate::model::actuator::rotors::RotorFault;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -162,6 +161,27 @@ pub struct ActuatorConfig {
     pub battery_sag: f64,
 }
 
+params::params! {
+    /// One `[[actuator.faults]]` entry: rotor `rotor` gives `thrust_fraction` of its commanded
+    /// (clamped) thrust from `start` on (0: stuck off, or its propeller lost); flown by
+    /// `model::actuator::rotors`. Declared here, with `[actuator]`, so that `config` names no
+    /// `model` (the engine's modules form no cycle).
+    pub struct RotorFault {
+        /// Which rotor, 1 to 4 in the layout's order (docs/model.md "Rotors"); a key, not a
+        /// number a dispersion draws.
+        rotor: u32 => "-", "Failed rotor (1 to 4)";
+        start: f64 => "s", "Rotor fault start";
+        thrust_fraction: f64 => "-", "Thrust fraction the failed rotor gives";
+    }
+}
+
+/// `actuator.battery_sag`: the fraction of `thrust_max` lost by the end of the flight.
+pub const BATTERY_SAG: params::Key = params::Key {
+    name: "battery_sag",
+    unit: "-",
+    label: "Fraction of the rotor thrust limit lost by the end (battery sag)",
+};
+
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
@@ -170,7 +190,6 @@ impl ActuatorConfig {
     /// The keys `[actuator]` owns with a unit and a label (dotted, indices dropped): the
     /// rotors' faults and the battery's sag (`model::actuator::rotors`).
     pub fn keys() -> Vec<(String, params::Key)> {
-        use crate::model::actuator::rotors::BATTERY_SAG;
         use params::Params;
         let faults = RotorFault::KEYS
             .iter()
@@ -1380,7 +1399,6 @@ pub(crate) mod tests {
 
     #[test]
     fn faults_and_sag_are_checked_naming_their_key() {
-        use crate::model::actuator::rotors::RotorFault;
         let rotors = |edit: &dyn Fn(&mut ActuatorConfig)| {
             let mut c = paper();
             c.actuator.model = ActuatorModelName::Rotors;

@@ -14,32 +14,13 @@
 //! sqrt(f_i T_i / kf)), the command held over the step as always.
 
 use super::{Actuator, ActuatorModel, AnyActuator};
-use crate::config::params::{params, Key};
 use crate::config::Config;
+pub use crate::config::{RotorFault, BATTERY_SAG};
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State, Tick};
 
 pub use crate::config::allocation::{allocation, allocation_inverse, arm_directions, SPIN};
-
-params! {
-    /// One `[[actuator.faults]]` entry: rotor `rotor` gives `thrust_fraction` of its commanded
-    /// (clamped) thrust from `start` on (0: stuck off, or its propeller lost).
-    pub struct RotorFault {
-        /// Which rotor, 1 to 4 in the layout's order (docs/model.md "Rotors"); a key, not a
-        /// number a dispersion draws.
-        rotor: u32 => "-", "Failed rotor (1 to 4)";
-        start: f64 => "s", "Rotor fault start";
-        thrust_fraction: f64 => "-", "Thrust fraction the failed rotor gives";
-    }
-}
-
-/// `actuator.battery_sag`: the fraction of `thrust_max` lost by the end of the flight.
-pub const BATTERY_SAG: Key = Key {
-    name: "battery_sag",
-    unit: "-",
-    label: "Fraction of the rotor thrust limit lost by the end (battery sag)",
-};
 
 /// The rotors' parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
