@@ -127,7 +127,7 @@ def drop() -> quadrs.Scenario:
 
 
 def test_a_weak_motor_flies_on_and_tracks_worse(drop) -> None:
-    """Rotor 1 at 80 % from 5 s (4 x 12 N healthy, 38.4 N left for 26.5 N of weight): the
+    """Rotor 1 at 80 % from 5 s (4 x 12 N healthy, 45.6 N left for 26.5 N of weight): the
     flight ends ok over the drop point, the other rotors and the attitude take up the loss,
     and the tracking is worse than on healthy rotors through the same gusts."""
     weak = drop.override({"actuator.faults": [{"rotor": 1, "start": 5.0, "thrust_fraction": 0.8}]})
