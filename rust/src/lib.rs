@@ -82,7 +82,11 @@ mod _core {
         // kind's own declaration (`config::params!`).
         let units = PyDict::new(m.py());
         let labels = PyDict::new(m.py());
-        for (key, k) in crate::config::ControllerConfig::keys() {
+        let owned = crate::config::ControllerConfig::keys()
+            .into_iter()
+            .chain(crate::config::ActuatorConfig::keys())
+            .chain(crate::config::WindTable::keys());
+        for (key, k) in owned {
             units.set_item(&key, k.unit)?;
             labels.set_item(&key, k.label)?;
         }

@@ -327,6 +327,29 @@ def _with_route_file(cls: type[Scenario], data: dict[str, Any], folder: Path,
                              "trajectory.route_file") from None  # fmt: skip
 
 
+def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
+    """A ``[wind.table]`` that names a ``file`` (relative to ``folder``) gets the file's rows
+    as its ``points`` instead (:mod:`quadrs.scenario.wind_table`), in place: the engine
+    receives the numbers, and the scenario carries the wind it flies."""
+    wind = data.get("wind")
+    table = wind.get("table") if isinstance(wind, dict) else None
+    if not isinstance(table, dict) or "file" not in table:
+        return
+    from quadrs.scenario.wind_table import read_wind_table
+
+    name = table["file"]
+    if not isinstance(name, str) or not name:
+        raise scenario_error(f"wind.table.file must name a CSV file, got {name!r}",
+                             "wind.table.file")  # fmt: skip
+    path = Path(name) if Path(name).is_absolute() else folder / name
+    try:
+        points = read_wind_table(path, table.get("by", ""))
+    except ValueError as e:
+        raise scenario_error(f"wind.table.file = {name!r}: {e}", "wind.table.file") from None
+    del table["file"]
+    table["points"] = points
+
+
 def _frozen(value: Any) -> Any:
     """A hashable image of a plain value that is equal exactly when the values are equal
     (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
@@ -508,6 +531,7 @@ class Scenario:
         if isinstance(table, dict) and table:
             keys = canonical_keys(table, "dispersions")
             data["dispersions"] = dict(zip(keys, table.values(), strict=True))
+        _read_wind_table(data, Path.cwd())
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
         plausibility.check(data)  # and one that can fly; implausible values warn
@@ -543,6 +567,7 @@ class Scenario:
             raise ScenarioError(f"{source} is not valid TOML: {e}") from e
         except RecursionError:
             raise ScenarioError(f"{source}: values nested too deeply") from None
+        _read_wind_table(data, Path(source).parent if source != "<string>" else Path.cwd())
         if _route_file_of(data) is not None:
             folder = Path(source).parent if source != "<string>" else Path.cwd()
             return _with_route_file(cls, data, folder, lambda rest: cls.from_toml_string(

@@ -74,6 +74,7 @@ UNITS: dict[str, str] = {
     "wind.gusts.duration": "s",
     "wind.gusts.amplitude": "m/s",
     "wind.gusts.shape": "-",
+    "wind.table.file": "-",
     "integrator.dt": "s",
     "integrator.duration": "s",
     "metrics.spectrum_rate": "Hz",

@@ -136,6 +136,18 @@ impl Config {
                     "time_constant" => one(&mut a.time_constant, rest),
                     "thrust_min" => one(&mut a.thrust_min, rest),
                     "thrust_max" => one(&mut a.thrust_max, rest),
+                    "battery_sag" => one(&mut a.battery_sag, rest),
+                    "faults" => match rest {
+                        [] => Target::NotNumber,
+                        [Seg::Index(i), tail @ ..] if *i < a.faults.len() => match tail {
+                            [] => Target::NotNumber,
+                            [Seg::Field(f), sub @ ..] => {
+                                crate::config::params::Params::target(&mut a.faults[*i], f, sub)
+                            }
+                            _ => Target::Missing,
+                        },
+                        _ => Target::Missing,
+                    },
                     _ => Target::Missing,
                 }
             }
@@ -173,6 +185,20 @@ impl Config {
                     "heading" => one(&mut w.heading, rest),
                     "shear" => flag(rest),
                     "roughness" => one(&mut w.roughness, rest),
+                    "table" => match (&mut w.table, rest) {
+                        (None, _) => Target::Missing,
+                        (Some(_), []) => Target::NotNumber,
+                        (Some(_), [Seg::Field(f)]) if f == "by" => Target::NotNumber,
+                        (Some(t), [Seg::Field(f), more @ ..]) if f == "points" => match more {
+                            [] => Target::NotNumber,
+                            [Seg::Index(i)] if *i < t.points.len() => Target::NotNumber,
+                            [Seg::Index(i), Seg::Index(j)] if *i < t.points.len() && *j < 4 => {
+                                Target::Number(&mut t.points[*i][*j])
+                            }
+                            _ => Target::Missing,
+                        },
+                        _ => Target::Missing,
+                    },
                     "gusts" => match rest {
                         [] => Target::NotNumber,
                         [Seg::Index(i), tail @ ..] if *i < w.gusts.len() => {
@@ -342,6 +368,38 @@ mod tests {
         ] {
             let e = cfg.per_realisation_key(key).unwrap_err();
             assert!(e.message.contains(says) && e.message.contains(key), "{e:?}");
+        }
+    }
+
+    #[test]
+    fn fault_keys_are_per_realisation_numbers() {
+        use crate::config::{ActuatorModelName, RotorFault};
+        let mut cfg = paper();
+        cfg.actuator.model = ActuatorModelName::Rotors;
+        cfg.actuator.faults = vec![RotorFault {
+            rotor: 2,
+            start: 1.0,
+            thrust_fraction: 0.8,
+        }];
+        for key in [
+            "actuator.faults[0].start",
+            "actuator.faults[0].thrust_fraction",
+            "actuator.battery_sag",
+        ] {
+            let path = cfg.per_realisation_key(key).unwrap();
+            let mut c = cfg.clone();
+            assert!(c.set_number(&path, 0.25), "{key}");
+            assert_ne!(c.to_json(), cfg.to_json(), "{key}");
+        }
+        for (key, says) in [
+            ("actuator.faults[0].rotor", "not a number"),
+            ("actuator.faults", "not a number"),
+            ("actuator.faults[0]", "not a number"),
+            ("actuator.faults[1].start", "not a key"),
+            ("actuator.faults[0].stop", "not a key"),
+        ] {
+            let e = cfg.per_realisation_key(key).unwrap_err();
+            assert!(e.message.contains(says), "{key}: {e:?}");
         }
     }
 

@@ -13,7 +13,9 @@ pub use crate::control::ControllerConfig;
 pub use dispersions::{Dispersions, Distribution};
 use serde::{Deserialize, Serialize};
 use std::fmt;
-pub use wind::{DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, Wind};
+pub use wind::{
+    DiscreteGust, GustAirspeed, GustAltitude, GustShape, Intensity, Shear, TableBy, Wind, WindTable,
+};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]
@@ -151,6 +153,51 @@ pub struct ActuatorConfig {
     pub thrust_min: f64,
     #[serde(default = "default_rotor_thrust_max")]
     pub thrust_max: f64,
+    /// Rotors that give a fraction of their commanded thrust from a time on (rotors only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<RotorFault>,
+    /// The fraction of `thrust_max` lost by the end of the flight, linearly (rotors only).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub battery_sag: f64,
+}
+
+params::params! {
+    /// One `[[actuator.faults]]` entry: rotor `rotor` gives `thrust_fraction` of its commanded
+    /// (clamped) thrust from `start` on (0: stuck off, or its propeller lost); flown by
+    /// `model::actuator::rotors`. Declared here, with `[actuator]`, so that `config` names no
+    /// `model` (the engine's modules form no cycle).
+    pub struct RotorFault {
+        /// Which rotor, 1 to 4 in the layout's order (docs/model.md "Rotors"); a key, not a
+        /// number a dispersion draws.
+        rotor: u32 => "-", "Failed rotor (1 to 4)";
+        start: f64 => "s", "Rotor fault start";
+        thrust_fraction: f64 => "-", "Thrust fraction the failed rotor gives";
+    }
+}
+
+/// `actuator.battery_sag`: the fraction of `thrust_max` lost by the end of the flight.
+pub const BATTERY_SAG: params::Key = params::Key {
+    name: "battery_sag",
+    unit: "-",
+    label: "Fraction of the rotor thrust limit lost by the end (battery sag)",
+};
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+impl ActuatorConfig {
+    /// The keys `[actuator]` owns with a unit and a label (dotted, indices dropped): the
+    /// rotors' faults and the battery's sag (`model::actuator::rotors`).
+    pub fn keys() -> Vec<(String, params::Key)> {
+        use params::Params;
+        let faults = RotorFault::KEYS
+            .iter()
+            .map(|k| (format!("actuator.faults.{}", k.name), *k));
+        faults
+            .chain([(format!("actuator.{}", BATTERY_SAG.name), BATTERY_SAG)])
+            .collect()
+    }
 }
 
 impl Default for ActuatorConfig {
@@ -163,6 +210,8 @@ impl Default for ActuatorConfig {
             time_constant: default_time_constant(),
             thrust_min: 0.0,
             thrust_max: default_rotor_thrust_max(),
+            faults: Vec::new(),
+            battery_sag: 0.0,
         }
     }
 }
@@ -826,6 +875,7 @@ impl Config {
                 ),
             ));
         }
+        self.validate_faults()?;
         if a.model != ActuatorModelName::Rotors {
             return Ok(());
         }
@@ -901,6 +951,130 @@ impl Config {
                     weight / 4.0
                 ),
             ));
+        }
+        self.validate_fault_hover(weight)
+    }
+
+    /// `actuator.faults` and `actuator.battery_sag`: each value in range, at most one fault a
+    /// rotor, and none of them without rotors (the ideal actuators have no rotor to fail and
+    /// no thrust limit to sag).
+    fn validate_faults(&self) -> Result<(), ConfigError> {
+        let a = &self.actuator;
+        let sag = a.battery_sag;
+        if !(sag.is_finite() && (0.0..1.0).contains(&sag)) {
+            return Err(ConfigError::new(
+                "actuator.battery_sag",
+                format!(
+                    "actuator.battery_sag must be in [0, 1) (the fraction of actuator.thrust_max \
+                     lost by the end of the flight), got {sag:?}"
+                ),
+            ));
+        }
+        for (i, f) in a.faults.iter().enumerate() {
+            let key = format!("actuator.faults[{i}]");
+            if !(1..=4).contains(&f.rotor) {
+                return Err(ConfigError::new(
+                    format!("{key}.rotor"),
+                    format!("{key}.rotor must be 1, 2, 3 or 4, got {}", f.rotor),
+                ));
+            }
+            if let Some(j) = a.faults[..i].iter().position(|g| g.rotor == f.rotor) {
+                return Err(ConfigError::new(
+                    format!("{key}.rotor"),
+                    format!(
+                        "{key}.rotor: rotor {} already fails in actuator.faults[{j}] (one fault a \
+                         rotor), got it twice",
+                        f.rotor
+                    ),
+                ));
+            }
+            non_negative(format_args!("{key}.start"), f.start)?;
+            let x = f.thrust_fraction;
+            if !(x.is_finite() && (0.0..=1.0).contains(&x)) {
+                return Err(ConfigError::new(
+                    format!("{key}.thrust_fraction"),
+                    format!(
+                        "{key}.thrust_fraction must be in [0, 1] (the fraction of its commanded \
+                         thrust the rotor still gives), got {x:?}"
+                    ),
+                ));
+            }
+        }
+        if a.model != ActuatorModelName::Rotors {
+            let (key, what) = if !a.faults.is_empty() {
+                ("actuator.faults", format!("{} fault(s)", a.faults.len()))
+            } else if sag != 0.0 {
+                ("actuator.battery_sag", format!("{sag:?}"))
+            } else {
+                return Ok(());
+            };
+            return Err(ConfigError::new(
+                key,
+                format!(
+                    "{key} needs actuator.model = \"rotors\" (the ideal actuators have no rotor \
+                     to fail and no thrust limit to sag), got {what} with actuator.model = \"ideal\""
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// With rotors: the thrust the rotors can still give at the end of the flight (the least
+    /// over the flight: the battery only sags and a fault only starts) must hold the weight.
+    /// Else the scenario is refused, naming the fault (or the sag) that takes the total below
+    /// the weight and the numbers, rather than flown to a slow fall that could end `ok`.
+    fn validate_fault_hover(&self, weight: f64) -> Result<(), ConfigError> {
+        let a = &self.actuator;
+        if a.faults.is_empty() && a.battery_sag == 0.0 {
+            return Ok(());
+        }
+        let end = self.integrator.duration;
+        let top = a.thrust_max * (1.0 - a.battery_sag);
+        let total = |upto: f64| -> f64 {
+            (1..=4u32)
+                .map(|r| {
+                    let f = a
+                        .faults
+                        .iter()
+                        .find(|f| f.rotor == r && f.start <= upto)
+                        .map_or(1.0, |f| f.thrust_fraction);
+                    f * top
+                })
+                .sum()
+        };
+        let weighs = format!(
+            "the weight (vehicle.mass + payload.mass) x environment.gravity = {weight:?} N"
+        );
+        if 4.0 * top < weight {
+            return Err(ConfigError::new(
+                "actuator.battery_sag",
+                format!(
+                    "actuator.battery_sag = {:?} leaves the rotors too little thrust to hover by \
+                     the end of the flight: 4 x {top:?} N is below {weighs}",
+                    a.battery_sag
+                ),
+            ));
+        }
+        let mut order: Vec<usize> = (0..a.faults.len()).collect();
+        order.sort_by(|&i, &j| a.faults[i].start.total_cmp(&a.faults[j].start));
+        for i in order {
+            let f = &a.faults[i];
+            if f.start > end {
+                break;
+            }
+            let left = total(f.start);
+            if left < weight {
+                let key = format!("actuator.faults[{i}].thrust_fraction");
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} = {:?} (rotor {} from {:?} s) leaves the rotors too little thrust \
+                         to hover: {left:?} N at the end of the flight (actuator.thrust_max = \
+                         {:?} N, actuator.battery_sag = {:?}) is below {weighs}",
+                        f.thrust_fraction, f.rotor, f.start, a.thrust_max, a.battery_sag
+                    ),
+                ));
+            }
         }
         Ok(())
     }
@@ -1221,6 +1395,90 @@ pub(crate) mod tests {
         let mut v = paper_value();
         edit(&mut v);
         Config::from_json(&v.to_string())
+    }
+
+    #[test]
+    fn faults_and_sag_are_checked_naming_their_key() {
+        let rotors = |edit: &dyn Fn(&mut ActuatorConfig)| {
+            let mut c = paper();
+            c.actuator.model = ActuatorModelName::Rotors;
+            edit(&mut c.actuator);
+            c.validate()
+        };
+        fn f(rotor: u32, start: f64, thrust_fraction: f64) -> RotorFault {
+            RotorFault {
+                rotor,
+                start,
+                thrust_fraction,
+            }
+        }
+        rotors(&|a| {
+            a.faults = vec![f(1, 10.0, 0.8), f(4, 0.0, 0.5)];
+            a.battery_sag = 0.2;
+        })
+        .expect("weak motors and a sagging battery that still hover");
+        for (edit, key, says) in [
+            (
+                (|a: &mut ActuatorConfig| a.faults = vec![f(5, 1.0, 0.5)]) as fn(&mut _),
+                "actuator.faults[0].rotor",
+                "must be 1, 2, 3 or 4, got 5",
+            ),
+            (
+                |a| a.faults = vec![f(2, 1.0, 0.5), f(2, 3.0, 0.5)],
+                "actuator.faults[1].rotor",
+                "rotor 2 already fails in actuator.faults[0]",
+            ),
+            (
+                |a| a.faults = vec![f(2, -1.0, 0.5)],
+                "actuator.faults[0].start",
+                "got -1.0",
+            ),
+            (
+                |a| a.faults = vec![f(2, 1.0, 1.5)],
+                "actuator.faults[0].thrust_fraction",
+                "must be in [0, 1]",
+            ),
+            (|a| a.battery_sag = 1.0, "actuator.battery_sag", "[0, 1)"),
+            (|a| a.battery_sag = f64::NAN, "actuator.battery_sag", "NaN"),
+        ] {
+            let e = rotors(&|a| edit(a)).unwrap_err();
+            assert_eq!(e.key, key, "{e}");
+            assert!(e.message.contains(says) && !e.message.contains('\n'), "{e}");
+        }
+        // Too little thrust left to hold the weight (26.5 N; 4 x 12 N healthy): refused, with
+        // the numbers, naming the fault that takes the total below it.
+        let e = rotors(&|a| {
+            a.faults = vec![f(1, 5.0, 0.5), f(2, 20.0, 0.1), f(3, 30.0, 0.1)];
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "actuator.faults[2].thrust_fraction", "{e}");
+        assert!(e.message.contains("too little thrust to hover"), "{e}");
+        assert!(
+            e.message.contains("20.4") && e.message.contains("23.74"),
+            "{e}"
+        );
+        // A fault after the end of the flight never happens.
+        rotors(&|a| a.faults = vec![f(1, 99.0, 0.0), f(2, 99.0, 0.0), f(3, 99.0, 0.0)])
+            .expect("faults after the flight");
+        let e = rotors(&|a| a.battery_sag = 0.6).unwrap_err();
+        assert_eq!(e.key, "actuator.battery_sag");
+        assert!(
+            e.message
+                .contains("to hover by the end of the flight: 4 x 4.8"),
+            "{e}"
+        );
+        // The ideal actuators have no rotors to fail.
+        let mut c = paper();
+        c.actuator.faults = vec![f(1, 1.0, 0.5)];
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.key, "actuator.faults");
+        assert!(
+            e.message.contains("needs actuator.model = \"rotors\""),
+            "{e}"
+        );
+        let mut c = paper();
+        c.actuator.battery_sag = 0.1;
+        assert_eq!(c.validate().unwrap_err().key, "actuator.battery_sag");
     }
 
     #[test]

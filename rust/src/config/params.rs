@@ -51,6 +51,17 @@ impl Field for Option<f64> {
     }
 }
 
+/// A whole number (a rotor's index): a key, but not one a dispersion can draw.
+impl Field for u32 {
+    fn target(&mut self, rest: &[Seg]) -> Target<'_> {
+        if rest.is_empty() {
+            Target::NotNumber
+        } else {
+            Target::Missing
+        }
+    }
+}
+
 impl Field for bool {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
         if rest.is_empty() {

@@ -2,6 +2,7 @@
 //! (mean wind with its shear profile, discrete gusts) and the `gust.*` values that may follow
 //! the vehicle (`gust.altitude = "vehicle"`, `gust.airspeed = "relative"`, `gust.intensity`).
 
+use super::params::Key;
 use super::{finite, non_negative, positive, ConfigError};
 use serde::{Deserialize, Serialize};
 
@@ -144,6 +145,103 @@ pub struct DiscreteGust {
     pub shape: GustShape,
 }
 
+/// `wind.table.by`: what a wind table's first column is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TableBy {
+    /// s, the time since the start of the flight.
+    Time,
+    /// m, the quadrotor's altitude z.
+    Altitude,
+}
+
+/// `[wind.table]`: a measured wind, (t or z, wind_x, wind_y, wind_z) rows interpolated
+/// linearly and held at the end rows' values outside them (docs/model.md, "A measured wind").
+/// The Python layer reads the rows from the CSV file the scenario names (`file`), so the
+/// engine receives the numbers, not the path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindTable {
+    pub by: TableBy,
+    /// Rows of (t s or z m, wind_x, wind_y, wind_z m/s inertial), the first column strictly
+    /// increasing.
+    pub points: Vec<[f64; 4]>,
+}
+
+impl WindTable {
+    /// `[wind.table]`'s keys with their units and labels (dotted, indices dropped); its `file`
+    /// is read in Python and never reaches the engine.
+    pub fn keys() -> Vec<(String, Key)> {
+        const KEYS: [Key; 2] = [
+            Key {
+                name: "by",
+                unit: "-",
+                label: "Wind table by time or altitude",
+            },
+            Key {
+                name: "points",
+                unit: "[s or m, m/s, m/s, m/s]",
+                label: "Wind table rows (t or z, wind x, y, z)",
+            },
+        ];
+        KEYS.iter()
+            .map(|k| (format!("wind.table.{}", k.name), *k))
+            .collect()
+    }
+
+    fn validate(&self) -> Result<(), ConfigError> {
+        if self.points.is_empty() {
+            return Err(ConfigError::new(
+                "wind.table.points",
+                "wind.table.points needs at least one row (t or z, wind_x, wind_y, wind_z), got none",
+            ));
+        }
+        for (i, row) in self.points.iter().enumerate() {
+            for (j, x) in row.iter().enumerate() {
+                finite(format_args!("wind.table.points[{i}][{j}]"), *x)?;
+            }
+            if i > 0 && row[0] <= self.points[i - 1][0] {
+                let key = format!("wind.table.points[{i}][0]");
+                let what = match self.by {
+                    TableBy::Time => "time",
+                    TableBy::Altitude => "altitude",
+                };
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} ({what}) must be greater than the row before's ({:?}): the rows \
+                         in increasing {what}, got {:?}",
+                        self.points[i - 1][0],
+                        row[0]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The wind (m/s, inertial) of a table's `points` at `x` (s or m): linear between the rows,
+/// the first row's below them and the last's above (held); NaN at a NaN `x`.
+#[inline]
+pub fn table_wind(points: &[[f64; 4]], x: f64) -> [f64; 3] {
+    let (first, last) = (points[0], points[points.len() - 1]);
+    if x.is_nan() {
+        return [f64::NAN; 3];
+    }
+    if x <= first[0] {
+        return [first[1], first[2], first[3]];
+    }
+    if x >= last[0] {
+        return [last[1], last[2], last[3]];
+    }
+    // The first row past x: 1..len-1, as x lies strictly inside.
+    let i = points.partition_point(|p| p[0] <= x);
+    let (a, b) = (points[i - 1], points[i]);
+    let f = (x - a[0]) / (b[0] - a[0]);
+    [1, 2, 3].map(|j| a[j] + (b[j] - a[j]) * f)
+}
+
 /// The `[wind]` table: a mean wind over the whole flight and discrete gusts. Absent: no wind
 /// outside the section-4 gust window (the paper's flight).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -162,6 +260,9 @@ pub struct Wind {
     pub roughness: f64,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub gusts: Vec<DiscreteGust>,
+    /// A measured wind added to the others (`[wind.table]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<WindTable>,
 }
 
 fn default_roughness() -> f64 {
@@ -180,6 +281,7 @@ impl Default for Wind {
             shear: Shear::None,
             roughness: DEFAULT_ROUGHNESS,
             gusts: Vec::new(),
+            table: None,
         }
     }
 }
@@ -190,9 +292,9 @@ impl Wind {
         *self == Self::default()
     }
 
-    /// Whether anything blows outside the gust window: a mean wind or a discrete gust.
+    /// Whether anything blows outside the gust window: a mean wind, a discrete gust or a table.
     pub fn blows(&self) -> bool {
-        self.speed != 0.0 || !self.gusts.is_empty()
+        self.speed != 0.0 || !self.gusts.is_empty() || self.table.is_some()
     }
 
     /// Check every value; the first problem found is returned with its key.
@@ -215,6 +317,9 @@ impl Wind {
             for (j, a) in g.amplitude.iter().enumerate() {
                 finite(format_args!("wind.gusts[{i}].amplitude[{j}]"), *a)?;
             }
+        }
+        if let Some(t) = &self.table {
+            t.validate()?;
         }
         Ok(())
     }

@@ -329,7 +329,7 @@ pub struct LaneWind<'f, 'a, L> {
     gust: Option<LaneGust<'a, L>>,
     /// The turbulence's scales follow the vehicle (every lane's).
     follow: bool,
-    /// A `[wind]` mean wind blows (in every lane).
+    /// A mean air blows (a `[wind]` mean wind or a `[wind.table]`, in every lane).
     steady: bool,
     gusts: Gusts,
     /// Some lane's source reads the quadrotor's altitude or velocity.
@@ -406,6 +406,7 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
                 };
             }
             at_vehicles(
+                step,
                 &self.fields,
                 &kin,
                 rescale,
@@ -455,12 +456,14 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
     }
 }
 
-/// Each lane's `WindField::at_vehicle` (the mean wind into `steady[l]`, the step's filter numbers
-/// into `coefficients[l]` if `rescale`): scalar work and libm calls, kept out of the flight
+/// Each lane's `WindField::at_vehicle` (the mean air, the `[wind]` mean wind and a table's
+/// wind, into `steady[l]`; the step's filter numbers into `coefficients[l]` if `rescale`):
+/// scalar work and libm calls, kept out of the flight
 /// loop's line so that the loop saves its vector registers once per step around it, not around
 /// every call it makes (every vector register is the caller's to save).
 #[inline(never)]
 fn at_vehicles(
+    step: u64,
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
     rescale: bool,
@@ -468,7 +471,7 @@ fn at_vehicles(
     steady: &mut [[f64; 3]; MAX_LANES],
 ) {
     for (l, (f, out)) in fields.iter().zip(coefficients.iter_mut()).enumerate() {
-        if let Some(m) = f.at_vehicle(&kin[l], rescale.then_some(out)) {
+        if let Some(m) = f.at_vehicle(step, &kin[l], rescale.then_some(out)) {
             steady[l] = m;
         }
     }
@@ -755,7 +758,7 @@ mod tests {
 
     // ---- The whole wind of a lane-set --------------------------------------------------
 
-    use crate::config::{DiscreteGust, GustAirspeed, GustShape, Shear};
+    use crate::config::{DiscreteGust, GustAirspeed, GustShape, Shear, TableBy, WindTable};
 
     fn ramp(start: f64) -> DiscreteGust {
         DiscreteGust {
@@ -821,7 +824,23 @@ mod tests {
     /// The delivery preset's wind and its variants: turbulence that follows the vehicle in
     /// altitude, in airspeed or both, a sheared mean wind, discrete gusts, turned axes.
     fn whole_flight_fields() -> Vec<WindField> {
-        let edits: [&dyn Fn(&mut Config); 7] = [
+        let by_time = WindTable {
+            by: TableBy::Time,
+            points: vec![
+                [0.5, 1.0, 0.0, 0.0],
+                [1.5, 2.0, -1.0, 0.5],
+                [2.0, 0.0, 0.0, 0.0],
+            ],
+        };
+        let by_altitude = WindTable {
+            by: TableBy::Altitude,
+            points: vec![
+                [0.0, 0.0, 0.0, 0.0],
+                [5.0, 3.0, 1.0, 0.0],
+                [10.0, 6.0, -2.0, 0.5],
+            ],
+        };
+        let edits: [&dyn Fn(&mut Config); 9] = [
             &|c| {
                 c.gust.altitude = GustAltitude::Vehicle;
                 c.gust.airspeed = GustAirspeed::Relative;
@@ -853,6 +872,20 @@ mod tests {
                 c.wind.gusts = vec![ramp(0.05)];
             },
             &|c| c.wind.gusts = vec![ramp(0.6)],
+            // A measured wind by time with turbulence through the air it moves, and one by
+            // altitude over a sheared mean wind with a gust.
+            &|c| {
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.wind.table = Some(by_time.clone());
+            },
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.wind.speed = 2.0;
+                c.wind.shear = Shear::Log;
+                c.wind.gusts = vec![ramp(0.2)];
+                c.wind.table = Some(by_altitude.clone());
+            },
         ];
         edits
             .iter()

@@ -4,9 +4,10 @@
 use super::filter::{step_fixed, Coefficients, GustFilter, Normals};
 use super::spectra::low_altitude_scales;
 use super::spectra::METRES_PER_FOOT;
-use crate::config::wind::{discrete_gust, shear_factor_with, shear_log_reference};
+use crate::config::wind::{discrete_gust, shear_factor_with, shear_log_reference, table_wind};
 use crate::config::{
-    Config, ConfigError, DiscreteGust, GustAirspeed, GustAltitude, GustComponent, Shear,
+    Config, ConfigError, DiscreteGust, GustAirspeed, GustAltitude, GustComponent, Shear, TableBy,
+    WindTable,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -154,6 +155,8 @@ pub struct WindField {
     steady: Option<Steady>,
     /// The `[[wind.gusts]]`.
     gusts: Vec<DiscreteGust>,
+    /// The `[wind.table]`, a measured wind (by time or by the quadrotor's altitude).
+    table: Option<WindTable>,
 }
 
 /// The unit normals of one flight's turbulence: its seeded stream, or innovations given
@@ -304,6 +307,7 @@ impl WindField {
             axes: None,
             steady,
             gusts: wind.gusts.clone(),
+            table: wind.table.clone(),
         };
         if !g.enabled {
             return Ok(field);
@@ -385,7 +389,7 @@ impl WindField {
         } else {
             Kinematics::AT_REST
         };
-        let steady = self.steady.map(|m| m.at(kin.z));
+        let steady = self.mean_air(step, kin.z);
         let mut w = if turbulent {
             self.turbulence(state, step, &kin, steady)
         } else {
@@ -409,7 +413,7 @@ impl WindField {
     /// altitude and the discrete gusts) at `step`: what a prescribed wind is added to.
     #[inline]
     pub fn deterministic(&self, step: u64, kin: &Kinematics) -> [f64; 3] {
-        let mut w = self.steady.map_or([0.0; 3], |m| m.at(kin.z));
+        let mut w = self.mean_air(step, kin.z).unwrap_or([0.0; 3]);
         if !self.gusts.is_empty() {
             let g = self.discrete_gusts(step);
             for (w, g) in w.iter_mut().zip(g) {
@@ -438,17 +442,48 @@ impl WindField {
         w
     }
 
-    /// Whether something blows outside the gust window (a mean wind, a discrete gust): then
-    /// the wind is sampled at every step.
+    /// The mean air the turbulence rides on at the step `step` with the quadrotor at altitude
+    /// `z`: the `[wind]` mean wind plus the `[wind.table]`'s wind (None where neither blows).
+    #[inline]
+    fn mean_air(&self, step: u64, z: f64) -> Option<[f64; 3]> {
+        let steady = self.steady.map(|m| m.at(z));
+        let Some(w) = self.table_at(step, z) else {
+            return steady;
+        };
+        Some(match steady {
+            None => w,
+            Some(m) => [m[0] + w[0], m[1] + w[1], m[2] + w[2]],
+        })
+    }
+
+    /// The `[wind.table]`'s wind (m/s, inertial) at the step `step` with the quadrotor at
+    /// altitude `z`, if the scenario has a table.
+    #[inline]
+    pub fn table_at(&self, step: u64, z: f64) -> Option<[f64; 3]> {
+        let table = self.table.as_ref()?;
+        let x = match table.by {
+            TableBy::Time => step as f64 * self.dt,
+            TableBy::Altitude => z,
+        };
+        Some(table_wind(&table.points, x))
+    }
+
+    /// Whether something blows outside the gust window (a mean wind, a discrete gust, a wind
+    /// table): then the wind is sampled at every step.
     #[inline]
     pub fn blows(&self) -> bool {
-        self.steady.is_some() || !self.gusts.is_empty()
+        self.steady.is_some() || !self.gusts.is_empty() || self.table.is_some()
     }
 
     /// Whether a source reads the quadrotor's altitude or velocity.
     #[inline]
     pub fn follows_vehicle(&self) -> bool {
-        self.follow.is_some() || self.steady.is_some_and(|m| m.shear != Shear::None)
+        self.follow.is_some()
+            || self.steady.is_some_and(|m| m.shear != Shear::None)
+            || self
+                .table
+                .as_ref()
+                .is_some_and(|t| t.by == TableBy::Altitude)
     }
 
     /// The turbulence of a step inside the window, `gust.mean_wind` included, inertial.
@@ -549,6 +584,7 @@ impl WindField {
     #[inline(always)]
     pub(super) fn at_vehicle(
         &self,
+        step: u64,
         kin: &Kinematics,
         coefficients: Option<&mut [Coefficients; 3]>,
     ) -> Option<[f64; 3]> {
@@ -557,7 +593,7 @@ impl WindField {
         } else {
             Kinematics::AT_REST
         };
-        let steady = self.steady.map(|m| m.at(kin.z));
+        let steady = self.mean_air(step, kin.z);
         if let (Some(out), Some(f)) = (coefficients, &self.follow) {
             let (sigma, length, v) = Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]));
             for ((slot, filter), i) in out.iter_mut().zip(&self.filters).zip(0..) {
@@ -575,9 +611,9 @@ impl WindField {
         self.follow.is_some()
     }
 
-    /// Whether the `[wind]` mean wind blows.
+    /// Whether a mean air blows (the `[wind]` mean wind or a `[wind.table]`).
     pub(super) fn has_steady(&self) -> bool {
-        self.steady.is_some()
+        self.steady.is_some() || self.table.is_some()
     }
 
     /// The `[[wind.gusts]]`.
@@ -1086,6 +1122,131 @@ mod tests {
         let (mut a, mut b) = (plain.realisation(4, 1), zero.realisation(4, 1));
         for n in 0..50 {
             assert_eq!(plain.sample(&mut a, n), zero.sample(&mut b, n));
+        }
+    }
+
+    /// A table is interpolated linearly between its rows and held at its end rows' values
+    /// outside them; a constant table blows exactly the `[wind]` mean wind it copies, through
+    /// the turbulence too (the relative airspeed is through the same mean air).
+    #[test]
+    fn a_wind_table_interpolates_holds_and_adds_like_a_mean_wind() {
+        use crate::config::wind::table_wind;
+        use crate::config::{TableBy, WindTable};
+        let points = [
+            [0.0, 1.0, 0.0, -1.0],
+            [10.0, 3.0, 2.0, 1.0],
+            [20.0, 3.0, -2.0, 0.0],
+        ];
+        assert_eq!(table_wind(&points, -5.0), [1.0, 0.0, -1.0]);
+        assert_eq!(table_wind(&points, 0.0), [1.0, 0.0, -1.0]);
+        assert_eq!(table_wind(&points, 2.5), [1.5, 0.5, -0.5]);
+        assert_eq!(table_wind(&points, 10.0), [3.0, 2.0, 1.0]);
+        assert_eq!(table_wind(&points, 15.0), [3.0, 0.0, 0.5]);
+        assert_eq!(table_wind(&points, 25.0), [3.0, -2.0, 0.0]);
+        assert!(table_wind(&points, f64::NAN).iter().all(|w| w.is_nan()));
+        assert_eq!(table_wind(&points[..1], 7.0), [1.0, 0.0, -1.0]);
+
+        let windy = |c: &mut Config| {
+            c.gust.components = GustComponent::ALL.to_vec();
+            c.gust.altitude = GustAltitude::Vehicle;
+            c.gust.airspeed = GustAirspeed::Relative;
+        };
+        let mean = whole(0.01, |c| {
+            windy(c);
+            c.wind.speed = 4.0;
+            c.wind.heading = 30.0;
+        });
+        let m = mean.mean_at(0.0);
+        for by in [TableBy::Time, TableBy::Altitude] {
+            let table = whole(0.01, |c| {
+                windy(c);
+                c.wind.heading = 30.0;
+                c.wind.table = Some(WindTable {
+                    by,
+                    points: vec![[3.0, m[0], m[1], m[2]], [9.0, m[0], m[1], m[2]]],
+                });
+            });
+            assert!(table.blows() && table.follows_vehicle());
+            let (mut a, mut b) = (mean.realisation(1, 2), table.realisation(1, 2));
+            for step in 0..400 {
+                let kin = at(0.02 * step as f64, [2.0, -1.0, 0.3]);
+                let (x, y) = (
+                    mean.sample_at(&mut a, step, &kin),
+                    table.sample_at(&mut b, step, &kin),
+                );
+                assert_eq!(
+                    x.map(f64::to_bits),
+                    y.map(f64::to_bits),
+                    "{by:?} step {step}"
+                );
+                let d = table.deterministic(step, &kin());
+                assert_eq!(d.map(f64::to_bits), m.map(f64::to_bits));
+            }
+        }
+        // By altitude, at the quadrotor's height; by time, at the step's time; added to the
+        // `[wind]` mean wind.
+        let both = whole(0.5, |c| {
+            c.gust.enabled = false;
+            c.wind.speed = 2.0;
+            c.wind.table = Some(WindTable {
+                by: TableBy::Altitude,
+                points: points.to_vec(),
+            });
+        });
+        let mut st = both.realisation(0, 0);
+        let w = both.sample_at(&mut st, 3, at(15.0, [0.0; 3]));
+        assert_eq!(w, [5.0, 0.0, 0.5]);
+        let timed = whole(0.5, |c| {
+            c.gust.enabled = false;
+            c.wind.table = Some(WindTable {
+                by: TableBy::Time,
+                points: points.to_vec(),
+            });
+        });
+        assert!(!timed.follows_vehicle());
+        let mut st = timed.realisation(0, 0);
+        assert_eq!(
+            timed.sample_at(&mut st, 5, at(99.0, [0.0; 3])),
+            [1.5, 0.5, -0.5]
+        );
+    }
+
+    #[test]
+    fn wind_table_rows_are_checked_naming_the_row() {
+        use crate::config::{TableBy, WindTable};
+        let mut c = crate::config::tests::paper();
+        c.wind.table = Some(WindTable {
+            by: TableBy::Time,
+            points: vec![[0.0, 1.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]],
+        });
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.key, "wind.table.points[1][0]");
+        assert!(e.message.contains("increasing time"), "{e}");
+        c.wind.table = Some(WindTable {
+            by: TableBy::Altitude,
+            points: vec![[0.0, f64::NAN, 0.0, 0.0]],
+        });
+        assert_eq!(c.validate().unwrap_err().key, "wind.table.points[0][1]");
+        c.wind.table = Some(WindTable {
+            by: TableBy::Altitude,
+            points: vec![],
+        });
+        assert_eq!(c.validate().unwrap_err().key, "wind.table.points");
+        c.wind.table = Some(WindTable {
+            by: TableBy::Altitude,
+            points: vec![[0.0, 1.0, 0.0, 0.0], [10.0, 2.0, 0.0, 0.0]],
+        });
+        c.validate().expect("a table by altitude");
+        let path = c.per_realisation_key("wind.table.points[1][2]").unwrap();
+        assert!(c.set_number(&path, 0.5));
+        for (key, says) in [
+            ("wind.table.by", "not a number"),
+            ("wind.table.points[1]", "not a number"),
+            ("wind.table.points[2][0]", "not a key"),
+            ("wind.table.points[1][4]", "not a key"),
+        ] {
+            let e = c.per_realisation_key(key).unwrap_err();
+            assert!(e.message.contains(says), "{key}: {e}");
         }
     }
 

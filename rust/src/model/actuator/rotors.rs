@@ -7,9 +7,15 @@
 //! M^-1, each rotor's thrust clamped to [thrust_min, thrust_max], and the speed that gives it,
 //! w_cmd = sqrt(T / kf). The speeds are states, dw/dt = (w_cmd - w) / tau_m, and the airframe
 //! feels M (kf w^2) at every RK4 stage.
+//!
+//! Faults and the battery (docs/model.md, "Rotor faults and battery sag"): the upper clamp
+//! falls linearly over the flight, thrust_max (1 - battery_sag t / duration), and a failed
+//! rotor i gives f_i of its clamped command from its fault's start on (its speed command is
+//! sqrt(f_i T_i / kf)), the command held over the step as always.
 
 use super::{Actuator, ActuatorModel, AnyActuator};
 use crate::config::Config;
+pub use crate::config::{RotorFault, BATTERY_SAG};
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State, Tick};
@@ -33,6 +39,15 @@ pub struct Rotors<L = f64> {
     /// 1 / kf and 1 / tau_m, computed once.
     inv_kf: L,
     inv_tau: L,
+    /// N/s, thrust_max battery_sag / duration: how fast the upper clamp falls.
+    sag_rate: L,
+    /// s, when each rotor's fault starts (infinite: none), and the fraction it then gives.
+    fault_start: [L; 4],
+    fault_fraction: [L; 4],
+    /// Whether any lane's battery sags, whether any lane has a fault (else the command is
+    /// computed exactly as without them).
+    sags: bool,
+    faulty: bool,
 }
 
 /// What the rotors are told at the start of a step and hold over its four RK4 stages.
@@ -40,10 +55,12 @@ pub struct Rotors<L = f64> {
 pub struct RotorCommand<L> {
     /// N, each rotor's thrust from M^-1 (U1, tau), before the clamp.
     pub wanted: [L; 4],
-    /// N, the same clamped to [thrust_min, thrust_max].
+    /// N, the same clamped to [thrust_min, limit], times a failed rotor's fraction.
     pub thrust: [L; 4],
     /// rad/s, w_cmd = sqrt(thrust / kf).
     pub speed: [L; 4],
+    /// N, the step's upper clamp: thrust_max less the battery's sag so far.
+    pub limit: L,
 }
 
 /// The rotor speed states.
@@ -65,6 +82,14 @@ impl Actuator for Rotors {
         // flight would end non-finite at once rather than panic.
         let inverse = allocation_inverse(&m).unwrap_or([[f64::NAN; 4]; 4]);
         let weight = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
+        let mut fault_start = [f64::INFINITY; 4];
+        let mut fault_fraction = [1.0; 4];
+        for f in &a.faults {
+            // Validated: rotors 1 to 4, one fault each.
+            let i = f.rotor as usize - 1;
+            fault_start[i] = f.start;
+            fault_fraction[i] = f.thrust_fraction;
+        }
         Self {
             allocation: m,
             inverse,
@@ -74,6 +99,11 @@ impl Actuator for Rotors {
             hover_speed: (weight / (4.0 * a.thrust_coefficient)).sqrt(),
             inv_kf: 1.0 / a.thrust_coefficient,
             inv_tau: 1.0 / a.time_constant,
+            sag_rate: a.thrust_max * a.battery_sag / cfg.integrator.duration,
+            fault_start,
+            fault_fraction,
+            sags: a.battery_sag != 0.0,
+            faulty: !a.faults.is_empty(),
         }
     }
 
@@ -91,6 +121,11 @@ impl Actuator for Rotors {
             hover_speed: at(&|r| r.hover_speed),
             inv_kf: at(&|r| r.inv_kf),
             inv_tau: at(&|r| r.inv_tau),
+            sag_rate: at(&|r| r.sag_rate),
+            fault_start: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_start[i])),
+            fault_fraction: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_fraction[i])),
+            sags: each.iter().any(|r| r.sags),
+            faulty: each.iter().any(|r| r.faulty),
         }
     }
 
@@ -127,6 +162,31 @@ impl<L: Lane> Rotors<L> {
     }
 }
 
+impl<L: Lane> Rotors<L> {
+    /// Each failed rotor's thrust at time `t` (s): times its fraction in the lanes where its
+    /// fault has started.
+    #[inline(always)]
+    fn fail(&self, thrust: &mut [L; 4], t: f64) {
+        let now = L::splat(t);
+        for (i, thrust) in thrust.iter_mut().enumerate() {
+            let started = self.fault_start[i].le_mask(now);
+            if started == L::ALL {
+                *thrust = *thrust * self.fault_fraction[i];
+            } else if started != 0 {
+                let f = self.fault_fraction[i];
+                *thrust = *thrust
+                    * L::from_fn(|l| {
+                        if started & (1 << l) != 0 {
+                            f.lane(l)
+                        } else {
+                            1.0
+                        }
+                    });
+            }
+        }
+    }
+}
+
 impl<L: Lane> ActuatorModel<L> for Rotors<L> {
     const STATES: usize = 4;
     type Command = RotorCommand<L>;
@@ -135,7 +195,7 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         &["thrust_1", "thrust_2", "thrust_3", "thrust_4", "saturated"];
 
     #[inline(always)]
-    fn command(&self, u: &Inputs<L>, _at: Tick) -> RotorCommand<L> {
+    fn command(&self, u: &Inputs<L>, at: Tick) -> RotorCommand<L> {
         let inv = &self.inverse;
         let wanted: [L; 4] = state_from_fn(
             #[inline(always)]
@@ -146,10 +206,18 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
                     + inv[i][3] * u.tau[2]
             },
         );
-        let thrust: [L; 4] = state_from_fn(
+        let limit = if self.sags {
+            self.thrust_max - self.sag_rate * at.t
+        } else {
+            self.thrust_max
+        };
+        let mut thrust: [L; 4] = state_from_fn(
             #[inline(always)]
-            |i| wanted[i].clamp(self.thrust_min, self.thrust_max),
+            |i| wanted[i].clamp(self.thrust_min, limit),
         );
+        if self.faulty {
+            self.fail(&mut thrust, at.t);
+        }
         let speed = state_from_fn(
             #[inline(always)]
             |i| (thrust[i] * self.inv_kf).sqrt(),
@@ -158,6 +226,7 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
             wanted,
             thrust,
             speed,
+            limit,
         }
     }
 
@@ -202,13 +271,13 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         out[4] = self.saturated(cmd);
     }
 
-    /// 1 where any rotor's wanted thrust lay outside [thrust_min, thrust_max] (or was NaN).
+    /// 1 where any rotor's wanted thrust lay outside [thrust_min, the step's limit] (or was
+    /// NaN).
     #[inline(always)]
     fn saturated(&self, cmd: &RotorCommand<L>) -> L {
         let mut inside = L::ALL;
         for i in 0..4 {
-            inside &=
-                cmd.wanted[i].le_mask(self.thrust_max) & self.thrust_min.le_mask(cmd.wanted[i]);
+            inside &= cmd.wanted[i].le_mask(cmd.limit) & self.thrust_min.le_mask(cmd.wanted[i]);
         }
         if inside == L::ALL {
             return L::splat(0.0);
@@ -363,6 +432,117 @@ mod tests {
         for i in 0..4 {
             let want = (cmd.speed[i] - s[OMEGA + i]) / a.time_constant;
             assert!((ds[OMEGA + i] - want).abs() < 1e-12 * want.abs());
+        }
+    }
+
+    fn fault(rotor: u32, start: f64, thrust_fraction: f64) -> RotorFault {
+        RotorFault {
+            rotor,
+            start,
+            thrust_fraction,
+        }
+    }
+
+    /// Before its start a fault changes nothing (bit for bit); from it on the failed rotor is
+    /// told its fraction of the clamped command, the others what they were told.
+    #[test]
+    fn a_failed_rotor_gives_its_fraction_of_the_command_from_its_start() {
+        let healthy = rotor_config();
+        let mut cfg = rotor_config();
+        cfg.actuator.faults = vec![fault(3, 2.0, 0.8)];
+        cfg.validate().expect("a weak motor can still hover");
+        let (v0, v) = (vehicle(&healthy), vehicle(&cfg));
+        let u = Inputs {
+            u1: 30.0,
+            tau: [0.3, -0.2, 0.01],
+        };
+        for (t, failed) in [(0.0, false), (1.999, false), (2.0, true), (9.0, true)] {
+            let tick = Tick { step: 0, t };
+            let (a, b) = (v0.actuator.command(&u, tick), v.actuator.command(&u, tick));
+            assert_eq!(a.wanted.map(f64::to_bits), b.wanted.map(f64::to_bits));
+            for i in 0..4 {
+                let want = if failed && i == 2 {
+                    a.thrust[i] * 0.8
+                } else {
+                    a.thrust[i]
+                };
+                assert_eq!(b.thrust[i].to_bits(), want.to_bits(), "t {t} rotor {i}");
+                let speed = (want / cfg.actuator.thrust_coefficient).sqrt();
+                assert!((b.speed[i] - speed).abs() <= 1e-12 * speed);
+            }
+        }
+        // Stuck off: no thrust, no speed.
+        cfg.actuator.faults = vec![fault(1, 0.0, 0.0)];
+        let cmd = vehicle(&cfg).actuator.command(&u, Tick::START);
+        assert_eq!((cmd.thrust[0], cmd.speed[0]), (0.0, 0.0));
+    }
+
+    /// Lanes with and without the fault (a dispersed start) agree lane by lane with the scalar
+    /// vehicles.
+    #[test]
+    fn faults_per_lane_are_the_scalar_faults() {
+        use crate::lane::F64x4;
+        let mut cfgs = Vec::new();
+        for start in [0.0, 1.0, 5.0, f64::INFINITY] {
+            let mut c = rotor_config();
+            if start.is_finite() {
+                c.actuator.faults = vec![fault(2, start, 0.5)];
+            }
+            cfgs.push(c);
+        }
+        let parts: Vec<Parts> = cfgs.iter().map(Parts::new).collect();
+        let each: Vec<&Rotors> = parts.iter().map(|p| Rotors::of(&p.actuator)).collect();
+        let lanes: Rotors<F64x4> = Rotors::gather(&each);
+        let u = Inputs {
+            u1: F64x4::splat(28.0),
+            tau: [F64x4::splat(0.1), F64x4::splat(0.05), F64x4::splat(-0.01)],
+        };
+        for t in [0.0, 0.5, 1.0, 4.0, 6.0] {
+            let tick = Tick { step: 0, t };
+            let got = lanes.command(&u, tick);
+            for (l, r) in each.iter().enumerate() {
+                let one = Inputs {
+                    u1: 28.0,
+                    tau: [0.1, 0.05, -0.01],
+                };
+                let want = r.command(&one, tick);
+                for i in 0..4 {
+                    assert_eq!(got.thrust[i].lane(l).to_bits(), want.thrust[i].to_bits());
+                }
+            }
+        }
+    }
+
+    /// The battery's sag lowers the upper clamp linearly to (1 - sag) thrust_max at the end of
+    /// the flight; a command above it is clamped there and counts as saturated.
+    #[test]
+    fn the_battery_sag_lowers_the_clamp_linearly() {
+        let mut cfg = rotor_config();
+        cfg.actuator.battery_sag = 0.25;
+        cfg.validate().expect("a 25 % sag still hovers");
+        let v = vehicle(&cfg);
+        let (top, end) = (cfg.actuator.thrust_max, cfg.integrator.duration);
+        let hard = Inputs {
+            u1: 4.0 * top,
+            tau: [0.0; 3],
+        };
+        for t in [0.0, 0.3 * end, end] {
+            let cmd = v.actuator.command(&hard, Tick { step: 0, t });
+            let limit = top * (1.0 - 0.25 * t / end);
+            assert!((cmd.limit - limit).abs() < 1e-12 * top, "t {t}");
+            for i in 0..4 {
+                assert_eq!(cmd.thrust[i], cmd.limit);
+            }
+            let cap = cmd.limit;
+            let just_under = v.actuator.command(
+                &Inputs {
+                    u1: 3.99 * cap,
+                    tau: [0.0; 3],
+                },
+                Tick { step: 0, t },
+            );
+            assert_eq!(v.actuator.saturated(&just_under), 0.0, "t {t}");
+            assert_eq!(v.actuator.saturated(&cmd), if t == 0.0 { 0.0 } else { 1.0 });
         }
     }
 
