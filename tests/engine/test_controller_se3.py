@@ -94,7 +94,7 @@ def spring_rhs(sc: quadrs.Scenario):
         return -k * (v - w) * abs(v - w)
 
     def f(s: np.ndarray, u1: float, tau: np.ndarray, wind: np.ndarray) -> np.ndarray:
-        x, y, z, phi, th, psi, zc, vx, vy, vz, p, q, r, vzc = s
+        _, _, z, phi, th, psi, zc, vx, vy, vz, p, q, r, vzc = s
         rz = rotation(phi, th, psi)[:, 2]
         fs = kc * (z - zc) + cc * (vz - vzc)
         return np.array(
@@ -223,7 +223,7 @@ def test_a_flight_agrees_with_an_independent_closed_loop(make, reference) -> Non
     winds = tr[["wind_x", "wind_y", "wind_z"]].to_numpy()
     states, controls = fly(sc, reference, winds)
     err = np.abs(tr[STATES].to_numpy() - states).max(axis=0)
-    assert err.max() < 1e-9, dict(zip(STATES, err))
+    assert err.max() < 1e-9, dict(zip(STATES, err, strict=True))
     ctrl = tr[["U1", "tau_phi", "tau_theta", "tau_psi"]].to_numpy()[:-1]
     assert np.abs(ctrl - controls).max() < 1e-9
     # It did something: moved, tilted, and (the step) hit its limits.
