@@ -20,6 +20,16 @@ from tests.conftest import DELIVERY_DROP
 #: The defaults docs/model.md gives (a scenario without [controller.se3] flies them).
 DEFAULTS = {"kx": [1.0, 1.0, 4.0], "kv": [1.6, 1.6, 3.2], "kR": [100.0, 100.0, 40.0],
             "kW": [14.0, 14.0, 9.0]}  # fmt: skip
+#: tests/conftest.py's DELIVERY_DROP as --set values.
+DELIVERY_DROP_TOML = {
+    "trajectory.route": "[[0,0,7],[0,0,5]]",
+    "trajectory.hold": "[0,15]",
+    "trajectory.names": '["descent","drop"]',
+    "initial.position": "[0,0,7]",
+    "integrator.duration": "19",
+    "gust.end": "19",
+}
+assert set(DELIVERY_DROP_TOML) == set(DELIVERY_DROP)
 STATES = ["x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc"]
 
 
@@ -314,3 +324,13 @@ def test_its_name_reaches_python_and_the_command_line(short) -> None:
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert out.returncode == 0, out.stderr
+    # The mission command flies it paired with the PD (over the drop point, two gusts).
+    drop = [f"{k}={v}" for k, v in DELIVERY_DROP_TOML.items()]
+    sets = [a for kv in drop for a in ("--set", kv)]
+    out = subprocess.run(
+        [*run, "mission", "--preset", "delivery", "--controller", "pd,se3", "--runs", "2",
+         "--workers", "1", "--no-progress", *sets],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert "se3 accel %" in out.stdout and "se3 track" in out.stdout
