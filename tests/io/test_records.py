@@ -148,7 +148,7 @@ def test_controller_names_come_from_the_engine() -> None:
     from quadrs.cli.main import build_parser
     from quadrs.engine.calls import CONTROLLERS
 
-    assert CONTROLLERS == tuple(_core.CONTROLLER_NAMES) == ("pd", "smc")
+    assert CONTROLLERS == tuple(_core.CONTROLLER_NAMES) == ("pd", "smc", "se3")
     args = build_parser().parse_args(["mc"])
     assert args.controllers == CONTROLLERS
 

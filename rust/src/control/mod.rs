@@ -9,9 +9,11 @@
 //! Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop (`Shared`).
 
 mod pd;
+mod se3;
 mod smc;
 
 pub use pd::Pd;
+pub use se3::Se3;
 pub use smc::Smc;
 
 use crate::config::keys::{Seg, Target};
@@ -220,6 +222,7 @@ macro_rules! controllers {
 controllers! {
     pd => Pd,
     smc => Smc,
+    se3 => Se3,
 }
 
 /// The keys every law shares, directly under `[controller]`.

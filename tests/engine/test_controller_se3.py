@@ -1,0 +1,336 @@
+"""The geometric controller `se3` (docs/model.md, "The geometric controller `se3`"): flights
+against an independent closed loop written here from docs/model.md's equations, its
+linearisation against central differences of that closed loop, stability with the delivery
+preset's line and rotors, the delivery route to the drop point, and its name everywhere."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import quadrs
+from quadrs import _core
+from tests.conftest import DELIVERY_DROP
+
+#: The defaults docs/model.md gives (a scenario without [controller.se3] flies them).
+DEFAULTS = {"kx": [1.0, 1.0, 4.0], "kv": [1.6, 1.6, 3.2], "kR": [100.0, 100.0, 40.0],
+            "kW": [14.0, 14.0, 9.0]}  # fmt: skip
+#: tests/conftest.py's DELIVERY_DROP as --set values.
+DELIVERY_DROP_TOML = {
+    "trajectory.route": "[[0,0,7],[0,0,5]]",
+    "trajectory.hold": "[0,15]",
+    "trajectory.names": '["descent","drop"]',
+    "initial.position": "[0,0,7]",
+    "integrator.duration": "19",
+    "gust.end": "19",
+}
+assert set(DELIVERY_DROP_TOML) == set(DELIVERY_DROP)
+STATES = ["x", "y", "z", "phi", "theta", "psi", "zc", "vx", "vy", "vz", "p", "q", "r", "vzc"]
+
+
+# -- docs/model.md sections 1-3 and "The geometric controller `se3`", written again ----------
+def rotation(phi: float, theta: float, psi: float) -> np.ndarray:
+    """R = Rz(psi) Ry(theta) Rx(phi), body to inertial."""
+    c, s = math.cos, math.sin
+    rx = np.array([[1, 0, 0], [0, c(phi), -s(phi)], [0, s(phi), c(phi)]])
+    ry = np.array([[c(theta), 0, s(theta)], [0, 1, 0], [-s(theta), 0, c(theta)]])
+    rz = np.array([[c(psi), -s(psi), 0], [s(psi), c(psi), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def vee(m: np.ndarray) -> np.ndarray:
+    return np.array([m[2, 1], m[0, 2], m[1, 0]])
+
+
+class Se3Law:
+    """Lee, Leok & McClamroch's law with RotorPy's normalised gains, from docs/model.md."""
+
+    def __init__(self, sc: quadrs.Scenario) -> None:
+        m, mc = sc["vehicle.mass"], sc["payload.mass"]
+        self.mt = m + mc if sc["controller.mass_compensation"] else m
+        self.g = sc["environment.gravity"]
+        self.J = np.diag(sc["vehicle.inertia"])  # the controller's (nominal) inertia
+        gains = sc.get("controller.se3", DEFAULTS)
+        self.kx, self.kv = np.array(gains["kx"]), np.array(gains["kv"])
+        self.kR, self.kW = np.array(gains["kR"]), np.array(gains["kW"])
+        self.tilt = sc["controller.tilt_limit"]
+        self.floor = sc["controller.thrust_floor"]
+        self.tmin = sc.get("controller.thrust_min", None)
+        self.tmax = sc.get("controller.thrust_max", None)
+
+    def __call__(self, s: np.ndarray, ref: dict) -> tuple[float, np.ndarray]:
+        pos, att, vel, w = s[0:3], s[3:6], s[7:10], s[10:13]
+        e_x, e_v = pos - ref["pos"], vel - ref["vel"]
+        f = self.mt * (-self.kx * e_x - self.kv * e_v + ref["acc"] + np.array([0, 0, self.g]))
+        r = rotation(*att)
+        u1 = float(f @ r[:, 2])
+        if self.tmin is not None:
+            u1 = max(u1, self.tmin)
+        if self.tmax is not None:
+            u1 = min(u1, self.tmax)
+        # b3_d: along f, at most tilt_limit from the vertical, never below the horizon
+        n = max(np.linalg.norm(f), self.floor)
+        h = f[:2] / n
+        sin_t = math.sin(self.tilt)
+        h = h * sin_t / max(np.linalg.norm(h), sin_t)
+        b3 = np.array([h[0], h[1], math.sqrt(max(1.0 - h @ h, 0.0))])
+        c1 = np.array([math.cos(ref["psi"]), math.sin(ref["psi"]), 0.0])
+        b2 = np.cross(b3, c1)
+        b2 /= max(np.linalg.norm(b2), 1e-6)
+        rd = np.column_stack([np.cross(b2, b3), b2, b3])
+        e_r = 0.5 * vee(rd.T @ r - r.T @ rd)
+        e_w = w  # W_d = 0
+        tau = self.J @ (-self.kR * e_r - self.kW * e_w) + np.cross(w, self.J @ w)
+        return u1, tau
+
+
+def spring_rhs(sc: quadrs.Scenario):
+    """ds/dt of the paper's 14-state plant (section 1), controls and wind held."""
+    m, mc, g = sc["vehicle.mass"], sc["payload.mass"], sc["environment.gravity"]
+    ixx, iyy, izz = np.array(sc["vehicle.inertia"]) + np.array(sc["vehicle.inertia_error"])
+    kc = mc * (2 * math.pi * sc["payload.natural_frequency"]) ** 2
+    cc = sc["payload.damping"]
+    half_rho = 0.5 * sc["gust.air_density"]
+    k_lat = half_rho * sc["vehicle.lateral_drag_area"]
+    k_z = half_rho * sc["vehicle.drag_area"]
+    k_c = half_rho * sc["payload.drag_area"]
+
+    def drag(k: float, v: float, w: float) -> float:
+        return -k * (v - w) * abs(v - w)
+
+    def f(s: np.ndarray, u1: float, tau: np.ndarray, wind: np.ndarray) -> np.ndarray:
+        _, _, z, phi, th, psi, zc, vx, vy, vz, p, q, r, vzc = s
+        rz = rotation(phi, th, psi)[:, 2]
+        fs = kc * (z - zc) + cc * (vz - vzc)
+        return np.array(
+            [
+                vx,
+                vy,
+                vz,
+                p,
+                q,
+                r,
+                vzc,
+                (rz[0] * u1 + drag(k_lat, vx, wind[0])) / (m + mc),
+                (rz[1] * u1 + drag(k_lat, vy, wind[1])) / (m + mc),
+                (rz[2] * u1 - fs + drag(k_z, vz, wind[2])) / m - g,
+                (q * r * (iyy - izz) + tau[0]) / ixx,
+                (p * r * (izz - ixx) + tau[1]) / iyy,
+                (p * q * (ixx - iyy) + tau[2]) / izz,
+                (fs + drag(k_c, vzc, wind[2])) / mc - g,
+            ]
+        )
+
+    return f
+
+
+def min_jerk(sc: quadrs.Scenario, t: float) -> dict:
+    """Section 3's reference for two waypoints, the first at the initial state at t = 0."""
+    (_, *p0), (t1, *p1) = sc["trajectory.waypoints"]
+    a, b = np.array(p0, dtype=float), np.array(p1, dtype=float)
+    dur = sc["trajectory.transition"]
+    tau = min(max((t - t1) / dur, 0.0), 1.0)
+    s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+    ds = 30 * tau**2 * (1 - tau) ** 2 / dur if 0 < tau < 1 else 0.0
+    dds = 60 * tau * (1 - 3 * tau + 2 * tau**2) / dur**2 if 0 < tau < 1 else 0.0
+    p, v, acc = a + (b - a) * s, (b - a) * ds, (b - a) * dds
+    return {"pos": p[:3], "vel": v[:3], "acc": acc[:3], "psi": p[3]}
+
+
+def step_ref(sc: quadrs.Scenario, t: float) -> dict:
+    wps = sc["trajectory.waypoints"]
+    now = [w for w in wps if w[0] <= t + 1e-9][-1] if t + 1e-9 >= wps[0][0] else wps[0]
+    z = np.zeros(3)
+    return {"pos": np.array(now[1:4], dtype=float), "vel": z, "acc": z, "psi": now[4]}
+
+
+def rest_state(sc: quadrs.Scenario) -> np.ndarray:
+    s = np.zeros(14)
+    s[0:3], s[3:6] = sc["initial.position"], sc["initial.attitude"]
+    mc, g = sc["payload.mass"], sc["environment.gravity"]
+    kc = mc * (2 * math.pi * sc["payload.natural_frequency"]) ** 2
+    s[6] = s[2] - mc * g / kc
+    return s
+
+
+def fly(sc: quadrs.Scenario, reference, winds: np.ndarray):
+    """Classical RK4, controls computed at each step's start and held over its four stages
+    with the step's wind (section 5)."""
+    law, rhs, dt = Se3Law(sc), spring_rhs(sc), sc["integrator.dt"]
+    s = rest_state(sc)
+    states, controls = [s], []
+    for k in range(sc.steps):
+        u1, tau = law(s, reference(sc, k * dt))
+        w = winds[k]
+        k1 = rhs(s, u1, tau, w)
+        k2 = rhs(s + dt / 2 * k1, u1, tau, w)
+        k3 = rhs(s + dt / 2 * k2, u1, tau, w)
+        k4 = rhs(s + dt * k3, u1, tau, w)
+        s = s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        states.append(s)
+        controls.append([u1, *tau])
+    return np.array(states), np.array(controls)
+
+
+# -- scenarios ---------------------------------------------------------------------------------
+def lateral_move() -> quadrs.Scenario:
+    """From a tilted, yawed hover, a 1 s min-jerk move 1 m forward, 0.5 m right, 0.5 m up and
+    back to yaw 0 (acceleration fed forward), through three-axis turbulence."""
+    return quadrs.Scenario.paper().override(
+        {
+            "initial.position": [0.0, 0.0, 2.0],
+            "initial.attitude": [0.05, -0.03, 0.3],
+            "trajectory.interpolation": "min_jerk",
+            "trajectory.transition": 1.0,
+            "trajectory.waypoints": [[0, 0, 0, 2, 0.3], [0.3, 1.0, -0.5, 2.5, 0.0]],
+            "integrator.dt": 0.001,
+            "integrator.duration": 2.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 2.0}],
+            "gust.components": ["longitudinal", "lateral", "vertical"],
+            "gust.start": 0.0,
+            "gust.end": 2.0,
+        }
+    )
+
+
+def tilted_step() -> quadrs.Scenario:
+    """A 4 m lateral step with the tilt limit (0.3 rad) and a thrust ceiling in force."""
+    return quadrs.Scenario.paper().override(
+        {
+            "initial.position": [0.0, 0.0, 2.0],
+            "initial.attitude": [0.0, 0.0, 0.0],
+            "trajectory.waypoints": [[0, 0, 0, 2, 0.0], [0.2, 4.0, 3.0, 2.0, 0.4]],
+            "controller.tilt_limit": 0.3,
+            "controller.thrust_max": 23.9,
+            "integrator.dt": 0.001,
+            "integrator.duration": 2.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 2.0}],
+            "gust.enabled": False,
+        }
+    )
+
+
+@pytest.mark.parametrize(
+    ("make", "reference"), [(lateral_move, min_jerk), (tilted_step, step_ref)], ids=["move", "step"]
+)
+def test_a_flight_agrees_with_an_independent_closed_loop(make, reference) -> None:
+    sc = make()
+    flight = quadrs.simulate(sc, "se3", seed=4, record_every=1)
+    assert flight.status == "ok"
+    tr = flight.trace
+    t = tr.index.to_numpy()
+    # The reference the engine flew is the one written here.
+    refs = [reference(sc, tk) for tk in t]
+    np.testing.assert_allclose(
+        tr[["x_ref", "y_ref", "z_ref"]], [r["pos"] for r in refs], atol=1e-12
+    )
+    np.testing.assert_allclose(tr["psi_ref"], [r["psi"] for r in refs], atol=1e-12)
+    winds = tr[["wind_x", "wind_y", "wind_z"]].to_numpy()
+    states, controls = fly(sc, reference, winds)
+    err = np.abs(tr[STATES].to_numpy() - states).max(axis=0)
+    assert err.max() < 1e-9, dict(zip(STATES, err, strict=True))
+    ctrl = tr[["U1", "tau_phi", "tau_theta", "tau_psi"]].to_numpy()[:-1]
+    assert np.abs(ctrl - controls).max() < 1e-9
+    # It did something: moved, tilted, and (the step) hit its limits.
+    assert np.abs(tr["x"].iloc[-1]) > 0.5 and np.abs(tr[["phi", "theta"]]).max().max() > 0.05
+    if make is tilted_step:
+        assert (tr["U1"] == 23.9).any()
+        tilt = np.arccos(np.cos(tr["phi"]) * np.cos(tr["theta"]))
+        assert 0.25 < tilt.max() < 0.3 + 0.05
+
+
+def test_the_linearisation_is_the_central_differences_of_the_closed_loop() -> None:
+    """quadrs.linearize's A (dual numbers through the engine's law and plant) against central
+    differences of the closed loop written above, at its equilibrium: two implementations."""
+    sc = quadrs.Scenario.paper()
+    lin = quadrs.linearize(sc, "se3")
+    x0 = lin.equilibrium
+    law, rhs = Se3Law(sc), spring_rhs(sc)
+    ref = {"pos": np.array([0.0, 0.0, 2.0]), "vel": np.zeros(3), "acc": np.zeros(3), "psi": 0.0}
+
+    def closed(s: np.ndarray) -> np.ndarray:
+        u1, tau = law(s, ref)
+        return rhs(s, u1, tau, np.zeros(3))
+
+    assert np.abs(closed(x0)).max() < 1e-12  # hover is an equilibrium of both
+    h = 1e-6
+    fd = np.column_stack(
+        [(closed(x0 + h * e) - closed(x0 - h * e)) / (2 * h) for e in np.eye(len(x0))]
+    )
+    assert np.abs(lin.A - fd).max() < 1e-6 * max(1.0, np.abs(fd).max())
+    assert np.abs(lin.A).max() > 1.0  # a real Jacobian
+
+
+@pytest.fixture(scope="module")
+def delivery() -> quadrs.Scenario:
+    return quadrs.Scenario.preset("delivery")
+
+
+def test_stable_at_hover_with_the_line_and_the_rotors(delivery) -> None:
+    st = quadrs.stability(delivery, "se3")
+    assert st.stable and (st.poles["real"] < -0.05).all(), st.poles
+    assert len(st.poles) == 22 and {"swing x"} <= set(st.poles["mode"])
+    # and the paper's vehicle with its defaults too
+    assert quadrs.stability(quadrs.Scenario.paper(), "se3").stable
+
+
+def test_it_holds_the_drop_hover_in_turbulence(delivery) -> None:
+    sc = delivery.override(DELIVERY_DROP)
+    f = quadrs.simulate(sc, "se3", seed=2)
+    assert f.status == "ok"
+    start, end = sc.phase_windows["drop"]
+    tr = f.trace[(f.trace.index >= start + 5.0) & (f.trace.index <= end)]
+    off = np.linalg.norm(tr[["x", "y", "z"]].to_numpy() - [0.0, 0.0, 5.0], axis=1)
+    assert off.max() < 1.0, off.max()
+
+
+def test_it_flies_the_delivery_route_to_the_drop_point(delivery) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no step-size or stability warning either
+        f = quadrs.simulate(delivery, "se3", seed=1)
+    assert f.status == "ok"
+    target = np.array(delivery.route.segments[-1].target)
+    start, end = delivery.phase_windows["drop"]
+    arrived = (
+        delivery.route.segments[-1].arrival if delivery.route.segments[-1].kind == "leg" else start
+    )
+    tr = f.trace[(f.trace.index >= max(start, arrived)) & (f.trace.index <= end)]
+    assert len(tr) > 1000
+    off = np.linalg.norm(tr[["x", "y", "z"]].to_numpy(dtype=float) - target, axis=1)
+    assert off.max() < 3.0, off.max()
+    m = f.metrics.set_index("phase")
+    assert m.loc["flight", "slack_time"] == 0.0
+
+
+def test_its_name_reaches_python_and_the_command_line(short) -> None:
+    assert "se3" in _core.CONTROLLER_NAMES
+    for key in ("kx", "kv", "kR", "kW"):
+        assert f"controller.se3.{key}" in _core.KEY_UNITS
+    # The presets give no table (the defaults fly); a table given is checked key by key.
+    assert "se3" not in quadrs.Scenario.paper()["controller"]
+    f = quadrs.simulate(short, "se3")
+    assert f.status == "ok"
+    bad = {**DEFAULTS, "kW": [1.0, -1.0, 1.0]}
+    with pytest.raises(quadrs.ScenarioError, match=r"controller\.se3\.kW\[1\] must be >= 0"):
+        quadrs.simulate(short.override({"controller.se3": bad}), "se3")
+    run = [sys.executable, "-m", "quadrs.cli"]
+    out = subprocess.run(
+        [*run, "run", "--controller", "se3", "--set", "integrator.dt=0.002"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    # The mission command flies it paired with the PD (over the drop point, two gusts).
+    drop = [f"{k}={v}" for k, v in DELIVERY_DROP_TOML.items()]
+    sets = [a for kv in drop for a in ("--set", kv)]
+    out = subprocess.run(
+        [*run, "mission", "--preset", "delivery", "--controller", "pd,se3", "--runs", "2",
+         "--workers", "1", "--no-progress", *sets],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert "se3 accel %" in out.stdout and "se3 track" in out.stdout
