@@ -18,7 +18,7 @@ import pytest
 import quadrs
 from quadrs import MonteCarloResult, Scenario
 from quadrs.cli.main import build_parser, main
-from quadrs.engine.calls import CONTROLLERS
+from quadrs.engine.calls import PAPER_CONTROLLERS
 from quadrs.runs.sweep import SweepResult
 from quadrs.scenario.scenario import parse_value
 
@@ -145,8 +145,8 @@ def test_mc_writes_parquet_and_report_reprints_it(tmp_path, capsys) -> None:
     assert max(len(line) for line in printed.splitlines()) <= 100  # fits a terminal
     mc = MonteCarloResult.read_parquet(out)
     assert list(mc.runs.columns) == RUN_COLUMNS
-    # every law the engine has (the command's default), P1-P3 and the whole flight
-    assert len(mc.runs) == 4 * len(CONTROLLERS) * 4 and mc.seed == 1 and not mc.interrupted
+    # the paper's two laws (the command's default), P1-P3 and the whole flight
+    assert len(mc.runs) == 4 * len(PAPER_CONTROLLERS) * 4 and mc.seed == 1 and not mc.interrupted
     assert mc.scenario == Scenario.paper().override(_short_dict())
 
     figs = tmp_path / "figs"
@@ -293,7 +293,7 @@ def test_two_point_sweep(tmp_path, capsys) -> None:
     res = SweepResult.read_parquet(out)
     assert list(res.runs.columns) == ["payload.natural_frequency", *RUN_COLUMNS]
     assert sorted(res.runs["payload.natural_frequency"].unique()) == [1.5, 3.0]
-    assert len(res.runs) == 2 * 3 * len(CONTROLLERS) * 4
+    assert len(res.runs) == 2 * 3 * len(PAPER_CONTROLLERS) * 4
     # same seed at every point: realisations 0..2 at both
     for _, g in res.runs.groupby("payload.natural_frequency"):
         assert sorted(g["realisation"].unique()) == [0, 1, 2]

@@ -16,7 +16,7 @@ from typing import Any
 
 from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
 from quadrs.design.optimize import METHODS
-from quadrs.engine.calls import CONTROLLERS
+from quadrs.engine.calls import CONTROLLERS, PAPER_CONTROLLERS
 from quadrs.present.terminal import terminal_text
 
 
@@ -142,7 +142,10 @@ def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
         "gust-to-e_o transmissibility of each controller, optionally plot it.",
     )
     p.add_argument(
-        "--controller", choices=(*CONTROLLERS, "both"), default="both", help="(default: both)"
+        "--controller",
+        choices=(*CONTROLLERS, "both"),
+        default="both",
+        help="a law, or both of the paper's (pd and smc; the default)",
     )
     p.add_argument(
         "--wind",
@@ -413,7 +416,7 @@ def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         raise ValueError(f"--wind must be finite, got {wind}")
     if args.out is not None:
         check_writable(args.out)
-    controllers = CONTROLLERS if args.controller == "both" else (args.controller,)
+    controllers = PAPER_CONTROLLERS if args.controller == "both" else (args.controller,)
     models = {}
     for c in controllers:
         lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, wind))

@@ -97,9 +97,10 @@ def _batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None
     p.add_argument(
         "--controllers",
         type=_controllers,
-        default=_controller_names(),
+        default=_paper_controllers(),
         metavar="LIST",
-        help=f"comma-separated controllers to fly (default: {','.join(_controller_names())})",
+        help=f"comma-separated controllers to fly, of {','.join(_controller_names())} "
+        f"(default: the paper's {','.join(_paper_controllers())})",
     )
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help=out_help)
     p.add_argument(
@@ -148,6 +149,13 @@ def _controller_names() -> tuple[str, ...]:
     from quadrs.engine.calls import CONTROLLERS
 
     return CONTROLLERS
+
+
+def _paper_controllers() -> tuple[str, ...]:
+    """The paper's pair, the default of the batch commands (quadrs.engine.calls)."""
+    from quadrs.engine.calls import PAPER_CONTROLLERS
+
+    return PAPER_CONTROLLERS
 
 
 def _controllers(text: str) -> tuple[str, ...]:
@@ -464,7 +472,7 @@ def _add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
         "--controller",
         choices=(*_controller_names(), "both"),
         default="both",
-        help="controller (default: both)",
+        help="a law, or both of the paper's (pd and smc; the default)",
     )
     p.add_argument(
         "--poles",
@@ -497,9 +505,10 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controllers",
         type=_controllers,
-        default=_controller_names(),
+        default=_paper_controllers(),
         metavar="LIST",
-        help=f"comma-separated controllers (default: {','.join(_controller_names())})",
+        help=f"comma-separated controllers, of {','.join(_controller_names())} "
+        f"(default: the paper's {','.join(_paper_controllers())})",
     )
     p.add_argument(
         "--metric", default="iae", metavar="NAME", help="metric to rank by (default: iae)"
@@ -1017,7 +1026,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
     from quadrs.hover.stability import stability as check
 
     scenario = load_scenario(args)
-    controllers = _controller_names() if args.controller == "both" else (args.controller,)
+    controllers = _paper_controllers() if args.controller == "both" else (args.controller,)
     unstable = False
     for controller in controllers:
         report = check(scenario, controller=controller)

@@ -27,6 +27,9 @@ I64_MAX = 2**63 - 1
 MAX_WORKERS = 4096
 #: The controllers the engine flies, by name (its list: one vocabulary for the package).
 CONTROLLERS: tuple[str, ...] = tuple(_core.CONTROLLER_NAMES)
+#: The paper's two laws: what a batch, a sweep and ``--controller both`` fly unless told
+#: otherwise (the paper's Table 3 compares them; the other laws are asked for by name).
+PAPER_CONTROLLERS: tuple[str, ...] = ("pd", "smc")
 #: Signals held back while finished work is kept (Ctrl-C and what the CLI treats like it).
 _DEFERRED = (signal.SIGINT, signal.SIGTERM)
 
