@@ -24,6 +24,8 @@ STATE_NAMES: list[str]
 EXIT_STATUSES: list[str]
 EXIT_MESSAGES: list[str]
 CONTROLLER_NAMES: list[str]
+#: Each controller kind's default table (JSON text), for the kinds that have one.
+CONTROLLER_DEFAULTS: dict[str, str]
 
 _Floats = npt.NDArray[np.float64]
 

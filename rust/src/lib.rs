@@ -92,6 +92,14 @@ mod _core {
         }
         m.add("KEY_UNITS", units)?;
         m.add("KEY_LABELS", labels)?;
+        // Each controller kind's default table (JSON text), where it has one.
+        let defaults = PyDict::new(m.py());
+        for (name, table) in crate::config::ControllerConfig::default_tables() {
+            if let Some(json) = table {
+                defaults.set_item(name, json)?;
+            }
+        }
+        m.add("CONTROLLER_DEFAULTS", defaults)?;
         m.add(
             "CONTROLLER_NAMES",
             ControllerKind::ALL

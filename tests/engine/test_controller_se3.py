@@ -5,6 +5,7 @@ preset's line and rotors, the delivery route to the drop point, and its name eve
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -334,3 +335,19 @@ def test_its_name_reaches_python_and_the_command_line(short) -> None:
     )  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert "se3 accel %" in out.stdout and "se3 track" in out.stdout
+
+
+def test_one_gain_of_the_defaulted_table_can_be_set_and_dispersed(short) -> None:
+    """The presets leave [controller.se3] out (the engine's defaults fly); setting one key
+    starts from those defaults, as does a dispersion of it."""
+    assert json.loads(_core.CONTROLLER_DEFAULTS["se3"]) == DEFAULTS
+    s = short.override({"controller.se3.kR": [80.0, 80.0, 40.0]})
+    assert s["controller.se3"] == {**DEFAULTS, "kR": [80.0, 80.0, 40.0]}
+    whole = short.override({"controller.se3": {**DEFAULTS, "kR": [80.0, 80.0, 40.0]}})
+    assert quadrs.simulate(s, "se3").metrics.equals(quadrs.simulate(whole, "se3").metrics)
+    assert not quadrs.simulate(s, "se3").metrics.equals(quadrs.simulate(short, "se3").metrics)
+    d = short.override(
+        {"dispersions": {"controller.se3.kv[2]": {"dist": "uniform", "low": 2.5, "high": 3.5}}}
+    )
+    mc = quadrs.monte_carlo(d, runs=2, seed=0, controllers=("se3",), progress=False)
+    assert len(mc.runs) > 0 and (mc.runs["status"] == "ok").all()

@@ -350,6 +350,14 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
     table["points"] = points
 
 
+def _seed_controller_table(controller: dict[str, Any], kind: Any) -> None:
+    """A law's table the scenario leaves out flies the engine's defaults: setting one key of
+    it (``controller.se3.kR``) starts from them (``_core.CONTROLLER_DEFAULTS``)."""
+    defaults = _core.CONTROLLER_DEFAULTS.get(kind) if isinstance(kind, str) else None
+    if defaults is not None and kind not in controller:
+        controller[kind] = json.loads(defaults)
+
+
 def _frozen(value: Any) -> Any:
     """A hashable image of a plain value that is equal exactly when the values are equal
     (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
@@ -674,6 +682,8 @@ class Scenario:
             for i, part in enumerate(parts[:-1]):
                 if i == 0 and part in OPTIONAL_TABLES and part not in parent:
                     parent[part] = {}  # a table the scenario leaves at its defaults
+                if i == 1 and parts[0] == "controller" and isinstance(parent, dict):
+                    _seed_controller_table(parent, part)
                 try:
                     parent = parent[part]
                 except (KeyError, IndexError, TypeError):

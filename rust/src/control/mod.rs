@@ -134,6 +134,20 @@ macro_rules! controllers {
         }
 
         impl ControllerConfig {
+            /// Each kind's default table as JSON text (`None` for a kind without defaults):
+            /// what a scenario that leaves the table out flies, for Python to show and to
+            /// start from when one key of it is set.
+            pub fn default_tables() -> Vec<(&'static str, Option<String>)> {
+                vec![$(
+                    (
+                        stringify!($name),
+                        <$Ty as Controller>::defaults().map(|p| {
+                            serde_json::to_string(&p).expect("a kind's defaults serialise")
+                        }),
+                    )
+                ),+]
+            }
+
             /// Give every kind whose table the scenario left out its defaults, if it has them.
             pub fn fill_defaults(&mut self) {
                 $(
