@@ -25,6 +25,7 @@ FORMATS = ("png", "svg")
 STYLE: dict[str, dict[str, Any]] = {
     "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
     "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
+    "px4": {"color": "tab:green", "linestyle": "-.", "marker": "x", "label": "PX4"},
 }
 #: Short names for titles (the label without its unit, where that is long).
 SHORT_NAMES = {
