@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import quadrs
-import quadrs.runs.flight  # noqa: F401  (test_cable reads it at import)
+import quadrs.runs.flight  # test_cable reads it at import
 from quadrs import _core
 from tests.engine.test_cable import RATE_ORDER, STATE_ORDER, cable_rhs
 
