@@ -210,8 +210,10 @@ macro_rules! controllers {
             }
         }
 
-        /// One controller kind's parameters for one vehicle.
+        /// One controller kind's parameters for one vehicle (built once per craft: the
+        /// variants' sizes differ, nothing is gained by boxing them).
         #[derive(Clone, Debug)]
+        #[allow(clippy::large_enum_variant)]
         pub enum AnyController {
             $($Ty($Ty)),+
         }

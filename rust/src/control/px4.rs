@@ -551,6 +551,7 @@ impl<P: Copy + Sync> Px4<P> {
 
     /// The memory of a vehicle that has been at `s` for ever: no integral, no derivative.
     #[inline(always)]
+    #[allow(clippy::manual_memcpy)] // the slots are named one by one, as the loop below reads them
     fn at_rest<L: Lane>(s: &Rigid<L>) -> Memory<L> {
         let mut m = [L::splat(0.0); super::MEMORY_SLOTS];
         for i in 0..3 {
@@ -590,6 +591,7 @@ impl<P: Copy + Sync> Control<P> for Px4<P> {
     /// runs with the integrators as held, then the integrators advance by dt with their
     /// anti-windup (PositionControl::_velocityControl, RateControl::updateIntegral).
     #[inline(always)]
+    #[allow(clippy::manual_memcpy)]
     fn step_with<L: KernelOps>(
         &self,
         s: &Rigid<L>,
