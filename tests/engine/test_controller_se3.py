@@ -351,3 +351,16 @@ def test_one_gain_of_the_defaulted_table_can_be_set_and_dispersed(short) -> None
     )
     mc = quadrs.monte_carlo(d, runs=2, seed=0, controllers=("se3",), progress=False)
     assert len(mc.runs) > 0 and (mc.runs["status"] == "ok").all()
+
+
+def test_a_partial_table_takes_the_rest_from_the_defaults(tmp_path) -> None:
+    """``[controller.se3]`` with one key (a user's own gain) flies the defaults for the
+    rest; a key the law does not know is refused, naming it."""
+    f = tmp_path / "mine.toml"
+    f.write_text('base = "paper"\n[controller.se3]\nkR = [80.0, 80.0, 40.0]\n')
+    s = quadrs.Scenario.from_toml(f)
+    assert s["controller.se3"] == {**DEFAULTS, "kR": [80.0, 80.0, 40.0]}
+    assert s == quadrs.Scenario.paper().override({"controller.se3.kR": [80.0, 80.0, 40.0]})
+    f.write_text('base = "paper"\n[controller.se3]\nkQ = 1.0\n')
+    with pytest.raises(quadrs.ScenarioError, match="kQ"):
+        quadrs.Scenario.from_toml(f)

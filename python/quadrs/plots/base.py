@@ -25,6 +25,7 @@ FORMATS = ("png", "svg")
 STYLE: dict[str, dict[str, Any]] = {
     "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
     "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
+    "px4": {"color": "tab:green", "linestyle": ":", "marker": "o", "label": "PX4"},
     "se3": {"color": "tab:purple", "linestyle": "-.", "marker": "x", "label": "SE(3)"},
 }
 #: Short names for titles (the label without its unit, where that is long).

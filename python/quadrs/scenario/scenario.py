@@ -358,6 +358,19 @@ def _seed_controller_table(controller: dict[str, Any], kind: Any) -> None:
         controller[kind] = json.loads(defaults)
 
 
+def _complete_controller_tables(data: dict[str, Any]) -> None:
+    """A law's table that gives only some keys (``[controller.px4]`` with the few values a
+    user's airframe changes) takes the rest from the engine's defaults, in place; a key the
+    law does not know is still refused by the engine, naming it."""
+    controller = data.get("controller")
+    if not isinstance(controller, dict):
+        return
+    for kind, text in _core.CONTROLLER_DEFAULTS.items():
+        table = controller.get(kind)
+        if isinstance(table, dict):
+            controller[kind] = {**json.loads(text), **table}
+
+
 def _frozen(value: Any) -> Any:
     """A hashable image of a plain value that is equal exactly when the values are equal
     (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
@@ -540,6 +553,7 @@ class Scenario:
             keys = canonical_keys(table, "dispersions")
             data["dispersions"] = dict(zip(keys, table.values(), strict=True))
         _read_wind_table(data, Path.cwd())
+        _complete_controller_tables(data)
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
         plausibility.check(data)  # and one that can fly; implausible values warn

@@ -9,24 +9,40 @@
 //! Ux, Uy, inverted into commanded roll and pitch for the inner attitude loop (`Shared`).
 
 mod pd;
+mod px4;
 mod se3;
 mod smc;
 
 pub use pd::Pd;
+pub use px4::Px4;
 pub use se3::Se3;
 pub use smc::Smc;
 
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{Field, Key, Params, Table};
 use crate::config::{non_negative, positive, Config, ConfigError};
-use crate::lane::{Lane, Param};
+use crate::lane::{KernelOps, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
+/// Slots of a law's discrete memory (`Control::step_with`): enough for every registered law.
+pub const MEMORY_SLOTS: usize = 18;
+
+/// A law's discrete memory between control steps (integrators, last measurements, filtered
+/// derivatives), one value per lane; unused by a static law.
+pub type Memory<L> = [L; MEMORY_SLOTS];
+
 /// A control law: inputs for the state `s` and reference `r` at the step `at`, computed once
 /// per step. Its gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per
 /// lane).
+///
+/// A static law (PD, SMC) is `control_with` alone. A discrete law with its own state (PX4's
+/// integrators) also gives `memory` (its state at the flight's start) and `step_with` (one
+/// control step: the inputs held over the step, the memory advanced to the next); the flight
+/// loop calls `step_with` once per step, and its default is `control_with`, so a static law is
+/// untouched. `control_with` is then the law with its memory at rest at `s`: what the
+/// linearisation differentiates (docs/architecture.md, "A law with memory").
 pub trait Control<P = f64>: Sync {
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
@@ -46,6 +62,32 @@ pub trait Control<P = f64>: Sync {
         P: Param<L>,
     {
         self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r, at)
+    }
+
+    /// The memory at the flight's start, at the state `s` (a static law: none).
+    #[inline(always)]
+    fn memory<L: Lane>(&self, _s: &Rigid<L>) -> Memory<L>
+    where
+        P: Param<L>,
+    {
+        [L::splat(0.0); MEMORY_SLOTS]
+    }
+
+    /// One control step of the flight loop: the inputs held over step `at`, with `mem`
+    /// advanced to the next step (a static law: `control_with`, `mem` untouched).
+    #[inline(always)]
+    fn step_with<L: KernelOps>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        at: Tick,
+        _mem: &mut Memory<L>,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.control_with(s, trig, r, at)
     }
 }
 
@@ -184,8 +226,10 @@ macro_rules! controllers {
             }
         }
 
-        /// One controller kind's parameters for one vehicle.
+        /// One controller kind's parameters for one vehicle (built once per craft: the
+        /// variants' sizes differ, nothing is gained by boxing them).
         #[derive(Clone, Debug)]
+        #[allow(clippy::large_enum_variant)]
         pub enum AnyController {
             $($Ty($Ty)),+
         }
@@ -236,6 +280,7 @@ macro_rules! controllers {
 controllers! {
     pd => Pd,
     smc => Smc,
+    px4 => Px4,
     se3 => Se3,
 }
 

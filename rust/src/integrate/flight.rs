@@ -209,6 +209,9 @@ impl Engine {
         // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
         let blows = crafts.iter().any(|c| c.wind.blows());
         let mut held = [zero; 3];
+        // The law's discrete memory (none for a static law), and each lane's at its start.
+        let mem0 = ctrl.memory(&Vehicle::<L, Pay, Act>::rigid(&x0));
+        let mut mem = mem0;
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
@@ -231,7 +234,13 @@ impl Engine {
             }
             let trig = Trig::of(&s);
             let tick = Tick { step: k, t };
-            let u = ctrl.control_with(&Vehicle::<L, Pay, Act>::rigid(&s), &trig, &r, tick);
+            let u = ctrl.step_with(
+                &Vehicle::<L, Pay, Act>::rigid(&s),
+                &trig,
+                &r,
+                tick,
+                &mut mem,
+            );
             let cmd = vehicle.actuator.command(&u, tick);
             // Outside the gust window `sample_at` returns zeros without touching the state
             // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
@@ -368,6 +377,9 @@ impl Engine {
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
                         for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
                             x.set_lane(lane, *x0);
+                        }
+                        for (m, m0) in mem.iter_mut().zip(mem0.iter()) {
+                            m.set_lane(lane, m0.lane(lane));
                         }
                     }
                 }

@@ -1,0 +1,833 @@
+//! The PX4 multicopter cascade (docs/model.md, "The PX4 cascade"): position P -> velocity PID
+//! -> acceleration to thrust vector and attitude setpoint -> quaternion attitude P with reduced
+//! yaw priority (Brescianini, Hehn & D'Andrea 2013) -> body-rate PID, as PX4's
+//! `PositionControl`, `AttitudeControl` and `RateControl` compute it, in PX4's normalised units
+//! mapped to this model's SI. A discrete law with memory (`Control::step_with`): the velocity
+//! and rate integrators and the filtered derivatives advance once per control step.
+
+use super::{Control, Controller, Memory, Shared};
+use crate::config::params::params;
+use crate::config::{non_negative, positive, Config, ConfigError};
+use crate::lane::{KernelOps, Lane, Param};
+use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::trajectory::Reference;
+
+params! {
+    /// `[controller.px4]`: PX4's parameters under their own names and in their own units
+    /// (degrees, deg/s, normalised thrust and torque), PX4's defaults where they fit.
+    #[allow(non_snake_case)]
+    pub struct Px4Params {
+        MPC_XY_P: f64 => "1/s", "PX4 horizontal position gain";
+        MPC_Z_P: f64 => "1/s", "PX4 vertical position gain";
+        MPC_XY_VEL_P_ACC: f64 => "1/s", "PX4 horizontal velocity P gain";
+        MPC_XY_VEL_I_ACC: f64 => "1/s^2", "PX4 horizontal velocity I gain";
+        MPC_XY_VEL_D_ACC: f64 => "-", "PX4 horizontal velocity D gain";
+        MPC_Z_VEL_P_ACC: f64 => "1/s", "PX4 vertical velocity P gain";
+        MPC_Z_VEL_I_ACC: f64 => "1/s^2", "PX4 vertical velocity I gain";
+        MPC_Z_VEL_D_ACC: f64 => "-", "PX4 vertical velocity D gain";
+        MPC_VELD_LP: f64 => "Hz", "PX4 velocity-derivative low-pass cutoff";
+        MPC_XY_VEL_MAX: f64 => "m/s", "PX4 largest horizontal velocity setpoint";
+        MPC_Z_VEL_MAX_UP: f64 => "m/s", "PX4 largest ascent velocity setpoint";
+        MPC_Z_VEL_MAX_DN: f64 => "m/s", "PX4 largest descent velocity setpoint";
+        MPC_TILTMAX_AIR: f64 => "deg", "PX4 largest tilt of the thrust setpoint";
+        MPC_THR_HOVER: f64 => "-", "PX4 hover thrust (normalised)";
+        MPC_THR_MIN: f64 => "-", "PX4 least collective thrust (normalised)";
+        MPC_THR_MAX: f64 => "-", "PX4 largest collective thrust (normalised)";
+        MPC_THR_XY_MARG: f64 => "-", "PX4 horizontal thrust margin (normalised)";
+        MC_ROLL_P: f64 => "1/s", "PX4 roll attitude gain";
+        MC_PITCH_P: f64 => "1/s", "PX4 pitch attitude gain";
+        MC_YAW_P: f64 => "1/s", "PX4 yaw attitude gain";
+        MC_YAW_WEIGHT: f64 => "-", "PX4 yaw weight of the attitude error";
+        MC_ROLLRATE_MAX: f64 => "deg/s", "PX4 largest roll-rate setpoint";
+        MC_PITCHRATE_MAX: f64 => "deg/s", "PX4 largest pitch-rate setpoint";
+        MC_YAWRATE_MAX: f64 => "deg/s", "PX4 largest yaw-rate setpoint";
+        MC_ROLLRATE_P: f64 => "s/rad", "PX4 roll-rate P gain (normalised torque)";
+        MC_ROLLRATE_I: f64 => "1/rad", "PX4 roll-rate I gain (normalised torque)";
+        MC_ROLLRATE_D: f64 => "s^2/rad", "PX4 roll-rate D gain (normalised torque)";
+        MC_PITCHRATE_P: f64 => "s/rad", "PX4 pitch-rate P gain (normalised torque)";
+        MC_PITCHRATE_I: f64 => "1/rad", "PX4 pitch-rate I gain (normalised torque)";
+        MC_PITCHRATE_D: f64 => "s^2/rad", "PX4 pitch-rate D gain (normalised torque)";
+        MC_YAWRATE_P: f64 => "s/rad", "PX4 yaw-rate P gain (normalised torque)";
+        MC_YAWRATE_I: f64 => "1/rad", "PX4 yaw-rate I gain (normalised torque)";
+        MC_YAWRATE_D: f64 => "s^2/rad", "PX4 yaw-rate D gain (normalised torque)";
+        MC_RR_INT_LIM: f64 => "-", "PX4 roll-rate integrator limit (normalised torque)";
+        MC_PR_INT_LIM: f64 => "-", "PX4 pitch-rate integrator limit (normalised torque)";
+        MC_YR_INT_LIM: f64 => "-", "PX4 yaw-rate integrator limit (normalised torque)";
+        IMU_DGYRO_CUTOFF: f64 => "Hz", "PX4 rate-derivative low-pass cutoff";
+        /// The mapping's yaw torque per unit rotor thrust (not a PX4 parameter: the mixer's).
+        yaw_torque_ratio: f64 => "m", "Yaw torque per rotor thrust (PX4 torque mapping)";
+    }
+}
+
+impl Default for Px4Params {
+    /// PX4's defaults (mc_pos_control, mc_att_control, mc_rate_control parameters).
+    fn default() -> Self {
+        Self {
+            MPC_XY_P: 0.95,
+            MPC_Z_P: 1.0,
+            MPC_XY_VEL_P_ACC: 1.8,
+            MPC_XY_VEL_I_ACC: 0.4,
+            MPC_XY_VEL_D_ACC: 0.2,
+            MPC_Z_VEL_P_ACC: 4.0,
+            MPC_Z_VEL_I_ACC: 2.0,
+            MPC_Z_VEL_D_ACC: 0.0,
+            MPC_VELD_LP: 5.0,
+            MPC_XY_VEL_MAX: 12.0,
+            MPC_Z_VEL_MAX_UP: 3.0,
+            MPC_Z_VEL_MAX_DN: 1.5,
+            MPC_TILTMAX_AIR: 45.0,
+            MPC_THR_HOVER: 0.5,
+            MPC_THR_MIN: 0.12,
+            MPC_THR_MAX: 1.0,
+            MPC_THR_XY_MARG: 0.3,
+            MC_ROLL_P: 6.5,
+            MC_PITCH_P: 6.5,
+            MC_YAW_P: 2.8,
+            MC_YAW_WEIGHT: 0.4,
+            MC_ROLLRATE_MAX: 220.0,
+            MC_PITCHRATE_MAX: 220.0,
+            MC_YAWRATE_MAX: 200.0,
+            MC_ROLLRATE_P: 0.15,
+            MC_ROLLRATE_I: 0.2,
+            MC_ROLLRATE_D: 0.003,
+            MC_PITCHRATE_P: 0.15,
+            MC_PITCHRATE_I: 0.2,
+            MC_PITCHRATE_D: 0.003,
+            MC_YAWRATE_P: 0.2,
+            MC_YAWRATE_I: 0.1,
+            MC_YAWRATE_D: 0.0,
+            MC_RR_INT_LIM: 0.3,
+            MC_PR_INT_LIM: 0.3,
+            MC_YR_INT_LIM: 0.3,
+            IMU_DGYRO_CUTOFF: 30.0,
+            yaw_torque_ratio: 0.016,
+        }
+    }
+}
+
+/// Memory slots (`Memory`): velocity integrator (m/s^2), last velocity, filtered velocity
+/// derivative, rate integrator (normalised torque), last rate, filtered rate derivative; x, y,
+/// z or roll, pitch, yaw each.
+const VEL_INT: usize = 0;
+const VEL_PREV: usize = 3;
+const VEL_DOT: usize = 6;
+const RATE_INT: usize = 9;
+const RATE_PREV: usize = 12;
+const RATE_DOT: usize = 15;
+/// Slots the law uses.
+const PX4_MEMORY: usize = 18;
+const _: () = assert!(PX4_MEMORY <= super::MEMORY_SLOTS);
+
+/// Norms are never divided by less than this (a zero vector keeps its direction undefined
+/// and its scale factor 1).
+const TINY: f64 = 1e-12;
+/// PX4's I-term attenuation: the rate error at which the I gain falls to zero (400 deg/s).
+const I_FACTOR_RATE: f64 = 400.0 * std::f64::consts::PI / 180.0;
+
+/// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Px4::gather`), in SI.
+#[derive(Clone, Debug)]
+pub struct Px4<P = f64> {
+    shared: Shared<P>,
+    /// 1/s: x, y, z position gains.
+    pos_p: [P; 3],
+    vel_p: [P; 3],
+    vel_i: [P; 3],
+    vel_d: [P; 3],
+    vel_max_xy: P,
+    vel_max_up: P,
+    vel_max_dn: P,
+    /// g tan(MPC_TILTMAX_AIR): the largest horizontal acceleration setpoint, m/s^2.
+    acc_max_xy: P,
+    /// Normalised thrusts.
+    thr_hover: P,
+    thr_min: P,
+    thr_max: P,
+    thr_xy_marg: P,
+    /// Attitude gains (yaw already divided by the yaw weight, as PX4 does).
+    att_p: [P; 3],
+    yaw_w: P,
+    /// rad/s.
+    rate_max: [P; 3],
+    rate_p: [P; 3],
+    rate_i: [P; 3],
+    rate_d: [P; 3],
+    rate_int_lim: [P; 3],
+    /// N per unit normalised thrust: mt g / MPC_THR_HOVER.
+    thrust_full: P,
+    /// N m per unit normalised torque (roll, pitch, yaw).
+    torque_full: [P; 3],
+    /// s, the control step.
+    dt: P,
+    /// First-order low-pass weights dt / (dt + 1 / (2 pi fc)) of the derivatives.
+    alpha_vel: P,
+    alpha_rate: P,
+}
+
+fn deg(x: f64) -> f64 {
+    x.to_radians()
+}
+
+fn lowpass_weight(dt: f64, fc: f64) -> f64 {
+    dt / (dt + 1.0 / (2.0 * std::f64::consts::PI * fc))
+}
+
+impl Controller for Px4 {
+    type Params = Px4Params;
+    type At<L: Lane> = Px4<L>;
+
+    fn defaults() -> Option<Px4Params> {
+        Some(Px4Params::default())
+    }
+
+    fn validate(k: &Px4Params, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+        let nn = [
+            ("MPC_XY_P", k.MPC_XY_P),
+            ("MPC_Z_P", k.MPC_Z_P),
+            ("MPC_XY_VEL_P_ACC", k.MPC_XY_VEL_P_ACC),
+            ("MPC_XY_VEL_I_ACC", k.MPC_XY_VEL_I_ACC),
+            ("MPC_XY_VEL_D_ACC", k.MPC_XY_VEL_D_ACC),
+            ("MPC_Z_VEL_P_ACC", k.MPC_Z_VEL_P_ACC),
+            ("MPC_Z_VEL_I_ACC", k.MPC_Z_VEL_I_ACC),
+            ("MPC_Z_VEL_D_ACC", k.MPC_Z_VEL_D_ACC),
+            ("MPC_THR_MIN", k.MPC_THR_MIN),
+            ("MPC_THR_XY_MARG", k.MPC_THR_XY_MARG),
+            ("MC_ROLL_P", k.MC_ROLL_P),
+            ("MC_PITCH_P", k.MC_PITCH_P),
+            ("MC_YAW_P", k.MC_YAW_P),
+            ("MC_YAW_WEIGHT", k.MC_YAW_WEIGHT),
+            ("MC_ROLLRATE_P", k.MC_ROLLRATE_P),
+            ("MC_ROLLRATE_I", k.MC_ROLLRATE_I),
+            ("MC_ROLLRATE_D", k.MC_ROLLRATE_D),
+            ("MC_PITCHRATE_P", k.MC_PITCHRATE_P),
+            ("MC_PITCHRATE_I", k.MC_PITCHRATE_I),
+            ("MC_PITCHRATE_D", k.MC_PITCHRATE_D),
+            ("MC_YAWRATE_P", k.MC_YAWRATE_P),
+            ("MC_YAWRATE_I", k.MC_YAWRATE_I),
+            ("MC_YAWRATE_D", k.MC_YAWRATE_D),
+            ("MC_RR_INT_LIM", k.MC_RR_INT_LIM),
+            ("MC_PR_INT_LIM", k.MC_PR_INT_LIM),
+            ("MC_YR_INT_LIM", k.MC_YR_INT_LIM),
+        ];
+        for (name, x) in nn {
+            non_negative(format_args!("{key}.{name}"), x)?;
+        }
+        let pos = [
+            ("MPC_VELD_LP", k.MPC_VELD_LP),
+            ("MPC_XY_VEL_MAX", k.MPC_XY_VEL_MAX),
+            ("MPC_Z_VEL_MAX_UP", k.MPC_Z_VEL_MAX_UP),
+            ("MPC_Z_VEL_MAX_DN", k.MPC_Z_VEL_MAX_DN),
+            ("MPC_THR_HOVER", k.MPC_THR_HOVER),
+            ("MPC_THR_MAX", k.MPC_THR_MAX),
+            ("MC_ROLLRATE_MAX", k.MC_ROLLRATE_MAX),
+            ("MC_PITCHRATE_MAX", k.MC_PITCHRATE_MAX),
+            ("MC_YAWRATE_MAX", k.MC_YAWRATE_MAX),
+            ("IMU_DGYRO_CUTOFF", k.IMU_DGYRO_CUTOFF),
+            ("yaw_torque_ratio", k.yaw_torque_ratio),
+        ];
+        for (name, x) in pos {
+            positive(format_args!("{key}.{name}"), x)?;
+        }
+        let range = |name: &str, x: f64, lo: f64, hi: f64, what: &str| {
+            if x > lo && x < hi {
+                Ok(())
+            } else {
+                Err(ConfigError::new(
+                    format!("{key}.{name}"),
+                    format!("{key}.{name} must be {what}, got {x:?}"),
+                ))
+            }
+        };
+        range(
+            "MPC_TILTMAX_AIR",
+            k.MPC_TILTMAX_AIR,
+            0.0,
+            90.0,
+            "between 0 and 90 deg (exclusive)",
+        )?;
+        range(
+            "MPC_THR_MAX",
+            k.MPC_THR_MAX,
+            k.MPC_THR_MIN.max(k.MPC_THR_XY_MARG),
+            f64::INFINITY,
+            "above MPC_THR_MIN and MPC_THR_XY_MARG",
+        )?;
+        range(
+            "MPC_THR_HOVER",
+            k.MPC_THR_HOVER,
+            0.0,
+            k.MPC_THR_MAX,
+            "between 0 and MPC_THR_MAX (exclusive)",
+        )?;
+        range(
+            "MC_YAW_WEIGHT",
+            k.MC_YAW_WEIGHT,
+            0.0,
+            1.0 + f64::EPSILON,
+            "in (0, 1]",
+        )?;
+        if k.MPC_XY_VEL_I_ACC > 0.0 && k.MPC_XY_VEL_P_ACC <= 0.0 {
+            return Err(ConfigError::new(
+                format!("{key}.MPC_XY_VEL_P_ACC"),
+                format!(
+                    "{key}.MPC_XY_VEL_P_ACC must be > 0 with an integral gain (its anti-windup divides by it), got {:?}",
+                    k.MPC_XY_VEL_P_ACC
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn new(k: &Px4Params, cfg: &Config) -> Self {
+        let shared = Shared::new(cfg);
+        let g = cfg.environment.gravity;
+        let dt = cfg.integrator.dt;
+        let thrust_full = shared.mt * g / k.MPC_THR_HOVER;
+        // X layout: two rotors on one side at full thrust (thrust_full / 4 each), the others at
+        // zero, at arm_length / sqrt(2) from the roll (pitch) axis.
+        let arm = cfg.vehicle.arm_length;
+        let roll_full = arm * thrust_full / (2.0 * std::f64::consts::SQRT_2);
+        let yaw_full = k.yaw_torque_ratio * thrust_full / 2.0;
+        Self {
+            shared,
+            pos_p: [k.MPC_XY_P, k.MPC_XY_P, k.MPC_Z_P],
+            vel_p: [k.MPC_XY_VEL_P_ACC, k.MPC_XY_VEL_P_ACC, k.MPC_Z_VEL_P_ACC],
+            vel_i: [k.MPC_XY_VEL_I_ACC, k.MPC_XY_VEL_I_ACC, k.MPC_Z_VEL_I_ACC],
+            vel_d: [k.MPC_XY_VEL_D_ACC, k.MPC_XY_VEL_D_ACC, k.MPC_Z_VEL_D_ACC],
+            vel_max_xy: k.MPC_XY_VEL_MAX,
+            vel_max_up: k.MPC_Z_VEL_MAX_UP,
+            vel_max_dn: k.MPC_Z_VEL_MAX_DN,
+            acc_max_xy: g * deg(k.MPC_TILTMAX_AIR).tan(),
+            thr_hover: k.MPC_THR_HOVER,
+            thr_min: k.MPC_THR_MIN,
+            thr_max: k.MPC_THR_MAX,
+            thr_xy_marg: k.MPC_THR_XY_MARG,
+            att_p: [k.MC_ROLL_P, k.MC_PITCH_P, k.MC_YAW_P / k.MC_YAW_WEIGHT],
+            yaw_w: k.MC_YAW_WEIGHT,
+            rate_max: [
+                deg(k.MC_ROLLRATE_MAX),
+                deg(k.MC_PITCHRATE_MAX),
+                deg(k.MC_YAWRATE_MAX),
+            ],
+            rate_p: [k.MC_ROLLRATE_P, k.MC_PITCHRATE_P, k.MC_YAWRATE_P],
+            rate_i: [k.MC_ROLLRATE_I, k.MC_PITCHRATE_I, k.MC_YAWRATE_I],
+            rate_d: [k.MC_ROLLRATE_D, k.MC_PITCHRATE_D, k.MC_YAWRATE_D],
+            rate_int_lim: [k.MC_RR_INT_LIM, k.MC_PR_INT_LIM, k.MC_YR_INT_LIM],
+            thrust_full,
+            torque_full: [roll_full, roll_full, yaw_full],
+            dt,
+            alpha_vel: lowpass_weight(dt, k.MPC_VELD_LP),
+            alpha_rate: lowpass_weight(dt, k.IMU_DGYRO_CUTOFF),
+        }
+    }
+
+    fn gather<L: Lane>(each: &[&Px4]) -> Px4<L> {
+        let at = |f: fn(&Px4) -> f64| -> L { L::from_fn(|l| f(each[l])) };
+        let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] {
+            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
+        };
+        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
+        Px4 {
+            shared: Shared::gather(&shared),
+            pos_p: at3(|p| p.pos_p),
+            vel_p: at3(|p| p.vel_p),
+            vel_i: at3(|p| p.vel_i),
+            vel_d: at3(|p| p.vel_d),
+            vel_max_xy: at(|p| p.vel_max_xy),
+            vel_max_up: at(|p| p.vel_max_up),
+            vel_max_dn: at(|p| p.vel_max_dn),
+            acc_max_xy: at(|p| p.acc_max_xy),
+            thr_hover: at(|p| p.thr_hover),
+            thr_min: at(|p| p.thr_min),
+            thr_max: at(|p| p.thr_max),
+            thr_xy_marg: at(|p| p.thr_xy_marg),
+            att_p: at3(|p| p.att_p),
+            yaw_w: at(|p| p.yaw_w),
+            rate_max: at3(|p| p.rate_max),
+            rate_p: at3(|p| p.rate_p),
+            rate_i: at3(|p| p.rate_i),
+            rate_d: at3(|p| p.rate_d),
+            rate_int_lim: at3(|p| p.rate_int_lim),
+            thrust_full: at(|p| p.thrust_full),
+            torque_full: at3(|p| p.torque_full),
+            dt: at(|p| p.dt),
+            alpha_vel: at(|p| p.alpha_vel),
+            alpha_rate: at(|p| p.alpha_rate),
+        }
+    }
+}
+
+/// A quaternion (w, x, y, z), Hamilton product.
+type Quat<L> = [L; 4];
+
+#[inline(always)]
+fn qmul<L: Lane>(a: &Quat<L>, b: &Quat<L>) -> Quat<L> {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn conj<L: Lane>(q: &Quat<L>) -> Quat<L> {
+    [q[0], -q[1], -q[2], -q[3]]
+}
+
+/// x / |x| (+/-1; 0 at 0): PX4's `canonical()` sign.
+#[inline(always)]
+fn sign<L: Lane>(x: L) -> L {
+    x / x.abs().max(L::splat(TINY))
+}
+
+/// (cos, sin) of half an angle in (-pi/2, pi/2] given its cosine (>= 0) and sine.
+#[inline(always)]
+fn half<L: Lane>(c: L, s: L) -> (L, L) {
+    let ch = ((c + 1.0) * 0.5).sqrt();
+    (ch, s / (ch * 2.0))
+}
+
+/// min(1, limit / |v|): the factor that scales a vector of norm `n` down to at most `limit`.
+#[inline(always)]
+fn shrink<L: Lane>(n: L, limit: L) -> L {
+    (limit / n.max(L::splat(TINY))).min(L::splat(1.0))
+}
+
+/// What one step of the cascade computed that the integrator update needs.
+struct Cascade<L> {
+    vel_err: [L; 3],
+    /// The acceleration setpoint with its feed-forward, before the tilt limit (m/s^2).
+    acc_sp: [L; 3],
+    /// Vertical normalised thrust out of the acceleration-to-thrust step (before saturation).
+    thr_z_acc: L,
+    /// Horizontal normalised thrust after saturation.
+    thr_xy: [L; 2],
+    rate_err: [L; 3],
+    /// Normalised torques.
+    torque: [L; 3],
+}
+
+impl<P: Copy + Sync> Px4<P> {
+    /// The cascade at state `s` with the memory `mem` as held (integrators and filtered
+    /// derivatives): the inputs and what the integrator update needs.
+    #[inline(always)]
+    fn cascade<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        mem: &Memory<L>,
+    ) -> (Inputs<L>, Cascade<L>)
+    where
+        P: Param<L>,
+    {
+        let g: L = self.shared.g.get();
+        let one = L::splat(1.0);
+        // Position P, plus the reference velocity as feed-forward, then the velocity limits.
+        let mut v_sp = [0, 1, 2]
+            .map(|i| (L::splat(r.pos[i]) - s.pos[i]) * self.pos_p[i].get() + L::splat(r.vel[i]));
+        let k = shrink(
+            (v_sp[0] * v_sp[0] + v_sp[1] * v_sp[1]).sqrt(),
+            self.vel_max_xy.get(),
+        );
+        v_sp[0] = v_sp[0] * k;
+        v_sp[1] = v_sp[1] * k;
+        let vmax_dn: L = self.vel_max_dn.get();
+        v_sp[2] = v_sp[2].clamp(-vmax_dn, self.vel_max_up.get());
+        // Velocity PID (derivative on the measurement), plus the reference acceleration.
+        let vel_err = [0, 1, 2].map(|i| v_sp[i] - s.vel[i]);
+        let acc_sp = [0, 1, 2].map(|i| {
+            vel_err[i] * self.vel_p[i].get() + mem[VEL_INT + i]
+                - mem[VEL_DOT + i] * self.vel_d[i].get()
+                + L::splat(r.acc[i])
+        });
+        // Acceleration to thrust: tilt limit on the horizontal acceleration (the thrust
+        // direction assumes g vertically), collective thrust from the hover thrust.
+        let k = shrink(
+            (acc_sp[0] * acc_sp[0] + acc_sp[1] * acc_sp[1]).sqrt(),
+            self.acc_max_xy.get(),
+        );
+        let (ax, ay) = (acc_sp[0] * k, acc_sp[1] * k);
+        let nz = (ax * ax + ay * ay + g * g).sqrt();
+        let hover: L = self.thr_hover.get();
+        let thr_z_raw = hover * (acc_sp[2] + g) / g;
+        let collective = (thr_z_raw * nz / g).max(self.thr_min.get());
+        let (mut tx, mut ty, mut tz) = (
+            collective * ax / nz,
+            collective * ay / nz,
+            collective * g / nz,
+        );
+        let thr_z_acc = tz;
+        // Vertical thrust first, keeping a horizontal margin; the horizontal thrust gets what
+        // is left of MPC_THR_MAX.
+        let thr_max: L = self.thr_max.get();
+        let txy = (tx * tx + ty * ty).sqrt();
+        let alloc = txy.min(self.thr_xy_marg.get());
+        tz = tz.min((thr_max * thr_max - alloc * alloc).sqrt());
+        let txy_max = (thr_max * thr_max - tz * tz).max(L::splat(0.0)).sqrt();
+        let k = shrink(txy, txy_max);
+        tx = tx * k;
+        ty = ty * k;
+        let thrust = (tx * tx + ty * ty + tz * tz).sqrt();
+        let u1 = self.shared.limit_thrust(thrust * self.thrust_full.get());
+
+        // Attitude setpoint: body z along the thrust, heading psi_ref (PX4's bodyzToAttitude,
+        // which is the ZYX Euler attitude (phi_d, theta_d, psi_ref) with that z axis).
+        let b3 = [tx / thrust, ty / thrust, tz / thrust];
+        let (spd, cpd) = r.psi.sin_cos();
+        let (spd, cpd) = (L::splat(spd), L::splat(cpd));
+        let a = cpd * b3[0] + spd * b3[1];
+        let b = cpd * b3[1] - spd * b3[0];
+        let c = b3[2];
+        let cphi_d = (a * a + c * c).sqrt();
+        let (cp2, sp2) = half(cphi_d, -b);
+        let (ct2, st2) = half(c / cphi_d, a / cphi_d);
+        let (sy2, cy2) = (r.psi * 0.5).sin_cos();
+        let z = L::splat(0.0);
+        let qd = qmul(
+            &qmul(&[L::splat(cy2), z, z, L::splat(sy2)], &[ct2, z, st2, z]),
+            &[cp2, sp2, z, z],
+        );
+        // The vehicle's attitude.
+        let (sh_phi, ch_phi) = (s.att[0] * 0.5).sin_cos();
+        let (sh_th, ch_th) = (s.att[1] * 0.5).sin_cos();
+        let (sh_psi, ch_psi) = (s.att[2] * 0.5).sin_cos();
+        let q = qmul(
+            &qmul(&[ch_psi, z, z, sh_psi], &[ch_th, z, sh_th, z]),
+            &[ch_phi, sh_phi, z, z],
+        );
+        // Reduced attitude: the shortest rotation of the body z axis onto the desired one
+        // (roll and pitch first), then the yaw part of the rest, weighted by MC_YAW_WEIGHT.
+        let (sphi, cphi, sth, cth, spsi, cpsi) = (
+            trig.sphi, trig.cphi, trig.sth, trig.cth, trig.spsi, trig.cpsi,
+        );
+        let ez = [
+            cphi * sth * cpsi + sphi * spsi,
+            cphi * sth * spsi - sphi * cpsi,
+            cphi * cth,
+        ];
+        let dot = ez[0] * b3[0] + ez[1] * b3[1] + ez[2] * b3[2];
+        let cr = [
+            ez[1] * b3[2] - ez[2] * b3[1],
+            ez[2] * b3[0] - ez[0] * b3[2],
+            ez[0] * b3[1] - ez[1] * b3[0],
+        ];
+        let w0 = dot + 1.0;
+        let n = (w0 * w0 + cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+        let q_red = [w0 / n, cr[0] / n, cr[1] / n, cr[2] / n];
+        let qd_red = qmul(&q_red, &q);
+        let q_mix = qmul(&conj(&qd_red), &qd);
+        let half_yaw = (sign(q_mix[0]) * q_mix[3]).clamp(-one, one).asin();
+        let (sw, cw) = (half_yaw * self.yaw_w.get()).sin_cos();
+        let qd = qmul(&qd_red, &[cw, z, z, sw]);
+        let qe = qmul(&conj(&q), &qd);
+        let sgn = sign(qe[0]) * 2.0;
+        // Rate setpoint: P on the error, the yaw-rate reference about the world z axis (in
+        // body axes: the third row of R), then the rate limits.
+        let world_z = [-sth, sphi * cth, cphi * cth];
+        let rate_sp = [0, 1, 2].map(|i| {
+            let max: L = self.rate_max[i].get();
+            (qe[i + 1] * sgn * self.att_p[i].get() + world_z[i] * r.psi_dot).clamp(-max, max)
+        });
+        // Rate PID (derivative on the measurement), normalised torque, then N m.
+        let rate_err = [0, 1, 2].map(|i| rate_sp[i] - s.rate[i]);
+        let torque = [0, 1, 2].map(|i| {
+            rate_err[i] * self.rate_p[i].get() + mem[RATE_INT + i]
+                - mem[RATE_DOT + i] * self.rate_d[i].get()
+        });
+        let tau = [0, 1, 2].map(|i| torque[i] * self.torque_full[i].get());
+        (
+            Inputs { u1, tau },
+            Cascade {
+                vel_err,
+                acc_sp,
+                thr_z_acc,
+                thr_xy: [tx, ty],
+                rate_err,
+                torque,
+            },
+        )
+    }
+
+    /// The memory of a vehicle that has been at `s` for ever: no integral, no derivative.
+    #[inline(always)]
+    #[allow(clippy::manual_memcpy)] // the slots are named one by one, as the loop below reads them
+    fn at_rest<L: Lane>(s: &Rigid<L>) -> Memory<L> {
+        let mut m = [L::splat(0.0); super::MEMORY_SLOTS];
+        for i in 0..3 {
+            m[VEL_PREV + i] = s.vel[i];
+            m[RATE_PREV + i] = s.rate[i];
+        }
+        m
+    }
+}
+
+impl<P: Copy + Sync> Control<P> for Px4<P> {
+    /// The law with its memory at rest at `s` (integrators zero, their hover value; derivative
+    /// terms zero): what the linearisation differentiates (docs/model.md, "The PX4 cascade").
+    #[inline(always)]
+    fn control_with<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.cascade(s, trig, r, &Self::at_rest(s)).0
+    }
+
+    #[inline(always)]
+    fn memory<L: Lane>(&self, s: &Rigid<L>) -> Memory<L>
+    where
+        P: Param<L>,
+    {
+        Self::at_rest(s)
+    }
+
+    /// One step of PX4's loop: the filtered derivatives take the new measurement, the cascade
+    /// runs with the integrators as held, then the integrators advance by dt with their
+    /// anti-windup (PositionControl::_velocityControl, RateControl::updateIntegral).
+    #[inline(always)]
+    #[allow(clippy::manual_memcpy)]
+    fn step_with<L: KernelOps>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        _at: Tick,
+        mem: &mut Memory<L>,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        let dt: L = self.dt.get();
+        let (av, ar): (L, L) = (self.alpha_vel.get(), self.alpha_rate.get());
+        for i in 0..3 {
+            let raw = (s.vel[i] - mem[VEL_PREV + i]) / dt;
+            mem[VEL_DOT + i] += (raw - mem[VEL_DOT + i]) * av;
+            mem[VEL_PREV + i] = s.vel[i];
+            let raw = (s.rate[i] - mem[RATE_PREV + i]) / dt;
+            mem[RATE_DOT + i] += (raw - mem[RATE_DOT + i]) * ar;
+            mem[RATE_PREV + i] = s.rate[i];
+        }
+        let (u, c) = self.cascade(s, trig, r, mem);
+        let zero = L::splat(0.0);
+        let g: L = self.shared.g.get();
+
+        // Velocity integrator. Vertical: no further winding into a saturated thrust.
+        let mut e = c.vel_err;
+        let low = c.thr_z_acc.cmp_le(self.thr_min.get());
+        let high = c.thr_z_acc.cmp_ge(self.thr_max.get());
+        e[2] = L::select(low, e[2].max(zero), e[2]);
+        e[2] = L::select(high, e[2].min(zero), e[2]);
+        // Horizontal: tracking anti-windup towards the acceleration the thrust produces.
+        let to_acc = g / self.thr_hover.get();
+        let prod = [c.thr_xy[0] * to_acc, c.thr_xy[1] * to_acc];
+        let a = [c.acc_sp[0], c.acc_sp[1]];
+        let fits = (a[0] * a[0] + a[1] * a[1]).cmp_le(prod[0] * prod[0] + prod[1] * prod[1]);
+        let arw: L = L::splat(2.0) / self.vel_p[0].get();
+        for i in 0..2 {
+            let limited = L::select(fits, a[i], prod[i]);
+            e[i] = e[i] - (a[i] - limited) * arw;
+        }
+        for (i, e) in e.iter().enumerate() {
+            mem[VEL_INT + i] += *e * self.vel_i[i].get() * dt;
+        }
+        mem[VEL_INT + 2] = mem[VEL_INT + 2].clamp(-g, g);
+
+        // Rate integrator: not into a saturated torque, attenuated at large errors, limited.
+        let one = L::splat(1.0);
+        for i in 0..3 {
+            let mut e = c.rate_err[i];
+            e = L::select(c.torque[i].cmp_ge(one), e.min(zero), e);
+            e = L::select(c.torque[i].cmp_le(-one), e.max(zero), e);
+            let f = e * (1.0 / I_FACTOR_RATE);
+            let i_factor = (one - f * f).max(zero);
+            let lim: L = self.rate_int_lim[i].get();
+            mem[RATE_INT + i] =
+                (mem[RATE_INT + i] + i_factor * self.rate_i[i].get() * e * dt).clamp(-lim, lim);
+        }
+        u
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::paper;
+    use crate::control::tests::at_rest;
+
+    fn px4(cfg: &Config) -> Px4 {
+        Px4::new(&Px4Params::default(), cfg)
+    }
+
+    #[test]
+    fn hover_is_the_weight_and_no_torque() {
+        let cfg = paper();
+        let c = px4(&cfg);
+        let s = at_rest([1.0, -2.0, 3.0], 0.4);
+        let r = Reference {
+            pos: [1.0, -2.0, 3.0],
+            psi: 0.4,
+            ..Reference::default()
+        };
+        let u = c.control(&s, &r, Tick::START);
+        let w = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
+        assert!((u.u1 - w).abs() < 1e-12, "{} vs {w}", u.u1);
+        for t in u.tau {
+            assert!(t.abs() < 1e-12, "{:?}", u.tau);
+        }
+    }
+
+    /// The mapping: at a level attitude, a roll-rate error e gives MC_ROLLRATE_P e full-scale
+    /// torques; a height error gives the cascade's P-P vertical thrust.
+    #[test]
+    fn gains_map_to_si_as_documented() {
+        let cfg = paper();
+        let k = Px4Params::default();
+        let c = px4(&cfg);
+        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        s.rate[0] = -0.1;
+        s.pos[2] = 1.9;
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        let u = c.control(&s, &r, Tick::START);
+        let mt = cfg.vehicle.mass + cfg.payload.mass;
+        let full = mt * 9.81 / k.MPC_THR_HOVER;
+        let roll_full = cfg.vehicle.arm_length * full / (2.0 * 2f64.sqrt());
+        assert!((u.tau[0] - k.MC_ROLLRATE_P * 0.1 * roll_full).abs() < 1e-12);
+        let acc = k.MPC_Z_VEL_P_ACC * k.MPC_Z_P * 0.1;
+        let want = k.MPC_THR_HOVER * (acc + 9.81) / 9.81 * full;
+        assert!((u.u1 - want).abs() < 1e-9, "{} vs {want}", u.u1);
+    }
+
+    /// A far target and a fast reference: the thrust direction stays within MPC_TILTMAX_AIR.
+    #[test]
+    fn thrust_setpoint_respects_the_tilt_limit() {
+        let cfg = paper();
+        let c = px4(&cfg);
+        let s = at_rest([0.0, 0.0, 2.0], 0.0);
+        let r = Reference {
+            pos: [500.0, 300.0, 2.0],
+            vel: [20.0, 0.0, 0.0],
+            acc: [30.0, 0.0, 0.0],
+            ..Reference::default()
+        };
+        let (_, k) = c.cascade(
+            &s,
+            &Trig::of_angles(0.0, 0.0, 0.0),
+            &r,
+            &Px4::<f64>::at_rest(&s),
+        );
+        let txy = (k.thr_xy[0].powi(2) + k.thr_xy[1].powi(2)).sqrt();
+        // thr_z_acc is before the vertical saturation, which only lowers it when MPC_THR_MAX
+        // binds; here it does not.
+        let tilt = txy.atan2(k.thr_z_acc);
+        assert!(tilt <= 45f64.to_radians() + 1e-12, "{tilt}");
+        assert!(tilt > 44f64.to_radians(), "{tilt}");
+    }
+
+    /// The integrators: a held velocity error winds the vertical integrator by
+    /// MPC_Z_VEL_I_ACC e dt per step; a held rate error the rate integrator likewise.
+    #[test]
+    fn integrators_advance_once_per_step() {
+        let cfg = paper();
+        let k = Px4Params::default();
+        let c = px4(&cfg);
+        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        s.vel[2] = -0.2;
+        s.rate[0] = 0.05;
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        let trig = Trig::of_angles(0.0, 0.0, 0.0);
+        let mut mem = c.memory(&s);
+        let dt = cfg.integrator.dt;
+        for step in 0..3 {
+            c.step_with(&s, &trig, &r, Tick { step, t: 0.0 }, &mut mem);
+        }
+        let want = 3.0 * k.MPC_Z_VEL_I_ACC * 0.2 * dt;
+        assert!(
+            (mem[VEL_INT + 2] - want).abs() < 1e-15,
+            "{}",
+            mem[VEL_INT + 2]
+        );
+        let e = -0.05;
+        let f = 1.0 - (e / I_FACTOR_RATE).powi(2);
+        let want = 3.0 * f * k.MC_ROLLRATE_I * e * dt;
+        assert!((mem[RATE_INT] - want).abs() < 1e-15, "{}", mem[RATE_INT]);
+        // A held state: the derivative filters stay at zero.
+        assert_eq!(mem[VEL_DOT + 2], 0.0);
+    }
+
+    #[test]
+    fn a_bad_value_is_named() {
+        let mut v = crate::config::tests::paper_value();
+        v["controller"]["px4"] = serde_json::to_value(Px4Params::default()).unwrap();
+        v["controller"]["px4"]["MPC_TILTMAX_AIR"] = serde_json::json!(95.0);
+        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        assert_eq!(e.key, "controller.px4.MPC_TILTMAX_AIR");
+        assert!(e.message.contains("between 0 and 90 deg"), "{e}");
+    }
+
+    fn delivery() -> Config {
+        let text = include_str!("../../../python/quadrs/presets/delivery.toml");
+        let v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        Config::from_json(&v.to_string()).expect("the delivery preset is valid")
+    }
+
+    /// The linearisation's Jacobian (dual numbers) against central differences of the same
+    /// closed loop, at hover and off it (tilted, moving, yawed), on the paper's vehicle and on
+    /// the delivery vehicle (cable and rotor lag); and the delivery hover is stable.
+    #[test]
+    fn linearisation_matches_finite_differences() {
+        use crate::control::ControllerKind;
+        use crate::stability::{analyse, closed_loop, closed_loop_jacobian, linearise, Verdict};
+        for cfg in [paper(), delivery()] {
+            let r = Reference {
+                pos: cfg.trajectory.points()[0],
+                ..Reference::default()
+            };
+            let cl = closed_loop(&cfg, ControllerKind::Px4, r);
+            let lin = linearise(&cfg, ControllerKind::Px4, [0.0; 3]);
+            assert!(lin.residual < 1e-9, "{}", lin.residual);
+            let mut off = lin.equilibrium.clone();
+            for (i, x) in off.iter_mut().enumerate() {
+                *x += 0.01 * ((i as f64) * 0.7).sin();
+            }
+            for (at, exact) in [
+                (lin.equilibrium.clone(), lin.a.clone()),
+                (off.clone(), closed_loop_jacobian(&*cl, &off, &[0.0; 3])),
+            ] {
+                let n = at.len();
+                let h = 1e-6;
+                for j in 0..n {
+                    let (mut up, mut down) = (at.clone(), at.clone());
+                    up[j] += h;
+                    down[j] -= h;
+                    let (fu, _) = cl.eval(&up, &[0.0; 3]);
+                    let (fd, _) = cl.eval(&down, &[0.0; 3]);
+                    for i in 0..n {
+                        let diff = (fu[i] - fd[i]) / (2.0 * h);
+                        let tol = 1e-5 * diff.abs().max(1.0);
+                        assert!(
+                            (diff - exact[(i, j)]).abs() < tol,
+                            "d f{i} / d s{j}: {diff} vs {}",
+                            exact[(i, j)]
+                        );
+                    }
+                }
+            }
+        }
+        let a = analyse(&delivery(), ControllerKind::Px4);
+        assert_eq!(a.verdict, Verdict::Stable, "{:?}", a.poles);
+        let a = analyse(&paper(), ControllerKind::Px4);
+        assert_eq!(a.verdict, Verdict::Stable, "{:?}", a.poles);
+    }
+}
