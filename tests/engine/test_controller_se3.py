@@ -341,9 +341,10 @@ def test_one_gain_of_the_defaulted_table_can_be_set_and_dispersed(short) -> None
     """The presets leave [controller.se3] out (the engine's defaults fly); setting one key
     starts from those defaults, as does a dispersion of it."""
     assert json.loads(_core.CONTROLLER_DEFAULTS["se3"]) == DEFAULTS
-    s = short.override({"controller.se3.kR": [80.0, 80.0, 40.0]})
-    assert s["controller.se3"] == {**DEFAULTS, "kR": [80.0, 80.0, 40.0]}
-    whole = short.override({"controller.se3": {**DEFAULTS, "kR": [80.0, 80.0, 40.0]}})
+    # the paper's flight is vertical: a vertical gain shows in its metrics
+    s = short.override({"controller.se3.kx": [1.0, 1.0, 3.0]})
+    assert s["controller.se3"] == {**DEFAULTS, "kx": [1.0, 1.0, 3.0]}
+    whole = short.override({"controller.se3": {**DEFAULTS, "kx": [1.0, 1.0, 3.0]}})
     assert quadrs.simulate(s, "se3").metrics.equals(quadrs.simulate(whole, "se3").metrics)
     assert not quadrs.simulate(s, "se3").metrics.equals(quadrs.simulate(short, "se3").metrics)
     d = short.override(
