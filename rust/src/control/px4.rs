@@ -434,12 +434,21 @@ impl<P: Copy + Sync> Px4<P> {
         v_sp[1] = v_sp[1] * k;
         let vmax_dn: L = self.vel_max_dn.get();
         v_sp[2] = v_sp[2].clamp(-vmax_dn, self.vel_max_up.get());
-        // Velocity PID (derivative on the measurement), plus the reference acceleration.
+        // Velocity PID (derivative on the measurement), plus the reference acceleration where
+        // the reference's velocity is within the limits: a route that asks for more is not a
+        // trajectory PX4's own generator would give, and its acceleration fed forward past a
+        // clamped velocity setpoint would push the vehicle past the limit.
+        let zero = L::splat(0.0);
+        let within = |excess: L| (excess * L::splat(-1e9) + one).max(zero).min(one);
+        let ff_xy = within(L::splat(r.vel[0].hypot(r.vel[1])) - self.vel_max_xy.get());
+        let ff_z = within(L::splat(r.vel[2]) - self.vel_max_up.get())
+            * within(L::splat(-r.vel[2]) - vmax_dn);
+        let ff = [ff_xy, ff_xy, ff_z];
         let vel_err = [0, 1, 2].map(|i| v_sp[i] - s.vel[i]);
         let acc_sp = [0, 1, 2].map(|i| {
             vel_err[i] * self.vel_p[i].get() + mem[VEL_INT + i]
                 - mem[VEL_DOT + i] * self.vel_d[i].get()
-                + L::splat(r.acc[i])
+                + ff[i] * r.acc[i]
         });
         // Acceleration to thrust: tilt limit on the horizontal acceleration (the thrust
         // direction assumes g vertically), collective thrust from the hover thrust.
