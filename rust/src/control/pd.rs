@@ -3,7 +3,7 @@
 use super::{non_negative3, position_errors, Control, Controller, Shared};
 use crate::config::params::params;
 use crate::config::{Config, ConfigError};
-use crate::lane::{Lane, Param};
+use crate::lane::{gather3, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -52,8 +52,7 @@ impl Controller for Pd {
     }
 
     fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
-        let at3 =
-            |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i])) };
+        let at3 = |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
         Pd {
             shared: Shared::gather(&shared),

@@ -8,7 +8,7 @@
 use super::{Control, Controller, Memory, Shared};
 use crate::config::params::params;
 use crate::config::{non_negative, positive, Config, ConfigError};
-use crate::lane::{KernelOps, Lane, Param};
+use crate::lane::{gather3, KernelOps, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -322,9 +322,7 @@ impl Controller for Px4 {
 
     fn gather<L: Lane>(each: &[&Px4]) -> Px4<L> {
         let at = |f: fn(&Px4) -> f64| -> L { L::from_fn(|l| f(each[l])) };
-        let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] {
-            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
-        };
+        let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
         Px4 {
             shared: Shared::gather(&shared),

@@ -9,7 +9,7 @@
 use super::{non_negative3, position_errors, Control, Controller, Shared, MIN_TILT_COS};
 use crate::config::params::params;
 use crate::config::{Config, ConfigError};
-use crate::lane::{Lane, Param};
+use crate::lane::{gather3, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -74,9 +74,7 @@ impl Controller for Se3 {
     }
 
     fn gather<L: Lane>(each: &[&Se3]) -> Se3<L> {
-        let at3 = |f: fn(&Se3) -> [f64; 3]| -> [L; 3] {
-            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
-        };
+        let at3 = |f: fn(&Se3) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
         Se3 {
             shared: Shared::gather(&shared),

@@ -35,6 +35,13 @@
 
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
+/// Lane `l` of a 3-vector parameter read by `f` from `each[l]`: one vehicle per lane (the
+/// `gather` of a kind's parameters).
+#[inline]
+pub fn gather3<T, L: Lane>(each: &[&T], f: impl Fn(&T) -> [f64; 3]) -> [L; 3] {
+    [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
+}
+
 pub trait Lane:
     Copy
     + Send

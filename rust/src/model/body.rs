@@ -2,7 +2,7 @@
 //! equations. How it translates depends on how the payload pulls (`payload`).
 
 use crate::config::Config;
-use crate::lane::Lane;
+use crate::lane::{gather3, Lane};
 
 /// The quadrotor's parameters, resolved once from the scenario (plant inertia = nominal +
 /// error). `L = f64` is one vehicle; a lane type carries one vehicle per lane (`gather`).
@@ -46,9 +46,7 @@ impl Body {
     /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
     pub fn gather<L: Lane>(each: &[&Body]) -> Body<L> {
         let at = |f: fn(&Body) -> f64| L::from_fn(|l| f(each[l]));
-        let at3 = |f: fn(&Body) -> [f64; 3]| -> [L; 3] {
-            [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
-        };
+        let at3 = |f: fn(&Body) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
         Body {
             m: at(|b| b.m),
             g: at(|b| b.g),
