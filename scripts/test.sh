@@ -37,31 +37,47 @@ trap 'for p in ${background[@]+"${background[@]}"}; do kill "$p" 2>/dev/null || 
 stage "install"
 python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
+
+# The Rust lints start at once, in the background, in their own target directory (no lock
+# shared with the wheel's build): the engine crate's front end is serial, so while it holds one
+# core clippy takes the other.
+cargo fmt --check
+logs+=("$(mktemp)")
+(
+    s=$SECONDS
+    CARGO_TARGET_DIR="$PWD/target/clippy" cargo clippy --all-targets -q -- -D warnings
+    echo "== clippy (background) took $((SECONDS - s)) s"
+) >"${logs[-1]}" 2>&1 &
+background+=($!)
+
+# The Python dependencies install while the engine builds (downloads and unpacking, not CPU).
+requirements=$(mktemp)
+deps_log=$(mktemp)
+.venv/bin/python scripts/requirements.py test dask docs >"$requirements"
+.venv/bin/python -m pip install -q -r "$requirements" >"$deps_log" 2>&1 &
+deps=$!
+
 # The engine is built once: the abi3 wheel this venv installs is the same file
 # scripts/other_pythons.sh installs into the other Pythons. It is optimised without LTO (the
 # dev-opt profile; LTO changes no arithmetic, so every number the tests check is the shipped
 # build's, and the build takes minutes less); QUADRS_TEST_PROFILE=release tests the shipped
-# profile instead. The Rust unit tests below reuse its dependencies.
+# profile instead.
 rm -rf target/ci-wheel
 MATURIN_PEP517_ARGS="--profile ${QUADRS_TEST_PROFILE:-dev-opt}" \
     .venv/bin/python -m pip wheel -q --no-deps -w target/ci-wheel .
 wheel=$(ls target/ci-wheel/quadrs-*.whl)
+if ! wait "$deps"; then cat "$deps_log"; exit 1; fi
 .venv/bin/python -m pip install -q "${wheel}[test,dask,docs]"
 .venv/bin/python -m pip install -q --no-deps --force-reinstall "$wheel"
 export QUADRS_WHEEL="$wheel"
 
-stage "rust checks and tests (in the background)"
-cargo fmt --check
 logs+=("$(mktemp)")
 (
-    set -e
-    echo "== rust checks and tests (background)"
     s=$SECONDS
-    cargo clippy --all-targets -q -- -D warnings
-    # Unit tests at optimisation without LTO (same arithmetic, minutes less to link), reusing
-    # the wheel's dependencies; the doc comments hold no examples, so no doctest build.
+    # Unit tests at optimisation without LTO (same arithmetic), reusing the wheel's compiled
+    # dependencies; the doc comments hold no examples, so no doctest build.
     cargo test --profile dev-opt --lib -q
-    echo "== rust checks and tests took $((SECONDS - s)) s"
+    echo "== rust unit tests (background) took $((SECONDS - s)) s"
 ) >"${logs[-1]}" 2>&1 &
 background+=($!)
 if [ -z "${QUADRS_SKIP_OTHER_PYTHONS:-}" ]; then
@@ -85,7 +101,7 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 stage "pytest"
 # The tests marked slow (pyproject.toml) run with --slow.
 if [ -n "${QUADRS_SLOW:-}" ]; then only=(); else only=(-m "not slow"); fi
-.venv/bin/python -m pytest -q --durations=15 ${only[@]+"${only[@]}"} "$@"
+.venv/bin/python -m pytest -q --durations=30 ${only[@]+"${only[@]}"} "$@"
 stage "background checks"
 finish_background
 stage "done"
