@@ -156,7 +156,7 @@ pub const METRICS: [Metric; 19] = [
         name: "max_specific_force",
         unit: "m/s^2",
         label: "Peak specific force on the payload, |a - g|",
-        value: |t| t.s.max_specific_force,
+        value: |t| t.s.max_specific_force_sq.sqrt(),
     },
 ];
 pub const N_METRICS: usize = METRICS.len();
@@ -211,7 +211,9 @@ sums! {
     max_tracking_sq: 0.0,
     cross_sq: 0.0,
     max_cross_sq: 0.0,
-    max_specific_force: 0.0,
+    /// The largest |a - g|^2: its square root at the end is the largest |a - g| bit for bit
+    /// (a correctly rounded square root is monotone), one square root per flight, not per step.
+    max_specific_force_sq: 0.0,
 }
 
 /// What the flight loop hands the accumulator at one step (lane values).
@@ -226,9 +228,9 @@ pub struct Sample<L> {
     pub cross_sq: L,
     /// m/s^2, the magnitude of the payload's inertial acceleration.
     pub accel: L,
-    /// m/s^2, the magnitude of the payload's specific force |a - g| (g pointing down): what an
-    /// accelerometer on the payload reads (g at rest, 0 in free fall).
-    pub specific_force: L,
+    /// m^2/s^4, the squared magnitude of the payload's specific force |a - g| (g pointing
+    /// down): what an accelerometer on the payload reads (g at rest, 0 in free fall).
+    pub specific_force_sq: L,
     /// rad, the attachment's angle from the vertical.
     pub swing: L,
     /// N, the force the attachment carries.
@@ -294,7 +296,7 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.max_tracking_sq = sums.max_tracking_sq.max(x.tracking_sq);
                 sums.cross_sq += x.cross_sq * w;
                 sums.max_cross_sq = sums.max_cross_sq.max(x.cross_sq);
-                sums.max_specific_force = sums.max_specific_force.max(x.specific_force);
+                sums.max_specific_force_sq = sums.max_specific_force_sq.max(x.specific_force_sq);
             }
         }
         self.block_sum += e_o;
@@ -441,7 +443,7 @@ mod tests {
                     tracking_sq: 0.0,
                     cross_sq: 0.0,
                     accel: 2.0 * t,
-                    specific_force: 9.81 - t,
+                    specific_force_sq: (9.81 - t) * (9.81 - t),
                     swing: 0.1 * t,
                     tension: 5.0 - 10.0 * t,
                     slack: 1.0 - flag,
@@ -465,6 +467,51 @@ mod tests {
         assert!((row[14] - 30.0 * dt).abs() < 1e-12);
         // specific force 9.81 - t: its peak at t = 0.
         assert_eq!(row[18], 9.81);
+    }
+
+    /// The peak specific force taken as the square root of the peak square is the peak of the
+    /// per-step square roots (what the flight loop took before), bit for bit.
+    #[test]
+    fn the_peak_of_square_roots_is_the_square_root_of_the_peak_square() {
+        let ph = [PhaseSteps {
+            first: 0,
+            last: 999,
+        }];
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, 0.01, 5, 999);
+        let mut peak = 0.0f64;
+        let mut x = 0.123_456_789f64;
+        for k in 0..=999 {
+            // A scrambled sequence of squares of magnitudes around g.
+            x = (x * 3.987_654_321 + 0.314_159).fract();
+            let [ax, ay, fz] = [x - 0.5, 0.25 - x * x, 9.81 * (1.0 + x)];
+            let sq = ax * ax + ay * ay + fz * fz;
+            peak = peak.max(sq.sqrt());
+            acc.sample(
+                k,
+                k as f64 * 0.01,
+                &Sample {
+                    e_o: 0.0,
+                    tracking_sq: 0.0,
+                    cross_sq: 0.0,
+                    accel: 0.0,
+                    specific_force_sq: sq,
+                    swing: 0.0,
+                    tension: 0.0,
+                    slack: 0.0,
+                    saturated: 0.0,
+                },
+            );
+        }
+        let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
+        assert!(peak > 9.81);
+        assert_eq!(row[18].to_bits(), peak.to_bits());
+        // Monotone, so exhaustively near a peak: sqrt(max(a, b)) == max(sqrt(a), sqrt(b)).
+        let mut a = 96.0f64;
+        for _ in 0..100_000 {
+            let b = f64::from_bits(a.to_bits() + 1);
+            assert_eq!(a.max(b).sqrt().to_bits(), a.sqrt().max(b.sqrt()).to_bits());
+            a = b;
+        }
     }
 
     /// Every metric names its unit and its label, and no two share a name: a new metric

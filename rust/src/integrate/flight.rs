@@ -306,7 +306,8 @@ impl Engine {
                 }
             };
             held = w;
-            let out = vehicle.payload_outputs(&s, &trig, u.u1, &w);
+            // The payload's record of the step and its RK4 step's first stage, together.
+            let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
             let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
             let e = [
                 rigid.pos[0] * -1.0 + r.pos[0],
@@ -318,7 +319,8 @@ impl Engine {
             let accel = (ax * ax + ay * ay + az * az).sqrt();
             // The specific force a - g (g = (0, 0, -g)): what an accelerometer on the payload reads.
             let fz = az + vehicle.body.g;
-            let specific_force = (ax * ax + ay * ay + fz * fz).sqrt();
+            // Its square: the metric is its peak, whose square root is taken at the end.
+            let specific_force_sq = ax * ax + ay * ay + fz * fz;
             acc.sample(
                 k,
                 t,
@@ -327,7 +329,7 @@ impl Engine {
                     tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
                     cross_sq: cross_track_sq(&rigid.pos, &line),
                     accel,
-                    specific_force,
+                    specific_force_sq,
                     swing: out.swing,
                     tension: out.tension,
                     slack: L::select(out.tension.cmp_le(zero), one, zero),
@@ -357,7 +359,7 @@ impl Engine {
             if k == self.steps {
                 break;
             }
-            s = rk4_step(vehicle, &s, &trig, &cmd, &w, self.dt);
+            rk4_advance(vehicle, &mut s, &trig, &k1, &cmd, &w, self.dt);
 
             let mut ok = L::ALL;
             for i in 0..N {

@@ -36,7 +36,7 @@ mod trace;
 pub use engine::{initial_state, Craft, Engine, FlightRequest, MAX_LANES};
 pub use entry::LoopEntry;
 pub use flight::LaneResult;
-pub use rk4::rk4_step;
+pub use rk4::{rk4_advance, rk4_step};
 use status::classify;
 pub use status::ExitStatus;
 pub use trace::{trace_columns, Trace, SIGNAL_COLUMNS};

@@ -129,9 +129,11 @@ const Q0ASIN: f64 = -4.918_853_881_490_881_290_097E1;
 #[inline(always)]
 pub fn asin<L: KernelOps>(x: L) -> L {
     let xa = x.abs();
-    // The fused mode's shortcut: where every lane has |x| < 0.625 only the second rational
-    // approximation is selected below; evaluate just that one (same numbers, fewer operations).
-    if L::FUSED && xa.le_mask(L::splat(ASIN_SPLIT_BELOW)) == L::ALL {
+    // Where every lane has |x| < 0.625 only the second rational approximation is selected
+    // below; evaluate just that one: the same operations on the same values, so the same
+    // numbers in every mode, without the first approximation and its square root (a
+    // controller's attitude commands and a swing angle stay below 0.625 in steady flight).
+    if xa.le_mask(L::splat(ASIN_SPLIT_BELOW)) == L::ALL {
         let c = L::splat;
         let x1 = xa * xa;
         let x2 = x1 * x1;

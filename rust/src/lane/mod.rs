@@ -393,6 +393,36 @@ mod tests {
         assert!(kernels::asin(1.5).is_nan() && kernels::asin(f64::NAN).is_nan());
     }
 
+    /// `asin`'s shortcut (every lane below 0.625: only the second approximation) gives the
+    /// bits of the full evaluation, which a lane at or above 0.625 beside it forces.
+    #[test]
+    fn asin_shortcut_gives_the_full_evaluations_bits() {
+        let mut x = -0.625;
+        let mut n = 0;
+        while x < 0.625 {
+            let short = F64x4::from_fn(|_| x).asin();
+            let full = F64x4::from_fn(|l| if l == 2 { 0.9 } else { x }).asin();
+            assert_eq!(short.lane(0).to_bits(), full.lane(0).to_bits(), "asin {x}");
+            assert_eq!(
+                kernels::asin(x).to_bits(),
+                full.lane(1).to_bits(),
+                "asin {x}"
+            );
+            x += 0.000_37;
+            n += 1;
+        }
+        assert!(n > 3000);
+        let below = f64::from_bits(0.625f64.to_bits() - 1);
+        for x in [below, -below, 0.0, -0.0, 1e-300] {
+            let full = F64x4::from_fn(|l| if l == 3 { -1.0 } else { x }).asin();
+            assert_eq!(
+                kernels::asin(x).to_bits(),
+                full.lane(0).to_bits(),
+                "asin {x}"
+            );
+        }
+    }
+
     /// Every lane of a pack computes exactly what the scalar path computes.
     fn pack_agrees_bitwise<L: KernelOps>() {
         let xs = [-1.2, -0.5, 0.37, 2.5, 1e10, f64::NAN, -0.0, 7.0];

@@ -233,6 +233,44 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
         cmd: &Act::Command,
         w: &[L; 3],
     ) -> State<L, N> {
+        self.derivative_with(
+            s,
+            cmd,
+            #[inline(always)]
+            |p, body, u1, ds| (p.accelerations(body, s, trig, u1, w, ds), ()),
+        )
+        .0
+    }
+
+    /// `derivative(s, trig, cmd, w)` and `payload_outputs(s, trig, u1, w)` together, bit for
+    /// bit, sharing what the payload computes for both (`PayloadModel::accelerations_and_outputs`):
+    /// the flight loop's record of a step and its RK4 step's first stage.
+    #[inline(always)]
+    pub fn derivative_and_outputs<const N: usize>(
+        &self,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        cmd: &Act::Command,
+        w: &[L; 3],
+        u1: L,
+    ) -> (State<L, N>, PayloadOutputs<L>) {
+        self.derivative_with(
+            s,
+            cmd,
+            #[inline(always)]
+            |p, body, u1_felt, ds| p.accelerations_and_outputs(body, s, trig, u1_felt, u1, w, ds),
+        )
+    }
+
+    /// ds/dt, the payload's part by `payload` (the torque it applies, and anything else it
+    /// returns), given the felt thrust.
+    #[inline(always)]
+    fn derivative_with<const N: usize, R>(
+        &self,
+        s: &State<L, N>,
+        cmd: &Act::Command,
+        payload: impl FnOnce(&Pay, &Body<L>, L, &mut State<L, N>) -> (Option<[L; 3]>, R),
+    ) -> (State<L, N>, R) {
         const { assert!(N == Layout::new(Pay::DOF, Act::STATES).len()) };
         let lay = Self::LAYOUT;
         let u = self.actuator.inputs(cmd, s, lay.actuator());
@@ -244,13 +282,11 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
             ds[ix::PHI + i] = s[v + 3 + i];
         }
         ds[ix::PAYLOAD..ix::PAYLOAD + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
-        let torque = self
-            .payload
-            .accelerations(&self.body, s, trig, u.u1, w, &mut ds);
+        let (torque, out) = payload(&self.payload, &self.body, u.u1, &mut ds);
         let rdot = self.body.rotation(&Self::rigid(s).rate, &u.tau, &torque);
         ds[v + 3..v + 6].copy_from_slice(&rdot);
         self.actuator.derivative(cmd, s, lay.actuator(), &mut ds);
-        ds
+        (ds, out)
     }
 
     /// Everything the flight loop records about the payload at `s` in wind `w`.

@@ -255,7 +255,68 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
         let axes = axes(trig);
+        self.accelerations_of(body, s, &axes, &self.line(s, &axes), u1, w, ds)
+    }
+
+    #[inline(always)]
+    fn outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        _u1: L,
+        w: &[L; 3],
+    ) -> PayloadOutputs<L> {
+        let line = self.line(s, &axes(trig));
+        let accel = self.acceleration(body, s, &line, w);
+        self.outputs_of(s, &line, accel)
+    }
+
+    /// The line and the payload's acceleration once for both (the same bits as apart).
+    #[inline(always)]
+    fn accelerations_and_outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        _u1_out: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
+        let axes = axes(trig);
         let line = self.line(s, &axes);
+        let torque = self.accelerations_of(body, s, &axes, &line, u1, w, ds);
+        // `accelerations_of` stored the payload's acceleration in `ds`.
+        let accel = [ds[VXC], ds[VXC + 1], ds[VXC + 2]];
+        (torque, self.outputs_of(s, &line, accel))
+    }
+
+    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+        // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
+        let ez = axes(&Trig::of(s))[2];
+        for i in 0..3 {
+            s[XC + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
+            s[VXC + i] = s[VX + i];
+        }
+        s[XC + 2] = s[XC + 2] - self.hover_length;
+    }
+}
+
+impl<L: Lane> Cable<L> {
+    /// `PayloadModel::accelerations` with the line at `s` given.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn accelerations_of<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        axes: &[[L; 3]; 3],
+        line: &Line<L>,
+        u1: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> Option<[L; 3]> {
         let pull = vec3(
             #[inline(always)]
             |i| line.tension * line.u[i],
@@ -270,7 +331,7 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
             ds[VX + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
         }
         ds[VX + 2] = ds[VX + 2] - body.g;
-        let ac = self.acceleration(body, s, &line, w);
+        let ac = self.acceleration(body, s, line, w);
         ds[VXC..VXC + 3].copy_from_slice(&ac);
         // hb x f with hb = (0, 0, -h) and f = R^T (T u) = (ex . Tu, ey . Tu, ez . Tu).
         let h = self.offset;
@@ -278,33 +339,20 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         Some([h * fy, -(h * fx), L::splat(0.0)])
     }
 
+    /// `PayloadModel::outputs` with the line at `s` and the payload's acceleration given.
     #[inline(always)]
-    fn outputs<const N: usize>(
+    fn outputs_of<const N: usize>(
         &self,
-        body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
-        _u1: L,
-        w: &[L; 3],
+        line: &Line<L>,
+        accel: [L; 3],
     ) -> PayloadOutputs<L> {
-        let line = self.line(s, &axes(trig));
-        let accel = self.acceleration(body, s, &line, w);
         PayloadOutputs {
             e_o: (s[XC + 2] - line.hook[2]) + self.hover_length,
             accel,
             tension: line.tension,
-            swing: Self::swing(&line),
+            swing: Self::swing(line),
         }
-    }
-
-    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
-        // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
-        let ez = axes(&Trig::of(s))[2];
-        for i in 0..3 {
-            s[XC + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
-            s[VXC + i] = s[VX + i];
-        }
-        s[XC + 2] = s[XC + 2] - self.hover_length;
     }
 }
 

@@ -339,6 +339,71 @@ fn gathered_lanes_fly_their_own_cable() {
     }
 }
 
+/// `derivative_and_outputs` (the flight loop's: the line computed once for the step's record
+/// and its first RK4 stage) is `derivative` and `payload_outputs` apart, bit for bit: taut,
+/// swinging, slack, in wind, on one vehicle and on lanes.
+#[test]
+fn the_shared_first_stage_is_the_derivative_and_the_outputs_bit_for_bit() {
+    let v = vehicle(&cable_config(1.0, 3.0, 0.1));
+    let mut states = vec![
+        v.rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]),
+        swung(&v, 0.4, [0.3, -0.2, 0.1]),
+        swung(&v, -1.2, [0.0, 0.5, -0.3]),
+    ];
+    let mut slack = swung(&v, 0.2, [0.0; 3]);
+    slack[ZC] += 0.3; // the payload above its hanging point: the line slack
+    states.push(slack);
+    let u = Inputs {
+        u1: 25.0,
+        tau: [0.01, -0.02, 0.003],
+    };
+    for (n, s) in states.iter().enumerate() {
+        for w in [[0.0; 3], [3.0, -1.5, 0.7]] {
+            let trig = Trig::of(s);
+            let (ds, out) = v.derivative_and_outputs(s, &trig, &u, &w, 24.0);
+            let want = v.derivative(s, &trig, &u, &w);
+            let o = v.payload_outputs(s, &trig, 24.0, &w);
+            for i in 0..NX {
+                assert_eq!(ds[i].to_bits(), want[i].to_bits(), "state {n} ds[{i}]");
+            }
+            for (a, b) in [
+                (out.e_o, o.e_o),
+                (out.swing, o.swing),
+                (out.tension, o.tension),
+                (out.accel[0], o.accel[0]),
+                (out.accel[1], o.accel[1]),
+                (out.accel[2], o.accel[2]),
+            ] {
+                assert_eq!(a.to_bits(), b.to_bits(), "state {n}");
+            }
+            if n == 3 {
+                assert_eq!(out.tension, 0.0, "slack");
+            }
+            // On lanes: each lane a different state.
+            let sl: State<F64x4, NX> = state_from_fn(|i| F64x4::from_fn(|l| states[l][i]));
+            let lanes = Parts::gather::<F64x4, Cable, Ideal>(
+                &[&Parts::new(&cable_config(1.0, 3.0, 0.1))].repeat(4),
+            );
+            let ul = Inputs {
+                u1: F64x4::splat(u.u1),
+                tau: u.tau.map(F64x4::splat),
+            };
+            let wl = w.map(F64x4::splat);
+            let tl = Trig::of(&sl);
+            let (dl, ol) = lanes.derivative_and_outputs(&sl, &tl, &ul, &wl, F64x4::splat(24.0));
+            let wantl = lanes.derivative(&sl, &tl, &ul, &wl);
+            let outl = lanes.payload_outputs(&sl, &tl, F64x4::splat(24.0), &wl);
+            let bits = |x: F64x4| [0, 1, 2, 3].map(|l| x.lane(l).to_bits());
+            for i in 0..NX {
+                assert_eq!(bits(dl[i]), bits(wantl[i]), "lanes ds[{i}]");
+            }
+            assert_eq!(bits(ol.swing), bits(outl.swing));
+            assert_eq!(bits(ol.tension), bits(outl.tension));
+            assert_eq!(ol.accel.map(bits), outl.accel.map(bits));
+        }
+    }
+}
+
 /// The swing angle: acos(-u_z) to an ulp or two where acos is accurate, and exact at small
 /// angles where it is not; 0 at hover, pi straight above.
 #[test]

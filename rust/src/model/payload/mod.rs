@@ -60,6 +60,26 @@ pub trait PayloadModel<L: Lane>: Sync {
         w: &[L; 3],
     ) -> PayloadOutputs<L>;
 
+    /// `accelerations(body, s, trig, u1, w, ds)` and `outputs(body, s, trig, u1_out, w)`
+    /// together, bit for bit: a model whose outputs repeat work of its accelerations at the
+    /// same state (the cable's line) computes it once. The flight loop records the outputs at
+    /// the state its RK4 step starts from, so the first stage's derivative shares them.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn accelerations_and_outputs<const N: usize>(
+        &self,
+        body: &Body<L>,
+        s: &State<L, N>,
+        trig: &Trig<L>,
+        u1: L,
+        u1_out: L,
+        w: &[L; 3],
+        ds: &mut State<L, N>,
+    ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
+        let torque = self.accelerations(body, s, trig, u1, w, ds);
+        (torque, self.outputs(body, s, trig, u1_out, w))
+    }
+
     /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest).
     fn rest<const N: usize>(&self, body: &Body<L>, s: &mut State<L, N>, layout: Layout);
 }
