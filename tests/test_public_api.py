@@ -155,3 +155,18 @@ def test_import_quadrs_loads_nothing_heavy():
         out = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True,
                              check=True)  # fmt: skip
         assert out.stdout.strip().splitlines()[-1] == "[]", (code, out.stdout)
+
+
+def test_every_layer_is_an_attribute_of_the_package_after_a_bare_import():
+    """``import quadrs; quadrs.runs`` works in a fresh interpreter, as after ``import
+    quadrs.runs`` (the layers load on first use), for every subpackage on disk."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(quadrs.__file__).parent
+    layers = sorted(p.name for p in root.iterdir() if (p / "__init__.py").is_file())
+    assert layers == sorted(quadrs._SUBPACKAGES)  # type: ignore[attr-defined]
+    code = f"import quadrs; print([quadrs.__getattr__(n).__name__ for n in {layers!r}])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == repr([f"quadrs.{n}" for n in layers])

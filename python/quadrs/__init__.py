@@ -66,6 +66,12 @@ _WHERE = {
     "Scenario": "quadrs.scenario.scenario",
 }
 
+#: The layers, importable as attributes of the package as a regular import would make them.
+_SUBPACKAGES = frozenset(
+    {"cli", "design", "engine", "hover", "io", "paper", "plots", "present", "rare", "runs",
+     "scenario", "stats"}
+)  # fmt: skip
+
 __all__ = [
     "Constraint",
     "EngineError",
@@ -103,6 +109,8 @@ def __getattr__(name: str) -> Any:
     """A public name, imported from its module on first use and then kept here."""
     module = _WHERE.get(name)
     if module is None:
+        if name in _SUBPACKAGES:  # `quadrs.runs.flight` after a bare `import quadrs`
+            return importlib.import_module(f"quadrs.{name}")
         raise AttributeError(f"module 'quadrs' has no attribute {name!r}")
     value = getattr(importlib.import_module(module), name)
     globals()[name] = value
@@ -110,4 +118,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_WHERE})
+    return sorted({*globals(), *_WHERE, *_SUBPACKAGES})

@@ -6,6 +6,7 @@ import pytest
 from scipy import stats
 
 import quadrs
+from quadrs.runs.flight import METRIC_COLUMNS
 from quadrs.scenario.dispersion import distribution, draw
 
 UNIFORM_MASS = {"dist": "uniform", "low": 0.1, "high": 0.4}
@@ -15,7 +16,7 @@ DISPERSIONS = {
     "vehicle.inertia[2]": {"dist": "triangular", "low": 0.04, "mode": 0.05, "high": 0.07},
     "gust.w20": {"dist": "lognormal", "mu": 2.3, "sigma": 0.3},
 }
-METRICS = list(quadrs.runs.flight.METRIC_COLUMNS)
+METRICS = list(METRIC_COLUMNS)
 
 
 @pytest.fixture(scope="module")
