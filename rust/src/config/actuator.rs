@@ -2,7 +2,8 @@
 //! actuators or four rotors, their layout, limits, faults and battery sag), the defaults and
 //! the checks (the models themselves are `model::actuator`).
 
-use super::{allocation, finite, non_negative, params, positive, Config, ConfigError};
+use super::params::{self, not_numbers, params, Params};
+use super::{allocation, finite, non_negative, positive, Config, ConfigError};
 use serde::{Deserialize, Serialize};
 
 /// Which actuator model flies (`actuator.model`, docs/model.md section 8).
@@ -15,6 +16,8 @@ pub enum ActuatorModelName {
     /// Four rotors with first-order speed dynamics and per-rotor thrust limits.
     Rotors,
 }
+
+not_numbers!(ActuatorModelName, RotorLayout);
 
 /// Where the four rotors sit (`actuator.layout`): rotor i at arm angle a_i from body x.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -38,38 +41,38 @@ impl RotorLayout {
     }
 }
 
-/// `[actuator]` (docs/model.md section 8 and "Rotors"). The rotor keys are read only when
-/// `model = "rotors"`, but checked always (one set of rules).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ActuatorConfig {
-    #[serde(default)]
-    pub model: ActuatorModelName,
-    #[serde(default)]
-    pub layout: RotorLayout,
-    /// N s^2/rad^2, kf in T = kf w^2.
-    #[serde(default = "default_thrust_coefficient")]
-    pub thrust_coefficient: f64,
-    /// m, cq: a rotor's yaw reaction torque per newton of its thrust.
-    #[serde(default = "default_torque_ratio")]
-    pub torque_ratio: f64,
-    /// s, tau_m of the rotor speed lag dw/dt = (w_cmd - w) / tau_m.
-    #[serde(default = "default_time_constant")]
-    pub time_constant: f64,
-    /// N per rotor, the commanded thrust's lower and upper clamps.
-    #[serde(default)]
-    pub thrust_min: f64,
-    #[serde(default = "default_rotor_thrust_max")]
-    pub thrust_max: f64,
-    /// Rotors that give a fraction of their commanded thrust from a time on (rotors only).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub faults: Vec<RotorFault>,
-    /// The fraction of `thrust_max` lost by the end of the flight, linearly (rotors only).
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub battery_sag: f64,
+params! {
+    /// `[actuator]` (docs/model.md section 8 and "Rotors"). The rotor keys are read only when
+    /// `model = "rotors"`, but checked always (one set of rules).
+    pub struct ActuatorConfig {
+        #[serde(default)]
+        model: ActuatorModelName => "-", "Actuator model";
+        #[serde(default)]
+        layout: RotorLayout => "-", "Rotor layout";
+        /// N s^2/rad^2, kf in T = kf w^2.
+        #[serde(default = "default_thrust_coefficient")]
+        thrust_coefficient: f64 => "N s^2/rad^2", "Rotor thrust coefficient";
+        /// m, cq: a rotor's yaw reaction torque per newton of its thrust.
+        #[serde(default = "default_torque_ratio")]
+        torque_ratio: f64 => "m", "Rotor yaw torque per thrust";
+        /// s, tau_m of the rotor speed lag dw/dt = (w_cmd - w) / tau_m.
+        #[serde(default = "default_time_constant")]
+        time_constant: f64 => "s", "Rotor speed time constant";
+        /// N per rotor, the commanded thrust's lower and upper clamps.
+        #[serde(default)]
+        thrust_min: f64 => "N", "Least rotor thrust";
+        #[serde(default = "default_rotor_thrust_max")]
+        thrust_max: f64 => "N", "Largest rotor thrust";
+        /// Rotors that give a fraction of their commanded thrust from a time on (rotors only).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        faults: Vec<RotorFault> => "-", "Rotor faults";
+        /// The fraction of `thrust_max` lost by the end of the flight, linearly (rotors only).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        battery_sag: f64 => "-", "Fraction of the rotor thrust limit lost by the end (battery sag)";
+    }
 }
 
-params::params! {
+params! {
     /// One `[[actuator.faults]]` entry: rotor `rotor` gives `thrust_fraction` of its commanded
     /// (clamped) thrust from `start` on (0: stuck off, or its propeller lost); flown by
     /// `model::actuator::rotors`. Declared here, with `[actuator]`, so that `config` names no
@@ -83,28 +86,17 @@ params::params! {
     }
 }
 
-/// `actuator.battery_sag`: the fraction of `thrust_max` lost by the end of the flight.
-pub const BATTERY_SAG: params::Key = params::Key {
-    name: "battery_sag",
-    unit: "-",
-    label: "Fraction of the rotor thrust limit lost by the end (battery sag)",
-};
-
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
 }
 
 impl ActuatorConfig {
-    /// The keys `[actuator]` owns with a unit and a label (dotted, indices dropped): the
-    /// rotors' faults and the battery's sag (`model::actuator::rotors`).
+    /// The keys `[actuator]` owns with a unit and a label (dotted, indices dropped), its
+    /// faults' (`[[actuator.faults]]`) among them.
     pub fn keys() -> Vec<(String, params::Key)> {
-        use params::Params;
-        let faults = RotorFault::KEYS
-            .iter()
-            .map(|k| (format!("actuator.faults.{}", k.name), *k));
-        faults
-            .chain([(format!("actuator.{}", BATTERY_SAG.name), BATTERY_SAG)])
-            .collect()
+        let mut keys = Self::keys_under("actuator");
+        keys.extend(RotorFault::keys_under("actuator.faults"));
+        keys
     }
 }
 

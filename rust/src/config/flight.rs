@@ -3,14 +3,13 @@
 //! `[divergence]` (the bounds past which a flight has diverged) and `[ground]` (the plane a
 //! flight ends at), with their checks.
 
+use super::params::params;
 use super::{finite, positive, ConfigError};
-use serde::{Deserialize, Serialize};
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Environment {
-    /// m/s^2.
-    pub gravity: f64,
+params! {
+    pub struct Environment {
+        gravity: f64 => "m/s^2", "Gravity";
+    }
 }
 
 impl Environment {
@@ -20,13 +19,13 @@ impl Environment {
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Initial {
-    /// m, quadrotor x, y, z; the payload starts at its hover equilibrium below it.
-    pub position: [f64; 3],
-    /// rad, roll, pitch, yaw.
-    pub attitude: [f64; 3],
+params! {
+    pub struct Initial {
+        /// m, quadrotor x, y, z; the payload starts at its hover equilibrium below it.
+        position: [f64; 3] => "m", "Start position (x, y, z)";
+        /// rad, roll, pitch, yaw.
+        attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)";
+    }
 }
 
 impl Initial {
@@ -55,13 +54,11 @@ impl Initial {
 /// Most integration steps one flight may take (guards against hangs from a tiny dt).
 pub const MAX_STEPS: f64 = 2.0e9;
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Integrator {
-    /// s.
-    pub dt: f64,
-    /// s.
-    pub duration: f64,
+params! {
+    pub struct Integrator {
+        dt: f64 => "s", "Integration step";
+        duration: f64 => "s", "Flight duration";
+    }
 }
 
 impl Integrator {
@@ -92,11 +89,11 @@ impl Integrator {
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Metrics {
-    /// Hz, rate at which e_o is block-averaged for the amplitude spectra.
-    pub spectrum_rate: f64,
+params! {
+    pub struct Metrics {
+        /// Hz, rate at which e_o is block-averaged for the amplitude spectra.
+        spectrum_rate: f64 => "Hz", "Spectrum sample rate";
+    }
 }
 
 impl Metrics {
@@ -106,20 +103,20 @@ impl Metrics {
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Divergence {
-    /// m, a realisation whose quadrotor or payload strays further than this from the origin diverged.
-    pub max_distance: f64,
-    /// rad, a realisation whose roll or pitch exceeds this diverged.
-    pub max_tilt: f64,
-    /// m/s, a realisation whose quadrotor or payload moves faster than this along any axis
-    /// diverged: catches a numerically unstable step (finite but absurd states) early.
-    #[serde(default = "default_max_speed")]
-    pub max_speed: f64,
-    /// rad/s, a realisation whose body rate p, q or r exceeds this diverged.
-    #[serde(default = "default_max_rate")]
-    pub max_rate: f64,
+params! {
+    pub struct Divergence {
+        /// m, a realisation whose quadrotor or payload strays further than this from the origin diverged.
+        max_distance: f64 => "m", "Largest distance from the origin before divergence";
+        /// rad, a realisation whose roll or pitch exceeds this diverged.
+        max_tilt: f64 => "rad", "Largest roll or pitch before divergence";
+        /// m/s, a realisation whose quadrotor or payload moves faster than this along any axis
+        /// diverged: catches a numerically unstable step (finite but absurd states) early.
+        #[serde(default = "default_max_speed")]
+        max_speed: f64 => "m/s", "Largest speed along an axis before divergence";
+        /// rad/s, a realisation whose body rate p, q or r exceeds this diverged.
+        #[serde(default = "default_max_rate")]
+        max_rate: f64 => "rad/s", "Largest body rate before divergence";
+    }
 }
 
 impl Divergence {
@@ -140,16 +137,16 @@ fn default_max_rate() -> f64 {
     100.0
 }
 
-/// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
-/// when `enabled`. No contact dynamics: the flight simply stops.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Ground {
-    #[serde(default)]
-    pub enabled: bool,
-    /// m.
-    #[serde(default)]
-    pub altitude: f64,
+params! {
+    /// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
+    /// when `enabled`. No contact dynamics: the flight simply stops.
+    #[derive(Default)]
+    pub struct Ground {
+        #[serde(default)]
+        enabled: bool => "-", "Ground plane on";
+        #[serde(default)]
+        altitude: f64 => "m", "Ground altitude";
+    }
 }
 
 impl Ground {

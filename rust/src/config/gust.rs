@@ -1,6 +1,8 @@
 //! `[gust]`: the section-4 turbulence (which spectrum, which components, its window, altitude,
 //! intensity and airspeed) and its checks (the wind itself is `crate::gust`).
 
+use super::keys::{Seg, Target};
+use super::params::{not_number, not_numbers, params, Field};
 use super::wind::{self, GustAirspeed, GustAltitude, Intensity};
 use super::{finite, non_negative, positive, ConfigError};
 use serde::{Deserialize, Serialize};
@@ -83,6 +85,28 @@ fn one_of(keys: &[&str]) -> String {
     }
 }
 
+not_numbers!(GustModel, GustComponent, Intensity);
+
+/// A fixed altitude is a number; `"vehicle"` is a word.
+impl Field for GustAltitude {
+    fn target(&mut self, rest: &[Seg]) -> Target<'_> {
+        match self {
+            GustAltitude::Fixed(h) => h.target(rest),
+            GustAltitude::Vehicle => not_number(rest),
+        }
+    }
+}
+
+/// A fixed airspeed is a number; `"relative"` is a word.
+impl Field for GustAirspeed {
+    fn target(&mut self, rest: &[Seg]) -> Target<'_> {
+        match self {
+            GustAirspeed::Fixed(v) => v.target(rest),
+            GustAirspeed::Relative => not_number(rest),
+        }
+    }
+}
+
 impl std::str::FromStr for GustModel {
     type Err = String;
 
@@ -110,34 +134,34 @@ impl std::str::FromStr for GustComponent {
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Gust {
-    pub enabled: bool,
-    pub model: GustModel,
-    pub components: Vec<GustComponent>,
-    /// s, the gust window [start, end).
-    pub start: f64,
-    pub end: f64,
-    /// m above ground (converted to feet for the MIL-F-8785C scale formulas), or `"vehicle"`:
-    /// the quadrotor's z at each step, clamped to [10 ft, 1000 ft].
-    pub altitude: GustAltitude,
-    /// m/s, wind speed at 20 ft for the turbulence. Exactly one of this and `intensity`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub w20: Option<f64>,
-    /// The standard's named level (W20 = 15, 30, 45 kt), instead of `w20`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub intensity: Option<Intensity>,
-    /// m/s, the speed at which the frozen turbulence is convected past the vehicle, or
-    /// `"relative"`: max(|v - mean(h)|, `min_airspeed`) at each step.
-    pub airspeed: GustAirspeed,
-    /// m/s, the floor of the relative airspeed.
-    #[serde(default = "wind::default_min_airspeed")]
-    pub min_airspeed: f64,
-    /// kg/m^3.
-    pub air_density: f64,
-    /// m/s, inertial x, y, z, added to the gust inside the window.
-    pub mean_wind: [f64; 3],
+params! {
+    pub struct Gust {
+        enabled: bool => "-", "Turbulence on";
+        model: GustModel => "-", "Turbulence spectrum";
+        components: Vec<GustComponent> => "-", "Turbulence components";
+        /// s, the gust window [start, end).
+        start: f64 => "s", "Turbulence start";
+        end: f64 => "s", "Turbulence end";
+        /// m above ground (converted to feet for the MIL-F-8785C scale formulas), or `"vehicle"`:
+        /// the quadrotor's z at each step, clamped to [10 ft, 1000 ft].
+        altitude: GustAltitude => "m", "Altitude of the gust model";
+        /// m/s, wind speed at 20 ft for the turbulence. Exactly one of this and `intensity`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        w20: Option<f64> => "m/s", "Wind at 20 ft";
+        /// The standard's named level (W20 = 15, 30, 45 kt), instead of `w20`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        intensity: Option<Intensity> => "-", "Turbulence intensity level";
+        /// m/s, the speed at which the frozen turbulence is convected past the vehicle, or
+        /// `"relative"`: max(|v - mean(h)|, `min_airspeed`) at each step.
+        airspeed: GustAirspeed => "m/s", "Airspeed";
+        /// m/s, the floor of the relative airspeed.
+        #[serde(default = "wind::default_min_airspeed")]
+        min_airspeed: f64 => "m/s", "Least relative airspeed";
+        /// kg/m^3.
+        air_density: f64 => "kg/m^3", "Air density";
+        /// m/s, inertial x, y, z, added to the gust inside the window.
+        mean_wind: [f64; 3] => "m/s", "Mean wind in the gust window (x, y, z)";
+    }
 }
 
 impl Gust {

@@ -22,10 +22,11 @@ pub mod vehicle;
 pub mod wind;
 
 pub use crate::control::ControllerConfig;
-pub use actuator::{ActuatorConfig, ActuatorModelName, RotorFault, RotorLayout, BATTERY_SAG};
+pub use actuator::{ActuatorConfig, ActuatorModelName, RotorFault, RotorLayout};
 pub use dispersions::{Dispersions, Distribution};
 pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, MAX_STEPS};
 pub use gust::{Gust, GustComponent, GustModel};
+use params::Params;
 pub use payload::{Payload, PayloadModelName};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -169,6 +170,28 @@ impl Config {
             ));
         }
         Ok((cfg, legs))
+    }
+
+    /// Every key the engine reads, with its unit and plain-English label (dotted, indices
+    /// dropped: `phases.end`, `controller.pd.kp`), each declared beside its section's struct or
+    /// in its kind's file: `_core.KEY_UNITS` and `_core.KEY_LABELS`. The `[wind]` keys outside
+    /// its table are not declared here yet (`quadrs.scenario.units` holds them).
+    pub fn keys() -> Vec<(String, params::Key)> {
+        let mut keys = Vehicle::keys_under("vehicle");
+        keys.extend(Payload::keys_under("payload"));
+        keys.extend(Environment::keys_under("environment"));
+        keys.extend(Initial::keys_under("initial"));
+        keys.extend(ControllerConfig::keys());
+        keys.extend(ActuatorConfig::keys());
+        keys.extend(Trajectory::keys_under("trajectory"));
+        keys.extend(Phase::keys());
+        keys.extend(Gust::keys_under("gust"));
+        keys.extend(WindTable::keys());
+        keys.extend(Integrator::keys_under("integrator"));
+        keys.extend(Metrics::keys_under("metrics"));
+        keys.extend(Divergence::keys_under("divergence"));
+        keys.extend(Ground::keys_under("ground"));
+        keys
     }
 
     pub fn to_json(&self) -> String {

@@ -1,5 +1,5 @@
-//! A kind's own parameters (a controller's gains today): one `params!` declaration in the
-//! kind's file gives the serde struct (unknown keys refused, so a misspelt key is named), its
+//! A table's own parameters (a controller kind's gains, a section of the scenario such as
+//! `[vehicle]`): one `params!` declaration in the table's file gives the serde struct (unknown keys refused, so a misspelt key is named), its
 //! dotted keys with their units and labels (`Params::KEYS`, which reach Python through
 //! `_core.KEY_UNITS` and `_core.KEY_LABELS`), and the typed targets a dispersion, a sweep or an
 //! optimisation sets (`Params::target`).
@@ -31,18 +31,19 @@ impl Field for f64 {
     }
 }
 
-impl Field for [f64; 3] {
+/// A fixed-length row of numbers (`[x, y, z]`, a waypoint's five): each element a number.
+impl<const N: usize> Field for [f64; N] {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
         match rest {
-            [Seg::Index(i)] if *i < 3 => Target::Number(&mut self[*i]),
+            [Seg::Index(i)] if *i < N => Target::Number(&mut self[*i]),
             [] => Target::NotNumber,
             _ => Target::Missing,
         }
     }
 }
 
-/// An optional number exists as a key only when it is set.
-impl Field for Option<f64> {
+/// An optional value exists as a key only when it is set.
+impl<T: Field> Field for Option<T> {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
         match self {
             Some(x) => x.target(rest),
@@ -51,26 +52,44 @@ impl Field for Option<f64> {
     }
 }
 
-/// A whole number (a rotor's index): a key, but not one a dispersion can draw.
-impl Field for u32 {
+/// A list (of rows, names or tables): the list itself holds no number; an entry is a key while
+/// its index is in the list.
+impl<T: Field> Field for Vec<T> {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
-        if rest.is_empty() {
-            Target::NotNumber
-        } else {
-            Target::Missing
+        match rest {
+            [] => Target::NotNumber,
+            [Seg::Index(i), tail @ ..] if *i < self.len() => self[*i].target(tail),
+            _ => Target::Missing,
         }
     }
 }
 
-impl Field for bool {
-    fn target(&mut self, rest: &[Seg]) -> Target<'_> {
-        if rest.is_empty() {
-            Target::NotNumber
-        } else {
-            Target::Missing
-        }
+/// The target of a key that holds no number (then `rest` must be empty).
+pub fn not_number(rest: &[Seg]) -> Target<'static> {
+    if rest.is_empty() {
+        Target::NotNumber
+    } else {
+        Target::Missing
     }
 }
+
+/// Values that are keys but not numbers a dispersion can draw: a flag, a name, a whole number
+/// (a rotor's index), one word of a vocabulary (`payload.model`).
+macro_rules! not_numbers {
+    ($($ty:ty),+ $(,)?) => {$(
+        impl $crate::config::params::Field for $ty {
+            fn target(
+                &mut self,
+                rest: &[$crate::config::keys::Seg],
+            ) -> $crate::config::keys::Target<'_> {
+                $crate::config::params::not_number(rest)
+            }
+        }
+    )+};
+}
+pub(crate) use not_numbers;
+
+not_numbers!(u32, bool, String);
 
 /// Parameters declared with `params!`.
 pub trait Params {
@@ -78,10 +97,20 @@ pub trait Params {
     const KEYS: &'static [Key];
     /// The target of `field` (then `rest`) in these parameters.
     fn target(&mut self, field: &str, rest: &[Seg]) -> Target<'_>;
+
+    /// Every key as a dotted key under `prefix` (`"vehicle"` -> `"vehicle.mass"`).
+    fn keys_under(prefix: &str) -> Vec<(String, Key)> {
+        Self::KEYS
+            .iter()
+            .map(|k| (format!("{prefix}.{}", k.name), *k))
+            .collect()
+    }
 }
 
-/// A kind's parameter table: `name: type => "unit", "label";` per key, with its doc comment and
-/// serde attributes above it. Generates the struct (`deny_unknown_fields`) and its `Params`.
+/// A table of parameters (a kind's, or a section of the scenario): `name: type => "unit",
+/// "label";` per key, with its doc comment and serde attributes above it. Generates the struct
+/// (`deny_unknown_fields`), its `Params` and its `Field` (so a list of such tables, like
+/// `[[actuator.faults]]`, is a key with the entries' keys under it).
 macro_rules! params {
     (
         $(#[$meta:meta])*
@@ -115,6 +144,21 @@ macro_rules! params {
             ) -> $crate::config::keys::Target<'_> {
                 match field {
                     $(stringify!($field) => $crate::config::params::Field::target(&mut self.$field, rest),)+
+                    _ => $crate::config::keys::Target::Missing,
+                }
+            }
+        }
+
+        impl $crate::config::params::Field for $Name {
+            fn target(
+                &mut self,
+                rest: &[$crate::config::keys::Seg],
+            ) -> $crate::config::keys::Target<'_> {
+                match rest {
+                    [] => $crate::config::keys::Target::NotNumber,
+                    [$crate::config::keys::Seg::Field(f), sub @ ..] => {
+                        $crate::config::params::Params::target(self, f, sub)
+                    }
                     _ => $crate::config::keys::Target::Missing,
                 }
             }

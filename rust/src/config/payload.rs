@@ -1,6 +1,7 @@
 //! `[payload]`: which payload model flies, its parameters and their checks (the models
 //! themselves are `model::payload`).
 
+use super::params::{not_numbers, params};
 use super::{non_negative, positive, ConfigError};
 use serde::{Deserialize, Serialize};
 
@@ -15,31 +16,31 @@ pub enum PayloadModelName {
     Cable,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Payload {
-    /// The payload model (default "spring").
-    #[serde(default)]
-    pub model: PayloadModelName,
-    /// kg.
-    pub mass: f64,
-    /// Hz, fn with kc = mc (2 pi fn)^2. Exactly one of this and `stiffness`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub natural_frequency: Option<f64>,
-    /// N/m.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stiffness: Option<f64>,
-    /// N s/m.
-    pub damping: f64,
-    /// m^2, Cd times projected area for vertical drag (the cable's payload: in every direction).
-    pub drag_area: f64,
-    /// m, the cable's unstretched length L0 (`model = "cable"` only; required there).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cable_length: Option<f64>,
-    /// m, the hook's distance below the centre of gravity along the body z axis
-    /// (`model = "cable"` only; default 0).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub attachment_offset: Option<f64>,
+not_numbers!(PayloadModelName);
+
+params! {
+    pub struct Payload {
+        /// The payload model (default "spring").
+        #[serde(default)]
+        model: PayloadModelName => "-", "Payload model";
+        mass: f64 => "kg", "Payload mass";
+        /// Hz, fn with kc = mc (2 pi fn)^2. Exactly one of this and `stiffness`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        natural_frequency: Option<f64> => "Hz", "Attachment natural frequency";
+        /// N/m.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        stiffness: Option<f64> => "N/m", "Attachment stiffness";
+        damping: f64 => "N s/m", "Attachment damping";
+        /// m^2, Cd times projected area for vertical drag (the cable's payload: in every direction).
+        drag_area: f64 => "m^2", "Payload drag area";
+        /// m, the cable's unstretched length L0 (`model = "cable"` only; required there).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        cable_length: Option<f64> => "m", "Cable length, unstretched";
+        /// m, the hook's distance below the centre of gravity along the body z axis
+        /// (`model = "cable"` only; default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        attachment_offset: Option<f64> => "m", "Hook below the centre of gravity";
+    }
 }
 
 impl Payload {

@@ -2,6 +2,7 @@
 //! a route, whose schedule is `route`) and the time windows the metrics are taken over, with
 //! their checks (the reference itself is `crate::trajectory`).
 
+use super::params::{not_numbers, params, Key, Params};
 use super::{finite, non_negative, route, Config, ConfigError, Integrator};
 use serde::{Deserialize, Serialize};
 
@@ -14,34 +15,36 @@ pub enum Interpolation {
     Route,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Trajectory {
-    pub interpolation: Interpolation,
-    /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing (step and min-jerk;
-    /// absent for a route).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub waypoints: Vec<[f64; 5]>,
-    /// s, min-jerk only: each move toward a waypoint starts at its time and lasts this long
-    /// (or up to the next waypoint's time if that comes sooner).
-    #[serde(default = "default_transition")]
-    pub transition: f64,
-    /// Route only: the points [x, y, z] (m) flown in straight legs, in order.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub route: Vec<[f64; 3]>,
-    /// Route only: m/s, the cruise speed of every leg long enough to reach it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub speed: Option<f64>,
-    /// Route only: m/s^2, the bound on the reference's acceleration along a leg.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub acceleration: Option<f64>,
-    /// Route only: s, the hover at each point (one per point; empty: no holds).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub hold: Vec<f64>,
-    /// Route only: the names of the route's segments (holds and legs, in time order) in place
-    /// of leg1, hold2, ...; empty: those defaults.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub names: Vec<String>,
+not_numbers!(Interpolation);
+
+params! {
+    pub struct Trajectory {
+        interpolation: Interpolation => "-", "Reference interpolation";
+        /// Rows of (t s, x m, y m, z m, psi rad), times strictly increasing (step and min-jerk;
+        /// absent for a route).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        waypoints: Vec<[f64; 5]> => "[s, m, m, m, rad]", "Waypoints (t, x, y, z, yaw)";
+        /// s, min-jerk only: each move toward a waypoint starts at its time and lasts this long
+        /// (or up to the next waypoint's time if that comes sooner).
+        #[serde(default = "default_transition")]
+        transition: f64 => "s", "Min-jerk move duration";
+        /// Route only: the points [x, y, z] (m) flown in straight legs, in order.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        route: Vec<[f64; 3]> => "[m, m, m]", "Route points (x, y, z)";
+        /// Route only: m/s, the cruise speed of every leg long enough to reach it.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        speed: Option<f64> => "m/s", "Route cruise speed";
+        /// Route only: m/s^2, the bound on the reference's acceleration along a leg.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        acceleration: Option<f64> => "m/s^2", "Route acceleration bound";
+        /// Route only: s, the hover at each point (one per point; empty: no holds).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        hold: Vec<f64> => "s", "Hover at each route point";
+        /// Route only: the names of the route's segments (holds and legs, in time order) in place
+        /// of leg1, hold2, ...; empty: those defaults.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        names: Vec<String> => "-", "Names of the route's segments";
+    }
 }
 
 impl Trajectory {
@@ -60,18 +63,34 @@ pub fn default_transition() -> f64 {
     5.0
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Phase {
-    pub name: String,
-    /// s, inclusive.
-    pub start: f64,
-    /// s, inclusive.
-    pub end: f64,
+params! {
+    pub struct Phase {
+        name: String => "-", "Phase name";
+        /// s, inclusive.
+        start: f64 => "s", "Phase start";
+        /// s, inclusive.
+        end: f64 => "s", "Phase end";
+    }
 }
 
 /// `phases = "legs"`: one phase per leg and hold of the route (docs/model.md, "Routes").
 pub const LEGS: &str = "legs";
+
+/// `phases` itself: a list of `[[phases]]` tables, or `"legs"`.
+const PHASES: Key = Key {
+    name: "phases",
+    unit: "-",
+    label: "Metric windows, or \"legs\": one per leg and hold of the route",
+};
+
+impl Phase {
+    /// `phases` and its entries' keys with their units and labels (dotted, indices dropped).
+    pub fn keys() -> Vec<(String, Key)> {
+        let mut keys = vec![(PHASES.name.to_string(), PHASES)];
+        keys.extend(Self::keys_under(PHASES.name));
+        keys
+    }
+}
 
 impl Trajectory {
     /// Check every value (the route's through `route::validate`); the first problem found is

@@ -1,23 +1,23 @@
 //! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag) and its checks.
 
+use super::params::params;
 use super::{finite, non_negative, positive, ConfigError};
-use serde::{Deserialize, Serialize};
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Vehicle {
-    /// kg, the quadrotor alone.
-    pub mass: f64,
-    /// kg m^2, nominal (what the controller believes): Ixx, Iyy, Izz.
-    pub inertia: [f64; 3],
-    /// kg m^2, plant inertia minus nominal (the paper's Delta I).
-    pub inertia_error: [f64; 3],
-    /// m, arm length (Table 1; the model applies torques directly, so it is informational).
-    pub arm_length: f64,
-    /// m^2, Cd times projected area for vertical drag.
-    pub drag_area: f64,
-    /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
-    pub lateral_drag_area: f64,
+params! {
+    pub struct Vehicle {
+        /// kg, the quadrotor alone.
+        mass: f64 => "kg", "Quadrotor mass";
+        /// kg m^2, nominal (what the controller believes): Ixx, Iyy, Izz.
+        inertia: [f64; 3] => "kg m^2", "Quadrotor inertia, nominal (Ixx, Iyy, Izz)";
+        /// kg m^2, plant inertia minus nominal (the paper's Delta I).
+        inertia_error: [f64; 3] => "kg m^2", "Inertia error, plant minus nominal (Ixx, Iyy, Izz)";
+        /// m, arm length (Table 1; the model applies torques directly, so it is informational).
+        arm_length: f64 => "m", "Arm length";
+        /// m^2, Cd times projected area for vertical drag.
+        drag_area: f64 => "m^2", "Quadrotor drag area";
+        /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
+        lateral_drag_area: f64 => "m^2", "Lateral drag area of quadrotor and payload";
+    }
 }
 
 impl Vehicle {
