@@ -1,8 +1,7 @@
 //! `[gust]`: the section-4 turbulence (which spectrum, which components, its window, altitude,
 //! intensity and airspeed) and its checks (the wind itself is `crate::gust`).
 
-use super::keys::{Seg, Target};
-use super::params::{not_number, not_numbers, params, Field};
+use super::params::{not_number, not_numbers, params, Field, Seg, Target};
 use super::wind::{self, GustAirspeed, GustAltitude, Intensity};
 use super::{finite, non_negative, positive, ConfigError};
 use serde::{Deserialize, Serialize};

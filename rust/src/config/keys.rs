@@ -2,14 +2,8 @@
 //! a dispersion, a sweep or an optimisation may set, without going through text or JSON.
 
 use super::params::{self, Params};
+pub use super::params::{Seg, Target};
 use super::{Config, ConfigError, Interpolation};
-
-/// One step of a dotted key: a table field or an array index.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Seg {
-    Field(String),
-    Index(usize),
-}
 
 /// `"vehicle.inertia[2]"` -> [Field vehicle, Field inertia, Index 2].
 pub fn parse_key(key: &str) -> Option<Vec<Seg>> {
@@ -35,16 +29,6 @@ pub fn parse_key(key: &str) -> Option<Vec<Seg>> {
         }
     }
     Some(out)
-}
-
-/// What a parsed key names in a scenario.
-pub enum Target<'c> {
-    /// A number (an optional one that is set counts; one that is unset does not exist).
-    Number(&'c mut f64),
-    /// A key that exists but holds no number (a flag, a name, a list of names).
-    NotNumber,
-    /// No such key in this scenario.
-    Missing,
 }
 
 /// Key prefixes that cannot carry a per-realisation value: they change the step grid, the

@@ -1,11 +1,29 @@
 //! A table's own parameters (a controller kind's gains, a section of the scenario such as
-//! `[vehicle]`): one `params!` declaration in the table's file gives the serde struct (unknown keys refused, so a misspelt key is named), its
-//! dotted keys with their units and labels (`Params::KEYS`, which reach Python through
-//! `_core.KEY_UNITS` and `_core.KEY_LABELS`), and the typed targets a dispersion, a sweep or an
-//! optimisation sets (`Params::target`).
+//! `[vehicle]`): one `params!` declaration in the table's file gives the serde struct (unknown
+//! keys refused, so a misspelt key is named), its dotted keys with their units and labels
+//! (`Params::KEYS`, which reach Python through `_core.KEY_UNITS` and `_core.KEY_LABELS`), and
+//! the typed targets a dispersion, a sweep or an optimisation sets (`Params::target`: a key's
+//! path, `Seg`s, to what it names, a `Target`). `keys` reads whole dotted keys with these; this
+//! file names no other of `config`'s modules.
 
-use super::keys::{Seg, Target};
 use serde::{Deserialize, Serialize};
+
+/// One step of a dotted key: a table field or an array index.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Seg {
+    Field(String),
+    Index(usize),
+}
+
+/// What a parsed key names in a scenario.
+pub enum Target<'c> {
+    /// A number (an optional one that is set counts; one that is unset does not exist).
+    Number(&'c mut f64),
+    /// A key that exists but holds no number (a flag, a name, a list of names).
+    NotNumber,
+    /// No such key in this scenario.
+    Missing,
+}
 
 /// A key a kind owns: its name inside the kind's table, its unit (SI; "-" for none) and a
 /// plain-English label (no unit).
@@ -80,8 +98,8 @@ macro_rules! not_numbers {
         impl $crate::config::params::Field for $ty {
             fn target(
                 &mut self,
-                rest: &[$crate::config::keys::Seg],
-            ) -> $crate::config::keys::Target<'_> {
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
                 $crate::config::params::not_number(rest)
             }
         }
@@ -140,11 +158,11 @@ macro_rules! params {
             fn target(
                 &mut self,
                 field: &str,
-                rest: &[$crate::config::keys::Seg],
-            ) -> $crate::config::keys::Target<'_> {
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
                 match field {
                     $(stringify!($field) => $crate::config::params::Field::target(&mut self.$field, rest),)+
-                    _ => $crate::config::keys::Target::Missing,
+                    _ => $crate::config::params::Target::Missing,
                 }
             }
         }
@@ -152,14 +170,14 @@ macro_rules! params {
         impl $crate::config::params::Field for $Name {
             fn target(
                 &mut self,
-                rest: &[$crate::config::keys::Seg],
-            ) -> $crate::config::keys::Target<'_> {
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
                 match rest {
-                    [] => $crate::config::keys::Target::NotNumber,
-                    [$crate::config::keys::Seg::Field(f), sub @ ..] => {
+                    [] => $crate::config::params::Target::NotNumber,
+                    [$crate::config::params::Seg::Field(f), sub @ ..] => {
                         $crate::config::params::Params::target(self, f, sub)
                     }
-                    _ => $crate::config::keys::Target::Missing,
+                    _ => $crate::config::params::Target::Missing,
                 }
             }
         }
