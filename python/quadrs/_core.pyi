@@ -14,7 +14,7 @@ METRIC_NAMES: list[str]
 #: Each metric's unit (SI, as stored) and plain-English label (no unit), by name.
 METRIC_UNITS: dict[str, str]
 METRIC_LABELS: dict[str, str]
-#: The unit and label of every scenario key a kind owns (dotted, indices dropped).
+#: The unit and label of every scenario key the engine declares (dotted, indices dropped).
 KEY_UNITS: dict[str, str]
 KEY_LABELS: dict[str, str]
 #: The paper layout's (vertical spring, ideal actuators); a scenario's own are in `describe`.

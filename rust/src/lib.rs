@@ -78,15 +78,11 @@ mod _core {
         }
         m.add("METRIC_UNITS", units)?;
         m.add("METRIC_LABELS", labels)?;
-        // The unit and label of every key a kind owns (dotted, indices dropped), from the
-        // kind's own declaration (`config::params!`).
+        // The unit and label of every scenario key (dotted, indices dropped), from the
+        // declaration beside its section's struct or in its kind's file (`config::params!`).
         let units = PyDict::new(m.py());
         let labels = PyDict::new(m.py());
-        let owned = crate::config::ControllerConfig::keys()
-            .into_iter()
-            .chain(crate::config::ActuatorConfig::keys())
-            .chain(crate::config::WindTable::keys());
-        for (key, k) in owned {
+        for (key, k) in crate::config::Config::keys() {
             units.set_item(&key, k.unit)?;
             labels.set_item(&key, k.label)?;
         }

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from quadrs import _core
+from quadrs.scenario.units import LABELS as KEY_LABELS
 from quadrs.scenario.units import UNITS as KEY_UNITS
 
 __all__ = ["DEGREE_METRICS", "PLAIN_LABELS", "STANDARD_GRAVITY", "UNITS", "display_scale", "in_g"]
@@ -45,21 +46,14 @@ def display_scale(name: str) -> float:
     return 180.0 / math.pi if name in DEGREE_METRICS else 1.0
 
 
-#: Plain-English axis labels of metrics and common scenario keys, with units. Every figure
-#: labels a metric or key through these (a key not listed shows as itself).
+#: Plain-English axis labels of metrics and scenario keys, with units. Every figure labels a
+#: metric or key through these (a key not listed, an indexed one, shows as itself).
 PLAIN_LABELS = {
     # every metric, from the engine's definition (``_core.METRIC_LABELS``)
     **{m: f"{label} ({UNITS[m]})" for m, label in _core.METRIC_LABELS.items()},
-    "payload.natural_frequency": "Attachment natural frequency (Hz)",
-    "payload.stiffness": "Attachment stiffness (N/m)",
-    "payload.mass": "Payload mass (kg)",
-    "payload.damping": "Attachment damping (N s/m)",
-    "payload.drag_area": "Payload drag area (m²)",
-    "gust.w20": "Wind at 20 ft (m/s)",
-    "gust.airspeed": "Airspeed (m/s)",
-    "gust.altitude": "Altitude of the gust model (m)",
-    "gust.air_density": "Air density (kg/m³)",
-    "vehicle.mass": "Quadrotor mass (kg)",
-    "vehicle.drag_area": "Quadrotor drag area (m²)",
-    "integrator.dt": "Integration step (s)",
+    # every scenario key, from its declaration (``quadrs.scenario.units.LABELS``)
+    **{
+        key: label if UNITS[key] == "-" else f"{label} ({UNITS[key]})"
+        for key, label in KEY_LABELS.items()
+    },
 }

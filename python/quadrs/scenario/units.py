@@ -1,6 +1,8 @@
-"""The unit of every scenario key, in one table (SI throughout; frequencies in Hz).
+"""The unit and label of every scenario key (SI throughout; frequencies in Hz), from the
+engine (``_core.KEY_UNITS``, ``_core.KEY_LABELS``: each key declared beside its section's struct
+or in its kind's file) and the few keys Python alone holds.
 
-``quadrs scenario keys`` prints them beside the values, and the plausibility checks
+``quadrs scenario keys`` prints the units beside the values, and the plausibility checks
 (:mod:`quadrs.scenario.plausibility`) quote them. Indexed keys share one entry:
 ``phases[2].end`` has the unit of ``phases[].end`` and ``controller.pd.kp[0]`` that of
 ``controller.pd.kp``.
@@ -12,76 +14,33 @@ import re
 
 from quadrs import _core
 
-#: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The keys
-#: a kind owns (``controller.*``) come from the engine, which declares them with the kind.
+#: The ``[wind]`` keys outside its table, which the engine does not declare yet, and the keys only
+#: Python reads (a file the scenario names, read into numbers before the engine sees them):
+#: dotted key -> (unit, plain-English label).
+_PYTHON_KEYS: dict[str, tuple[str, str]] = {
+    "wind.speed": ("m/s", "Mean wind at 20 ft"),
+    "wind.heading": ("deg", "Direction the mean wind blows toward"),
+    "wind.shear": ("-", "Mean wind shear profile"),
+    "wind.roughness": ("m", "Surface roughness length"),
+    "wind.gusts.start": ("s", "Discrete gust start"),
+    "wind.gusts.duration": ("s", "Discrete gust duration"),
+    "wind.gusts.amplitude": ("m/s", "Discrete gust amplitude (x, y, z)"),
+    "wind.gusts.shape": ("-", "Discrete gust shape"),
+    "wind.table.file": ("-", "Wind table file (CSV)"),
+}
+
+#: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The
+#: engine declares each key beside its section's struct or in its kind's file
+#: (``_core.KEY_UNITS``); the few Python holds are above.
 UNITS: dict[str, str] = {
     **_core.KEY_UNITS,
-    "vehicle.mass": "kg",
-    "vehicle.inertia": "kg m^2",
-    "vehicle.inertia_error": "kg m^2",
-    "vehicle.arm_length": "m",
-    "vehicle.drag_area": "m^2",
-    "vehicle.lateral_drag_area": "m^2",
-    "payload.model": "-",
-    "payload.mass": "kg",
-    "payload.natural_frequency": "Hz",
-    "payload.stiffness": "N/m",
-    "payload.damping": "N s/m",
-    "payload.drag_area": "m^2",
-    "payload.cable_length": "m",
-    "payload.attachment_offset": "m",
-    "environment.gravity": "m/s^2",
-    "initial.position": "m",
-    "initial.attitude": "rad",
-    "actuator.model": "-",
-    "actuator.layout": "-",
-    "actuator.thrust_coefficient": "N s^2/rad^2",
-    "actuator.torque_ratio": "m",
-    "actuator.time_constant": "s",
-    "actuator.thrust_min": "N",
-    "actuator.thrust_max": "N",
-    "trajectory.interpolation": "-",
-    "trajectory.transition": "s",
-    "trajectory.waypoints": "[s, m, m, m, rad]",
-    "trajectory.route": "[m, m, m]",
-    "trajectory.speed": "m/s",
-    "trajectory.acceleration": "m/s^2",
-    "trajectory.hold": "s",
-    "trajectory.names": "-",
-    "phases": "-",
-    "phases.name": "-",
-    "phases.start": "s",
-    "phases.end": "s",
-    "gust.enabled": "-",
-    "gust.model": "-",
-    "gust.components": "-",
-    "gust.start": "s",
-    "gust.end": "s",
-    "gust.altitude": "m",
-    "gust.w20": "m/s",
-    "gust.airspeed": "m/s",
-    "gust.air_density": "kg/m^3",
-    "gust.mean_wind": "m/s",
-    "gust.intensity": "-",
-    "gust.min_airspeed": "m/s",
-    "ground.enabled": "-",
-    "ground.altitude": "m",
-    "wind.speed": "m/s",
-    "wind.heading": "deg",
-    "wind.shear": "-",
-    "wind.roughness": "m",
-    "wind.gusts.start": "s",
-    "wind.gusts.duration": "s",
-    "wind.gusts.amplitude": "m/s",
-    "wind.gusts.shape": "-",
-    "wind.table.file": "-",
-    "integrator.dt": "s",
-    "integrator.duration": "s",
-    "metrics.spectrum_rate": "Hz",
-    "divergence.max_distance": "m",
-    "divergence.max_tilt": "rad",
-    "divergence.max_speed": "m/s",
-    "divergence.max_rate": "rad/s",
+    **{key: unit for key, (unit, _) in _PYTHON_KEYS.items()},
+}
+
+#: Dotted key (array indices dropped) -> plain-English label (no unit), for the same keys.
+LABELS: dict[str, str] = {
+    **_core.KEY_LABELS,
+    **{key: label for key, (_, label) in _PYTHON_KEYS.items()},
 }
 
 #: Units of a dispersion's parameters: those of the dispersed key, except lognormal's, which
@@ -103,3 +62,14 @@ def unit(key: str) -> str:
             return f"ln({unit(inner)})"
         return "-"
     return UNITS[_INDEX.sub("", key)]
+
+
+def label(key: str) -> str:
+    """The plain-English label of a dotted scenario key (``"payload.mass"`` -> ``"Payload
+    mass"``), without its unit; indices are ignored; a dispersion's parameter is labelled by the
+    key it disperses. Raises KeyError for a key the table does not know."""
+    if key.startswith("dispersions."):
+        inner, _, param = key.removeprefix("dispersions.").rpartition(".")
+        inner = inner.strip('"')
+        return f"{label(inner)}: dispersion {param}"
+    return LABELS[_INDEX.sub("", key)]

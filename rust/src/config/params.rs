@@ -1,11 +1,29 @@
-//! A kind's own parameters (a controller's gains today): one `params!` declaration in the
-//! kind's file gives the serde struct (unknown keys refused, so a misspelt key is named), its
-//! dotted keys with their units and labels (`Params::KEYS`, which reach Python through
-//! `_core.KEY_UNITS` and `_core.KEY_LABELS`), and the typed targets a dispersion, a sweep or an
-//! optimisation sets (`Params::target`).
+//! A table's own parameters (a controller kind's gains, a section of the scenario such as
+//! `[vehicle]`): one `params!` declaration in the table's file gives the serde struct (unknown
+//! keys refused, so a misspelt key is named), its dotted keys with their units and labels
+//! (`Params::KEYS`, which reach Python through `_core.KEY_UNITS` and `_core.KEY_LABELS`), and
+//! the typed targets a dispersion, a sweep or an optimisation sets (`Params::target`: a key's
+//! path, `Seg`s, to what it names, a `Target`). `keys` reads whole dotted keys with these; this
+//! file names no other of `config`'s modules.
 
-use super::keys::{Seg, Target};
 use serde::{Deserialize, Serialize};
+
+/// One step of a dotted key: a table field or an array index.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Seg {
+    Field(String),
+    Index(usize),
+}
+
+/// What a parsed key names in a scenario.
+pub enum Target<'c> {
+    /// A number (an optional one that is set counts; one that is unset does not exist).
+    Number(&'c mut f64),
+    /// A key that exists but holds no number (a flag, a name, a list of names).
+    NotNumber,
+    /// No such key in this scenario.
+    Missing,
+}
 
 /// A key a kind owns: its name inside the kind's table, its unit (SI; "-" for none) and a
 /// plain-English label (no unit).
@@ -31,18 +49,19 @@ impl Field for f64 {
     }
 }
 
-impl Field for [f64; 3] {
+/// A fixed-length row of numbers (`[x, y, z]`, a waypoint's five): each element a number.
+impl<const N: usize> Field for [f64; N] {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
         match rest {
-            [Seg::Index(i)] if *i < 3 => Target::Number(&mut self[*i]),
+            [Seg::Index(i)] if *i < N => Target::Number(&mut self[*i]),
             [] => Target::NotNumber,
             _ => Target::Missing,
         }
     }
 }
 
-/// An optional number exists as a key only when it is set.
-impl Field for Option<f64> {
+/// An optional value exists as a key only when it is set.
+impl<T: Field> Field for Option<T> {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
         match self {
             Some(x) => x.target(rest),
@@ -51,26 +70,44 @@ impl Field for Option<f64> {
     }
 }
 
-/// A whole number (a rotor's index): a key, but not one a dispersion can draw.
-impl Field for u32 {
+/// A list (of rows, names or tables): the list itself holds no number; an entry is a key while
+/// its index is in the list.
+impl<T: Field> Field for Vec<T> {
     fn target(&mut self, rest: &[Seg]) -> Target<'_> {
-        if rest.is_empty() {
-            Target::NotNumber
-        } else {
-            Target::Missing
+        match rest {
+            [] => Target::NotNumber,
+            [Seg::Index(i), tail @ ..] if *i < self.len() => self[*i].target(tail),
+            _ => Target::Missing,
         }
     }
 }
 
-impl Field for bool {
-    fn target(&mut self, rest: &[Seg]) -> Target<'_> {
-        if rest.is_empty() {
-            Target::NotNumber
-        } else {
-            Target::Missing
-        }
+/// The target of a key that holds no number (then `rest` must be empty).
+pub fn not_number(rest: &[Seg]) -> Target<'static> {
+    if rest.is_empty() {
+        Target::NotNumber
+    } else {
+        Target::Missing
     }
 }
+
+/// Values that are keys but not numbers a dispersion can draw: a flag, a name, a whole number
+/// (a rotor's index), one word of a vocabulary (`payload.model`).
+macro_rules! not_numbers {
+    ($($ty:ty),+ $(,)?) => {$(
+        impl $crate::config::params::Field for $ty {
+            fn target(
+                &mut self,
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
+                $crate::config::params::not_number(rest)
+            }
+        }
+    )+};
+}
+pub(crate) use not_numbers;
+
+not_numbers!(u32, bool, String);
 
 /// Parameters declared with `params!`.
 pub trait Params {
@@ -78,10 +115,20 @@ pub trait Params {
     const KEYS: &'static [Key];
     /// The target of `field` (then `rest`) in these parameters.
     fn target(&mut self, field: &str, rest: &[Seg]) -> Target<'_>;
+
+    /// Every key as a dotted key under `prefix` (`"vehicle"` -> `"vehicle.mass"`).
+    fn keys_under(prefix: &str) -> Vec<(String, Key)> {
+        Self::KEYS
+            .iter()
+            .map(|k| (format!("{prefix}.{}", k.name), *k))
+            .collect()
+    }
 }
 
-/// A kind's parameter table: `name: type => "unit", "label";` per key, with its doc comment and
-/// serde attributes above it. Generates the struct (`deny_unknown_fields`) and its `Params`.
+/// A table of parameters (a kind's, or a section of the scenario): `name: type => "unit",
+/// "label";` per key, with its doc comment and serde attributes above it. Generates the struct
+/// (`deny_unknown_fields`), its `Params` and its `Field` (so a list of such tables, like
+/// `[[actuator.faults]]`, is a key with the entries' keys under it).
 macro_rules! params {
     (
         $(#[$meta:meta])*
@@ -111,11 +158,26 @@ macro_rules! params {
             fn target(
                 &mut self,
                 field: &str,
-                rest: &[$crate::config::keys::Seg],
-            ) -> $crate::config::keys::Target<'_> {
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
                 match field {
                     $(stringify!($field) => $crate::config::params::Field::target(&mut self.$field, rest),)+
-                    _ => $crate::config::keys::Target::Missing,
+                    _ => $crate::config::params::Target::Missing,
+                }
+            }
+        }
+
+        impl $crate::config::params::Field for $Name {
+            fn target(
+                &mut self,
+                rest: &[$crate::config::params::Seg],
+            ) -> $crate::config::params::Target<'_> {
+                match rest {
+                    [] => $crate::config::params::Target::NotNumber,
+                    [$crate::config::params::Seg::Field(f), sub @ ..] => {
+                        $crate::config::params::Params::target(self, f, sub)
+                    }
+                    _ => $crate::config::params::Target::Missing,
                 }
             }
         }

@@ -218,7 +218,7 @@ macro_rules! controllers {
             fn kind_target(&mut self, name: &str, field: &str, rest: &[Seg]) -> Target<'_> {
                 match name {
                     $(stringify!($name) => match &mut self.$name.0 {
-                        Some(p) => p.target(field, rest),
+                        Some(p) => Params::target(p, field, rest),
                         None => Target::Missing,
                     },)+
                     _ => Target::Missing,

@@ -15,7 +15,7 @@
 
 use super::{Actuator, ActuatorModel, AnyActuator};
 use crate::config::Config;
-pub use crate::config::{RotorFault, BATTERY_SAG};
+pub use crate::config::RotorFault;
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State, Tick};

@@ -1,0 +1,180 @@
+//! The flight's setting and its end: `[environment]` (gravity), `[initial]` (where the vehicle
+//! starts), `[integrator]` (the step and the duration), `[metrics]` (the spectra's rate),
+//! `[divergence]` (the bounds past which a flight has diverged) and `[ground]` (the plane a
+//! flight ends at), with their checks.
+
+use super::params::params;
+use super::{finite, positive, ConfigError};
+
+params! {
+    pub struct Environment {
+        gravity: f64 => "m/s^2", "Gravity";
+    }
+}
+
+impl Environment {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("environment.gravity", self.gravity)
+    }
+}
+
+params! {
+    pub struct Initial {
+        /// m, quadrotor x, y, z; the payload starts at its hover equilibrium below it.
+        position: [f64; 3] => "m", "Start position (x, y, z)";
+        /// rad, roll, pitch, yaw.
+        attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)";
+    }
+}
+
+impl Initial {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        for (i, x) in self.position.iter().enumerate() {
+            finite(format_args!("initial.position[{i}]"), *x)?;
+        }
+        for (i, x) in self.attitude.iter().enumerate() {
+            finite(format_args!("initial.attitude[{i}]"), *x)?;
+        }
+        for i in 0..2 {
+            let a = self.attitude[i];
+            if a.abs() >= std::f64::consts::FRAC_PI_2 {
+                let key = format!("initial.attitude[{i}]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} (roll/pitch) must be within (-pi/2, pi/2) rad, got {a:?}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Most integration steps one flight may take (guards against hangs from a tiny dt).
+pub const MAX_STEPS: f64 = 2.0e9;
+
+params! {
+    pub struct Integrator {
+        dt: f64 => "s", "Integration step";
+        duration: f64 => "s", "Flight duration";
+    }
+}
+
+impl Integrator {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let it = self;
+        positive("integrator.dt", it.dt)?;
+        positive("integrator.duration", it.duration)?;
+        if it.dt > it.duration {
+            return Err(ConfigError::new(
+                "integrator.dt",
+                format!(
+                    "integrator.dt must not exceed integrator.duration ({:?} s), got {:?}",
+                    it.duration, it.dt
+                ),
+            ));
+        }
+        if it.duration / it.dt > MAX_STEPS {
+            return Err(ConfigError::new(
+                "integrator.dt",
+                format!(
+                    "integrator.dt is too small: duration / dt must be at most {MAX_STEPS:e} steps, got {:?}",
+                    it.dt
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+params! {
+    pub struct Metrics {
+        /// Hz, rate at which e_o is block-averaged for the amplitude spectra.
+        spectrum_rate: f64 => "Hz", "Spectrum sample rate";
+    }
+}
+
+impl Metrics {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("metrics.spectrum_rate", self.spectrum_rate)
+    }
+}
+
+params! {
+    pub struct Divergence {
+        /// m, a realisation whose quadrotor or payload strays further than this from the origin diverged.
+        max_distance: f64 => "m", "Largest distance from the origin before divergence";
+        /// rad, a realisation whose roll or pitch exceeds this diverged.
+        max_tilt: f64 => "rad", "Largest roll or pitch before divergence";
+        /// m/s, a realisation whose quadrotor or payload moves faster than this along any axis
+        /// diverged: catches a numerically unstable step (finite but absurd states) early.
+        #[serde(default = "default_max_speed")]
+        max_speed: f64 => "m/s", "Largest speed along an axis before divergence";
+        /// rad/s, a realisation whose body rate p, q or r exceeds this diverged.
+        #[serde(default = "default_max_rate")]
+        max_rate: f64 => "rad/s", "Largest body rate before divergence";
+    }
+}
+
+impl Divergence {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive("divergence.max_distance", self.max_distance)?;
+        positive("divergence.max_tilt", self.max_tilt)?;
+        positive("divergence.max_speed", self.max_speed)?;
+        positive("divergence.max_rate", self.max_rate)
+    }
+}
+
+fn default_max_speed() -> f64 {
+    100.0
+}
+
+fn default_max_rate() -> f64 {
+    100.0
+}
+
+params! {
+    /// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
+    /// when `enabled`. No contact dynamics: the flight simply stops.
+    #[derive(Default)]
+    pub struct Ground {
+        #[serde(default)]
+        enabled: bool => "-", "Ground plane on";
+        #[serde(default)]
+        altitude: f64 => "m", "Ground altitude";
+    }
+}
+
+impl Ground {
+    /// The altitude below which a flight ends (minus infinity when the ground is off).
+    pub fn floor(&self) -> f64 {
+        if self.enabled {
+            self.altitude
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+
+    /// Check every value (the start against the ground when it is on); the first problem
+    /// found is returned with its key.
+    pub fn validate(&self, initial: &Initial) -> Result<(), ConfigError> {
+        let g = self;
+        finite("ground.altitude", g.altitude)?;
+        let z0 = initial.position[2];
+        if g.enabled && z0 < g.altitude {
+            return Err(ConfigError::new(
+                "ground.altitude",
+                format!(
+                    "ground.altitude must be at or below the start (initial.position[2] = {z0:?}) \
+                     when ground.enabled, got {:?}",
+                    g.altitude
+                ),
+            ));
+        }
+        Ok(())
+    }
+}

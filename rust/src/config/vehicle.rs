@@ -1,0 +1,48 @@
+//! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag) and its checks.
+
+use super::params::params;
+use super::{finite, non_negative, positive, ConfigError};
+
+params! {
+    pub struct Vehicle {
+        /// kg, the quadrotor alone.
+        mass: f64 => "kg", "Quadrotor mass";
+        /// kg m^2, nominal (what the controller believes): Ixx, Iyy, Izz.
+        inertia: [f64; 3] => "kg m^2", "Quadrotor inertia, nominal (Ixx, Iyy, Izz)";
+        /// kg m^2, plant inertia minus nominal (the paper's Delta I).
+        inertia_error: [f64; 3] => "kg m^2", "Inertia error, plant minus nominal (Ixx, Iyy, Izz)";
+        /// m, arm length (Table 1; the model applies torques directly, so it is informational).
+        arm_length: f64 => "m", "Arm length";
+        /// m^2, Cd times projected area for vertical drag.
+        drag_area: f64 => "m^2", "Quadrotor drag area";
+        /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
+        lateral_drag_area: f64 => "m^2", "Lateral drag area of quadrotor and payload";
+    }
+}
+
+impl Vehicle {
+    /// Check every value; the first problem found is returned with its key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let v = self;
+        positive("vehicle.mass", v.mass)?;
+        for (i, x) in v.inertia.iter().enumerate() {
+            positive(format_args!("vehicle.inertia[{i}]"), *x)?;
+        }
+        for (i, x) in v.inertia_error.iter().enumerate() {
+            let key = format!("vehicle.inertia_error[{i}]");
+            finite(&key, *x)?;
+            if v.inertia[i] + x <= 0.0 {
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} must leave a positive plant inertia (vehicle.inertia[{i}] + error > 0), got {x:?}"
+                    ),
+                ));
+            }
+        }
+        non_negative("vehicle.arm_length", v.arm_length)?;
+        non_negative("vehicle.drag_area", v.drag_area)?;
+        non_negative("vehicle.lateral_drag_area", v.lateral_drag_area)?;
+        Ok(())
+    }
+}
