@@ -85,7 +85,7 @@ mod _core {
         let owned = crate::config::ControllerConfig::keys()
             .into_iter()
             .chain(crate::config::ActuatorConfig::keys())
-            .chain(crate::config::WindTable::keys());
+            .chain(crate::gust::AnySource::keys());
         for (key, k) in owned {
             units.set_item(&key, k.unit)?;
             labels.set_item(&key, k.label)?;

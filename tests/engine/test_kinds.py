@@ -28,3 +28,23 @@ def test_every_controller_kind_owns_its_table() -> None:
     for name in _core.CONTROLLER_NAMES:
         owned = [k for k in _core.KEY_UNITS if k.startswith(f"controller.{name}.")]
         assert owned, f"controller {name!r} declares no keys"
+
+
+def test_the_wind_sources_declare_their_keys() -> None:
+    """The `[wind]` keys come from the wind sources' own files (gust/steady.rs, gusts.rs,
+    table.rs), not from a table in Python: each with its unit and label, indexed keys too."""
+    wanted = {
+        "wind.speed": "m/s",
+        "wind.heading": "deg",
+        "wind.shear": "-",
+        "wind.roughness": "m",
+        "wind.gusts.start": "s",
+        "wind.gusts.duration": "s",
+        "wind.gusts.amplitude": "m/s",
+        "wind.gusts.shape": "-",
+        "wind.table.by": "-",
+    }
+    for key, unit in wanted.items():
+        assert _core.KEY_UNITS[key] == unit and _core.KEY_LABELS[key].strip(), key
+    assert units.unit("wind.gusts[1].amplitude[2]") == "m/s"
+    assert units.unit("wind.table.file") == "-"  # read in Python, never reaches the engine

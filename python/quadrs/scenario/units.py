@@ -13,7 +13,8 @@ import re
 from quadrs import _core
 
 #: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The keys
-#: a kind owns (``controller.*``) come from the engine, which declares them with the kind.
+#: a kind owns (``controller.*``, the wind sources' ``wind.*``) come from the engine, which
+#: declares them with the kind.
 UNITS: dict[str, str] = {
     **_core.KEY_UNITS,
     "vehicle.mass": "kg",
@@ -66,15 +67,7 @@ UNITS: dict[str, str] = {
     "gust.min_airspeed": "m/s",
     "ground.enabled": "-",
     "ground.altitude": "m",
-    "wind.speed": "m/s",
-    "wind.heading": "deg",
-    "wind.shear": "-",
-    "wind.roughness": "m",
-    "wind.gusts.start": "s",
-    "wind.gusts.duration": "s",
-    "wind.gusts.amplitude": "m/s",
-    "wind.gusts.shape": "-",
-    "wind.table.file": "-",
+    "wind.table.file": "-",  # read in Python; the wind sources' own keys come from the engine
     "integrator.dt": "s",
     "integrator.duration": "s",
     "metrics.spectrum_rate": "Hz",
