@@ -59,10 +59,10 @@ def test_every_key_of_every_preset_has_a_unit_and_a_label() -> None:
 
 
 def test_python_holds_no_second_table_of_units() -> None:
-    """The engine declares every key but the `[wind]` ones outside its table (not declared
-    there yet) and the files Python reads; Python's few never shadow the engine's."""
+    """The engine declares every key but the files Python reads (`wind.table.file`); Python's
+    few never shadow the engine's."""
     python_only = set(units.UNITS) - set(_core.KEY_UNITS)
-    assert python_only and all(key.startswith("wind.") for key in python_only), python_only
+    assert python_only == {"wind.table.file"}, python_only
     assert "wind.table.points" in _core.KEY_UNITS and "wind.table.file" in python_only
     for key, unit in _core.KEY_UNITS.items():
         assert units.UNITS[key] == unit and units.LABELS[key] == _core.KEY_LABELS[key], key
@@ -110,3 +110,23 @@ def test_figures_label_keys_from_their_declaration() -> None:
     ]:
         assert PLAIN_LABELS[key] == shown
     assert set(units.LABELS) <= set(PLAIN_LABELS)
+
+
+def test_the_wind_sources_declare_their_keys() -> None:
+    """The `[wind]` keys come from the wind sources' own files (gust/steady.rs, gusts.rs,
+    table.rs), not from a table in Python: each with its unit and label, indexed keys too."""
+    wanted = {
+        "wind.speed": "m/s",
+        "wind.heading": "deg",
+        "wind.shear": "-",
+        "wind.roughness": "m",
+        "wind.gusts.start": "s",
+        "wind.gusts.duration": "s",
+        "wind.gusts.amplitude": "m/s",
+        "wind.gusts.shape": "-",
+        "wind.table.by": "-",
+    }
+    for key, unit in wanted.items():
+        assert _core.KEY_UNITS[key] == unit and _core.KEY_LABELS[key].strip(), key
+    assert units.unit("wind.gusts[1].amplitude[2]") == "m/s"
+    assert units.unit("wind.table.file") == "-"  # read in Python, never reaches the engine

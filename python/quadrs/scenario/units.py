@@ -14,18 +14,9 @@ import re
 
 from quadrs import _core
 
-#: The ``[wind]`` keys outside its table, which the engine does not declare yet, and the keys only
-#: Python reads (a file the scenario names, read into numbers before the engine sees them):
-#: dotted key -> (unit, plain-English label).
+#: The keys only Python reads (a file the scenario names, read into numbers before the engine
+#: sees them): dotted key -> (unit, plain-English label).
 _PYTHON_KEYS: dict[str, tuple[str, str]] = {
-    "wind.speed": ("m/s", "Mean wind at 20 ft"),
-    "wind.heading": ("deg", "Direction the mean wind blows toward"),
-    "wind.shear": ("-", "Mean wind shear profile"),
-    "wind.roughness": ("m", "Surface roughness length"),
-    "wind.gusts.start": ("s", "Discrete gust start"),
-    "wind.gusts.duration": ("s", "Discrete gust duration"),
-    "wind.gusts.amplitude": ("m/s", "Discrete gust amplitude (x, y, z)"),
-    "wind.gusts.shape": ("-", "Discrete gust shape"),
     "wind.table.file": ("-", "Wind table file (CSV)"),
 }
 

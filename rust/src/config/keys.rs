@@ -41,8 +41,8 @@ pub const FIXED_PREFIXES: [&str; 5] = [
     "dispersions",
 ];
 
-/// (The `[wind]` arm's helpers: its keys are not declared with `params!` yet.)
-fn at3<'c>(a: &'c mut [f64; 3], rest: &[Seg]) -> Target<'c> {
+/// (The wind sources' helpers, `crate::gust`: their keys are read field by field.)
+pub(crate) fn at3<'c>(a: &'c mut [f64; 3], rest: &[Seg]) -> Target<'c> {
     match rest {
         [Seg::Index(i)] if *i < 3 => Target::Number(&mut a[*i]),
         [] => Target::NotNumber,
@@ -50,7 +50,7 @@ fn at3<'c>(a: &'c mut [f64; 3], rest: &[Seg]) -> Target<'c> {
     }
 }
 
-fn one<'c>(x: &'c mut f64, rest: &[Seg]) -> Target<'c> {
+pub(crate) fn one<'c>(x: &'c mut f64, rest: &[Seg]) -> Target<'c> {
     if rest.is_empty() {
         Target::Number(x)
     } else {
@@ -58,7 +58,7 @@ fn one<'c>(x: &'c mut f64, rest: &[Seg]) -> Target<'c> {
     }
 }
 
-fn flag(rest: &[Seg]) -> Target<'static> {
+pub(crate) fn flag(rest: &[Seg]) -> Target<'static> {
     if rest.is_empty() {
         Target::NotNumber
     } else {
@@ -85,49 +85,8 @@ impl Config {
             ("trajectory", f) => self.trajectory.target(f, rest),
             ("phases", _) => params::Field::target(&mut self.phases, &path[1..]),
             ("gust", f) => self.gust.target(f, rest),
-            ("wind", f) => {
-                let w = &mut self.wind;
-                match f {
-                    "speed" => one(&mut w.speed, rest),
-                    "heading" => one(&mut w.heading, rest),
-                    "shear" => flag(rest),
-                    "roughness" => one(&mut w.roughness, rest),
-                    "table" => match (&mut w.table, rest) {
-                        (None, _) => Target::Missing,
-                        (Some(_), []) => Target::NotNumber,
-                        (Some(_), [Seg::Field(f)]) if f == "by" => Target::NotNumber,
-                        (Some(t), [Seg::Field(f), more @ ..]) if f == "points" => match more {
-                            [] => Target::NotNumber,
-                            [Seg::Index(i)] if *i < t.points.len() => Target::NotNumber,
-                            [Seg::Index(i), Seg::Index(j)] if *i < t.points.len() && *j < 4 => {
-                                Target::Number(&mut t.points[*i][*j])
-                            }
-                            _ => Target::Missing,
-                        },
-                        _ => Target::Missing,
-                    },
-                    "gusts" => match rest {
-                        [] => Target::NotNumber,
-                        [Seg::Index(i), tail @ ..] if *i < w.gusts.len() => {
-                            let g = &mut w.gusts[*i];
-                            let sub = tail.get(1..).unwrap_or(&[]);
-                            match tail.first() {
-                                None => Target::NotNumber,
-                                Some(Seg::Field(f)) => match f.as_str() {
-                                    "start" => one(&mut g.start, sub),
-                                    "duration" => one(&mut g.duration, sub),
-                                    "amplitude" => at3(&mut g.amplitude, sub),
-                                    "shape" => flag(sub),
-                                    _ => Target::Missing,
-                                },
-                                Some(Seg::Index(_)) => Target::Missing,
-                            }
-                        }
-                        _ => Target::Missing,
-                    },
-                    _ => Target::Missing,
-                }
-            }
+            // Each wind source reads its own keys (`WindSource::target`).
+            ("wind", f) => crate::gust::AnySource::target(&mut self.wind, f, rest),
             ("integrator", f) => self.integrator.target(f, rest),
             ("metrics", f) => self.metrics.target(f, rest),
             ("divergence", f) => self.divergence.target(f, rest),

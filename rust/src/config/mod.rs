@@ -186,7 +186,7 @@ impl Config {
         keys.extend(Trajectory::keys_under("trajectory"));
         keys.extend(Phase::keys());
         keys.extend(Gust::keys_under("gust"));
-        keys.extend(WindTable::keys());
+        keys.extend(crate::gust::AnySource::keys());
         keys.extend(Integrator::keys_under("integrator"));
         keys.extend(Metrics::keys_under("metrics"));
         keys.extend(Divergence::keys_under("divergence"));

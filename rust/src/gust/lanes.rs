@@ -16,6 +16,7 @@
 
 use super::filter::{Coefficients, Normals};
 use super::wind::{Kinematics, Source, WindField};
+use super::AnySource;
 use crate::lane::isa::Isa;
 use crate::lane::random::normal::{Ahead, CHUNK};
 use crate::lane::Lane;
@@ -310,10 +311,12 @@ impl<'a, L: Lane> LaneGust<'a, L> {
     }
 }
 
-/// How a lane-set's discrete gusts are summed.
-enum Gusts {
+/// How a lane-set's other sources (after the mean air's: the discrete gusts, a prescribed
+/// wind) are evaluated.
+enum Others {
     None,
-    /// Every lane's the same (the same list, the same step): summed once, as lane 0's.
+    /// Every lane's the same (the same sources, the same step, none reading the quadrotor):
+    /// evaluated once, as lane 0's.
     Shared,
     /// Lane by lane.
     PerLane,
@@ -321,7 +324,8 @@ enum Gusts {
 
 /// The wind of one lane-set: [`WindField::sample_at`]'s, lane by lane and bit for bit (the
 /// turbulence with its scales following each lane's quadrotor where they do, the `[wind]`
-/// mean wind at each lane's altitude, the discrete gusts), built by [`LaneWind::new`] where
+/// mean air at each lane's altitude, the other sources, each through `WindSource`), built by
+/// [`LaneWind::new`] where
 /// the lanes' fields are alike enough (see there) and sampled at every step by
 /// [`LaneWind::sample`].
 pub struct LaneWind<'f, 'a, L> {
@@ -331,7 +335,11 @@ pub struct LaneWind<'f, 'a, L> {
     follow: bool,
     /// A mean air blows (a `[wind]` mean wind or a `[wind.table]`, in every lane).
     steady: bool,
-    gusts: Gusts,
+    others: Others,
+    /// How many other sources each lane has (the same kinds in every lane).
+    other_count: usize,
+    /// Some lane's other source reads the quadrotor.
+    others_read: bool,
     /// Some lane's source reads the quadrotor's altitude or velocity.
     reads_vehicle: bool,
     /// Each lane's filter numbers for the step (scales that follow the vehicle).
@@ -341,8 +349,8 @@ pub struct LaneWind<'f, 'a, L> {
 impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
     /// The lane-set's wind, lane `l` with the field `fields[l]` drawing from `sources[l]`;
     /// `None` where the per-realisation path must fly it: where the lanes differ in whether
-    /// the turbulence is on and follows the vehicle, whether a mean wind blows, whether there
-    /// are discrete gusts, or in what [`LaneGust::new`] needs alike.
+    /// the turbulence is on and follows the vehicle, whether a mean air blows, in the kinds of
+    /// their other sources (in order), or in what [`LaneGust::new`] needs alike.
     pub fn new(fields: &[&'f WindField], sources: Vec<Source<'a>>) -> Option<Self> {
         assert!(L::LANES <= MAX_LANES && fields.len() == L::LANES);
         let first = fields[0];
@@ -350,7 +358,10 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             f.enabled() == first.enabled()
                 && f.turbulence_follows() == first.turbulence_follows()
                 && f.has_steady() == first.has_steady()
-                && f.gusts().is_empty() == first.gusts().is_empty()
+                && f.others()
+                    .iter()
+                    .map(AnySource::name)
+                    .eq(first.others().iter().map(AnySource::name))
         };
         if !fields.iter().all(alike) {
             return None;
@@ -359,20 +370,26 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             true => Some(LaneGust::new(fields, sources)?),
             false => None,
         };
-        let shared = fields
+        let others_read = fields
             .iter()
-            .all(|f| f.gusts() == first.gusts() && f.dt().to_bits() == first.dt().to_bits());
-        let gusts = match (first.gusts().is_empty(), shared) {
-            (true, _) => Gusts::None,
-            (false, true) => Gusts::Shared,
-            (false, false) => Gusts::PerLane,
+            .any(|f| f.others().iter().any(AnySource::reads_vehicle));
+        let shared = !others_read
+            && fields
+                .iter()
+                .all(|f| f.others() == first.others() && f.dt().to_bits() == first.dt().to_bits());
+        let others = match (first.others().is_empty(), shared) {
+            (true, _) => Others::None,
+            (false, true) => Others::Shared,
+            (false, false) => Others::PerLane,
         };
         Some(LaneWind {
             fields: fields.to_vec(),
             gust,
             follow: first.enabled() && first.turbulence_follows(),
             steady: first.has_steady(),
-            gusts,
+            others,
+            other_count: first.others().len(),
+            others_read,
             reads_vehicle: fields.iter().any(|f| f.follows_vehicle()),
             coefficients: Box::new([[Coefficients::NAN; 3]; MAX_LANES]),
         })
@@ -386,25 +403,23 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
     pub fn sample(&mut self, step: u64, at: impl FnOnce() -> (L, [L; 3])) -> [L; 3] {
         let zero = L::splat(0.0);
         let turbulent = self.gust.as_ref().is_some_and(|g| g.active(step));
-        let blows = self.steady || !matches!(self.gusts, Gusts::None);
+        let blows = self.steady || !matches!(self.others, Others::None);
         if !turbulent && !blows {
             return [zero; 3];
         }
         let mut steady = [[0.0; 3]; MAX_LANES];
         let rescale = turbulent && self.follow;
-        if self.steady || rescale {
-            let (z, vel) = if self.reads_vehicle {
-                at()
-            } else {
-                (zero, [zero; 3])
-            };
-            let mut kin = [Kinematics::AT_REST; MAX_LANES];
+        let mut kin = [Kinematics::AT_REST; MAX_LANES];
+        if (self.steady || rescale || self.others_read) && self.reads_vehicle {
+            let (z, vel) = at();
             for (l, k) in kin.iter_mut().enumerate().take(L::LANES) {
                 *k = Kinematics {
                     z: z.lane(l),
                     vel: [vel[0].lane(l), vel[1].lane(l), vel[2].lane(l)],
                 };
             }
+        }
+        if self.steady || rescale {
             at_vehicles(
                 step,
                 &self.fields,
@@ -431,24 +446,27 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
                 );
             }
         }
-        match self.gusts {
-            Gusts::None => {}
-            Gusts::Shared => {
-                let g = self.fields[0].discrete_gusts(step);
-                for (w, g) in w.iter_mut().zip(g) {
-                    *w += L::splat(g);
+        // Each other source added in turn, as `WindField::sample_at` adds them.
+        for j in 0..self.other_count {
+            match self.others {
+                Others::None => {}
+                Others::Shared => {
+                    let g = self.fields[0].other_at(j, step, &Kinematics::AT_REST);
+                    for (w, g) in w.iter_mut().zip(g) {
+                        *w += L::splat(g);
+                    }
                 }
-            }
-            Gusts::PerLane => {
-                let mut g = [[0.0; 3]; MAX_LANES];
-                for (g, f) in g.iter_mut().zip(&self.fields) {
-                    *g = f.discrete_gusts(step);
-                }
-                for (i, w) in w.iter_mut().enumerate() {
-                    *w += L::from_fn(
-                        #[inline(always)]
-                        |l| g[l][i],
-                    );
+                Others::PerLane => {
+                    let mut g = [[0.0; 3]; MAX_LANES];
+                    for (l, (g, f)) in g.iter_mut().zip(&self.fields).enumerate() {
+                        *g = f.other_at(j, step, &kin[l]);
+                    }
+                    for (i, w) in w.iter_mut().enumerate() {
+                        *w += L::from_fn(
+                            #[inline(always)]
+                            |l| g[l][i],
+                        );
+                    }
                 }
             }
         }
@@ -887,7 +905,7 @@ mod tests {
                 c.wind.table = Some(by_altitude.clone());
             },
         ];
-        edits
+        let mut fields: Vec<WindField> = edits
             .iter()
             .map(|edit| {
                 field(0.01, |c| {
@@ -896,6 +914,28 @@ mod tests {
                     c.gust.end = 2.0;
                     edit(c);
                 })
+            })
+            .collect();
+        // A prescribed wind (a source, added last) over a sheared mean wind, a table by
+        // altitude and a gust, the turbulence off.
+        let sheared = field(0.01, |c| {
+            c.gust.components = GustComponent::ALL.to_vec();
+            c.wind.speed = 3.0;
+            c.wind.heading = 120.0;
+            c.wind.shear = Shear::Log;
+            c.wind.gusts = vec![ramp(0.2)];
+            c.wind.table = Some(by_altitude.clone());
+        });
+        fields.push(sheared.prescribed(prescribed_rows(0.0)));
+        fields
+    }
+
+    /// A prescribed wind's rows, one per step of the tests' flights (and one past them).
+    fn prescribed_rows(phase: f64) -> Vec<[f64; 3]> {
+        (0..=260)
+            .map(|k| {
+                let t = k as f64 * 0.01 + phase;
+                [(5.0 * t).sin(), -0.5 * (2.0 * t).cos(), 0.0]
             })
             .collect()
     }
@@ -964,6 +1004,19 @@ mod tests {
         let given: Vec<_> = (0..4).map(|l| fs[l].given(&xi[l])).collect();
         let sources = given.iter().map(|w| w.source()).collect();
         let (_, one) = seeded(&refs, 2);
+        wind_matches::<F64x4>(&refs, sources, one, 200, kin);
+        // Each lane its own prescribed wind: the other sources lane by lane.
+        let fs: Vec<WindField> = (0..4)
+            .map(|l| {
+                let f = field(0.01, |c| {
+                    c.wind.speed = 2.0 + l as f64;
+                    c.wind.gusts = vec![ramp(0.1 * l as f64)];
+                });
+                f.prescribed(prescribed_rows(0.3 * l as f64))
+            })
+            .collect();
+        let refs: Vec<&WindField> = fs.iter().collect();
+        let (sources, one) = seeded(&refs, 2);
         wind_matches::<F64x4>(&refs, sources, one, 200, kin);
     }
 }

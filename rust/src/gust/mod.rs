@@ -20,12 +20,23 @@
 //!
 //! Layout: [`spectra`] (the scales and spectra), [`filter`] (the exactly discretised
 //! forming filter), [`wind`] (the wind field a flight samples and stationary series),
-//! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies).
+//! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies),
+//! [`source`] (the seam of the deterministic wind sources, one file each, registered below).
 
 pub mod filter;
 pub mod lanes;
+pub mod source;
 pub mod spectra;
 pub mod wind;
+
+// The deterministic wind sources, one file each (`gust/<name>.rs`), in the summation order
+// (docs/architecture.md, "Wind"): a new kind is its file and one line here.
+source::wind_sources! {
+    steady => Steady,
+    gusts => Gusts,
+    table => Table,
+    prescribed => Prescribed,
+}
 
 pub use filter::{Coefficients, GustFilter};
 pub use lanes::{LaneGust, LaneWind};

@@ -2,13 +2,11 @@
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
 use super::filter::{step_fixed, Coefficients, GustFilter, Normals};
+use super::source::Moment;
 use super::spectra::low_altitude_scales;
 use super::spectra::METRES_PER_FOOT;
-use crate::config::wind::{discrete_gust, shear_factor_with, shear_log_reference, table_wind};
-use crate::config::{
-    Config, ConfigError, DiscreteGust, GustAirspeed, GustAltitude, GustComponent, Shear, TableBy,
-    WindTable,
-};
+use super::{AnySource, Prescribed};
+use crate::config::{Config, ConfigError, GustAirspeed, GustAltitude, GustComponent};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -99,27 +97,6 @@ impl Kinematics {
     };
 }
 
-/// The `[wind]` mean wind: W20 f(h) (cos chi, sin chi, 0).
-#[derive(Clone, Copy, Debug)]
-struct Steady {
-    w20: f64,
-    shear: Shear,
-    roughness: f64,
-    /// ln(20 ft / z0), f(h)'s denominator, computed once (`shear_log_reference`).
-    log_reference: f64,
-    cos: f64,
-    sin: f64,
-}
-
-impl Steady {
-    #[inline]
-    fn at(&self, h: f64) -> [f64; 3] {
-        let f = shear_factor_with(self.shear, h, self.roughness, self.log_reference);
-        let s = self.w20 * f;
-        [s * self.cos, s * self.sin, 0.0]
-    }
-}
-
 /// Turbulence scales that follow the vehicle: sigma and L from its altitude, V from its speed
 /// through the mean air, re-discretised every step.
 #[derive(Clone, Copy, Debug)]
@@ -132,13 +109,16 @@ struct Follow {
 
 /// The wind of a scenario, built once per batch and shared read-only by all threads
 /// (per-realisation state lives in [`WindState`]): the held wind of a step is
-/// `mean(h) + turbulence + discrete gusts`, the sources composed behind one vector.
+/// `mean air + turbulence + the other sources`, composed behind one vector.
 ///
 /// * turbulence (docs/model.md section 4): inside [gust.start, gust.end) when `gust.enabled`,
 ///   plus `gust.mean_wind` there; its axes turned by `wind.heading` (u along it, v to its
 ///   left, w up); with `gust.altitude = "vehicle"` or `gust.airspeed = "relative"` its
 ///   filters are re-discretised every step for that step's scales;
-/// * the `[wind]` mean wind with its shear profile, and `[[wind.gusts]]`: at all times.
+/// * the deterministic sources ([`super::source`]: the `[wind]` mean wind with its shear
+///   profile, `[[wind.gusts]]`, `[wind.table]`, a prescribed wind), a list in the summation
+///   order, at all times: the mean air's (summed first, the turbulence then added to them),
+///   then the others one by one.
 #[derive(Clone, Debug)]
 pub struct WindField {
     enabled: bool,
@@ -151,12 +131,10 @@ pub struct WindField {
     follow: Option<Follow>,
     /// (cos chi, sin chi) of the turbulence axes; None when chi = 0 (no rotation at all).
     axes: Option<(f64, f64)>,
-    /// The `[wind]` mean wind, if it blows.
-    steady: Option<Steady>,
-    /// The `[[wind.gusts]]`.
-    gusts: Vec<DiscreteGust>,
-    /// The `[wind.table]`, a measured wind (by time or by the quadrotor's altitude).
-    table: Option<WindTable>,
+    /// The deterministic sources that blow, the mean air's first (`AnySource::of`).
+    sources: Vec<AnySource>,
+    /// How many of `sources` (the first) are the mean air's.
+    mean_len: usize,
 }
 
 /// The unit normals of one flight's turbulence: its seeded stream, or innovations given
@@ -288,14 +266,8 @@ impl WindField {
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
         let (g, dt, wind) = (&cfg.gust, cfg.integrator.dt, &cfg.wind);
         let chi = wind.heading.to_radians();
-        let steady = (wind.speed != 0.0).then_some(Steady {
-            w20: wind.speed,
-            shear: wind.shear,
-            roughness: wind.roughness,
-            log_reference: shear_log_reference(wind.roughness),
-            cos: chi.cos(),
-            sin: chi.sin(),
-        });
+        let sources = AnySource::of(cfg);
+        let mean_len = sources.iter().take_while(|s| s.is_mean_air()).count();
         let mut field = WindField {
             enabled: false,
             filters: [None; 3],
@@ -305,9 +277,8 @@ impl WindField {
             dt,
             follow: None,
             axes: None,
-            steady,
-            gusts: wind.gusts.clone(),
-            table: wind.table.clone(),
+            sources,
+            mean_len,
         };
         if !g.enabled {
             return Ok(field);
@@ -389,7 +360,8 @@ impl WindField {
         } else {
             Kinematics::AT_REST
         };
-        let steady = self.mean_air(step, kin.z);
+        let now = self.moment(step);
+        let steady = self.mean_air(now, &kin);
         let mut w = if turbulent {
             self.turbulence(state, step, &kin, steady)
         } else {
@@ -400,90 +372,125 @@ impl WindField {
                 *w += m;
             }
         }
-        if !self.gusts.is_empty() {
-            let g = self.discrete_gusts(step);
-            for (w, g) in w.iter_mut().zip(g) {
-                *w += g;
-            }
-        }
+        self.add_others(now, &kin, &mut w);
         w
     }
 
-    /// The sources that need no random numbers (the `[wind]` mean wind at the quadrotor's
-    /// altitude and the discrete gusts) at `step`: what a prescribed wind is added to.
+    /// The step `step` and its time `step dt`, as the sources are asked for it.
+    #[inline(always)]
+    fn moment(&self, step: u64) -> Moment {
+        Moment {
+            step,
+            t: step as f64 * self.dt,
+        }
+    }
+
+    /// The sources that need no random numbers (all but the turbulence) at `step`, the
+    /// quadrotor at `kin`: the mean air's sum, then each other source added.
     #[inline]
     pub fn deterministic(&self, step: u64, kin: &Kinematics) -> [f64; 3] {
-        let mut w = self.mean_air(step, kin.z).unwrap_or([0.0; 3]);
-        if !self.gusts.is_empty() {
-            let g = self.discrete_gusts(step);
-            for (w, g) in w.iter_mut().zip(g) {
-                *w += g;
-            }
-        }
+        let now = self.moment(step);
+        let mut w = self.mean_air(now, kin).unwrap_or([0.0; 3]);
+        self.add_others(now, kin, &mut w);
         w
+    }
+
+    /// The sources, in the summation order (the mean air's first).
+    pub fn sources(&self) -> &[AnySource] {
+        &self.sources
+    }
+
+    /// The wind of the first source of kind `name` at `step`, the quadrotor at `kin`.
+    fn source_at(&self, name: &str, step: u64, kin: &Kinematics) -> Option<[f64; 3]> {
+        let s = self.sources.iter().find(|s| s.name() == name)?;
+        Some(s.at(self.moment(step), kin))
     }
 
     /// The `[wind]` mean wind (m/s, inertial) at altitude `h` (m): W20 f(h) (cos chi, sin chi,
     /// 0); zero when `wind.speed` is 0.
     pub fn mean_at(&self, h: f64) -> [f64; 3] {
-        self.steady.map_or([0.0; 3], |m| m.at(h))
+        let kin = Kinematics {
+            z: h,
+            vel: [0.0; 3],
+        };
+        self.source_at("steady", 0, &kin).unwrap_or([0.0; 3])
     }
 
     /// The sum of the discrete gusts (m/s, inertial) at the step starting at `step dt`.
-    #[inline]
     pub fn discrete_gusts(&self, step: u64) -> [f64; 3] {
-        let t = step as f64 * self.dt;
-        let mut w = [0.0; 3];
-        for g in &self.gusts {
-            for (w, x) in w.iter_mut().zip(discrete_gust(g, t)) {
-                *w += x;
-            }
-        }
-        w
+        self.source_at("gusts", step, &Kinematics::AT_REST)
+            .unwrap_or([0.0; 3])
     }
 
-    /// The mean air the turbulence rides on at the step `step` with the quadrotor at altitude
-    /// `z`: the `[wind]` mean wind plus the `[wind.table]`'s wind (None where neither blows).
+    /// The mean air the turbulence rides on at the step `now` with the quadrotor at `kin`: the
+    /// mean air's sources summed in order (the `[wind]` mean wind plus the `[wind.table]`'s
+    /// wind; None where none blows).
     #[inline]
-    fn mean_air(&self, step: u64, z: f64) -> Option<[f64; 3]> {
-        let steady = self.steady.map(|m| m.at(z));
-        let Some(w) = self.table_at(step, z) else {
-            return steady;
+    fn mean_air(&self, now: Moment, kin: &Kinematics) -> Option<[f64; 3]> {
+        let mut sum: Option<[f64; 3]> = None;
+        for s in &self.sources[..self.mean_len] {
+            let w = s.at(now, kin);
+            sum = Some(match sum {
+                None => w,
+                Some(m) => [m[0] + w[0], m[1] + w[1], m[2] + w[2]],
+            });
+        }
+        sum
+    }
+
+    /// The sources after the mean air's (the discrete gusts, a prescribed wind), each added to
+    /// `w` in order.
+    #[inline]
+    fn add_others(&self, now: Moment, kin: &Kinematics, w: &mut [f64; 3]) {
+        for s in &self.sources[self.mean_len..] {
+            let g = s.at(now, kin);
+            for (w, g) in w.iter_mut().zip(g) {
+                *w += g;
+            }
+        }
+    }
+
+    /// The other source `j` (after the mean air's: `others()[j]`) at `step`, the quadrotor at
+    /// `kin` if a source of the field reads it (else at rest): its term of `sample_at`.
+    #[inline]
+    pub(super) fn other_at(&self, j: usize, step: u64, kin: &Kinematics) -> [f64; 3] {
+        let kin = if self.follows_vehicle() {
+            *kin
+        } else {
+            Kinematics::AT_REST
         };
-        Some(match steady {
-            None => w,
-            Some(m) => [m[0] + w[0], m[1] + w[1], m[2] + w[2]],
-        })
+        self.sources[self.mean_len + j].at(self.moment(step), &kin)
     }
 
     /// The `[wind.table]`'s wind (m/s, inertial) at the step `step` with the quadrotor at
     /// altitude `z`, if the scenario has a table.
-    #[inline]
     pub fn table_at(&self, step: u64, z: f64) -> Option<[f64; 3]> {
-        let table = self.table.as_ref()?;
-        let x = match table.by {
-            TableBy::Time => step as f64 * self.dt,
-            TableBy::Altitude => z,
-        };
-        Some(table_wind(&table.points, x))
+        let kin = Kinematics { z, vel: [0.0; 3] };
+        self.source_at("table", step, &kin)
     }
 
-    /// Whether something blows outside the gust window (a mean wind, a discrete gust, a wind
-    /// table): then the wind is sampled at every step.
+    /// Whether something blows outside the gust window (a deterministic source: a mean wind,
+    /// a discrete gust, a wind table, a prescribed wind): then the wind is sampled at every
+    /// step.
     #[inline]
     pub fn blows(&self) -> bool {
-        self.steady.is_some() || !self.gusts.is_empty() || self.table.is_some()
+        !self.sources.is_empty()
     }
 
     /// Whether a source reads the quadrotor's altitude or velocity.
     #[inline]
     pub fn follows_vehicle(&self) -> bool {
-        self.follow.is_some()
-            || self.steady.is_some_and(|m| m.shear != Shear::None)
-            || self
-                .table
-                .as_ref()
-                .is_some_and(|t| t.by == TableBy::Altitude)
+        self.follow.is_some() || self.sources.iter().any(AnySource::reads_vehicle)
+    }
+
+    /// This field with the wind `rows` (m/s, inertial; row k held over step k) prescribed
+    /// instead of the turbulence, added last to the other sources (`Engine::with_wind`).
+    pub fn prescribed(mut self, rows: Vec<[f64; 3]>) -> Self {
+        self.enabled = false;
+        self.follow = None;
+        self.sources
+            .push(AnySource::Prescribed(Prescribed(rows.into())));
+        self
     }
 
     /// The turbulence of a step inside the window, `gust.mean_wind` included, inertial.
@@ -593,7 +600,7 @@ impl WindField {
         } else {
             Kinematics::AT_REST
         };
-        let steady = self.mean_air(step, kin.z);
+        let steady = self.mean_air(self.moment(step), &kin);
         if let (Some(out), Some(f)) = (coefficients, &self.follow) {
             let (sigma, length, v) = Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]));
             for ((slot, filter), i) in out.iter_mut().zip(&self.filters).zip(0..) {
@@ -613,12 +620,12 @@ impl WindField {
 
     /// Whether a mean air blows (the `[wind]` mean wind or a `[wind.table]`).
     pub(super) fn has_steady(&self) -> bool {
-        self.steady.is_some() || self.table.is_some()
+        self.mean_len > 0
     }
 
-    /// The `[[wind.gusts]]`.
-    pub(super) fn gusts(&self) -> &[DiscreteGust] {
-        &self.gusts
+    /// The sources after the mean air's (the discrete gusts, a prescribed wind).
+    pub(super) fn others(&self) -> &[AnySource] {
+        &self.sources[self.mean_len..]
     }
 
     /// `sample`'s work on a concrete source of normals.

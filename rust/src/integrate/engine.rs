@@ -122,8 +122,6 @@ pub struct Engine {
     /// default; its numbers are not bit-identical to the default mode's, nor across
     /// instruction sets. Single flights (`fly::<f64>`) never fuse.
     pub fused: bool,
-    /// A wind prescribed step by step (`with_wind`), flown instead of the gust model.
-    pub(super) prescribed_wind: Option<Vec<[f64; 3]>>,
 }
 
 /// Most lanes a `Lane` type may carry (sizes the per-step wind buffer; the widest lane-set).
@@ -158,7 +156,6 @@ impl Engine {
             cfg,
             isa,
             fused: false,
-            prescribed_wind: None,
         })
     }
 
@@ -196,7 +193,8 @@ impl Engine {
         if let Some(k) = wind.iter().position(|w| !w.iter().all(|x| x.is_finite())) {
             return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
         }
-        self.prescribed_wind = Some(wind);
+        // A wind source of the craft's field (`gust/prescribed.rs`), the turbulence off.
+        self.craft.wind = self.craft.wind.clone().prescribed(wind);
         Ok(self)
     }
 

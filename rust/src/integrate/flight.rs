@@ -168,13 +168,9 @@ impl Engine {
         };
         // The wind of the whole lane-set at once where the lanes' fields allow it
         // (`LaneWind::new`): the same numbers as the per-lane `sample_at`, drawn from the same
-        // sources. Else (and for a prescribed wind) the per-lane path below.
-        let mut lane_wind = if self.prescribed_wind.is_none() {
-            let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
-            LaneWind::<L>::new(&fields, winds.iter().map(|w| w.source()).collect())
-        } else {
-            None
-        };
+        // sources. Else the per-lane path below.
+        let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
+        let mut lane_wind = LaneWind::<L>::new(&fields, winds.iter().map(|w| w.source()).collect());
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
         let mut diverged_at = [f64::NAN; MAX_LANES];
@@ -206,7 +202,8 @@ impl Engine {
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
-        // A mean wind or a discrete gust in any lane: the wind is sampled at every step.
+        // A deterministic wind source in any lane (a mean wind, a discrete gust, a table, a
+        // prescribed wind): the wind is sampled at every step.
         let blows = crafts.iter().any(|c| c.wind.blows());
         let mut held = [zero; 3];
         // The law's discrete memory (none for a static law), and each lane's at its start.
@@ -260,15 +257,7 @@ impl Engine {
             } else {
                 // The lane-set's wind when `lane_wind` flies it (else the per-lane values).
                 let mut wind_set: Option<[L; 3]> = None;
-                if let Some(prescribed) = &self.prescribed_wind {
-                    wind_lanes = [prescribed[k]; MAX_LANES];
-                    if blows {
-                        for (lane, (v, c)) in wind_lanes.iter_mut().zip(crafts).enumerate() {
-                            let d = c.wind.deterministic(k as u64, &at(lane)());
-                            *v = [0, 1, 2].map(|i| v[i] + d[i]);
-                        }
-                    }
-                } else if let Some(g) = lane_wind.as_mut() {
+                if let Some(g) = lane_wind.as_mut() {
                     wind_set = Some(g.sample(
                         k as u64,
                         #[inline(always)]

@@ -1,0 +1,142 @@
+//! Discrete gusts (`[[wind.gusts]]`, docs/model.md, "Wind over the whole flight"): 1-cosine
+//! ramps and pulses in time, inertial, not turned by `wind.heading`. One source holds the
+//! whole list and sums it in the list's order (from zero), so the scenario's gusts enter the
+//! wind as one term.
+
+use super::source::{Moment, WindSource};
+use super::wind::Kinematics;
+use crate::config::keys::{at3, flag, one, Seg, Target};
+use crate::config::params::Key;
+use crate::config::{finite, non_negative, positive, Config, ConfigError, Wind};
+use serde::{Deserialize, Serialize};
+
+/// `wind.gusts[i].shape`: the 1-cosine discrete gust.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GustShape {
+    /// A/2 (1 - cos(pi tau / D)) for 0 <= tau <= D, then A (MIL-F-8785C).
+    #[default]
+    Ramp,
+    /// A/2 (1 - cos(2 pi tau / D)) for 0 <= tau <= D, then 0.
+    Pulse,
+}
+
+/// One `[[wind.gusts]]` entry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiscreteGust {
+    /// s, when the gust begins.
+    pub start: f64,
+    /// s, D: the rise time of a ramp, the length of a pulse.
+    pub duration: f64,
+    /// m/s, A: inertial x, y, z (not turned by `wind.heading`).
+    pub amplitude: [f64; 3],
+    #[serde(default)]
+    pub shape: GustShape,
+}
+
+/// The velocity (m/s, inertial) of one discrete gust at time `t` (s).
+#[inline]
+pub fn discrete_gust(g: &DiscreteGust, t: f64) -> [f64; 3] {
+    let tau = t - g.start;
+    if tau.is_nan() || tau < 0.0 {
+        return [0.0; 3];
+    }
+    let pi = std::f64::consts::PI;
+    let f = match g.shape {
+        GustShape::Ramp if tau <= g.duration => 0.5 * (1.0 - (pi * (tau / g.duration)).cos()),
+        GustShape::Ramp => 1.0,
+        GustShape::Pulse if tau <= g.duration => {
+            0.5 * (1.0 - (2.0 * pi * (tau / g.duration)).cos())
+        }
+        GustShape::Pulse => 0.0,
+    };
+    g.amplitude.map(|a| a * f)
+}
+
+/// The `[[wind.gusts]]`, summed: not part of the mean air.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gusts(pub Vec<DiscreteGust>);
+
+impl WindSource for Gusts {
+    const MEAN_AIR: bool = false;
+    const KEYS: &'static [Key] = &[
+        Key {
+            name: "gusts.start",
+            unit: "s",
+            label: "Discrete gust start",
+        },
+        Key {
+            name: "gusts.duration",
+            unit: "s",
+            label: "Discrete gust duration (rise or length)",
+        },
+        Key {
+            name: "gusts.amplitude",
+            unit: "m/s",
+            label: "Discrete gust amplitude (x, y, z)",
+        },
+        Key {
+            name: "gusts.shape",
+            unit: "-",
+            label: "Discrete gust shape (ramp or pulse)",
+        },
+    ];
+
+    /// Blows where the scenario lists a gust.
+    fn build(cfg: &Config) -> Option<Self> {
+        let gusts = &cfg.wind.gusts;
+        (!gusts.is_empty()).then(|| Gusts(gusts.clone()))
+    }
+
+    fn validate(wind: &Wind) -> Result<(), ConfigError> {
+        for (i, g) in wind.gusts.iter().enumerate() {
+            non_negative(format_args!("wind.gusts[{i}].start"), g.start)?;
+            positive(format_args!("wind.gusts[{i}].duration"), g.duration)?;
+            for (j, a) in g.amplitude.iter().enumerate() {
+                finite(format_args!("wind.gusts[{i}].amplitude[{j}]"), *a)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// `wind.gusts[i].start`, `.duration`, `.amplitude[j]` are numbers; `.shape` is not.
+    fn target<'w>(wind: &'w mut Wind, _field: &str, rest: &[Seg]) -> Target<'w> {
+        match rest {
+            [] => Target::NotNumber,
+            [Seg::Index(i), tail @ ..] if *i < wind.gusts.len() => {
+                let g = &mut wind.gusts[*i];
+                let sub = tail.get(1..).unwrap_or(&[]);
+                match tail.first() {
+                    None => Target::NotNumber,
+                    Some(Seg::Field(f)) => match f.as_str() {
+                        "start" => one(&mut g.start, sub),
+                        "duration" => one(&mut g.duration, sub),
+                        "amplitude" => at3(&mut g.amplitude, sub),
+                        "shape" => flag(sub),
+                        _ => Target::Missing,
+                    },
+                    Some(Seg::Index(_)) => Target::Missing,
+                }
+            }
+            _ => Target::Missing,
+        }
+    }
+
+    /// The sum of the gusts at `now.t`, from zero in the list's order.
+    #[inline]
+    fn at(&self, now: Moment, _kin: &Kinematics) -> [f64; 3] {
+        let mut w = [0.0; 3];
+        for g in &self.0 {
+            for (w, x) in w.iter_mut().zip(discrete_gust(g, now.t)) {
+                *w += x;
+            }
+        }
+        w
+    }
+
+    #[inline]
+    fn reads_vehicle(&self) -> bool {
+        false
+    }
+}

@@ -1,0 +1,145 @@
+//! The `[wind]` mean wind with its shear profile (docs/model.md, "Wind over the whole flight"):
+//! W20 f(h) (cos chi, sin chi, 0) at the quadrotor's altitude h, a wind source of the mean air
+//! (the turbulence's relative airspeed is measured against it). Its keys are `[wind]`'s own:
+//! `wind.speed`, `wind.heading` (which also turns the turbulence's axes), `wind.shear`,
+//! `wind.roughness`.
+
+use super::source::{Moment, WindSource};
+use super::wind::Kinematics;
+use crate::config::keys::{flag, one, Seg, Target};
+use crate::config::params::Key;
+use crate::config::{finite, non_negative, Config, ConfigError, Wind};
+use serde::{Deserialize, Serialize};
+
+/// m, the MIL-F-8785C reference height of the mean wind (20 ft).
+pub const REFERENCE_HEIGHT: f64 = 6.096;
+
+/// m, default `wind.roughness`: MIL-F-8785C's 0.15 ft for terminal flight phases (take-off,
+/// approach, landing), the closest to a small vehicle flying near the ground.
+pub const DEFAULT_ROUGHNESS: f64 = 0.0457;
+
+/// `wind.shear`: the mean wind's profile with height.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shear {
+    /// f(h) = 1: the same wind at every height.
+    #[default]
+    None,
+    /// MIL-F-8785C: f(h) = ln(h / z0) / ln(6.096 / z0) for h > z0, else 0.
+    Log,
+}
+
+/// The shear factor f(h) of `wind.shear` at height `h` (m) with roughness `z0` (m): 1 for
+/// `none`; `ln(h / z0) / ln(6.096 / z0)` for `log` when h > z0, else 0 (so exactly 1 at
+/// 6.096 m, and a NaN height gives NaN).
+#[inline]
+pub fn shear_factor(shear: Shear, h: f64, z0: f64) -> f64 {
+    shear_factor_with(shear, h, z0, shear_log_reference(z0))
+}
+
+/// ln(20 ft / z0): the log profile's denominator, for [`shear_factor_with`].
+#[inline]
+pub fn shear_log_reference(z0: f64) -> f64 {
+    (REFERENCE_HEIGHT / z0).ln()
+}
+
+/// [`shear_factor`] with its denominator computed once (`log_reference =
+/// shear_log_reference(z0)`): the same bits, one logarithm per call instead of two.
+#[inline]
+pub fn shear_factor_with(shear: Shear, h: f64, z0: f64, log_reference: f64) -> f64 {
+    match shear {
+        Shear::None => 1.0,
+        Shear::Log if h > z0 => (h / z0).ln() / log_reference,
+        Shear::Log if h.is_nan() => f64::NAN,
+        Shear::Log => 0.0,
+    }
+}
+
+/// The `[wind]` mean wind: W20 f(h) (cos chi, sin chi, 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steady {
+    w20: f64,
+    shear: Shear,
+    roughness: f64,
+    /// ln(20 ft / z0), f(h)'s denominator, computed once (`shear_log_reference`).
+    log_reference: f64,
+    cos: f64,
+    sin: f64,
+}
+
+impl WindSource for Steady {
+    const MEAN_AIR: bool = true;
+    const KEYS: &'static [Key] = &[
+        Key {
+            name: "speed",
+            unit: "m/s",
+            label: "Mean wind at 20 ft (W20)",
+        },
+        Key {
+            name: "heading",
+            unit: "deg",
+            label: "Wind heading (toward, from +x)",
+        },
+        Key {
+            name: "shear",
+            unit: "-",
+            label: "Mean wind shear profile",
+        },
+        Key {
+            name: "roughness",
+            unit: "m",
+            label: "Surface roughness z0",
+        },
+    ];
+
+    /// Blows where `wind.speed` is not 0.
+    fn build(cfg: &Config) -> Option<Self> {
+        let wind = &cfg.wind;
+        let chi = wind.heading.to_radians();
+        (wind.speed != 0.0).then_some(Steady {
+            w20: wind.speed,
+            shear: wind.shear,
+            roughness: wind.roughness,
+            log_reference: shear_log_reference(wind.roughness),
+            cos: chi.cos(),
+            sin: chi.sin(),
+        })
+    }
+
+    fn validate(wind: &Wind) -> Result<(), ConfigError> {
+        non_negative("wind.speed", wind.speed)?;
+        finite("wind.heading", wind.heading)?;
+        let z0 = wind.roughness;
+        if !(z0.is_finite() && z0 > 0.0 && z0 < REFERENCE_HEIGHT) {
+            return Err(ConfigError::new(
+                "wind.roughness",
+                format!(
+                    "wind.roughness must be > 0 and below the 20 ft reference height \
+                     ({REFERENCE_HEIGHT} m), got {z0:?}"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn target<'w>(wind: &'w mut Wind, field: &str, rest: &[Seg]) -> Target<'w> {
+        match field {
+            "speed" => one(&mut wind.speed, rest),
+            "heading" => one(&mut wind.heading, rest),
+            "roughness" => one(&mut wind.roughness, rest),
+            _ => flag(rest), // shear
+        }
+    }
+
+    #[inline]
+    fn at(&self, _now: Moment, kin: &Kinematics) -> [f64; 3] {
+        let f = shear_factor_with(self.shear, kin.z, self.roughness, self.log_reference);
+        let s = self.w20 * f;
+        [s * self.cos, s * self.sin, 0.0]
+    }
+
+    #[inline]
+    fn reads_vehicle(&self) -> bool {
+        self.shear != Shear::None
+    }
+}

@@ -1,0 +1,152 @@
+//! A measured wind (`[wind.table]`, docs/model.md, "A measured wind"): (t or z, wind_x,
+//! wind_y, wind_z) rows interpolated linearly and held at the end rows' values outside them, a
+//! source of the mean air. The Python layer reads the rows from the CSV file the scenario
+//! names (`file`), so the engine receives the numbers, not the path.
+
+use super::source::{Moment, WindSource};
+use super::wind::Kinematics;
+use crate::config::keys::{Seg, Target};
+use crate::config::params::Key;
+use crate::config::{finite, Config, ConfigError, Wind};
+use serde::{Deserialize, Serialize};
+
+/// `wind.table.by`: what a wind table's first column is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TableBy {
+    /// s, the time since the start of the flight.
+    Time,
+    /// m, the quadrotor's altitude z.
+    Altitude,
+}
+
+/// `[wind.table]`: the rows of a measured wind, by time or by altitude.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WindTable {
+    pub by: TableBy,
+    /// Rows of (t s or z m, wind_x, wind_y, wind_z m/s inertial), the first column strictly
+    /// increasing.
+    pub points: Vec<[f64; 4]>,
+}
+
+impl WindTable {
+    /// `[wind.table]`'s keys with their units and labels (dotted, indices dropped); its `file`
+    /// is read in Python and never reaches the engine.
+    pub fn keys() -> Vec<(String, Key)> {
+        super::source::keys_of::<Table>()
+    }
+
+    fn validate(&self) -> Result<(), ConfigError> {
+        if self.points.is_empty() {
+            return Err(ConfigError::new(
+                "wind.table.points",
+                "wind.table.points needs at least one row (t or z, wind_x, wind_y, wind_z), got none",
+            ));
+        }
+        for (i, row) in self.points.iter().enumerate() {
+            for (j, x) in row.iter().enumerate() {
+                finite(format_args!("wind.table.points[{i}][{j}]"), *x)?;
+            }
+            if i > 0 && row[0] <= self.points[i - 1][0] {
+                let key = format!("wind.table.points[{i}][0]");
+                let what = match self.by {
+                    TableBy::Time => "time",
+                    TableBy::Altitude => "altitude",
+                };
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} ({what}) must be greater than the row before's ({:?}): the rows \
+                         in increasing {what}, got {:?}",
+                        self.points[i - 1][0],
+                        row[0]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The wind (m/s, inertial) of a table's `points` at `x` (s or m): linear between the rows,
+/// the first row's below them and the last's above (held); NaN at a NaN `x`.
+#[inline]
+pub fn table_wind(points: &[[f64; 4]], x: f64) -> [f64; 3] {
+    let (first, last) = (points[0], points[points.len() - 1]);
+    if x.is_nan() {
+        return [f64::NAN; 3];
+    }
+    if x <= first[0] {
+        return [first[1], first[2], first[3]];
+    }
+    if x >= last[0] {
+        return [last[1], last[2], last[3]];
+    }
+    // The first row past x: 1..len-1, as x lies strictly inside.
+    let i = points.partition_point(|p| p[0] <= x);
+    let (a, b) = (points[i - 1], points[i]);
+    let f = (x - a[0]) / (b[0] - a[0]);
+    [1, 2, 3].map(|j| a[j] + (b[j] - a[j]) * f)
+}
+
+/// The `[wind.table]` as a wind source: part of the mean air.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table(pub WindTable);
+
+impl WindSource for Table {
+    const MEAN_AIR: bool = true;
+    const KEYS: &'static [Key] = &[
+        Key {
+            name: "table.by",
+            unit: "-",
+            label: "Wind table by time or altitude",
+        },
+        Key {
+            name: "table.points",
+            unit: "[s or m, m/s, m/s, m/s]",
+            label: "Wind table rows (t or z, wind x, y, z)",
+        },
+    ];
+
+    /// Blows where the scenario has a `[wind.table]`.
+    fn build(cfg: &Config) -> Option<Self> {
+        cfg.wind.table.clone().map(Table)
+    }
+
+    fn validate(wind: &Wind) -> Result<(), ConfigError> {
+        wind.table.as_ref().map_or(Ok(()), WindTable::validate)
+    }
+
+    /// `wind.table.points[i][j]` are numbers; `wind.table.by` is not.
+    fn target<'w>(wind: &'w mut Wind, _field: &str, rest: &[Seg]) -> Target<'w> {
+        match (&mut wind.table, rest) {
+            (None, _) => Target::Missing,
+            (Some(_), []) => Target::NotNumber,
+            (Some(_), [Seg::Field(f)]) if f == "by" => Target::NotNumber,
+            (Some(t), [Seg::Field(f), more @ ..]) if f == "points" => match more {
+                [] => Target::NotNumber,
+                [Seg::Index(i)] if *i < t.points.len() => Target::NotNumber,
+                [Seg::Index(i), Seg::Index(j)] if *i < t.points.len() && *j < 4 => {
+                    Target::Number(&mut t.points[*i][*j])
+                }
+                _ => Target::Missing,
+            },
+            _ => Target::Missing,
+        }
+    }
+
+    #[inline]
+    fn at(&self, now: Moment, kin: &Kinematics) -> [f64; 3] {
+        let x = match self.0.by {
+            TableBy::Time => now.t,
+            TableBy::Altitude => kin.z,
+        };
+        table_wind(&self.0.points, x)
+    }
+
+    #[inline]
+    fn reads_vehicle(&self) -> bool {
+        self.0.by == TableBy::Altitude
+    }
+}
