@@ -39,7 +39,7 @@ fn main() {
     // One lane-set of the engine's path (QUADRS_SIMD): four realisations, eight on AVX-512.
     let set: Vec<u64> = (0.._core::lane::isa::Isa::active()
         .expect("QUADRS_SIMD")
-        .set_lanes() as u64)
+        .lane_count() as u64)
         .collect();
     let mut cfg = paper(duration);
     if mode == "metrics-lateral" {

@@ -42,7 +42,7 @@ mod _core {
     use crate::control::ControllerKind;
     use crate::dispersion::Dispersion;
     use crate::gust;
-    use crate::integrate::{trace_columns, Craft, Engine, ExitStatus, FlightRequest};
+    use crate::integrate::{trace_columns, Engine, ExitStatus, FlightRequest, Realisation};
     use crate::memory;
     use crate::metrics::{METRICS, METRIC_NAMES, N_METRICS};
     use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
@@ -857,7 +857,7 @@ mod _core {
         for j in 0..rows {
             let cfg = d.config(j, 0).map_err(scenario_error)?;
             if d.touches_wind() {
-                let got = Craft::new(&cfg)
+                let got = Realisation::new(&cfg)
                     .map_err(scenario_error)?
                     .wind()
                     .innovations(e.steps);

@@ -7,7 +7,7 @@
 use crate::config::ConfigError;
 use crate::control::ControllerKind;
 use crate::dispersion::Dispersion;
-use crate::integrate::{Craft, Engine, ExitStatus, FlightRequest};
+use crate::integrate::{Engine, ExitStatus, FlightRequest, Realisation};
 use crate::metrics::N_METRICS;
 use rayon::prelude::*;
 use rustfft::FftPlanner;
@@ -189,22 +189,23 @@ pub fn run_innovations(
                     .map(|l| rows[(set * lanes + l).min(n - 1)])
                     .collect();
                 let indices: Vec<u64> = (0..lanes as u64).collect();
-                // A dispersed scenario: each lane's craft of its row's values, with the
+                // A dispersed scenario: each lane's realisation of its row's values, with the
                 // scenario's gust filters unless a gust key is dispersed.
-                let crafts: Option<Vec<Craft>> = dispersion.map(|d| {
-                    let wind = (!d.touches_wind()).then_some(&e.craft);
+                let realisations: Option<Vec<Realisation>> = dispersion.map(|d| {
+                    let wind = (!d.touches_wind()).then_some(&e.realisation);
                     (0..lanes)
                         .map(|l| {
                             let j = (set * lanes + l).min(n - 1);
                             let cfg = d.patched(j, 0).expect("checked by the caller");
-                            Craft::with_wind_of(&cfg, wind).expect("checked by the caller")
+                            Realisation::with_wind_of(&cfg, wind).expect("checked by the caller")
                         })
                         .collect()
                 });
-                let craft_refs: Option<Vec<&Craft>> = crafts.as_ref().map(|c| c.iter().collect());
+                let lane_realisations: Option<Vec<&Realisation>> =
+                    realisations.as_ref().map(|c| c.iter().collect());
                 let req = FlightRequest {
                     cancel: Some(cancel),
-                    crafts: craft_refs.as_deref(),
+                    realisations: lane_realisations.as_deref(),
                     innovations: Some(&mine),
                     ..FlightRequest::new(kind, 0, &indices)
                 };
@@ -291,18 +292,19 @@ pub fn run_batch(
                         None => first + j as u64,
                     })
                     .collect();
-                // A dispersed batch builds each lane's craft (its own vehicle) once per set,
+                // A dispersed batch builds each lane's realisation (its own vehicle) once per set,
                 // reusing the scenario's gust filters unless a gust key is dispersed.
-                let crafts: Option<Vec<Craft>> = batch.dispersion.map(|d| {
-                    let wind = (!d.touches_wind()).then_some(&engine.craft);
+                let realisations: Option<Vec<Realisation>> = batch.dispersion.map(|d| {
+                    let wind = (!d.touches_wind()).then_some(&engine.realisation);
                     rows.iter()
                         .map(|&j| {
                             let cfg = d.patched(j, first).expect("checked by Batch::check");
-                            Craft::with_wind_of(&cfg, wind).expect("checked by Batch::check")
+                            Realisation::with_wind_of(&cfg, wind).expect("checked by Batch::check")
                         })
                         .collect()
                 });
-                let craft_refs: Option<Vec<&Craft>> = crafts.as_ref().map(|c| c.iter().collect());
+                let lane_realisations: Option<Vec<&Realisation>> =
+                    realisations.as_ref().map(|c| c.iter().collect());
                 let lanes = out_done.len();
                 for (c, &kind) in kinds.iter().enumerate() {
                     if cancel.load(Ordering::Relaxed) {
@@ -311,7 +313,7 @@ pub fn run_batch(
                     let req = FlightRequest {
                         want_spectra,
                         cancel: Some(cancel),
-                        crafts: craft_refs.as_deref(),
+                        realisations: lane_realisations.as_deref(),
                         ..FlightRequest::new(kind, seed, &indices)
                     };
                     let Some(res) = engine.fly_set(&req, &mut planner) else {

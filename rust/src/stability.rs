@@ -26,8 +26,8 @@ use crate::config::{Config, GustComponent};
 use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
-    dispatch, ix, Actuator, ActuatorModel, Axis, Part, Parts, Payload, State, StateVar, Tick, Trig,
-    Vehicle, VehicleVisitor,
+    dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, Part, Payload, State, StateVar, Tick,
+    Trig, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
@@ -197,12 +197,12 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
         type Output = Box<dyn ClosedLoop>;
         fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Box<dyn ClosedLoop> {
             let Build(cfg, kind, r) = self;
-            let parts = Parts::new(cfg);
+            let parts = AnyVehicle::new(cfg);
             let vars = crate::model::state_vars(cfg.payload.model, cfg.actuator.model);
             struct Law<'a, Pay, Act, const N: usize> {
                 cfg: &'a Config,
                 kind: ControllerKind,
-                parts: Parts,
+                parts: AnyVehicle,
                 vars: Vec<StateVar>,
                 r: Reference,
                 kinds: std::marker::PhantomData<(Pay, Act)>,
@@ -213,7 +213,7 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
                     Box::new(Loop::<Pay, Act, C, N> {
                         vars: self.vars,
                         plain: self.parts.vehicle::<Pay, Act>(),
-                        dual: Parts::gather::<Dual, Pay, Act>(&[&self.parts]),
+                        dual: AnyVehicle::gather::<Dual, Pay, Act>(&[&self.parts]),
                         ctrl: AnyController::new(self.kind, self.cfg).get::<C>().clone(),
                         r: self.r,
                     })
@@ -689,7 +689,7 @@ mod tests {
     const NY: usize = NX + SIGNAL_OUTPUTS.len();
 
     fn paper_vehicle(cfg: &Config) -> crate::model::PaperVehicle {
-        Parts::new(cfg).vehicle::<Spring, Ideal>()
+        AnyVehicle::new(cfg).vehicle::<Spring, Ideal>()
     }
 
     fn poles_of(a: &Analysis, mode: &str) -> Vec<Complex<f64>> {

@@ -226,7 +226,7 @@ macro_rules! controllers {
             }
         }
 
-        /// One controller kind's parameters for one vehicle (built once per craft: the
+        /// One controller kind's parameters for one vehicle (built once per realisation: the
         /// variants' sizes differ, nothing is gained by boxing them).
         #[derive(Clone, Debug)]
         #[allow(clippy::large_enum_variant)]
@@ -403,7 +403,7 @@ impl ControllerKind {
     }
 }
 
-/// Every kind's law for one vehicle, in the order of `ControllerKind::ALL`: a craft carries
+/// Every kind's law for one vehicle, in the order of `ControllerKind::ALL`: a realisation carries
 /// them all, so that one batch flies every law through the same gusts.
 #[derive(Clone, Debug)]
 pub struct Laws(Vec<AnyController>);
@@ -462,7 +462,7 @@ impl Shared {
         }
     }
 
-    /// One vehicle per lane (see `Parts::gather`).
+    /// One vehicle per lane (see `AnyVehicle::gather`).
     pub fn gather<L: Lane>(each: &[&Shared]) -> Shared<L> {
         let at = |f: fn(&Shared) -> f64| L::from_fn(|l| f(each[l]));
         Shared {

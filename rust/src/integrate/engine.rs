@@ -1,15 +1,15 @@
-//! The compiled scenario (`Engine`): what may differ between realisations (`Craft`), a request
+//! The compiled scenario (`Engine`): what may differ between realisations (`Realisation`), a request
 //! to the flight loop (`FlightRequest`), and the engine's public methods.
 
 use super::*;
 
 /// What may differ between realisations: one vehicle's physical parameters, controllers,
 /// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
-/// scenario has one (`Engine::craft`); a dispersed batch builds one per realisation and the
+/// scenario has one (`Engine::realisation`); a dispersed batch builds one per realisation and the
 /// flight loop carries them one per lane.
 #[derive(Clone)]
-pub struct Craft {
-    pub parts: Parts,
+pub struct Realisation {
+    pub vehicle: AnyVehicle,
     /// Every controller kind's law (`Laws::get`): a batch flies each through the same gusts.
     pub laws: Laws,
     pub(super) wind: WindField,
@@ -22,24 +22,24 @@ pub struct Craft {
     pub(super) floor: f64,
 }
 
-impl Craft {
-    /// The craft of a validated config (`Config::validate` has run).
+impl Realisation {
+    /// The realisation of a validated config (`Config::validate` has run).
     pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
         Self::with_wind_of(cfg, None)
     }
 
-    /// The craft of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
+    /// The realisation of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
     /// step: its discretised filters are reused rather than rebuilt).
-    pub fn with_wind_of(cfg: &Config, other: Option<&Craft>) -> Result<Self, ConfigError> {
-        let parts = Parts::new(cfg);
+    pub fn with_wind_of(cfg: &Config, other: Option<&Realisation>) -> Result<Self, ConfigError> {
+        let vehicle = AnyVehicle::new(cfg);
         let wind = match other {
             Some(c) => c.wind.clone(),
             None => WindField::new(cfg)?,
         };
-        let x0 = initial_state(&parts, cfg);
+        let x0 = initial_state(&vehicle, cfg);
         let d = &cfg.divergence;
         Ok(Self {
-            parts,
+            vehicle,
             laws: Laws::new(cfg),
             wind,
             x0,
@@ -49,7 +49,7 @@ impl Craft {
     }
 }
 
-impl Craft {
+impl Realisation {
     /// The gust field.
     pub fn wind(&self) -> &WindField {
         &self.wind
@@ -58,8 +58,8 @@ impl Craft {
 
 /// The state a flight of `cfg` starts from: at rest at `initial.*`, payload and actuators at
 /// hover.
-pub fn initial_state(parts: &Parts, cfg: &Config) -> Vec<f64> {
-    struct Rest<'a>(&'a Parts, &'a Config);
+pub fn initial_state(parts: &AnyVehicle, cfg: &Config) -> Vec<f64> {
+    struct Rest<'a>(&'a AnyVehicle, &'a Config);
     impl VehicleVisitor for Rest<'_> {
         type Output = Vec<f64>;
         fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
@@ -73,14 +73,14 @@ pub fn initial_state(parts: &Parts, cfg: &Config) -> Vec<f64> {
     dispatch(cfg.payload.model, cfg.actuator.model, Rest(parts, cfg))
 }
 
-/// One request to the flight loop: which law, which realisations (one per lane) and, for a
-/// dispersed batch, each realisation's craft (`None`: the engine's own, in every lane).
+/// One request to the flight loop: which law, and for a dispersed batch the realisations, one
+/// per lane (`None`: the engine's own, in every lane).
 #[derive(Clone, Copy)]
 pub struct FlightRequest<'a> {
     pub kind: ControllerKind,
     pub seed: u64,
     pub indices: &'a [u64],
-    pub crafts: Option<&'a [&'a Craft]>,
+    pub realisations: Option<&'a [&'a Realisation]>,
     pub want_spectra: bool,
     pub cancel: Option<&'a AtomicBool>,
     /// Per lane, the turbulence's innovations to fly instead of the seeded stream of
@@ -89,13 +89,13 @@ pub struct FlightRequest<'a> {
 }
 
 impl<'a> FlightRequest<'a> {
-    /// The engine's own craft in every lane, no spectra, no cancel flag.
+    /// The engine's own realisation in every lane, no spectra, no cancel flag.
     pub fn new(kind: ControllerKind, seed: u64, indices: &'a [u64]) -> Self {
         Self {
             kind,
             seed,
             indices,
-            crafts: None,
+            realisations: None,
             want_spectra: false,
             cancel: None,
             innovations: None,
@@ -108,7 +108,7 @@ impl<'a> FlightRequest<'a> {
 pub struct Engine {
     pub cfg: Config,
     /// The scenario's own vehicle (every realisation's, unless dispersed).
-    pub craft: Craft,
+    pub realisation: Realisation,
     /// The states, in order (names, axes, runaway bounds).
     pub vars: Vec<StateVar>,
     pub(super) trajectory: Trajectory,
@@ -146,7 +146,7 @@ impl Engine {
         let steps = cfg.steps();
         let decimation = cfg.decimation();
         Ok(Self {
-            craft: Craft::new(&cfg)?,
+            realisation: Realisation::new(&cfg)?,
             vars: state_vars(cfg.payload.model, cfg.actuator.model),
             trajectory: Trajectory::new(&cfg),
             phases: phase_steps(&cfg),
@@ -161,12 +161,14 @@ impl Engine {
 
     /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
     pub fn innovations(&self) -> usize {
-        self.craft.wind().innovations(self.steps)
+        self.realisation.wind().innovations(self.steps)
     }
 
     /// The innovations realisation `index` of `seed` draws.
     pub fn innovations_of(&self, seed: u64, index: u64) -> Vec<f64> {
-        self.craft.wind().innovations_of(seed, index, self.steps)
+        self.realisation
+            .wind()
+            .innovations_of(seed, index, self.steps)
     }
 
     /// Trace columns after `t`.
@@ -193,8 +195,8 @@ impl Engine {
         if let Some(k) = wind.iter().position(|w| !w.iter().all(|x| x.is_finite())) {
             return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
         }
-        // A wind source of the craft's field (`gust/prescribed.rs`), the turbulence off.
-        self.craft.wind = self.craft.wind.clone().prescribed(wind);
+        // A wind source of the realisation's field (`gust/prescribed.rs`), the turbulence off.
+        self.realisation.wind = self.realisation.wind.clone().prescribed(wind);
         Ok(self)
     }
 
@@ -230,6 +232,6 @@ impl Engine {
     /// Realisations per lane-set of the batch path (`fly_set`): the widest vector of
     /// `self.isa` (8 with AVX-512, else 4).
     pub fn lanes_per_set(&self) -> usize {
-        self.isa.set_lanes()
+        self.isa.lane_count()
     }
 }

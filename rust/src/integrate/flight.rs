@@ -68,7 +68,7 @@ impl Engine {
         dispatch(cfg.payload.model, cfg.actuator.model, fly)
     }
 
-    /// Gather the lanes' crafts into lane-valued parameters and fly the chosen law.
+    /// Gather the lanes' realisations into lane-valued parameters and fly the chosen law.
     #[inline(always)]
     fn fly_law<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
         &self,
@@ -76,20 +76,20 @@ impl Engine {
         trace: Option<&mut Trace>,
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>> {
-        let own = [&self.craft; MAX_LANES];
-        let crafts: &[&Craft] = match req.crafts {
+        let own = [&self.realisation; MAX_LANES];
+        let realisations: &[&Realisation] = match req.realisations {
             Some(c) => {
-                assert_eq!(c.len(), L::LANES, "one craft per lane");
+                assert_eq!(c.len(), L::LANES, "one realisation per lane");
                 c
             }
             None => &own[..L::LANES],
         };
-        let parts: Vec<&Parts> = crafts.iter().map(|c| &c.parts).collect();
-        let vehicle = Parts::gather::<L, Pay, Act>(&parts);
+        let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
+        let vehicle = AnyVehicle::gather::<L, Pay, Act>(&each);
         struct Law<'e, 'v, 'c, 'r, 't, L: KernelOps, Pay, Act, const N: usize> {
             engine: &'e Engine,
             vehicle: &'v Vehicle<L, Pay, Act>,
-            crafts: &'c [&'c Craft],
+            realisations: &'c [&'c Realisation],
             req: &'r FlightRequest<'r>,
             trace: Option<&'t mut Trace>,
             planner: &'t mut FftPlanner<f64>,
@@ -105,7 +105,7 @@ impl Engine {
             fn visit<C: Controller>(self) -> Self::Output {
                 let kind = self.req.kind;
                 let each: Vec<&C> = self
-                    .crafts
+                    .realisations
                     .iter()
                     .map(|c| c.laws.get(kind).get::<C>())
                     .collect();
@@ -113,7 +113,7 @@ impl Engine {
                 self.engine.fly_loop::<L, Pay, Act, C::At<L>, N>(
                     self.vehicle,
                     &ctrl,
-                    self.crafts,
+                    self.realisations,
                     self.req,
                     self.trace,
                     self.planner,
@@ -123,7 +123,7 @@ impl Engine {
         let law = Law::<L, _, _, N> {
             engine: self,
             vehicle: &vehicle,
-            crafts,
+            realisations,
             req,
             trace,
             planner,
@@ -137,7 +137,7 @@ impl Engine {
         &self,
         vehicle: &Vehicle<L, Pay, Act>,
         ctrl: &C,
-        crafts: &[&Craft],
+        realisations: &[&Realisation],
         req: &FlightRequest,
         mut trace: Option<&mut Trace>,
         planner: &mut FftPlanner<f64>,
@@ -149,27 +149,27 @@ impl Engine {
         C: Control<L>,
     {
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
-        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| crafts[l].x0[i]));
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
         let mut s = x0;
         let mut winds: Vec<WindState> = match req.innovations {
             Some(xi) => {
                 assert_eq!(xi.len(), L::LANES, "one row of innovations per lane");
                 xi.iter()
-                    .zip(crafts)
+                    .zip(realisations)
                     .map(|(x, c)| c.wind.given(x))
                     .collect()
             }
             None => req
                 .indices
                 .iter()
-                .zip(crafts)
+                .zip(realisations)
                 .map(|(&i, c)| c.wind.realisation(req.seed, i))
                 .collect(),
         };
         // The wind of the whole lane-set at once where the lanes' fields allow it
         // (`LaneWind::new`): the same numbers as the per-lane `sample_at`, drawn from the same
         // sources. Else the per-lane path below.
-        let fields: Vec<&WindField> = crafts.iter().map(|c| &c.wind).collect();
+        let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
         let mut lane_wind = LaneWind::<L>::new(&fields, winds.iter().map(|w| w.source()).collect());
         let mut acc =
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
@@ -181,7 +181,7 @@ impl Engine {
         // non-finite states.
         let limit: State<L, N> = state_from_fn(|i| {
             L::from_fn(|l| match self.vars[i].bound {
-                Some(b) => crafts[l].limits[b as usize],
+                Some(b) => realisations[l].limits[b as usize],
                 None => f64::INFINITY,
             })
         });
@@ -193,18 +193,18 @@ impl Engine {
         let mut line_of = usize::MAX;
         let mut wind_lanes = [[0.0; 3]; MAX_LANES];
         // Steps inside any lane's gust window (lanes may differ in a dispersed batch).
-        let windy = || crafts.iter().filter(|c| c.wind.enabled());
+        let windy = || realisations.iter().filter(|c| c.wind.enabled());
         let gust_from = windy().map(|c| c.wind.start_step()).min();
         let gust_to = windy().map(|c| c.wind.end_step()).max();
         let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
-        let floor = L::from_fn(|l| crafts[l].floor);
-        let grounded = crafts.iter().any(|c| c.floor > f64::NEG_INFINITY);
+        let floor = L::from_fn(|l| realisations[l].floor);
+        let grounded = realisations.iter().any(|c| c.floor > f64::NEG_INFINITY);
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
         // A deterministic wind source in any lane (a mean wind, a discrete gust, a table, a
         // prescribed wind): the wind is sampled at every step.
-        let blows = crafts.iter().any(|c| c.wind.blows());
+        let blows = realisations.iter().any(|c| c.wind.blows());
         let mut held = [zero; 3];
         // The law's discrete memory (none for a static law), and each lane's at its start.
         let mem0 = ctrl.memory(&Vehicle::<L, Pay, Act>::rigid(&x0));
@@ -220,7 +220,7 @@ impl Engine {
                 if segment != line_of {
                     line_of = segment;
                     let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
-                    for (l, c) in crafts.iter().enumerate() {
+                    for (l, c) in realisations.iter().enumerate() {
                         lines[l] = self.trajectory.line(segment, [c.x0[0], c.x0[1], c.x0[2]]);
                     }
                     line = (
@@ -270,7 +270,7 @@ impl Engine {
                     for (lane, ((ws, v), c)) in winds
                         .iter_mut()
                         .zip(wind_lanes.iter_mut())
-                        .zip(crafts)
+                        .zip(realisations)
                         .enumerate()
                     {
                         *v = c.wind.sample_at(ws, k as u64, at(lane));
@@ -363,10 +363,10 @@ impl Engine {
                         *at = t + self.dt;
                         alive -= 1;
                         let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
-                        let c = crafts[lane];
+                        let c = realisations[lane];
                         status[lane] = classify(&self.vars, &values, &c.limits, c.floor);
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
-                        for (x, x0) in s.iter_mut().zip(crafts[lane].x0.iter()) {
+                        for (x, x0) in s.iter_mut().zip(realisations[lane].x0.iter()) {
                             x.set_lane(lane, *x0);
                         }
                         for (m, m0) in mem.iter_mut().zip(mem0.iter()) {

@@ -6,7 +6,7 @@
 //! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
 //! and controller kinds, `fly_loop` flies them); `entry` the way in, one copy of the loop per
 //! instruction set (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled
-//! scenario (`Engine`, `Craft`, `FlightRequest`); `trace` the trace's columns and rows;
+//! scenario (`Engine`, `Realisation`, `FlightRequest`); `trace` the trace's columns and rows;
 //! `status` why a flight ended (`ExitStatus`).
 
 use crate::config::{Config, ConfigError};
@@ -18,8 +18,8 @@ use crate::lane::{F64x4, KernelOps, Lane};
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, Sample, N_METRICS};
 use crate::model::{
-    dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, Bound, Inputs,
-    Parts, Payload, PayloadKind, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
+    dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, AnyVehicle,
+    Bound, Inputs, Payload, PayloadKind, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;
@@ -33,7 +33,7 @@ mod rk4;
 mod status;
 mod trace;
 
-pub use engine::{initial_state, Craft, Engine, FlightRequest, MAX_LANES};
+pub use engine::{initial_state, Engine, FlightRequest, Realisation, MAX_LANES};
 pub use entry::LoopEntry;
 pub use flight::LaneResult;
 pub use rk4::{rk4_advance, rk4_step};

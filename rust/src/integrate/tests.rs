@@ -6,7 +6,7 @@ use crate::model::payload::Spring;
 use crate::model::PaperVehicle;
 
 fn paper_vehicle(cfg: &Config) -> PaperVehicle {
-    Parts::new(cfg).vehicle::<Spring, Ideal>()
+    AnyVehicle::new(cfg).vehicle::<Spring, Ideal>()
 }
 
 fn step(v: &PaperVehicle, s: &State<f64, NX>, u: &Inputs<f64>, dt: f64) -> State<f64, NX> {
@@ -225,7 +225,7 @@ fn hover_equilibrium_holds_for_both_laws() {
                 &mut FftPlanner::new(),
             )
             .unwrap();
-        let x0 = &engine.craft.x0;
+        let x0 = &engine.realisation.x0;
         for row in tr.data.chunks(tr.width) {
             for i in 0..NX {
                 assert!(
@@ -496,7 +496,7 @@ fn the_wind_blows_outside_the_window_and_the_prescribed_wind_adds_to_it() {
     engine
         .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
         .unwrap();
-    let wind = engine.craft.wind();
+    let wind = engine.realisation.wind();
     let mut max_x = 0.0_f64;
     let rows: Vec<&[f64]> = tr.data.chunks(tr.width).collect();
     let (last, flown) = rows.split_last().unwrap();

@@ -79,7 +79,7 @@ impl Isa {
     }
 
     /// Realisations per lane-set of the batch path (`Engine::fly_set`).
-    pub fn set_lanes(self) -> usize {
+    pub fn lane_count(self) -> usize {
         match self {
             Isa::Avx512 => 8,
             Isa::Baseline | Isa::Avx2 => 4,
@@ -161,6 +161,6 @@ mod tests {
         assert!(Isa::detect().supported());
         assert!(Isa::ALL
             .iter()
-            .all(|i| i.set_lanes() <= crate::integrate::MAX_LANES));
+            .all(|i| i.lane_count() <= crate::integrate::MAX_LANES));
     }
 }

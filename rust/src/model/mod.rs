@@ -371,13 +371,13 @@ pub fn state_vars_of<Pay: Payload, Act: Actuator>() -> Vec<StateVar> {
 /// One vehicle's parameters, all kinds, resolved once from a validated scenario: what may
 /// differ between the realisations of a dispersed batch.
 #[derive(Clone, Debug)]
-pub struct Parts {
+pub struct AnyVehicle {
     pub body: Body,
     pub payload: AnyPayload,
     pub actuator: AnyActuator,
 }
 
-impl Parts {
+impl AnyVehicle {
     pub fn new(cfg: &crate::config::Config) -> Self {
         Self {
             body: Body::new(cfg),
@@ -388,7 +388,7 @@ impl Parts {
 
     /// The vehicle with kinds `Pay`, `Act`, one per lane of `L` (`each[l]` in lane `l`).
     pub fn gather<L: Lane, Pay: Payload, Act: Actuator>(
-        each: &[&Parts],
+        each: &[&AnyVehicle],
     ) -> Vehicle<L, Pay::At<L>, Act::At<L>> {
         let bodies: Vec<&Body> = each.iter().map(|p| &p.body).collect();
         let payloads: Vec<&Pay> = each.iter().map(|p| Pay::of(&p.payload)).collect();

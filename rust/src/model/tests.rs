@@ -6,7 +6,7 @@ type Paper = Vehicle<f64, payload::Spring, actuator::Ideal>;
 const NX: usize = 14;
 
 fn paper_vehicle(cfg: &Config) -> Paper {
-    Parts::new(cfg).vehicle::<payload::Spring, actuator::Ideal>()
+    AnyVehicle::new(cfg).vehicle::<payload::Spring, actuator::Ideal>()
 }
 
 fn hover(v: &Paper) -> Inputs<f64> {
@@ -97,9 +97,9 @@ fn gathered_lanes_fly_their_own_vehicle() {
     cfgs[1].payload.mass = 0.4;
     cfgs[2].vehicle.inertia[0] = 0.03;
     cfgs[3].gust.air_density = 0.9;
-    let parts: Vec<Parts> = cfgs.iter().map(Parts::new).collect();
-    let refs: Vec<&Parts> = parts.iter().collect();
-    let lanes = Parts::gather::<F64x4, payload::Spring, actuator::Ideal>(&refs);
+    let parts: Vec<AnyVehicle> = cfgs.iter().map(AnyVehicle::new).collect();
+    let refs: Vec<&AnyVehicle> = parts.iter().collect();
+    let lanes = AnyVehicle::gather::<F64x4, payload::Spring, actuator::Ideal>(&refs);
     let mut s: State<f64, NX> =
         paper_vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
     s[13] = 0.2;

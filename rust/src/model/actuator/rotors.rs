@@ -292,7 +292,7 @@ mod tests {
     use crate::config::tests::paper;
     use crate::config::{ActuatorModelName, RotorLayout};
     use crate::model::payload::Spring;
-    use crate::model::{Parts, Trig, Vehicle};
+    use crate::model::{AnyVehicle, Trig, Vehicle};
 
     const NX: usize = 18;
     const OMEGA: usize = 14;
@@ -306,7 +306,7 @@ mod tests {
     }
 
     fn vehicle(cfg: &Config) -> Vehicle<f64, Spring, Rotors> {
-        Parts::new(cfg).vehicle::<Spring, Rotors>()
+        AnyVehicle::new(cfg).vehicle::<Spring, Rotors>()
     }
 
     fn weight(cfg: &Config) -> f64 {
@@ -490,7 +490,7 @@ mod tests {
             }
             cfgs.push(c);
         }
-        let parts: Vec<Parts> = cfgs.iter().map(Parts::new).collect();
+        let parts: Vec<AnyVehicle> = cfgs.iter().map(AnyVehicle::new).collect();
         let each: Vec<&Rotors> = parts.iter().map(|p| Rotors::of(&p.actuator)).collect();
         let lanes: Rotors<F64x4> = Rotors::gather(&each);
         let u = Inputs {
