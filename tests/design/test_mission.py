@@ -16,6 +16,7 @@ import pytest
 import quadrs
 from quadrs.cli.main import main
 from quadrs.design.mission import ALL_PHASES, FLIGHT_PHASE, mission_report
+from quadrs.scenario.scenario import parse_value
 
 TWO_PHASES = [
     "--set", "initial.position=[0.0,0.0,2.0]",
@@ -35,7 +36,7 @@ def two_phases() -> quadrs.Scenario:
     changes = {}
     for key, value in zip(TWO_PHASES[1::2], TWO_PHASES[1::2], strict=True):
         k, _, v = value.partition("=")
-        changes[k] = quadrs.scenario.scenario.parse_value(v)
+        changes[k] = parse_value(v)
         assert key == value
     return quadrs.Scenario.preset("paper_stable_lateral").override(changes)
 

@@ -11,8 +11,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import quadrs
+from quadrs.runs.flight import METRIC_COLUMNS
 
-METRICS = list(quadrs.runs.flight.METRIC_COLUMNS)
+METRICS = list(METRIC_COLUMNS)
 CABLE_STATES = ["xc", "yc", "zc", "vxc", "vyc", "vzc"]
 
 

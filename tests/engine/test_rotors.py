@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import quadrs
+from quadrs.runs.flight import METRIC_COLUMNS
 
 OMEGA = ["omega_1", "omega_2", "omega_3", "omega_4"]
 
@@ -248,7 +249,7 @@ def test_rotor_keys_disperse_per_realisation(climb) -> None:
         }
     )
     mc = quadrs.monte_carlo(d, runs=5, seed=1, progress=False, spectra=False, controllers=["pd"])
-    metrics = list(quadrs.runs.flight.METRIC_COLUMNS)
+    metrics = list(METRIC_COLUMNS)
     assert mc.runs["actuator.thrust_max"].nunique() == 5
     for i in (0, 3):
         fixed = mc.scenario_of(i)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import quadrs
+import quadrs.cli.cost
 from quadrs.cli.main import main
 from quadrs.design.mission import FLIGHT_PHASE, mission_report
 
@@ -580,7 +581,7 @@ def test_readme_describes_the_scope_and_every_preset() -> None:
     for word in ("cable", "route", "mission", "rare", "rotors"):
         assert word in what, word
     presets = readme[readme.index("Presets:") :]
-    for name in quadrs.scenario.scenario.presets():
+    for name in presets():
         assert f"`{name}`" in presets, name
     assert "takes about 14 s" not in readme and "about 30 s" in readme
 

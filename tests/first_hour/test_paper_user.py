@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 import quadrs
 from quadrs import plots
 from quadrs.cli.main import build_parser, main
-from quadrs.scenario.scenario import Scenario
+from quadrs.scenario.scenario import Scenario, presets
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -245,7 +245,7 @@ def test_implausible_values_warn_once_with_the_likely_slip(
 def test_plausible_scenarios_are_silent() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", quadrs.PlausibilityWarning)
-        for name in quadrs.scenario.scenario.presets():
+        for name in presets():
             Scenario.preset(name)
 
 
@@ -347,7 +347,7 @@ def test_scenario_keys_shows_every_unit(capsys: pytest.CaptureFixture[str]) -> N
 def test_every_key_of_every_preset_has_a_unit() -> None:
     from quadrs.scenario.units import unit
 
-    for name in quadrs.scenario.scenario.presets():
+    for name in presets():
         s = Scenario.preset(name)
         extra = s.override({"controller.thrust_min": 1.0, "controller.thrust_max": 40.0})
         for key in extra.keys():

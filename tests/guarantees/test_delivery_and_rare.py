@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 import quadrs
+import quadrs.runs.montecarlo
 from quadrs import Scenario, ScenarioError
 from quadrs.io.integrity import run_identity
 from tests.guarantees.test_design_loop_and_files import TINY_CLI

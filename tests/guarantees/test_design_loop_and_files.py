@@ -30,6 +30,7 @@ import pytest
 import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError
 from quadrs.io.integrity import CorruptRunError
+from quadrs.runs.flight import METRIC_COLUMNS
 from quadrs.runs.store import RunStore
 from tests.guarantees.test_guarantees import TINY, run_cli
 
@@ -205,7 +206,7 @@ def test_saved_results_are_bound_to_their_rows_spectra_and_metadata(
 def test_trace_and_sweep_files_are_bound_to_their_contents(tiny: Scenario, tmp_path: Path):
     flight = quadrs.simulate(tiny, "pd", seed=1)
     path = tmp_path / "trace.parquet"
-    columns = list(quadrs.runs.flight.METRIC_COLUMNS)
+    columns = list(METRIC_COLUMNS)
     for change in ({"metrics": (flight.metrics[columns] * 0).to_numpy()
                     .tolist()}, {"diverged_at": 1.0}):  # fmt: skip
         flight.to_parquet(path)
@@ -268,7 +269,7 @@ def test_single_flight_of_a_dispersed_realisation_equals_its_batch_row(tiny: Sce
     }})  # fmt: skip
     runs = 48
     mc = quadrs.monte_carlo(dispersed, runs=runs, seed=7, controllers=["pd"], progress=False)
-    metrics = list(quadrs.runs.flight.METRIC_COLUMNS)
+    metrics = list(METRIC_COLUMNS)
     for i in range(runs):
         alone = quadrs.simulate(dispersed, "pd", seed=7, realisation=i)
         row = mc.runs[mc.runs["realisation"] == i][metrics].to_numpy()
