@@ -17,6 +17,7 @@ import quadrs
 import quadrs.cli.cost
 from quadrs.cli.main import main
 from quadrs.design.mission import FLIGHT_PHASE, mission_report
+from quadrs.scenario.scenario import presets
 
 ROOT = Path(__file__).resolve().parents[2]
 opt_module = importlib.import_module("quadrs.design.optimize")
@@ -580,9 +581,9 @@ def test_readme_describes_the_scope_and_every_preset() -> None:
     what = readme[readme.index("## What it is") : readme.index("```python")]
     for word in ("cable", "route", "mission", "rare", "rotors"):
         assert word in what, word
-    presets = readme[readme.index("Presets:") :]
+    listed = readme[readme.index("Presets:") :]
     for name in presets():
-        assert f"`{name}`" in presets, name
+        assert f"`{name}`" in listed, name
     assert "takes about 14 s" not in readme and "about 30 s" in readme
 
 
