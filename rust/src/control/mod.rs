@@ -265,10 +265,8 @@ macro_rules! controllers {
             }
         }
 
-        /// The one dispatch point from a controller's name to the code compiled for it. Always
-        /// inlined, like `model::dispatch`: the flight loop must be compiled inside the
-        /// caller's instruction-set function.
-        #[inline(always)]
+        /// The one dispatch point from a controller's name to the code compiled for it (for the
+        /// flight loop, through `integrate::LoopEntry::enter`, like `model::dispatch`).
         pub fn dispatch<V: ControllerVisitor>(kind: ControllerKind, v: V) -> V::Output {
             match kind {
                 $(ControllerKind::$Ty => v.visit::<$Ty>()),+

@@ -3,7 +3,8 @@
 
 use super::*;
 
-/// `fly_kinds` compiled with target features: one `unsafe fn $name` per (name, features).
+/// `fly_law` compiled with target features: one generic `unsafe fn $name` per (name, features),
+/// instantiated per (lane type, vehicle, law).
 /// Safety of each: the CPU must support the features.
 macro_rules! flight_loop_for {
     ($($(#[$doc:meta])* $name:ident, $features:literal;)+) => {$(
@@ -13,27 +14,36 @@ macro_rules! flight_loop_for {
         #[doc = concat!("The CPU must support ", $features, ".")]
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        unsafe fn $name<L: KernelOps>(
+        unsafe fn $name<L, Pay, Act, C, const N: usize>(
             &self,
+            realisations: &[&Realisation],
             req: &FlightRequest,
             trace: Option<&mut Trace>,
             planner: &mut FftPlanner<f64>,
-        ) -> Option<Vec<LaneResult>> {
-            self.fly_kinds::<L>(req, trace, planner)
+        ) -> Option<Vec<LaneResult>>
+        where
+            L: KernelOps,
+            Pay: Payload,
+            Act: Actuator,
+            C: Controller,
+        {
+            self.fly_law::<L, Pay, Act, C, N>(realisations, req, trace, planner)
         }
     )+};
 }
 
-/// A lane type's way into the flight loop: the one function compiled for the instruction set
-/// its operations need, and no other. Each (lane type, instruction set) pair the loop is
-/// compiled for costs a copy of the whole inlined model, controller and integrator per vehicle
-/// and law, so only the pairs that can run are built: the intrinsic lane types in their own
-/// instruction set, the portable ones (`f64` for single flights, `F64x4`) in the baseline
-/// one. The arithmetic never contracts or reorders, so the same lanes give the same bits in
-/// any of them.
+/// A lane type's way into the flight loop: the loop of one vehicle and law compiled for the
+/// instruction set its operations need, and no other. Each (lane type, instruction set) pair
+/// the loop is compiled for costs a copy of the whole inlined model, controller and integrator
+/// per vehicle and law, so only the pairs that can run are built: the intrinsic lane types in
+/// their own instruction set, the portable ones (`f64` for single flights, `F64x4`) in the
+/// baseline one. The arithmetic never contracts or reorders, so the same lanes give the same
+/// bits in any of them.
 pub trait LoopEntry: KernelOps {
-    fn enter(
+    /// Fly law `C` on the vehicle of kinds `Pay`, `Act` (`N` states), one realisation per lane.
+    fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
         engine: &Engine,
+        realisations: &[&Realisation],
         req: &FlightRequest,
         trace: Option<&mut Trace>,
         planner: &mut FftPlanner<f64>,
@@ -43,13 +53,14 @@ pub trait LoopEntry: KernelOps {
 macro_rules! portable_entry {
     ($($ty:ty),+) => {$(
         impl LoopEntry for $ty {
-            fn enter(
+            fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
                 engine: &Engine,
+                realisations: &[&Realisation],
                 req: &FlightRequest,
                 trace: Option<&mut Trace>,
                 planner: &mut FftPlanner<f64>,
             ) -> Option<Vec<LaneResult>> {
-                engine.fly_kinds::<Self>(req, trace, planner)
+                engine.fly_law::<Self, Pay, Act, C, N>(realisations, req, trace, planner)
             }
         }
     )+};
@@ -62,8 +73,9 @@ macro_rules! intrinsic_entry {
     ($($ty:ty => $isa:expr, $fused:expr, $name:ident;)+) => {$(
         #[cfg(target_arch = "x86_64")]
         impl LoopEntry for $ty {
-            fn enter(
+            fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
                 engine: &Engine,
+                realisations: &[&Realisation],
                 req: &FlightRequest,
                 trace: Option<&mut Trace>,
                 planner: &mut FftPlanner<f64>,
@@ -76,7 +88,9 @@ macro_rules! intrinsic_entry {
                     if $fused { " (fused)" } else { "" }
                 );
                 // SAFETY: the CPU supports the instruction set (asserted just above).
-                unsafe { engine.$name::<Self>(req, trace, planner) }
+                unsafe {
+                    engine.$name::<Self, Pay, Act, C, N>(realisations, req, trace, planner)
+                }
             }
         }
     )+};
@@ -143,16 +157,16 @@ impl Engine {
             "one realisation index per lane"
         );
         assert!(L::LANES <= MAX_LANES);
-        L::enter(self, req, trace, planner)
+        self.fly_kinds::<L>(req, trace, planner)
     }
 
     flight_loop_for! {
-        /// `fly_kinds` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
+        /// `fly_law` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
         fly_avx2, "avx2";
-        /// `fly_kinds` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
+        /// `fly_law` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
         /// `Lane::mul_add` of `F64x4Fma` fuses; Rust never contracts the other operations).
         fly_avx2_fma, "avx2,fma";
-        /// `fly_kinds` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
+        /// `fly_law` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
         /// the default mode: the lane operations never fuse, whatever the enabled features.
         fly_avx512, "avx512f,avx512dq";
     }

@@ -34,43 +34,12 @@ fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
 const CANCEL_CHECK_STEPS: usize = 4096;
 
 impl Engine {
-    /// Fly on the vehicle kinds of the scenario (`model::dispatch`).
-    #[inline(always)]
-    pub(super) fn fly_kinds<L: KernelOps>(
-        &self,
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
-    ) -> Option<Vec<LaneResult>> {
-        struct Fly<'e, 'r, 't, L> {
-            engine: &'e Engine,
-            req: &'r FlightRequest<'r>,
-            trace: Option<&'t mut Trace>,
-            planner: &'t mut FftPlanner<f64>,
-            lanes: PhantomData<L>,
-        }
-        impl<L: KernelOps> VehicleVisitor for Fly<'_, '_, '_, L> {
-            type Output = Option<Vec<LaneResult>>;
-            #[inline(always)]
-            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
-                self.engine
-                    .fly_law::<L, Pay, Act, N>(self.req, self.trace, self.planner)
-            }
-        }
-        let cfg = &self.cfg;
-        let fly = Fly {
-            engine: self,
-            req,
-            trace,
-            planner,
-            lanes: PhantomData::<L>,
-        };
-        dispatch(cfg.payload.model, cfg.actuator.model, fly)
-    }
-
-    /// Gather the lanes' realisations into lane-valued parameters and fly the chosen law.
-    #[inline(always)]
-    fn fly_law<L: KernelOps, Pay: Payload, Act: Actuator, const N: usize>(
+    /// Fly on the vehicle kinds (`model::dispatch`) and law (`control::dispatch`) of the
+    /// request: dispatch to the loop compiled for them and lane type `L` (`LoopEntry::enter`).
+    /// Each (lane type, vehicle, law) is its own function, so the compiler builds them apart
+    /// (in parallel, each the size of one loop, not one function holding all sixteen). Only
+    /// `f64` values pass here: lane values exist only inside `enter`.
+    pub(super) fn fly_kinds<L: LoopEntry>(
         &self,
         req: &FlightRequest,
         trace: Option<&mut Trace>,
@@ -84,51 +53,82 @@ impl Engine {
             }
             None => &own[..L::LANES],
         };
-        let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
-        let vehicle = AnyVehicle::gather::<L, Pay, Act>(&each);
-        struct Law<'e, 'v, 'c, 'r, 't, L: KernelOps, Pay, Act, const N: usize> {
+        /// The request, carried through both dispatches to `LoopEntry::enter`.
+        struct Fly<'e, 'r, 't, L> {
             engine: &'e Engine,
-            vehicle: &'v Vehicle<L, Pay, Act>,
-            realisations: &'c [&'c Realisation],
+            realisations: &'r [&'r Realisation],
             req: &'r FlightRequest<'r>,
             trace: Option<&'t mut Trace>,
             planner: &'t mut FftPlanner<f64>,
+            kinds: PhantomData<L>,
         }
-        impl<L: KernelOps, Pay, Act, const N: usize> ControllerVisitor
-            for Law<'_, '_, '_, '_, '_, L, Pay, Act, N>
-        where
-            Pay: crate::model::PayloadModel<L>,
-            Act: ActuatorModel<L>,
-        {
+        impl<L: LoopEntry> VehicleVisitor for Fly<'_, '_, '_, L> {
             type Output = Option<Vec<LaneResult>>;
-            #[inline(always)]
-            fn visit<C: Controller>(self) -> Self::Output {
+            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
                 let kind = self.req.kind;
-                let each: Vec<&C> = self
-                    .realisations
-                    .iter()
-                    .map(|c| c.laws.get(kind).get::<C>())
-                    .collect();
-                let ctrl = C::gather::<L>(&each);
-                self.engine.fly_loop::<L, Pay, Act, C::At<L>, N>(
-                    self.vehicle,
-                    &ctrl,
-                    self.realisations,
-                    self.req,
-                    self.trace,
-                    self.planner,
-                )
+                let law = Law::<L, Pay, Act, N> {
+                    fly: self,
+                    kinds: PhantomData,
+                };
+                crate::control::dispatch(kind, law)
             }
         }
-        let law = Law::<L, _, _, N> {
+        struct Law<'e, 'r, 't, L, Pay, Act, const N: usize> {
+            fly: Fly<'e, 'r, 't, L>,
+            kinds: PhantomData<(Pay, Act)>,
+        }
+        impl<L: LoopEntry, Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor
+            for Law<'_, '_, '_, L, Pay, Act, N>
+        {
+            type Output = Option<Vec<LaneResult>>;
+            fn visit<C: Controller>(self) -> Self::Output {
+                let f = self.fly;
+                L::enter::<Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
+            }
+        }
+        let fly = Fly {
             engine: self,
-            vehicle: &vehicle,
             realisations,
             req,
             trace,
             planner,
+            kinds: PhantomData::<L>,
         };
-        crate::control::dispatch(req.kind, law)
+        dispatch(self.cfg.payload.model, self.cfg.actuator.model, fly)
+    }
+
+    /// Gather the lanes' realisations into lane-valued parameters and fly law `C`: the body of
+    /// every compiled loop (`LoopEntry::enter`), inlined there with everything it calls.
+    #[inline(always)]
+    pub(super) fn fly_law<L, Pay, Act, C, const N: usize>(
+        &self,
+        realisations: &[&Realisation],
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>>
+    where
+        L: KernelOps,
+        Pay: Payload,
+        Act: Actuator,
+        C: Controller,
+    {
+        let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
+        let vehicle = AnyVehicle::gather::<L, Pay, Act>(&each);
+        let kind = req.kind;
+        let laws: Vec<&C> = realisations
+            .iter()
+            .map(|c| c.laws.get(kind).get::<C>())
+            .collect();
+        let ctrl = C::gather::<L>(&laws);
+        self.fly_loop::<L, Pay::At<L>, Act::At<L>, C::At<L>, N>(
+            &vehicle,
+            &ctrl,
+            realisations,
+            req,
+            trace,
+            planner,
+        )
     }
 
     #[inline(always)]

@@ -4,7 +4,8 @@
 //! payload's outputs, the layout gives the state names and runaway bounds.
 //!
 //! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
-//! and controller kinds, `fly_loop` flies them); `entry` the way in, one copy of the loop per
+//! and controller kinds, `fly_law` gathers the lanes' parameters, `fly_loop` flies them);
+//! `entry` the way in, one function per (lane type, vehicle, law) compiled for the lane type's
 //! instruction set (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled
 //! scenario (`Engine`, `Realisation`, `FlightRequest`); `trace` the trace's columns and rows;
 //! `status` why a flight ended (`ExitStatus`).

@@ -329,10 +329,9 @@ pub trait VehicleVisitor {
 
 /// The one dispatch point from the scenario's model names to the code compiled for them. A
 /// new kind adds one line per combination here (its `N` is checked at compile time against
-/// the kinds' `Layout`, by `Vehicle::derivative`). Always inlined: the flight loop a visitor
-/// runs must be compiled inside the caller's instruction-set function
-/// (`integrate::Engine::fly_on`), never in an out-of-line copy without its target features.
-#[inline(always)]
+/// the kinds' `Layout`, by `Vehicle::derivative`). Only `f64` values pass through it: the
+/// flight loop's visitor ends in `integrate::LoopEntry::enter`, which compiles the loop for
+/// the lane type's instruction set.
 pub fn dispatch<V: VehicleVisitor>(
     payload: PayloadKind,
     actuator: ActuatorKind,
