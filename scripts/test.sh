@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Install everything the tests need into .venv (the engine as a built wheel, not editable), then run every check: Rust format, lints and
-# unit tests; the Python package built with maturin; ruff, mypy, the stub check, the
-# documentation site (mkdocs build --strict: warnings are errors) and pytest;
-# then the package installed and smoke-tested on the lowest supported and the newest
-# installed Python (scripts/other_pythons.sh; QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
+# Install everything the tests need into .venv (the engine as a built wheel, not editable),
+# then run every check: Rust format, lints and unit tests; the Python package built with
+# maturin; ruff, mypy, the stub check, the documentation site (mkdocs build --strict: warnings
+# are errors) and pytest (a worker per core); then the package installed and smoke-tested on
+# the lowest supported and the newest installed Python (scripts/other_pythons.sh;
+# QUADRS_SKIP_OTHER_PYTHONS=1 skips it).
 #
-# Once the wheel is built, the Rust checks and the other Pythons run in the background beside
-# the Python checks and pytest (each compiles or installs while pytest leaves a core idle);
-# their output is printed, and their status checked, at the end. The tests marked slow
+# Once the wheel is built, the Rust unit tests and the other Pythons run in the background
+# beside the Python checks and pytest; their output is printed, and their status checked, at
+# the end. The tests marked slow
 # (pyproject.toml) run with `--slow` (or QUADRS_SLOW=1); other arguments go to pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -74,9 +75,9 @@ export QUADRS_WHEEL="$wheel"
 logs+=("$(mktemp)")
 (
     s=$SECONDS
-    # Unit tests at optimisation without LTO (same arithmetic), reusing the wheel's compiled
-    # dependencies; the doc comments hold no examples, so no doctest build.
-    cargo test --profile dev-opt --lib -q
+    # Unit tests unoptimised (the `unit` profile, Cargo.toml: the cheapest build; optimisation
+    # changes no arithmetic); the doc comments hold no examples, so no doctest build.
+    cargo test --profile unit --lib -q
     echo "== rust unit tests (background) took $((SECONDS - s)) s"
 ) >"${logs[-1]}" 2>&1 &
 background+=($!)
@@ -99,9 +100,10 @@ NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs build --strict --quiet --site-dir "$(mkte
 # Which engine path this machine runs: the cross-path tests run every path it supports.
 .venv/bin/python -c "import quadrs; print('quadrs engine path:', quadrs._core.simd_path())"
 stage "pytest"
-# The tests marked slow (pyproject.toml) run with --slow.
+# The tests marked slow (pyproject.toml) run with --slow. One pytest worker per core
+# (pytest-xdist), a test file to a worker: its module fixtures are made once.
 if [ -n "${QUADRS_SLOW:-}" ]; then only=(); else only=(-m "not slow"); fi
-.venv/bin/python -m pytest -q --durations=30 ${only[@]+"${only[@]}"} "$@"
+.venv/bin/python -m pytest -q -n auto --dist loadfile --durations=30 ${only[@]+"${only[@]}"} "$@"
 stage "background checks"
 finish_background
 stage "done"
