@@ -1,5 +1,6 @@
 """Shared fixtures: the paper preset and short, coarse variants of it that run in milliseconds;
-the paper pipeline's output, made once per session."""
+the paper pipeline's output, made once per session (per pytest worker: scripts/test.sh runs one
+per core)."""
 
 import subprocess
 import sys
@@ -64,10 +65,10 @@ def still_hover(paper: quadrs.Scenario) -> quadrs.Scenario:
 
 @pytest.fixture(scope="session")
 def paper_example(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    """``examples/paper.py OUT 2`` run once per session, as a user runs it (the paper preset at
-    dt = 2 ms, 2 realisations, the sweep at 1 and 4 Hz, the mass figure at 0.22 kg): its output
-    directory and what it printed. The pipeline is the slowest thing the suite runs; the
-    example's test and the check of every table and figure share this one run."""
+    """``examples/paper.py OUT 2`` run once per session (per pytest worker), as a user runs it
+    (the paper preset at dt = 2 ms, 2 realisations, the sweep at 1 and 4 Hz, the mass figure at
+    0.22 kg): its output directory and what it printed. The pipeline is the slowest thing the
+    suite runs; the example's test and the check of every table and figure share this run."""
     out = tmp_path_factory.mktemp("paper")
     script = Path(__file__).resolve().parent.parent / "examples" / "paper.py"
     proc = subprocess.run([sys.executable, str(script), str(out), "2"], capture_output=True,

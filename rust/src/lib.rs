@@ -13,6 +13,7 @@ pub mod dispersion;
 pub mod gust;
 pub mod integrate;
 pub mod lane;
+pub mod legs;
 pub mod memory;
 pub mod metrics;
 pub mod model;

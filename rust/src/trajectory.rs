@@ -1,6 +1,7 @@
 //! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
-use crate::config::route::{Segment, SegmentKind, FLIGHT_PHASE};
+use crate::config::route::FLIGHT_PHASE;
+use crate::legs::{Segment, SegmentKind};
 use crate::config::{Config, Interpolation};
 
 /// Desired position (x, y, z), yaw and their first two derivatives at one instant.
@@ -14,7 +15,7 @@ pub struct Reference {
     pub psi_ddot: f64,
 }
 
-pub(crate) use crate::config::route::TIME_SLACK;
+pub(crate) use crate::legs::TIME_SLACK;
 
 #[derive(Clone, Debug)]
 pub struct Trajectory {
