@@ -1,8 +1,8 @@
 //! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
 use crate::config::route::FLIGHT_PHASE;
-use crate::legs::{Segment, SegmentKind};
 use crate::config::{Config, Interpolation};
+use crate::legs::{Segment, SegmentKind};
 
 /// Desired position (x, y, z), yaw and their first two derivatives at one instant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

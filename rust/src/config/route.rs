@@ -12,7 +12,6 @@ pub const FLIGHT_PHASE: &str = "flight";
 /// up to half a step each), still spans the two steps a phase needs.
 pub const MIN_STEPS: f64 = 4.0;
 
-
 /// The keys of a route that can be checked without the step grid.
 pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
     let tr = &cfg.trajectory;
@@ -324,9 +323,9 @@ pub fn leg_phases(cfg: &Config) -> Result<Vec<Phase>, ConfigError> {
 mod tests {
     use super::*;
     use crate::config::tests::paper_value;
-    use std::f64::consts::PI;
     use crate::trajectory::{phase_steps, Reference, Trajectory};
     use serde_json::json;
+    use std::f64::consts::PI;
 
     /// The paper scenario flying `route` under `phases = "legs"`, with `edit` applied.
     fn route_cfg(edit: impl Fn(&mut serde_json::Value)) -> Result<Config, ConfigError> {
