@@ -2,8 +2,9 @@
 //! total thrust and torques reach the airframe. Each kind is one file implementing `Actuator`
 //! (its parameters, built once from the scenario and gathered one vehicle per lane) and
 //! `ActuatorModel` (its command, held over a step, its states' dynamics and the thrust and
-//! torques the plant feels). To add a kind: a file beside `ideal.rs`, a variant of
-//! `AnyActuator` and of `config::ActuatorModelName`, and its lines in `model::dispatch`.
+//! torques the plant feels). To add a kind: a file beside `ideal.rs`, its name in
+//! `config::ActuatorModelName` and in the registration `model::kinds!` (which generates
+//! `AnyActuator` and every `model::dispatch` line).
 
 mod ideal;
 pub mod rotors;
@@ -14,6 +15,8 @@ pub use rotors::Rotors;
 use super::layout::StateVar;
 use super::{Inputs, State, Tick};
 use crate::config::{ActuatorModelName, Config};
+
+pub use super::AnyActuator;
 use crate::lane::Lane;
 
 /// An actuator's dynamics, with parameters of lane type `L`.
@@ -71,32 +74,6 @@ pub trait Actuator: Clone + Sync + Send + Sized + 'static {
     fn new(cfg: &Config) -> Self;
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     fn of(any: &AnyActuator) -> &Self;
-}
-
-/// Every actuator kind's parameters: the one place the kinds are listed.
-// One per vehicle, read only when the lanes are gathered: a Box would add an allocation and an
-// indirection for the few hundred bytes the rotors' allocation matrices take.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Debug)]
-pub enum AnyActuator {
-    Ideal(Ideal),
-    Rotors(Rotors),
-}
-
-impl AnyActuator {
-    pub fn new(cfg: &Config) -> Self {
-        match cfg.actuator.model {
-            ActuatorModelName::Ideal => Self::Ideal(Ideal::new(cfg)),
-            ActuatorModelName::Rotors => Self::Rotors(Rotors::new(cfg)),
-        }
-    }
-
-    pub fn name(&self) -> ActuatorModelName {
-        match self {
-            Self::Ideal(_) => ActuatorModelName::Ideal,
-            Self::Rotors(_) => ActuatorModelName::Rotors,
-        }
-    }
 }
 
 /// The kind of a scenario's actuators, for `model::dispatch`.

@@ -2,8 +2,9 @@
 //! the quadrotor, moves and pulls on it. Each kind is one file implementing two traits:
 //! `Payload` (its parameters, built once from the scenario and gathered one vehicle per lane)
 //! and `PayloadModel` (its dynamics and outputs, with parameters of any lane type). To add a
-//! kind: a file beside `spring.rs`, a variant of `AnyPayload` and of `config::PayloadModelName`,
-//! and its lines in `model::dispatch` (docs/architecture.md).
+//! kind: a file beside `spring.rs`, its name in `config::PayloadModelName` and in the
+//! registration `model::kinds!` (which generates `AnyPayload` and every `model::dispatch`
+//! line; docs/architecture.md).
 
 mod cable;
 mod spring;
@@ -15,6 +16,8 @@ use super::body::Body;
 use super::layout::StateVar;
 use super::{Layout, State, Trig};
 use crate::config::{Config, PayloadModelName};
+
+pub use super::AnyPayload;
 use crate::lane::Lane;
 
 /// What the flight loop records about the payload at one instant.
@@ -97,30 +100,6 @@ pub trait Payload: Clone + Sync + Send + Sized + 'static {
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
     fn of(any: &AnyPayload) -> &Self;
-}
-
-/// Every payload kind's parameters: the one place the kinds are listed.
-#[derive(Clone, Debug)]
-pub enum AnyPayload {
-    Spring(Spring),
-    Cable(Cable),
-}
-
-impl AnyPayload {
-    pub fn new(cfg: &Config) -> Self {
-        match cfg.payload.model {
-            PayloadModelName::Spring => Self::Spring(Spring::new(cfg)),
-            PayloadModelName::Cable => Self::Cable(Cable::new(cfg)),
-        }
-    }
-
-    /// The kind's name in the scenario (`payload.model`).
-    pub fn name(&self) -> PayloadModelName {
-        match self {
-            Self::Spring(_) => PayloadModelName::Spring,
-            Self::Cable(_) => PayloadModelName::Cable,
-        }
-    }
 }
 
 /// The kind of a scenario's payload, for `model::dispatch`.
