@@ -339,6 +339,11 @@ pub const fn state_count<Pay: Payload, Act: Actuator>() -> usize {
 /// own constants (`state_count`).
 macro_rules! kinds {
     (payloads: [$($P:ident),+ $(,)?]; actuators: [$($A:ident),+ $(,)?];) => {
+        /// Every payload kind, in registration order.
+        pub const PAYLOAD_KINDS: &[PayloadKind] = &[$(PayloadKind::$P),+];
+        /// Every actuator kind, in registration order.
+        pub const ACTUATOR_KINDS: &[ActuatorKind] = &[$(ActuatorKind::$A),+];
+
         kinds!(@any
             /// Every payload kind's parameters (`kinds!`).
             AnyPayload, payload, Payload, PayloadKind, "payload.model", [$($P),+]);

@@ -183,3 +183,35 @@ fn advanced_trig_matches_direct_evaluation() {
         Trig::of(&at).spsi.lane(2).to_bits()
     );
 }
+
+#[test]
+fn every_registered_pair_flies_with_its_layouts_state_count() {
+    // `state_vars` goes through `dispatch` and asserts the `N` that `kinds!` computed for the
+    // pair against the kinds' own `Layout`; each kind is built from a scenario that names it
+    // and reports that name back.
+    for &p in PAYLOAD_KINDS {
+        for &a in ACTUATOR_KINDS {
+            // The quadrotor's 12 states come first, whatever the kinds.
+            let vars = state_vars(p, a);
+            let own = vars.iter().filter(|v| v.part == Part::Vehicle).count();
+            assert_eq!(own, 12, "{p:?} {a:?}");
+            let mut cfg = paper();
+            cfg.payload.model = p;
+            cfg.payload.cable_length = Some(1.0);
+            cfg.actuator.model = a;
+            assert_eq!(AnyPayload::new(&cfg).name(), p);
+            assert_eq!(AnyActuator::new(&cfg).name(), a);
+        }
+    }
+    let names = |k: &[String]| k.iter().collect::<std::collections::HashSet<_>>().len();
+    let payloads: Vec<String> = PAYLOAD_KINDS
+        .iter()
+        .map(|k| serde_json::to_string(k).unwrap())
+        .collect();
+    let actuators: Vec<String> = ACTUATOR_KINDS
+        .iter()
+        .map(|k| serde_json::to_string(k).unwrap())
+        .collect();
+    assert_eq!(names(&payloads), PAYLOAD_KINDS.len(), "{payloads:?}");
+    assert_eq!(names(&actuators), ACTUATOR_KINDS.len(), "{actuators:?}");
+}
