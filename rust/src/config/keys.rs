@@ -41,31 +41,6 @@ pub const FIXED_PREFIXES: [&str; 5] = [
     "dispersions",
 ];
 
-/// (The wind sources' helpers, `crate::gust`: their keys are read field by field.)
-pub(crate) fn at3<'c>(a: &'c mut [f64; 3], rest: &[Seg]) -> Target<'c> {
-    match rest {
-        [Seg::Index(i)] if *i < 3 => Target::Number(&mut a[*i]),
-        [] => Target::NotNumber,
-        _ => Target::Missing,
-    }
-}
-
-pub(crate) fn one<'c>(x: &'c mut f64, rest: &[Seg]) -> Target<'c> {
-    if rest.is_empty() {
-        Target::Number(x)
-    } else {
-        Target::Missing
-    }
-}
-
-pub(crate) fn flag(rest: &[Seg]) -> Target<'static> {
-    if rest.is_empty() {
-        Target::NotNumber
-    } else {
-        Target::Missing
-    }
-}
-
 impl Config {
     /// The field a parsed key names (see [`Target`]). Keys under `FIXED_PREFIXES` are found
     /// like any other; callers refuse them where a key must be per realisation.
@@ -315,7 +290,12 @@ mod tests {
     #[test]
     fn wind_keys_are_per_realisation_numbers() {
         use crate::config::{DiscreteGust, GustAltitude, GustShape, Intensity};
+        use crate::gust::table::{TableBy, WindTable};
         let mut cfg = paper();
+        cfg.wind.table = Some(WindTable {
+            by: TableBy::Time,
+            points: vec![[0.0, 1.0, 0.0, 0.0], [5.0, 2.0, 0.0, 0.0]],
+        });
         cfg.wind.speed = 3.0;
         cfg.wind.gusts = vec![DiscreteGust {
             start: 1.0,
@@ -330,6 +310,7 @@ mod tests {
             "wind.gusts[0].start",
             "wind.gusts[0].duration",
             "wind.gusts[0].amplitude[2]",
+            "wind.table.points[1][3]",
             "gust.min_airspeed",
             "gust.altitude",
             "gust.w20",
@@ -348,6 +329,14 @@ mod tests {
             ("wind.gusts", "not a number"),
             ("wind.gusts[1].start", "not a key"),
             ("wind.gusts[0].colour", "not a key"),
+            ("wind.gusts[0].amplitude[3]", "not a key"),
+            ("wind.table", "not a number"),
+            ("wind.table.by", "not a number"),
+            ("wind.table.points", "not a number"),
+            ("wind.table.points[1]", "not a number"),
+            ("wind.table.points[2][0]", "not a key"),
+            ("wind.table.points[0][4]", "not a key"),
+            ("wind.table.rows", "not a key"),
             ("gust.altitude", "not a number"),
             ("gust.intensity", "not a number"),
             ("gust.w20", "not a key"),

@@ -5,8 +5,8 @@
 
 use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
-use crate::config::keys::{at3, flag, one, Seg, Target};
-use crate::config::params::Key;
+use crate::config::keys::{Seg, Target};
+use crate::config::params::{not_numbers, params, Field, Key, Params};
 use crate::config::{finite, non_negative, positive, Config, ConfigError, Wind};
 use serde::{Deserialize, Serialize};
 
@@ -21,19 +21,22 @@ pub enum GustShape {
     Pulse,
 }
 
-/// One `[[wind.gusts]]` entry.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DiscreteGust {
-    /// s, when the gust begins.
-    pub start: f64,
-    /// s, D: the rise time of a ramp, the length of a pulse.
-    pub duration: f64,
-    /// m/s, A: inertial x, y, z (not turned by `wind.heading`).
-    pub amplitude: [f64; 3],
-    #[serde(default)]
-    pub shape: GustShape,
+params! {
+    /// One `[[wind.gusts]]` entry.
+    #[derive(PartialEq)]
+    pub struct DiscreteGust {
+        /// s, when the gust begins.
+        start: f64 => "s", "Discrete gust start";
+        /// s, D: the rise time of a ramp, the length of a pulse.
+        duration: f64 => "s", "Discrete gust duration (rise or length)";
+        /// m/s, A: inertial x, y, z (not turned by `wind.heading`).
+        amplitude: [f64; 3] => "m/s", "Discrete gust amplitude (x, y, z)";
+        #[serde(default)]
+        shape: GustShape => "-", "Discrete gust shape (ramp or pulse)";
+    }
 }
+
+not_numbers!(GustShape);
 
 /// The velocity (m/s, inertial) of one discrete gust at time `t` (s).
 #[inline]
@@ -60,28 +63,9 @@ pub struct Gusts(pub Vec<DiscreteGust>);
 
 impl WindSource for Gusts {
     const MEAN_AIR: bool = false;
-    const KEYS: &'static [Key] = &[
-        Key {
-            name: "gusts.start",
-            unit: "s",
-            label: "Discrete gust start",
-        },
-        Key {
-            name: "gusts.duration",
-            unit: "s",
-            label: "Discrete gust duration (rise or length)",
-        },
-        Key {
-            name: "gusts.amplitude",
-            unit: "m/s",
-            label: "Discrete gust amplitude (x, y, z)",
-        },
-        Key {
-            name: "gusts.shape",
-            unit: "-",
-            label: "Discrete gust shape (ramp or pulse)",
-        },
-    ];
+    fn keys() -> Vec<(String, Key)> {
+        DiscreteGust::keys_under("gusts")
+    }
 
     /// Blows where the scenario lists a gust.
     fn build(cfg: &Config) -> Option<Self> {
@@ -100,27 +84,10 @@ impl WindSource for Gusts {
         Ok(())
     }
 
-    /// `wind.gusts[i].start`, `.duration`, `.amplitude[j]` are numbers; `.shape` is not.
+    /// `wind.gusts[i].start`, `.duration`, `.amplitude[j]` are numbers; `.shape` is not (the
+    /// entries' `params!` declaration).
     fn target<'w>(wind: &'w mut Wind, _field: &str, rest: &[Seg]) -> Target<'w> {
-        match rest {
-            [] => Target::NotNumber,
-            [Seg::Index(i), tail @ ..] if *i < wind.gusts.len() => {
-                let g = &mut wind.gusts[*i];
-                let sub = tail.get(1..).unwrap_or(&[]);
-                match tail.first() {
-                    None => Target::NotNumber,
-                    Some(Seg::Field(f)) => match f.as_str() {
-                        "start" => one(&mut g.start, sub),
-                        "duration" => one(&mut g.duration, sub),
-                        "amplitude" => at3(&mut g.amplitude, sub),
-                        "shape" => flag(sub),
-                        _ => Target::Missing,
-                    },
-                    Some(Seg::Index(_)) => Target::Missing,
-                }
-            }
-            _ => Target::Missing,
-        }
+        Field::target(&mut wind.gusts, rest)
     }
 
     /// The sum of the gusts at `now.t`, from zero in the list's order.

@@ -16,7 +16,10 @@ pub struct Prescribed(pub Arc<[[f64; 3]]>);
 
 impl WindSource for Prescribed {
     const MEAN_AIR: bool = false;
-    const KEYS: &'static [Key] = &[];
+    /// Never in the scenario: no key.
+    fn keys() -> Vec<(String, Key)> {
+        Vec::new()
+    }
 
     /// Never from the scenario (`WindField::prescribed` adds it).
     fn build(_cfg: &Config) -> Option<Self> {

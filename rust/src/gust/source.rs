@@ -31,14 +31,15 @@ pub trait WindSource: Sized {
     /// Part of the mean air (summed before the turbulence, which rides on it).
     const MEAN_AIR: bool;
     /// Its keys, named below `wind.` (`speed`, `gusts.start`, `table.by`), with units and
-    /// labels; an indexed key drops its indices.
-    const KEYS: &'static [Key];
+    /// labels; an indexed key drops its indices. A source with a table of its own declares
+    /// it with `params!` and gives `Table::keys_under("name")`.
+    fn keys() -> Vec<(String, Key)>;
     /// The source of a validated scenario; `None` where it does not blow.
     fn build(cfg: &Config) -> Option<Self>;
     /// Check its values in the `[wind]` table; the first problem found, naming its key.
     fn validate(wind: &Wind) -> Result<(), ConfigError>;
     /// What the dotted key `wind.<field><rest>` names, for a `field` this kind owns (the first
-    /// part of one of its `KEYS`): the typed targets of dispersions, sweeps and optimisations
+    /// part of one of its `keys`): the typed targets of dispersions, sweeps and optimisations
     /// (`config::keys`).
     fn target<'w>(wind: &'w mut Wind, field: &str, rest: &[Seg]) -> Target<'w>;
     /// Its wind (m/s, inertial x, y, z) held over the step `now`, the quadrotor at `kin`
@@ -50,16 +51,16 @@ pub trait WindSource: Sized {
 
 /// Whether `field` (a part of `wind.`) is the first part of one of the kind's keys.
 pub fn owns<S: WindSource>(field: &str) -> bool {
-    S::KEYS
+    S::keys()
         .iter()
-        .any(|k| k.name.split('.').next() == Some(field))
+        .any(|(name, _)| name.split('.').next() == Some(field))
 }
 
 /// A kind's keys, dotted from `wind.`.
 pub fn keys_of<S: WindSource>() -> Vec<(String, Key)> {
-    S::KEYS
-        .iter()
-        .map(|k| (format!("wind.{}", k.name), *k))
+    S::keys()
+        .into_iter()
+        .map(|(name, k)| (format!("wind.{name}"), k))
         .collect()
 }
 

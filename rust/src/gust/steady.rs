@@ -6,8 +6,8 @@
 
 use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
-use crate::config::keys::{flag, one, Seg, Target};
-use crate::config::params::Key;
+use crate::config::keys::{Seg, Target};
+use crate::config::params::{not_number, Field, Key};
 use crate::config::{finite, non_negative, Config, ConfigError, Wind};
 use serde::{Deserialize, Serialize};
 
@@ -67,30 +67,36 @@ pub struct Steady {
     sin: f64,
 }
 
+/// `[wind]`'s keys of the mean wind.
+const KEYS: [Key; 4] = [
+    Key {
+        name: "speed",
+        unit: "m/s",
+        label: "Mean wind at 20 ft (W20)",
+    },
+    Key {
+        name: "heading",
+        unit: "deg",
+        label: "Wind heading (toward, from +x)",
+    },
+    Key {
+        name: "shear",
+        unit: "-",
+        label: "Mean wind shear profile",
+    },
+    Key {
+        name: "roughness",
+        unit: "m",
+        label: "Surface roughness z0",
+    },
+];
+
 impl WindSource for Steady {
     const MEAN_AIR: bool = true;
-    const KEYS: &'static [Key] = &[
-        Key {
-            name: "speed",
-            unit: "m/s",
-            label: "Mean wind at 20 ft (W20)",
-        },
-        Key {
-            name: "heading",
-            unit: "deg",
-            label: "Wind heading (toward, from +x)",
-        },
-        Key {
-            name: "shear",
-            unit: "-",
-            label: "Mean wind shear profile",
-        },
-        Key {
-            name: "roughness",
-            unit: "m",
-            label: "Surface roughness z0",
-        },
-    ];
+    /// Fields of `[wind]` itself (`config::Wind`), not a table of its own.
+    fn keys() -> Vec<(String, Key)> {
+        KEYS.iter().map(|k| (k.name.to_string(), *k)).collect()
+    }
 
     /// Blows where `wind.speed` is not 0.
     fn build(cfg: &Config) -> Option<Self> {
@@ -124,10 +130,10 @@ impl WindSource for Steady {
 
     fn target<'w>(wind: &'w mut Wind, field: &str, rest: &[Seg]) -> Target<'w> {
         match field {
-            "speed" => one(&mut wind.speed, rest),
-            "heading" => one(&mut wind.heading, rest),
-            "roughness" => one(&mut wind.roughness, rest),
-            _ => flag(rest), // shear
+            "speed" => Field::target(&mut wind.speed, rest),
+            "heading" => Field::target(&mut wind.heading, rest),
+            "roughness" => Field::target(&mut wind.roughness, rest),
+            _ => not_number(rest), // shear
         }
     }
 

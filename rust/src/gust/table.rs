@@ -6,7 +6,7 @@
 use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
-use crate::config::params::Key;
+use crate::config::params::{not_numbers, params, Field, Key, Params};
 use crate::config::{finite, Config, ConfigError, Wind};
 use serde::{Deserialize, Serialize};
 
@@ -20,15 +20,18 @@ pub enum TableBy {
     Altitude,
 }
 
-/// `[wind.table]`: the rows of a measured wind, by time or by altitude.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WindTable {
-    pub by: TableBy,
-    /// Rows of (t s or z m, wind_x, wind_y, wind_z m/s inertial), the first column strictly
-    /// increasing.
-    pub points: Vec<[f64; 4]>,
+params! {
+    /// `[wind.table]`: the rows of a measured wind, by time or by altitude.
+    #[derive(PartialEq)]
+    pub struct WindTable {
+        by: TableBy => "-", "Wind table by time or altitude";
+        /// Rows of (t s or z m, wind_x, wind_y, wind_z m/s inertial), the first column strictly
+        /// increasing.
+        points: Vec<[f64; 4]> => "[s or m, m/s, m/s, m/s]", "Wind table rows (t or z, wind x, y, z)";
+    }
 }
+
+not_numbers!(TableBy);
 
 impl WindTable {
     /// `[wind.table]`'s keys with their units and labels (dotted, indices dropped); its `file`
@@ -96,18 +99,9 @@ pub struct Table(pub WindTable);
 
 impl WindSource for Table {
     const MEAN_AIR: bool = true;
-    const KEYS: &'static [Key] = &[
-        Key {
-            name: "table.by",
-            unit: "-",
-            label: "Wind table by time or altitude",
-        },
-        Key {
-            name: "table.points",
-            unit: "[s or m, m/s, m/s, m/s]",
-            label: "Wind table rows (t or z, wind x, y, z)",
-        },
-    ];
+    fn keys() -> Vec<(String, Key)> {
+        WindTable::keys_under("table")
+    }
 
     /// Blows where the scenario has a `[wind.table]`.
     fn build(cfg: &Config) -> Option<Self> {
@@ -118,22 +112,10 @@ impl WindSource for Table {
         wind.table.as_ref().map_or(Ok(()), WindTable::validate)
     }
 
-    /// `wind.table.points[i][j]` are numbers; `wind.table.by` is not.
+    /// `wind.table.points[i][j]` are numbers; `wind.table.by` is not (the table's `params!`
+    /// declaration).
     fn target<'w>(wind: &'w mut Wind, _field: &str, rest: &[Seg]) -> Target<'w> {
-        match (&mut wind.table, rest) {
-            (None, _) => Target::Missing,
-            (Some(_), []) => Target::NotNumber,
-            (Some(_), [Seg::Field(f)]) if f == "by" => Target::NotNumber,
-            (Some(t), [Seg::Field(f), more @ ..]) if f == "points" => match more {
-                [] => Target::NotNumber,
-                [Seg::Index(i)] if *i < t.points.len() => Target::NotNumber,
-                [Seg::Index(i), Seg::Index(j)] if *i < t.points.len() && *j < 4 => {
-                    Target::Number(&mut t.points[*i][*j])
-                }
-                _ => Target::Missing,
-            },
-            _ => Target::Missing,
-        }
+        Field::target(&mut wind.table, rest)
     }
 
     #[inline]
