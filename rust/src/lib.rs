@@ -46,7 +46,7 @@ mod _core {
     use crate::integrate::{trace_columns, Engine, ExitStatus, FlightRequest, Realisation};
     use crate::memory;
     use crate::metrics::{METRICS, METRIC_NAMES, N_METRICS};
-    use crate::model::{state_vars, ActuatorKind, AnyPayload, PayloadKind};
+    use crate::model::{state_vars, ActuatorKind, PayloadKind};
     use crate::montecarlo::{
         pool, run_batch as batch, run_innovations as innovations_batch, Batch,
     };
@@ -100,6 +100,22 @@ mod _core {
         m.add(
             "CONTROLLER_NAMES",
             ControllerKind::ALL
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
+        )?;
+        // The payload and actuator models (`payload.model`, `actuator.model`), registered once
+        // (`model::kinds!`).
+        m.add(
+            "PAYLOAD_MODELS",
+            crate::model::PAYLOAD_KINDS
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
+        )?;
+        m.add(
+            "ACTUATOR_MODELS",
+            crate::model::ACTUATOR_KINDS
                 .iter()
                 .map(|k| k.name())
                 .collect::<Vec<_>>(),
@@ -224,12 +240,7 @@ mod _core {
         gust::WindField::check(&cfg).map_err(scenario_error)?;
         let d = PyDict::new(py);
         d.set_item("stiffness", cfg.stiffness())?;
-        let hover_offset = match AnyPayload::new(&cfg) {
-            AnyPayload::Spring(p) => p.hover_offset,
-            // The payload hangs the stretched line below the hook, the hook below the CG.
-            AnyPayload::Cable(p) => p.hover_length + p.offset,
-        };
-        d.set_item("hover_offset", hover_offset)?;
+        d.set_item("hover_offset", crate::model::hover_drop(&cfg))?;
         d.set_item("steps", cfg.steps())?;
         d.set_item("turbulence_w20", cfg.turbulence_w20())?;
         d.set_item("phases", crate::trajectory::phase_names(&cfg))?;

@@ -31,6 +31,24 @@ def test_every_controller_kind_owns_its_table() -> None:
         assert owned, f"controller {name!r} declares no keys"
 
 
+def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None:
+    """The models come from the one registration (`model::kinds!`): the paper's first, each a
+    name a scenario may give, its state layout described by the engine."""
+    assert _core.PAYLOAD_MODELS[0] == "spring" and "cable" in _core.PAYLOAD_MODELS
+    assert _core.ACTUATOR_MODELS[0] == "ideal" and "rotors" in _core.ACTUATOR_MODELS
+    for payload in _core.PAYLOAD_MODELS:
+        for actuator in _core.ACTUATOR_MODELS:
+            data = Scenario.preset("delivery").to_dict()
+            data["payload"]["model"], data["actuator"]["model"] = payload, actuator
+            if payload != "cable":  # the cable's keys are refused with another payload
+                for key in ("cable_length", "attachment_offset"):
+                    data["payload"].pop(key, None)
+            names = Scenario.from_dict(data).state_names
+            assert len(names) == len(set(names)), (payload, actuator, names)
+            assert ("omega_1" in names) == (actuator == "rotors"), (payload, actuator)
+            assert ("xc" in names) == (payload == "cable"), (payload, actuator)
+
+
 def test_every_key_of_every_preset_has_a_unit_and_a_label() -> None:
     """Every key a preset sets, and those of the optional tables (rotor faults, discrete gusts,
     a dispersion), has a unit and a label: a section or kind that adds a key without declaring

@@ -257,10 +257,10 @@ mod tests {
 
     #[test]
     fn fault_keys_are_per_realisation_numbers() {
-        use crate::config::{ActuatorModelName, RotorFault};
+        use crate::config::{ActuatorKind, RotorFault};
         let mut cfg = paper();
-        cfg.actuator.model = ActuatorModelName::Rotors;
-        cfg.actuator.faults = vec![RotorFault {
+        cfg.actuator.model = ActuatorKind::Rotors;
+        cfg.actuator.rotors.faults = vec![RotorFault {
             rotor: 2,
             start: 1.0,
             thrust_fraction: 0.8,

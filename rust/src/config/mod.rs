@@ -2,14 +2,16 @@
 //! JSON the Python layer sends, then validated here so that every entry point of the engine
 //! guards itself. Field names mirror the TOML keys, so an error names the user's key.
 //!
-//! Each section is its own file (its struct, defaults and checks): `vehicle`, `payload`,
-//! `actuator`, `trajectory` (with `phases`), `gust`, `wind`, `flight` (`[environment]`,
-//! `[initial]`, `[integrator]`, `[metrics]`, `[divergence]`, `[ground]`), `dispersions`; the
-//! controller kinds' tables are `control`'s. This file holds `Config`, the reading of the JSON
-//! and the order the sections are checked in.
+//! Each section is its own file (its struct, defaults and checks): `vehicle`, `trajectory`
+//! (with `phases`), `gust`, `wind`, `flight` (`[environment]`, `[initial]`, `[integrator]`,
+//! `[metrics]`, `[divergence]`, `[ground]`), `dispersions`. The kinds own their keys in their
+//! own files: the controllers' tables are `control`'s; `[payload]` and `[actuator]` are one
+//! flat table each of the keys every kind shares (`payload`, `actuator`) and each kind's own
+//! (`model::payload::*`, `model::actuator::*`), assembled by `model::kinds!` and read by
+//! `section`. This file holds `Config`, the reading of the JSON and the order the sections are
+//! checked in.
 
 pub mod actuator;
-pub mod allocation;
 pub mod dispersions;
 pub mod flight;
 pub mod gust;
@@ -17,17 +19,18 @@ pub mod keys;
 pub mod params;
 pub mod payload;
 pub mod route;
+pub mod section;
 pub mod trajectory;
 pub mod vehicle;
 pub mod wind;
 
 pub use crate::control::ControllerConfig;
-pub use actuator::{ActuatorConfig, ActuatorModelName, RotorFault, RotorLayout};
+pub use crate::model::actuator::rotors::{RotorFault, RotorLayout, RotorParams};
+pub use crate::model::{ActuatorConfig, ActuatorKind, PayloadConfig, PayloadKind};
 pub use dispersions::{Dispersions, Distribution};
 pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, MAX_STEPS};
 pub use gust::{Gust, GustComponent, GustModel};
 use params::Params;
-pub use payload::{Payload, PayloadModelName};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 pub use trajectory::{Interpolation, Phase, Trajectory, LEGS};
@@ -64,12 +67,12 @@ impl ConfigError {
 #[serde(deny_unknown_fields)]
 pub struct Config {
     pub vehicle: Vehicle,
-    pub payload: Payload,
+    pub payload: PayloadConfig,
     pub environment: Environment,
     pub initial: Initial,
     pub controller: ControllerConfig,
     /// How the controller's thrust and torques reach the airframe (docs/model.md section 8).
-    #[serde(default)]
+    #[serde(default = "actuator::absent")]
     pub actuator: ActuatorConfig,
     pub trajectory: Trajectory,
     pub phases: Vec<Phase>,
@@ -174,11 +177,11 @@ impl Config {
 
     /// Every key the engine reads, with its unit and plain-English label (dotted, indices
     /// dropped: `phases.end`, `controller.pd.kp`), each declared beside its section's struct or
-    /// in its kind's file: `_core.KEY_UNITS` and `_core.KEY_LABELS`. The `[wind]` keys outside
-    /// its table are not declared here yet (`quadrs.scenario.units` holds them).
+    /// in its kind's file: `_core.KEY_UNITS` and `_core.KEY_LABELS` (Python adds only the keys
+    /// it alone reads, `quadrs.scenario.units`).
     pub fn keys() -> Vec<(String, params::Key)> {
         let mut keys = Vehicle::keys_under("vehicle");
-        keys.extend(Payload::keys_under("payload"));
+        keys.extend(PayloadConfig::keys());
         keys.extend(Environment::keys_under("environment"));
         keys.extend(Initial::keys_under("initial"));
         keys.extend(ControllerConfig::keys());
@@ -241,7 +244,7 @@ impl Config {
 
     fn validate_values(&self, fixed: bool) -> Result<(), ConfigError> {
         self.vehicle.validate()?;
-        self.payload.validate()?;
+        self.payload.validate(self)?;
         self.environment.validate()?;
         self.initial.validate()?;
         self.controller.validate(self)?;

@@ -115,6 +115,13 @@ pub trait Params {
     const KEYS: &'static [Key];
     /// The target of `field` (then `rest`) in these parameters.
     fn target(&mut self, field: &str, rest: &[Seg]) -> Target<'_>;
+    /// The value of key `name` read from `map` as its field's type (so a mistyped value's
+    /// error carries its dotted key), as JSON; `None` (nothing read) if `name` is not a key
+    /// of these parameters. For a table whose keys several `Params` share (`config::section`).
+    fn read_value<'de, A: serde::de::MapAccess<'de>>(
+        name: &str,
+        map: &mut A,
+    ) -> Result<Option<serde_json::Value>, A::Error>;
 
     /// Every key as a dotted key under `prefix` (`"vehicle"` -> `"vehicle.mass"`).
     fn keys_under(prefix: &str) -> Vec<(String, Key)> {
@@ -136,14 +143,14 @@ macro_rules! params {
             $(
                 $(#[$fmeta:meta])*
                 $field:ident: $ty:ty => $unit:literal, $label:literal;
-            )+
+            )*
         }
     ) => {
         $(#[$meta])*
         #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
         #[serde(deny_unknown_fields)]
         pub struct $Name {
-            $($(#[$fmeta])* pub $field: $ty,)+
+            $($(#[$fmeta])* pub $field: $ty,)*
         }
 
         impl $crate::config::params::Params for $Name {
@@ -153,16 +160,31 @@ macro_rules! params {
                     unit: $unit,
                     label: $label,
                 },
-            )+];
+            )*];
 
+            #[allow(unused_variables)] // a table without keys
             fn target(
                 &mut self,
                 field: &str,
                 rest: &[$crate::config::params::Seg],
             ) -> $crate::config::params::Target<'_> {
                 match field {
-                    $(stringify!($field) => $crate::config::params::Field::target(&mut self.$field, rest),)+
+                    $(stringify!($field) => $crate::config::params::Field::target(&mut self.$field, rest),)*
                     _ => $crate::config::params::Target::Missing,
+                }
+            }
+
+            #[allow(unused_variables)] // a table without keys
+            fn read_value<'de, A: serde::de::MapAccess<'de>>(
+                name: &str,
+                map: &mut A,
+            ) -> Result<Option<serde_json::Value>, A::Error> {
+                match name {
+                    $(stringify!($field) => {
+                        let value: $ty = map.next_value()?;
+                        serde_json::to_value(value).map(Some).map_err(serde::de::Error::custom)
+                    })*
+                    _ => Ok(None),
                 }
             }
         }

@@ -469,11 +469,11 @@ mod tests {
         use crate::control::ControllerKind;
         use crate::stability::{closed_loop, closed_loop_jacobian};
         let mut slung = paper();
-        slung.payload.model = crate::config::PayloadModelName::Cable;
-        slung.payload.cable_length = Some(1.0);
-        slung.payload.attachment_offset = Some(0.05);
+        slung.payload.model = crate::config::PayloadKind::Cable;
+        slung.payload.cable.cable_length = Some(1.0);
+        slung.payload.cable.attachment_offset = Some(0.05);
         slung.payload.natural_frequency = Some(10.0);
-        slung.actuator.model = crate::config::ActuatorModelName::Rotors;
+        slung.actuator.model = crate::config::ActuatorKind::Rotors;
         slung.validate().expect("a valid slung scenario on rotors");
         for cfg in [paper(), slung] {
             let r = Reference {

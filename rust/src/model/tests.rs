@@ -197,7 +197,7 @@ fn every_registered_pair_flies_with_its_layouts_state_count() {
             assert_eq!(own, 12, "{p:?} {a:?}");
             let mut cfg = paper();
             cfg.payload.model = p;
-            cfg.payload.cable_length = Some(1.0);
+            cfg.payload.cable.cable_length = Some(1.0);
             cfg.actuator.model = a;
             assert_eq!(AnyPayload::new(&cfg).name(), p);
             assert_eq!(AnyActuator::new(&cfg).name(), a);

@@ -2,19 +2,30 @@
 //! airframe at once and without limit. No states.
 
 use super::{Actuator, ActuatorModel, AnyActuator};
+use crate::config::params::params;
+use crate::config::section::OwnsKeys;
 use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::layout::StateVar;
 use crate::model::{Inputs, State, Tick};
 
+params! {
+    /// The ideal actuators' own keys in `[actuator]`: none.
+    pub struct IdealParams {}
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Ideal;
+
+impl OwnsKeys for Ideal {
+    type Params = IdealParams;
+}
 
 impl Actuator for Ideal {
     type At<L: Lane> = Ideal;
     const VARS: &'static [StateVar] = &[];
 
-    fn new(_cfg: &Config) -> Self {
+    fn new(_: &IdealParams, _cfg: &Config) -> Self {
         Ideal
     }
 

@@ -2,21 +2,24 @@
 //! total thrust and torques reach the airframe. Each kind is one file implementing `Actuator`
 //! (its parameters, built once from the scenario and gathered one vehicle per lane) and
 //! `ActuatorModel` (its command, held over a step, its states' dynamics and the thrust and
-//! torques the plant feels). To add a kind: a file beside `ideal.rs`, its name in
-//! `config::ActuatorModelName` and in the registration `model::kinds!` (which generates
-//! `AnyActuator` and every `model::dispatch` line).
+//! torques the plant feels). Its own keys in `[actuator]` are declared in its file
+//! (`OwnsKeys::Params`, with `config::params!`) and checked there (`OwnsKeys::validate`). To
+//! add a kind: a file beside `ideal.rs`, its `mod` line here and its line in the registration
+//! `model::kinds!` (which generates its name in `ActuatorKind`, its table in
+//! `ActuatorConfig`, `AnyActuator` and every `model::dispatch` line).
 
 mod ideal;
 pub mod rotors;
 
-pub use ideal::Ideal;
-pub use rotors::Rotors;
+pub use ideal::{Ideal, IdealParams};
+pub use rotors::{RotorParams, Rotors};
 
 use super::layout::StateVar;
 use super::{Inputs, State, Tick};
-use crate::config::{ActuatorModelName, Config};
+use crate::config::section::OwnsKeys;
+use crate::config::Config;
 
-pub use super::AnyActuator;
+pub use super::{ActuatorConfig, ActuatorKind, AnyActuator};
 use crate::lane::Lane;
 
 /// An actuator's dynamics, with parameters of lane type `L`.
@@ -66,15 +69,12 @@ pub trait ActuatorModel<L: Lane>: Sync {
 }
 
 /// An actuator kind's parameters for one vehicle, resolved once from the scenario.
-pub trait Actuator: Clone + Sync + Send + Sized + 'static {
+pub trait Actuator: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     type At<L: Lane>: ActuatorModel<L>;
     /// The kind's states (`STATES` of them).
     const VARS: &'static [StateVar];
-
-    fn new(cfg: &Config) -> Self;
+    /// The parameters of a validated scenario (`p`: the kind's keys).
+    fn new(p: &<Self as OwnsKeys>::Params, cfg: &Config) -> Self;
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     fn of(any: &AnyActuator) -> &Self;
 }
-
-/// The kind of a scenario's actuators, for `model::dispatch`.
-pub type ActuatorKind = ActuatorModelName;

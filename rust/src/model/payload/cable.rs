@@ -16,11 +16,27 @@
 //! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
 
 use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
-use crate::config::Config;
+use crate::config::params::params;
+use crate::config::section::OwnsKeys;
+use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::Lane;
 use crate::model::body::{drag, Body};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
 use crate::model::{ix, Layout, State, Trig};
+
+params! {
+    /// The cable's own keys in `[payload]` (beside the point mass's, `config::payload::Shared`).
+    /// Optional in the table, so that another kind's scenario reads without them; required
+    /// when the cable flies (`validate`).
+    pub struct CableParams {
+        /// m, the cable's unstretched length L0 (required).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        cable_length: Option<f64> => "m", "Cable length, unstretched";
+        /// m, the hook's distance below the centre of gravity along the body z axis (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        attachment_offset: Option<f64> => "m", "Hook below the centre of gravity";
+    }
+}
 
 /// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -52,6 +68,44 @@ const fn payload(name: &'static str, axis: Axis, bound: Bound) -> StateVar {
     StateVar::new(name, axis, Some(bound), Part::Payload)
 }
 
+impl OwnsKeys for Cable {
+    type Params = CableParams;
+
+    /// The cable's keys: the length is required and positive, the hook's offset at least 0;
+    /// neither may be given when another payload flies.
+    fn validate(c: &CableParams, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+        if !flown {
+            for (key, value) in [
+                ("payload.cable_length", c.cable_length),
+                ("payload.attachment_offset", c.attachment_offset),
+            ] {
+                if let Some(x) = value {
+                    return Err(ConfigError::new(
+                        key,
+                        format!(
+                            "{key} applies to payload.model = \"cable\" only, got {x:?} with \
+                             payload.model = \"{}\"",
+                            cfg.payload.model.name()
+                        ),
+                    ));
+                }
+            }
+            return Ok(());
+        }
+        let Some(l0) = c.cable_length else {
+            return Err(ConfigError::new(
+                "payload.cable_length",
+                "payload.cable_length must be given for payload.model = \"cable\"",
+            ));
+        };
+        positive("payload.cable_length", l0)?;
+        match c.attachment_offset {
+            Some(h) => non_negative("payload.attachment_offset", h),
+            None => Ok(()),
+        }
+    }
+}
+
 impl Payload for Cable {
     type At<L: Lane> = Cable<L>;
     const POSITIONS: &'static [StateVar] = &[
@@ -65,20 +119,25 @@ impl Payload for Cable {
         payload("vzc", Axis::Z, Bound::Speed),
     ];
 
-    fn new(cfg: &Config) -> Self {
+    fn new(c: &CableParams, cfg: &Config) -> Self {
         let p = &cfg.payload;
         let k = cfg.stiffness();
-        let rest_length = p.cable_length.unwrap_or(f64::NAN); // required: Config::validate
+        let rest_length = c.cable_length.unwrap_or(f64::NAN); // required: `validate`
         Self {
             mc: p.mass,
             k,
             c: p.damping,
             rest_length,
-            offset: p.attachment_offset(),
+            offset: c.attachment_offset.unwrap_or(0.0),
             drag_payload: 0.5 * cfg.gust.air_density * p.drag_area,
             hover_length: rest_length + p.mass * cfg.environment.gravity / k,
             inv_mc: 1.0 / p.mass,
         }
+    }
+
+    /// The stretched line below the hook, the hook below the centre of gravity.
+    fn hover_drop(&self) -> f64 {
+        self.hover_length + self.offset
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Cable<L> {

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::config::tests::paper;
-use crate::config::PayloadModelName;
+use crate::config::PayloadKind;
 use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
 use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Vehicle};
@@ -18,9 +18,9 @@ const VZ: usize = VX + 2;
 /// The paper's vehicle with a cable payload: `l0` m of line, `fn_hz` bounce, hook `h` m low.
 fn cable_config(l0: f64, fn_hz: f64, h: f64) -> Config {
     let mut cfg = paper();
-    cfg.payload.model = PayloadModelName::Cable;
-    cfg.payload.cable_length = Some(l0);
-    cfg.payload.attachment_offset = Some(h);
+    cfg.payload.model = PayloadKind::Cable;
+    cfg.payload.cable.cable_length = Some(l0);
+    cfg.payload.cable.attachment_offset = Some(h);
     cfg.payload.natural_frequency = Some(fn_hz);
     cfg.validate().expect("a valid cable scenario");
     cfg
@@ -90,7 +90,7 @@ fn p_line(v: &Slung, s: &State<f64, NX>) -> Line<f64> {
 
 #[test]
 fn the_cable_layout_has_eighteen_named_bounded_states() {
-    let vars = state_vars(PayloadModelName::Cable, ActuatorKind::Ideal);
+    let vars = state_vars(PayloadKind::Cable, ActuatorKind::Ideal);
     let names: Vec<&str> = vars.iter().map(|v| v.name).collect();
     assert_eq!(
         names,
@@ -117,7 +117,7 @@ fn hover_is_a_fixed_point() {
     let v = vehicle(&cfg);
     let s: State<f64, NX> = v.rest_state([1.0, -2.0, 2.0], [0.0, 0.0, 0.5]);
     let ds = derivative(&v, &s, &hover_thrust(&v), &[0.0; 3]);
-    let vars = state_vars(PayloadModelName::Cable, ActuatorKind::Ideal);
+    let vars = state_vars(PayloadKind::Cable, ActuatorKind::Ideal);
     for (i, d) in ds.iter().enumerate() {
         assert!(d.abs() < 1e-12, "d{}/dt = {d}", vars[i].name);
     }

@@ -1,23 +1,26 @@
 //! Payload models (`payload.model`, docs/model.md sections 1 and 7): how the load hangs below
 //! the quadrotor, moves and pulls on it. Each kind is one file implementing two traits:
 //! `Payload` (its parameters, built once from the scenario and gathered one vehicle per lane)
-//! and `PayloadModel` (its dynamics and outputs, with parameters of any lane type). To add a
-//! kind: a file beside `spring.rs`, its name in `config::PayloadModelName` and in the
-//! registration `model::kinds!` (which generates `AnyPayload` and every `model::dispatch`
+//! and `PayloadModel` (its dynamics and outputs, with parameters of any lane type). Its own
+//! keys in `[payload]` are declared in its file (`OwnsKeys::Params`, with `config::params!`) and
+//! checked there (`OwnsKeys::validate`). To add a kind: a file beside `spring.rs`, its `mod`
+//! line here and its line in the registration `model::kinds!` (which generates its name in
+//! `PayloadKind`, its table in `PayloadConfig`, `AnyPayload` and every `model::dispatch`
 //! line; docs/architecture.md).
 
 mod cable;
 mod spring;
 
-pub use cable::{Cable, Line};
-pub use spring::Spring;
+pub use cable::{Cable, CableParams, Line};
+pub use spring::{Spring, SpringParams};
 
 use super::body::Body;
 use super::layout::StateVar;
 use super::{Layout, State, Trig};
-use crate::config::{Config, PayloadModelName};
+use crate::config::section::OwnsKeys;
+use crate::config::Config;
 
-pub use super::AnyPayload;
+pub use super::{AnyPayload, PayloadConfig, PayloadKind};
 use crate::lane::Lane;
 
 /// What the flight loop records about the payload at one instant.
@@ -88,19 +91,18 @@ pub trait PayloadModel<L: Lane>: Sync {
 }
 
 /// A payload kind's parameters for one vehicle, resolved once from the scenario.
-pub trait Payload: Clone + Sync + Send + Sized + 'static {
+pub trait Payload: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     /// The same parameters, one vehicle per lane of `L`.
     type At<L: Lane>: PayloadModel<L>;
     /// The kind's states: positions, then velocities (`DOF` each).
     const POSITIONS: &'static [StateVar];
     const VELOCITIES: &'static [StateVar];
-
-    fn new(cfg: &Config) -> Self;
+    /// The parameters of a validated scenario (`p`: the kind's keys).
+    fn new(p: &<Self as OwnsKeys>::Params, cfg: &Config) -> Self;
     /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
     fn of(any: &AnyPayload) -> &Self;
+    /// m, how far the payload hangs below the centre of gravity at hover.
+    fn hover_drop(&self) -> f64;
 }
-
-/// The kind of a scenario's payload, for `model::dispatch`.
-pub type PayloadKind = PayloadModelName;

@@ -3,11 +3,19 @@
 //! the lateral mass is m + mc. One degree of freedom: `zc`, `vzc`.
 
 use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
+use crate::config::params::params;
+use crate::config::section::OwnsKeys;
 use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::body::{drag, Body};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
 use crate::model::{ix, Layout, State, Trig};
+
+params! {
+    /// The spring's own keys in `[payload]`: none beyond the point mass's
+    /// (`config::payload::Shared`).
+    pub struct SpringParams {}
+}
 
 /// Spring payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -33,6 +41,10 @@ const VY: usize = VX + 1;
 const VZ: usize = VX + 2;
 const VZC: usize = LAYOUT.payload_vel();
 
+impl OwnsKeys for Spring {
+    type Params = SpringParams;
+}
+
 impl Payload for Spring {
     type At<L: Lane> = Spring<L>;
     const POSITIONS: &'static [StateVar] = &[StateVar::new(
@@ -48,7 +60,7 @@ impl Payload for Spring {
         Part::Payload,
     )];
 
-    fn new(cfg: &Config) -> Self {
+    fn new(_: &SpringParams, cfg: &Config) -> Self {
         let (m, mc) = (cfg.vehicle.mass, cfg.payload.mass);
         let kc = cfg.stiffness();
         Self {
@@ -60,6 +72,10 @@ impl Payload for Spring {
             inv_m_lateral: 1.0 / (m + mc),
             inv_mc: 1.0 / mc,
         }
+    }
+
+    fn hover_drop(&self) -> f64 {
+        self.hover_offset
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Spring<L> {

@@ -13,14 +13,18 @@
 //! rotor i gives f_i of its clamped command from its fault's start on (its speed command is
 //! sqrt(f_i T_i / kf)), the command held over the step as always.
 
+mod allocation;
+mod params;
+
 use super::{Actuator, ActuatorModel, AnyActuator};
-use crate::config::Config;
-pub use crate::config::RotorFault;
+use crate::config::section::OwnsKeys;
+use crate::config::{Config, ConfigError};
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State, Tick};
 
-pub use crate::config::allocation::{allocation, allocation_inverse, arm_directions, SPIN};
+pub use allocation::{allocation, allocation_inverse, arm_directions, SPIN};
+pub use params::{RotorFault, RotorLayout, RotorParams};
 
 /// The rotors' parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -71,12 +75,23 @@ pub const ROTOR_VARS: [StateVar; 4] = [
     StateVar::new("omega_4", Axis::Other, None, Part::Actuator),
 ];
 
+impl OwnsKeys for Rotors {
+    type Params = RotorParams;
+
+    fn validate(p: &RotorParams, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+        p.validate(flown, cfg)
+    }
+
+    fn keys(prefix: &str) -> Vec<(String, crate::config::params::Key)> {
+        RotorParams::keys(prefix)
+    }
+}
+
 impl Actuator for Rotors {
     type At<L: Lane> = Rotors<L>;
     const VARS: &'static [StateVar] = &ROTOR_VARS;
 
-    fn new(cfg: &Config) -> Self {
-        let a = &cfg.actuator;
+    fn new(a: &RotorParams, cfg: &Config) -> Self {
         let m = allocation(a.layout, cfg.vehicle.arm_length, a.torque_ratio);
         // `Config::validate` refuses l = 0 or cq = 0 with rotors; were M singular anyway, the
         // flight would end non-finite at once rather than panic.
@@ -290,8 +305,8 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
 mod tests {
     use super::*;
     use crate::config::tests::paper;
-    use crate::config::{ActuatorModelName, RotorLayout};
     use crate::model::payload::Spring;
+    use crate::model::ActuatorKind;
     use crate::model::{AnyVehicle, Trig, Vehicle};
 
     const NX: usize = 18;
@@ -299,7 +314,7 @@ mod tests {
 
     fn rotor_config() -> Config {
         let mut cfg = paper();
-        cfg.actuator.model = ActuatorModelName::Rotors;
+        cfg.actuator.model = ActuatorKind::Rotors;
         cfg.validate()
             .expect("the paper vehicle on its default rotors");
         cfg
@@ -331,7 +346,7 @@ mod tests {
         let cfg = rotor_config();
         let v = vehicle(&cfg);
         let s: State<f64, NX> = v.rest_state([1.0, -2.0, 2.0], [0.0, 0.0, 0.5]);
-        let w0 = (weight(&cfg) / (4.0 * cfg.actuator.thrust_coefficient)).sqrt();
+        let w0 = (weight(&cfg) / (4.0 * cfg.actuator.rotors.thrust_coefficient)).sqrt();
         for i in 0..4 {
             assert!((s[OMEGA + i] - w0).abs() < 1e-12 * w0);
         }
@@ -354,7 +369,7 @@ mod tests {
     fn rotors_at_their_commanded_speeds_deliver_the_controllers_inputs() {
         for layout in [RotorLayout::X, RotorLayout::Plus] {
             let mut cfg = rotor_config();
-            cfg.actuator.layout = layout;
+            cfg.actuator.rotors.layout = layout;
             let v = vehicle(&cfg);
             let u = Inputs {
                 u1: 26.0,
@@ -381,9 +396,9 @@ mod tests {
     #[test]
     fn a_command_past_the_limits_is_clamped_and_the_lag_is_first_order() {
         let mut cfg = rotor_config();
-        cfg.actuator.thrust_min = 1.0;
+        cfg.actuator.rotors.thrust_min = 1.0;
         let v = vehicle(&cfg);
-        let a = &cfg.actuator;
+        let a = &cfg.actuator.rotors;
         // A hard roll: rotors 1, 2 (y > 0) asked for more than thrust_max, 3, 4 for less
         // than thrust_min.
         let cmd = v.actuator.command(
@@ -449,7 +464,7 @@ mod tests {
     fn a_failed_rotor_gives_its_fraction_of_the_command_from_its_start() {
         let healthy = rotor_config();
         let mut cfg = rotor_config();
-        cfg.actuator.faults = vec![fault(3, 2.0, 0.8)];
+        cfg.actuator.rotors.faults = vec![fault(3, 2.0, 0.8)];
         cfg.validate().expect("a weak motor can still hover");
         let (v0, v) = (vehicle(&healthy), vehicle(&cfg));
         let u = Inputs {
@@ -467,12 +482,12 @@ mod tests {
                     a.thrust[i]
                 };
                 assert_eq!(b.thrust[i].to_bits(), want.to_bits(), "t {t} rotor {i}");
-                let speed = (want / cfg.actuator.thrust_coefficient).sqrt();
+                let speed = (want / cfg.actuator.rotors.thrust_coefficient).sqrt();
                 assert!((b.speed[i] - speed).abs() <= 1e-12 * speed);
             }
         }
         // Stuck off: no thrust, no speed.
-        cfg.actuator.faults = vec![fault(1, 0.0, 0.0)];
+        cfg.actuator.rotors.faults = vec![fault(1, 0.0, 0.0)];
         let cmd = vehicle(&cfg).actuator.command(&u, Tick::START);
         assert_eq!((cmd.thrust[0], cmd.speed[0]), (0.0, 0.0));
     }
@@ -486,7 +501,7 @@ mod tests {
         for start in [0.0, 1.0, 5.0, f64::INFINITY] {
             let mut c = rotor_config();
             if start.is_finite() {
-                c.actuator.faults = vec![fault(2, start, 0.5)];
+                c.actuator.rotors.faults = vec![fault(2, start, 0.5)];
             }
             cfgs.push(c);
         }
@@ -518,10 +533,10 @@ mod tests {
     #[test]
     fn the_battery_sag_lowers_the_clamp_linearly() {
         let mut cfg = rotor_config();
-        cfg.actuator.battery_sag = 0.25;
+        cfg.actuator.rotors.battery_sag = 0.25;
         cfg.validate().expect("a 25 % sag still hovers");
         let v = vehicle(&cfg);
-        let (top, end) = (cfg.actuator.thrust_max, cfg.integrator.duration);
+        let (top, end) = (cfg.actuator.rotors.thrust_max, cfg.integrator.duration);
         let hard = Inputs {
             u1: 4.0 * top,
             tau: [0.0; 3],
@@ -557,7 +572,7 @@ mod tests {
         let mut far = f64::NAN;
         for (tau, tol) in [(0.03, f64::INFINITY), (1e-3, 0.05), (1e-4, 0.005)] {
             let mut cfg = rotor_config();
-            cfg.actuator.time_constant = tau;
+            cfg.actuator.rotors.time_constant = tau;
             cfg.integrator.dt = tau.min(cfg.integrator.dt);
             let a = analyse(&cfg, ControllerKind::Pd);
             assert!(a.residual < 1e-9, "hover is an equilibrium: {}", a.residual);

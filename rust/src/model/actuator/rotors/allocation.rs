@@ -1,8 +1,7 @@
-//! The rotors' allocation matrix and its inverse (docs/model.md section 8): geometry only, here
-//! so that validating a scenario (`Config::validate`) can check that the inverse exists
-//! without the config depending on the model; `model::actuator::rotors` flies with them.
+//! The rotors' allocation matrix and its inverse (docs/model.md section 8): geometry only, for
+//! the rotors' checks (`params`: the inverse must exist) and their flight.
 
-use crate::config::RotorLayout;
+use super::params::RotorLayout;
 use nalgebra::Matrix4;
 
 /// Spin directions s_i: rotor i's yaw reaction torque is s_i cq T_i.
