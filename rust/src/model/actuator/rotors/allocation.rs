@@ -1,8 +1,34 @@
-//! The rotors' allocation matrix and its inverse (docs/model.md section 8): geometry only, for
-//! the rotors' checks (`params`: the inverse must exist) and their flight.
+//! Where the rotors sit (`RotorLayout`), their allocation matrix and its inverse (docs/model.md
+//! section 8): geometry only, for the rotors' checks (`params`: the inverse must exist) and
+//! their flight.
 
-use super::params::RotorLayout;
+use crate::config::params::not_numbers;
 use nalgebra::Matrix4;
+use serde::{Deserialize, Serialize};
+
+/// Where the four rotors sit (`actuator.layout`): rotor i at arm angle a_i from body x.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotorLayout {
+    /// a = 45, 135, 225, 315 degrees.
+    #[default]
+    X,
+    /// a = 0, 90, 180, 270 degrees.
+    Plus,
+}
+
+impl RotorLayout {
+    /// The arm angles a_1..a_4 (rad).
+    pub fn angles(self) -> [f64; 4] {
+        let first = match self {
+            RotorLayout::X => 45.0,
+            RotorLayout::Plus => 0.0,
+        };
+        [0.0, 90.0, 180.0, 270.0].map(|a: f64| (first + a).to_radians())
+    }
+}
+
+not_numbers!(RotorLayout);
 
 /// Spin directions s_i: rotor i's yaw reaction torque is s_i cq T_i.
 pub const SPIN: [f64; 4] = [1.0, -1.0, 1.0, -1.0];

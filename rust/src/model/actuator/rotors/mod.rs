@@ -23,8 +23,8 @@ use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::{state_from_fn, Inputs, State, Tick};
 
-pub use allocation::{allocation, allocation_inverse, arm_directions, SPIN};
-pub use params::{RotorFault, RotorLayout, RotorParams};
+pub use allocation::{allocation, allocation_inverse, arm_directions, RotorLayout, SPIN};
+pub use params::{RotorFault, RotorParams};
 
 /// The rotors' parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]

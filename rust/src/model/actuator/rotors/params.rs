@@ -2,34 +2,9 @@
 //! constants, limits, faults and battery sag, the defaults and the checks (the rotors fly in
 //! `super`).
 
-use super::allocation;
-use crate::config::params::{self, not_numbers, params, Params};
+use super::allocation::{self, RotorLayout};
+use crate::config::params::{self, params, Params};
 use crate::config::{finite, non_negative, positive, Config, ConfigError};
-use serde::{Deserialize, Serialize};
-
-not_numbers!(RotorLayout);
-
-/// Where the four rotors sit (`actuator.layout`): rotor i at arm angle a_i from body x.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum RotorLayout {
-    /// a = 45, 135, 225, 315 degrees.
-    #[default]
-    X,
-    /// a = 0, 90, 180, 270 degrees.
-    Plus,
-}
-
-impl RotorLayout {
-    /// The arm angles a_1..a_4 (rad).
-    pub fn angles(self) -> [f64; 4] {
-        let first = match self {
-            RotorLayout::X => 45.0,
-            RotorLayout::Plus => 0.0,
-        };
-        [0.0, 90.0, 180.0, 270.0].map(|a: f64| (first + a).to_radians())
-    }
-}
 
 params! {
     /// The rotors' keys in `[actuator]` (docs/model.md section 8 and "Rotors"): flown only when
