@@ -287,12 +287,13 @@ pub(super) fn exp_tail3_lanes<L: KernelOps>(x: L, mut active: L) -> L {
     sum
 }
 
-/// One axis's Dryden numbers for every lane of a lane-set ([`dryden_lanes`]): the order-`N`
-/// block of `Phi`, `G` and `sigma c` (order 1: the `[0][0]` and `[0]` entries only).
-pub(super) struct DrydenLanes<L> {
-    pub phi: [[L; 2]; 2],
-    pub g: [[L; 2]; 2],
-    pub out: [L; 2],
+/// Where [`dryden_lanes`] writes one axis's numbers for every lane of a lane-set (the
+/// lane-set's filter itself, in place): the order-`N` block of `Phi`, `G` and `sigma c`
+/// (order 1: the `[0][0]` and `[0]` entries only; the rest is left as it is).
+pub(super) struct DrydenLanes<'a, L> {
+    pub phi: &'a mut [[L; 3]; 3],
+    pub g: &'a mut [[L; 3]; 3],
+    pub out: &'a mut [L; 3],
 }
 
 /// Each lane's `exp(-k)` (`k` capped at `K_MAX`) of a Dryden axis, kept so that a later axis
@@ -311,7 +312,7 @@ pub(super) struct ExpOfK<const M: usize> {
 /// whose scales `rescaled_coefficients` rejects get NaN; a lane whose Cholesky pivot is not
 /// positive takes the scalar [`dryden_matrices`] (its eigen-factor fallback). `shared`: an
 /// earlier axis's `exp(-k)` per lane, taken where that lane's `k` is the same; this axis's are
-/// left in `mine`.
+/// left in `mine`. Written into `d`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
@@ -323,7 +324,8 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
     c: [L; 2],
     shared: Option<&ExpOfK<M>>,
     mine: &mut ExpOfK<M>,
-) -> DrydenLanes<L> {
+    d: DrydenLanes<'_, L>,
+) {
     assert!(L::LANES <= M);
     let zero = L::splat(0.0);
     // `rescaled_coefficients`' checks: `sigma >= 0` finite, `L`, `V`, `dt` and `k` > 0 finite.
@@ -349,11 +351,14 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
         #[inline(always)]
         |l| mine.e[l],
     );
-    let mut d = DrydenLanes {
-        phi: [[zero; 2]; 2],
-        g: [[zero; 2]; 2],
-        out: [c[0] * sigma, c[1] * sigma],
+    let n = match component {
+        GustComponent::Longitudinal => 1,
+        GustComponent::Lateral | GustComponent::Vertical => 2,
     };
+    d.out[0] = c[0] * sigma;
+    if n == 2 {
+        d.out[1] = c[1] * sigma;
+    }
     let mut scalar = zero;
     match component {
         GustComponent::Longitudinal => {
@@ -369,10 +374,10 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
             d.g[0][0] = (-m).sqrt();
         }
         GustComponent::Lateral | GustComponent::Vertical => {
-            d.phi = [
-                [e * (L::splat(1.0) + kc), e * kc],
-                [-e * kc, e * (L::splat(1.0) - kc)],
-            ];
+            d.phi[0][0] = e * (L::splat(1.0) + kc);
+            d.phi[0][1] = e * kc;
+            d.phi[1][0] = -e * kc;
+            d.phi[1][1] = e * (L::splat(1.0) - kc);
             let x = L::splat(2.0) * kc;
             let mut ex = [0.0; M];
             for (l, ex) in ex.iter_mut().enumerate().take(L::LANES) {
@@ -402,7 +407,10 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
                 .and_bits(finite(l21))
                 .and_bits(finite(l11))
                 .and_bits(finite(l22));
-            d.g = [[l11, zero], [l21, l22]];
+            d.g[0][0] = l11;
+            d.g[0][1] = zero;
+            d.g[1][0] = l21;
+            d.g[1][1] = l22;
             scalar = valid.xor_bits(valid.and_bits(pivots));
         }
     }
@@ -413,22 +421,22 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
     if rejected | fallback != 0 {
         for l in 0..L::LANES {
             let bit = 1 << l;
-            if rejected & bit != 0 {
-                for v in d.phi.iter_mut().chain(&mut d.g).flatten().chain(&mut d.out) {
-                    v.set_lane(l, f64::NAN);
-                }
+            let scalar = if rejected & bit != 0 {
+                d.out[..n].iter_mut().for_each(|v| v.set_lane(l, f64::NAN));
+                ([[f64::NAN; 3]; 3], [[f64::NAN; 3]; 3])
             } else if fallback & bit != 0 {
-                let (phi, g) = dryden_matrices(component, k.lane(l));
-                for i in 0..2 {
-                    for j in 0..2 {
-                        d.phi[i][j].set_lane(l, phi[i][j]);
-                        d.g[i][j].set_lane(l, g[i][j]);
-                    }
+                dryden_matrices(component, k.lane(l))
+            } else {
+                continue;
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    d.phi[i][j].set_lane(l, scalar.0[i][j]);
+                    d.g[i][j].set_lane(l, scalar.1[i][j]);
                 }
             }
         }
     }
-    d
 }
 
 fn embed(m: &DMatrix<f64>) -> Matrix3<f64> {
@@ -1556,7 +1564,9 @@ pub(super) mod tests {
                         k: [0.0; 8],
                         e: [0.0; 8],
                     };
-                    let d = dryden_lanes(
+                    let seven = L::splat(7.0);
+                    let (mut phi, mut g3, mut out) = ([[seven; 3]; 3], [[seven; 3]; 3], [seven; 3]);
+                    dryden_lanes(
                         c,
                         lanes(&|s| s.0),
                         lanes(&|s| s.1),
@@ -1565,7 +1575,17 @@ pub(super) mod tests {
                         unit,
                         shared,
                         &mut mine,
+                        DrydenLanes {
+                            phi: &mut phi,
+                            g: &mut g3,
+                            out: &mut out,
+                        },
                     );
+                    let d = DrydenLanes {
+                        phi: &mut phi,
+                        g: &mut g3,
+                        out: &mut out,
+                    };
                     for (l, s) in g.iter().enumerate() {
                         let want = base[l].rescaled_coefficients(s.0, s.1, s.2);
                         let at = format!("{c:?} {s:?}");

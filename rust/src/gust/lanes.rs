@@ -14,7 +14,7 @@
 //! (no per-normal dispatch on the source, no per-step match on the filters' orders), and the
 //! filters of all lanes advance in one pass of vector arithmetic.
 
-use super::filter::{dryden_lanes, Coefficients, ExpOfK, Normals};
+use super::filter::{dryden_lanes, Coefficients, DrydenLanes, ExpOfK, Normals};
 use super::wind::{Kinematics, Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
@@ -564,54 +564,43 @@ fn at_vehicles_within<L: KernelOps>(
     };
     let v = lanes(&airspeed);
     // The last Dryden axis's exp(-k) per lane, for the next to share where its k is the same.
-    let mut exps = [
+    let mut exps = (
         ExpOfK {
-            k: [f64::NAN; MAX_LANES],
+            k: [0.0; MAX_LANES],
             e: [0.0; MAX_LANES],
         },
         ExpOfK {
-            k: [f64::NAN; MAX_LANES],
+            k: [0.0; MAX_LANES],
             e: [0.0; MAX_LANES],
         },
-    ];
-    let mut last: Option<usize> = None;
+    );
+    let (mut mine, mut last) = (&mut exps.0, &mut exps.1);
+    let mut any = false;
     for (axis, (c, how)) in components.iter_mut().zip(plan).enumerate() {
-        match *how {
+        match how {
             Rescale::None => {}
             Rescale::Dryden {
                 component,
                 dt,
                 c: unit,
             } => {
-                let slot = last.map_or(0, |s| 1 - s);
-                let (a, b) = exps.split_at_mut(1);
-                let (shared, mine) = match slot {
-                    0 => (last.map(|_| &b[0]), &mut a[0]),
-                    _ => (Some(&a[0]), &mut b[0]),
-                };
-                let d = dryden_lanes(
-                    component,
+                dryden_lanes(
+                    *component,
                     lanes(&sigma[axis]),
                     lanes(&length[axis]),
                     v,
-                    dt,
-                    unit,
-                    shared,
+                    *dt,
+                    *unit,
+                    any.then_some(&*last),
                     mine,
+                    DrydenLanes {
+                        phi: &mut c.phi,
+                        g: &mut c.g,
+                        out: &mut c.out,
+                    },
                 );
-                last = Some(slot);
-                c.phi[0][0] = d.phi[0][0];
-                c.g[0][0] = d.g[0][0];
-                c.out[0] = d.out[0];
-                if c.order == 2 {
-                    c.phi[0][1] = d.phi[0][1];
-                    c.phi[1][0] = d.phi[1][0];
-                    c.phi[1][1] = d.phi[1][1];
-                    c.g[0][1] = d.g[0][1];
-                    c.g[1][0] = d.g[1][0];
-                    c.g[1][1] = d.g[1][1];
-                    c.out[1] = d.out[1];
-                }
+                std::mem::swap(&mut mine, &mut last);
+                any = true;
             }
             Rescale::PerLane => {
                 for (l, out) in coefficients.iter_mut().enumerate().take(L::LANES) {
