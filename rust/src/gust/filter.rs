@@ -4,6 +4,7 @@
 
 use super::spectra::{poly_abs2, rational, von_karman_psd_exact, Rational};
 use crate::config::{GustComponent, GustModel};
+use crate::lane::KernelOps;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rand_chacha::ChaCha8Rng;
 
@@ -243,6 +244,199 @@ fn exp_tail3(x: f64) -> f64 {
         term *= x / n;
     }
     sum
+}
+
+/// Lanes where `mask` (all bits set: true) is false in every lane.
+#[inline(always)]
+fn none<L: KernelOps>(mask: L) -> bool {
+    // A true lane is all ones (a NaN, so never <= 0), a false one +0.
+    mask.le_mask(L::splat(0.0)) == L::ALL
+}
+
+/// Mask (all bits set where true) of `x > 0`, false for NaN.
+#[inline(always)]
+fn positive<L: KernelOps>(x: L) -> L {
+    let zero = L::splat(0.0);
+    x.cmp_ge(zero).and_bits(x.cmp_ne(zero))
+}
+
+/// Mask of `x.is_finite()`.
+#[inline(always)]
+fn finite<L: KernelOps>(x: L) -> L {
+    x.abs().cmp_le(L::splat(f64::MAX))
+}
+
+/// [`exp_tail3`] of every lane where `active` (a mask, as from `cmp_le`) at once, 0 where not:
+/// the same operations in the same order per lane (so the same bits), each lane's sum kept from
+/// the term at which its own series stops; the loop runs while some lane's has not.
+#[inline(always)]
+pub(super) fn exp_tail3_lanes<L: KernelOps>(x: L, mut active: L) -> L {
+    let mut term = x * x * x / L::splat(6.0);
+    let mut sum = L::splat(0.0);
+    let mut n = 3.0;
+    while n < 60.0 {
+        sum = L::select(active, sum + term, sum);
+        let stop = term.abs().cmp_le(L::splat(1e-18) * sum.abs());
+        active = active.xor_bits(active.and_bits(stop));
+        if none(active) {
+            break;
+        }
+        n += 1.0;
+        term = term * (x / L::splat(n));
+    }
+    sum
+}
+
+/// Where [`dryden_lanes`] writes one axis's numbers for every lane of a lane-set (the
+/// lane-set's filter itself, in place): the order-`N` block of `Phi`, `G` and `sigma c`
+/// (order 1: the `[0][0]` and `[0]` entries only; the rest is left as it is).
+pub(super) struct DrydenLanes<'a, L> {
+    pub phi: &'a mut [[L; 3]; 3],
+    pub g: &'a mut [[L; 3]; 3],
+    pub out: &'a mut [L; 3],
+}
+
+/// Each lane's `exp(-k)` (`k` capped at `K_MAX`) of a Dryden axis, kept so that a later axis
+/// with the same `k` in a lane (the longitudinal and lateral scale lengths are one) takes the
+/// same libm call's value instead of calling it again.
+pub(super) struct ExpOfK<const M: usize> {
+    pub k: [f64; M],
+    pub e: [f64; M],
+}
+
+/// [`GustFilter::rescaled_coefficients`] of a Dryden filter of `component` for every lane at
+/// once, `sigma`, `length`, `airspeed`, `dt` and `c` (the unit output row) per lane: bit for bit
+/// each lane's. libm's `exp` and `expm1` are called per lane (their bits are glibc's); the
+/// closed forms around them (`Phi`, `exp_tail3`'s series, the 2x2 Cholesky) run in lane values,
+/// the same operations in the same order (no operation fused), so in the same bits. Lanes
+/// whose scales `rescaled_coefficients` rejects get NaN; a lane whose Cholesky pivot is not
+/// positive takes the scalar [`dryden_matrices`] (its eigen-factor fallback). `shared`: an
+/// earlier axis's `exp(-k)` per lane, taken where that lane's `k` is the same; this axis's are
+/// left in `mine`. Written into `d`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
+    component: GustComponent,
+    sigma: L,
+    length: L,
+    airspeed: L,
+    dt: L,
+    c: [L; 2],
+    shared: Option<&ExpOfK<M>>,
+    mine: &mut ExpOfK<M>,
+    d: DrydenLanes<'_, L>,
+) {
+    assert!(L::LANES <= M);
+    let zero = L::splat(0.0);
+    // `rescaled_coefficients`' checks: `sigma >= 0` finite, `L`, `V`, `dt` and `k` > 0 finite.
+    let k = airspeed * dt / length;
+    let ok = |x: L| finite(x).and_bits(positive(x));
+    let valid = finite(sigma)
+        .and_bits(sigma.cmp_ge(zero))
+        .and_bits(ok(length))
+        .and_bits(ok(airspeed))
+        .and_bits(ok(dt))
+        .and_bits(ok(k));
+    // `dryden_matrices`' cap (`f64::min`: the same as the lanes' `minpd` for any k that passes).
+    let kc = k.min(L::splat(K_MAX));
+    for l in 0..L::LANES {
+        let kl = kc.lane(l);
+        mine.k[l] = kl;
+        mine.e[l] = match shared {
+            Some(s) if s.k[l].to_bits() == kl.to_bits() => s.e[l],
+            _ => (-kl).exp(),
+        };
+    }
+    let e = L::from_fn(
+        #[inline(always)]
+        |l| mine.e[l],
+    );
+    let n = match component {
+        GustComponent::Longitudinal => 1,
+        GustComponent::Lateral | GustComponent::Vertical => 2,
+    };
+    d.out[0] = c[0] * sigma;
+    if n == 2 {
+        d.out[1] = c[1] * sigma;
+    }
+    let mut scalar = zero;
+    match component {
+        GustComponent::Longitudinal => {
+            let mut m = [0.0; M];
+            for (l, m) in m.iter_mut().enumerate().take(L::LANES) {
+                *m = (-2.0 * mine.k[l]).exp_m1();
+            }
+            let m = L::from_fn(
+                #[inline(always)]
+                |l| m[l],
+            );
+            d.phi[0][0] = e;
+            d.g[0][0] = (-m).sqrt();
+        }
+        GustComponent::Lateral | GustComponent::Vertical => {
+            d.phi[0][0] = e * (L::splat(1.0) + kc);
+            d.phi[0][1] = e * kc;
+            d.phi[1][0] = -e * kc;
+            d.phi[1][1] = e * (L::splat(1.0) - kc);
+            let x = L::splat(2.0) * kc;
+            let mut ex = [0.0; M];
+            for (l, ex) in ex.iter_mut().enumerate().take(L::LANES) {
+                *ex = (-(2.0 * mine.k[l])).exp();
+            }
+            let ex = L::from_fn(
+                #[inline(always)]
+                |l| ex[l],
+            );
+            let series = x.cmp_le(L::splat(2.0));
+            let s3 = exp_tail3_lanes(x, series.and_bits(valid));
+            let (mut q11, mut q22) = (ex * s3, ex * (L::splat(2.0) * x + s3));
+            if !none(valid.xor_bits(valid.and_bits(series))) {
+                let half_x2 = L::splat(0.5) * x * x;
+                let one = L::splat(1.0);
+                q11 = L::select(series, q11, one - ex * (one + x + half_x2));
+                q22 = L::select(series, q22, one - ex * (one - x + half_x2));
+            }
+            let q12 = L::splat(0.5) * x * x * ex;
+            // `chol2`.
+            let l11 = q11.sqrt();
+            let l21 = q12 / l11;
+            let dd = q22 - l21 * l21;
+            let l22 = dd.sqrt();
+            let pivots = positive(q11)
+                .and_bits(positive(dd))
+                .and_bits(finite(l21))
+                .and_bits(finite(l11))
+                .and_bits(finite(l22));
+            d.g[0][0] = l11;
+            d.g[0][1] = zero;
+            d.g[1][0] = l21;
+            d.g[1][1] = l22;
+            scalar = valid.xor_bits(valid.and_bits(pivots));
+        }
+    }
+    // The rare lanes: NaN where the scales are rejected, scalar where a pivot is not positive.
+    // (`le_mask(0)` of a mask: the lanes where it is false.)
+    let rejected = valid.le_mask(zero);
+    let fallback = !scalar.le_mask(zero) & L::ALL;
+    if rejected | fallback != 0 {
+        for l in 0..L::LANES {
+            let bit = 1 << l;
+            let scalar = if rejected & bit != 0 {
+                d.out[..n].iter_mut().for_each(|v| v.set_lane(l, f64::NAN));
+                ([[f64::NAN; 3]; 3], [[f64::NAN; 3]; 3])
+            } else if fallback & bit != 0 {
+                dryden_matrices(component, k.lane(l))
+            } else {
+                continue;
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    d.phi[i][j].set_lane(l, scalar.0[i][j]);
+                    d.g[i][j].set_lane(l, scalar.1[i][j]);
+                }
+            }
+        }
+    }
 }
 
 fn embed(m: &DMatrix<f64>) -> Matrix3<f64> {
@@ -539,6 +733,11 @@ impl GustFilter {
             out: Vector3::from_element(nan),
             ..*self
         }
+    }
+
+    /// The unit output row `c` (padded): `output_row` is `sigma c`.
+    pub(super) fn unit_output(&self) -> [f64; 3] {
+        [self.c[0], self.c[1], self.c[2]]
     }
 
     /// Filter order (state dimension), 1 to 3.
@@ -1204,5 +1403,222 @@ pub(super) mod tests {
         let e = GustFilter::new(d, v, 1.0, 1e300, 1e-300, 1e-300).unwrap_err();
         assert!(e.starts_with("airspeed * dt / length_scale"), "{e}");
         assert!(GustFilter::new(d, v, 0.0, 2.0, 10.0, 0.01).is_ok());
+    }
+
+    // ---- The lane-set's Dryden numbers ------------------------------------------------
+
+    /// Values from `pick` in groups of `L::LANES`, each group as lane values (the last group
+    /// padded with the first values).
+    fn groups<L: KernelOps, T: Copy>(all: &[T], mut each: impl FnMut(&[T])) {
+        let n = L::LANES;
+        let padded: Vec<T> = all
+            .iter()
+            .chain(all.iter())
+            .copied()
+            .take(all.len().div_ceil(n) * n)
+            .collect();
+        for g in padded.chunks(n) {
+            each(g);
+        }
+    }
+
+    /// Edge cases of `exp_tail3`'s series (nothing, underflow, a single term, every length up
+    /// to the cap, the branch's edge at 2) and a random spread, including lanes it must leave.
+    fn tail_inputs() -> Vec<f64> {
+        use rand::{RngExt, SeedableRng};
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            5e-324,
+            1e-300,
+            1e-100,
+            1e-20,
+            1e-10,
+            6e-4,
+            2e-3,
+            0.1,
+            0.5,
+            1.0,
+            1.5,
+            1.999_999_999_999_999_8,
+            2.0,
+            2.000_000_000_000_000_4,
+            3.0,
+            -0.5,
+            -2.0,
+            f64::NAN,
+            f64::INFINITY,
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(36);
+        for _ in 0..400 {
+            let e: f64 = rng.random_range(-30.0..0.5);
+            xs.push(2.0 * 10f64.powf(e).min(1.0) * rng.random_range(0.5..1.0));
+        }
+        xs
+    }
+
+    fn exp_tail3_lanes_match<L: KernelOps>() {
+        let xs = tail_inputs();
+        // In input order and in a shuffled order, so lanes of every length share a set.
+        let mut shuffled = xs.clone();
+        shuffled.reverse();
+        shuffled.rotate_left(7);
+        for all in [&xs, &shuffled] {
+            groups::<L, f64>(all, |g| {
+                let x = L::from_fn(|l| g[l]);
+                let got = exp_tail3_lanes(x, x.cmp_le(L::splat(2.0)));
+                for (l, &x) in g.iter().enumerate() {
+                    let want = if x <= 2.0 { exp_tail3(x) } else { 0.0 };
+                    assert_eq!(got.lane(l).to_bits(), want.to_bits(), "x = {x:e}");
+                }
+            });
+        }
+    }
+
+    #[test]
+    fn exp_tail3_lanes_is_exp_tail3_bit_for_bit() {
+        exp_tail3_lanes_match::<f64>();
+        exp_tail3_lanes_match::<crate::lane::F64x4>();
+        #[cfg(target_arch = "x86_64")]
+        {
+            use crate::lane::isa::Isa;
+            if Isa::Avx2.supported() {
+                exp_tail3_lanes_match::<crate::lane::F64x4Avx>();
+            }
+            if Isa::Avx512.supported() {
+                exp_tail3_lanes_match::<crate::lane::F64x8Avx512>();
+            }
+        }
+    }
+
+    type Scales = (f64, f64, f64, f64);
+
+    /// Scales (sigma, L, V, dt) of every kind: the delivery's (k ~ 1e-4), both branches of `Q`
+    /// and the edge between them (k = 1: x = 2), the cap, and scales no filter takes.
+    fn scale_inputs() -> Vec<Scales> {
+        use rand::{RngExt, SeedableRng};
+        let nan = f64::NAN;
+        let mut s = vec![
+            (1.3, 30.0, 10.0, 1e-3),
+            (0.4, 3.048, 1.0, 1e-3),
+            (2.0, 0.01, 500.0, 1e-3),
+            (1.0, 1e4, 1e-3, 1e-3),
+            (0.0, 5.0, 2.0, 1e-3),
+            (1.0, 1.0, 1.0, 1.0),
+            (1.0, 1.0, 1.0, 0.999_999_999_999_999_9),
+            (1.0, 1.0, 1.0, 1.000_000_000_000_000_2),
+            (1.0, 2.0, 10.0, 0.2),
+            (1.0, 1e-3, 1e4, 1e3),
+            (1.0, 1e-300, 1e300, 1.0),
+            (1.0, 1e300, 1e-300, 1e-300),
+            (nan, 5.0, 2.0, 1e-3),
+            (1.0, nan, 2.0, 1e-3),
+            (1.0, 5.0, nan, 1e-3),
+            (1.0, 5.0, 0.0, 1e-3),
+            (1.0, 0.0, 2.0, 1e-3),
+            (1.0, -5.0, 2.0, 1e-3),
+            (-1.0, 5.0, 2.0, 1e-3),
+            (f64::INFINITY, 5.0, 2.0, 1e-3),
+            (1.0, f64::INFINITY, 2.0, 1e-3),
+            (1.0, 5.0, f64::INFINITY, 1e-3),
+        ];
+        let mut rng = ChaCha8Rng::seed_from_u64(37);
+        for _ in 0..300 {
+            let l = 10f64.powf(rng.random_range(-1.0..3.0));
+            let v = 10f64.powf(rng.random_range(-1.0..2.0));
+            let dt = [1e-3, 2e-3, 1e-2, 0.1][rng.random_range(0..4)];
+            s.push((rng.random_range(0.0..3.0), l, v, dt));
+        }
+        s
+    }
+
+    fn dryden_lanes_match<L: KernelOps>() {
+        let scales = scale_inputs();
+        let bits = |x: f64| x.to_bits();
+        for c in GustComponent::ALL {
+            let n = if c == GustComponent::Longitudinal {
+                1
+            } else {
+                2
+            };
+            groups::<L, Scales>(&scales, |g| {
+                let lanes = |f: &dyn Fn(&Scales) -> f64| L::from_fn(|l| f(&g[l]));
+                let base: Vec<GustFilter> = g
+                    .iter()
+                    .map(|s| GustFilter::new(GustModel::Dryden, c, 1.0, 2.0, 10.0, s.3).unwrap())
+                    .collect();
+                let unit = [0, 1].map(|i| L::from_fn(|l| base[l].unit_output()[i]));
+                // A previous axis's exp(-k) with the same k in even lanes, another in odd ones.
+                let mut prev = ExpOfK {
+                    k: [0.0; 8],
+                    e: [0.0; 8],
+                };
+                for (l, s) in g.iter().enumerate() {
+                    let k = (s.2 * s.3 / s.1).min(K_MAX);
+                    prev.k[l] = if l % 2 == 0 { k } else { k * 0.5 };
+                    prev.e[l] = (-prev.k[l]).exp();
+                }
+                for shared in [None, Some(&prev)] {
+                    let mut mine = ExpOfK {
+                        k: [0.0; 8],
+                        e: [0.0; 8],
+                    };
+                    let seven = L::splat(7.0);
+                    let (mut phi, mut g3, mut out) = ([[seven; 3]; 3], [[seven; 3]; 3], [seven; 3]);
+                    dryden_lanes(
+                        c,
+                        lanes(&|s| s.0),
+                        lanes(&|s| s.1),
+                        lanes(&|s| s.2),
+                        lanes(&|s| s.3),
+                        unit,
+                        shared,
+                        &mut mine,
+                        DrydenLanes {
+                            phi: &mut phi,
+                            g: &mut g3,
+                            out: &mut out,
+                        },
+                    );
+                    let d = DrydenLanes {
+                        phi: &mut phi,
+                        g: &mut g3,
+                        out: &mut out,
+                    };
+                    for (l, s) in g.iter().enumerate() {
+                        let want = base[l].rescaled_coefficients(s.0, s.1, s.2);
+                        let at = format!("{c:?} {s:?}");
+                        for i in 0..n {
+                            assert_eq!(bits(d.out[i].lane(l)), bits(want.out[i]), "out {at}");
+                            for j in 0..n {
+                                assert_eq!(
+                                    bits(d.phi[i][j].lane(l)),
+                                    bits(want.phi[i][j]),
+                                    "phi {at}"
+                                );
+                                assert_eq!(bits(d.g[i][j].lane(l)), bits(want.g[i][j]), "g {at}");
+                            }
+                        }
+                    }
+                }
+            });
+        }
+    }
+
+    #[test]
+    fn dryden_lanes_are_rescaled_coefficients_bit_for_bit() {
+        dryden_lanes_match::<f64>();
+        dryden_lanes_match::<crate::lane::F64x4>();
+        #[cfg(target_arch = "x86_64")]
+        {
+            use crate::lane::isa::Isa;
+            if Isa::Avx2.supported() {
+                dryden_lanes_match::<crate::lane::F64x4Avx>();
+            }
+            if Isa::Avx512.supported() {
+                dryden_lanes_match::<crate::lane::F64x8Avx512>();
+            }
+        }
     }
 }

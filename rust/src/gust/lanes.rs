@@ -14,12 +14,13 @@
 //! (no per-normal dispatch on the source, no per-step match on the filters' orders), and the
 //! filters of all lanes advance in one pass of vector arithmetic.
 
-use super::filter::{Coefficients, Normals};
+use super::filter::{dryden_lanes, Coefficients, DrydenLanes, ExpOfK, Normals};
 use super::wind::{Kinematics, Source, WindField};
 use super::AnySource;
+use crate::config::{GustComponent, GustModel};
 use crate::lane::isa::Isa;
 use crate::lane::random::normal::{Ahead, CHUNK};
-use crate::lane::Lane;
+use crate::lane::{KernelOps, Lane};
 
 /// Most lanes a lane-set carries (the widest lane type).
 pub const MAX_LANES: usize = 8;
@@ -48,7 +49,7 @@ struct Component<L> {
 
 /// The turbulence of one lane-set: built by [`LaneGust::new`] where every lane's field allows
 /// it (see there), sampled once per step inside the window by [`LaneGust::sample`], at the
-/// scales its fields were built for unless [`LaneGust::set_coefficients`] gives a step's.
+/// scales its fields were built for unless [`LaneWind`] writes a step's into its components.
 pub struct LaneGust<'a, L> {
     /// Per axis (longitudinal, lateral, vertical); order 0 where the axis has no turbulence.
     components: [Component<L>; 3],
@@ -204,20 +205,6 @@ impl<'a, L: Lane> LaneGust<'a, L> {
         self.start <= step && step < self.end
     }
 
-    /// Fly the next steps with `per_lane[l][axis]` lane `l`'s filter numbers on each active
-    /// axis (scales that follow the vehicle: each step's).
-    #[inline(always)]
-    pub fn set_coefficients(&mut self, per_lane: &[[Coefficients; 3]; MAX_LANES]) {
-        for (axis, c) in self.components.iter_mut().enumerate() {
-            match c.order {
-                0 => {}
-                1 => c.set::<1>(per_lane, axis),
-                2 => c.set::<2>(per_lane, axis),
-                _ => c.set::<3>(per_lane, axis),
-            }
-        }
-    }
-
     /// Start the filters (stationary states, at the window's first step) if not yet, and
     /// advance them once per step up to `step`.
     #[inline(never)]
@@ -342,11 +329,30 @@ pub struct LaneWind<'f, 'a, L> {
     others_read: bool,
     /// Some lane's source reads the quadrotor's altitude or velocity.
     reads_vehicle: bool,
-    /// Each lane's filter numbers for the step (scales that follow the vehicle).
+    /// How each axis's filter numbers follow the vehicle.
+    rescale: [Rescale<L>; 3],
+    /// Each lane's filter numbers for the step where an axis takes them lane by lane
+    /// (`Rescale::PerLane`).
     coefficients: Box<[[Coefficients; 3]; MAX_LANES]>,
 }
 
-impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
+/// How one axis's filter numbers are computed each step where the scales follow the vehicle.
+#[derive(Clone, Copy)]
+enum Rescale<L> {
+    /// No turbulence on this axis (or scales that do not follow).
+    None,
+    /// Dryden in every lane: [`dryden_lanes`], every lane at once, with each lane's filter's
+    /// `dt` and unit output row.
+    Dryden {
+        component: GustComponent,
+        dt: L,
+        c: [L; 2],
+    },
+    /// Lane by lane (`GustFilter::rescaled_coefficients`): von Karman.
+    PerLane,
+}
+
+impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
     /// The lane-set's wind, lane `l` with the field `fields[l]` drawing from `sources[l]`;
     /// `None` where the per-realisation path must fly it: where the lanes differ in whether
     /// the turbulence is on and follows the vehicle, whether a mean air blows, in the kinds of
@@ -382,15 +388,34 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             (false, true) => Others::Shared,
             (false, false) => Others::PerLane,
         };
+        let follow = first.enabled() && first.turbulence_follows();
+        let rescale = std::array::from_fn(|axis| {
+            let Some(f0) = first.filters()[axis].filter(|_| follow) else {
+                return Rescale::None;
+            };
+            let filter = |l: usize| fields[l].filters()[axis].expect("orders checked alike");
+            let dryden = (0..L::LANES).all(|l| {
+                filter(l).model() == GustModel::Dryden && filter(l).component() == f0.component()
+            });
+            if !dryden {
+                return Rescale::PerLane;
+            }
+            Rescale::Dryden {
+                component: f0.component(),
+                dt: L::from_fn(|l| filter(l).dt()),
+                c: [0, 1].map(|i| L::from_fn(|l| filter(l).unit_output()[i])),
+            }
+        });
         Some(LaneWind {
             fields: fields.to_vec(),
             gust,
-            follow: first.enabled() && first.turbulence_follows(),
+            follow,
             steady: first.has_steady(),
             others,
             other_count: first.others().len(),
             others_read,
             reads_vehicle: fields.iter().any(|f| f.follows_vehicle()),
+            rescale,
             coefficients: Box::new([[Coefficients::NAN; 3]; MAX_LANES]),
         })
     }
@@ -420,22 +445,20 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
             }
         }
         if self.steady || rescale {
+            let components = match self.gust.as_mut() {
+                Some(g) if rescale => Some(&mut g.components),
+                _ => None,
+            };
             at_vehicles(
                 step,
                 &self.fields,
                 &kin,
-                rescale,
-                &mut self.coefficients,
+                components.map(|c| (c, &self.rescale, &mut *self.coefficients)),
                 &mut steady,
             );
         }
         let mut w = match self.gust.as_mut() {
-            Some(g) if turbulent => {
-                if rescale {
-                    g.set_coefficients(&self.coefficients);
-                }
-                g.sample(step)
-            }
+            Some(g) if turbulent => g.sample(step),
             _ => [zero; 3],
         };
         if self.steady {
@@ -474,23 +497,123 @@ impl<'f, 'a, L: Lane> LaneWind<'f, 'a, L> {
     }
 }
 
+/// The filters' numbers of a lane-set's step where the scales follow the vehicle: the
+/// components they go to, how each axis computes them, and the per-lane axes' scratch.
+type Rescaling<'r, L> = (
+    &'r mut [Component<L>; 3],
+    &'r [Rescale<L>; 3],
+    &'r mut [[Coefficients; 3]; MAX_LANES],
+);
+
 /// Each lane's `WindField::at_vehicle` (the mean air, the `[wind]` mean wind and a table's
-/// wind, into `steady[l]`; the step's filter numbers into `coefficients[l]` if `rescale`):
-/// scalar work and libm calls, kept out of the flight
-/// loop's line so that the loop saves its vector registers once per step around it, not around
-/// every call it makes (every vector register is the caller's to save).
+/// wind, into `steady[l]`) and, with `rescale`, the step's filter numbers of every lane
+/// written into the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the
+/// Dryden axes' by [`dryden_lanes`] for all lanes at once (libm per lane, the closed forms in
+/// lane values), the others lane by lane. Kept out of the flight loop's line so that the loop
+/// saves its vector registers once per step around it, not around every libm call it makes
+/// (every vector register is the caller's to save); compiled for the lane type's
+/// instruction set (`Lane::within`).
 #[inline(never)]
-fn at_vehicles(
+fn at_vehicles<L: KernelOps>(
     step: u64,
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
-    rescale: bool,
-    coefficients: &mut [[Coefficients; 3]; MAX_LANES],
+    rescale: Option<Rescaling<'_, L>>,
     steady: &mut [[f64; 3]; MAX_LANES],
 ) {
-    for (l, (f, out)) in fields.iter().zip(coefficients.iter_mut()).enumerate() {
-        if let Some(m) = f.at_vehicle(step, &kin[l], rescale.then_some(out)) {
+    L::splat(0.0).within(
+        #[inline(always)]
+        |_| at_vehicles_within(step, fields, kin, rescale, steady),
+    )
+}
+
+/// `at_vehicles`' work, inlined into its instruction set's function.
+#[inline(always)]
+fn at_vehicles_within<L: KernelOps>(
+    step: u64,
+    fields: &[&WindField],
+    kin: &[Kinematics; MAX_LANES],
+    rescale: Option<Rescaling<'_, L>>,
+    steady: &mut [[f64; 3]; MAX_LANES],
+) {
+    // Each lane's scales: sigma and L per axis, V.
+    let mut sigma = [[0.0; MAX_LANES]; 3];
+    let mut length = [[0.0; MAX_LANES]; 3];
+    let mut airspeed = [0.0; MAX_LANES];
+    for (l, f) in fields.iter().enumerate() {
+        let (m, scales) = f.at_vehicle(step, &kin[l], rescale.is_some());
+        if let Some(m) = m {
             steady[l] = m;
+        }
+        if let Some((s, len, v)) = scales {
+            for i in 0..3 {
+                sigma[i][l] = s[i];
+                length[i][l] = len[i];
+            }
+            airspeed[l] = v;
+        }
+    }
+    let Some((components, plan, coefficients)) = rescale else {
+        return;
+    };
+    let lanes = |a: &[f64; MAX_LANES]| {
+        L::from_fn(
+            #[inline(always)]
+            |l| a[l],
+        )
+    };
+    let v = lanes(&airspeed);
+    // The last Dryden axis's exp(-k) per lane, for the next to share where its k is the same.
+    let mut exps = (
+        ExpOfK {
+            k: [0.0; MAX_LANES],
+            e: [0.0; MAX_LANES],
+        },
+        ExpOfK {
+            k: [0.0; MAX_LANES],
+            e: [0.0; MAX_LANES],
+        },
+    );
+    let (mut mine, mut last) = (&mut exps.0, &mut exps.1);
+    let mut any = false;
+    for (axis, (c, how)) in components.iter_mut().zip(plan).enumerate() {
+        match how {
+            Rescale::None => {}
+            Rescale::Dryden {
+                component,
+                dt,
+                c: unit,
+            } => {
+                dryden_lanes(
+                    *component,
+                    lanes(&sigma[axis]),
+                    lanes(&length[axis]),
+                    v,
+                    *dt,
+                    *unit,
+                    any.then_some(&*last),
+                    mine,
+                    DrydenLanes {
+                        phi: &mut c.phi,
+                        g: &mut c.g,
+                        out: &mut c.out,
+                    },
+                );
+                std::mem::swap(&mut mine, &mut last);
+                any = true;
+            }
+            Rescale::PerLane => {
+                for (l, out) in coefficients.iter_mut().enumerate().take(L::LANES) {
+                    let base = fields[l].filters()[axis].expect("orders checked alike");
+                    out[axis] =
+                        base.rescaled_coefficients(sigma[axis][l], length[axis][l], airspeed[l]);
+                }
+                match c.order {
+                    1 => c.set::<1>(coefficients, axis),
+                    2 => c.set::<2>(coefficients, axis),
+                    _ => c.set::<3>(coefficients, axis),
+                }
+            }
         }
     }
 }
@@ -802,7 +925,7 @@ mod tests {
 
     /// Every lane of `LaneWind` against `WindField::sample_at` of the same realisation, bit
     /// for bit (NaN against NaN), over `steps` steps with the lanes at `kin`.
-    fn wind_matches<L: Lane>(
+    fn wind_matches<L: KernelOps>(
         fields: &[&WindField],
         sources: Vec<Source<'_>>,
         mut one: Vec<super::super::wind::WindState<'_>>,

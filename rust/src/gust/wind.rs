@@ -1,7 +1,7 @@
 //! The wind a flight sees (`WindField`: the scenario's components inside the gust window, one
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
-use super::filter::{step_fixed, Coefficients, GustFilter, Normals};
+use super::filter::{step_fixed, GustFilter, Normals};
 use super::source::Moment;
 use super::spectra::low_altitude_scales;
 use super::spectra::METRES_PER_FOOT;
@@ -585,31 +585,29 @@ impl WindField {
 
     /// [`sample_at`](Self::sample_at)'s work that reads the quadrotor, for the lane-set path
     /// ([`super::lanes::LaneWind`]) to do per lane: the `[wind]` mean wind at the quadrotor
-    /// (`None` where it does not blow) and, when `coefficients` is given and the turbulence
-    /// follows the vehicle, the step's filter numbers (`rescale`'s, bit for bit, each active
-    /// component's slot written).
+    /// (`None` where it does not blow) and, when `scales` is asked and the turbulence follows
+    /// the vehicle, the step's scales (`rescale`'s: sigma and L per component, V), from which
+    /// the lane-set computes the filters' numbers (`GustFilter::rescaled_coefficients`'s, bit
+    /// for bit).
     #[inline(always)]
+    #[allow(clippy::type_complexity)]
     pub(super) fn at_vehicle(
         &self,
         step: u64,
         kin: &Kinematics,
-        coefficients: Option<&mut [Coefficients; 3]>,
-    ) -> Option<[f64; 3]> {
+        scales: bool,
+    ) -> (Option<[f64; 3]>, Option<([f64; 3], [f64; 3], f64)>) {
         let kin = if self.follows_vehicle() {
             *kin
         } else {
             Kinematics::AT_REST
         };
         let steady = self.mean_air(self.moment(step), &kin);
-        if let (Some(out), Some(f)) = (coefficients, &self.follow) {
-            let (sigma, length, v) = Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]));
-            for ((slot, filter), i) in out.iter_mut().zip(&self.filters).zip(0..) {
-                if let Some(base) = filter {
-                    *slot = base.rescaled_coefficients(sigma[i], length[i], v);
-                }
-            }
-        }
-        steady
+        let scales = match (scales, &self.follow) {
+            (true, Some(f)) => Some(Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]))),
+            _ => None,
+        };
+        (steady, scales)
     }
 
     /// Whether the turbulence's scales follow the vehicle (`gust.altitude = "vehicle"` or
