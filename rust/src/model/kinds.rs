@@ -214,6 +214,21 @@ macro_rules! kinds {
                 }
             }
 
+            /// The parameters as kind `K` (`dispatch` matched the kind: anything else is a bug).
+            pub fn get<K: 'static>(&self) -> &K {
+                let any: &dyn std::any::Any = match self {
+                    $(Self::$K(p) => p,)+
+                };
+                any.downcast_ref::<K>().unwrap_or_else(|| {
+                    panic!(
+                        "{} kind {} asked for as {}",
+                        stringify!($family),
+                        self.name().name(),
+                        std::any::type_name::<K>()
+                    )
+                })
+            }
+
             #[doc = concat!("The kind's name in the scenario (`", stringify!($family), ".model`).")]
             pub fn name(&self) -> $Kind {
                 match self {

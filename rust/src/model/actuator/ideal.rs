@@ -1,7 +1,7 @@
 //! Ideal actuators (docs/model.md section 2): the controller's thrust and torques act on the
 //! airframe at once and without limit. No states.
 
-use super::{Actuator, ActuatorModel, AnyActuator};
+use super::{Actuator, ActuatorModel};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
@@ -31,13 +31,6 @@ impl Actuator for Ideal {
 
     fn gather<L: Lane>(_each: &[&Self]) -> Ideal {
         Ideal
-    }
-
-    fn of(any: &AnyActuator) -> &Self {
-        match any {
-            AnyActuator::Ideal(a) => a,
-            _ => unreachable!("model::dispatch matched the ideal actuators"),
-        }
     }
 }
 

@@ -76,5 +76,8 @@ pub trait Actuator: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     /// The parameters of a validated scenario (`p`: the kind's keys).
     fn new(p: &<Self as OwnsKeys>::Params, cfg: &Config) -> Self;
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
-    fn of(any: &AnyActuator) -> &Self;
+    /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
+    fn of(any: &AnyActuator) -> &Self {
+        any.get::<Self>()
+    }
 }

@@ -15,7 +15,7 @@
 //!
 //! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
 
-use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
+use super::{Payload, PayloadModel, PayloadOutputs};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::{non_negative, positive, Config, ConfigError};
@@ -151,13 +151,6 @@ impl Payload for Cable {
             drag_payload: at(|p| p.drag_payload),
             hover_length: at(|p| p.hover_length),
             inv_mc: at(|p| p.inv_mc),
-        }
-    }
-
-    fn of(any: &AnyPayload) -> &Self {
-        match any {
-            AnyPayload::Cable(p) => p,
-            _ => unreachable!("model::dispatch matched the cable"),
         }
     }
 }

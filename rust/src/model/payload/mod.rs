@@ -102,7 +102,9 @@ pub trait Payload: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
-    fn of(any: &AnyPayload) -> &Self;
+    fn of(any: &AnyPayload) -> &Self {
+        any.get::<Self>()
+    }
     /// m, how far the payload hangs below the centre of gravity at hover.
     fn hover_drop(&self) -> f64;
 }

@@ -2,7 +2,7 @@
 //! of zero rest length. It moves only vertically; laterally it travels with the quadrotor, so
 //! the lateral mass is m + mc. One degree of freedom: `zc`, `vzc`.
 
-use super::{AnyPayload, Payload, PayloadModel, PayloadOutputs};
+use super::{Payload, PayloadModel, PayloadOutputs};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
@@ -88,13 +88,6 @@ impl Payload for Spring {
             hover_offset: at(|p| p.hover_offset),
             inv_m_lateral: at(|p| p.inv_m_lateral),
             inv_mc: at(|p| p.inv_mc),
-        }
-    }
-
-    fn of(any: &AnyPayload) -> &Self {
-        match any {
-            AnyPayload::Spring(p) => p,
-            _ => unreachable!("model::dispatch matched the spring"),
         }
     }
 }

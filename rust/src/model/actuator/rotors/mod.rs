@@ -16,7 +16,7 @@
 mod allocation;
 mod params;
 
-use super::{Actuator, ActuatorModel, AnyActuator};
+use super::{Actuator, ActuatorModel};
 use crate::config::section::OwnsKeys;
 use crate::config::{Config, ConfigError};
 use crate::lane::Lane;
@@ -141,13 +141,6 @@ impl Actuator for Rotors {
             fault_fraction: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_fraction[i])),
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
-        }
-    }
-
-    fn of(any: &AnyActuator) -> &Self {
-        match any {
-            AnyActuator::Rotors(a) => a,
-            _ => unreachable!("model::dispatch matched the rotors"),
         }
     }
 }
