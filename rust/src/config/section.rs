@@ -104,6 +104,9 @@ mod tests {
         assert_eq!(shared_key(PayloadConfig::OWNERS), None);
         assert_eq!(shared_key(ActuatorConfig::OWNERS), None);
         assert_eq!(shared_key(&[&[], &[]]), None);
+        // It finds one: the keys of one owner declared twice.
+        let shared = <crate::config::payload::Shared as crate::config::params::Params>::KEYS;
+        assert_eq!(shared_key(&[shared, &[], shared]), Some("model"));
     }
 
     #[test]

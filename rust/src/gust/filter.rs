@@ -304,6 +304,14 @@ pub(super) struct ExpOfK<const M: usize> {
     pub e: [f64; M],
 }
 
+impl<const M: usize> ExpOfK<M> {
+    /// No axis's yet (read only once an axis has written it).
+    pub const EMPTY: Self = Self {
+        k: [0.0; M],
+        e: [0.0; M],
+    };
+}
+
 /// [`GustFilter::rescaled_coefficients`] of a Dryden filter of `component` for every lane at
 /// once, `sigma`, `length`, `airspeed`, `dt` and `c` (the unit output row) per lane: bit for bit
 /// each lane's. libm's `exp` and `expm1` are called per lane (their bits are glibc's); the
@@ -1476,20 +1484,28 @@ pub(super) mod tests {
         }
     }
 
+    /// Run `check::<L>()` on every lane type: the portable ones always, the AVX2 and AVX-512
+    /// ones where this CPU has them.
+    macro_rules! on_every_lane_type {
+        ($check:ident) => {{
+            $check::<f64>();
+            $check::<crate::lane::F64x4>();
+            #[cfg(target_arch = "x86_64")]
+            {
+                use crate::lane::isa::Isa;
+                if Isa::Avx2.supported() {
+                    $check::<crate::lane::F64x4Avx>();
+                }
+                if Isa::Avx512.supported() {
+                    $check::<crate::lane::F64x8Avx512>();
+                }
+            }
+        }};
+    }
+
     #[test]
     fn exp_tail3_lanes_is_exp_tail3_bit_for_bit() {
-        exp_tail3_lanes_match::<f64>();
-        exp_tail3_lanes_match::<crate::lane::F64x4>();
-        #[cfg(target_arch = "x86_64")]
-        {
-            use crate::lane::isa::Isa;
-            if Isa::Avx2.supported() {
-                exp_tail3_lanes_match::<crate::lane::F64x4Avx>();
-            }
-            if Isa::Avx512.supported() {
-                exp_tail3_lanes_match::<crate::lane::F64x8Avx512>();
-            }
-        }
+        on_every_lane_type!(exp_tail3_lanes_match);
     }
 
     type Scales = (f64, f64, f64, f64);
@@ -1608,17 +1624,6 @@ pub(super) mod tests {
 
     #[test]
     fn dryden_lanes_are_rescaled_coefficients_bit_for_bit() {
-        dryden_lanes_match::<f64>();
-        dryden_lanes_match::<crate::lane::F64x4>();
-        #[cfg(target_arch = "x86_64")]
-        {
-            use crate::lane::isa::Isa;
-            if Isa::Avx2.supported() {
-                dryden_lanes_match::<crate::lane::F64x4Avx>();
-            }
-            if Isa::Avx512.supported() {
-                dryden_lanes_match::<crate::lane::F64x8Avx512>();
-            }
-        }
+        on_every_lane_type!(dryden_lanes_match);
     }
 }

@@ -564,16 +564,7 @@ fn at_vehicles_within<L: KernelOps>(
     };
     let v = lanes(&airspeed);
     // The last Dryden axis's exp(-k) per lane, for the next to share where its k is the same.
-    let mut exps = (
-        ExpOfK {
-            k: [0.0; MAX_LANES],
-            e: [0.0; MAX_LANES],
-        },
-        ExpOfK {
-            k: [0.0; MAX_LANES],
-            e: [0.0; MAX_LANES],
-        },
-    );
+    let mut exps = (ExpOfK::<MAX_LANES>::EMPTY, ExpOfK::EMPTY);
     let (mut mine, mut last) = (&mut exps.0, &mut exps.1);
     let mut any = false;
     for (axis, (c, how)) in components.iter_mut().zip(plan).enumerate() {

@@ -332,14 +332,17 @@ mod tests {
     use crate::config::tests::{paper, with};
     use crate::model::ActuatorKind;
 
+    /// The paper's scenario on rotors, `edit`ed, validated.
+    fn on_rotors(edit: impl FnOnce(&mut Config)) -> Result<(), ConfigError> {
+        let mut c = paper();
+        c.actuator.model = ActuatorKind::Rotors;
+        edit(&mut c);
+        c.validate()
+    }
+
     #[test]
     fn faults_and_sag_are_checked_naming_their_key() {
-        let rotors = |edit: &dyn Fn(&mut RotorParams)| {
-            let mut c = paper();
-            c.actuator.model = ActuatorKind::Rotors;
-            edit(&mut c.actuator.rotors);
-            c.validate()
-        };
+        let rotors = |edit: &dyn Fn(&mut RotorParams)| on_rotors(|c| edit(&mut c.actuator.rotors));
         fn f(rotor: u32, start: f64, thrust_fraction: f64) -> RotorFault {
             RotorFault {
                 rotor,
@@ -418,12 +421,7 @@ mod tests {
 
     #[test]
     fn rotor_values_name_their_keys() {
-        let bad = |edit: fn(&mut Config)| {
-            let mut c = paper();
-            c.actuator.model = ActuatorKind::Rotors;
-            edit(&mut c);
-            c.validate().unwrap_err()
-        };
+        let bad = |edit: fn(&mut Config)| on_rotors(edit).unwrap_err();
         let mut c = paper();
         c.actuator.model = ActuatorKind::Rotors;
         c.validate()
@@ -491,12 +489,7 @@ mod tests {
 
     #[test]
     fn rotor_geometry_the_allocation_cannot_invert_is_refused() {
-        let rotors = |edit: fn(&mut Config)| {
-            let mut c = paper();
-            c.actuator.model = ActuatorKind::Rotors;
-            edit(&mut c);
-            c.validate()
-        };
+        let rotors = |edit: fn(&mut Config)| on_rotors(edit);
         for (edit, key) in [
             (
                 (|c: &mut Config| c.vehicle.arm_length = 1e155) as fn(&mut Config),
