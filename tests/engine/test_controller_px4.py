@@ -1,6 +1,10 @@
-"""The PX4 cascade (docs/model.md, "The PX4 cascade"): a flight against the law and the plant
-written again from the text, its linearisation against finite differences, the delivery
-vehicle at hover and on its route, the tilt and velocity limits, and the kind's registration."""
+"""The PX4 cascade (docs/model.md, "The PX4 cascade"): flights against PX4's cascade and
+control allocator written again here from PX4's sources (PositionControl, AttitudeControl,
+RateControl, ActuatorEffectivenessRotors, ControlAllocationPseudoInverse and
+ControlAllocationSequentialDesaturation, MulticopterRateControl's anti-windup from
+control_allocator_status) and the plant, its linearisation against finite differences, the
+delivery vehicle at hover and on its route, the tilt and velocity limits, and the kind's
+registration."""
 
 import math
 import subprocess
@@ -58,8 +62,100 @@ def euler_quat(phi: float, theta: float, psi: float) -> np.ndarray:
     return qmul(qmul(qz, qy), qx)
 
 
+#: FLT_EPSILON, PX4's float threshold of a saturated axis.
+FLT_EPSILON = float(np.finfo(np.float32).eps)
+#: Body (x forward, y left, z up) to PX4's FRD and back: the same diagonal.
+FLU_FRD = np.array([1.0, -1.0, -1.0])
+
+
+class Px4Allocator:
+    """PX4's control allocator for the vehicle's rotors, in PX4's frame (FRD, NED thrust), from
+    ActuatorEffectivenessRotors::computeEffectivenessMatrix, ControlAllocator's weak-row
+    pruning, ControlAllocationPseudoInverse (geninv, updateControlAllocationMatrixScale,
+    normalizeControlAllocationMatrix) and ControlAllocationSequentialDesaturation with
+    MC_AIRMODE = 0; motors in [0, 1]."""
+
+    CT = 6.5  # CA_ROTORn_CT's default: it drops out of the normalisation
+
+    def __init__(self, sc: quadrs.Scenario, km: float) -> None:
+        first = 45.0 if sc["actuator.layout"] == "x" else 0.0
+        arm = sc["vehicle.arm_length"]
+        spin = [1.0, -1.0, 1.0, -1.0]  # the model's spins: rotor i's reaction is s_i cq T_i up
+        eff = np.zeros((6, 4))
+        for i in range(4):
+            a = math.radians(first + 90.0 * i)
+            pos = np.array([arm * math.cos(a), -arm * math.sin(a), 0.0])  # FRD
+            axis = np.array([0.0, 0.0, -1.0])
+            # the model's reaction s_i cq T up is -s_i cq T about FRD z: PX4's KM is -s_i cq
+            moment = self.CT * np.cross(pos, axis) - self.CT * (-spin[i] * km) * axis
+            eff[:3, i], eff[3:, i] = moment, self.CT * axis
+        eff[np.all(np.abs(eff) <= 0.05, axis=1)] = 0.0
+        mix = np.linalg.pinv(eff)
+        scale = np.ones(6)
+        n_roll = int(np.sum(np.abs(mix[:, 0]) > 1e-3))
+        n_pitch = int(np.sum(np.abs(mix[:, 1]) > 1e-3))
+        roll = math.sqrt(mix[:, 0] @ mix[:, 0] / (n_roll / 2)) if n_roll else 1.0
+        pitch = math.sqrt(mix[:, 1] @ mix[:, 1] / (n_pitch / 2)) if n_pitch else 1.0
+        scale[0] = scale[1] = max(roll, pitch)
+        scale[2] = mix[:, 2].max()
+        norms = np.linalg.norm(mix[:, 3:6], axis=1)
+        scale[3:6] = norms[norms > FLT_EPSILON].mean()
+        mix = mix / scale
+        mix[np.abs(mix) < 1e-3] = 0.0
+        self.mix, self.eff, self.scale = mix, eff, scale
+        self.min, self.max = np.zeros(4), np.ones(4)
+
+    def _gain(self, d: np.ndarray, u: np.ndarray, u_max: np.ndarray) -> float:
+        k_min = k_max = 0.0
+        for i in range(4):
+            if abs(d[i]) < 0.2:
+                continue
+            if u[i] < self.min[i]:
+                k = (self.min[i] - u[i]) / d[i]
+                k_min, k_max = min(k_min, k), max(k_max, k)
+            if u[i] > u_max[i]:
+                k = (u_max[i] - u[i]) / d[i]
+                k_min, k_max = min(k_min, k), max(k_max, k)
+        return k_min + k_max
+
+    def _desaturate(self, u, d, increase_only=False, u_max=None) -> None:
+        u_max = self.max if u_max is None else u_max
+        g = self._gain(d, u, u_max)
+        if increase_only and g < 0:
+            return
+        u += g * d
+        u += 0.5 * self._gain(d, u, u_max) * d
+
+    def allocate(self, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Motor outputs and the unallocated control for PX4's control vector c (6)."""
+        mix = self.mix
+        u = mix[:, 0] * c[0] + mix[:, 1] * c[1] + mix[:, 3] * c[3] + mix[:, 4] * c[4]
+        u = u + mix[:, 5] * c[5]
+        self._desaturate(u, mix[:, 5], increase_only=True)
+        self._desaturate(u, mix[:, 0])
+        self._desaturate(u, mix[:, 1])
+        u += mix[:, 2] * c[2]
+        self._desaturate(u, mix[:, 2], u_max=self.max + (self.max - self.min) * 0.15)
+        self._desaturate(u, mix[:, 5], increase_only=True)
+        u = np.clip(u, self.min, self.max)
+        return u, c - (self.eff @ u) * self.scale
+
+
+def motor_wrench(sc: quadrs.Scenario, cq: float) -> np.ndarray:
+    """(U1, tau) of the model's rotors per unit of each motor's thrust: U1 = sum T, tau = sum
+    r_i x (0, 0, T_i) + s_i cq T_i e_z."""
+    first = 45.0 if sc["actuator.layout"] == "x" else 0.0
+    arm = sc["vehicle.arm_length"]
+    w = np.zeros((4, 4))
+    for i in range(4):
+        a = math.radians(first + 90.0 * i)
+        x, y = arm * math.cos(a), arm * math.sin(a)
+        w[:, i] = [1.0, y, -x, cq * (1.0 if i % 2 == 0 else -1.0)]
+    return w
+
+
 class Px4Law:
-    """PX4's cascade with its memory, one call per control step."""
+    """PX4's cascade with its memory and its allocator, one call per control step."""
 
     def __init__(self, sc: quadrs.Scenario, k: dict[str, float]) -> None:
         self.k = k
@@ -67,9 +163,15 @@ class Px4Law:
         self.dt = sc["integrator.dt"]
         mt = sc["vehicle.mass"] + sc["payload.mass"]
         self.t_full = mt * self.g / k["MPC_THR_HOVER"]
-        arm = sc["vehicle.arm_length"]
-        roll = arm * self.t_full / (2 * math.sqrt(2))
-        self.tau_full = np.array([roll, roll, k["yaw_torque_ratio"] * self.t_full / 2])
+        self.alloc = Px4Allocator(sc, k["yaw_torque_ratio"])
+        on_rotors = sc["actuator.model"] == "rotors"
+        cq = sc["actuator.torque_ratio"] if on_rotors else k["yaw_torque_ratio"]
+        # a motor's output times its full thrust T_full / 4, through the rotors' geometry
+        self.wrench = motor_wrench(sc, cq) * self.t_full / 4
+        # ControlAllocator publishes its status at most every 5 ms
+        self.status_every = max(1, math.ceil(0.005 / self.dt - 1e-9))
+        self.status_age = 10**9
+        self.sat = np.zeros(3)  # +1 / -1: that torque direction was not achieved
         xy_vp = k["MPC_XY_VEL_P_ACC"]
         self.vel_p = np.array([xy_vp, xy_vp, k["MPC_Z_VEL_P_ACC"]])
         self.vel_i = np.array([k["MPC_XY_VEL_I_ACC"]] * 2 + [k["MPC_Z_VEL_I_ACC"]])
@@ -126,7 +228,6 @@ class Px4Law:
         if t_xy > t_xy_max:
             t[:2] *= t_xy_max / t_xy
         thrust = float(np.linalg.norm(t))
-        u1 = thrust * self.t_full
         # attitude setpoint: body z along t, yaw psi_ref, as R_d = [x_d, y_d, z_d]
         z_d = t / thrust
         y_c = np.array([-math.sin(ref["psi"]), math.cos(ref["psi"]), 0.0])
@@ -154,9 +255,13 @@ class Px4Law:
         rate_sp = np.clip(rate_sp, -self.rate_max, self.rate_max)
         e_w = rate_sp - rate
         torque = self.rate_p * e_w + self.rate_int - self.rate_d * self.rate_dot
+        # vehicle_torque_setpoint and vehicle_thrust_setpoint (0, 0, -|t|) in FRD, allocated
+        c = np.array([*(FLU_FRD * torque), 0.0, 0.0, -thrust])
+        motors, unallocated = self.alloc.allocate(c)
+        u1, *tau = self.wrench @ motors
         extra = {"e_v": e_v, "acc": acc, "t_z_acc": t_z_acc, "t_xy": t[:2], "e_w": e_w,
-                 "torque": torque}  # fmt: skip
-        return u1, torque * self.tau_full, extra
+                 "torque": torque, "v_sp": v_sp, "thrust": t, "unallocated": FLU_FRD * unallocated[:3], "motors": motors}  # fmt: skip
+        return u1, np.array(tau), extra
 
     def step(self, s: np.ndarray, ref: dict) -> tuple[float, np.ndarray]:
         vel, rate = s[9:12], s[12:15]
@@ -180,13 +285,22 @@ class Px4Law:
         self.vel_int[2] = min(max(self.vel_int[2], -g), g)
         e_w = x["e_w"].copy()
         for i in range(3):
-            if x["torque"][i] >= 1:
+            if self.sat[i] > 0:
                 e_w[i] = min(e_w[i], 0.0)
-            if x["torque"][i] <= -1:
+            if self.sat[i] < 0:
                 e_w[i] = max(e_w[i], 0.0)
             f = max(0.0, 1 - (e_w[i] / math.radians(400)) ** 2)
             ri = self.rate_int[i] + f * self.rate_i[i] * e_w[i] * self.dt
             self.rate_int[i] = min(max(ri, -self.int_lim[i]), self.int_lim[i])
+        # the allocator's status (MulticopterRateControl reads it at its next step)
+        if self.status_age >= self.status_every:
+            un = x["unallocated"]
+            self.sat = np.zeros(3)
+            if not un @ un < 1e-6:
+                self.sat = np.where(un > FLT_EPSILON, 1.0, np.where(un < -FLT_EPSILON, -1.0, 0.0))
+            self.status_age = 0
+        self.status_age += 1
+        self.last = x
         return u1, tau
 
 
@@ -304,6 +418,121 @@ def test_linearisation_matches_finite_differences_of_the_law_from_the_text() -> 
     exact = a[np.ix_(order, order)]
     np.testing.assert_allclose(exact, fd, atol=1e-5 * max(1.0, np.max(np.abs(fd))), rtol=1e-5)
     assert quadrs.stability(sc, "px4").verdict == "stable"
+
+
+def law_on_the_flight(sc: quadrs.Scenario, reference) -> tuple[float, list[dict], Px4Law]:
+    """The engine's flight (every step recorded) and PX4's law from its code fed the engine's
+    states: the worst difference of (U1, tau) over the flight, the law's values per step."""
+    flight = quadrs.simulate(sc, "px4", record_every=1)
+    tr = flight.trace
+    assert len(tr) == sc.steps + 1, flight.status
+    states = tr[[*STATE_ORDER[:6], "x", "x", "x", *RATE_ORDER[:6]]].to_numpy()
+    controls = tr[["U1", "tau_phi", "tau_theta", "tau_psi"]].to_numpy()
+    t = tr.index.to_numpy(float)
+    law = Px4Law(sc, dict(DEFAULTS, **sc.get("controller.px4", {})))
+    worst, seen = 0.0, []
+    for k in range(sc.steps):
+        u1, tau = law.step(states[k], reference(t[k]))
+        worst = max(worst, float(np.max(np.abs(np.array([u1, *tau]) - controls[k]))))
+        seen.append(law.last | {"sat": law.sat.copy()})
+    return worst, seen, law
+
+
+def ramp(t: float, span: float, a: np.ndarray, b: np.ndarray) -> dict:
+    """A min-jerk move from a to b (x, y, z, psi) over [0.1, 0.1 + span]."""
+    p, v, acc = min_jerk(t, 0.1, span, a, b)
+    return {"pos": p[:3], "vel": v[:3], "acc": acc[:3], "psi": p[3], "psi_dot": v[3]}
+
+
+def on_the_slung_vehicle(extra: dict) -> quadrs.Scenario:
+    return quadrs.Scenario.preset("slung").override(
+        {
+            "initial.position": [0.0, 0.0, 2.0],
+            "initial.attitude": [0.0, 0.0, 0.0],
+            "gust.enabled": False,
+            "integrator.dt": 0.001,
+            **extra,
+        }
+    )
+
+
+def step_flight() -> tuple[quadrs.Scenario, object]:
+    """A step of 1 m forward, 0.5 m left, 0.5 m up and 0.5 rad of yaw at 0.2 s (ideal
+    actuators: the allocator's outputs are the airframe's thrust and torques)."""
+    sc = on_the_slung_vehicle(
+        {
+            "trajectory.interpolation": "step",
+            "trajectory.waypoints": [[0, 0, 0, 2, 0], [0.2, 1.0, 0.5, 2.5, 0.5]],
+            "integrator.duration": 3.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 3.0}],
+        }
+    )
+
+    def reference(t: float) -> dict:
+        p = np.array([1.0, 0.5, 2.5, 0.5]) if t >= 0.2 - 1e-9 else np.array([0, 0, 2.0, 0])
+        z = np.zeros(3)
+        return {"pos": p[:3], "vel": z, "acc": z, "psi": p[3], "psi_dot": 0.0}
+
+    return sc, reference
+
+
+def fault_flight() -> tuple[quadrs.Scenario, object]:
+    """On rotors: rotor 2 at 60 % from 0.5 s, the battery sagging 30 % over the flight, a 3 m
+    move and a 1 rad yaw in 1.5 s: the allocator desaturates and the anti-windup acts."""
+    a, b = np.array([0.0, 0.0, 2.0, 0.0]), np.array([3.0, -2.0, 3.0, 1.0])
+    sc = on_the_slung_vehicle(
+        {
+            "actuator.model": "rotors",
+            "actuator.faults": [{"rotor": 2, "start": 0.5, "thrust_fraction": 0.6}],
+            "actuator.battery_sag": 0.3,
+            "trajectory.interpolation": "min_jerk",
+            "trajectory.transition": 1.5,
+            "trajectory.waypoints": [[0, *a], [0.1, *b]],
+            "integrator.duration": 4.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 4.0}],
+        }
+    )
+    return sc, lambda t: ramp(t, 1.5, a, b)
+
+
+def limits_flight() -> tuple[quadrs.Scenario, object]:
+    """A 40 m, 12 m up min-jerk dash in 3 s (peaks 25 m/s and 17 m/s^2 asked): the velocity
+    setpoint, the tilt and the thrust all at their limits."""
+    a, b = np.array([0.0, 0.0, 2.0, 0.0]), np.array([40.0, 0.0, 14.0, 0.0])
+    sc = on_the_slung_vehicle(
+        {
+            "trajectory.interpolation": "min_jerk",
+            "trajectory.transition": 3.0,
+            "trajectory.waypoints": [[0, *a], [0.1, *b]],
+            "integrator.duration": 5.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 5.0}],
+        }
+    )
+    return sc, lambda t: ramp(t, 3.0, a, b)
+
+
+@pytest.mark.parametrize("make", [step_flight, fault_flight, limits_flight])
+def test_the_law_is_px4s_code_to_1e_9(make) -> None:
+    sc, reference = make()
+    worst, seen, law = law_on_the_flight(sc, reference)
+    assert worst < 1e-9, worst
+    motors = np.array([x["motors"] for x in seen])
+    sat = np.array([x["sat"] for x in seen])
+    if make is step_flight:
+        # Inside the motors' range all along: no torque given up.
+        assert np.abs(np.array([x["unallocated"] for x in seen])).max() < 1e-12
+        assert np.abs(np.array([x["torque"] for x in seen])).max() > 0.1
+    if make is fault_flight:
+        # The allocator hit the motors' range and gave torque up; the rate integrators saw it.
+        assert (motors.max(axis=1) >= 1.0 - 1e-12).any() or (motors.min(axis=1) <= 1e-12).any()
+        assert np.abs(sat).max() == 1.0
+    if make is limits_flight:
+        v_xy = np.array([math.hypot(*x["v_sp"][:2]) for x in seen])
+        assert v_xy.max() == pytest.approx(DEFAULTS["MPC_XY_VEL_MAX"], abs=1e-9)
+        t = np.array([x["thrust"] for x in seen])
+        tilt = np.degrees(np.arctan2(np.hypot(t[:, 0], t[:, 1]), t[:, 2]))
+        assert tilt.max() == pytest.approx(DEFAULTS["MPC_TILTMAX_AIR"], abs=1e-6)
+        assert np.linalg.norm(t, axis=1).max() == pytest.approx(DEFAULTS["MPC_THR_MAX"], abs=1e-9)
 
 
 @pytest.fixture(scope="module")

@@ -85,7 +85,7 @@ class Se3Law:
         b2 /= max(np.linalg.norm(b2), 1e-6)
         rd = np.column_stack([np.cross(b2, b3), b2, b3])
         e_r = 0.5 * vee(rd.T @ r - r.T @ rd)
-        e_w = w  # W_d = 0
+        e_w = w - np.array([0.0, 0.0, ref["psi_dot"]])  # RotorPy's W_d = (0, 0, yaw_dot)
         tau = self.J @ (-self.kR * e_r - self.kW * e_w) + np.cross(w, self.J @ w)
         return u1, tau
 
@@ -140,14 +140,15 @@ def min_jerk(sc: quadrs.Scenario, t: float) -> dict:
     ds = 30 * tau**2 * (1 - tau) ** 2 / dur if 0 < tau < 1 else 0.0
     dds = 60 * tau * (1 - 3 * tau + 2 * tau**2) / dur**2 if 0 < tau < 1 else 0.0
     p, v, acc = a + (b - a) * s, (b - a) * ds, (b - a) * dds
-    return {"pos": p[:3], "vel": v[:3], "acc": acc[:3], "psi": p[3]}
+    return {"pos": p[:3], "vel": v[:3], "acc": acc[:3], "psi": p[3], "psi_dot": v[3]}
 
 
 def step_ref(sc: quadrs.Scenario, t: float) -> dict:
     wps = sc["trajectory.waypoints"]
     now = [w for w in wps if w[0] <= t + 1e-9][-1] if t + 1e-9 >= wps[0][0] else wps[0]
     z = np.zeros(3)
-    return {"pos": np.array(now[1:4], dtype=float), "vel": z, "acc": z, "psi": now[4]}
+    return {"pos": np.array(now[1:4], dtype=float), "vel": z, "acc": z, "psi": now[4],
+            "psi_dot": 0.0}  # fmt: skip
 
 
 def rest_state(sc: quadrs.Scenario) -> np.ndarray:
@@ -245,6 +246,83 @@ def test_a_flight_agrees_with_an_independent_closed_loop(make, reference) -> Non
         assert 0.25 < tilt.max() < 0.3 + 0.05
 
 
+def yaw_turn() -> quadrs.Scenario:
+    """A 1 rad yaw turn in 2 s (min-jerk) at hover, in still air."""
+    return quadrs.Scenario.paper().override(
+        {
+            "initial.position": [0.0, 0.0, 2.0],
+            "initial.attitude": [0.0, 0.0, 0.0],
+            "trajectory.interpolation": "min_jerk",
+            "trajectory.transition": 2.0,
+            "trajectory.waypoints": [[0, 0, 0, 2, 0.0], [0.5, 0, 0, 2, 1.0]],
+            "integrator.dt": 0.001,
+            "integrator.duration": 3.0,
+            "phases": [{"name": "all", "start": 0.0, "end": 3.0}],
+            "gust.enabled": False,
+        }
+    )
+
+
+def test_a_yaw_turn_is_flown_with_rotorpys_yaw_rate_term() -> None:
+    """The turn against the closed loop written here (W_d = (0, 0, psi_dot_ref)) to 1e-9, and
+    the yaw lag it removes: with W_d = 0 the same loop trails the reference by 0.2 rad."""
+    sc = yaw_turn()
+    flight = quadrs.simulate(sc, "se3", record_every=1)
+    assert flight.status == "ok"
+    tr = flight.trace
+    winds = tr[["wind_x", "wind_y", "wind_z"]].to_numpy()
+    states, controls = fly(sc, min_jerk, winds)
+    err = np.abs(tr[STATES].to_numpy() - states).max(axis=0)
+    assert err.max() < 1e-9, dict(zip(STATES, err, strict=True))
+    lag = np.abs(tr["psi"] - tr["psi_ref"]).max()
+
+    def without_yaw_rate(sc: quadrs.Scenario, t: float) -> dict:
+        return min_jerk(sc, t) | {"psi_dot": 0.0}
+
+    old, _ = fly(sc, without_yaw_rate, winds)
+    old_lag = np.abs(old[:, 5] - tr["psi_ref"].to_numpy()).max()
+    assert old_lag > 0.15 and lag < old_lag / 3, (lag, old_lag)
+
+
+def test_the_law_is_rotorpys_se3control() -> None:
+    """RotorPy 3.0's own SE3Control (its gains set to these, its mass to the controller's) on
+    the engine's states through the yaw turn: the same thrust and moments to 1e-9."""
+    qc = pytest.importorskip("rotorpy.controllers.quadrotor_control")
+    from scipy.spatial.transform import Rotation
+
+    sc = yaw_turn()
+    flight = quadrs.simulate(sc, "se3", record_every=1)
+    tr = flight.trace
+    law = Se3Law(sc)
+    ixx, iyy, izz = sc["vehicle.inertia"]
+    params = {"mass": law.mt, "Ixx": ixx, "Iyy": iyy, "Izz": izz, "Ixy": 0.0, "Ixz": 0.0,
+              "Iyz": 0.0, "c_Dx": 0.0, "c_Dy": 0.0, "c_Dz": 0.0, "num_rotors": 4,
+              "rotor_pos": {f"r{i}": np.array([math.cos(a), math.sin(a), 0.0]) * 0.17
+                            for i, a in enumerate(np.radians([45, 135, 225, 315]))},
+              "rotor_directions": np.array([1, -1, 1, -1]), "rotor_speed_min": 0.0,
+              "rotor_speed_max": 3000.0, "k_eta": 8.5e-6, "k_m": 1.4e-7, "k_d": 0.0,
+              "k_z": 0.0, "k_flap": 0.0, "tau_m": 0.03}  # fmt: skip
+    ctrl = qc.SE3Control(params)
+    ctrl.g = sc["environment.gravity"]
+    ctrl.kp_pos, ctrl.kd_pos = law.kx, law.kv
+    ctrl.kp_att, ctrl.kd_att = law.kR, law.kW
+    worst = 0.0
+    for k in range(0, sc.steps, 7):
+        row = tr.iloc[k]
+        ref = min_jerk(sc, tr.index[k])
+        q = Rotation.from_matrix(rotation(row["phi"], row["theta"], row["psi"])).as_quat()
+        state = {"x": row[["x", "y", "z"]].to_numpy(float),
+                 "v": row[["vx", "vy", "vz"]].to_numpy(float), "q": q,
+                 "w": row[["p", "q", "r"]].to_numpy(float)}  # fmt: skip
+        flat = {"x": ref["pos"], "x_dot": ref["vel"], "x_ddot": ref["acc"], "yaw": ref["psi"],
+                "yaw_dot": ref["psi_dot"]}  # fmt: skip
+        out = ctrl.update(0.0, state, flat)
+        mine = row[["U1", "tau_phi", "tau_theta", "tau_psi"]].to_numpy(float)
+        theirs = np.array([out["cmd_thrust"], *out["cmd_moment"]])
+        worst = max(worst, float(np.max(np.abs(mine - theirs))))
+    assert worst < 1e-9, worst
+
+
 def test_the_linearisation_is_the_central_differences_of_the_closed_loop() -> None:
     """quadrs.linearize's A (dual numbers through the engine's law and plant) against central
     differences of the closed loop written above, at its equilibrium: two implementations."""
@@ -252,7 +330,8 @@ def test_the_linearisation_is_the_central_differences_of_the_closed_loop() -> No
     lin = quadrs.linearize(sc, "se3")
     x0 = lin.equilibrium
     law, rhs = Se3Law(sc), spring_rhs(sc)
-    ref = {"pos": np.array([0.0, 0.0, 2.0]), "vel": np.zeros(3), "acc": np.zeros(3), "psi": 0.0}
+    ref = {"pos": np.array([0.0, 0.0, 2.0]), "vel": np.zeros(3), "acc": np.zeros(3), "psi": 0.0,
+           "psi_dot": 0.0}  # fmt: skip
 
     def closed(s: np.ndarray) -> np.ndarray:
         u1, tau = law(s, ref)

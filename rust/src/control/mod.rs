@@ -10,6 +10,7 @@
 
 mod pd;
 mod px4;
+mod px4_allocator;
 mod se3;
 mod smc;
 
@@ -27,7 +28,7 @@ use crate::trajectory::Reference;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
 /// Slots of a law's discrete memory (`Control::step_with`): enough for every registered law.
-pub const MEMORY_SLOTS: usize = 18;
+pub const MEMORY_SLOTS: usize = 22;
 
 /// A law's discrete memory between control steps (integrators, last measurements, filtered
 /// derivatives), one value per lane; unused by a static law.

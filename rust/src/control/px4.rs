@@ -5,11 +5,13 @@
 //! mapped to this model's SI. A discrete law with memory (`Control::step_with`): the velocity
 //! and rate integrators and the filtered derivatives advance once per control step.
 
+use super::px4_allocator::{allocate, Mixer};
 use super::{Control, Controller, Memory, Shared};
 use crate::config::params::params;
 use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::{gather3, KernelOps, Lane, Param};
-use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::model::actuator::rotors::{allocation, RotorLayout};
+use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
 params! {
@@ -54,8 +56,10 @@ params! {
         MC_PR_INT_LIM: f64 => "-", "PX4 pitch-rate integrator limit (normalised torque)";
         MC_YR_INT_LIM: f64 => "-", "PX4 yaw-rate integrator limit (normalised torque)";
         IMU_DGYRO_CUTOFF: f64 => "Hz", "PX4 rate-derivative low-pass cutoff";
-        /// The mapping's yaw torque per unit rotor thrust (not a PX4 parameter: the mixer's).
-        yaw_torque_ratio: f64 => "m", "Yaw torque per rotor thrust (PX4 torque mapping)";
+        /// PX4's `CA_ROTORn_KM`: the rotors' yaw torque per unit thrust as the allocator
+        /// believes it. The normalised allocation does not depend on it; it sets the yaw
+        /// torque of the ideal actuator (the rotors' own `torque_ratio` sets it on rotors).
+        yaw_torque_ratio: f64 => "m", "Yaw torque per rotor thrust (PX4 CA_ROTOR_KM)";
     }
 }
 
@@ -107,15 +111,19 @@ impl Default for Px4Params {
 
 /// Memory slots (`Memory`): velocity integrator (m/s^2), last velocity, filtered velocity
 /// derivative, rate integrator (normalised torque), last rate, filtered rate derivative; x, y,
-/// z or roll, pitch, yaw each.
+/// z or roll, pitch, yaw each. Then the allocator's last published saturation per torque axis
+/// (+1: a positive torque was not achieved, -1: a negative one, 0: none) and the control
+/// steps since that publication.
 const VEL_INT: usize = 0;
 const VEL_PREV: usize = 3;
 const VEL_DOT: usize = 6;
 const RATE_INT: usize = 9;
 const RATE_PREV: usize = 12;
 const RATE_DOT: usize = 15;
+const SATURATION: usize = 18;
+const STATUS_AGE: usize = 21;
 /// Slots the law uses.
-const PX4_MEMORY: usize = 18;
+const PX4_MEMORY: usize = 22;
 const _: () = assert!(PX4_MEMORY <= super::MEMORY_SLOTS);
 
 /// Norms are never divided by less than this (a zero vector keeps its direction undefined
@@ -123,6 +131,15 @@ const _: () = assert!(PX4_MEMORY <= super::MEMORY_SLOTS);
 const TINY: f64 = 1e-12;
 /// PX4's I-term attenuation: the rate error at which the I gain falls to zero (400 deg/s).
 const I_FACTOR_RATE: f64 = 400.0 * std::f64::consts::PI / 180.0;
+/// `ControlAllocator::Run` publishes its status (the saturation the rate controller's
+/// anti-windup reads) at most every 5 ms.
+const STATUS_PERIOD: f64 = 0.005;
+/// `torque_setpoint_achieved`: the unallocated torque's squared norm below this.
+const ACHIEVED: f64 = 1e-6;
+/// A torque axis counts as saturated past this unallocated torque (`FLT_EPSILON`).
+const SATURATED: f64 = f32::EPSILON as f64;
+/// The status age of a memory at rest: the first control step publishes.
+const NEVER: f64 = 1e9;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Px4::gather`), in SI.
 #[derive(Clone, Debug)]
@@ -154,8 +171,17 @@ pub struct Px4<P = f64> {
     rate_int_lim: [P; 3],
     /// N per unit normalised thrust: mt g / MPC_THR_HOVER.
     thrust_full: P,
-    /// N m per unit normalised torque (roll, pitch, yaw).
-    torque_full: [P; 3],
+    /// PX4's allocation (`px4_allocator::Mixer`): motor i's output per normalised control,
+    /// its usable inverse, and the control per output.
+    mix: [[P; 4]; 4],
+    mix_inv: [[P; 4]; 4],
+    effect: [[P; 4]; 4],
+    /// (U1, tau) in N and N m per unit output of each motor: the actuator's allocation matrix
+    /// (the rotors' own on rotors, so that they are told exactly PX4's outputs) times a
+    /// motor's full thrust T_full / 4.
+    out: [[P; 4]; 4],
+    /// Control steps between two publications of the allocator's status.
+    status_every: P,
     /// s, the control step.
     dt: P,
     /// First-order low-pass weights dt / (dt + 1 / (2 pi fc)) of the derivatives.
@@ -282,11 +308,12 @@ impl Controller for Px4 {
         let g = cfg.environment.gravity;
         let dt = cfg.integrator.dt;
         let thrust_full = shared.mt * g / k.MPC_THR_HOVER;
-        // X layout: two rotors on one side at full thrust (thrust_full / 4 each), the others at
-        // zero, at arm_length / sqrt(2) from the roll (pitch) axis.
         let arm = cfg.vehicle.arm_length;
-        let roll_full = arm * thrust_full / (2.0 * std::f64::consts::SQRT_2);
-        let yaw_full = k.yaw_torque_ratio * thrust_full / 2.0;
+        let (layout, torque_ratio) = px4_geometry(k, cfg);
+        let mixer = Mixer::new(layout, arm, k.yaw_torque_ratio);
+        let m = allocation(layout, arm, torque_ratio);
+        let motor_full = thrust_full / 4.0;
+        let out = m.map(|row| row.map(|x| x * motor_full));
         Self {
             shared,
             pos_p: [k.MPC_XY_P, k.MPC_XY_P, k.MPC_Z_P],
@@ -313,7 +340,11 @@ impl Controller for Px4 {
             rate_d: [k.MC_ROLLRATE_D, k.MC_PITCHRATE_D, k.MC_YAWRATE_D],
             rate_int_lim: [k.MC_RR_INT_LIM, k.MC_PR_INT_LIM, k.MC_YR_INT_LIM],
             thrust_full,
-            torque_full: [roll_full, roll_full, yaw_full],
+            mix: mixer.mix,
+            mix_inv: mixer.inv,
+            effect: mixer.effect,
+            out,
+            status_every: (STATUS_PERIOD / dt - 1e-9).ceil().max(1.0),
             dt,
             alpha_vel: lowpass_weight(dt, k.MPC_VELD_LP),
             alpha_rate: lowpass_weight(dt, k.IMU_DGYRO_CUTOFF),
@@ -323,6 +354,9 @@ impl Controller for Px4 {
     fn gather<L: Lane>(each: &[&Px4]) -> Px4<L> {
         let at = |f: fn(&Px4) -> f64| -> L { L::from_fn(|l| f(each[l])) };
         let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
+        let at44 = |f: fn(&Px4) -> &[[f64; 4]; 4]| -> [[L; 4]; 4] {
+            std::array::from_fn(|i| std::array::from_fn(|j| L::from_fn(|l| f(each[l])[i][j])))
+        };
         let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
         Px4 {
             shared: Shared::gather(&shared),
@@ -346,12 +380,34 @@ impl Controller for Px4 {
             rate_d: at3(|p| p.rate_d),
             rate_int_lim: at3(|p| p.rate_int_lim),
             thrust_full: at(|p| p.thrust_full),
-            torque_full: at3(|p| p.torque_full),
+            mix: at44(|p| &p.mix),
+            mix_inv: at44(|p| &p.mix_inv),
+            effect: at44(|p| &p.effect),
+            out: at44(|p| &p.out),
+            status_every: at(|p| p.status_every),
             dt: at(|p| p.dt),
             alpha_vel: at(|p| p.alpha_vel),
             alpha_rate: at(|p| p.alpha_rate),
         }
     }
+}
+
+/// The rotor geometry PX4's allocator is configured for (its `CA_ROTORn_P*` follow the
+/// airframe: the rotors' `layout`, quad X by default) and the reaction torque per thrust of the
+/// rotors its outputs drive: the rotors' own `torque_ratio` when the actuator is the rotors,
+/// else PX4's belief `yaw_torque_ratio`.
+fn px4_geometry(k: &Px4Params, cfg: &Config) -> (RotorLayout, f64) {
+    let rotors = &cfg.actuator.rotors;
+    match cfg.actuator.model {
+        ActuatorKind::Rotors => (rotors.layout, rotors.torque_ratio),
+        _ => (rotors.layout, k.yaw_torque_ratio),
+    }
+}
+
+/// A 4 x 4 parameter matrix as lane values.
+#[inline(always)]
+fn lanes44<L: Lane, P: Param<L>>(m: &[[P; 4]; 4]) -> [[L; 4]; 4] {
+    m.map(|row| row.map(|x| x.get()))
 }
 
 /// A quaternion (w, x, y, z), Hamilton product.
@@ -401,8 +457,8 @@ struct Cascade<L> {
     /// Horizontal normalised thrust after saturation.
     thr_xy: [L; 2],
     rate_err: [L; 3],
-    /// Normalised torques.
-    torque: [L; 3],
+    /// What of them the allocator could not give (`unallocated_torque`).
+    unallocated: [L; 3],
 }
 
 impl<P: Copy + Sync> Px4<P> {
@@ -476,7 +532,6 @@ impl<P: Copy + Sync> Px4<P> {
         tx = tx * k;
         ty = ty * k;
         let thrust = (tx * tx + ty * ty + tz * tz).sqrt();
-        let u1 = self.shared.limit_thrust(thrust * self.thrust_full.get());
 
         // Attitude setpoint: body z along the thrust, heading psi_ref (PX4's bodyzToAttitude,
         // which is the ZYX Euler attitude (phi_d, theta_d, psi_ref) with that z axis).
@@ -542,7 +597,22 @@ impl<P: Copy + Sync> Px4<P> {
             rate_err[i] * self.rate_p[i].get() + mem[RATE_INT + i]
                 - mem[RATE_DOT + i] * self.rate_d[i].get()
         });
-        let tau = [0, 1, 2].map(|i| torque[i] * self.torque_full[i].get());
+        // PX4's allocator: normalised torques and thrust (along body z down) to motor outputs
+        // in [0, 1]; each motor's thrust is its output times T_full / 4.
+        let c = [torque[0], torque[1], torque[2], -thrust];
+        let a = allocate(
+            &c,
+            &lanes44(&self.mix),
+            &lanes44(&self.mix_inv),
+            &lanes44(&self.effect),
+        );
+        let m = &a.motors;
+        let si = |row: &[P; 4]| -> L {
+            let w: [L; 4] = row.map(|x| x.get());
+            w[0] * m[0] + w[1] * m[1] + w[2] * m[2] + w[3] * m[3]
+        };
+        let u1 = self.shared.limit_thrust(si(&self.out[0]));
+        let tau = [si(&self.out[1]), si(&self.out[2]), si(&self.out[3])];
         (
             Inputs { u1, tau },
             Cascade {
@@ -551,7 +621,7 @@ impl<P: Copy + Sync> Px4<P> {
                 thr_z_acc,
                 thr_xy: [tx, ty],
                 rate_err,
-                torque,
+                unallocated: a.unallocated,
             },
         )
     }
@@ -565,6 +635,7 @@ impl<P: Copy + Sync> Px4<P> {
             m[VEL_PREV + i] = s.vel[i];
             m[RATE_PREV + i] = s.rate[i];
         }
+        m[STATUS_AGE] = L::splat(NEVER);
         m
     }
 }
@@ -645,18 +716,35 @@ impl<P: Copy + Sync> Control<P> for Px4<P> {
         }
         mem[VEL_INT + 2] = mem[VEL_INT + 2].clamp(-g, g);
 
-        // Rate integrator: not into a saturated torque, attenuated at large errors, limited.
+        // Rate integrator (RateControl::updateIntegral): not further into a torque the
+        // allocator last reported unachieved, attenuated at large errors, limited.
         let one = L::splat(1.0);
         for i in 0..3 {
             let mut e = c.rate_err[i];
-            e = L::select(c.torque[i].cmp_ge(one), e.min(zero), e);
-            e = L::select(c.torque[i].cmp_le(-one), e.max(zero), e);
+            let sat = mem[SATURATION + i];
+            e = L::select(sat.cmp_ge(one), e.min(zero), e);
+            e = L::select(sat.cmp_le(-one), e.max(zero), e);
             let f = e * (1.0 / I_FACTOR_RATE);
             let i_factor = (one - f * f).max(zero);
             let lim: L = self.rate_int_lim[i].get();
             mem[RATE_INT + i] =
                 (mem[RATE_INT + i] + i_factor * self.rate_i[i].get() * e * dt).clamp(-lim, lim);
         }
+
+        // The allocator's status, published every `status_every` steps, read by the rate
+        // controller from the next step on (MulticopterRateControl: a direction is saturated
+        // where the torque was not achieved and its unallocated part exceeds FLT_EPSILON).
+        let un = &c.unallocated;
+        let norm2 = un[0] * un[0] + un[1] * un[1] + un[2] * un[2];
+        let missed = norm2.cmp_ge(L::splat(ACHIEVED));
+        let due = mem[STATUS_AGE].cmp_ge(self.status_every.get());
+        for i in 0..3 {
+            let pos = L::select(L::splat(SATURATED).cmp_ge(un[i]), zero, one);
+            let neg = L::select(un[i].cmp_ge(L::splat(-SATURATED)), zero, -one);
+            let flag = L::select(missed, pos + neg, zero);
+            mem[SATURATION + i] = L::select(due, flag, mem[SATURATION + i]);
+        }
+        mem[STATUS_AGE] = L::select(due, zero, mem[STATUS_AGE]) + one;
         u
     }
 }
@@ -706,7 +794,9 @@ mod tests {
         let u = c.control(&s, &r, Tick::START);
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         let full = mt * 9.81 / k.MPC_THR_HOVER;
-        let roll_full = cfg.vehicle.arm_length * full / (2.0 * 2f64.sqrt());
+        // PX4's normalisation of a quad X: one unit of roll moves each motor by 1/sqrt 2 of
+        // its full thrust full / 4, at arm / sqrt 2 from the axis: arm full / 2 in all.
+        let roll_full = cfg.vehicle.arm_length * full / 2.0;
         assert!((u.tau[0] - k.MC_ROLLRATE_P * 0.1 * roll_full).abs() < 1e-12);
         let acc = k.MPC_Z_VEL_P_ACC * k.MPC_Z_P * 0.1;
         let want = k.MPC_THR_HOVER * (acc + 9.81) / 9.81 * full;

@@ -191,8 +191,10 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
             (dot(&b1, &r3) - dot(&b3, &r1)) * half,
             (dot(&b2, &r1) - dot(&b1, &r2)) * half,
         ];
-        // e_W = W - R^T R_d W_d with W_d = 0 (as RotorPy): the body rates themselves.
+        // e_W = W - W_d with RotorPy's W_d = (0, 0, psi_dot_ref) in body axes (its "this is
+        // oversimplified": Lee's R^T R_d W_d would need the reference's jerk).
         let w = s.rate;
+        let r_err = w[2] - r.psi_dot;
         let [ixx, iyy, izz] = sh.inertia;
         let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
         let [kr0, kr1, kr2] = self.k_r;
@@ -202,7 +204,7 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
         let tau = [
             -(e_r[0] * kr0.get() + p * kw0.get()) * ixx + q * rr * (izz - iyy),
             -(e_r[1] * kr1.get() + q * kw1.get()) * iyy + rr * p * (ixx - izz),
-            -(e_r[2] * kr2.get() + rr * kw2.get()) * izz + p * q * (iyy - ixx),
+            -(e_r[2] * kr2.get() + r_err * kw2.get()) * izz + p * q * (iyy - ixx),
         ];
         Inputs { u1, tau }
     }

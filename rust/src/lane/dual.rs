@@ -171,4 +171,11 @@ impl Lane for Dual {
             self
         }
     }
+    fn if_negative(self, a: Self, b: Self) -> Self {
+        if self.v < 0.0 {
+            a
+        } else {
+            b
+        }
+    }
 }

@@ -116,6 +116,19 @@ pub trait Lane:
     fn clamp(self, lo: Self, hi: Self) -> Self {
         self.max(lo).min(hi)
     }
+    /// Lane-wise `if self < 0 { a } else { b }` (NaN: `b`): a branch that the linearisation's
+    /// dual numbers follow with its slope (`Dual` overrides it). Built lane by lane: for laws
+    /// off the paper's hot path (the PX4 allocator's desaturation).
+    #[inline(always)]
+    fn if_negative(self, a: Self, b: Self) -> Self {
+        Self::from_fn(|i| {
+            if self.lane(i) < 0.0 {
+                a.lane(i)
+            } else {
+                b.lane(i)
+            }
+        })
+    }
 }
 
 /// A model or controller parameter read as a lane value: an `f64` is the same in every lane
