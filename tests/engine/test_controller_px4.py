@@ -260,7 +260,8 @@ class Px4Law:
         motors, unallocated = self.alloc.allocate(c)
         u1, *tau = self.wrench @ motors
         extra = {"e_v": e_v, "acc": acc, "t_z_acc": t_z_acc, "t_xy": t[:2], "e_w": e_w,
-                 "torque": torque, "v_sp": v_sp, "thrust": t, "unallocated": FLU_FRD * unallocated[:3], "motors": motors}  # fmt: skip
+                 "torque": torque, "v_sp": v_sp, "thrust": t, "motors": motors,
+                 "unallocated": FLU_FRD * unallocated[:3]}  # fmt: skip
         return u1, np.array(tau), extra
 
     def step(self, s: np.ndarray, ref: dict) -> tuple[float, np.ndarray]:
@@ -514,7 +515,7 @@ def limits_flight() -> tuple[quadrs.Scenario, object]:
 @pytest.mark.parametrize("make", [step_flight, fault_flight, limits_flight])
 def test_the_law_is_px4s_code_to_1e_9(make) -> None:
     sc, reference = make()
-    worst, seen, law = law_on_the_flight(sc, reference)
+    worst, seen, _ = law_on_the_flight(sc, reference)
     assert worst < 1e-9, worst
     motors = np.array([x["motors"] for x in seen])
     sat = np.array([x["sat"] for x in seen])

@@ -271,7 +271,7 @@ def test_a_yaw_turn_is_flown_with_rotorpys_yaw_rate_term() -> None:
     assert flight.status == "ok"
     tr = flight.trace
     winds = tr[["wind_x", "wind_y", "wind_z"]].to_numpy()
-    states, controls = fly(sc, min_jerk, winds)
+    states, _ = fly(sc, min_jerk, winds)
     err = np.abs(tr[STATES].to_numpy() - states).max(axis=0)
     assert err.max() < 1e-9, dict(zip(STATES, err, strict=True))
     lag = np.abs(tr["psi"] - tr["psi_ref"]).max()

@@ -80,7 +80,7 @@ impl Mixer {
         let mut scale = [rp, rp, yaw, thrust];
         // normalizeControlAllocationMatrix divides only by scales above FLT_EPSILON.
         for s in &mut scale {
-            if !(*s > f32::EPSILON as f64) {
+            if s.is_nan() || *s <= f32::EPSILON as f64 {
                 *s = 1.0;
             }
         }
@@ -237,21 +237,17 @@ mod tests {
         }
     }
 
-    fn lanes(m: &Mixer) -> ([[f64; 4]; 4], [[f64; 4]; 4], [[f64; 4]; 4]) {
-        (m.mix, m.inv, m.effect)
-    }
-
     /// Inside the range the outputs are the mix and nothing is unallocated; a yaw that does not
     /// fit is given up before roll; a thrust above the top is reduced, never raised.
     #[test]
     fn desaturation_gives_up_yaw_first_and_only_reduces_thrust() {
         let m = Mixer::new(RotorLayout::X, 0.1725, 0.016);
-        let (mix, inv, eff) = lanes(&m);
+        let (mix, inv, eff) = (m.mix, m.inv, m.effect);
         let c = [0.1, -0.05, 0.02, -0.5];
         let a = allocate(&c, &mix, &inv, &eff);
-        for i in 0..4 {
-            let want: f64 = (0..4).map(|j| mix[i][j] * c[j]).sum();
-            assert!((a.motors[i] - want).abs() < 1e-15);
+        for (row, got) in mix.iter().zip(a.motors) {
+            let want: f64 = (0..4).map(|j| row[j] * c[j]).sum();
+            assert!((got - want).abs() < 1e-15);
         }
         assert!(a.unallocated.iter().all(|x| x.abs() < 1e-15));
         // Roll 0.5 at hover thrust 0.5 fits (0.5 +/- 0.354); yaw 0.5 on top does not: roll
