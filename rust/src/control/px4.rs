@@ -1,9 +1,10 @@
 //! The PX4 multicopter cascade (docs/model.md, "The PX4 cascade"): position P -> velocity PID
 //! -> acceleration to thrust vector and attitude setpoint -> quaternion attitude P with reduced
-//! yaw priority (Brescianini, Hehn & D'Andrea 2013) -> body-rate PID, as PX4's
-//! `PositionControl`, `AttitudeControl` and `RateControl` compute it, in PX4's normalised units
-//! mapped to this model's SI. A discrete law with memory (`Control::step_with`): the velocity
-//! and rate integrators and the filtered derivatives advance once per control step.
+//! yaw priority (Brescianini, Hehn & D'Andrea 2013) -> body-rate PID -> PX4's control
+//! allocator (`px4_allocator`), as PX4's `PositionControl`, `AttitudeControl`, `RateControl`
+//! and `ControlAllocator` compute it, in PX4's normalised units mapped to this model's SI. A
+//! discrete law with memory (`Control::step_with`): the velocity and rate integrators, the
+//! filtered derivatives and the allocator's saturation status advance once per control step.
 
 use super::px4_allocator::{allocate, Mixer};
 use super::{Control, Controller, Memory, Shared};
