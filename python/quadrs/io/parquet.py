@@ -142,7 +142,11 @@ def read_file(
     where = "<bytes>" if isinstance(path, bytes) else str(path)
     data = path if isinstance(path, bytes) else read_regular(path)
     try:
-        table = pq.read_table(pa.BufferReader(data))
+        # On this thread alone: no Arrow worker or background I/O thread is started, so none
+        # can outlive a refusal below and abort the process at exit (std::terminate on a
+        # still-joinable thread as the interpreter finalises). The bytes are in memory:
+        # Arrow's pre-buffering and column threads would gain nothing here.
+        table = pq.read_table(pa.BufferReader(data), use_threads=False, pre_buffer=False)
     except (pa.ArrowException, OSError, ValueError) as e:
         raise CorruptRunError(f"{where!r}: not a readable Parquet file ({_first_line(e)})") \
             from None  # fmt: skip
@@ -166,7 +170,7 @@ def read_file(
             )
     attachments = {k: v for k, v in schema_meta.items() if k != b"pandas"}
     try:
-        frame = table.to_pandas()
+        frame = table.to_pandas(use_threads=False)
     except (pa.ArrowException, ValueError, TypeError) as e:
         raise CorruptRunError(f"{where!r}: its rows cannot be read ({_first_line(e)})") from None
     return SavedFile(frame, meta, attachments)
