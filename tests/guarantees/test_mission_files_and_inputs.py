@@ -419,8 +419,13 @@ def test_mission_help_names_one_default_preset(capsys) -> None:
 
 
 # -- no abort at exit -------------------------------------------------------------------------
-def test_no_abort_at_exit_after_a_refused_trace(tmp_path: Path) -> None:
-    """A native thread outlived the refusal of an edited trace: SIGABRT at exit, sometimes."""
+def test_no_abort_at_exit_after_a_refused_trace(tmp_path: Path, monkeypatch) -> None:
+    """A refused read left an Arrow thread holding the Python bytes it was handed; releasing
+    them needs the GIL, and during the interpreter's finalisation that ends the thread inside
+    C++: SIGABRT at exit, "terminate called without an active exception" (about one run in
+    25). Arrow must read memory of its own, and no process may abort."""
+    import pyarrow as pa
+
     trace = tmp_path / "t.parquet"
     assert main(["run", *TINY_CLI, "--trace", str(trace)]) == 0
     import pyarrow.parquet as pq
@@ -431,10 +436,29 @@ def test_no_abort_at_exit_after_a_refused_trace(tmp_path: Path) -> None:
     doc["seed"] = 7
     meta[b"quadrs"] = json.dumps(doc).encode()
     pq.write_table(table.replace_schema_metadata(meta), trace)
+    handed: list[Any] = []
+    real = pa.BufferReader
+
+    def reader(source: Any) -> Any:
+        handed.append(source)
+        return real(source)
+
+    import quadrs.io.parquet as parquet
+
+    data = trace.read_bytes()
+    monkeypatch.setattr(pa, "BufferReader", reader)
+    monkeypatch.setattr(parquet, "read_regular", lambda path: data)  # these very bytes
+    with pytest.raises(ValueError, match="run identity"):
+        quadrs.Flight.read_parquet(trace)
+    monkeypatch.undo()
+    assert handed, "the trace was not read through a BufferReader"
+    python_memory = pa.py_buffer(data).address
+    for source in handed:
+        assert isinstance(source, pa.Buffer) and source.address != python_memory
     code = ("import sys, quadrs\n"
             "try:\n    quadrs.Flight.read_parquet(sys.argv[1])\n"
             "except ValueError:\n    pass\nelse:\n    sys.exit(3)\n")  # fmt: skip
-    for _ in range(8):
+    for _ in range(10):
         proc = subprocess.run([sys.executable, "-c", code, str(trace)], capture_output=True,
                               text=True, timeout=120, check=False)  # fmt: skip
         assert proc.returncode == 0, (proc.returncode, proc.stderr)
