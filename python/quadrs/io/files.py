@@ -189,8 +189,8 @@ def read_input_text(path: str | Path, what: str, limit: int, streams: bool = Fal
         st = os.fstat(f.fileno())
         regular = stat.S_ISREG(st.st_mode)
         if not regular and not streams:
-            raise InputFileError(f"{name} is not a regular file (a device, FIFO or socket?): "
-                                 "refusing to read it")  # fmt: skip
+            raise InputFileError(f"{name} is not a regular file (a directory, device, FIFO "
+                                 "or socket?): refusing to read it")  # fmt: skip
         if regular and st.st_size > limit:
             raise InputFileError(f"{name} is larger than {limit} bytes ({st.st_size} bytes): "
                                  "refusing to read it")  # fmt: skip
