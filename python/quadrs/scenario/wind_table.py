@@ -46,7 +46,7 @@ def read_wind_table(path: str | Path, by: str) -> list[list[float]]:
     if by not in FIRST:
         raise WindTableError(f'wind.table.by must be "time" or "altitude", got {by!r}')
     first = FIRST[by]
-    from quadrs.io.files import InputFileError, read_input_text
+    from quadrs.scenario.input_files import InputFileError, read_input_text
 
     try:
         text = read_input_text(path, "wind table", MAX_BYTES)
