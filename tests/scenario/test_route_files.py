@@ -34,7 +34,7 @@ def east(metres: float, lat: float = HOME[0]) -> float:
     return math.degrees(metres / (n * math.cos(math.radians(lat))))
 
 
-def item(command: int, lat: Any = 0, lon: Any = 0, alt: Any = 0, hold: Any = 0,
+def item(command: int, lat: Any = None, lon: Any = None, alt: Any = 0, hold: Any = 0,
          frame: int = 3, **params: Any) -> dict[str, Any]:  # fmt: skip
     p = [hold, 0, 0, None, lat, lon, alt]
     for i, v in params.items():

@@ -69,14 +69,14 @@ def calibrate(
     flights: int | None = None,
 ) -> Calibration:
     """Fly ``flights`` realisations (default: a few per thread) of ``scenario`` with
-    ``controllers`` in the engine and time them (realisations from 10**12 on, so that a
-    batch's own flights are not re-used; with random sampling of any dispersions). Ctrl-C
-    raises KeyboardInterrupt."""
+    ``controllers`` in the engine and time them: the batch's own first realisations (with
+    random sampling of any dispersions), so that a draw the scenario refuses is refused
+    naming a realisation the batch has. Ctrl-C raises KeyboardInterrupt."""
     from quadrs.runs.chunk import Design, run_range
 
     n_workers = _workers(workers)
     count = flights if flights is not None else 4 * n_workers
-    first = 10**12
+    first = 0
     values = Design("random", first, count).values(scenario, seed, first, count)
     start = time.perf_counter()
     with warnings.catch_warnings():

@@ -211,7 +211,7 @@ LoadScenario = Callable[[argparse.Namespace], Any]
 
 
 def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
-    from quadrs.design.optimize import InfeasibleWarning, _canonical_params, expand, optimize
+    from quadrs.design.optimize import InfeasibleWarning, check_tuning, expand, optimize
     from quadrs.engine.calls import check_int
     from quadrs.io.files import atomic_write_bytes, atomic_write_frame, check_writable
     from quadrs.scenario.scenario import Scenario
@@ -226,8 +226,10 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     scenario = load_scenario(args)
     if len(dict(args.param)) != len(args.param):
         raise ValueError("--param: each key at most once")
-    params = _canonical_params(scenario, dict(args.param))
     phases = tuple(args.phase) if args.phase else tuple(scenario.scenario_phases)
+    # The whole problem is checked before the calibration flights and the announcement.
+    _, params, phases, _ = check_tuning(scenario, args.controller, dict(args.param),
+                                        args.objective, phases, args.constraint)  # fmt: skip
     # Before any flight: the outputs can be written, and the tuned file can be made from a
     # candidate (the midpoint of the bounds), so the work is not lost to a bad --out.
     for path in (args.out, args.history):
@@ -264,11 +266,28 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                   "nothing to keep", file=sys.stderr)  # fmt: skip
             return EXIT_INTERRUPT
     h = result.history
+    best_row = h[h["role"] == "best"].iloc[0]
+    # Everything is saved before anything is printed: a Ctrl-C while the tables print (or a
+    # closed pipe) loses nothing.
+    status = EXIT_OK
     if result.interrupted and args.history is None:
         # Ctrl-C keeps the candidates flown: beside --out when --history was not given.
         if _save_text(lambda p: atomic_write_frame(h, p, index=False), history):
             print(f"quadrs tune: the {len(flown)} candidates evaluated are in {history}",
                   file=sys.stderr)  # fmt: skip
+    if args.history is not None and not _save_text(
+        lambda p: atomic_write_frame(h, p, index=False), args.history
+    ):
+        status = EXIT_FAIL
+    admissible = not bool(best_row["penalised"])
+    feasible = not result.constraints or result.feasible
+    if admissible and feasible:
+        text = _tuned_toml(args, args.out, list(expand(result.best)), result.scenario)
+        # The file must give back exactly the tuned scenario.
+        if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
+            raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
+        if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
+            status = EXIT_FAIL
     searched = result.evaluations
     rejected = searched["unstable_modes"].astype(bool) & ~searched["flown"]
     modes = ", ".join(
@@ -298,29 +317,17 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         table = result.holdout_constraints.set_index(["constraint", "phase"])
         table = table.drop(columns=["controller"])
         print(terminal_text(table.to_string(float_format=lambda v: f"{v:.4g}")))
-    best_row = h[h["role"] == "best"].iloc[0]
-    status = EXIT_OK
-    if args.history is not None and not _save_text(
-        lambda p: atomic_write_frame(h, p, index=False), args.history
-    ):
-        status = EXIT_FAIL
-    if result.constraints and not result.feasible and not bool(best_row["penalised"]):
+    if result.constraints and not result.feasible and admissible:
         broken = "; ".join(str(c) for c in result.constraints)
         print(terminal_text(f"quadrs tune: no candidate met every constraint ({broken}): "
                             "nothing written (the least violating is shown above)"),
               file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
-    if bool(best_row["penalised"]):
+    if not admissible:
         print("quadrs tune: no admissible candidate (every one was unstable at hover in a mode "
               f"the flight excites{why}, diverged or gave a non-finite objective): nothing "
               "written", file=sys.stderr)  # fmt: skip
         return EXIT_INTERRUPT if result.interrupted else EXIT_FAIL
-    text = _tuned_toml(args, args.out, list(expand(result.best)), result.scenario)
-    # The file must give back exactly the tuned scenario.
-    if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
-        raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
-    if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
-        status = EXIT_FAIL
     if result.interrupted:
         print("quadrs tune: interrupted: the best so far is saved", file=sys.stderr)
         return EXIT_INTERRUPT

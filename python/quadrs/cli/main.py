@@ -588,10 +588,9 @@ def load_scenario(args: argparse.Namespace) -> Any:
     plan = getattr(args, "plan", None)
     if plan is None:
         return base.override(changes) if changes else base
-    from quadrs.scenario.route_files import read_route_file
-
-    start = changes.get("initial.position", base["initial.position"])
-    return read_route_file(plan, start_height=float(start[2])).apply(base, changes)
+    if "trajectory.route_file" in changes:
+        raise BadInput("--plan and --set trajectory.route_file: give one route file")
+    return Scenario.from_plan(plan, base, changes)
 
 
 def parse_distribution(text: str) -> dict[str, Any]:
@@ -861,12 +860,22 @@ def _sweep_plots(result: Any, directory: Path) -> None:
     print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
 
 
-def _is_rare_event_file(path: Path) -> bool:
-    """True if ``path`` is a Parquet file written by ``RareEventResult.to_parquet``."""
+#: Files quadrs writes that ``report`` does not read: their kind -> what to say instead.
+_NOT_REPORTED = {
+    "rare_event": "a rare-event result (quadrs rare --out): report reads Monte Carlo, mission "
+    "and sweep files; read it with RareEventResult.read_parquet",
+    "flight": "one flight's trace (quadrs run --trace): report reads Monte Carlo, mission and "
+    "sweep files; read it with quadrs.Flight.read_parquet",
+}
+
+
+def _file_kind(path: Path) -> str | None:
+    """The ``kind`` a quadrs Parquet file's metadata names (None if it names none)."""
     from quadrs.io.parquet import read_meta
 
     meta = read_meta(path, b"quadrs")
-    return isinstance(meta, dict) and meta.get("kind") == "rare_event"
+    kind = meta.get("kind") if isinstance(meta, dict) else None
+    return kind if isinstance(kind, str) else None
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -881,11 +890,9 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
     elif not args.file.exists():
         raise BadInput(f"{str(args.file)!r}: no such file")
-    if not args.file.is_dir() and _is_rare_event_file(args.file):
-        raise BadInput(
-            f"{str(args.file)!r} is a rare-event result (quadrs rare --out): report reads "
-            f"Monte Carlo and sweep files; read it with RareEventResult.read_parquet"
-        )
+    kind = None if args.file.is_dir() else _file_kind(args.file)
+    if kind in _NOT_REPORTED:
+        raise BadInput(f"{str(args.file)!r} is {_NOT_REPORTED[kind]}")
     if not args.file.is_dir() and is_sweep_file(args.file):
         result = SweepResult.read_parquet(args.file)
         _print_frame(result.compact())

@@ -9,6 +9,7 @@ Kept apart from :mod:`quadrs.cli.main`, which registers the subcommand.
 from __future__ import annotations
 
 import argparse
+import copy
 import math
 import sys
 from collections.abc import Callable
@@ -82,6 +83,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         "tension, slack and saturated time, and the tracking errors, with intervals "
         "(see docs/delivery.md). Diverged flights count as exceeding.",
     )
+    _preset_help(p, f"start from a shipped preset (default: {DEFAULT_PRESET})")
     p.add_argument(
         "--runs",
         type=int,
@@ -149,6 +151,21 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         action="store_true",
         help="no progress bar (there is none anyway unless stderr is a terminal)",
     )
+
+
+def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
+    """``--preset``'s help in this command alone: the scenario options are shared by every
+    command (argparse's parents share their action objects), and mission's default differs."""
+    for i, action in enumerate(p._actions):
+        if action.dest == "preset":
+            own = copy.copy(action)
+            own.help = text
+            p._actions[i] = own
+            for group in p._action_groups:
+                group._group_actions[:] = [own if a is action else a
+                                           for a in group._group_actions]  # fmt: skip
+            for option in action.option_strings:
+                p._option_string_actions[option] = own
 
 
 #: How the command line turns its options into a scenario (quadrs.cli.main.load_scenario).

@@ -30,7 +30,7 @@ from quadrs.design.constraints import Constraint, check_phases, constraints_from
 from quadrs.engine.calls import U64_MAX, check_controller, check_int
 from quadrs.runs.montecarlo import monte_carlo
 from quadrs.runs.montecarlo_result import MonteCarloResult
-from quadrs.scenario.scenario import Scenario, design_keys, scenario_error
+from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_error
 
 METHODS = ("differential_evolution", "nelder-mead")
 #: Offset of the held-out seed from the tuning seed.
@@ -191,7 +191,7 @@ def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> 
     for key, bounds in params.items():
         for one in key.split(","):
             try:
-                value = scenario[one.strip()]
+                value = key_value(scenario, one.strip())
             except KeyError:
                 raise scenario_error(f"{one.strip()}: unknown scenario key", one.strip()) from None
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -210,6 +210,51 @@ def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> 
             )
         for b in (low, high):
             scenario.override(expand({key: b}))  # ScenarioError naming the key if out of its domain
+
+
+def check_tuning(
+    scenario: Scenario,
+    controller: str | Sequence[str],
+    params: Mapping[str, Sequence[float]] | None,
+    objective: str | Callable[[MonteCarloResult], float],
+    phases: str | Sequence[str],
+    constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None,
+) -> tuple[tuple[str, ...], dict[str, Sequence[float]], tuple[str, ...], tuple[Constraint, ...]]:
+    """What :func:`optimize` checks of its problem before flying (ValueError naming what is
+    wrong): the controllers, the keys and their bounds, the objective, the phases and the
+    constraints. Returns the controllers, the canonical params, the phases and the parsed
+    constraints. The command line calls it before its calibration flights."""
+    controllers = (controller,) if isinstance(controller, str) else tuple(controller)
+    if not controllers:
+        raise ValueError("controller must name at least one of 'pd', 'smc'")
+    for c in controllers:
+        check_controller(c)
+    params = _canonical_params(scenario, dict(params or {}))
+    _check_params(scenario, params)
+    phases = (phases,) if isinstance(phases, str) else tuple(phases)
+    if isinstance(objective, str):
+        if objective not in _core.METRIC_NAMES:
+            raise ValueError(f"objective must be one of {_core.METRIC_NAMES}, got {objective!r}")
+        if len(controllers) != 1:
+            raise ValueError(
+                f"a metric objective needs one controller, got {controllers}: "
+                "pass a callable objective to combine several"
+            )
+        unknown = [p for p in phases if p not in scenario.phase_names]
+        if not phases or unknown:
+            raise ValueError(f"phases must be among {scenario.phase_names}, got {list(phases)}")
+    elif not callable(objective):
+        raise TypeError(f"objective must be a metric name or a callable, got {objective!r}")
+    cons = constraints_from(constraints)
+    check_phases(cons, scenario.phase_names)
+    if cons and not all(c.phase is not None for c in cons):
+        unknown = [p for p in phases if p not in scenario.phase_names]
+        if not phases or unknown:
+            raise ValueError(
+                f"phases (those of the constraints without their own) must be among "
+                f"{scenario.phase_names}, got {list(phases)}"
+            )
+    return controllers, params, phases, cons
 
 
 def _metric_values(
@@ -283,13 +328,9 @@ def optimize(
 
     from quadrs.hover.stability import stability
 
-    controllers = (controller,) if isinstance(controller, str) else tuple(controller)
-    if not controllers:
-        raise ValueError("controller must name at least one of 'pd', 'smc'")
-    for c in controllers:
-        check_controller(c)
-    params = _canonical_params(scenario, dict(params or {}))
-    _check_params(scenario, params)
+    controllers, params, phases, cons = check_tuning(
+        scenario, controller, params, objective, phases, constraints
+    )
     keys = list(params)
     bounds = [(float(params[k][0]), float(params[k][1])) for k in keys]
     if method not in METHODS:
@@ -303,29 +344,6 @@ def optimize(
         raise ValueError(f"popsize must be >= 1, got {popsize}")
     if not (math.isfinite(penalty) and penalty > 0):
         raise ValueError(f"penalty must be finite and > 0, got {penalty}")
-    phases = (phases,) if isinstance(phases, str) else tuple(phases)
-    if isinstance(objective, str):
-        if objective not in _core.METRIC_NAMES:
-            raise ValueError(f"objective must be one of {_core.METRIC_NAMES}, got {objective!r}")
-        if len(controllers) != 1:
-            raise ValueError(
-                f"a metric objective needs one controller, got {controllers}: "
-                "pass a callable objective to combine several"
-            )
-        unknown = [p for p in phases if p not in scenario.phase_names]
-        if not phases or unknown:
-            raise ValueError(f"phases must be among {scenario.phase_names}, got {list(phases)}")
-    elif not callable(objective):
-        raise TypeError(f"objective must be a metric name or a callable, got {objective!r}")
-    cons = constraints_from(constraints)
-    check_phases(cons, scenario.phase_names)
-    if cons and not all(c.phase is not None for c in cons):
-        unknown = [p for p in phases if p not in scenario.phase_names]
-        if not phases or unknown:
-            raise ValueError(
-                f"phases (those of the constraints without their own) must be among "
-                f"{scenario.phase_names}, got {list(phases)}"
-            )
 
     rows: list[dict[str, Any]] = []
     if method == "differential_evolution":
@@ -441,7 +459,7 @@ def optimize(
             )
         else:
             x0 = [
-                min(max(float(scenario[k.split(",")[0].strip()]), lo), hi)
+                min(max(float(key_value(scenario, k.split(",")[0].strip())), lo), hi)
                 for k, (lo, hi) in zip(keys, bounds, strict=True)
             ]
             sopt.minimize(
@@ -491,7 +509,7 @@ def optimize(
     if not interrupted:
         try:
             # The untuned scenario on the same gusts, beside the best in the history.
-            own = {k: float(scenario[k.split(",")[0].strip()]) for k in keys}
+            own = {k: float(key_value(scenario, k.split(",")[0].strip())) for k in keys}
             row, before = measure(own, scenario, require=False)
             row["role"] = "baseline"
             history = pd.concat([history, pd.DataFrame([row], columns=columns)],

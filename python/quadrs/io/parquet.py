@@ -142,7 +142,7 @@ def read_file(
     where = "<bytes>" if isinstance(path, bytes) else str(path)
     data = path if isinstance(path, bytes) else read_regular(path)
     try:
-        table = pq.read_table(pa.BufferReader(data))
+        table = pq.ParquetFile(pa.BufferReader(_arrow_owned(data))).read(use_threads=False)
     except (pa.ArrowException, OSError, ValueError) as e:
         raise CorruptRunError(f"{where!r}: not a readable Parquet file ({_first_line(e)})") \
             from None  # fmt: skip
@@ -166,10 +166,23 @@ def read_file(
             )
     attachments = {k: v for k, v in schema_meta.items() if k != b"pandas"}
     try:
-        frame = table.to_pandas()
+        frame = table.to_pandas(use_threads=False)
     except (pa.ArrowException, ValueError, TypeError) as e:
         raise CorruptRunError(f"{where!r}: its rows cannot be read ({_first_line(e)})") from None
     return SavedFile(frame, meta, attachments)
+
+
+def _arrow_owned(data: bytes) -> pa.Buffer:
+    """A copy of ``data`` in Arrow's own memory. Handed the Python bytes themselves, Arrow
+    holds the Python object, and whichever of its threads drops the last reference must take
+    the GIL to release it: one that does so while the interpreter finalises (a refusal just
+    before exit leaves a reader's thread behind) is ended by Python inside Arrow's C++ and
+    aborts the process ("terminate called without an active exception"). Read from Arrow's
+    memory, on this thread alone (ParquetFile, not the dataset scanner, and no column
+    threads), no Arrow thread ever needs the GIL."""
+    sink = pa.BufferOutputStream()
+    sink.write(data)
+    return sink.getvalue()
 
 
 def read_frame(

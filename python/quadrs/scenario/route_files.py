@@ -5,32 +5,51 @@ A ``.plan`` is JSON; its ``mission.items`` are MAVLink mission items. Their posi
 the scenario's ``trajectory.route``, in the engine's local frame about the plan's
 ``plannedHomePosition``: x east and y north on the WGS-84 tangent plane at home
 (``pymap3d.geodetic2enu``), z the item's altitude above home (what the vehicle holds over the
-ground; the tangent plane's own "up" falls below it by d²/2R, 8 cm at 1 km). The flight
-starts at home at the base scenario's initial height (the parcel hanging clear of the pad)
-and ends over the last point at that height. What each command becomes:
+ground; the tangent plane's own "up" falls below it by d²/2R, 8 cm at 1 km). A point more than
+MAX_DISTANCE (50 km) from home along the ground is refused: there the tangent plane is off
+by more than half a metre and its vertical by 0.45° (at the antipode it folds a 20,000 km
+leg into a short one). The flight starts at home at the base scenario's initial height (the
+parcel hanging clear of the pad) and ends over the last point at that height. The items are
+flown in mission order, ``DO_JUMP`` included; what each command becomes:
 
 - ``NAV_WAYPOINT`` (16): a point, held ``param1`` s; ``NAV_LOITER_TIME`` (19): likewise.
-- ``NAV_TAKEOFF`` (22): straight up to its altitude (over its position if it has one).
-- ``NAV_LAND`` (21): over its position at the current altitude, then down to the start
-  height; ``NAV_RETURN_TO_LAUNCH`` (20): back over home at the current altitude, then down.
+- ``NAV_TAKEOFF`` (22): straight up to its altitude (over its position if it has one: a
+  latitude and longitude of null, or NaN, mean "here"; 0 is a position).
+- ``NAV_LAND`` (21): over its position (likewise) at the current altitude, then down to the
+  start height; ``NAV_RETURN_TO_LAUNCH`` (20): back over home at the current altitude, then down.
 - ``NAV_DELAY`` (93): a hold at the current point.
-- ``DO_CHANGE_SPEED`` (178): the cruise speed (``trajectory.speed``); the engine flies one
-  speed, so different speeds in one plan are refused.
-- Other ``DO_*`` and condition commands (camera, gripper, servo, ...) do not move the
-  vehicle and are skipped. Any other navigation command (an unlimited loiter, a terrain-
-  relative altitude, a survey pattern) is refused naming its item.
+- ``DO_JUMP`` (177): back (or on) to the item whose sequence number is ``param1``
+  (``doJumpId``; else its index + 1, home being 0), ``param2`` times, as the autopilot flies
+  it (PX4 counts each jump over the whole mission); one that repeats forever is refused.
+- ``DO_CHANGE_SPEED`` (178): speed type ``param1`` 0 (airspeed) or 1 (ground speed) sets the
+  cruise speed (``trajectory.speed``; a multicopter flies both as its horizontal speed), -1 is
+  no change, -2 the plan's default (``hoverSpeed``); the engine flies one speed, so different
+  speeds in one plan are refused, as is a climb (2) or descent (3) speed, which the engine
+  cannot fly apart from the cruise speed.
+- Commands that neither move the vehicle nor act on its payload (camera, gimbal, region of
+  interest, video, ``CONDITION_DELAY``/``DISTANCE``/``YAW``, ``DO_LAND_START``): not flown,
+  named in a warning.
+- Everything else is refused naming its item: ``DO_SET_HOME`` (it would move home, and the
+  altitudes above it, mid-flight), ``DO_REPOSITION``, servos and relays (they may release the
+  payload), an unlimited loiter, a terrain-relative altitude, a survey pattern, any command
+  quadrs does not know. docs/guarantees.md lists the same.
 
 A CSV has a header row and one row per point: ``x, y, z`` in metres (the route as it is), or
 ``lat, lon, alt`` (degrees and metres, converted about the first row as above); an optional
 ``hold`` column (s) holds at each point.
+
+Every file is read as quadrs reads every input file (quadrs.io.files.read_input_text): a
+regular file of at most MAX_BYTES, UTF-8 (a byte-order mark is dropped).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
-from collections.abc import Mapping, Sequence
+import warnings
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
@@ -54,6 +73,7 @@ __all__ = [
     "RoutableScenario",
     "RouteFile",
     "RouteFileError",
+    "RouteFileWarning",
     "read_plan",
     "read_route_csv",
     "read_route_file",
@@ -63,14 +83,50 @@ Point = tuple[float, float, float]
 
 # MAVLink MAV_CMD values (mavlink common.xml).
 WAYPOINT, LOITER_UNLIM, LOITER_TURNS, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 18, 19, 20, 21, 22
-DELAY, CHANGE_SPEED = 93, 178
-#: Commands below this navigate; from here on they are conditions and DO_ commands (camera,
-#: gripper, servo, region of interest, ...), which do not move the vehicle.
+DELAY, JUMP, CHANGE_SPEED, SET_HOME, REPOSITION = 93, 177, 178, 179, 192
+#: Commands below this navigate; from here on they are conditions and DO_ commands.
 FIRST_NON_NAV = 100
+#: Commands that neither move the vehicle nor act on its payload: not flown, named in a
+#: warning (camera, gimbal, region of interest, video; conditions on the DO_ commands that
+#: follow; the landing sequence's marker).
+NOT_FLOWN = {
+    112: "CONDITION_DELAY", 114: "CONDITION_DISTANCE", 115: "CONDITION_YAW",
+    189: "DO_LAND_START", 195: "DO_SET_ROI_LOCATION", 196: "DO_SET_ROI_WPNEXT_OFFSET",
+    197: "DO_SET_ROI_NONE", 200: "DO_CONTROL_VIDEO", 201: "DO_SET_ROI",
+    202: "DO_DIGICAM_CONFIGURE", 203: "DO_DIGICAM_CONTROL", 204: "DO_MOUNT_CONFIGURE",
+    205: "DO_MOUNT_CONTROL", 206: "DO_SET_CAM_TRIGG_DIST", 214: "DO_SET_CAM_TRIGG_INTERVAL",
+    530: "SET_CAMERA_MODE", 531: "SET_CAMERA_ZOOM", 532: "SET_CAMERA_FOCUS",
+    1000: "DO_GIMBAL_MANAGER_PITCHYAW", 2000: "IMAGE_START_CAPTURE",
+    2001: "IMAGE_STOP_CAPTURE", 2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE",
+    211: "DO_GRIPPER", 42600: "DO_WINCH",
+}  # fmt: skip
+#: Commands refused with a reason of their own (any other unknown command is refused too).
+REFUSED = {
+    LOITER_UNLIM: "NAV_LOITER_UNLIM loiters forever: the flight would never end",
+    LOITER_TURNS: "NAV_LOITER_TURNS circles a point: export the circle as waypoints",
+    113: "CONDITION_CHANGE_ALT changes the altitude between waypoints: give it as a waypoint",
+    SET_HOME: "DO_SET_HOME moves home (where a return goes, and the altitudes above it) "
+    "mid-flight: not flown; plan it with one home",
+    REPOSITION: "DO_REPOSITION sends the vehicle to a position outside the mission's legs: "
+    "give it as a waypoint",
+    181: "DO_SET_RELAY may release or move the payload, which quadrs cannot tell",
+    182: "DO_REPEAT_RELAY may release or move the payload, which quadrs cannot tell",
+    183: "DO_SET_SERVO may release or move the payload, which quadrs cannot tell",
+    184: "DO_REPEAT_SERVO may release or move the payload, which quadrs cannot tell",
+}
 # MAV_FRAME values: altitudes above mean sea level, above home, above terrain.
 AMSL_FRAMES, HOME_FRAMES, TERRAIN_FRAMES = (0, 5), (3, 6), (10, 11)
 #: Points closer than this (m) are one point: the engine refuses a leg of zero length.
 SAME_POINT = 1e-3
+#: Farthest a point may be from home along the ground (m): beyond it the tangent plane's
+#: distances are off by more than 0.5 m and its vertical by more than 0.45 degrees.
+MAX_DISTANCE = 50e3
+#: Mean Earth radius (m), for the distance along the ground that MAX_DISTANCE bounds.
+EARTH_RADIUS = 6371008.8
+#: Most mission items flown once DO_JUMPs are expanded (a jump inside a jump multiplies).
+MAX_FLOWN_ITEMS = 100_000
+#: Largest route file read (bytes).
+MAX_BYTES = 16 << 20
 
 
 class RouteFileError(ValueError):
@@ -115,8 +171,10 @@ class RouteFile:
         gust = data.get("gust", {})
         whole = gust.get("start", 0.0) == 0.0 and gust.get("end") == data["integrator"]["duration"]
         try:
-            # The route's own time, from the engine's schedule of a flight long enough for it.
-            long = base.override({**route, "integrator.duration": 1e5, "gust.end": 1e5})
+            # The route's own time, from the engine's schedule of a flight surely long enough
+            # for it (or of the duration given, which must then cover it).
+            probe = float(extra.get("integrator.duration", self._time_bound(base, route)))
+            long = base.override({**route, "integrator.duration": probe, "gust.end": probe})
             legs = long.route.legs if long.route is not None else []
             needed = sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
             dt = float(long["integrator.dt"])
@@ -127,6 +185,22 @@ class RouteFile:
             return base.override(route)
         except ValueError as e:
             raise RouteFileError(f"{self.source}: {e}") from None
+
+    def _time_bound(self, base: RoutableScenario, route: Mapping[str, Any]) -> float:
+        """Seconds the route surely takes less than: a leg of length L at cruise speed V and
+        acceleration bound A takes L/V + 2V/A (two ramps of 2V/A with L/V - 2V/A between; a
+        shorter leg, 2 sqrt(2L/A), is less), plus the holds and a margin."""
+        try:
+            speed = float(route.get("trajectory.speed", base["trajectory.speed"]))
+            accel = float(route.get("trajectory.acceleration", base["trajectory.acceleration"]))
+            hold = sum(float(h) for h in route.get("trajectory.hold", self.hold))
+        except (KeyError, TypeError, ValueError):
+            return 1e5  # the scenario refuses the route below, naming the key
+        if not (math.isfinite(speed) and speed > 0 and math.isfinite(accel) and accel > 0):
+            return 1e5
+        legs = zip(self.points, self.points[1:], strict=False)
+        t = sum(math.dist(a, b) / speed + 2 * speed / accel for a, b in legs) + hold
+        return 1.01 * t + 1.0
 
 
 def read_route_file(path: str | Path, start_height: float = 0.0) -> RouteFile:
@@ -139,16 +213,28 @@ def read_route_file(path: str | Path, start_height: float = 0.0) -> RouteFile:
     raise RouteFileError(f"{p}: a route file is a QGroundControl .plan or a .csv of points")
 
 
+def _read_text(p: Path) -> str:
+    from quadrs.io.files import InputFileError, read_input_text
+
+    try:
+        return read_input_text(p, "route file", MAX_BYTES)
+    except InputFileError as e:
+        raise RouteFileError(str(e)) from None
+    except OSError as e:
+        raise RouteFileError(f"{p}: cannot read it ({e.strerror or e})") from None
+
+
 def read_plan(path: str | Path, start_height: float = 0.0) -> RouteFile:
     """The route of a QGroundControl ``.plan`` mission (module docstring): home at
-    ``start_height`` m, then the mission's items."""
+    ``start_height`` m, then the mission's items in the order they are flown."""
     p = Path(path)
+    text = _read_text(p)
     try:
-        doc = json.loads(p.read_text())
-    except OSError as e:
-        raise RouteFileError(f"{p}: cannot read it ({e.strerror})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        doc = json.loads(text)
+    except ValueError as e:  # JSONDecodeError, or an integer of more digits than Python reads
         raise RouteFileError(f"{p}: not JSON ({e})") from None
+    except RecursionError:
+        raise RouteFileError(f"{p}: not a QGroundControl plan (nested too deeply)") from None
     if not isinstance(doc, dict) or doc.get("fileType") != "Plan":
         raise RouteFileError(f'{p}: not a QGroundControl plan (no "fileType": "Plan")')
     mission = doc.get("mission")
@@ -158,47 +244,47 @@ def read_plan(path: str | Path, start_height: float = 0.0) -> RouteFile:
     items = mission.get("items")
     if not isinstance(items, list) or not items:
         raise RouteFileError(f"{p}: mission.items: no mission items")
-    plan = _PlanRoute(home, start_height, str(p))
-    speeds: set[float] = set()
-    hover = mission.get("hoverSpeed")
-    for i, item in enumerate(items):
-        plan.item(item, f"{p}: mission.items[{i}]", speeds)
+    hover = _speed(mission.get("hoverSpeed"), f"{p}: mission.hoverSpeed")
+    plan = _PlanRoute(home, start_height, str(p), hover)
+    commands = [_command(item, f"{p}: mission.items[{i}]") for i, item in enumerate(items)]
+    for i in _flown_order(items, commands, f"{p}: mission.items"):
+        plan.item(commands[i], items[i]["params"], items[i], f"{p}: mission.items[{i}]")
     plan.end()
-    if len(speeds) > 1:
-        raise RouteFileError(
-            f"{p}: DO_CHANGE_SPEED sets {sorted(speeds)} m/s: the engine flies one cruise "
-            "speed (trajectory.speed); keep one"
-        )
-    speed = speeds.pop() if speeds else _speed(hover, f"{p}: mission.hoverSpeed")
-    return plan.route(speed)
+    if plan.not_flown:
+        warnings.warn(f"{p}: not flown (they do not move the vehicle): "
+                      + ", ".join(plan.not_flown), RouteFileWarning, stacklevel=2)  # fmt: skip
+    return plan.route(plan.cruise_speed())
 
 
 def read_route_csv(path: str | Path) -> RouteFile:
     """The route of a CSV of points (module docstring): ``x, y, z`` (m) or ``lat, lon, alt``
     (degrees, m; about the first row), with an optional ``hold`` (s)."""
     p = Path(path)
+    reader = csv.reader(io.StringIO(_read_text(p), newline=""), skipinitialspace=True)
     try:
-        with p.open(newline="") as f:
-            rows = list(csv.DictReader(f, skipinitialspace=True))
-    except OSError as e:
-        raise RouteFileError(f"{p}: cannot read it ({e.strerror})") from None
-    if not rows:
+        table = [row for row in reader if any(cell.strip() for cell in row)]
+    except csv.Error as e:  # a cell beyond csv's field limit (128 KiB), a NUL
+        raise RouteFileError(f"{p}: line {reader.line_num}: not CSV ({e})") from None
+    if len(table) < 2:
         raise RouteFileError(f"{p}: no points (a header row, then one row per point)")
-    columns = {c.strip().lower() for c in rows[0] if c is not None}
+    header = [c.strip().lower() for c in table[0]]
+    columns = set(header)
     geodetic = {"lat", "lon", "alt"} <= columns
     if not geodetic and not {"x", "y", "z"} <= columns:
         raise RouteFileError(f"{p}: the header must name x, y, z (m) or lat, lon, alt")
     names = ("lat", "lon", "alt") if geodetic else ("x", "y", "z")
+    ranges = {"lat": (-90.0, 90.0), "lon": (-180.0, 180.0)}
     values = []
-    for line, row in enumerate(rows, start=2):
-        row = {k.strip().lower(): v for k, v in row.items() if k is not None}
+    for line, cells in enumerate(table[1:], start=2):
+        row = dict(zip(header, cells, strict=False))
         values.append(
-            [_number(row.get(n), f"{p}: line {line}, {n}") for n in names]
+            [_number(row.get(n), f"{p}: line {line}, {n}", *ranges.get(n, ())) for n in names]
             + [_number(row.get("hold") or "0", f"{p}: line {line}, hold", minimum=0.0)]
         )
     if geodetic:
         home = tuple(values[0][:3])
-        points = [_enu(v[0], v[1], v[2] - home[2], home) for v in values]
+        points = [_enu(v[0], v[1], v[2] - home[2], home, f"{p}: line {line}")
+                  for line, v in enumerate(values, start=2)]  # fmt: skip
     else:
         points = [(v[0], v[1], v[2]) for v in values]
     route = _Builder(str(p))
@@ -207,7 +293,74 @@ def read_route_csv(path: str | Path) -> RouteFile:
     return route.route(None)
 
 
+class RouteFileWarning(UserWarning):
+    """Mission items a route file holds that are not flown (they do not move the vehicle)."""
+
+
 # -- internals ----------------------------------------------------------------------------
+
+
+def _command(item: Any, where: str) -> int:
+    """An item's MAV_CMD, after checking the item's shape."""
+    if not isinstance(item, dict):
+        raise RouteFileError(f"{where}: not a mission item (a JSON object)")
+    if item.get("type") != "SimpleItem":
+        kind = item.get("complexItemType", item.get("type"))
+        raise RouteFileError(
+            f"{where}: a {kind!r} item is not supported: export the pattern as waypoints"
+        )
+    command = item.get("command")
+    params = item.get("params")
+    if (not isinstance(command, int) or isinstance(command, bool) or not isinstance(params, list)
+            or len(params) != 7):  # fmt: skip
+        raise RouteFileError(f"{where}: a mission item needs a command and 7 params")
+    return command
+
+
+def _whole(value: Any, where: str, minimum: int) -> int:
+    v = _number(value, where, float(minimum), 2.0**31)
+    if v != int(v):
+        raise RouteFileError(f"{where}: must be a whole number, got {value!r}")
+    return int(v)
+
+
+def _flown_order(items: list[Any], commands: list[int], where: str) -> Iterator[int]:
+    """The indices of ``items`` in the order the vehicle flies them, ``DO_JUMP``s followed
+    (module docstring); the jumps themselves are not yielded."""
+    seq: dict[int, int] = {}
+    for i, item in enumerate(items):
+        jump_id = item.get("doJumpId", i + 1)
+        if isinstance(jump_id, int) and not isinstance(jump_id, bool):
+            seq.setdefault(jump_id, i)
+    targets: dict[int, tuple[int, int]] = {}
+    for i, command in enumerate(commands):
+        if command != JUMP:
+            continue
+        params, here = items[i]["params"], f"{where}[{i}]: DO_JUMP"
+        if params[1] is not None and _number(params[1], f"{here} params[1] (repeat)") == -1:
+            raise RouteFileError(f"{here} repeats forever (params[1] = -1): the flight would "
+                                 "never end")  # fmt: skip
+        number = _whole(params[0], f"{here} params[0] (sequence number)", 0)
+        if number not in seq:
+            raise RouteFileError(f"{here} params[0]: no mission item has sequence number "
+                                 f"{number} (home is 0, the first item 1)")  # fmt: skip
+        targets[i] = (seq[number], _whole(params[1], f"{here} params[1] (repeat)", 0))
+    jumped = [0] * len(items)
+    i = flown = 0
+    while i < len(items):
+        if i in targets:
+            target, repeat = targets[i]
+            if jumped[i] < repeat:
+                jumped[i] += 1
+                i = target
+            else:
+                i += 1
+            continue
+        flown += 1
+        if flown > MAX_FLOWN_ITEMS:
+            raise RouteFileError(f"{where}: its DO_JUMPs fly more than {MAX_FLOWN_ITEMS} items")
+        yield i
+        i += 1
 
 
 class _Builder:
@@ -231,70 +384,71 @@ class _Builder:
         return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source)
 
 
+#: What flying one mission item does to the route: (route, params, item, where).
+ItemHandler = Callable[["_PlanRoute", list[Any], dict[str, Any], str], None]
+
+
 class _PlanRoute(_Builder):
-    def __init__(self, home: Point, start_height: float, source: str) -> None:
+    """A plan's route, built item by item in the order they are flown (:data:`HANDLERS`)."""
+
+    def __init__(self, home: Point, start_height: float, source: str,
+                 default_speed: float | None) -> None:  # fmt: skip
         super().__init__(source)
         self.home = home
         self.start_height = start_height
+        self.default_speed = default_speed
+        #: The cruise speeds DO_CHANGE_SPEED sets (None: the default).
+        self.speeds: dict[float | None, str] = {}
+        self.not_flown: list[str] = []
         self.to((0.0, 0.0, start_height))
 
     @property
     def here(self) -> Point:
         return self.points[-1]
 
-    def item(self, item: Any, where: str, speeds: set[float]) -> None:
-        if not isinstance(item, dict):
-            raise RouteFileError(f"{where}: not a mission item (a JSON object)")
-        if item.get("type") != "SimpleItem":
-            kind = item.get("complexItemType", item.get("type"))
-            raise RouteFileError(
-                f"{where}: a {kind!r} item is not supported: export the pattern as waypoints"
-            )
-        command = item.get("command")
-        params = item.get("params")
-        if not isinstance(command, int) or not isinstance(params, list) or len(params) != 7:
-            raise RouteFileError(f"{where}: a mission item needs a command and 7 params")
-        if command == CHANGE_SPEED:
-            speed = _speed(params[1], f"{where}: DO_CHANGE_SPEED params[1]")
-            if speed is not None:
-                speeds.add(speed)
-            return
-        if command >= FIRST_NON_NAV:
-            return
-        if command == DELAY:
-            self.to(self.here, _number(params[0], f"{where}: NAV_DELAY params[0]", 0.0))
-            return
-        if command == RTL:
-            self.to((0.0, 0.0, self.here[2]))
-            self.to((0.0, 0.0, self.start_height))
-            return
-        if command not in (WAYPOINT, LOITER_TIME, LAND, TAKEOFF):
-            raise RouteFileError(
-                f"{where}: navigation command {command} is not supported (waypoint 16, "
-                "loiter-time 19, return 20, land 21, take-off 22, delay 93)"
-            )
-        x, y = self._horizontal(params, where, optional=command in (TAKEOFF, LAND))
-        if command == LAND:
-            self.to((x, y, self.here[2]))
-            self.to((x, y, self.start_height))
-            return
-        z = self._altitude(item.get("frame"), params[6], where)
-        if command == TAKEOFF:
-            self.to((self.here[0], self.here[1], z))
-            self.to((x, y, z))
-            return
-        self.to((x, y, z), _number(params[0], f"{where}: params[0] (hold, s)", 0.0))
+    def item(self, command: int, params: list[Any], item: dict[str, Any], where: str) -> None:
+        handler = HANDLERS.get(command)
+        if handler is not None:
+            handler(self, params, item, where)
+        elif command in NOT_FLOWN:
+            self.not_flown.append(f"{where.rsplit(': ', 1)[-1]} {NOT_FLOWN[command]}")
+        else:
+            kind = "navigation command" if command < FIRST_NON_NAV else "command"
+            why = REFUSED.get(command, "quadrs flies waypoint 16, loiter-time 19, return 20, "
+                              "land 21, take-off 22, delay 93, jump 177 and change-speed 178, "
+                              "and ignores commands that do not move the vehicle "
+                              "(docs/guarantees.md)")  # fmt: skip
+            raise RouteFileError(f"{where}: {kind} {command} is not supported: {why}")
 
-    def _horizontal(self, params: list[Any], where: str, optional: bool) -> tuple[float, float]:
+    def cruise_speed(self) -> float | None:
+        """The one cruise speed of the plan: DO_CHANGE_SPEED's, or the plan's default."""
+        speeds = {self.default_speed if v is None else v: w for v, w in self.speeds.items()}
+        if len(speeds) > 1:
+            known = sorted(v for v in speeds if v is not None)
+            default = " and the base scenario's (-2: the default)" if None in speeds else ""
+            raise RouteFileError(
+                f"{self.source}: DO_CHANGE_SPEED sets {known} m/s{default} "
+                f"({', '.join(speeds.values())}): the engine flies one cruise speed "
+                "(trajectory.speed); keep one"
+            )
+        return next(iter(speeds)) if speeds else self.default_speed
+
+    def horizontal(self, params: list[Any], where: str, optional: bool) -> tuple[float, float]:
         lat, lon = params[4], params[5]
-        if optional and (lat in (None, 0) or lon in (None, 0)):
+        absent = [v is None or (isinstance(v, float) and math.isnan(v)) for v in (lat, lon)]
+        if optional and all(absent):
             return self.here[0], self.here[1]
+        if optional and any(absent):
+            raise RouteFileError(
+                f"{where}: params[4] and params[5] (latitude, longitude): give both or neither "
+                f"(null: here), got {lat!r}, {lon!r}"
+            )
         lat = _number(lat, f"{where}: params[4] (latitude)", -90.0, 90.0)
         lon = _number(lon, f"{where}: params[5] (longitude)", -180.0, 180.0)
-        e, n, _ = _enu(lat, lon, 0.0, self.home)
+        e, n, _ = _enu(lat, lon, 0.0, self.home, where)
         return e, n
 
-    def _altitude(self, frame: Any, alt: Any, where: str) -> float:
+    def altitude(self, frame: Any, alt: Any, where: str) -> float:
         a = _number(alt, f"{where}: params[6] (altitude)")
         if frame in HOME_FRAMES:
             return a
@@ -312,10 +466,88 @@ class _PlanRoute(_Builder):
             raise RouteFileError(f"{self.source}: mission.items: no waypoint to fly to")
 
 
-def _enu(lat: float, lon: float, height: float, home: Sequence[float]) -> Point:
-    """East and north (m) of (lat, lon) on the tangent plane at home; ``height`` as given."""
+def _waypoint(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    x, y = r.horizontal(params, where, optional=False)
+    z = r.altitude(item.get("frame"), params[6], where)
+    r.to((x, y, z), _number(params[0], f"{where}: params[0] (hold, s)", 0.0))
+
+
+def _takeoff(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    x, y = r.horizontal(params, where, optional=True)
+    z = r.altitude(item.get("frame"), params[6], where)
+    r.to((r.here[0], r.here[1], z))
+    r.to((x, y, z))
+
+
+def _land(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    x, y = r.horizontal(params, where, optional=True)
+    r.to((x, y, r.here[2]))
+    r.to((x, y, r.start_height))
+
+
+def _return(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    r.to((0.0, 0.0, r.here[2]))
+    r.to((0.0, 0.0, r.start_height))
+
+
+def _delay(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    r.to(r.here, _number(params[0], f"{where}: NAV_DELAY params[0]", 0.0))
+
+
+#: DO_CHANGE_SPEED's speed types (param1) and what the engine does with each.
+SPEED_TYPES = {0: "airspeed", 1: "ground speed", 2: "climb speed", 3: "descent speed"}
+
+
+def _change_speed(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
+    here = f"{where}: DO_CHANGE_SPEED"
+    kind = _whole(0 if params[0] is None else params[0], f"{here} params[0] (speed type)", 0)
+    if kind not in SPEED_TYPES:
+        raise RouteFileError(f"{here} params[0] (speed type) must be 0 (airspeed), 1 (ground "
+                             f"speed), 2 (climb) or 3 (descent), got {params[0]!r}")  # fmt: skip
+    value = params[1]
+    if value is None or _number(value, f"{here} params[1] (speed)") == -1:
+        return  # no change
+    if kind >= 2:
+        raise RouteFileError(
+            f"{here} sets a {SPEED_TYPES[kind]} (params[0] = {kind}): the engine flies every "
+            "leg at one speed (trajectory.speed), not a vertical speed apart; remove the item"
+        )
+    label = where.rsplit(": ", 1)[-1]
+    if _number(value, f"{here} params[1] (speed)") == -2:  # back to the default
+        r.speeds.setdefault(None, label)
+        return
+    speed = _speed(value, f"{here} params[1]")
+    r.speeds.setdefault(speed, label)
+
+
+#: What each flown command does (module docstring). A command absent here is ignored with a
+#: warning (NOT_FLOWN) or refused, naming its item.
+HANDLERS: dict[int, ItemHandler] = {
+    WAYPOINT: _waypoint,
+    LOITER_TIME: _waypoint,
+    TAKEOFF: _takeoff,
+    LAND: _land,
+    RTL: _return,
+    DELAY: _delay,
+    CHANGE_SPEED: _change_speed,
+}
+
+
+def _enu(lat: float, lon: float, height: float, home: Sequence[float], where: str) -> Point:
+    """East and north (m) of (lat, lon) on the tangent plane at home; ``height`` as given.
+    RouteFileError naming ``where`` if the point is farther than MAX_DISTANCE from home."""
     import pymap3d
 
+    p1, p2 = math.radians(home[0]), math.radians(lat)
+    dlon = math.radians(lon - home[1])
+    h = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dlon / 2) ** 2
+    ground = 2 * EARTH_RADIUS * math.asin(min(1.0, math.sqrt(h)))
+    if ground > MAX_DISTANCE:
+        raise RouteFileError(
+            f"{where}: ({lat:g}, {lon:g}) is {ground / 1e3:.4g} km from home "
+            f"({home[0]:g}, {home[1]:g}): beyond {MAX_DISTANCE / 1e3:g} km the local tangent "
+            "plane the route is flown on is wrong; split the mission"
+        )
     e, n, _ = pymap3d.geodetic2enu(lat, lon, home[2], home[0], home[1], home[2])
     return float(e), float(n), float(height)
 
@@ -342,9 +574,10 @@ def _speed(value: Any, where: str) -> float | None:
 def _number(value: Any, where: str, minimum: float = -math.inf, maximum: float = math.inf) -> float:
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise RouteFileError(f"{where}: not a number: {value!r}") from None
-    if not (math.isfinite(v) and minimum <= v <= maximum):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
+        shown = repr(value) if len(repr(value)) <= 40 else f"{repr(value)[:40]}..."
+        raise RouteFileError(f"{where}: not a number within range: {shown}") from None
+    if isinstance(value, bool) or not (math.isfinite(v) and minimum <= v <= maximum):
         span = f" in [{minimum:g}, {maximum:g}]" if math.isfinite(minimum) else ""
         raise RouteFileError(f"{where}: must be finite{span}, got {value!r}")
     return v

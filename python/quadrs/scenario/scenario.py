@@ -59,7 +59,11 @@ _EXCLUSIVE = {
     "payload.natural_frequency": "payload.stiffness",
     "gust.w20": "gust.intensity",
     "gust.intensity": "gust.w20",
+    "wind.table.file": "wind.table.points",
+    "wind.table.points": "wind.table.file",
 }
+#: Optional tables below the top level that setting one of their keys creates.
+_CREATED_TABLES = frozenset({"wind.table"})
 #: Column at which the presets start their end-of-line comments.
 _COMMENT_COLUMN = 38
 _SEGMENT = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?P<index>(\[\d+\])*)$")
@@ -103,25 +107,18 @@ def _real(path: Path) -> Path:
 
 
 def _read_text(path: Path) -> str:
-    """A scenario file's text: at most MAX_FILE_BYTES are read (a device such as /dev/zero
-    is refused, not read forever; a pipe, ``<(...)``, is read); UTF-8. ScenarioError naming
-    the file otherwise."""
+    """A scenario file's text, read as every input file is (quadrs.io.files.read_input_text):
+    at most MAX_FILE_BYTES (a device such as /dev/zero is refused, not read forever; a pipe,
+    ``<(...)``, is read); UTF-8. ScenarioError naming the file otherwise."""
+    from quadrs.io.files import InputFileError, read_input_text
+
     try:
-        with path.open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)
+        return read_input_text(path, "scenario file", MAX_FILE_BYTES, streams=True)
+    except InputFileError as e:
+        raise ScenarioError(f"{e}: not a scenario") from None
     except OSError as e:
         raise ScenarioError(
             f"scenario file {str(path)!r} cannot be read: {e.strerror or e}"
-        ) from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ScenarioError(
-            f"scenario file {str(path)!r} is larger than {MAX_FILE_BYTES} bytes: not a scenario"
-        )
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise ScenarioError(
-            f"scenario file {str(path)!r} is not UTF-8 text (byte {e.start}): not a scenario"
         ) from None
 
 
@@ -199,6 +196,11 @@ def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]
 MAX_DEPTH = 32
 #: Largest scenario file read (bytes): a binary or endless file is refused, not read forever.
 MAX_FILE_BYTES = 1 << 20
+#: Largest scenario text parsed (characters). Text quadrs wrote itself (the scenario a saved
+#: result or checkpoint carries, ``to_toml``, a scenario re-read after its route or wind table
+#: was read in) holds every row of its wind table and route, so it may be far larger than a
+#: file a user writes; this only guards against absurd sizes.
+MAX_TEXT_CHARS = 256 << 20
 #: Integers in a scenario lie in [-2**63, 2**63).
 _INT_LIMIT = 1 << 63
 
@@ -269,6 +271,17 @@ _ROUTE_FILE_KEYS = ("trajectory.hold", "trajectory.speed", "trajectory.names",
                     "initial.position", "integrator.duration", "gust.end")  # fmt: skip
 
 
+def start_height(position: Any) -> float:
+    """The height (m) of an ``initial.position`` a route file's flight starts at: ScenarioError
+    naming the key unless it is 3 numbers (it is read before the scenario checks it)."""
+    if isinstance(position, list | tuple) and len(position) == 3:
+        z = position[2]
+        if isinstance(z, int | float) and not isinstance(z, bool) and math.isfinite(z):
+            return float(z)
+    raise scenario_error(f"initial.position must have 3 numbers (x, y, z in m), got "
+                         f"{toml_value(position)[:80]}", "initial.position")  # fmt: skip
+
+
 def _route_file_of(data: Mapping[str, Any]) -> Any:
     """The ``trajectory.route_file`` a scenario table names, or None."""
     trajectory = data.get("trajectory")
@@ -316,7 +329,7 @@ def _with_route_file(cls: type[Scenario], data: dict[str, Any], folder: Path,
         trajectory.setdefault("speed", 1.0)
         base = build(rest)
     path = Path(name) if Path(name).is_absolute() else folder / name
-    height = float(given.get("initial.position", base["initial.position"])[2])
+    height = start_height(given.get("initial.position", base["initial.position"]))
     try:
         route = read_route_file(path, start_height=height)
         if speed_from_file and route.speed is None:
@@ -338,6 +351,12 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
     from quadrs.scenario.wind_table import read_wind_table
 
     name = table["file"]
+    if "points" in table:
+        raise scenario_error(
+            "wind.table: give file or points, not both (the file's rows would replace the "
+            "points given)",
+            "wind.table.file",
+        )
     if not isinstance(name, str) or not name:
         raise scenario_error(f"wind.table.file must name a CSV file, got {name!r}",
                              "wind.table.file")  # fmt: skip
@@ -358,6 +377,29 @@ def _seed_controller_table(controller: dict[str, Any], kind: Any) -> None:
         controller[kind] = json.loads(defaults)
 
 
+def key_value(scenario: Scenario, key: str) -> Any:
+    """``scenario[key]``, or for a key of a law's table the scenario leaves out, the engine's
+    default that setting the key starts from (``controller.px4.MPC_XY_P`` on a scenario with
+    no ``[controller.px4]``): what a tuned or swept key is untuned. KeyError otherwise."""
+    try:
+        return scenario[key]
+    except KeyError:
+        parts = _split_key(key)
+        if len(parts) < 3 or parts[0] != "controller":
+            raise
+        controller = scenario.get("controller")
+        if not isinstance(controller, dict):
+            raise
+        _seed_controller_table(controller, parts[1])
+        node: Any = controller
+        for part in parts[1:]:
+            try:
+                node = node[part]
+            except (KeyError, IndexError, TypeError):
+                raise KeyError(key) from None
+        return node
+
+
 def _complete_controller_tables(data: dict[str, Any]) -> None:
     """A law's table that gives only some keys (``[controller.px4]`` with the few values a
     user's airframe changes) takes the rest from the engine's defaults, in place; a key the
@@ -369,6 +411,23 @@ def _complete_controller_tables(data: dict[str, Any]) -> None:
         table = controller.get(kind)
         if isinstance(table, dict):
             controller[kind] = {**json.loads(text), **table}
+
+
+def _seeded(base: dict[str, Any], data: Mapping[str, Any]) -> dict[str, Any]:
+    """``base`` with the engine's defaults for each law's table that ``data`` has and ``base``
+    leaves out (what setting one key of it starts from, :func:`_seed_controller_table`): so
+    that one ``--set controller.px4.X`` differs from the base in X alone."""
+    mine, theirs = data.get("controller"), base.get("controller")
+    if not isinstance(mine, Mapping) or not isinstance(theirs, dict):
+        return base
+    missing = [k for k in _core.CONTROLLER_DEFAULTS if k in mine and k not in theirs]
+    if not missing:
+        return base
+    out = dict(base)
+    out["controller"] = dict(theirs)
+    for kind in missing:
+        _seed_controller_table(out["controller"], kind)
+    return out
 
 
 def _frozen(value: Any) -> Any:
@@ -462,7 +521,7 @@ def _layout_like(scenario: Scenario, preset: str) -> str:
     from tomlkit.items import Item, Table
 
     base = Scenario.preset(preset)
-    differences = _differences(scenario._data, base._data)
+    differences = _differences(scenario._data, _seeded(base._data, scenario._data))
     doc = _preset_document(preset, flat=False)
 
     def held(parts: tuple[str, ...]) -> bool:
@@ -581,8 +640,12 @@ class Scenario:
     def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
         """Parse TOML text. ``base`` may name a preset or, unlike in :meth:`from_dict`, another
         scenario file (``base = "tuned.toml"``, relative to ``source``'s directory)."""
-        if len(text) > MAX_FILE_BYTES:
-            raise ScenarioError(f"{source} is larger than {MAX_FILE_BYTES} characters")
+        if len(text) > MAX_TEXT_CHARS:
+            raise ScenarioError(f"{source} is larger than {MAX_TEXT_CHARS} characters")
+        if len(text) > MAX_FILE_BYTES:  # parsing takes several times the text's size
+            from quadrs.engine.calls import check_memory
+
+            check_memory(f"parsing the scenario {source}", 16 * len(text))
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
@@ -643,7 +706,7 @@ class Scenario:
         else:
             start = cls.from_toml(base)
         extra = dict(changes or {})
-        height = float(extra.get("initial.position", start["initial.position"])[2])
+        height = start_height(extra.get("initial.position", start["initial.position"]))
         return read_route_file(path, start_height=height).apply(start, extra)
 
     # -- output -------------------------------------------------------------------------
@@ -661,7 +724,8 @@ class Scenario:
     def differences(self, base: Scenario) -> dict[str, tuple[Any, Any]]:
         """Dotted keys whose value differs from ``base``: key -> (base value, this value),
         ``None`` where a side does not set the key. Arrays (and ``phases``) compare whole."""
-        return {_dotted(p): change for p, change in _differences(self._data, base._data).items()}
+        theirs = _seeded(base._data, self._data)
+        return {_dotted(p): change for p, change in _differences(self._data, theirs).items()}
 
     def to_dict(self) -> dict[str, Any]:
         """A deep copy of the nested mapping."""
@@ -679,9 +743,27 @@ class Scenario:
         ``gust.intensity``); a value of None removes an
         optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
         "route" drops the base's ``trajectory.waypoints`` unless they are given too."""
-        data = copy.deepcopy(self._data)
         keys = canonical_keys(changes, "override")
         changes = dict(zip(keys, changes.values(), strict=True))
+        if "trajectory.route_file" in changes:
+            # The route of a file, read now (relative to the working directory), as
+            # ``from_plan`` flies it; the other changes are applied with it and win.
+            rest = dict(changes)
+            name = rest.pop("trajectory.route_file")
+            if not isinstance(name, str) or not name:
+                raise scenario_error(f"trajectory.route_file must name a .plan or .csv file, "
+                                     f"got {name!r}", "trajectory.route_file")  # fmt: skip
+            if "trajectory.route" in rest:
+                raise scenario_error("trajectory.route and trajectory.route_file: give one or "
+                                     "the other", "trajectory.route")  # fmt: skip
+            try:
+                return Scenario.from_plan(name, base=self, changes=rest)
+            except ScenarioError:
+                raise
+            except ValueError as e:
+                raise scenario_error(f"trajectory.route_file = {name!r}: {e}",
+                                     "trajectory.route_file") from None  # fmt: skip
+        data = copy.deepcopy(self._data)
         if changes.get("trajectory.interpolation") == "route":
             given = {k.removeprefix("trajectory."): v for k, v in changes.items()
                      if k.startswith("trajectory.")}  # fmt: skip
@@ -690,12 +772,19 @@ class Scenario:
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)
             if other is not None and other not in changes:
-                table, name = other.split(".")
-                data.get(table, {}).pop(name, None)
+                *tables, name = other.split(".")
+                node: Any = data
+                for table in tables:
+                    node = node.get(table, {}) if isinstance(node, dict) else {}
+                if isinstance(node, dict):
+                    node.pop(name, None)
             parent: Any = data
             for i, part in enumerate(parts[:-1]):
                 if i == 0 and part in OPTIONAL_TABLES and part not in parent:
                     parent[part] = {}  # a table the scenario leaves at its defaults
+                if ".".join(map(str, parts[: i + 1])) in _CREATED_TABLES and isinstance(
+                        parent, dict) and part not in parent:  # fmt: skip
+                    parent[part] = {}  # a table a key of it starts (wind.table.file)
                 if i == 1 and parts[0] == "controller" and isinstance(parent, dict):
                     _seed_controller_table(parent, part)
                 try:

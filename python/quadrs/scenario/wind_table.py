@@ -19,6 +19,7 @@ carries the wind it flew.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
@@ -45,15 +46,20 @@ def read_wind_table(path: str | Path, by: str) -> list[list[float]]:
     if by not in FIRST:
         raise WindTableError(f'wind.table.by must be "time" or "altitude", got {by!r}')
     first = FIRST[by]
+    from quadrs.io.files import InputFileError, read_input_text
+
     try:
-        if path.stat().st_size > MAX_BYTES:
-            raise WindTableError(f"wind table {name!r} is larger than {MAX_BYTES} bytes")
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_input_text(path, "wind table", MAX_BYTES)
+    except InputFileError as e:
+        raise WindTableError(str(e)) from None
     except OSError as e:
         raise WindTableError(f"wind table {name!r} cannot be read: {e.strerror or e}") from None
-    except UnicodeDecodeError as e:
-        raise WindTableError(f"wind table {name!r} is not UTF-8 text (byte {e.start})") from None
-    rows = [r for r in csv.reader(text.splitlines()) if any(cell.strip() for cell in r)]
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        rows = [r for r in reader if any(cell.strip() for cell in r)]
+    except csv.Error as e:  # a cell beyond csv's field limit (128 KiB), a NUL
+        raise WindTableError(f"wind table {name!r} line {reader.line_num}: not CSV ({e})") \
+            from None  # fmt: skip
     if not rows:
         raise WindTableError(f"wind table {name!r} is empty: a header {first},"
                              f"{','.join(COLUMNS)} and one row per sample")  # fmt: skip

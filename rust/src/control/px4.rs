@@ -285,6 +285,16 @@ impl Controller for Px4 {
             k.MPC_THR_MAX,
             "between 0 and MPC_THR_MAX (exclusive)",
         )?;
+        if k.MPC_THR_MIN >= k.MPC_THR_HOVER {
+            // At a least thrust at or above hover the vehicle cannot descend: it climbs away.
+            return Err(ConfigError::new(
+                format!("{key}.MPC_THR_MIN"),
+                format!(
+                    "{key}.MPC_THR_MIN must be below MPC_THR_HOVER ({:?}): at a least thrust at or above hover the vehicle cannot descend, got {:?}",
+                    k.MPC_THR_HOVER, k.MPC_THR_MIN
+                ),
+            ));
+        }
         range(
             "MC_YAW_WEIGHT",
             k.MC_YAW_WEIGHT,
@@ -872,6 +882,18 @@ mod tests {
         let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
         assert_eq!(e.key, "controller.px4.MPC_TILTMAX_AIR");
         assert!(e.message.contains("between 0 and 90 deg"), "{e}");
+    }
+
+    #[test]
+    fn a_least_thrust_at_or_above_hover_is_refused() {
+        for min in [0.5, 0.6] {
+            let mut v = crate::config::tests::paper_value();
+            v["controller"]["px4"] = serde_json::to_value(Px4Params::default()).unwrap();
+            v["controller"]["px4"]["MPC_THR_MIN"] = serde_json::json!(min);
+            let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+            assert_eq!(e.key, "controller.px4.MPC_THR_MIN");
+            assert!(e.message.contains("below MPC_THR_HOVER"), "{e}");
+        }
     }
 
     fn delivery() -> Config {
