@@ -283,6 +283,71 @@ pub fn pow<L: KernelOps>(x: L, y: L) -> L {
     L::select(is_nan(y), y, r)
 }
 
+/// The functions [`evaluate`] knows, by name.
+pub const FUNCTIONS: [&str; 4] = ["exp", "expm1", "ln", "pow"];
+
+/// `function` (one of [`FUNCTIONS`]; `pow` takes `y` as its exponent) of every `x`, on the
+/// lane path `path`: "scalar" (`f64`), "sse2" (`F64x4`), "avx2" (`F64x4Avx`), "avx512"
+/// (`F64x8Avx512`): the measurement and cross-path check behind `benches/lane_math_error.py`.
+/// An error names a function or path that does not exist or a path this CPU cannot run.
+pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64>, String> {
+    let f = FUNCTIONS
+        .iter()
+        .position(|&f| f == function)
+        .ok_or_else(|| format!("function must be one of {FUNCTIONS:?}, got {function:?}"))?;
+    #[inline(always)]
+    fn run<L: KernelOps>(f: usize, x: &[f64], y: f64) -> Vec<f64> {
+        let mut out = Vec::with_capacity(x.len());
+        for chunk in x.chunks(L::LANES) {
+            let v = L::from_fn(|l| chunk.get(l).copied().unwrap_or(1.0));
+            let r = match f {
+                0 => exp(v),
+                1 => expm1(v),
+                2 => ln(v),
+                _ => pow(v, L::splat(y)),
+            };
+            out.extend((0..chunk.len()).map(|l| r.lane(l)));
+        }
+        out
+    }
+    use super::isa::Isa;
+    let unsupported =
+        |isa: Isa| format!("path {path:?} needs {}, which this CPU lacks", isa.name());
+    match path {
+        "scalar" => Ok(run::<f64>(f, x, y)),
+        "sse2" => Ok(run::<super::F64x4>(f, x, y)),
+        #[cfg(target_arch = "x86_64")]
+        "avx2" => {
+            if !Isa::Avx2.supported() {
+                return Err(unsupported(Isa::Avx2));
+            }
+            // SAFETY: AVX2 is available (checked above).
+            #[target_feature(enable = "avx2")]
+            unsafe fn avx2(f: usize, x: &[f64], y: f64) -> Vec<f64> {
+                run::<super::F64x4Avx>(f, x, y)
+            }
+            // SAFETY: AVX2 is available (checked above).
+            Ok(unsafe { avx2(f, x, y) })
+        }
+        #[cfg(target_arch = "x86_64")]
+        "avx512" => {
+            if !Isa::Avx512.supported() {
+                return Err(unsupported(Isa::Avx512));
+            }
+            // SAFETY: AVX-512F and DQ are available (checked above).
+            #[target_feature(enable = "avx512f,avx512dq")]
+            unsafe fn avx512(f: usize, x: &[f64], y: f64) -> Vec<f64> {
+                run::<super::F64x8Avx512>(f, x, y)
+            }
+            // SAFETY: AVX-512F and DQ are available (checked above).
+            Ok(unsafe { avx512(f, x, y) })
+        }
+        _ => Err(format!(
+            "path must be one of [\"scalar\", \"sse2\", \"avx2\", \"avx512\"], got {path:?}"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
