@@ -270,10 +270,12 @@ def test_mission_tune_and_sensitivity_on_dask_equal_the_local_run(
     from quadrs.design.optimize import optimize
     from quadrs.design.sensitivity import sensitivity
 
-    # mission: the delivery vehicle on a shortened flight, through the command line.
+    from tests.cli.test_main import SHORT
+
+    # mission, through the command line (the paper preset's short flight: quick).
     remote, local = tmp_path / "remote.parquet", tmp_path / "local.parquet"
-    args = ["mission", "--runs", "4", "--seed", "3", "--no-progress",
-            "--set", "integrator.duration=6.0", "--set", "gust.end=6.0"]  # fmt: skip
+    args = ["mission", "--preset", "paper", *SHORT, "--runs", "4", "--seed", "3",
+            "--no-progress"]  # fmt: skip
     assert main([*args, "--scheduler", cluster.scheduler_address, "--out", str(remote)]) == 0
     assert main([*args, "--out", str(local)]) == 0
     a, b = MonteCarloResult.read_parquet(remote), MonteCarloResult.read_parquet(local)
