@@ -28,7 +28,8 @@ const ROUND: f64 = 6_755_399_441_055_744.0;
 /// 2^52, whose bit pattern plus an integer k < 2^52 is the double 2^52 + k.
 const TWO52: f64 = 4_503_599_627_370_496.0;
 
-const INV_LN2: f64 = 1.442_695_040_888_963_387_00e+00;
+/// 1 / ln 2 (the bits of fdlibm's `invln2`, 0x3ff71547652b82fe).
+const INV_LN2: f64 = std::f64::consts::LOG2_E;
 /// ln 2 in two parts; the high part has 32 significant bits, so `k * LN2_HI` is exact for
 /// |k| < 2^21.
 const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-01;
