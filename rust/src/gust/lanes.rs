@@ -511,9 +511,9 @@ type Rescaling<'r, L> = (
 /// wind, into `steady[l]`) and, with `rescale`, the step's filter numbers of every lane
 /// written into the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the
 /// scales and the Dryden axes' numbers by [`dryden_lanes`] for all lanes at once, the others
-/// lane by lane. Kept out of the flight loop's line so that the loop
-/// saves its vector registers once per step around it, not around every libm call it makes
-/// (every vector register is the caller's to save); compiled for the lane type's
+/// lane by lane. Kept out of the flight loop's line so that the loop saves its vector
+/// registers once per step around it, not around every per-lane call it makes (the mean air's
+/// sources; every vector register is the caller's to save); compiled for the lane type's
 /// instruction set (`Lane::within`).
 #[inline(never)]
 fn at_vehicles<L: KernelOps>(
