@@ -918,6 +918,23 @@ mod _core {
         Ok(gust::low_altitude_scales(altitude, w20))
     }
 
+    /// The engine's lane-valued `function` ("exp", "expm1", "ln", "pow": x^y) of every `x`, on
+    /// the lane path `path` ("scalar", "sse2", "avx2", "avx512"): for measuring their error
+    /// and checking that every path gives the same bits (`benches/lane_math_error.py`).
+    #[pyfunction]
+    #[pyo3(signature = (function, x, path = "scalar", y = 0.0))]
+    fn lane_math<'py>(
+        py: Python<'py>,
+        function: &str,
+        x: PyReadonlyArray1<'py, f64>,
+        path: &str,
+        y: f64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let out = crate::lane::explog::evaluate(function, path, x.as_slice()?, y)
+            .map_err(PyValueError::new_err)?;
+        Ok(out.into_pyarray(py))
+    }
+
     type Array<'py> = Bound<'py, PyArray1<f64>>;
 
     /// The forming filter `gust_psd` and `gust_series` use, its model and component read

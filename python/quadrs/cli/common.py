@@ -17,6 +17,7 @@ __all__ = [
     "EXIT_USAGE",
     "BadInput",
     "dask_client",
+    "scheduler_option",
     "seed_and_workers",
 ]
 
@@ -47,6 +48,16 @@ def dask_client(address: str | None) -> Iterator[Any]:
         raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
     with client:
         yield client
+
+
+def scheduler_option(p: argparse.ArgumentParser) -> None:
+    """``--scheduler ADDRESS``: the command's flights as tasks on a Dask cluster."""
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="fly on a Dask cluster, e.g. tcp://10.0.0.5:8786, with the same result as here "
+        "(needs pip install quadrs[dask])",
+    )
 
 
 def seed_and_workers(p: argparse.ArgumentParser) -> None:

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
+from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, dask_client, scheduler_option
 from quadrs.design.optimize import METHODS
 from quadrs.engine.calls import CONTROLLERS, PAPER_CONTROLLERS
 from quadrs.present.terminal import terminal_text
@@ -126,6 +126,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         help="fly candidates that are unstable at hover instead of rejecting them",
     )
     p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    scheduler_option(p)
     p.add_argument(
         "--out", type=Path, required=True, metavar="FILE.toml", help="tuned scenario file"
     )
@@ -238,10 +239,11 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     middle = {k: (lo + hi) / 2 for k, (lo, hi) in params.items()}
     _tuned_toml(args, args.out, list(expand(middle)), scenario.override(expand(middle)))
     progress = sys.stderr.isatty()
-    _announce_tune(args, scenario, len(params))
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce_tune(args, scenario, len(params))
     history = args.history if args.history is not None else _default_history(args.out)
     flown: list[dict[str, Any]] = []
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), dask_client(args.scheduler) as client:
         warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
         try:
             result = optimize(
@@ -260,6 +262,7 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                 popsize=args.popsize,
                 constraints=args.constraint,
                 callback=flown.append,
+                client=client,
             )
         except KeyboardInterrupt:
             print("quadrs tune: interrupted during the first candidate: no candidate finished, "

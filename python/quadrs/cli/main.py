@@ -25,6 +25,7 @@ from quadrs.cli.common import (
     EXIT_USAGE,
     BadInput,
     dask_client,
+    scheduler_option,
     seed_and_workers,
 )
 from quadrs.present.terminal import terminal_text
@@ -519,6 +520,7 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
         action="store_true",
         help="fly one gust for every row instead of treating the realisation as a factor",
     )
+    scheduler_option(p)
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help="write every index here")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write index bar charts here")
     p.add_argument(
@@ -949,15 +951,17 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
     if args.phase is not None and args.phase not in scenario.phase_names:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
     _check_outputs(args.out)
-    sa = sensitivity(
-        scenario,
-        runs=args.runs,
-        seed=args.seed,
-        controllers=args.controllers,
-        workers=args.workers,
-        progress=_progress(args),
-        gust=not args.no_gust_factor,
-    )
+    with dask_client(args.scheduler) as client:
+        sa = sensitivity(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controllers,
+            workers=args.workers,
+            progress=_progress(args),
+            gust=not args.no_gust_factor,
+            client=client,
+        )
     status = EXIT_OK
     if args.out is not None and not _save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
         status = EXIT_FAIL

@@ -16,7 +16,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, seed_and_workers
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    dask_client,
+    scheduler_option,
+    seed_and_workers,
+)
 from quadrs.engine.calls import CONTROLLERS
 
 #: Default payload acceleration limit: 1 g (m/s^2).
@@ -139,6 +146,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         "optional hold), at the file's speed; docs/delivery.md",
     )
     seed_and_workers(p)
+    scheduler_option(p)
     p.add_argument(
         "--out",
         type=Path,
@@ -190,16 +198,19 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     check_int("--seed", args.seed)
     check_outputs(args.out)
     check_directories(args.plots)
-    _announce(scenario, args)
-    mc = monte_carlo(
-        scenario,
-        runs=args.runs,
-        seed=args.seed,
-        controllers=args.controller,
-        workers=args.workers,
-        progress=not args.no_progress and sys.stderr.isatty(),
-        spectra=False,
-    )
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce(scenario, args)
+    with dask_client(args.scheduler) as client:
+        mc = monte_carlo(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controller,
+            workers=args.workers,
+            progress=not args.no_progress and sys.stderr.isatty(),
+            spectra=False,
+            client=client,
+        )
     saved = True
     if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
         saved = save(mc.to_parquet, args.out)

@@ -20,7 +20,7 @@ import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -31,6 +31,9 @@ from quadrs.engine.calls import U64_MAX, check_controller, check_int
 from quadrs.runs.montecarlo import monte_carlo
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_error
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
 
 METHODS = ("differential_evolution", "nelder-mead")
 #: Offset of the held-out seed from the tuning seed.
@@ -286,6 +289,7 @@ def optimize(
     holdout_runs: int | None = None,
     callback: Callable[[dict[str, Any]], None] | None = None,
     constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None,
+    client: Client | None = None,
 ) -> OptimizeResult:
     """Minimise a Monte Carlo objective over bounded scenario keys.
 
@@ -295,7 +299,9 @@ def optimize(
     ``objective``: a metric name (``_core.METRIC_NAMES``):
     the mean over the ``runs`` realisations of that metric summed over ``phases``, for one
     ``controller``; or a callable ``f(mc) -> float`` of the :class:`MonteCarloResult` of
-    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``.
+    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``;
+    with ``client`` (a ``dask.distributed.Client``) as tasks on its workers, with the same
+    numbers, so the same search and result, as on this machine.
 
     Penalties (recorded, never NaN): a candidate not stable at hover under every controller
     scores ``penalty * (1 + max(0, largest real part))`` without flying when
@@ -365,6 +371,7 @@ def optimize(
                 workers=workers,
                 progress=False,
                 spectra=False,
+                client=client,
             )
         if mc.interrupted:
             raise _Stop
