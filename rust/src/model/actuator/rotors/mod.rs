@@ -324,6 +324,7 @@ mod tests {
     #[test]
     fn the_rotor_states_follow_the_payloads_velocities() {
         let names: Vec<&str> = crate::model::state_vars(
+            Default::default(),
             crate::model::PayloadKind::Spring,
             crate::model::ActuatorKind::Rotors,
         )
