@@ -1,7 +1,9 @@
 """The rigid body (`vehicle.body = "rigid"`) against RotorPy 3.0 itself: its `Multirotor`
 (aerodynamics on, its parameters mapped from the quadrs scenario) under its `SE3Control`, and
 quadrs' rigid body on the rotors under the `se3` law, fly the same flights: a hover, a 10 m
-leg, a 3 m/s crosswind and a replayed turbulence series, each with the body drag on and off.
+leg, a 3 m/s crosswind and a replayed turbulence series, with no aerodynamics and with all of
+them (body drag, the rotors' H-force, blade flapping, translational lift), and in the
+crosswind each term alone.
 
 RotorPy's own `Multirotor.step` integrates with `solve_ivp` (RK45, adaptive), whose error alone
 is above 1e-6 m over 12 s; here RotorPy's state derivative (`Multirotor._s_dot_fn`, its
@@ -27,12 +29,25 @@ DURATION = 12.0
 DT = 0.002
 #: N/(m/s)^2, the delivery preset's body drag (docs/model.md, "Bodies").
 DRAG = [0.12, 0.12, 0.2]
+#: Rotor aerodynamics (RotorPy's k_d, k_z; k_flap; k_h), for the test: each large enough to
+#: move the flight by millimetres at least.
+ROTOR_DRAG = [6e-4, 6e-4, 1.2e-3]
+FLAPPING = 5e-5
+LIFT = 3e-3
+TERMS = {
+    "none": set(),
+    "all": {"drag", "rotor_drag", "flapping", "lift"},
+    "drag": {"drag"},
+    "rotor_drag": {"rotor_drag"},
+    "flapping": {"flapping"},
+    "lift": {"lift"},
+}
 #: quadrs' se3 defaults (docs/model.md, "The geometric controller `se3`").
 GAINS = {"kx": [1.0, 1.0, 4.0], "kv": [1.6, 1.6, 3.2], "kR": [100.0, 100.0, 40.0],
          "kW": [14.0, 14.0, 9.0]}  # fmt: skip
 
 
-def scenario(flight: str, drag: bool) -> quadrs.Scenario:
+def scenario(flight: str, terms: set[str]) -> quadrs.Scenario:
     z0 = 10.0
     legs = {
         "hover": [[0.0, 0.0, 0.0, z0, 0.0]],
@@ -44,7 +59,10 @@ def scenario(flight: str, drag: bool) -> quadrs.Scenario:
     return quadrs.Scenario.preset("delivery").override(
         {
             "vehicle.body": "rigid",
-            "vehicle.drag_coefficients": DRAG if drag else [0.0, 0.0, 0.0],
+            "vehicle.drag_coefficients": DRAG if "drag" in terms else [0.0, 0.0, 0.0],
+            "actuator.rotor_drag": ROTOR_DRAG if "rotor_drag" in terms else [0.0, 0.0, 0.0],
+            "actuator.flapping": FLAPPING if "flapping" in terms else 0.0,
+            "actuator.translational_lift": LIFT if "lift" in terms else 0.0,
             "vehicle.inertia_error": [0.0, 0.0, 0.0],
             "payload.mass": 1e-9,
             "payload.drag_area": 0.0,
@@ -79,6 +97,7 @@ def rotorpy_params(sc: quadrs.Scenario) -> dict:
     arms = [[h, h], [-h, h], [-h, -h], [h, -h]]  # layout "x": rotor i at 45 + 90 i degrees
     assert sc["actuator.layout"] == "x"
     c_d = sc["vehicle.drag_coefficients"]
+    assert sc["actuator.rotor_drag"][0] == sc["actuator.rotor_drag"][1]  # RotorPy's one k_d
     return {
         "mass": sc["vehicle.mass"],
         "Ixx": ixx, "Iyy": iyy, "Izz": izz, "Ixy": 0.0, "Ixz": 0.0, "Iyz": 0.0,
@@ -90,7 +109,8 @@ def rotorpy_params(sc: quadrs.Scenario) -> dict:
         "rotor_speed_max": math.sqrt(sc["actuator.thrust_max"] / kf),
         "k_eta": kf,
         "k_m": sc["actuator.torque_ratio"] * kf,
-        "k_d": 0.0, "k_z": 0.0, "k_h": 0.0, "k_flap": 0.0,
+        "k_d": sc["actuator.rotor_drag"][0], "k_z": sc["actuator.rotor_drag"][2],
+        "k_h": sc["actuator.translational_lift"], "k_flap": sc["actuator.flapping"],
         "tau_m": sc["actuator.time_constant"],
         "motor_noise_std": 0.0,
     }  # fmt: skip
@@ -153,13 +173,22 @@ def angle_between(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     return 2 * np.arccos(dot)
 
 
-@pytest.mark.parametrize("drag", [False, True], ids=["no drag", "drag"])
-@pytest.mark.parametrize("flight", ["hover", "leg", "crosswind", "turbulence"])
-def test_the_rigid_body_flies_as_rotorpy(flight: str, drag: bool) -> None:
-    sc = scenario(flight, drag)
-    f = quadrs.simulate(sc, "se3", seed=3, record_every=1)
+CASES = [
+    *((flight, aero) for flight in ("hover", "leg", "crosswind", "turbulence") for aero in ("none", "all")),
+    *(("crosswind", term) for term in ("drag", "rotor_drag", "flapping", "lift")),
+]
+
+
+def fly_quadrs(flight: str, aero: str) -> quadrs.Flight:
+    f = quadrs.simulate(scenario(flight, TERMS[aero]), "se3", seed=3, record_every=1)
     assert f.status == "ok"
-    tr = f.trace
+    return f
+
+
+@pytest.mark.parametrize(("flight", "aero"), CASES)
+def test_the_rigid_body_flies_as_rotorpy(flight: str, aero: str) -> None:
+    sc = scenario(flight, TERMS[aero])
+    tr = fly_quadrs(flight, aero).trace
     winds = tr[["wind_x", "wind_y", "wind_z"]].to_numpy()
     row = tr.iloc[0]
     first = (
@@ -181,3 +210,16 @@ def test_the_rigid_body_flies_as_rotorpy(flight: str, drag: bool) -> None:
         assert abs(winds[:, 1].mean() - 3.0) < 1.0 and np.abs(tr[["phi", "theta"]]).max().max() > 0.01
     if flight == "turbulence":
         assert winds[:, 0].std() > 0.05
+    if aero != "none" and flight != "hover":  # the terms act: the flight differs without them
+        bare = fly_quadrs(flight, "none").trace[["x", "y", "z"]].to_numpy()
+        assert np.abs(pos - bare).max() > 1e-3, aero
+
+
+def test_rotor_aerodynamics_are_refused_on_the_papers_body() -> None:
+    for key, value in [("actuator.rotor_drag", [1e-4, 1e-4, 0.0]), ("actuator.flapping", 1e-5),
+                       ("actuator.translational_lift", 1e-3)]:  # fmt: skip
+        sc = quadrs.Scenario.preset("delivery").override(
+            {"vehicle.body": "paper", "vehicle.drag_coefficients": [0.0, 0.0, 0.0], key: value}
+        )
+        with pytest.raises(quadrs.ScenarioError, match=key.replace(".", r"\.")):
+            quadrs.simulate(sc, "se3")

@@ -251,7 +251,9 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
     ) -> State<L, N> {
         self.derivative_with(
             s,
+            trig,
             cmd,
+            w,
             #[inline(always)]
             |p, body, u1, ds| (p.accelerations(body, s, trig, u1, w, ds), ()),
         )
@@ -272,19 +274,24 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
     ) -> (State<L, N>, PayloadOutputs<L>) {
         self.derivative_with(
             s,
+            trig,
             cmd,
+            w,
             #[inline(always)]
             |p, body, u1_felt, ds| p.accelerations_and_outputs(body, s, trig, u1_felt, u1, w, ds),
         )
     }
 
     /// ds/dt, the payload's part by `payload` (the torque it applies, and anything else it
-    /// returns), given the felt thrust.
+    /// returns), given the felt thrust; the actuator's aerodynamic wrench (`ActuatorModel::aero`,
+    /// the rotors' on the rigid body) added to the quadrotor's.
     #[inline(always)]
     fn derivative_with<const N: usize, R>(
         &self,
         s: &State<L, N>,
+        frame: &B::Frame<L>,
         cmd: &Act::Command,
+        w: &[L; 3],
         payload: impl FnOnce(&Pay, &Body<L>, L, &mut State<L, N>) -> (Option<[L; 3]>, R),
     ) -> (State<L, N>, R) {
         const { assert!(N == Self::LAYOUT.len()) };
@@ -299,9 +306,18 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         B::attitude_rates(s, lay, &mut ds);
         ds[pp..pp + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
         let (torque, out) = payload(&self.payload, &self.body, u.u1, &mut ds);
-        let rdot = self
-            .body
-            .rotation(&[s[v + 3], s[v + 4], s[v + 5]], &u.tau, &torque);
+        let rates = [s[v + 3], s[v + 4], s[v + 5]];
+        let mut tau = u.tau;
+        let air = [s[v] - w[0], s[v + 1] - w[1], s[v + 2] - w[2]];
+        let axes = frame.axes();
+        if let Some((f, m)) = self.actuator.aero(s, lay.actuator(), &air, &axes, &rates) {
+            for i in 0..3 {
+                let fi = axes[0][i] * f[0] + axes[1][i] * f[1] + axes[2][i] * f[2];
+                ds[v + i] += fi * self.body.inv_m;
+                tau[i] += m[i];
+            }
+        }
+        let rdot = self.body.rotation(&rates, &tau, &torque);
         ds[v + 3..v + 6].copy_from_slice(&rdot);
         self.actuator.derivative(cmd, s, lay.actuator(), &mut ds);
         (ds, out)
