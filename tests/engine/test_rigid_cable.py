@@ -3,25 +3,34 @@ an independent integration of the equations written here (scipy's solve_ivp, tig
 tolerances, the controls held over each step as the engine holds them) through slack and
 taut spells, and the energy balance of a free fall with a swinging, slackening line.
 
-The law in both flights is `se3` with every gain 0: its thrust is the clamp of m g cos(tilt)
-(`controller.thrust_max`) and its torque the gyroscopic compensation w x J w, which does no
-work (w . (w x J w) = 0)."""
+The law in both flights is `se3` with every gain 0: its thrust is m g cos(tilt) clamped to
+[`controller.thrust_min`, `controller.thrust_max`] (here always the floor, 25 N) and its torque
+the gyroscopic compensation w x J w, which does no work (w . (w x J w) = 0). The vehicle starts
+on its side (roll 1.5 rad): both fall, the line's static stretch springs back into slack, and
+the sideways thrust pulls it taut again."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+import pytest
 from scipy.integrate import solve_ivp
 
 import quadrs
+
+#: The law with no gains is marginal at hover: known, and the point here.
+pytestmark = pytest.mark.filterwarnings("ignore::quadrs.hover.stability.StabilityWarning")
 
 ZERO_GAINS = {"kx": [0.0] * 3, "kv": [0.0] * 3, "kR": [0.0] * 3, "kW": [0.0] * 3}
 POS = ["x", "y", "z", "qw", "qx", "qy", "qz", "xc", "yc", "zc"]
 VEL = ["vx", "vy", "vz", "wx", "wy", "wz", "vxc", "vyc", "vzc"]
 
 
-def scenario(thrust: float, drag: bool, damping: float, duration: float) -> quadrs.Scenario:
+THRUST = 25.0
+
+
+def scenario(drag: bool, damping: float, duration: float) -> quadrs.Scenario:
     return quadrs.Scenario.preset("delivery").override(
         {
             "actuator.model": "ideal",
@@ -30,10 +39,11 @@ def scenario(thrust: float, drag: bool, damping: float, duration: float) -> quad
             "payload.damping": damping,
             "controller.mass_compensation": False,
             "controller.se3": ZERO_GAINS,
-            "controller.thrust_min": 0.0,
-            "controller.thrust_max": thrust,
+            "controller.thrust_min": THRUST,
+            "controller.thrust_max": 30.0,
+            "divergence.max_tilt": 3.2,
             "initial.position": [0.0, 0.0, 50.0],
-            "initial.attitude": [0.25, -0.15, 0.4],
+            "initial.attitude": [1.5, -0.3, 0.4],
             "trajectory.interpolation": "step",
             "trajectory.waypoints": [[0.0, 0.0, 0.0, 50.0, 0.0], [1.0, 0.0, 0.0, 50.0, 0.0]],
             "trajectory.route": None,
@@ -42,7 +52,7 @@ def scenario(thrust: float, drag: bool, damping: float, duration: float) -> quad
             "trajectory.speed": None,
             "trajectory.acceleration": None,
             "phases": [{"name": "all", "start": 0.0, "end": duration}],
-            "integrator.dt": 2e-4,
+            "integrator.dt": 5e-5,
             "integrator.duration": duration,
             "wind.speed": 3.0 if drag else 0.0,
             "wind.heading": 90.0,
@@ -123,8 +133,8 @@ class Plant:
 def law(sc: quadrs.Scenario, s: np.ndarray) -> tuple[float, np.ndarray]:
     """se3 with zero gains: U1 = clamp(m g R33), tau = w x J w (the controller's inertia)."""
     r, w = rotation(s[3:7]), s[13:16]
-    u1 = min(max(sc["vehicle.mass"] * sc["environment.gravity"] * r[2, 2], 0.0),
-             sc["controller.thrust_max"])  # fmt: skip
+    u1 = min(max(sc["vehicle.mass"] * sc["environment.gravity"] * r[2, 2],
+                 sc["controller.thrust_min"]), sc["controller.thrust_max"])  # fmt: skip
     j = np.array(sc["vehicle.inertia"])
     return u1, np.cross(w, j * w)
 
@@ -134,8 +144,10 @@ def states(tr) -> np.ndarray:
     return tr[POS + VEL].to_numpy()
 
 
-def test_an_independent_integration_agrees_to_a_nanometre_through_slack() -> None:
-    sc = scenario(thrust=20.0, drag=True, damping=3.14, duration=0.6)
+def test_an_independent_integration_agrees_through_slack() -> None:
+    # No damping: with it the tension jumps by c ldot as the line pulls taut, which no
+    # fixed-step integrator (the engine's RK4) resolves to a nanometre.
+    sc = scenario(drag=True, damping=0.0, duration=0.3)
     f = quadrs.simulate(sc, "se3", seed=1, record_every=1)
     assert f.status == "ok"
     tr = f.trace
@@ -155,31 +167,39 @@ def test_an_independent_integration_agrees_to_a_nanometre_through_slack() -> Non
     mine = np.array(mine)
     got = states(tr)
     positions = [0, 1, 2, 7, 8, 9]
-    assert np.abs(got[:, positions] - mine[:, positions]).max() < 1e-9
-    assert np.abs(got[:, 3:7] - mine[:, 3:7]).max() < 1e-9
-    # Slack and taut both flown: the line went slack and pulled again.
+    err = np.maximum(np.abs(got[:, positions] - mine[:, positions]).max(axis=1),
+                     np.abs(got[:, 3:7] - mine[:, 3:7]).max(axis=1))  # fmt: skip
     tension = tr["tension"].to_numpy()
     slack = tension == 0.0
+    # While the line's force is smooth the two agree to rounding; the step across a slack or
+    # taut instant (the tension's slope jumps there) costs RK4 an O(dt^2) velocity error of
+    # about 2e-8 m/s at this dt, which the flight then carries: 1e-8 m over 0.3 s.
+    first = np.argmax(slack)
+    assert err[: first - 1].max() < 1e-12, err[: first - 1].max()
+    assert err.max() < 1e-8, err.max()
     assert slack.any() and (~slack[np.argmax(slack):]).any(), tension
     # and the body turned (the hook's torque and the gyroscopic terms acted)
     assert np.abs(tr[["wx", "wy", "wz"]].to_numpy()).max() > 0.05
 
 
-def test_a_free_fall_with_a_swinging_slack_line_keeps_its_energy() -> None:
-    """No thrust, no drag, no damping: the body, the line's spring and the payload exchange
-    energy (the hook's torque turns the body) and the total stays put."""
-    sc = scenario(thrust=1e-300, drag=False, damping=0.0, duration=1.0)
+def test_a_fall_through_slack_and_taut_keeps_its_energy() -> None:
+    """No drag, no damping: the body, the line's spring and the parcel exchange energy (the
+    hook's torque turns the body), and the total changes by the thrust's work alone,
+    W = integral of U1 (R e3) . v dt (Simpson's rule on the trace, every step)."""
+    sc = scenario(drag=False, damping=0.0, duration=0.3)
     f = quadrs.simulate(sc, "se3", seed=1, record_every=1)
     assert f.status == "ok"
     tr = f.trace
-    assert tr["U1"].abs().max() < 1e-299
-    plant = Plant(sc)
-    e = np.array([plant.energy(s) for s in states(tr)])
-    kinetic = 0.5 * sc["vehicle.mass"] * (tr[["vx", "vy", "vz"]].to_numpy() ** 2).sum(axis=1)
-    assert kinetic.max() > 50.0  # it fell: the energy changed form by tens of joules
-    assert np.abs(e - e[0]).max() < 1e-8, np.abs(e - e[0]).max()
+    assert (tr["U1"].to_numpy()[:-1] == THRUST).all()
+    plant, dt = Plant(sc), sc["integrator.dt"]
+    x = states(tr)
+    e = np.array([plant.energy(s) for s in x])
+    power = np.array([THRUST * rotation(s[3:7])[:, 2] @ s[10:13] for s in x])
+    n = (len(x) - 1) // 2 * 2  # Simpson over an even number of steps
+    work = dt / 3 * (power[0:n:2] + 4 * power[1:n:2] + power[2 : n + 1 : 2]).cumsum()
+    change = e[2 : n + 1 : 2] - e[0]
+    assert np.abs(work).max() > 10.0  # the thrust did tens of joules of work
+    assert np.abs(change - work).max() < 1e-7, np.abs(change - work).max()
     slack = tr["tension"].to_numpy() == 0.0
-    assert slack.any() and not slack.all()
-    # The line's spring and the body's rotation both carried energy.
-    w = tr[["wx", "wy", "wz"]].to_numpy()
-    assert np.abs(w).max() > 0.01
+    assert slack.any() and (~slack[np.argmax(slack):]).any()
+    assert np.abs(tr[["wx", "wy", "wz"]].to_numpy()).max() > 0.01
