@@ -54,7 +54,7 @@ def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None
                 data["payload"].pop(key, None)
         if body == "rigid" and payload == "spring":  # the rigid body flies the cable only
             with pytest.raises(ScenarioError, match=r"vehicle\.body"):
-                Scenario.from_dict(data).state_names
+                _ = Scenario.from_dict(data).state_names
             continue
         names = Scenario.from_dict(data).state_names
         assert len(names) == len(set(names)), (payload, actuator, names)

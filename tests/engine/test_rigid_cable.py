@@ -159,8 +159,8 @@ def test_an_independent_integration_agrees_through_slack() -> None:
         u1, tau = law(sc, s)
         assert abs(u1 - tr["U1"].iloc[k]) < 1e-9
         assert np.abs(tau - tr[["tau_phi", "tau_theta", "tau_psi"]].iloc[k].to_numpy()).max() < 1e-9
-        sol = solve_ivp(lambda _t, x: plant(x, u1, tau, winds[k]), (0.0, dt), s,
-                        method="DOP853", rtol=1e-13, atol=1e-15)  # fmt: skip
+        sol = solve_ivp(lambda _t, x, u1=u1, tau=tau, w=winds[k]: plant(x, u1, tau, w),
+                        (0.0, dt), s, method="DOP853", rtol=1e-13, atol=1e-15)  # fmt: skip
         s = sol.y[:, -1]
         s[3:7] /= np.linalg.norm(s[3:7])
         mine.append(s)
@@ -177,7 +177,7 @@ def test_an_independent_integration_agrees_through_slack() -> None:
     first = np.argmax(slack)
     assert err[: first - 1].max() < 1e-12, err[: first - 1].max()
     assert err.max() < 1e-8, err.max()
-    assert slack.any() and (~slack[np.argmax(slack):]).any(), tension
+    assert slack.any() and (~slack[np.argmax(slack) :]).any(), tension
     # and the body turned (the hook's torque and the gyroscopic terms acted)
     assert np.abs(tr[["wx", "wy", "wz"]].to_numpy()).max() > 0.05
 
@@ -201,5 +201,5 @@ def test_a_fall_through_slack_and_taut_keeps_its_energy() -> None:
     assert np.abs(work).max() > 10.0  # the thrust did tens of joules of work
     assert np.abs(change - work).max() < 1e-7, np.abs(change - work).max()
     slack = tr["tension"].to_numpy() == 0.0
-    assert slack.any() and (~slack[np.argmax(slack):]).any()
+    assert slack.any() and (~slack[np.argmax(slack) :]).any()
     assert np.abs(tr[["wx", "wy", "wz"]].to_numpy()).max() > 0.01

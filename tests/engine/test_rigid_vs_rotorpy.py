@@ -163,7 +163,7 @@ def fly_rotorpy(sc: quadrs.Scenario, first: np.ndarray, winds: np.ndarray) -> np
                       params["rotor_speed_max"])  # fmt: skip
         s = Multirotor._pack_state(state)
 
-        def f(s: np.ndarray) -> np.ndarray:
+        def f(s: np.ndarray, cmd: np.ndarray = cmd) -> np.ndarray:
             return vehicle._s_dot_fn(0.0, s, cmd)
 
         k1 = f(s)
@@ -183,7 +183,11 @@ def angle_between(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
 
 
 CASES = [
-    *((flight, aero) for flight in ("hover", "leg", "crosswind", "turbulence") for aero in ("none", "all")),
+    *(
+        (flight, aero)
+        for flight in ("hover", "leg", "crosswind", "turbulence")
+        for aero in ("none", "all")
+    ),
     *(("crosswind", term) for term in ("drag", "rotor_drag", "flapping", "lift")),
 ]
 
@@ -216,7 +220,9 @@ def test_the_rigid_body_flies_as_rotorpy(flight: str, aero: str) -> None:
     if flight != "hover":
         assert pos[-1, 0] > 9.0
     if flight in ("crosswind", "turbulence"):
-        assert abs(winds[:, 1].mean() - 3.0) < 1.0 and np.abs(tr[["phi", "theta"]]).max().max() > 0.01
+        assert (
+            abs(winds[:, 1].mean() - 3.0) < 1.0 and np.abs(tr[["phi", "theta"]]).max().max() > 0.01
+        )
     if flight == "turbulence":
         assert winds[:, 0].std() > 0.05
     if aero != "none" and flight != "hover":  # the terms act: the flight differs without them

@@ -1,6 +1,7 @@
 """The SIMD paths through the whole stack: every path this CPU supports gives the same bits (the
-default mode; the paper's body and the delivery preset's rigid body), and forcing a path it cannot run is a clear error, never a crash. Each path runs
-in its own process (QUADRS_SIMD is read once per process)."""
+default mode; the paper's body and the delivery preset's rigid body), and forcing a path it
+cannot run is a clear error, never a crash. Each path runs in its own process (QUADRS_SIMD is
+read once per process)."""
 
 import os
 import subprocess
@@ -29,10 +30,12 @@ fl = quadrs.simulate(sc, "pd", seed=4, realisation=3)
 h.update(np.ascontiguousarray(fl.metrics.select_dtypes("number").to_numpy()).tobytes())
 # The rigid body (the delivery preset's), its first 6 s in turbulence: a dispersed batch and a
 # traced flight with every law.
+six = [{"name": "all", "start": 0.0, "end": 6.0}]
 rigid = quadrs.Scenario.preset("delivery").override(
-    {"integrator.duration": 6.0, "gust.end": 6.0, "phases": [{"name": "all", "start": 0.0, "end": 6.0}]}
+    {"integrator.duration": 6.0, "gust.end": 6.0, "phases": six}
 )
-rd = rigid.override({"dispersions": {"vehicle.drag_coefficients[1]": {"dist": "uniform", "low": 0.03, "high": 0.09}}})
+cd = {"dist": "uniform", "low": 0.03, "high": 0.09}
+rd = rigid.override({"dispersions": {"vehicle.drag_coefficients[1]": cd}})
 for s in (rigid, rd):
     mc = quadrs.monte_carlo(s, runs=9, seed=5, workers=2, progress=False)
     h.update(np.ascontiguousarray(mc.runs.select_dtypes("number").to_numpy()).tobytes())
