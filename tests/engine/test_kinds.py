@@ -47,8 +47,10 @@ def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None
         data = Scenario.preset("delivery").to_dict()
         data["payload"]["model"], data["actuator"]["model"] = payload, actuator
         data["vehicle"]["body"] = body
-        if body == "paper":  # the body-axis coefficients are the rigid body's
+        if body == "paper":  # the body-axis drag and the rotor aerodynamics are the rigid body's
             data["vehicle"].pop("drag_coefficients", None)
+            for key in ("rotor_drag", "flapping", "translational_lift"):
+                data["actuator"].pop(key, None)
         if payload != "cable":  # the cable's keys are refused with another payload
             for key in ("cable_length", "attachment_offset"):
                 data["payload"].pop(key, None)
