@@ -18,7 +18,7 @@ CODE = """
 import hashlib, warnings
 import numpy as np, quadrs
 from quadrs import _core
-from tests.conftest import SHORT
+from tests.conftest import DELIVERY_DROP, SHORT
 warnings.simplefilter("ignore")
 sc = quadrs.Scenario.paper().override(SHORT)
 d = sc.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.18, "high": 0.26}}})
@@ -28,12 +28,9 @@ for s in (sc, d):
     h.update(np.ascontiguousarray(mc.runs.select_dtypes("number").to_numpy()).tobytes())
 fl = quadrs.simulate(sc, "pd", seed=4, realisation=3)
 h.update(np.ascontiguousarray(fl.metrics.select_dtypes("number").to_numpy()).tobytes())
-# The rigid body (the delivery preset's), its first 6 s in turbulence: a dispersed batch and a
-# traced flight with every law.
-six = [{"name": "all", "start": 0.0, "end": 6.0}]
-rigid = quadrs.Scenario.preset("delivery").override(
-    {"integrator.duration": 6.0, "gust.end": 6.0, "phases": six}
-)
+# The rigid body (the delivery preset's) over its drop point in turbulence: a dispersed batch
+# and a traced flight with every law.
+rigid = quadrs.Scenario.preset("delivery").override(DELIVERY_DROP)
 cd = {"dist": "uniform", "low": 0.03, "high": 0.09}
 rd = rigid.override({"dispersions": {"vehicle.drag_coefficients[1]": cd}})
 for s in (rigid, rd):

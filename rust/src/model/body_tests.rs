@@ -102,6 +102,7 @@ fn dropping_the_gyroscopic_term_breaks_the_momentum() {
 }
 
 #[test]
+#[allow(clippy::needless_range_loop)]
 fn quaternion_euler_and_rotation_agree_with_the_papers_angles() {
     for euler in [[0.1, -0.2, 0.3], [-0.7, 0.4, -2.9], [1.2, -1.1, 3.0]] {
         let q = Rigid::quaternion_of_euler(euler);

@@ -300,9 +300,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         let mut ds = [s[0]; N];
         // Kinematics: positions move with the velocities, the attitude with the rates.
         let (v, pv, pp) = (lay.vel(), lay.payload_vel(), lay.payload());
-        for i in 0..3 {
-            ds[i] = s[v + i];
-        }
+        ds[..3].copy_from_slice(&s[v..v + 3]);
         B::attitude_rates(s, lay, &mut ds);
         ds[pp..pp + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
         let (torque, out) = payload(&self.payload, &self.body, u.u1, &mut ds);
