@@ -27,6 +27,7 @@ CONTROLLER_NAMES: list[str]
 #: The payload and actuator models a scenario may name (`payload.model`, `actuator.model`).
 PAYLOAD_MODELS: list[str]
 ACTUATOR_MODELS: list[str]
+BODY_MODELS: list[str]
 #: Each controller kind's default table (JSON text), for the kinds that have one.
 CONTROLLER_DEFAULTS: dict[str, str]
 

@@ -120,12 +120,28 @@ mod _core {
                 .map(|k| k.name())
                 .collect::<Vec<_>>(),
         )?;
+        // The bodies (`vehicle.body`).
+        m.add(
+            "BODY_MODELS",
+            crate::model::BODY_MODELS
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
+        )?;
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
-        let vars = state_vars(PayloadKind::default(), ActuatorKind::default());
+        let vars = state_vars(
+            Default::default(),
+            PayloadKind::default(),
+            ActuatorKind::default(),
+        );
         m.add(
             "TRACE_COLUMNS",
-            trace_columns(PayloadKind::default(), ActuatorKind::default()),
+            trace_columns(
+                Default::default(),
+                PayloadKind::default(),
+                ActuatorKind::default(),
+            ),
         )?;
         m.add(
             "STATE_NAMES",
@@ -272,14 +288,14 @@ mod _core {
             route.append(seg)?;
         }
         d.set_item("route", route)?;
-        let vars = state_vars(cfg.payload.model, cfg.actuator.model);
+        let vars = state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model);
         d.set_item(
             "state_names",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
         )?;
         d.set_item(
             "trace_columns",
-            trace_columns(cfg.payload.model, cfg.actuator.model),
+            trace_columns(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
         )?;
         let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
             &crate::trajectory::phase_steps(&cfg),

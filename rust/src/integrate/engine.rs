@@ -62,15 +62,20 @@ pub fn initial_state(parts: &AnyVehicle, cfg: &Config) -> Vec<f64> {
     struct Rest<'a>(&'a AnyVehicle, &'a Config);
     impl VehicleVisitor for Rest<'_> {
         type Output = Vec<f64>;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
             let Rest(parts, cfg) = self;
             let s: State<f64, N> = parts
-                .vehicle::<Pay, Act>()
+                .vehicle_on::<B, Pay, Act>()
                 .rest_state(cfg.initial.position, cfg.initial.attitude);
             s.to_vec()
         }
     }
-    dispatch(cfg.payload.model, cfg.actuator.model, Rest(parts, cfg))
+    dispatch(
+        cfg.vehicle.body,
+        cfg.payload.model,
+        cfg.actuator.model,
+        Rest(parts, cfg),
+    )
 }
 
 /// One request to the flight loop: which law, and for a dispersed batch the realisations, one
@@ -147,7 +152,7 @@ impl Engine {
         let decimation = cfg.decimation();
         Ok(Self {
             realisation: Realisation::new(&cfg)?,
-            vars: state_vars(cfg.payload.model, cfg.actuator.model),
+            vars: state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
             trajectory: Trajectory::new(&cfg),
             phases: phase_steps(&cfg),
             steps,
@@ -173,7 +178,11 @@ impl Engine {
 
     /// Trace columns after `t`.
     pub fn trace_columns(&self) -> Vec<&'static str> {
-        trace_columns(self.cfg.payload.model, self.cfg.actuator.model)
+        trace_columns(
+            self.cfg.vehicle.body,
+            self.cfg.payload.model,
+            self.cfg.actuator.model,
+        )
     }
 
     /// An empty trace for one flight, a row every `every` steps.

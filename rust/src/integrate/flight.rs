@@ -64,26 +64,28 @@ impl Engine {
         }
         impl<L: LoopEntry> VehicleVisitor for Fly<'_, '_, '_, L> {
             type Output = Option<Vec<LaneResult>>;
-            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+            fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
+                self,
+            ) -> Self::Output {
                 let kind = self.req.kind;
-                let law = Law::<L, Pay, Act, N> {
+                let law = Law::<L, B, Pay, Act, N> {
                     fly: self,
                     kinds: PhantomData,
                 };
                 crate::control::dispatch(kind, law)
             }
         }
-        struct Law<'e, 'r, 't, L, Pay, Act, const N: usize> {
+        struct Law<'e, 'r, 't, L, B, Pay, Act, const N: usize> {
             fly: Fly<'e, 'r, 't, L>,
-            kinds: PhantomData<(Pay, Act)>,
+            kinds: PhantomData<(B, Pay, Act)>,
         }
-        impl<L: LoopEntry, Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor
-            for Law<'_, '_, '_, L, Pay, Act, N>
+        impl<L: LoopEntry, B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>
+            ControllerVisitor for Law<'_, '_, '_, L, B, Pay, Act, N>
         {
             type Output = Option<Vec<LaneResult>>;
             fn visit<C: Controller>(self) -> Self::Output {
                 let f = self.fly;
-                L::enter::<Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
+                L::enter::<B, Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
             }
         }
         let fly = Fly {
@@ -94,13 +96,14 @@ impl Engine {
             planner,
             kinds: PhantomData::<L>,
         };
-        dispatch(self.cfg.payload.model, self.cfg.actuator.model, fly)
+        let cfg = &self.cfg;
+        dispatch(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model, fly)
     }
 
     /// Gather the lanes' realisations into lane-valued parameters and fly law `C`: the body of
     /// every compiled loop (`LoopEntry::enter`), inlined there with everything it calls.
     #[inline(always)]
-    pub(super) fn fly_law<L, Pay, Act, C, const N: usize>(
+    pub(super) fn fly_law<L, B, Pay, Act, C, const N: usize>(
         &self,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -109,19 +112,20 @@ impl Engine {
     ) -> Option<Vec<LaneResult>>
     where
         L: KernelOps,
+        B: BodyKind,
         Pay: Payload,
         Act: Actuator,
         C: Controller,
     {
         let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
-        let vehicle = AnyVehicle::gather::<L, Pay, Act>(&each);
+        let vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
         let kind = req.kind;
         let laws: Vec<&C> = realisations
             .iter()
             .map(|c| c.laws.get(kind).get::<C>())
             .collect();
         let ctrl = C::gather::<L>(&laws);
-        self.fly_loop::<L, Pay::At<L>, Act::At<L>, C::At<L>, N>(
+        self.fly_loop::<L, B, Pay::At<L>, Act::At<L>, C::At<L>, N>(
             &vehicle,
             &ctrl,
             realisations,
@@ -133,9 +137,9 @@ impl Engine {
 
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn fly_loop<L, Pay, Act, C, const N: usize>(
+    fn fly_loop<L, B, Pay, Act, C, const N: usize>(
         &self,
-        vehicle: &Vehicle<L, Pay, Act>,
+        vehicle: &Vehicle<L, Pay, Act, B>,
         ctrl: &C,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -144,10 +148,12 @@ impl Engine {
     ) -> Option<Vec<LaneResult>>
     where
         L: KernelOps,
+        B: BodyKind,
         Pay: crate::model::PayloadModel<L>,
         Act: ActuatorModel<L>,
         C: Control<L>,
     {
+        type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
         let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
         let mut s = x0;
@@ -198,6 +204,9 @@ impl Engine {
         let gust_to = windy().map(|c| c.wind.end_step()).max();
         let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
         let floor = L::from_fn(|l| realisations[l].floor);
+        // The rigid body's roll and pitch are no states: held to `divergence.max_tilt` here.
+        let derives_tilt = !B::DERIVED.is_empty();
+        let max_tilt = L::from_fn(|l| realisations[l].limits[Bound::Tilt as usize]);
         let grounded = realisations.iter().any(|c| c.floor > f64::NEG_INFINITY);
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
@@ -207,7 +216,7 @@ impl Engine {
         let blows = realisations.iter().any(|c| c.wind.blows());
         let mut held = [zero; 3];
         // The law's discrete memory (none for a static law), and each lane's at its start.
-        let mem0 = ctrl.memory(&Vehicle::<L, Pay, Act>::rigid(&x0));
+        let mem0 = ctrl.memory(&V::<L, Pay, Act, B>::rigid(&x0));
         let mut mem = mem0;
 
         for k in 0..=self.steps {
@@ -229,21 +238,16 @@ impl Engine {
                     );
                 }
             }
-            let trig = Trig::of(&s);
+            let trig = B::frame(&s);
             let tick = Tick { step: k, t };
-            let u = ctrl.step_with(
-                &Vehicle::<L, Pay, Act>::rigid(&s),
-                &trig,
-                &r,
-                tick,
-                &mut mem,
-            );
+            let view = V::<L, Pay, Act, B>::rigid_at(&s, &trig);
+            let u = ctrl.step_with(&view, &B::trig(&trig, &view.att), &r, tick, &mut mem);
             let cmd = vehicle.actuator.command(&u, tick);
             // Outside the gust window `sample_at` returns zeros without touching the state
             // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
             // window is open and nothing else blows (most of a paper flight).
             let at = |lane: usize| {
-                let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                let rigid = V::<L, Pay, Act, B>::rigid(&s);
                 move || Kinematics {
                     z: rigid.pos[2].lane(lane),
                     vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
@@ -262,7 +266,7 @@ impl Engine {
                         k as u64,
                         #[inline(always)]
                         || {
-                            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                            let rigid = V::<L, Pay, Act, B>::rigid(&s);
                             (rigid.pos[2], rigid.vel)
                         },
                     ));
@@ -297,7 +301,7 @@ impl Engine {
             held = w;
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
-            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+            let rigid = V::<L, Pay, Act, B>::rigid(&s);
             let e = [
                 rigid.pos[0] * -1.0 + r.pos[0],
                 rigid.pos[1] * -1.0 + r.pos[1],
@@ -328,17 +332,19 @@ impl Engine {
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && diverged_at[0].is_nan() {
-                    let lay = Vehicle::<L, Pay, Act>::LAYOUT;
+                    let lay = V::<L, Pay, Act, B>::LAYOUT;
                     vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
+                    let derived = &view.att[..B::DERIVED.len()];
                     tr.push(&TraceRow {
                         t,
                         s: &s,
+                        derived,
                         r: &r,
                         u: &u,
                         w: &w,
                         e_o: out.e_o,
                         accel_c: accel,
-                        drag_z: vehicle.body.vertical_drag(rigid.vel[2], w[2]),
+                        drag_z: crate::model::Frame::drag(&trig, &vehicle.body, &rigid.vel, &w)[2],
                         swing: out.swing,
                         tension: out.tension,
                         extra,
@@ -357,6 +363,13 @@ impl Engine {
             if grounded {
                 ok &= floor.le_mask(s[ix::Z]);
             }
+            let tilt = if derives_tilt {
+                let att = B::euler(&s, &B::frame(&s));
+                ok &= att[0].abs().le_mask(max_tilt) & att[1].abs().le_mask(max_tilt);
+                [att[0], att[1]]
+            } else {
+                [zero; 2]
+            };
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
@@ -364,7 +377,12 @@ impl Engine {
                         alive -= 1;
                         let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
                         let c = realisations[lane];
-                        status[lane] = classify(&self.vars, &values, &c.limits, c.floor);
+                        let tilt = if derives_tilt {
+                            vec![tilt[0].lane(lane), tilt[1].lane(lane)]
+                        } else {
+                            Vec::new()
+                        };
+                        status[lane] = classify(&self.vars, &values, &tilt, &c.limits, c.floor);
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
                         for (x, x0) in s.iter_mut().zip(realisations[lane].x0.iter()) {
                             x.set_lane(lane, *x0);

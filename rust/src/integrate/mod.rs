@@ -20,7 +20,8 @@ use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::metrics::{PhaseAccumulator, Sample, N_METRICS};
 use crate::model::{
     dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, AnyVehicle,
-    Bound, Inputs, Payload, PayloadKind, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
+    BodyKind, BodyModel, Bound, Inputs, Payload, PayloadKind, State, StateVar, Tick, Vehicle,
+    VehicleVisitor,
 };
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;

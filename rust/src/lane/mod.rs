@@ -112,6 +112,16 @@ pub trait Lane:
     fn le_mask(self, bound: Self) -> u32 {
         (0..Self::LANES).fold(0, |m, i| m | ((self.lane(i) <= bound.lane(i)) as u32) << i)
     }
+    /// The angle of (x, y) = (`x`, `self`), lane by lane with the standard library's `atan2`
+    /// (the same bits on every lane type): for the few angles read once per step (the rigid
+    /// body's Euler angles), not for the hot derivative.
+    #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        Self::from_fn(
+            #[inline(always)]
+            |i| self.lane(i).atan2(x.lane(i)),
+        )
+    }
     #[inline(always)]
     fn clamp(self, lo: Self, hi: Self) -> Self {
         self.max(lo).min(hi)

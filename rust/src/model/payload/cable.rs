@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! hook          a  = p + R hb,   hb = (0, 0, -h)
-//! hook velocity va = v + R (w x hb),   w = (p, q, r)
+//! hook velocity va = v + R (w x hb),   w = (p, q, r), the body's rates
 //! cable         d = pc - a,  l = |d|,  u = d / l,  ldot = u . (vc - va)
 //! tension       T = max(0, k (l - L0) + c ldot)   if l > L0,   else T = 0
 //! payload       mc dvc/dt = -T u - mc g e3 + Fdc
@@ -13,16 +13,18 @@
 //! payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
 //! ```
 //!
-//! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
+//! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body. R and Fd
+//! are the body's (`Frame`: the paper's Euler angles and inertial-axis drag, or the rigid
+//! body's quaternion and body-axis drag); the state indices follow its layout.
 
 use super::{Payload, PayloadModel, PayloadOutputs};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::Lane;
-use crate::model::body::{drag, Body};
+use crate::model::body::{Body, Frame};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
-use crate::model::{ix, Layout, State, Trig};
+use crate::model::{ix, Layout, State};
 
 params! {
     /// The cable's own keys in `[payload]` (beside the point mass's, `config::payload::Shared`).
@@ -58,11 +60,27 @@ pub struct Cable<L = f64> {
     inv_mc: L,
 }
 
-const LAYOUT: Layout = Layout::new(3, 0);
-const XC: usize = ix::PAYLOAD;
-const VX: usize = LAYOUT.vel();
-const P: usize = VX + 3;
-const VXC: usize = LAYOUT.payload_vel();
+/// The cable's states and the quadrotor's it reads, on the body of attitude `F` (the actuator's
+/// states come after all of them).
+struct Ix {
+    xc: usize,
+    vx: usize,
+    p: usize,
+    vxc: usize,
+}
+
+impl Ix {
+    #[inline(always)]
+    fn of<L: Lane, F: Frame<L>>() -> Self {
+        let lay: Layout = F::layout(3, 0);
+        Self {
+            xc: lay.payload(),
+            vx: lay.vel(),
+            p: lay.rate(),
+            vxc: lay.payload_vel(),
+        }
+    }
+}
 
 const fn payload(name: &'static str, axis: Axis, bound: Bound) -> StateVar {
     StateVar::new(name, axis, Some(bound), Part::Payload)
@@ -155,33 +173,6 @@ impl Payload for Cable {
     }
 }
 
-/// The columns of R = Rz(psi) Ry(theta) Rx(phi): the body's x, y and z axes in inertial axes.
-#[inline(always)]
-fn axes<L: Lane>(t: &Trig<L>) -> [[L; 3]; 3] {
-    let Trig {
-        sphi,
-        cphi,
-        sth,
-        cth,
-        spsi,
-        cpsi,
-    } = *t;
-    let (ss, cs) = (sth * sphi, sth * cphi);
-    [
-        [cpsi * cth, spsi * cth, -sth],
-        [
-            cpsi.mul_add(ss, -(spsi * cphi)),
-            spsi.mul_add(ss, cpsi * cphi),
-            cth * sphi,
-        ],
-        [
-            cs.mul_add(cpsi, spsi * sphi),
-            cs.mul_add(spsi, -(sphi * cpsi)),
-            cphi * cth,
-        ],
-    ]
-}
-
 /// `[f(0), f(1), f(2)]`, always inlined (`array::map` is not guaranteed to be: see
 /// `model::state_from_fn`).
 #[inline(always)]
@@ -218,24 +209,25 @@ pub struct Line<L> {
 }
 
 impl<L: Lane> Cable<L> {
-    /// The hook, the cable's direction and its tension at `s` (`axes` from `s`'s angles).
+    /// The hook, the cable's direction and its tension at `s` (whose attitude is `frame`).
     #[inline(always)]
-    pub fn line<const N: usize>(&self, s: &State<L, N>, axes: &[[L; 3]; 3]) -> Line<L> {
-        let [ex, ey, ez] = axes;
+    pub fn line<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, frame: &F) -> Line<L> {
+        let Ix { xc, vx, p, vxc } = Ix::of::<L, F>();
+        let [ex, ey, ez] = &frame.axes();
         let h = self.offset;
         // a = p + R (0, 0, -h);  va = v + R (w x hb) with w x hb = (-h q, h p, 0).
         let hook: [L; 3] = vec3(
             #[inline(always)]
             |i| (-h).mul_add(ez[i], s[ix::X + i]),
         );
-        let (hq, hp) = (h * s[P + 1], h * s[P]);
+        let (hq, hp) = (h * s[p + 1], h * s[p]);
         let va: [L; 3] = vec3(
             #[inline(always)]
-            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[VX + i])),
+            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[vx + i])),
         );
         let d: [L; 3] = vec3(
             #[inline(always)]
-            |i| s[XC + i] - hook[i],
+            |i| s[xc + i] - hook[i],
         );
         let length = dot(&d, &d).sqrt();
         let inv = L::splat(1.0) / length;
@@ -245,7 +237,7 @@ impl<L: Lane> Cable<L> {
         );
         let rel = vec3(
             #[inline(always)]
-            |i| s[VXC + i] - va[i],
+            |i| s[vxc + i] - va[i],
         );
         let ldot = dot(&u, &rel);
         let stretch = length - self.rest_length;
@@ -261,16 +253,17 @@ impl<L: Lane> Cable<L> {
 
     /// mc dvc/dt = -T u - mc g e3 + Fdc: the payload's inertial acceleration.
     #[inline(always)]
-    fn acceleration<const N: usize>(
+    fn acceleration<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
         line: &Line<L>,
         w: &[L; 3],
     ) -> [L; 3] {
+        let vxc = Ix::of::<L, F>().vxc;
         let rel = vec3(
             #[inline(always)]
-            |i| s[VXC + i] - w[i],
+            |i| s[vxc + i] - w[i],
         );
         let k = dot(&rel, &rel).sqrt() * (-self.drag_payload);
         let mut a = vec3(
@@ -297,61 +290,61 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
     const DOF: usize = 3;
 
     #[inline(always)]
-    fn accelerations<const N: usize>(
+    fn accelerations<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
-        let axes = axes(trig);
-        self.accelerations_of(body, s, &axes, &self.line(s, &axes), u1, w, ds)
+        self.accelerations_of(body, s, frame, &self.line(s, frame), u1, w, ds)
     }
 
     #[inline(always)]
-    fn outputs<const N: usize>(
+    fn outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         _u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
-        let line = self.line(s, &axes(trig));
-        let accel = self.acceleration(body, s, &line, w);
-        self.outputs_of(s, &line, accel)
+        let line = self.line(s, frame);
+        let accel = self.acceleration::<F, N>(body, s, &line, w);
+        self.outputs_of::<F, N>(s, &line, accel)
     }
 
     /// The line and the payload's acceleration once for both (the same bits as apart).
     #[inline(always)]
-    fn accelerations_and_outputs<const N: usize>(
+    fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         _u1_out: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let axes = axes(trig);
-        let line = self.line(s, &axes);
-        let torque = self.accelerations_of(body, s, &axes, &line, u1, w, ds);
+        let line = self.line(s, frame);
+        let torque = self.accelerations_of(body, s, frame, &line, u1, w, ds);
         // `accelerations_of` stored the payload's acceleration in `ds`.
-        let accel = [ds[VXC], ds[VXC + 1], ds[VXC + 2]];
-        (torque, self.outputs_of(s, &line, accel))
+        let vxc = Ix::of::<L, F>().vxc;
+        let accel = [ds[vxc], ds[vxc + 1], ds[vxc + 2]];
+        (torque, self.outputs_of::<F, N>(s, &line, accel))
     }
 
-    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+    fn rest<F: Frame<L>, const N: usize>(&self, _body: &Body<L>, frame: &F, s: &mut State<L, N>) {
         // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
-        let ez = axes(&Trig::of(s))[2];
+        let Ix { xc, vx, vxc, .. } = Ix::of::<L, F>();
+        let ez = frame.axes()[2];
         for i in 0..3 {
-            s[XC + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
-            s[VXC + i] = s[VX + i];
+            s[xc + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
+            s[vxc + i] = s[vx + i];
         }
-        s[XC + 2] = s[XC + 2] - self.hover_length;
+        s[xc + 2] = s[xc + 2] - self.hover_length;
     }
 }
 
@@ -359,11 +352,11 @@ impl<L: Lane> Cable<L> {
     /// `PayloadModel::accelerations` with the line at `s` given.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn accelerations_of<const N: usize>(
+    fn accelerations_of<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        axes: &[[L; 3]; 3],
+        frame: &F,
         line: &Line<L>,
         u1: L,
         w: &[L; 3],
@@ -373,18 +366,16 @@ impl<L: Lane> Cable<L> {
             #[inline(always)]
             |i| line.tension * line.u[i],
         );
-        let fd = [
-            drag(body.drag_lateral, s[VX], w[0]),
-            drag(body.drag_lateral, s[VX + 1], w[1]),
-            body.vertical_drag(s[VX + 2], w[2]),
-        ];
+        let Ix { vx, vxc, .. } = Ix::of::<L, F>();
+        let axes = &frame.axes();
+        let fd = frame.drag(body, &[s[vx], s[vx + 1], s[vx + 2]], w);
         let thrust = &axes[2];
         for i in 0..3 {
-            ds[VX + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
+            ds[vx + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
         }
-        ds[VX + 2] = ds[VX + 2] - body.g;
-        let ac = self.acceleration(body, s, line, w);
-        ds[VXC..VXC + 3].copy_from_slice(&ac);
+        ds[vx + 2] = ds[vx + 2] - body.g;
+        let ac = self.acceleration::<F, N>(body, s, line, w);
+        ds[vxc..vxc + 3].copy_from_slice(&ac);
         // hb x f with hb = (0, 0, -h) and f = R^T (T u) = (ex . Tu, ey . Tu, ez . Tu).
         let h = self.offset;
         let (fx, fy) = (dot(&axes[0], &pull), dot(&axes[1], &pull));
@@ -393,14 +384,15 @@ impl<L: Lane> Cable<L> {
 
     /// `PayloadModel::outputs` with the line at `s` and the payload's acceleration given.
     #[inline(always)]
-    fn outputs_of<const N: usize>(
+    fn outputs_of<F: Frame<L>, const N: usize>(
         &self,
         s: &State<L, N>,
         line: &Line<L>,
         accel: [L; 3],
     ) -> PayloadOutputs<L> {
+        let xc = Ix::of::<L, F>().xc;
         PayloadOutputs {
-            e_o: (s[XC + 2] - line.hook[2]) + self.hover_length,
+            e_o: (s[xc + 2] - line.hook[2]) + self.hover_length,
             accel,
             tension: line.tension,
             swing: Self::swing(line),

@@ -14,9 +14,9 @@ mod spring;
 pub use cable::{Cable, CableParams, Line};
 pub use spring::{Spring, SpringParams};
 
-use super::body::Body;
+use super::body::{Body, Frame};
 use super::layout::StateVar;
-use super::{Layout, State, Trig};
+use super::State;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
 
@@ -45,23 +45,25 @@ pub trait PayloadModel<L: Lane>: Sync {
 
     /// Write the quadrotor's translational accelerations (`ds[vx..vx + 3]`) and the payload's
     /// (`ds[payload_vel..]`) for total thrust `u1` and wind `w` (m/s, inertial); return the
-    /// torque the payload applies to the quadrotor (body axes), if it applies one.
-    fn accelerations<const N: usize>(
+    /// torque the payload applies to the quadrotor (body axes), if it applies one. `frame` is
+    /// the body's attitude at `s` (its axes, its own drag, and where the states sit:
+    /// `Frame::layout`).
+    fn accelerations<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]>;
 
     /// What the loop records (`PayloadOutputs`) at `s`.
-    fn outputs<const N: usize>(
+    fn outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L>;
@@ -72,22 +74,23 @@ pub trait PayloadModel<L: Lane>: Sync {
     /// the state its RK4 step starts from, so the first stage's derivative shares them.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn accelerations_and_outputs<const N: usize>(
+    fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         u1_out: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let torque = self.accelerations(body, s, trig, u1, w, ds);
-        (torque, self.outputs(body, s, trig, u1_out, w))
+        let torque = self.accelerations(body, s, frame, u1, w, ds);
+        (torque, self.outputs(body, s, frame, u1_out, w))
     }
 
-    /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest).
-    fn rest<const N: usize>(&self, body: &Body<L>, s: &mut State<L, N>, layout: Layout);
+    /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest), whose
+    /// attitude is `frame`.
+    fn rest<F: Frame<L>, const N: usize>(&self, body: &Body<L>, frame: &F, s: &mut State<L, N>);
 }
 
 /// A payload kind's parameters for one vehicle, resolved once from the scenario.
