@@ -784,3 +784,7 @@ impl<L: Lane> Cable<L> {
 #[cfg(test)]
 #[path = "cable_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "winch_tests.rs"]
+mod winch_tests;
