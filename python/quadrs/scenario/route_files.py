@@ -16,7 +16,14 @@ and ends over the last point at that height. What each command becomes:
 - ``NAV_DELAY`` (93): a hold at the current point.
 - ``DO_CHANGE_SPEED`` (178): the cruise speed (``trajectory.speed``); the engine flies one
   speed, so different speeds in one plan are refused.
-- Other ``DO_*`` and condition commands (camera, gripper, servo, ...) do not move the
+- ``DO_WINCH`` (42600) action 1 (relative length): the line ``param3`` m is paid out at the
+  current point (``trajectory.lower``; ``param4``, a rate in m/s, sets
+  ``payload.winch_speed``); action 6 (retract) is what the winch does after the release
+  anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
+  parcel rests (``payload.release = "touchdown"``); action 1 (grab) before any release is
+  the parcel hooked from the start. Any other winch or gripper action is refused naming
+  its item.
+- Other ``DO_*`` and condition commands (camera, servo, ...) do not move the
   vehicle and are skipped. Any other navigation command (an unlimited loiter, a terrain-
   relative altitude, a survey pattern) is refused naming its item.
 
@@ -64,6 +71,10 @@ Point = tuple[float, float, float]
 # MAVLink MAV_CMD values (mavlink common.xml).
 WAYPOINT, LOITER_UNLIM, LOITER_TURNS, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 18, 19, 20, 21, 22
 DELAY, CHANGE_SPEED = 93, 178
+# The winch and the gripper (MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER) and the actions read.
+WINCH, GRIPPER = 42600, 211
+WINCH_RELATIVE_LENGTH, WINCH_RETRACT = 1, 6
+GRIPPER_RELEASE, GRIPPER_GRAB = 0, 1
 #: Commands below this navigate; from here on they are conditions and DO_ commands (camera,
 #: gripper, servo, region of interest, ...), which do not move the vehicle.
 FIRST_NON_NAV = 100
@@ -86,6 +97,11 @@ class RouteFile:
     hold: tuple[float, ...]
     speed: float | None
     source: str
+    #: m of line lowered at each point (all 0 without a winch item), the hook's release
+    #: (``"touchdown"`` or None) and the winch's rate (m/s, or None).
+    lower: tuple[float, ...] = ()
+    release: str | None = None
+    winch_speed: float | None = None
 
     @property
     def length(self) -> float:
@@ -110,6 +126,12 @@ class RouteFile:
         }
         if self.speed is not None:
             route["trajectory.speed"] = self.speed
+        if any(x > 0 for x in self.lower):
+            route["trajectory.lower"] = list(self.lower)
+        if self.release is not None:
+            route["payload.release"] = self.release
+        if self.winch_speed is not None:
+            route["payload.winch_speed"] = self.winch_speed
         route.update(extra)
         data = base.to_dict()
         gust = data.get("gust", {})
@@ -118,7 +140,9 @@ class RouteFile:
             # The route's own time, from the engine's schedule of a flight long enough for it.
             long = base.override({**route, "integrator.duration": 1e5, "gust.end": 1e5})
             legs = long.route.legs if long.route is not None else []
-            needed = sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
+            lowerings = long.route.lowerings if long.route is not None else []
+            needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
+                      + sum(g.end - g.start for g in lowerings))  # fmt: skip
             dt = float(long["integrator.dt"])
             duration = math.ceil(needed / dt - 1e-6) * dt
             route.setdefault("integrator.duration", duration)
@@ -217,6 +241,9 @@ class _Builder:
         self.source = source
         self.points: list[Point] = []
         self.hold: list[float] = []
+        self.lower: list[float] = []
+        self.release: str | None = None
+        self.winch_speed: float | None = None
 
     def to(self, point: Point, hold: float = 0.0) -> None:
         if self.points and math.dist(point, self.points[-1]) < SAME_POINT:
@@ -224,11 +251,14 @@ class _Builder:
         else:
             self.points.append(point)
             self.hold.append(hold)
+            self.lower.append(0.0)
 
     def route(self, speed: float | None) -> RouteFile:
         if len(self.points) < 2:
             raise RouteFileError(f"{self.source}: the route goes nowhere (one point)")
-        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source)
+        lower = tuple(self.lower) if any(x > 0 for x in self.lower) else ()
+        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower,
+                         self.release, self.winch_speed)  # fmt: skip
 
 
 class _PlanRoute(_Builder):
@@ -259,6 +289,9 @@ class _PlanRoute(_Builder):
             if speed is not None:
                 speeds.add(speed)
             return
+        if command in (WINCH, GRIPPER):
+            self._winch_or_gripper(command, params, where)
+            return
         if command >= FIRST_NON_NAV:
             return
         if command == DELAY:
@@ -284,6 +317,36 @@ class _PlanRoute(_Builder):
             self.to((x, y, z))
             return
         self.to((x, y, z), _number(params[0], f"{where}: params[0] (hold, s)", 0.0))
+
+    def _winch_or_gripper(self, command: int, params: list[Any], where: str) -> None:
+        """A ``DO_WINCH`` or ``DO_GRIPPER`` item (module docstring): a lowering at the current
+        point, or the hook's release after one; any other action refused naming the item."""
+        action = params[1]
+        if command == WINCH:
+            if action == WINCH_RETRACT:
+                return
+            if action != WINCH_RELATIVE_LENGTH:
+                raise RouteFileError(
+                    f"{where}: DO_WINCH action {action!r} is not supported (1, relative length: "
+                    "pay out params[2] m; 6, retract)"
+                )
+            length = _number(params[2], f"{where}: DO_WINCH params[2] (length, m)", 0.0)
+            if length <= 0:
+                raise RouteFileError(
+                    f"{where}: DO_WINCH params[2] must pay out line (> 0 m), got {length!r}"
+                )
+            self.lower[-1] += length
+            if params[3] not in (None, 0):
+                self.winch_speed = _number(params[3], f"{where}: DO_WINCH params[3] (rate, m/s)")
+            return
+        if action == GRIPPER_GRAB and self.release is None:
+            return
+        if action != GRIPPER_RELEASE or not any(x > 0 for x in self.lower):
+            raise RouteFileError(
+                f"{where}: DO_GRIPPER action {action!r} is not supported here (0, release, "
+                "after a DO_WINCH lowering; 1, grab, before any release)"
+            )
+        self.release = "touchdown"
 
     def _horizontal(self, params: list[Any], where: str, optional: bool) -> tuple[float, float]:
         lat, lon = params[4], params[5]
