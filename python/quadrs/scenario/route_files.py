@@ -22,7 +22,7 @@ and ends over the last point at that height. What each command becomes:
   anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
   parcel rests (``payload.release = "touchdown"``); action 1 (grab) before any release is
   the parcel hooked from the start. Any other winch or gripper action is refused naming
-  its item.
+  its item. At a point with a lowering the point's hold follows the lowering.
 - Other ``DO_*`` and condition commands (camera, servo, ...) do not move the
   vehicle and are skipped. Any other navigation command (an unlimited loiter, a terrain-
   relative altitude, a survey pattern) is refused naming its item.
