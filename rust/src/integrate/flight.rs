@@ -331,7 +331,7 @@ impl Engine {
                 None => LastSample::none(),
                 Some(ev) => {
                     let drop = drop_at.unwrap_or([r.pos[0], r.pos[1]]);
-                    let [vx, vy, vz] = ev.vel;
+                    let [vx, vy, vz] = ev.approach;
                     let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
                     let mut after = [0.0; MAX_LANES];
                     let mut change = [0.0; MAX_LANES];

@@ -177,6 +177,8 @@ pub struct Cable<L = f64> {
     pub hooked: L,
     touched: L,
     resting: L,
+    /// m/s, the parcel's velocity at the previous step (`LastMetres::approach`).
+    approach: [L; 3],
 }
 
 const LAYOUT: Layout = Layout::new(4, 0);
@@ -402,6 +404,7 @@ impl Payload for Cable {
             hooked: 1.0,
             touched: 0.0,
             resting: 0.0,
+            approach: [0.0; 3],
         }
     }
 
@@ -439,6 +442,7 @@ impl Payload for Cable {
             hooked: at(|p| p.hooked),
             touched: at(|p| p.touched),
             resting: at(|p| p.resting),
+            approach: vec3(|i| L::from_fn(|l| each[l].approach[i])),
         }
     }
 }
@@ -692,6 +696,7 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let on = |gate: L| where_positive(gate, one);
         let vel = [s[VXC], s[VXC + 1], s[VXC + 2]];
+        let approach = std::mem::replace(&mut self.approach, vel);
         let mut touchdown = zero;
         if self.contact {
             let contact = on(self.ground - s[XC + 2]) * on(self.ground_k);
@@ -720,6 +725,7 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
             grounded: self.touched,
             pos: [s[XC], s[XC + 1], s[XC + 2]],
             vel,
+            approach,
         })
     }
 }

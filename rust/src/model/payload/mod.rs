@@ -61,6 +61,9 @@ pub struct LastMetres<L> {
     /// m and m/s, the parcel's inertial position and velocity.
     pub pos: [L; 3],
     pub vel: [L; 3],
+    /// m/s, its velocity at the previous step: the speed it met the ground with (by the step
+    /// at which the contact is first seen, the ground has already pushed for part of it).
+    pub approach: [L; 3],
 }
 
 /// A payload's dynamics, with parameters of lane type `L`.
