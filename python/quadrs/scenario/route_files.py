@@ -126,8 +126,8 @@ class RouteFile:
         }
         if self.speed is not None:
             route["trajectory.speed"] = self.speed
-        if any(x > 0 for x in self.lower):
-            route["trajectory.lower"] = list(self.lower)
+        # The base's own lowerings went with its route.
+        route["trajectory.lower"] = list(self.lower) if any(x > 0 for x in self.lower) else None
         if self.release is not None:
             route["payload.release"] = self.release
         if self.winch_speed is not None:
