@@ -37,6 +37,7 @@ def lowering(payout: float, **extra: Any) -> quadrs.Scenario:
         "payload.length_min": 1.0,
         "payload.winch_speed": V,
         "payload.winch_acceleration": A,
+        "payload.release": "touchdown",
         "ground.stiffness": 2.0e4,
         "ground.damping": 100.0,
         "ground.friction": 0.5,
@@ -173,10 +174,12 @@ def test_a_lowering_in_still_air_touches_down_at_the_commanded_rate_on_the_drop_
     # After it: no line force, the line reeled in, the vehicle climbs away, the parcel stays.
     after = tr[tr.index > release + 0.01]
     assert (after["tension"] == 0).all()
-    assert abs(after["line"].iloc[-1] - 1.0) < 1e-3
+    assert after["line"].iloc[0] > 5.9 and 1.0 <= after["line"].iloc[-1] < 1.2
     assert after["z"].iloc[-1] > 6.9
     assert abs(after["zc"].iloc[-1]) < 1e-3 and math.dist(after[["xc", "yc"]].iloc[-1], DROP) < 1e-6
-    assert 0 < m.loc["flight", "release_height_change"] < 0.2
+    # The law, compensating a mass no longer carried, settles the height it rose by once the
+    # parcel rested.
+    assert 0 < m.loc["flight", "release_height_change"] < 1.0
 
 
 def test_bad_last_metres_values_name_their_key() -> None:
