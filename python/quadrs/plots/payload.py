@@ -27,6 +27,7 @@ from quadrs.plots.base import (
     shade_gust,
 )
 from quadrs.runs.flight import Flight
+from quadrs.scenario.route import FLIGHT_PHASE
 
 __all__ = ["lowering_path", "payload_path", "swing_tension"]
 
@@ -127,7 +128,8 @@ def lowering_path(
     tr = flight.trace
     t = tr["t"].to_numpy() if "t" in tr else tr.index.to_numpy()
     start = lowerings[0].start
-    release = float(flight.metrics.loc["flight", "release_time"])
+    whole = flight.metrics.set_index("phase").loc[FLIGHT_PHASE]
+    release = float(whole["release_time"])
     stop = release if math.isfinite(release) else t[-1]
     window = (t >= start) & (t <= stop)
     part = tr[window]
@@ -157,7 +159,7 @@ def lowering_path(
         add_legend(a)
     side.axhline(ground, color="0.3", lw=1.0)
     side.set_title(f"lowering, seen across the route; {flight_title(flight.controller, flight)}")
-    miss = float(flight.metrics.loc["flight", "touchdown_miss"])
+    miss = float(whole["touchdown_miss"])
     top.set_title(f"seen from above: touchdown {miss:.2f} m from the drop point"
                   if math.isfinite(miss) else "seen from above")  # fmt: skip
     top.set_aspect("equal", adjustable="datalim")
