@@ -47,7 +47,7 @@ class Description(TypedDict):
     #: (name, start s, end s) of every phase, the whole-flight phase last.
     phase_windows: list[tuple[str, float, float]]
     #: A route's schedule, one dict per hold or leg (empty without a route): name, kind,
-    #: start, arrival, end, origin, target, length, peak_speed, ramp, cruise.
+    #: start, arrival, end, origin, target, length, peak_speed, ramp, cruise, payout.
     route: list[dict[str, Any]]
 
 class StabilityResult(TypedDict):

@@ -285,6 +285,7 @@ mod _core {
             seg.set_item("peak_speed", s.profile.peak_speed)?;
             seg.set_item("ramp", s.profile.ramp)?;
             seg.set_item("cruise", s.profile.cruise)?;
+            seg.set_item("payout", s.payout)?;
             route.append(seg)?;
         }
         d.set_item("route", route)?;

@@ -52,8 +52,20 @@ def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None
             for key in ("rotor_drag", "flapping", "translational_lift"):
                 data["actuator"].pop(key, None)
         if payload != "cable":  # the cable's keys are refused with another payload
-            for key in ("cable_length", "attachment_offset"):
+            for key in (
+                "cable_length",
+                "attachment_offset",
+                "winch_speed",
+                "winch_acceleration",
+                "length_min",
+                "release",
+                "release_delay",
+            ):
                 data["payload"].pop(key, None)
+            for key in ("stiffness", "damping", "friction"):  # the parcel's contact: the cable's
+                data["ground"].pop(key, None)
+            data["trajectory"].pop("lower", None)
+            data["trajectory"].pop("names", None)  # the lowering named one of them
         if body == "rigid" and payload == "spring":  # the rigid body flies the cable only
             with pytest.raises(ScenarioError, match=r"vehicle\.body"):
                 _ = Scenario.from_dict(data).state_names

@@ -269,7 +269,6 @@ def test_mission_tune_and_sensitivity_on_dask_equal_the_local_run(
     from quadrs.cli.main import main
     from quadrs.design.optimize import optimize
     from quadrs.design.sensitivity import sensitivity
-
     from tests.cli.test_main import SHORT
 
     # mission, through the command line (the paper preset's short flight: quick).

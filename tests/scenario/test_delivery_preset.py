@@ -27,16 +27,19 @@ def test_the_preset_is_the_vehicle_a_delivery_engineer_flies(delivery) -> None:
     legs = [s for s in delivery.route.segments if s.kind == "leg"]
     transit = max(legs, key=lambda s: s.length)
     assert 500.0 <= transit.length <= 2000.0 and transit.peak_speed == 10.0
-    # The flight lasts past the last arrival: the drop hover is flown.
+    # The flight lasts past the last arrival; over the drop point the parcel is lowered, then
+    # the vehicle hovers and climbs away.
     assert delivery.route.segments[-1].end == delivery["integrator.duration"]
-    assert delivery.route.segments[-1].arrival < delivery["integrator.duration"] - 10.0
+    kinds = [(s.name, s.kind) for s in delivery.route.segments]
+    assert kinds[3:7] == [("descent", "leg"), ("lower", "lower"), ("drop", "hold"),
+                          ("departure", "leg")]  # fmt: skip
 
 
 @pytest.mark.parametrize("controller", ["pd", "smc"])
 def test_its_gains_are_stable_at_hover_with_the_line_and_the_rotors(delivery, controller) -> None:
     st = quadrs.stability(delivery, controller)
     assert st.stable and (st.poles["real"] < -0.05).all(), st.poles
-    assert len(st.poles) == 22  # 12 rigid + 6 payload + 4 rotor speeds
+    assert len(st.poles) == 24  # 12 rigid + 6 payload + the winch's 2 + 4 rotor speeds
     assert {"swing x"} <= set(st.poles["mode"])
 
 
@@ -48,12 +51,20 @@ def test_the_pd_flies_the_mission_leg_by_leg(delivery) -> None:
     m = f.metrics.set_index("phase")
     assert list(m.index) == [s.name for s in delivery.route.segments] + [FLIGHT_PHASE]
     assert np.isfinite(m.to_numpy(dtype=float, na_value=np.nan)[:, :12]).all()
-    # The line never goes slack, carries about the parcel's weight, and swings.
+    # Up to the lowering the line never goes slack, carries about the parcel's weight, and
+    # swings; then the parcel touches down gently near the drop point, the line goes slack
+    # and the hook opens during the hover.
     weight = delivery["payload.mass"] * delivery["environment.gravity"]
-    assert (m["slack_time"] == 0).all()
-    assert 0.5 * weight < m.loc[FLIGHT_PHASE, "min_tension"] < weight
+    carried = m.loc[["lift", "climb", "transit", "descent"]]
+    assert (carried["slack_time"] == 0).all()
+    assert 0.5 * weight < carried["min_tension"].min() < weight
     assert weight < m.loc[FLIGHT_PHASE, "max_tension"] < 2 * weight
     assert 0.05 < m.loc[FLIGHT_PHASE, "max_swing"] < 1.2
+    assert 0.5 < m.loc["lower", "touchdown_speed"] < 1.5
+    assert m.loc["lower", "touchdown_miss"] < 3.0
+    lower, drop = delivery.route.segments[4:6]
+    assert m.loc["lower", "slack_time"] + m.loc["drop", "slack_time"] > 1.0
+    assert lower.start < m.loc[FLIGHT_PHASE, "release_time"] < drop.end
     # It arrives: within a few metres of the drop point, hovering.
     end = f.trace.iloc[-1]
     target = np.array(delivery.route.segments[-1].target)

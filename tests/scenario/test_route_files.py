@@ -66,7 +66,7 @@ def hundred_metres_north() -> dict[str, Any]:
         item(22, alt=30.0),
         item(16, lat, lon, 30.0),
         item(16, lat + north(100.0), lon, 30.0, hold=4.0),
-        item(211, frame=2),  # DO_GRIPPER: releases the parcel, does not move
+        item(183, frame=2),  # DO_SET_SERVO: does not move
         item(21, lat + north(100.0), lon),
     ])  # fmt: skip
 

@@ -123,6 +123,13 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         help="likewise for the cross-track error, m (default: the --track-limit)",
     )
     p.add_argument(
+        "--touchdown-limit",
+        type=_positive,
+        default=1.0,
+        metavar="V",
+        help="a route that lowers its parcel leads with P(touchdown faster than V m/s) (default 1)",
+    )
+    p.add_argument(
         "--quantile",
         type=_fraction,
         default=0.95,
@@ -229,7 +236,8 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     else:
         reports = [mission_report(mc, limit, args.controller[0], args.quantile, metric=metric,
                                   track_limit=args.track_limit,
-                                  cross_track_limit=args.cross_track_limit)]  # fmt: skip
+                                  cross_track_limit=args.cross_track_limit,
+                                  touchdown_limit=args.touchdown_limit)]  # fmt: skip
         text = reports[0].to_text(width=100)
     if mc.interrupted:
         print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")

@@ -17,9 +17,14 @@ it covers the flight only where the phases do).
 The answer leads with whether the route was flown at all (:attr:`MissionReport.route`): a
 flight is off its route in a phase if its tracking error (``max_tracking``, the 3-D distance
 from the reference) or its cross-track error (``max_cross_track``) passed the user's limit, or
-if it diverged; the time at the thrust limit (``saturated_time``) is shown beside it. The
-engine measures no time near the controller's tilt limit: only a flight past
-``divergence.max_tilt`` is counted (as diverged, status "tilt").
+if it diverged; the time at the thrust limit (``saturated_time``) and near the law's tilt
+limit (``near_tilt_time``: above 90 % of ``controller.tilt_limit``) are shown beside it.
+
+A route that lowers its parcel (``trajectory.lower``) leads with the last metres
+(:attr:`MissionReport.last_metres`): the probability that the parcel touches down faster than
+``touchdown_limit`` (m/s), over the flights that touched down, with its interval; per phase in
+which a parcel touched down or was lowered, the touchdown's speed, drift and miss, the release
+and the vehicle's height change after it, and the swing while lowering.
 
 Each per-phase interval is a 95 % interval on its own, not a joint one: the "any phase" line
 (:attr:`MissionReport.joint`) is the fraction of flights that exceeded in at least one phase,
@@ -60,7 +65,9 @@ LOWS = ("min_tension",)
 #: Time spent in a bad state (s): the mean with its interval and the worst.
 DURATIONS = ("slack_time", "saturated_time")
 #: Shown in degrees: angles in the results are radians.
-DEGREES = ("max_swing", "rms_swing")
+DEGREES = ("max_swing", "rms_swing", "lowering_swing")
+#: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
+TOUCHDOWN_LIMIT = 1.0
 
 
 def _tracking_metrics(columns: Sequence[str]) -> list[str]:
@@ -106,6 +113,36 @@ class MissionReport:
     routed: bool = True
     #: The parcel metric ``limit`` applies to (the ``acceleration`` table's).
     metric: str = "max_accel"
+    #: The last metres, per phase with a touchdown or a lowering and the whole flight (None
+    #: without them): ``n`` (flights), ``touchdowns``, ``diverged``, ``exceedances``,
+    #: ``judged`` (touchdowns and diverged flights), ``probability``/``ci_low``/``ci_high`` of
+    #: touchdown_speed > ``touchdown_limit`` among them (a diverged flight exceeds),
+    #: ``speed_q``/``_q_low``/``_q_high`` (its ``quantile``), ``speed_worst``, ``drift_worst``,
+    #: ``miss_worst``, ``miss_q``, ``released``, ``height_change_worst`` and
+    #: ``lowering_swing_worst`` (rad).
+    last_metres: pd.DataFrame | None = None
+    touchdown_limit: float = TOUCHDOWN_LIMIT
+
+    def last_metres_line(self) -> str:
+        """The lead line: how often the parcel touches down faster than the limit."""
+        t = self.last_metres
+        if t is None:
+            return ""
+        r = t.loc[self.whole]
+        n, k, touched = int(r["n"]), int(r["exceedances"]), int(r["judged"])
+        level = f"{self.confidence:.0%}"
+        if touched == 0:
+            return (f"Last metres: no parcel touched down in {n} flights "
+                    f"(touchdown_limit {self.touchdown_limit:g} m/s not judged)")  # fmt: skip
+        if k == 0:
+            said = f"0 of {touched}, p <= {_g(one_sided_upper(0, touched, self.confidence))}"
+        else:
+            said = (f"p = {_g(r['probability'])} [{_g(r['ci_low'])}, {_g(r['ci_high'])}] "
+                    f"({level} interval), {k} of {touched}")  # fmt: skip
+        missed = n - touched
+        rest = f"; {missed} of {n} flights never touched down" if missed else ""
+        return (f"Last metres: touchdown faster than {self.touchdown_limit:g} m/s: {said} "
+                f"touchdowns{rest}")  # fmt: skip
 
     @property
     def route_flown(self) -> bool:
@@ -154,6 +191,8 @@ class MissionReport:
 
         qp = f"q{100 * self.quantile:g}"
         tables = [] if self.route is None else [(self.verdict(), _route_text(self.route))]
+        if self.last_metres is not None:
+            tables.insert(0, (self.last_metres_line(), _last_metres_text(self.last_metres, qp)))
         tables.append((f"parcel {_shown_name(self.metric)}, P(> {_shown_limit(self)}) in %",
                        _acceleration_text(self.acceleration, qp, self.metric)))  # fmt: skip
         if len(self.payload.columns):
@@ -179,14 +218,22 @@ class MissionReport:
 
         limits = _limits_text(self.track_limit, self.cross_track_limit)
         parts = [fill(self.verdict()), ""]
+        if self.last_metres is not None:
+            parts = [
+                fill(self.last_metres_line()),
+                fill("Touchdown speed (m/s) and its " + qp + ", drift (m/s), miss from the "
+                     "drop point (m), flights released, the vehicle's height change after "
+                     "the release (m) and the line's swing while lowering (deg), per phase"),
+                _fit(_last_metres_text(self.last_metres, qp), width),
+                "",
+                *parts,
+            ]  # fmt: skip
         if self.route is not None:
             parts += [
                 fill(f"Route: off route = tracking or cross-track error past {limits}, or "
                      "diverged; P in %; time at the thrust limit in s"),
                 _fit(_route_text(self.route), width),
                 fill(_joint_line(self.joint, "route", "left the route")),
-                fill("Time near the tilt limit: not measured by this engine (a flight past "
-                     "divergence.max_tilt counts as diverged, status tilt)."),
                 "",
             ]  # fmt: skip
         parts += [
@@ -233,12 +280,14 @@ def mission_report(
     track_limit: float = TRACK_LIMIT,
     cross_track_limit: float | None = None,
     metric: str = "max_accel",
+    touchdown_limit: float = TOUCHDOWN_LIMIT,
 ) -> MissionReport:
     """The per-phase answer of :class:`MissionReport` for one controller of ``mc`` (default:
     its first). ``limit``: the payload acceleration limit (m/s^2); ``track_limit`` and
     ``cross_track_limit`` (m, default the tracking one): how far from its reference a flight
     may stray and still count as flying the route. ``metric``: the parcel's metric ``limit``
-    applies to (default max_accel; any metric of the results, in its stored unit)."""
+    applies to (default max_accel; any metric of the results, in its stored unit).
+    ``touchdown_limit``: the touchdown speed (m/s) the last metres' lead line judges."""
     from quadrs.stats.risk import check_metric, check_threshold
 
     check_metric(metric)
@@ -246,6 +295,7 @@ def mission_report(
         raise ValueError(f"metric {metric!r}: these results have no such column")
 
     limit = check_threshold(limit)
+    touchdown_limit = check_threshold(touchdown_limit)
     cross_track_limit = track_limit if cross_track_limit is None else cross_track_limit
     for name, v in (("track_limit", track_limit), ("cross_track_limit", cross_track_limit)):
         if not (math.isfinite(v) and v > 0):
@@ -318,6 +368,7 @@ def mission_report(
         counts = per[per != "ok"].value_counts()
         statuses = tuple((str(k), int(v)) for k, v in counts.items())
     routed = str(mc.scenario["trajectory.interpolation"]) == "route"
+    last = _last_metres_table(rows, values, present, touchdown_limit, quantile, confidence)
     acceleration = pd.DataFrame(acc_rows).set_index("phase")
     payload = pd.DataFrame(pay_rows).set_index("phase")
     tracking = pd.DataFrame(trk_rows).set_index("phase")
@@ -328,7 +379,78 @@ def mission_report(
     return MissionReport(ctrl, limit, float(quantile), float(confidence),
                          int(runs["realisation"].nunique()), whole, acceleration, payload,
                          tracking, route, joint, float(track_limit), float(cross_track_limit),
-                         statuses, routed, metric)  # fmt: skip
+                         statuses, routed, metric, last, float(touchdown_limit))  # fmt: skip
+
+
+def _last_metres_table(
+    rows: list[str], values: Any, present: set[str], limit: float, quantile: float,
+    confidence: float,
+) -> pd.DataFrame | None:  # fmt: skip
+    """The last metres per phase with a touchdown or a lowering, and the whole flight (see
+    :attr:`MissionReport.last_metres`); None if the results have no touchdown metrics or no
+    flight lowered or touched down."""
+    need = {"touchdown_speed", "touchdown_drift", "touchdown_miss", "release_time",
+            "release_height_change", "lowering_swing"}  # fmt: skip
+    if not need <= present:
+        return None
+    out = []
+    for i, phase in enumerate(rows):
+        speed = values("touchdown_speed", phase)
+        swing = values("lowering_swing", phase)
+        whole = i == len(rows) - 1
+        if not whole and np.isnan(speed).all() and not (np.nan_to_num(swing) > 0).any():
+            continue
+        div = np.isinf(speed)
+        touched = np.isfinite(speed)
+        e = exceedance_stats(np.where(div, np.nan, speed), limit, div, confidence)
+        _, qv, qlo, qhi = quantile_interval(speed[touched], quantile, confidence)
+        miss = values("touchdown_miss", phase)
+        _, mq, _, _ = quantile_interval(miss[np.isfinite(miss)], quantile, confidence)
+        released = values("release_time", phase)
+        out.append({
+            "phase": phase, "n": len(speed), "touchdowns": int(touched.sum()),
+            "diverged": int(div.sum()), "judged": e.n, "exceedances": e.k,
+            "probability": e.probability, "ci_low": e.ci_low, "ci_high": e.ci_high,
+            "speed_q": qv, "speed_q_low": qlo, "speed_q_high": qhi,
+            "speed_worst": _worst(speed[touched], "max"),
+            "drift_worst": _worst(values("touchdown_drift", phase), "max"),
+            "miss_q": mq, "miss_worst": _worst(miss, "max"),
+            "released": int(np.isfinite(released).sum()),
+            "height_change_worst": _worst(values("release_height_change", phase), "max"),
+            "lowering_swing_worst": _worst(swing, "max"),
+        })  # fmt: skip
+    table = pd.DataFrame(out).set_index("phase")
+    if int(table["touchdowns"].sum()) == 0 and len(table) == 1:
+        return None
+    return table
+
+
+def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
+    deg = 180 / math.pi
+    return pd.DataFrame(
+        {
+            "runs": t["n"].astype(int),
+            "touched": t["touchdowns"].astype(int),
+            "P fast %": [
+                _count_or_interval(
+                    int(r.exceedances), int(r.judged), r.probability, r.ci_low, r.ci_high
+                )
+                if r.judged
+                else ""
+                for r in t.itertuples()
+            ],
+            f"speed {qp}": [
+                _interval(r.speed_q, r.speed_q_low, r.speed_q_high) for r in t.itertuples()
+            ],
+            "speed worst": [_g(v) for v in t["speed_worst"]],
+            "drift worst": [_g(v) for v in t["drift_worst"]],
+            "miss worst": [_g(v) for v in t["miss_worst"]],
+            "released": t["released"].astype(int),
+            "height change": [_g(v) for v in t["height_change_worst"]],
+            "swing worst": [_g(deg * v) for v in t["lowering_swing_worst"]],
+        },
+        index=t.index,
+    )
 
 
 def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
@@ -389,6 +511,11 @@ def _route_table(
                 row["saturated_time_worst"] = _worst(x, "max")
                 row["saturated_time_flights"] = int((x > 0).sum())
                 row["saturated_time_n"] = int(x.size)
+        if "near_tilt_time" in present:
+            x = values("near_tilt_time", phase)
+            row["near_tilt_time_worst"] = _worst(x, "max")
+            if phase != ALL_PHASES:
+                row.update(_mean_columns("near_tilt_time", phase, wide, confidence))
         out.append(row)
     return pd.DataFrame(out).set_index("phase")
 
@@ -542,6 +669,8 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
         out["at thrust limit s"] = cells
         out["thrust worst s"] = [_g(v) for v in t["saturated_time_worst"]] if (
             "saturated_time_worst" in t) else ""  # fmt: skip
+    if "near_tilt_time_worst" in t:
+        out["near tilt worst s"] = [_g(v) for v in t["near_tilt_time_worst"]]
     return out
 
 

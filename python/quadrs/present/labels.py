@@ -15,7 +15,7 @@ __all__ = ["DEGREE_METRICS", "PLAIN_LABELS", "STANDARD_GRAVITY", "UNITS", "displ
 
 #: Metrics the results hold in radians and every figure and table shows in degrees (one unit
 #: per quantity in everything a person reads: the mission tables, the figures, --limit).
-DEGREE_METRICS = ("max_swing", "rms_swing")
+DEGREE_METRICS = ("max_swing", "rms_swing", "lowering_swing")
 
 
 def _shown(unit: str) -> str:

@@ -111,7 +111,10 @@ def _parcel_below_ground(data: dict[str, Any]) -> str:
     if _value(data, "payload.model") != "cable" or _value(data, "ground.enabled") is not True:
         return ""
     position = _value(data, "initial.position")
-    length = _value(data, "payload.cable_length")
+    # With a winch the line starts reeled in (payload.length_min).
+    reeled = _value(data, "payload.length_min")
+    key = "payload.length_min" if reeled is not None else "payload.cable_length"
+    length = reeled if reeled is not None else _value(data, "payload.cable_length")
     offset = _value(data, "payload.attachment_offset") or 0.0
     ground = _value(data, "ground.altitude") or 0.0
     if not isinstance(position, list) or len(position) != 3 or length is None:
@@ -121,7 +124,7 @@ def _parcel_below_ground(data: dict[str, Any]) -> str:
         return ""
     return (
         f"the parcel starts below the ground: initial.position[2] = {position[2]:g} m - "
-        f"payload.attachment_offset = {offset:g} m - payload.cable_length = {length:g} m = "
+        f"payload.attachment_offset = {offset:g} m - {key} = {length:g} m = "
         f"{bottom:.3g} m < ground.altitude = {ground:g} m: start higher or shorten the line"
     )
 

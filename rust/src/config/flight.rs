@@ -4,7 +4,7 @@
 //! flight ends at), with their checks.
 
 use super::params::params;
-use super::{finite, positive, ConfigError};
+use super::{finite, non_negative, positive, ConfigError};
 
 params! {
     pub struct Environment {
@@ -139,13 +139,24 @@ fn default_max_rate() -> f64 {
 
 params! {
     /// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
-    /// when `enabled`. No contact dynamics: the flight simply stops.
+    /// when `enabled`. The quadrotor has no contact dynamics (the flight simply stops); a cable
+    /// payload's parcel does, when `stiffness` is given: a spring-damper with friction at
+    /// `altitude` (docs/model.md, "The last metres"; `model::payload::cable`).
     #[derive(Default)]
     pub struct Ground {
         #[serde(default)]
         enabled: bool => "-", "Ground plane on";
         #[serde(default)]
         altitude: f64 => "m", "Ground altitude";
+        /// N/m, the ground's contact stiffness under the parcel (none: the parcel never meets it).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        stiffness: Option<f64> => "N/m", "Ground contact stiffness";
+        /// N s/m, the contact's damping (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping: Option<f64> => "N s/m", "Ground contact damping";
+        /// -, the Coulomb friction coefficient between parcel and ground (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        friction: Option<f64> => "-", "Ground friction coefficient";
     }
 }
 
@@ -164,6 +175,23 @@ impl Ground {
     pub fn validate(&self, initial: &Initial) -> Result<(), ConfigError> {
         let g = self;
         finite("ground.altitude", g.altitude)?;
+        if let Some(k) = g.stiffness {
+            positive("ground.stiffness", k)?;
+        }
+        for (key, x) in [
+            ("ground.damping", g.damping),
+            ("ground.friction", g.friction),
+        ] {
+            if let Some(x) = x {
+                if g.stiffness.is_none() {
+                    return Err(ConfigError::new(
+                        key,
+                        format!("{key} needs ground.stiffness (the parcel's contact), got {x:?} without it"),
+                    ));
+                }
+                non_negative(key, x)?;
+            }
+        }
         let z0 = initial.position[2];
         if g.enabled && z0 < g.altitude {
             return Err(ConfigError::new(

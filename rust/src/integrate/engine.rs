@@ -20,6 +20,9 @@ pub struct Realisation {
     pub(super) limits: [f64; 4],
     /// m, the flight ends below this z (`ground.*`; minus infinity when off).
     pub(super) floor: f64,
+    /// cos(0.9 `controller.tilt_limit`): a tilt past 90 % of the law's limit has
+    /// cos(phi) cos(theta) below it (`near_tilt_time`).
+    pub(super) near_tilt_cos: f64,
 }
 
 impl Realisation {
@@ -45,6 +48,7 @@ impl Realisation {
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
             floor: cfg.ground.floor(),
+            near_tilt_cos: (0.9 * cfg.controller.tilt_limit).cos(),
         })
     }
 }

@@ -33,6 +33,10 @@ fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
+/// s, the window after the hook opens over which the vehicle's height change is taken
+/// (`release_height_change`).
+pub const RELEASE_WINDOW: f64 = 5.0;
+
 impl Engine {
     /// Fly on the vehicle kinds (`model::dispatch`) and law (`control::dispatch`) of the
     /// request: dispatch to the loop compiled for them and lane type `L` (`LoopEntry::enter`).
@@ -118,7 +122,8 @@ impl Engine {
         C: Controller,
     {
         let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
-        let vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
+        // Mutable: a payload's winch target and hook change along the flight (`last_metres`).
+        let mut vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
         let kind = req.kind;
         let laws: Vec<&C> = realisations
             .iter()
@@ -126,7 +131,7 @@ impl Engine {
             .collect();
         let ctrl = C::gather::<L>(&laws);
         self.fly_loop::<L, B, Pay::At<L>, Act::At<L>, C::At<L>, N>(
-            &vehicle,
+            &mut vehicle,
             &ctrl,
             realisations,
             req,
@@ -139,7 +144,7 @@ impl Engine {
     #[allow(clippy::too_many_arguments)]
     fn fly_loop<L, B, Pay, Act, C, const N: usize>(
         &self,
-        vehicle: &Vehicle<L, Pay, Act, B>,
+        vehicle: &mut Vehicle<L, Pay, Act, B>,
         ctrl: &C,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -218,12 +223,23 @@ impl Engine {
         // The law's discrete memory (none for a static law), and each lane's at its start.
         let mem0 = ctrl.memory(&V::<L, Pay, Act, B>::rigid(&x0));
         let mut mem = mem0;
+        // The tilt past 90 % of the law's limit (`near_tilt_time`): cos(phi) cos(theta) below.
+        let near_tilt_cos = L::from_fn(|l| realisations[l].near_tilt_cos);
+        // The last metres: a lowering's line to pay out and the point it lowers at (the last
+        // lowering's; before any, the reference's), per lane the height error at the release
+        // and its time.
+        let mut payout: Option<f64> = None;
+        let mut drop_at: Option<[f64; 2]> = None;
+        let mut release_err = [f64::NAN; MAX_LANES];
+        let mut release_t = [f64::NAN; MAX_LANES];
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
             if t + TIME_SLACK >= ref_changes {
                 r = self.trajectory.at(t, &mut segment);
                 ref_changes = self.trajectory.next_change(segment);
+                payout = self.trajectory.lowering(segment);
+                drop_at = self.trajectory.drop_point(segment).or(drop_at);
                 // Each lane's line (they differ before the first waypoint, which each lane's
                 // own initial position leads to), once per segment: it depends on nothing else.
                 if segment != line_of {
@@ -299,6 +315,14 @@ impl Engine {
                 }
             };
             held = w;
+            // The route's cue to the payload and its events, before the step (a hook that opens
+            // now is open over the step).
+            let cue = Cue {
+                t,
+                dt: self.dt,
+                payout,
+            };
+            let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
             let rigid = V::<L, Pay, Act, B>::rigid(&s);
@@ -307,6 +331,40 @@ impl Engine {
                 rigid.pos[1] * -1.0 + r.pos[1],
                 rigid.pos[2] * -1.0 + r.pos[2],
             ];
+            let last = match events {
+                None => LastSample::none(),
+                Some(ev) => {
+                    let drop = drop_at.unwrap_or([r.pos[0], r.pos[1]]);
+                    let [vx, vy, vz] = ev.approach;
+                    let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
+                    let mut after = [0.0; MAX_LANES];
+                    let mut change = [0.0; MAX_LANES];
+                    for l in 0..L::LANES {
+                        if ev.release.lane(l) > 0.0 {
+                            release_t[l] = t;
+                            release_err[l] = e[2].lane(l);
+                        }
+                        if t - release_t[l] <= RELEASE_WINDOW + TIME_SLACK {
+                            after[l] = 1.0;
+                            change[l] = (e[2].lane(l) - release_err[l]).abs();
+                        }
+                    }
+                    LastSample {
+                        touchdown: ev.touchdown,
+                        touchdown_speed: vz.abs(),
+                        touchdown_drift: vx.mul_add(vx, vy * vy).sqrt(),
+                        touchdown_miss: mx.mul_add(mx, my * my).sqrt(),
+                        release: ev.release,
+                        after_release: L::from_fn(|l| after[l]),
+                        release_change: L::from_fn(|l| change[l]),
+                        lowering_swing: if payout.is_some() {
+                            out.swing * (one - ev.grounded)
+                        } else {
+                            zero
+                        },
+                    }
+                }
+            };
             let [ax, ay, az] = out.accel;
             // |a| without the square root's rounding where the acceleration is vertical only.
             let accel = (ax * ax + ay * ay + az * az).sqrt();
@@ -327,6 +385,12 @@ impl Engine {
                     tension: out.tension,
                     slack: L::select(out.tension.cmp_le(zero), one, zero),
                     saturated: vehicle.actuator.saturated(&cmd),
+                    near_tilt: L::select(
+                        crate::model::Frame::axes(&trig)[2][2].cmp_le(near_tilt_cos),
+                        one,
+                        zero,
+                    ),
+                    last,
                 },
             );
             if let Some(tr) = trace.as_deref_mut() {

@@ -9,8 +9,8 @@ use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
 use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Trig, Vehicle};
 
-const NX: usize = 18;
-const LAYOUT: Layout = Layout::new(3, 0);
+const NX: usize = 20;
+const LAYOUT: Layout = Layout::new(4, 0);
 const XC: usize = LAYOUT.payload();
 const VX: usize = LAYOUT.vel();
 const VXC: usize = LAYOUT.payload_vel();
@@ -94,20 +94,38 @@ fn p_line(v: &Slung, s: &State<f64, NX>) -> Line<f64> {
 }
 
 #[test]
-fn the_cable_layout_has_eighteen_named_bounded_states() {
+fn the_cable_layout_has_twenty_named_bounded_states() {
     let vars = state_vars(Default::default(), PayloadKind::Cable, ActuatorKind::Ideal);
     let names: Vec<&str> = vars.iter().map(|v| v.name).collect();
     assert_eq!(
         names,
         [
-            "x", "y", "z", "phi", "theta", "psi", "xc", "yc", "zc", "vx", "vy", "vz", "p", "q",
-            "r", "vxc", "vyc", "vzc"
+            "x",
+            "y",
+            "z",
+            "phi",
+            "theta",
+            "psi",
+            "xc",
+            "yc",
+            "zc",
+            "line",
+            "vx",
+            "vy",
+            "vz",
+            "p",
+            "q",
+            "r",
+            "vxc",
+            "vyc",
+            "vzc",
+            "line_rate"
         ]
     );
-    for v in &vars[XC..XC + 3] {
+    for v in &vars[XC..XC + 4] {
         assert_eq!((v.part, v.bound), (Part::Payload, Some(Bound::Distance)));
     }
-    for v in &vars[VXC..VXC + 3] {
+    for v in &vars[VXC..VXC + 4] {
         assert_eq!((v.part, v.bound), (Part::Payload, Some(Bound::Speed)));
     }
     assert_eq!(

@@ -11,7 +11,7 @@
 mod cable;
 mod spring;
 
-pub use cable::{Cable, CableParams, Line};
+pub use cable::{Cable, CableParams, Line, Release};
 pub use spring::{Spring, SpringParams};
 
 use super::body::{Body, Frame};
@@ -35,6 +35,35 @@ pub struct PayloadOutputs<L> {
     pub tension: L,
     /// rad, the attachment's angle from the vertical (0 for the vertical spring).
     pub swing: L,
+}
+
+/// What the route tells the payload at one step (`PayloadModel::last_metres`).
+#[derive(Clone, Copy, Debug)]
+pub struct Cue {
+    /// s, the step's time, and the step.
+    pub t: f64,
+    pub dt: f64,
+    /// m, the line a lowering in progress pays out beyond the reeled-in length
+    /// (`trajectory.lower`), else None (the winch keeps its target).
+    pub payout: Option<f64>,
+}
+
+/// The last metres at one step (lane values: 1 or 0 for the events), for the metrics.
+#[derive(Clone, Copy, Debug)]
+pub struct LastMetres<L> {
+    /// 1 at the step of the parcel's first contact with the ground, else 0.
+    pub touchdown: L,
+    /// 1 at the step the hook opens, else 0.
+    pub release: L,
+    /// 1 while the parcel hangs on the hook, 0 once released; 1 once it has touched down.
+    pub hooked: L,
+    pub grounded: L,
+    /// m and m/s, the parcel's inertial position and velocity.
+    pub pos: [L; 3],
+    pub vel: [L; 3],
+    /// m/s, its velocity at the previous step: the speed it met the ground with (by the step
+    /// at which the contact is first seen, the ground has already pushed for part of it).
+    pub approach: [L; 3],
 }
 
 /// A payload's dynamics, with parameters of lane type `L`.
@@ -91,6 +120,20 @@ pub trait PayloadModel<L: Lane>: Sync {
     /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest), whose
     /// attitude is `frame`.
     fn rest<F: Frame<L>, const N: usize>(&self, body: &Body<L>, frame: &F, s: &mut State<L, N>);
+
+    /// The last metres (docs/model.md): once per step, before it, at `s` (`frame` its attitude),
+    /// the payload takes the route's `cue` (a winch's target), updates its events (first
+    /// touchdown, the hook opening) and returns them; None for a payload that never meets
+    /// the ground nor leaves the hook (then the flight loop records none).
+    #[inline(always)]
+    fn last_metres<F: Frame<L>, const N: usize>(
+        &mut self,
+        _s: &State<L, N>,
+        _frame: &F,
+        _cue: &Cue,
+    ) -> Option<LastMetres<L>> {
+        None
+    }
 }
 
 /// A payload kind's parameters for one vehicle, resolved once from the scenario.
