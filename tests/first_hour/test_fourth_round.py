@@ -70,14 +70,15 @@ def test_the_users_px4_variant_names_the_vertical_speed_limit_and_the_leg(
 ) -> None:
     short = quadrs.Scenario.preset("delivery").override(
         {
+            "initial.position": [0.0, 0.0, 5.0],
             "trajectory.route": [
-                [0.0, 0.0, 2.0],
-                [0.0, 0.0, 12.0],
-                [60.0, 0.0, 12.0],
-                [60.0, 0.0, 4.0],
+                [0.0, 0.0, 5.0],
+                [0.0, 0.0, 25.0],
+                [60.0, 0.0, 25.0],
+                [60.0, 0.0, 5.0],
             ],
-            "integrator.duration": 60.0,
-            "gust.end": 60.0,
+            "integrator.duration": 70.0,
+            "gust.end": 70.0,
         }
     )
     code, out, err = cli(capsys, "mission", "--scenario", route_file(tmp_path, short),
@@ -94,16 +95,16 @@ def test_the_users_px4_variant_names_the_vertical_speed_limit_and_the_leg(
 
 
 def test_each_leg_is_checked_against_the_laws_limits_by_its_own_numbers() -> None:
-    """An independent count: a leg of length L under a ramp of acceleration a peaks at
-    min(v, sqrt(a L)); its vertical share against MPC_Z_VEL_MAX_*; its horizontal against
-    MPC_XY_VEL_MAX (equal is no margin: flagged)."""
+    """An independent count: a leg of length L under a sin^2 acceleration pulse of peak a
+    peaks at min(v, sqrt(a L / 2)); its vertical share against MPC_Z_VEL_MAX_*; its horizontal
+    against MPC_XY_VEL_MAX (equal is no margin: flagged)."""
     from quadrs.design.route_limits import route_clashes
 
     s = quadrs.Scenario.preset("delivery").override({"trajectory.speed": 12.0})
     clashes = {(c.leg, c.limit): c for c in route_clashes(s, "px4")}
     a = float(s["trajectory.acceleration"])
-    climb = min(12.0, math.sqrt(a * 28.0))  # 2 m -> 30 m
-    descent = min(12.0, math.sqrt(a * 25.0))  # 30 m -> 5 m
+    climb = min(12.0, math.sqrt(a * 28.0 / 2))  # 2 m -> 30 m
+    descent = min(12.0, math.sqrt(a * 25.0 / 2))  # 30 m -> 5 m
     assert clashes[("climb", "MPC_Z_VEL_MAX_UP")].asked == pytest.approx(climb)
     assert clashes[("descent", "MPC_Z_VEL_MAX_DN")].asked == pytest.approx(descent)
     assert clashes[("descent", "MPC_Z_VEL_MAX_DN")].allowed == 1.5
@@ -129,7 +130,8 @@ def test_a_route_past_the_tilt_limit_is_said_before_flying() -> None:
 # -- 2. one unit per quantity on every input ---------------------------------------------------
 def test_tune_reads_a_swing_constraint_in_degrees_as_mission_does() -> None:
     args = build_parser().parse_args(
-        ["tune", "--param", "controller.pd.kp[0]=0.5:2", "--constraint", "max_swing@transit<=30",
+        ["tune", "--out", "t.toml", "--param", "controller.pd.kp[0]=0.5:2", "--constraint",
+         "max_swing@transit<=30",
          "--constraint", "P(max_swing>10)<=0.05", "--constraint", "max_specific_force<=1.5g"]
     )  # fmt: skip
     mean, chance, force = args.constraint
@@ -166,18 +168,16 @@ def test_rare_reads_a_swing_threshold_in_degrees(
 def test_each_input_says_its_unit_in_its_help(
     command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    with pytest.raises(SystemExit):
-        main([command, "--help"])
-    text = " ".join(capsys.readouterr().out.split())
-    assert "degrees for swing" in text
+    code, out, _ = cli(capsys, command, "--help")
+    text = " ".join(out.split())
+    assert code == 0 and "degrees for swing" in text
 
 
 def test_a_unit_that_does_not_fit_the_metric_is_refused(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    with pytest.raises(SystemExit) as e:
-        main(["mission", "--limit", "max_tension=2g"])
-    assert e.value.code == 2 and "not an acceleration" in capsys.readouterr().err
+    code, _, err = cli(capsys, "mission", "--limit", "max_tension=2g")
+    assert code == 2 and "not an acceleration" in err
 
 
 # -- issue 53's units: the mission's tables and figure under a swing limit ---------------------
@@ -273,15 +273,15 @@ def test_the_parcels_default_question_is_specific_force(
     code, out, _ = cli(capsys, "mission", "--scenario", route_file(tmp_path, route), "--runs", "2")
     assert code == 0
     assert "P(max_specific_force > 19.6133 m/s^2 (2 g))" in out
-    with pytest.raises(SystemExit):
-        main(["mission", "--help"])
-    help_text = " ".join(capsys.readouterr().out.split())
+    _, help_text, _ = cli(capsys, "mission", "--help")
+    help_text = " ".join(help_text.split())
     assert "default: max_specific_force=2g" in help_text and "1 g at rest" in help_text
 
 
 def test_the_change_is_said_where_it_changed() -> None:
-    delivery = (ROOT / "docs" / "delivery.md").read_text()
-    assert "max_specific_force" in delivery[: delivery.index("## ")]  # the first section
+    delivery = " ".join((ROOT / "docs" / "delivery.md").read_text().split())
+    said = delivery.index("Its default is `max_specific_force=2g`")
+    assert said < delivery.index("## 2")  # in the first section, where --limit is explained
     changes = (ROOT / "CHANGELOG.md").read_text()
     assert "max_specific_force" in changes and "default" in changes
 
@@ -458,18 +458,16 @@ def test_the_model_page_credits_the_transit_swing_truthfully() -> None:
 
 # -- 10. small ones ----------------------------------------------------------------------------
 def test_mission_help_names_one_default_preset(capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit):
-        main(["mission", "--help"])
-    text = " ".join(capsys.readouterr().out.split())
+    _, out, _ = cli(capsys, "mission", "--help")
+    text = " ".join(out.split())
     assert "default: paper" not in text and "(default: delivery)" in text
 
 
 def test_the_top_help_says_units_defaults_and_exit_status_1(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    with pytest.raises(SystemExit):
-        main(["--help"])
-    text = " ".join(capsys.readouterr().out.split())
+    _, out, _ = cli(capsys, "--help")
+    text = " ".join(out.split())
     assert "degrees for headings" in text and "swing" in text and "PX4" in text
     assert "1 an output could not be written" in text and "stability" in text and "tune" in text
     assert "run and tune fly smc" in text and "mission and rare pd" in text
@@ -491,8 +489,7 @@ def test_monte_carlo_draws_no_bar_into_a_pipe(
             super().__init__(*args, **kwargs)
 
     monkeypatch.setattr(terminal, "tqdm_class", lambda: Recording)
-    short = route.override({"integrator.duration": 2.0, "gust.end": 2.0})
-    quadrs.monte_carlo(short, runs=2, controllers=("pd",), spectra=False)
+    quadrs.monte_carlo(route, runs=2, controllers=("pd",), spectra=False)
     assert made == [True]
 
 

@@ -82,7 +82,7 @@ def route_clashes(scenario: Any, controller: str) -> list[LimitClash]:
             if v > 0 and v >= AT_LIMIT * allowed:
                 out.append(LimitClash(leg.name, key, f"{what} speed", allowed, v, "m/s"))
         if leg.ramp > 0 and math.isfinite(accel):
-            a = leg.peak_speed / leg.ramp  # the ramp's acceleration
+            a = 2.0 * leg.peak_speed / leg.ramp  # the ramp's peak (a sin^2 pulse, legs.rs)
             a_h, a_up = a * across, a * max(up, 0.0)
             for key, tilt in limits["tilt"]:
                 # The tilt the ramp needs, still air: tan(tilt) = a_h / (g + a_up).
