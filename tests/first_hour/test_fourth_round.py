@@ -216,7 +216,7 @@ def test_the_mission_figure_is_labelled_by_its_metric(route_mc: quadrs.MonteCarl
     assert "max_swing" in top.get_ylabel() and "8 deg" in top.get_ylabel()
     assert "m/s²" not in top.get_ylabel() + bottom.get_ylabel()
     assert "deg" in bottom.get_ylabel()
-    limit_line = [ln for ln in bottom.get_lines() if ln.get_label() == "limit"][0]
+    limit_line = next(ln for ln in bottom.get_lines() if ln.get_label() == "limit")
     assert limit_line.get_ydata()[0] == pytest.approx(8.0)
 
 
