@@ -306,9 +306,9 @@ def test_the_first_legs_swing_starts_at_its_steady_value(windy: quadrs.Scenario)
         swing = flight.trace["swing"].to_numpy()
         assert swing[0] == pytest.approx(steady_swing(windy, 8.0), rel=1e-6), law
         # Trimmed, the lift hold stays near it; from rest the parcel swings well past it.
-        lift = flight.trace[flight.trace["t"] < 2.0]["swing"].to_numpy()
+        lift = flight.trace[flight.trace.index < 2.0]["swing"].to_numpy()
         rest = quadrs.simulate(windy.override({"initial.trim": "rest"}), law)
-        lift_rest = rest.trace[rest.trace["t"] < 2.0]["swing"].to_numpy()
+        lift_rest = rest.trace[rest.trace.index < 2.0]["swing"].to_numpy()
         assert rest.trace["swing"].to_numpy()[0] == 0.0
         assert np.max(np.abs(lift - swing[0])) < np.max(np.abs(lift_rest - swing[0])), law
 
