@@ -53,16 +53,27 @@ def px4_keys() -> tuple[str, ...]:
 
 
 def _error(path: Path, what: str) -> _core.ScenarioError:
-    from quadrs.scenario.scenario import scenario_error
-
-    return scenario_error(f"PX4 file {str(path)!r}: {what}", None)
+    error = _core.ScenarioError(f"PX4 file {str(path)!r}: {what}")
+    error.key = None  # no scenario key is at fault: the file is
+    return error
 
 
 def _read(path: Path) -> bytes:
-    from quadrs.io.files import read_regular
+    """The file's bytes: a regular file (a device or FIFO would be read forever or block)
+    of at most MAX_BYTES, opened without blocking."""
+    import errno
+    import os
+    import stat
 
     try:
-        return read_regular(path, MAX_BYTES)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise OSError(errno.EINVAL, "not a regular file (a device, FIFO or socket?)")
+            if st.st_size > MAX_BYTES:
+                raise OSError(errno.EFBIG, f"larger than {MAX_BYTES} bytes")
+            return f.read(MAX_BYTES + 1)[:MAX_BYTES]
     except OSError as e:
         raise _error(path, f"cannot be read: {e.strerror or e}") from None
 
