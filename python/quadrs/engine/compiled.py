@@ -23,20 +23,4 @@ CACHED_ENGINES = 16
 def compiled(config_json: str) -> _core.Engine:
     """The engine of the scenario ``config_json`` (``Scenario.to_json()``), built on first use.
     A scenario the engine refuses raises :class:`quadrs.ScenarioError` (and is not cached)."""
-    try:
-        return _core.Engine(config_json)
-    except _core.ScenarioError as e:
-        if getattr(e, "key", None) != "initial.trim":
-            raise
-        # No steady hover in the start's wind: say which values set that balance.
-        error = _core.ScenarioError(f"{e}; the balance is set by {TRIM_KEYS}")
-        error.key = "initial.trim"
-        raise error from None
-
-
-#: The values the start's trim in the wind balances (docs/model.md, "The start: trimmed in the
-#: wind"): named when no balance exists.
-TRIM_KEYS = (
-    "vehicle.mass, vehicle.drag_area, vehicle.lateral_drag_area, payload.mass, "
-    "payload.drag_area, actuator.thrust_max, the wind at the start (wind.*, gust.mean_wind)"
-)
+    return _core.Engine(config_json)

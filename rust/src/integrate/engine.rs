@@ -59,7 +59,9 @@ impl Realisation {
 
 /// The state a flight of `cfg` starts from, at `initial.*`: with `initial.trim = "wind"`
 /// trimmed in the steady wind `wind` blows at the start (`start_wind`), with `"rest"` (or in
-/// still air) at rest, payload and actuators at hover.
+/// still air) at rest, payload and actuators at hover. A vehicle that cannot hover in the
+/// start's wind (no trim exists: too much drag, too little thrust) starts at rest too, and its
+/// flight shows what the wind does to it (it is flown and flagged, as any other).
 pub fn initial_state(
     parts: &AnyVehicle,
     cfg: &Config,
@@ -67,26 +69,26 @@ pub fn initial_state(
 ) -> Result<Vec<f64>, ConfigError> {
     struct Start<'a>(&'a AnyVehicle, &'a Config, [f64; 3]);
     impl VehicleVisitor for Start<'_> {
-        type Output = Result<Vec<f64>, String>;
+        type Output = Vec<f64>;
         fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
             let Start(parts, cfg, w) = self;
             let i = &cfg.initial;
-            let s: State<f64, N> = parts
-                .vehicle::<Pay, Act>()
-                .trim_state(i.position, i.attitude, w)?;
-            Ok(s.to_vec())
+            let v = parts.vehicle::<Pay, Act>();
+            let s: State<f64, N> = v
+                .trim_state(i.position, i.attitude, w)
+                .unwrap_or_else(|_| v.rest_state(i.position, i.attitude));
+            s.to_vec()
         }
     }
     let w = match cfg.initial.trim {
         Trim::Wind => start_wind(wind, cfg.initial.position[2]),
         Trim::Rest => [0.0; 3],
     };
-    dispatch(cfg.payload.model, cfg.actuator.model, Start(parts, cfg, w)).map_err(|e| {
-        ConfigError::new(
-            "initial.trim",
-            format!("initial.trim = \"wind\": {e}; set initial.trim = \"rest\" to start level"),
-        )
-    })
+    Ok(dispatch(
+        cfg.payload.model,
+        cfg.actuator.model,
+        Start(parts, cfg, w),
+    ))
 }
 
 /// m/s, the steady wind at the start, at altitude `z0`: every deterministic source at step 0

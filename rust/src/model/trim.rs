@@ -196,6 +196,26 @@ mod tests {
         assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
     }
 
+    /// A flight whose vehicle cannot hover in the start's wind starts at rest (and is flown
+    /// and flagged like any other); one that can starts trimmed.
+    #[test]
+    fn a_start_with_no_trim_is_the_rest_state() {
+        use crate::gust::WindField;
+        use crate::integrate::initial_state;
+        let mut cfg = delivery();
+        let parts = AnyVehicle::new(&cfg);
+        let i = cfg.initial.clone();
+        let rest: State<f64, NX> = parts
+            .vehicle::<Cable, Rotors>()
+            .rest_state(i.position, i.attitude);
+        let trimmed = initial_state(&parts, &cfg, &WindField::new(&cfg).unwrap()).unwrap();
+        assert_ne!(trimmed, rest.to_vec()); // the preset's 5 m/s breeze tilts it
+        cfg.vehicle.lateral_drag_area = 1e155;
+        let parts = AnyVehicle::new(&cfg);
+        let start = initial_state(&parts, &cfg, &WindField::new(&cfg).unwrap()).unwrap();
+        assert_eq!(start, rest.to_vec());
+    }
+
     #[test]
     fn a_wind_no_tilt_can_hold_is_refused() {
         let cfg = delivery();
