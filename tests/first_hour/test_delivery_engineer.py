@@ -248,11 +248,12 @@ def test_mission_defaults_to_the_delivery_preset(
 
 
 # -- issue 42's mission items: zeros are not intervals; per-phase intervals are not joint -------
-def test_a_count_that_never_happened_is_a_one_sided_bound(
+def test_a_count_that_never_happened_is_a_bound_not_an_interval(
     route_mc: quadrs.MonteCarloResult,
 ) -> None:
     r = mission_report(route_mc, 1e3)
-    bound = 100 * (1 - 0.05 ** (1 / 12))  # Clopper-Pearson, one-sided, k = 0
+    # Clopper-Pearson, k = 0: the two-sided interval's upper end (issue 54: one convention)
+    bound = 100 * (1 - 0.025 ** (1 / 12))
     text = r.to_text()
     assert f"0 of 12 flights, P <= {bound:.3g}" in text
     assert "0 [0, 0]" not in text

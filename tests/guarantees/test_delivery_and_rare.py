@@ -256,7 +256,7 @@ def test_ctrl_c_during_the_second_controller_keeps_the_first_estimate(
                              "--threshold", "0.5", "--per-level", "100", "--workers", "1",
                              "--controller", "pd,smc", capsys=capsys)  # fmt: skip
     assert code == 130, err
-    assert out.startswith("P(max_accel in P2 > 0.5), pd, seed 0"), out
+    assert out.startswith("P(max_accel in P2 > 0.5 m/s²), pd, seed 0"), out
     assert "estimate" in out and ", smc," not in out
     assert "quadrs rare (smc): interrupted after 0 finished levels" in err
 
@@ -294,7 +294,7 @@ def test_rare_escapes_the_phase_name_in_its_summary(capsys) -> None:
                              capsys=capsys)  # fmt: skip
     assert code == 0, err
     assert "\x1b" not in out + err and "\x07" not in out + err
-    assert out.startswith("P(max_accel in \\x1b]0;pwned\\x07P2 > 0.5)"), out
+    assert out.startswith("P(max_accel in \\x1b]0;pwned\\x07P2 > 0.5 m/s²)"), out
 
 
 # -- unclear ----------------------------------------------------------------------------------

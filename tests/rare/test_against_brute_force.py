@@ -113,12 +113,13 @@ def test_every_sample_failing_gives_an_interval_inside_zero_one() -> None:
 
 
 def test_no_failure_on_level_zero_states_the_exact_bound() -> None:
-    """0 of N independent flights: 'no failure in N flights' and P <= 1 - 0.05^(1/N)."""
+    """0 of N independent flights: 'no failure in N flights' and P <= 1 - 0.025^(1/N), the
+    upper end of the two-sided 95 % interval (the one convention, docs/risk.md)."""
     r = quadrs.rare_event(limit_state=linear, dimension=10, threshold=8.0, per_level=200,
                           max_levels=1)  # fmt: skip
     assert isinstance(r, RareEventResult) and r.probability is None
     n = r.flights - r.run.pilot_flights
-    assert r.upper_bound == pytest.approx(1 - 0.05 ** (1 / n), rel=1e-12)
+    assert r.upper_bound == pytest.approx(1 - 0.025 ** (1 / n), rel=1e-12)
     assert r.interval == (0.0, r.upper_bound)
     assert f"no failure in {r.flights} flights" in repr(r)
 

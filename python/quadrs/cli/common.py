@@ -77,17 +77,14 @@ def limit_option(text: str) -> tuple[str, float]:
     ``quadrs mc``, ``sweep``, ``report`` and ``mission`` alike; X in the unit the tables show
     (degrees for swing; for an acceleration m/s², or g with a ``g`` suffix: ``2g``), returned
     in the results' unit (radians, m/s²)."""
-    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
+    from quadrs.present.labels import metric_value
     from quadrs.stats.risk import parse_limit
 
     if "=" not in text:
         text = f"max_accel={text}"
     name, _, raw = text.partition("=")
-    scale, raw = 1.0, raw.strip()
-    if in_g(name.strip()) and raw[-1:] in ("g", "G"):  # 2g: in standard gravities
-        scale, raw = STANDARD_GRAVITY, raw[:-1].strip()
     try:
-        metric, value = parse_limit(f"{name}={raw}")
+        metric, _ = parse_limit(f"{name}=0")  # the metric's name checked
+        return metric, metric_value(metric, raw.strip() or "?")
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
-    return metric, scale * value / display_scale(metric)

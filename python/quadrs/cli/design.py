@@ -49,6 +49,7 @@ def _constraint(text: str) -> Any:
 
 def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
     from quadrs import _core
+    from quadrs.present.labels import INPUT_UNITS
 
     p = sub.add_parser(
         "tune",
@@ -95,7 +96,8 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         help="a constraint every chosen candidate must meet, repeatable: METRIC<=X (the mean "
         "over the runs), P(METRIC>T)<=P (the fraction of runs above T), "
         "quantile(METRIC,Q)<=X; >= too; METRIC@PHASE for one phase, else each --phase; "
-        "e.g. 'tracking_rms<=0.5' 'P(max_accel>8)<=0.01' (see docs/design-loop.md)",
+        "e.g. 'tracking_rms<=0.5' 'P(max_accel>8)<=0.01' 'max_swing@transit<=30'; X and T "
+        f"{INPUT_UNITS} (see docs/design-loop.md)",
     )
     p.add_argument("--runs", type=int, default=64, metavar="N", help="realisations (default: 64)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")

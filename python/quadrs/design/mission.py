@@ -29,7 +29,9 @@ and the vehicle's height change after it, and the swing while lowering.
 Each per-phase interval is a 95 % interval on its own, not a joint one: the "any phase" line
 (:attr:`MissionReport.joint`) is the fraction of flights that exceeded in at least one phase,
 with its own interval. A count that is zero in every flight is shown as "0 of N flights,
-P <= x %" with the one-sided Clopper-Pearson bound, not as an interval "0 [0, 0]".
+P <= x %", x the upper end of the same two-sided 95 % Clopper-Pearson interval every other
+count, figure and ``ci_high`` gives (docs/risk.md, "One interval convention"), not as an
+interval "0 [0, 0]".
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from quadrs.design.route_limits import LimitClash, route_clashes
 from quadrs.present.terminal import terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceedance_stats, quantile_interval
@@ -99,8 +102,9 @@ class MissionReport:
     tracking: pd.DataFrame
     #: Was the route flown? Per phase: ``n``, ``diverged``, ``off_route`` (tracking or
     #: cross-track past its limit, or diverged), ``probability``/``ci_low``/``ci_high`` (exact,
-    #: two-sided) and ``p_max`` (one-sided upper bound), the worst ``max_tracking`` and
-    #: ``max_cross_track`` and the ``saturated_time`` mean and worst where the results have them.
+    #: two-sided) and ``p_max`` (its upper end, ``ci_high``: "P <= p_max" when none), the
+    #: worst ``max_tracking`` and ``max_cross_track`` and the ``saturated_time`` mean and
+    #: worst where the results have them.
     route: pd.DataFrame | None = None
     #: The joint rows (index ``acceleration`` and ``route``): the fraction of flights that
     #: exceeded (or left the route) in any of the scenario's phases, with its interval.
@@ -123,6 +127,11 @@ class MissionReport:
     last_metres: pd.DataFrame | None = None
     touchdown_limit: float = TOUCHDOWN_LIMIT
 
+    #: The legs whose reference asks as much as or more than a limit of the law (a velocity
+    #: limit, the tilt limit, the rotors' thrust), known before flying
+    #: (:func:`quadrs.design.route_limits.route_clashes`): why a route may not be flown.
+    clashes: tuple[LimitClash, ...] = ()
+
     def last_metres_line(self) -> str:
         """The lead line: how often the parcel touches down faster than the limit."""
         t = self.last_metres
@@ -135,7 +144,7 @@ class MissionReport:
             return (f"Last metres: no parcel touched down in {n} flights "
                     f"(touchdown_limit {self.touchdown_limit:g} m/s not judged)")  # fmt: skip
         if k == 0:
-            said = f"0 of {touched}, p <= {_g(one_sided_upper(0, touched, self.confidence))}"
+            said = f"0 of {touched}, p <= {_g(none_seen_bound(touched, self.confidence))}"
         else:
             said = (f"p = {_g(r['probability'])} [{_g(r['ci_low'])}, {_g(r['ci_high'])}] "
                     f"({level} interval), {k} of {touched}")  # fmt: skip
@@ -170,6 +179,10 @@ class MissionReport:
         if int(r["diverged"]):
             causes = ", ".join(f"{s} {c}" for s, c in self.statuses)
             why.append(f"{int(r['diverged'])} diverged" + (f" ({causes})" if causes else ""))
+        if self.clashes:
+            law = self.controller.upper()
+            why.append(f"the route asks more than the {law} law allows: "
+                       + "; ".join(str(c) for c in self.clashes))  # fmt: skip
         return (f"Route{kind}: NOT FLOWN in {k} of {n} flights, P(off route) = "
                 f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %: "
                 + "; ".join(why))  # fmt: skip
@@ -179,7 +192,8 @@ class MissionReport:
         p = self.acceleration.loc[self.whole]
         return (
             f"<MissionReport {self.controller.upper()}, {self.runs} realisations: "
-            f"P({self.metric} > {self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
+            f"P({self.metric} > {_shown_limit(self)}) over {self.whole} "
+            f"{100 * p['probability']:.3g} % "
             f"[{100 * p['ci_low']:.3g}, {100 * p['ci_high']:.3g}]>"
         )
 
@@ -261,7 +275,8 @@ class MissionReport:
             fill(
                 f"Each row's interval is {level} for that phase alone, not joint over the phases; "
                 f"the '{ANY_PHASE}' lines count a flight once if it exceeded in any phase. "
-                f"'0 of N flights, P <= x %': none in N, x the one-sided {level} bound."
+                f"'0 of N flights, P <= x %': none in N, x the upper end of the two-sided "
+                f"{level} interval (as every interval here)."
             ),
         ]
         if self.whole == ALL_PHASES:
@@ -379,7 +394,8 @@ def mission_report(
     return MissionReport(ctrl, limit, float(quantile), float(confidence),
                          int(runs["realisation"].nunique()), whole, acceleration, payload,
                          tracking, route, joint, float(track_limit), float(cross_track_limit),
-                         statuses, routed, metric, last, float(touchdown_limit))  # fmt: skip
+                         statuses, routed, metric, last, float(touchdown_limit),
+                         tuple(route_clashes(mc.scenario, ctrl)))  # fmt: skip
 
 
 def _last_metres_table(
@@ -453,6 +469,16 @@ def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
     )
 
 
+def none_seen_bound(n: int, confidence: float = 0.95) -> float:
+    """What "0 of N flights, P <= x" prints: the upper end of the two-sided exact
+    (Clopper-Pearson) ``confidence`` interval with no event in ``n``, ``1 - ((1 -
+    confidence) / 2)**(1/n)``: the ``ci_high`` of the same count, and the figures' error bar
+    (one convention everywhere, docs/risk.md)."""
+    if n <= 0:
+        return math.nan
+    return float(1.0 - ((1.0 - confidence) / 2.0) ** (1.0 / n))
+
+
 def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
     """The one-sided exact (Clopper-Pearson) upper bound of a probability seen ``k`` times in
     ``n``: ``1 - (1 - confidence)**(1/n)`` for k = 0 (3/n, the "rule of three", for large n)."""
@@ -499,7 +525,7 @@ def _route_table(
         p, lo, hi = exceedance_interval(k, n, confidence)
         row: dict[str, Any] = {"phase": phase, "n": n, "diverged": diverged, "off_route": k,
                                "probability": p, "ci_low": lo, "ci_high": hi,
-                               "p_max": one_sided_upper(k, n, confidence)}  # fmt: skip
+                               "p_max": hi}  # fmt: skip
         for m in ("max_tracking", "max_cross_track"):
             if m in present:
                 row[f"{m}_worst"] = _worst(values(m, phase), "max")
@@ -543,7 +569,7 @@ def _joint(
         n, k = len(hit), int(hit.sum())
         p, lo, hi = exceedance_interval(k, n, confidence)
         rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
-                     "ci_high": hi, "p_max": one_sided_upper(k, n, confidence)})  # fmt: skip
+                     "ci_high": hi, "p_max": hi})  # fmt: skip
     return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
                                        "ci_high", "p_max"]).set_index("table")  # fmt: skip
 
@@ -623,7 +649,7 @@ def _limits_text(track: float, cross: float) -> str:
 def _count_or_interval(k: int, n: int, p: float, lo: float, hi: float) -> str:
     """``0 of 200 flights, P <= 1.49`` when nothing happened, else ``p [lo, hi]`` (in %)."""
     if k == 0 and n > 0:
-        return f"0 of {n} flights, P <= {_pct(one_sided_upper(0, n))}"
+        return f"0 of {n} flights, P <= {_pct(none_seen_bound(n))}"
     return _interval(p, lo, hi, 100.0)
 
 
@@ -633,7 +659,7 @@ def _joint_line(joint: pd.DataFrame | None, table: str, what: str) -> str:
     r = joint.loc[table]
     n, k = int(r["n"]), int(r["count"])
     if k == 0:
-        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (one-sided 95 %)"
+        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (two-sided 95 % interval)"
     else:
         said = (f"{k} of {n} flights, P = "
                 f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %")  # fmt: skip
@@ -662,7 +688,7 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
             flights = getattr(r, "saturated_time_flights", math.nan)
             n = getattr(r, "saturated_time_n", math.nan)
             if isinstance(flights, (int, float)) and flights == 0 and n and n == n:
-                cells.append(f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}")
+                cells.append(f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}")
             else:
                 cells.append(_interval(r.saturated_time_mean, r.saturated_time_ci_low,
                                        r.saturated_time_ci_high))  # fmt: skip
@@ -677,9 +703,10 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
 def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
     """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
     the heading: a column more would not fit 100 columns)."""
-    from quadrs.present.labels import STANDARD_GRAVITY, in_g
+    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
 
     g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
+    scale = display_scale(metric)  # the heading's unit: degrees for swing
     return pd.DataFrame(
         {
             "runs": t["n"].astype(int),
@@ -689,8 +716,8 @@ def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
                 _count_or_interval(int(r.exceedances), int(r.n), r.probability, r.ci_low, r.ci_high)
                 for r in t.itertuples()
             ],
-            qp: [_interval(r.quantile, r.q_low, r.q_high) for r in t.itertuples()],
-            "worst": [_g(v) for v in t["worst"]],
+            qp: [_interval(r.quantile, r.q_low, r.q_high, scale) for r in t.itertuples()],
+            "worst": [_g(scale * v) for v in t["worst"]],
             **g,
         },
         index=t.index,
@@ -715,7 +742,7 @@ def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
     for m in ("slack_time",):  # the time at the thrust limit is in the route's table
         if f"{m}_mean" in t:
             out[f"{m} mean"] = [
-                f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}"
+                f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}"
                 if n == n and n > 0 and k == 0 else _interval(a, b, c)
                 for a, b, c, k, n in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"],
                                          t.get(f"{m}_flights", pd.Series(math.nan, t.index)),

@@ -328,7 +328,7 @@ def optimize(
     violating flown candidate is returned with ``feasible=False`` and an
     :class:`InfeasibleWarning`.
     """
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
@@ -358,7 +358,9 @@ def optimize(
     else:
         generations = 100 if maxiter is None else maxiter
         total = generations
-    bar = tqdm(total=total, disable=not progress, unit="eval", desc="tune", leave=False)
+    bar = tqdm(
+        total=total, disable=not shows_progress(progress), unit="eval", desc="tune", leave=False
+    )
 
     def fly(candidate: Scenario, seed_: int, count: int) -> MonteCarloResult:
         with warnings.catch_warnings():

@@ -215,11 +215,13 @@ def sensitivity(
         else np.zeros(len(u), dtype=np.uint64)
     )
     workers = default_workers() if workers is None else int(workers)
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
-    with tqdm(total=len(u), unit="run", desc="quadrs sensitivity", disable=not progress) as bar:
+    with tqdm(
+        total=len(u), unit="run", desc="quadrs sensitivity", disable=not shows_progress(progress)
+    ) as bar:
 
         def tick(done: int) -> None:
             bar.update(done - bar.n)

@@ -176,7 +176,7 @@ def _fly(
     todo: list[tuple[int, int]],
 ) -> MonteCarloResult:
     """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
@@ -212,7 +212,7 @@ def _fly(
         unit="run",
         desc="quadrs mc",
         delay=1.0,
-        disable=not progress,
+        disable=not shows_progress(progress),
     )
     interrupted = False
     try:

@@ -3,8 +3,9 @@
 //! `[divergence]` (the bounds past which a flight has diverged) and `[ground]` (the plane a
 //! flight ends at), with their checks.
 
-use super::params::params;
+use super::params::{not_numbers, params};
 use super::{finite, non_negative, positive, ConfigError};
+use serde::{Deserialize, Serialize};
 
 params! {
     pub struct Environment {
@@ -25,8 +26,27 @@ params! {
         position: [f64; 3] => "m", "Start position (x, y, z)";
         /// rad, roll, pitch, yaw.
         attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)";
+        /// How the flight starts: trimmed in the start's steady wind, or at rest as in still
+        /// air (docs/model.md, "The start: trimmed in the wind").
+        #[serde(default)]
+        trim: Trim => "-", "Start state: \"wind\" (trimmed in the steady wind) or \"rest\"";
     }
 }
+
+/// `initial.trim`: the state a flight starts from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trim {
+    /// In equilibrium with the steady wind at the start (mean wind, wind table, the turbulence's
+    /// mean): tilted into it, the payload at its steady line angle, the rotors at their steady
+    /// speeds; `rest` when that wind is zero.
+    #[default]
+    Wind,
+    /// At rest as in still air: level (`initial.attitude`), the payload straight below.
+    Rest,
+}
+
+not_numbers!(Trim);
 
 impl Initial {
     /// Check every value; the first problem found is returned with its key.

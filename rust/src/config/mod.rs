@@ -28,7 +28,7 @@ pub use crate::control::ControllerConfig;
 pub use crate::model::actuator::rotors::{RotorFault, RotorLayout, RotorParams};
 pub use crate::model::{ActuatorConfig, ActuatorKind, PayloadConfig, PayloadKind};
 pub use dispersions::{Dispersions, Distribution};
-pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, MAX_STEPS};
+pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, Trim, MAX_STEPS};
 pub use gust::{Gust, GustComponent, GustModel};
 use params::Params;
 use serde::{Deserialize, Serialize};

@@ -14,6 +14,7 @@ pub mod body;
 mod kinds;
 pub mod layout;
 pub mod payload;
+mod trim;
 
 pub use actuator::{Actuator, ActuatorModel};
 pub use body::{
