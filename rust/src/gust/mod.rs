@@ -1,4 +1,6 @@
-//! Continuous turbulence (docs/model.md section 4): MIL-F-8785C low-altitude Dryden
+//! The wind a flight meets (docs/model.md section 4, docs/gust.md): continuous turbulence
+//! composed with the deterministic sources (the mean wind with its shear, discrete gusts, a
+//! measured table, a prescribed wind). The turbulence: MIL-F-8785C low-altitude Dryden
 //! forming filters (and the usual rational von Karman approximants), discretised
 //! *exactly* for the integration step, with a filter state normalised to unit
 //! stationary covariance.
