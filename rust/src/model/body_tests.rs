@@ -11,7 +11,7 @@ use crate::model::payload::Cable;
 use crate::model::{AnyVehicle, Inputs, State, Vehicle};
 
 type Spinning = Vehicle<f64, Cable, Ideal, Rigid>;
-const NX: usize = 19;
+const NX: usize = 21;
 
 /// A rigid body with an asymmetric inertia and a cable hooked at its centre of gravity (so the
 /// line applies no torque), no drag.

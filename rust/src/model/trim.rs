@@ -108,7 +108,7 @@ mod tests {
     use crate::model::payload::Cable;
     use crate::model::{AnyVehicle, Inputs, State, Tick, Trig, Vehicle};
 
-    const NX: usize = 22;
+    const NX: usize = 24;
 
     fn delivery() -> Config {
         let text = include_str!("../../../python/quadrs/presets/delivery.toml");
