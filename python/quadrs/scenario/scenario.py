@@ -754,7 +754,9 @@ class Scenario:
         drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
         ``gust.intensity``); a value of None removes an
         optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
-        "route" drops the base's ``trajectory.waypoints`` unless they are given too."""
+        "route" drops the base's ``trajectory.waypoints`` unless they are given too; setting
+        ``trajectory.route`` or ``trajectory.interpolation`` drops the base's
+        ``trajectory.lower`` (its lowerings at the base route's points) unless given too."""
         keys = canonical_keys(changes, "override")
         changes = dict(zip(keys, changes.values(), strict=True))
         if "trajectory.route_file" in changes:
@@ -780,6 +782,11 @@ class Scenario:
             given = {k.removeprefix("trajectory."): v for k, v in changes.items()
                      if k.startswith("trajectory.")}  # fmt: skip
             _route_drops_waypoints(data.get("trajectory", {}), given)
+        if ({"trajectory.route", "trajectory.interpolation"} & changes.keys()
+                and "trajectory.lower" not in changes):  # fmt: skip
+            # A lowering is the line paid out at one point of the base's route: another route
+            # (or none) has no such point, so the base's lowerings go unless given again.
+            data.get("trajectory", {}).pop("lower", None)
         for key, value in changes.items():
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)

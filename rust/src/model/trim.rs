@@ -110,9 +110,19 @@ mod tests {
 
     const NX: usize = 24;
 
+    /// The delivery preset on the paper's body.
     fn delivery() -> Config {
         let text = include_str!("../../../python/quadrs/presets/delivery.toml");
-        let v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        let mut v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        // On the paper's body (the checks below write its drag law): the rigid body's drag
+        // and the rotors' aerodynamics out.
+        v["vehicle"]["body"] = "paper".into();
+        let vehicle = v["vehicle"].as_object_mut().expect("[vehicle]");
+        vehicle.remove("drag_coefficients");
+        let actuator = v["actuator"].as_object_mut().expect("[actuator]");
+        for key in ["rotor_drag", "flapping", "translational_lift"] {
+            actuator.remove(key);
+        }
         Config::from_json(&v.to_string()).expect("the delivery preset is valid")
     }
 
