@@ -221,7 +221,7 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
 
     lat, lon = HOME[0], HOME[1]
     path = _plan(tmp_path, [
-        _item(22, 0, 0, 0, None, 0, 0, 6.0),           # take off to 6 m
+        _item(22, 0, 0, 0, None, None, None, 6.0),     # take off to 6 m, here
         _item(16, 8.0, 0, 0, None, lat, lon, 6.0),     # hold 8 s there
         _item(42600, 1, 1, 5.0, 0.5),                  # DO_WINCH: pay out 5 m at 0.5 m/s
         _item(211, 1, 0),                              # DO_GRIPPER: release
