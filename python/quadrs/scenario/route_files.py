@@ -237,7 +237,7 @@ def read_route_file(path: str | Path, start_height: float = 0.0) -> RouteFile:
 
 
 def _read_text(p: Path) -> str:
-    from quadrs.io.files import InputFileError, read_input_text
+    from quadrs.scenario.input_files import InputFileError, read_input_text
 
     try:
         return read_input_text(p, "route file", MAX_BYTES)

@@ -110,7 +110,7 @@ def _read_text(path: Path) -> str:
     """A scenario file's text, read as every input file is (quadrs.io.files.read_input_text):
     at most MAX_FILE_BYTES (a device such as /dev/zero is refused, not read forever; a pipe,
     ``<(...)``, is read); UTF-8. ScenarioError naming the file otherwise."""
-    from quadrs.io.files import InputFileError, read_input_text
+    from quadrs.scenario.input_files import InputFileError, read_input_text
 
     try:
         return read_input_text(path, "scenario file", MAX_FILE_BYTES, streams=True)

@@ -53,7 +53,7 @@ def read_wind_table(path: str | Path, by: str) -> list[list[float]]:
         from quadrs.scenario.px4_files import read_ulog_wind
 
         return read_ulog_wind(path)
-    from quadrs.io.files import InputFileError, read_input_text
+    from quadrs.scenario.input_files import InputFileError, read_input_text
 
     try:
         text = read_input_text(path, "wind table", MAX_BYTES)
