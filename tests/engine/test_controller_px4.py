@@ -481,35 +481,37 @@ def fault_flight() -> tuple[quadrs.Scenario, object]:
     """On rotors: rotor 2 at 60 % from 0.5 s, the battery sagging 30 % over the flight, a 3 m
     move and a 1 rad yaw in 1.5 s: the allocator desaturates and the anti-windup acts."""
     a, b = np.array([0.0, 0.0, 2.0, 0.0]), np.array([3.0, -2.0, 3.0, 1.0])
-    sc = on_the_slung_vehicle(
-        {
-            "actuator.model": "rotors",
-            "actuator.faults": [{"rotor": 2, "start": 0.5, "thrust_fraction": 0.6}],
-            "actuator.battery_sag": 0.3,
-            "trajectory.interpolation": "min_jerk",
-            "trajectory.transition": 1.5,
-            "trajectory.waypoints": [[0, *a], [0.1, *b]],
-            "integrator.duration": 4.0,
-            "phases": [{"name": "all", "start": 0.0, "end": 4.0}],
-        }
-    )
-    return sc, lambda t: ramp(t, 1.5, a, b)
+    faults = {
+        "actuator.model": "rotors",
+        "actuator.faults": [{"rotor": 2, "start": 0.5, "thrust_fraction": 0.6}],
+        "actuator.battery_sag": 0.3,
+    }
+    return min_jerk_move(a, b, 1.5, 4.0, faults)
 
 
 def limits_flight() -> tuple[quadrs.Scenario, object]:
     """A 40 m, 12 m up min-jerk dash in 3 s (peaks 25 m/s and 17 m/s^2 asked): the velocity
     setpoint, the tilt and the thrust all at their limits."""
     a, b = np.array([0.0, 0.0, 2.0, 0.0]), np.array([40.0, 0.0, 14.0, 0.0])
+    return min_jerk_move(a, b, 3.0, 5.0)
+
+
+def min_jerk_move(
+    a: np.ndarray, b: np.ndarray, transition: float, duration: float, extra: dict | None = None
+) -> tuple[quadrs.Scenario, object]:
+    """The slung vehicle's min-jerk move from ``a`` to ``b`` (x, y, z, yaw) starting at 0.1 s
+    over ``transition`` s, flown ``duration`` s (``extra`` keys beside), and its reference."""
     sc = on_the_slung_vehicle(
         {
+            **(extra or {}),
             "trajectory.interpolation": "min_jerk",
-            "trajectory.transition": 3.0,
+            "trajectory.transition": transition,
             "trajectory.waypoints": [[0, *a], [0.1, *b]],
-            "integrator.duration": 5.0,
-            "phases": [{"name": "all", "start": 0.0, "end": 5.0}],
+            "integrator.duration": duration,
+            "phases": [{"name": "all", "start": 0.0, "end": duration}],
         }
     )
-    return sc, lambda t: ramp(t, 3.0, a, b)
+    return sc, lambda t: ramp(t, transition, a, b)
 
 
 @pytest.mark.parametrize("make", [step_flight, fault_flight, limits_flight])
