@@ -23,6 +23,10 @@ from typing import IO, TYPE_CHECKING, Any
 
 from quadrs.engine.calls import deferred_signals
 
+# The reader of user-given input files sits with what reads them (the scenario layer, below
+# this one); named here too, as the one policy for every file quadrs reads.
+from quadrs.scenario.input_files import InputFileError, read_input_text
+
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
@@ -169,10 +173,6 @@ def read_regular(path: str | Path, limit: int | None = None) -> bytes:
         raise OSError(errno.EFBIG, "changed size while being read", str(path))
     return data
 
-
-# The reader of user-given input files sits with what reads them (the scenario layer, below
-# this one); named here too, as the one policy for every file quadrs reads.
-from quadrs.scenario.input_files import InputFileError, read_input_text  # noqa: E402
 
 #: Deepest nesting of quadrs metadata (a scenario nests at most 32 deep in its own TOML).
 MAX_META_DEPTH = 64
