@@ -23,8 +23,8 @@ ROOT = Path(__file__).resolve().parent.parent / "python" / PACKAGE
 LAYERS = (
     "quadrs._core",  # the compiled engine (Rust), seen through its stub
     "quadrs.engine",  # the compiled handle and the guarded calls into it
-    "quadrs.io",  # files: atomic writes, Parquet with metadata, run identity, guarded reads of input files
     "quadrs.scenario",  # what to fly: the validated scenario, dispersions, routes, units
+    "quadrs.io",  # files: atomic writes, Parquet with metadata, run identity
     "quadrs.stats",  # statistics of runs tables: intervals, risk, tables per group
     "quadrs.present",  # text and HTML for people, from frames: Table 3, notebook display
     "quadrs.hover",  # the closed loop at hover: poles and the linear model
