@@ -245,7 +245,7 @@ class MissionReport:
         if self.route is not None:
             parts += [
                 fill(f"Route: off route = tracking or cross-track error past {limits}, or "
-                     "diverged; P in %; time at the thrust limit in s"),
+                     "diverged; P in %; time at the thrust limit and near the tilt limit in s"),
                 _fit(_route_text(self.route), width),
                 fill(_joint_line(self.joint, "route", "left the route")),
                 "",
