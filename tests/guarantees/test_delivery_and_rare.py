@@ -301,7 +301,10 @@ def test_rare_escapes_the_phase_name_in_its_summary(capsys) -> None:
 def test_messages_say_what_is_wrong(delivery: Scenario, tiny: Scenario, tmp_path: Path,
                                     capsys) -> None:  # fmt: skip
     with pytest.raises(ScenarioError, match=r"^trajectory\.names\[1\] must not be blank"):
-        delivery.override({"trajectory.names": ["lift", " ", "transit", "descent", "drop"]})
+        # One name per segment of the preset's route (as many as it names), the second blank.
+        names = list(delivery["trajectory.names"])
+        names[1] = " "
+        delivery.override({"trajectory.names": names})
     with pytest.raises(ScenarioError,
                        match=r"^trajectory\.route\[1\] must have 3 numbers, got 4$"):  # fmt: skip
         delivery.override({"trajectory.route[1]": [0.0, 0.0, 30.0, 1.0]})
