@@ -246,7 +246,7 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
     # What is not understood is refused, naming the item.
     for bad, where in (([_item(42600, 1, 4)], "mission.items[2]: DO_WINCH action 4"),
                        ([_item(211, 1, 0)], "mission.items[2]: DO_GRIPPER action 0")):  # fmt: skip
-        path = _plan(tmp_path, [_item(22, 0, 0, 0, None, 0, 0, 6.0),
+        path = _plan(tmp_path, [_item(22, 0, 0, 0, None, None, None, 6.0),  # here
                                 _item(16, 0, 0, 0, None, lat, lon, 6.0), *bad,
                                 _item(16, 0, 0, 0, None, lat, lon, 7.0)])  # fmt: skip
         with pytest.raises(RouteFileError, match=re.escape(where)):

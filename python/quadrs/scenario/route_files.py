@@ -195,7 +195,10 @@ class RouteFile:
             # The route's own time, from the engine's schedule of a flight surely long enough
             # for it (or of the duration given, which must then cover it).
             probe = float(extra.get("integrator.duration", self._time_bound(base, route)))
-            long = base.override({**route, "integrator.duration": probe, "gust.end": probe})
+            # The base's gust window is kept as it is (a window past the flight is allowed),
+            # except one over the whole flight, which follows the duration.
+            timing = {"gust.end": probe} if whole else {}
+            long = base.override({**route, "integrator.duration": probe, **timing})
             legs = long.route.legs if long.route is not None else []
             lowerings = long.route.lowerings if long.route is not None else []
             needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
@@ -212,17 +215,28 @@ class RouteFile:
     def _time_bound(self, base: RoutableScenario, route: Mapping[str, Any]) -> float:
         """Seconds the route surely takes less than: a leg of length L at cruise speed V and
         acceleration bound A takes L/V + 2V/A (two ramps of 2V/A with L/V - 2V/A between; a
-        shorter leg, 2 sqrt(2L/A), is less), plus the holds and a margin."""
+        shorter leg, 2 sqrt(2L/A), is less), a lowering of P m at the winch's speed v and
+        acceleration a takes P/v + 2v/a (docs/model.md, "Routes"), plus the holds and a
+        margin."""
         try:
             speed = float(route.get("trajectory.speed", base["trajectory.speed"]))
             accel = float(route.get("trajectory.acceleration", base["trajectory.acceleration"]))
             hold = sum(float(h) for h in route.get("trajectory.hold", self.hold))
+            lower = [float(x) for x in route.get("trajectory.lower") or () if float(x) > 0]
+            if lower:
+                v = float(route.get("payload.winch_speed", base["payload.winch_speed"]))
+                a = float(route.get("payload.winch_acceleration",
+                                    base["payload.winch_acceleration"]))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             return 1e5  # the scenario refuses the route below, naming the key
         if not (math.isfinite(speed) and speed > 0 and math.isfinite(accel) and accel > 0):
             return 1e5
         legs = zip(self.points, self.points[1:], strict=False)
         t = sum(math.dist(a, b) / speed + 2 * speed / accel for a, b in legs) + hold
+        if lower:
+            if not (math.isfinite(v) and v > 0 and math.isfinite(a) and a > 0):
+                return 1e5
+            t += sum(p / v + 2 * v / a for p in lower)
         return 1.01 * t + 1.0
 
 
