@@ -742,24 +742,30 @@ def cmd_mc(args: argparse.Namespace) -> int:
     _check_directories(args.plots)
     if args.scheduler is None:  # a cluster's speed is not this machine's
         _announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
-    with dask_client(args.scheduler) as client:
-        mc = monte_carlo(
-            scenario,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controllers,
-            workers=args.workers,
-            progress=_progress(args),
-            out=args.checkpoint,
-            resume=args.resume,
-            chunk=args.chunk,
-            client=client,
-            sampling=args.sampling,
-            fused=args.fused,
-        )
-    saved = True
-    if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-        saved = _save(mc.to_parquet, args.out)
+    from quadrs.engine.calls import deferred_signals
+
+    with contextlib.ExitStack() as keeping:
+        with dask_client(args.scheduler) as client:
+            mc = monte_carlo(
+                scenario,
+                runs=args.runs,
+                seed=args.seed,
+                controllers=args.controllers,
+                workers=args.workers,
+                progress=_progress(args),
+                out=args.checkpoint,
+                resume=args.resume,
+                chunk=args.chunk,
+                client=client,
+                sampling=args.sampling,
+                fused=args.fused,
+            )
+            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
+            # it) waits until what finished is saved, then ends the command (status 130).
+            keeping.enter_context(deferred_signals())
+        saved = True
+        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+            saved = _save(mc.to_parquet, args.out)
     if not mc.runs.empty:
         _print_dispersions(mc)
         if _is_mission(mc):
