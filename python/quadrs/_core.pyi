@@ -11,6 +11,8 @@ import numpy.typing as npt
 
 __version__: str
 METRIC_NAMES: list[str]
+#: The metrics of an event (a touchdown, a release): NaN in a phase or flight without it.
+EVENT_METRICS: list[str]
 #: Each metric's unit (SI, as stored) and plain-English label (no unit), by name.
 METRIC_UNITS: dict[str, str]
 METRIC_LABELS: dict[str, str]

@@ -70,6 +70,9 @@ mod _core {
         m.add("ScenarioError", scenario_error)?;
         m.add("EngineError", m.py().get_type::<EngineError>())?;
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        // The metrics of an event (NaN in a phase or flight without it), in METRIC_NAMES' order.
+        let events: Vec<&str> = METRICS.iter().filter(|x| x.event).map(|x| x.name).collect();
+        m.add("EVENT_METRICS", events)?;
         // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
         let units = PyDict::new(m.py());
         let labels = PyDict::new(m.py());

@@ -344,9 +344,24 @@ impl Cable {
         if cfg.ground.stiffness.is_some() {
             // The parcel starts hanging clear of the ground.
             let p = &cfg.payload;
-            let hang = c.attachment_offset.unwrap_or(0.0)
-                + min
-                + p.mass * cfg.environment.gravity / cfg.stiffness();
+            let stretch = p.mass * cfg.environment.gravity / cfg.stiffness();
+            if !stretch.is_finite() {
+                // A spring too soft to hold the parcel: name the key that set it.
+                let key = if p.stiffness.is_some() {
+                    "payload.stiffness"
+                } else {
+                    "payload.natural_frequency"
+                };
+                let value = p.stiffness.or(p.natural_frequency).unwrap_or(f64::NAN);
+                return Err(ConfigError::new(
+                    key,
+                    format!(
+                        "{key} is too small to hold the parcel above the ground (its weight \
+                         stretches the line {stretch:?} m), got {value:?}"
+                    ),
+                ));
+            }
+            let hang = c.attachment_offset.unwrap_or(0.0) + min + stretch;
             let z = cfg.initial.position[2] - hang;
             if z <= cfg.ground.altitude {
                 return Err(ConfigError::new(
@@ -354,7 +369,8 @@ impl Cable {
                     format!(
                         "initial.position[2] must hang the parcel above the ground \
                          (ground.altitude = {:?} m; the parcel hangs {hang:?} m below the \
-                         vehicle), got {:?}",
+                         vehicle: payload.attachment_offset, the line's starting length and \
+                         its stretch under the parcel's weight), got {:?}",
                         cfg.ground.altitude, cfg.initial.position[2]
                     ),
                 ));
