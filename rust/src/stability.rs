@@ -51,8 +51,6 @@ pub const MODE_SWING_X: &str = "swing x";
 pub const MODE_SWING_Y: &str = "swing y";
 pub const MODE_YAW: &str = "yaw";
 pub const MODE_ACTUATOR: &str = "actuator";
-/// The winch's servo on the line's length (a payload's states on no axis of the body).
-pub const MODE_WINCH: &str = "winch";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
@@ -636,12 +634,6 @@ fn describe(
             .expect("four groups")
             .0
     };
-    let winch = share(&states_where(vars, |s| {
-        s.part == Part::Payload && s.axis == Axis::Other
-    }));
-    if !is_actuator_mode && winch > 0.5 {
-        mode = MODE_WINCH;
-    }
     // The payload mode moves the payload against the quadrotor; the vertical modes carry both
     // together (the attachment barely stretches).
     let payload_z = states_where(vars, |s| s.part == Part::Payload && s.axis == Axis::Z);

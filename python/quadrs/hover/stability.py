@@ -123,7 +123,7 @@ class StabilityReport:
     within it: e.g. a position without feedback) or "unstable". ``poles``: one row per pole,
     least stable first: ``real``, ``imag`` (1/s), ``frequency_hz`` (natural frequency |s|/2pi),
     ``damping`` (-real/|s|), ``mode`` ("lateral x/pitch", "lateral y/roll", "vertical",
-    "payload", "swing x", "swing y", "yaw", "actuator" or "winch"), ``dominant`` (largest
+    "payload", "swing x", "swing y", "yaw" or "actuator"), ``dominant`` (largest
     state in the eigenvector), ``status`` and ``excited`` (whether this scenario drives the
     mode). ``lateral_sources``: what moves this scenario sideways (empty: x and y stay exactly
     zero). ``jacobian``: the closed-loop matrix (one row and column per state of the
