@@ -7,9 +7,11 @@ Two cases (``--case``):
   (tests/conftest.py SHORT: take-off, a 1 s vertical gust in P2, landing; 1000 innovations a
   flight), PD, ``max_accel`` in P2. About 6,000 flights a second a core; 1e7 flights take
   about 15 minutes on 2 cores.
-- ``delivery-drop``: the delivery preset's vehicle, wind and turbulence over its drop point
-  (tests/conftest.py DELIVERY_DROP: a 2 m descent to 5 m, then the preset's 15 s hover), PD,
-  the parcel's ``max_swing`` in the ``drop`` hover. About 60 flights a second a core.
+- ``delivery-drop``: the fourth round's delivery vehicle (paper body, no rotor aerodynamics, a
+  fixed 1 m line, no ground contact, a start at rest), wind and turbulence over its drop point
+  (tests/conftest.py FOURTH_ROUND_DELIVERY_DROP: a 2 m descent to 5 m, then the preset's 15 s
+  hover), PD, the parcel's ``max_swing`` in the ``drop`` hover. About 60 flights a second a
+  core.
 
 ``--flights`` flights driven by independent standard normals (the same engine path as
 ``quadrs.rare_event``, in chunks), and for each threshold the count of flights above it with

@@ -118,4 +118,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_WHERE, *_SUBPACKAGES})
+    """The public names and the layers (and the module's dunders): not the helpers this file
+    imports for itself (``importlib``, ``Any``, ``TYPE_CHECKING``, ``annotations``)."""
+    dunders = {n for n in globals() if n.startswith("__") and n.endswith("__")}
+    return sorted({*__all__, *_SUBPACKAGES, *dunders})

@@ -11,6 +11,8 @@ import numpy.typing as npt
 
 __version__: str
 METRIC_NAMES: list[str]
+#: The metrics of an event (a touchdown, a release): NaN in a phase or flight without it.
+EVENT_METRICS: list[str]
 #: Each metric's unit (SI, as stored) and plain-English label (no unit), by name.
 METRIC_UNITS: dict[str, str]
 METRIC_LABELS: dict[str, str]
@@ -27,6 +29,7 @@ CONTROLLER_NAMES: list[str]
 #: The payload and actuator models a scenario may name (`payload.model`, `actuator.model`).
 PAYLOAD_MODELS: list[str]
 ACTUATOR_MODELS: list[str]
+BODY_MODELS: list[str]
 #: Each controller kind's default table (JSON text), for the kinds that have one.
 CONTROLLER_DEFAULTS: dict[str, str]
 
@@ -46,7 +49,7 @@ class Description(TypedDict):
     #: (name, start s, end s) of every phase, the whole-flight phase last.
     phase_windows: list[tuple[str, float, float]]
     #: A route's schedule, one dict per hold or leg (empty without a route): name, kind,
-    #: start, arrival, end, origin, target, length, peak_speed, ramp, cruise.
+    #: start, arrival, end, origin, target, length, peak_speed, ramp, cruise, payout.
     route: list[dict[str, Any]]
 
 class StabilityResult(TypedDict):
@@ -237,6 +240,9 @@ def run_batch(
     fused: bool = False,
 ) -> BatchResult: ...
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
+def lane_math(
+    function: str, x: npt.NDArray[np.float64], path: str = "scalar", y: float = 0.0
+) -> npt.NDArray[np.float64]: ...
 def mean_wind(config_json: str, altitudes: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
 def gust_psd(
     model: str,

@@ -77,11 +77,13 @@ impl Profile {
     }
 }
 
-/// A hover at a point, or a leg between two.
+/// A hover at a point, a leg between two, or a hover at a point while the winch lowers the
+/// parcel (`trajectory.lower`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SegmentKind {
     Hold,
     Leg,
+    Lower,
 }
 
 impl SegmentKind {
@@ -89,7 +91,13 @@ impl SegmentKind {
         match self {
             SegmentKind::Hold => "hold",
             SegmentKind::Leg => "leg",
+            SegmentKind::Lower => "lower",
         }
+    }
+
+    /// The reference rests at a point (a hold or a lowering).
+    pub fn rests(self) -> bool {
+        self != SegmentKind::Leg
     }
 }
 
@@ -107,8 +115,10 @@ pub struct Segment {
     /// Indices into `trajectory.route` (equal for a hold).
     pub from: usize,
     pub to: usize,
-    /// The motion along a leg (all zero for a hold).
+    /// The motion along a leg (all zero for a hold or a lowering).
     pub profile: Profile,
+    /// m, the line a lowering pays out beyond `payload.length_min` (0 for a hold or a leg).
+    pub payout: f64,
 }
 
 /// m, from `a` to `b`.

@@ -70,6 +70,9 @@ mod _core {
         m.add("ScenarioError", scenario_error)?;
         m.add("EngineError", m.py().get_type::<EngineError>())?;
         m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+        // The metrics of an event (NaN in a phase or flight without it), in METRIC_NAMES' order.
+        let events: Vec<&str> = METRICS.iter().filter(|x| x.event).map(|x| x.name).collect();
+        m.add("EVENT_METRICS", events)?;
         // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
         let units = PyDict::new(m.py());
         let labels = PyDict::new(m.py());
@@ -120,12 +123,28 @@ mod _core {
                 .map(|k| k.name())
                 .collect::<Vec<_>>(),
         )?;
+        // The bodies (`vehicle.body`).
+        m.add(
+            "BODY_MODELS",
+            crate::model::BODY_MODELS
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>(),
+        )?;
         // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
         // description (`describe`) and its flights.
-        let vars = state_vars(PayloadKind::default(), ActuatorKind::default());
+        let vars = state_vars(
+            Default::default(),
+            PayloadKind::default(),
+            ActuatorKind::default(),
+        );
         m.add(
             "TRACE_COLUMNS",
-            trace_columns(PayloadKind::default(), ActuatorKind::default()),
+            trace_columns(
+                Default::default(),
+                PayloadKind::default(),
+                ActuatorKind::default(),
+            ),
         )?;
         m.add(
             "STATE_NAMES",
@@ -269,17 +288,18 @@ mod _core {
             seg.set_item("peak_speed", s.profile.peak_speed)?;
             seg.set_item("ramp", s.profile.ramp)?;
             seg.set_item("cruise", s.profile.cruise)?;
+            seg.set_item("payout", s.payout)?;
             route.append(seg)?;
         }
         d.set_item("route", route)?;
-        let vars = state_vars(cfg.payload.model, cfg.actuator.model);
+        let vars = state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model);
         d.set_item(
             "state_names",
             vars.iter().map(|v| v.name).collect::<Vec<_>>(),
         )?;
         d.set_item(
             "trace_columns",
-            trace_columns(cfg.payload.model, cfg.actuator.model),
+            trace_columns(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
         )?;
         let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
             &crate::trajectory::phase_steps(&cfg),
@@ -916,6 +936,23 @@ mod _core {
             )));
         }
         Ok(gust::low_altitude_scales(altitude, w20))
+    }
+
+    /// The engine's lane-valued `function` ("exp", "expm1", "ln", "pow": x^y) of every `x`, on
+    /// the lane path `path` ("scalar", "sse2", "avx2", "avx512"): for measuring their error
+    /// and checking that every path gives the same bits (`benches/lane_math_error.py`).
+    #[pyfunction]
+    #[pyo3(signature = (function, x, path = "scalar", y = 0.0))]
+    fn lane_math<'py>(
+        py: Python<'py>,
+        function: &str,
+        x: PyReadonlyArray1<'py, f64>,
+        path: &str,
+        y: f64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let out = crate::lane::explog::evaluate(function, path, x.as_slice()?, y)
+            .map_err(PyValueError::new_err)?;
+        Ok(out.into_pyarray(py))
     }
 
     type Array<'py> = Bound<'py, PyArray1<f64>>;

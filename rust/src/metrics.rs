@@ -21,6 +21,9 @@ pub struct Metric {
     pub name: &'static str,
     pub unit: &'static str,
     pub label: &'static str,
+    /// An event's value (a touchdown, a release): NaN in a phase or flight without the event,
+    /// where every other metric is finite.
+    pub event: bool,
     value: fn(&Totals) -> f64,
 }
 
@@ -36,6 +39,15 @@ pub struct Totals {
 }
 
 impl Totals {
+    /// A value recorded at the phase's touchdown; NaN where the phase has none.
+    fn once(&self, value: f64) -> f64 {
+        if self.s.touchdowns > 0.0 {
+            value
+        } else {
+            f64::NAN
+        }
+    }
+
     /// sqrt(integral / span): the RMS of a signal whose squared integral is `sq`.
     fn rms(&self, sq: f64) -> f64 {
         (sq / self.span).sqrt()
@@ -43,120 +55,202 @@ impl Totals {
 }
 
 /// Every metric, in column order.
-pub const METRICS: [Metric; 19] = [
+pub const METRICS: [Metric; 26] = [
     Metric {
         name: "iae",
         unit: "m s",
         label: "Integrated absolute displacement, IAE",
+        event: false,
         value: |t| t.s.iae,
     },
     Metric {
         name: "itae",
         unit: "m s^2",
         label: "Time-weighted IAE, ITAE",
+        event: false,
         value: |t| t.s.itae,
     },
     Metric {
         name: "max_abs",
         unit: "m",
         label: "Peak |payload relative displacement|",
+        event: false,
         value: |t| t.s.max_abs,
     },
     Metric {
         name: "rms",
         unit: "m",
         label: "RMS payload relative displacement",
+        event: false,
         value: |t| t.rms(t.s.sq),
     },
     Metric {
         name: "tracking_rms",
         unit: "m",
         label: "RMS 3-D tracking error",
+        event: false,
         value: |t| t.rms(t.s.tracking_sq),
     },
     Metric {
         name: "peak_frequency",
         unit: "Hz",
         label: "Frequency of the displacement's spectral peak",
+        event: false,
         value: |t| t.peak.0,
     },
     Metric {
         name: "peak_amplitude",
         unit: "m",
         label: "Amplitude of the displacement's spectral peak",
+        event: false,
         value: |t| t.peak.1,
     },
     Metric {
         name: "max_accel",
         unit: "m/s^2",
         label: "Payload acceleration peak",
+        event: false,
         value: |t| t.s.max_accel,
     },
     Metric {
         name: "rms_accel",
         unit: "m/s^2",
         label: "Payload acceleration RMS",
+        event: false,
         value: |t| t.rms(t.s.accel_sq),
     },
     Metric {
         name: "max_swing",
         unit: "rad",
         label: "Peak swing angle of the line",
+        event: false,
         value: |t| t.s.max_swing,
     },
     Metric {
         name: "rms_swing",
         unit: "rad",
         label: "RMS swing angle of the line",
+        event: false,
         value: |t| t.rms(t.s.swing_sq),
     },
     Metric {
         name: "max_tension",
         unit: "N",
         label: "Peak line tension",
+        event: false,
         value: |t| t.s.max_tension,
     },
     Metric {
         name: "min_tension",
         unit: "N",
         label: "Lowest line tension",
+        event: false,
         value: |t| t.s.min_tension,
     },
     Metric {
         name: "slack_time",
         unit: "s",
         label: "Time with the line slack",
+        event: false,
         value: |t| t.s.slack_steps * t.dt,
     },
     Metric {
         name: "saturated_time",
         unit: "s",
         label: "Time with a rotor at its limit",
+        event: false,
         value: |t| t.s.saturated_steps * t.dt,
     },
     Metric {
         name: "max_tracking",
         unit: "m",
         label: "Peak 3-D tracking error",
+        event: false,
         value: |t| t.s.max_tracking_sq.sqrt(),
     },
     Metric {
         name: "rms_cross_track",
         unit: "m",
         label: "RMS cross-track error",
+        event: false,
         value: |t| t.rms(t.s.cross_sq),
     },
     Metric {
         name: "max_cross_track",
         unit: "m",
         label: "Peak cross-track error",
+        event: false,
         value: |t| t.s.max_cross_sq.sqrt(),
     },
     Metric {
         name: "max_specific_force",
         unit: "m/s^2",
         label: "Peak specific force on the payload, |a - g|",
+        event: false,
         value: |t| t.s.max_specific_force_sq.sqrt(),
+    },
+    Metric {
+        name: "near_tilt_time",
+        unit: "s",
+        label: "Time with the tilt above 90 % of the law's limit",
+        event: false,
+        value: |t| t.s.near_tilt_steps * t.dt,
+    },
+    // The last metres (docs/model.md): each event's value in the phase it falls in, NaN in
+    // the others (and in a flight without it).
+    Metric {
+        name: "touchdown_speed",
+        unit: "m/s",
+        label: "Parcel's vertical speed at touchdown",
+        event: true,
+        value: |t| t.once(t.s.touchdown_speed),
+    },
+    Metric {
+        name: "touchdown_drift",
+        unit: "m/s",
+        label: "Parcel's horizontal speed at touchdown",
+        event: true,
+        value: |t| t.once(t.s.touchdown_drift),
+    },
+    Metric {
+        name: "touchdown_miss",
+        unit: "m",
+        label: "Touchdown's distance from the drop point",
+        event: true,
+        value: |t| t.once(t.s.touchdown_miss),
+    },
+    Metric {
+        name: "release_time",
+        unit: "s",
+        label: "Time the hook opens",
+        event: true,
+        value: |t| {
+            if t.s.releases > 0.0 {
+                t.s.release_time
+            } else {
+                f64::NAN
+            }
+        },
+    },
+    Metric {
+        name: "release_height_change",
+        unit: "m",
+        label: "Vehicle's largest height change in the 5 s after the release",
+        event: true,
+        value: |t| {
+            if t.s.release_seen > 0.0 {
+                t.s.max_release_change
+            } else {
+                f64::NAN
+            }
+        },
+    },
+    Metric {
+        name: "lowering_swing",
+        unit: "rad",
+        label: "Peak swing angle of the line while lowering",
+        event: false,
+        value: |t| t.s.max_lowering_swing,
     },
 ];
 pub const N_METRICS: usize = METRICS.len();
@@ -214,6 +308,19 @@ sums! {
     /// The largest |a - g|^2: its square root at the end is the largest |a - g| bit for bit
     /// (a correctly rounded square root is monotone), one square root per flight, not per step.
     max_specific_force_sq: 0.0,
+    near_tilt_steps: 0.0,
+    /// The first touchdown (at most one per flight) and the hook's opening: how many in the
+    /// phase (0 or 1) and their values (the sum of the one).
+    touchdowns: 0.0,
+    touchdown_speed: 0.0,
+    touchdown_drift: 0.0,
+    touchdown_miss: 0.0,
+    releases: 0.0,
+    release_time: 0.0,
+    /// Steps within the window after the release, and the largest height change there.
+    release_seen: 0.0,
+    max_release_change: 0.0,
+    max_lowering_swing: 0.0,
 }
 
 /// What the flight loop hands the accumulator at one step (lane values).
@@ -239,6 +346,46 @@ pub struct Sample<L> {
     pub slack: L,
     /// 1 where an actuator command was clamped over this step, else 0.
     pub saturated: L,
+    /// 1 where the tilt exceeds 90 % of the law's limit, else 0.
+    pub near_tilt: L,
+    /// The last metres (`LastMetres` below; all zero for a payload without them).
+    pub last: LastSample<L>,
+}
+
+/// The last metres at one step (docs/model.md, "The last metres").
+#[derive(Clone, Copy, Debug)]
+pub struct LastSample<L> {
+    /// 1 at the step of the parcel's first touchdown, else 0; its vertical speed (m/s,
+    /// downward positive), horizontal speed (m/s) and distance from the drop point (m) there.
+    pub touchdown: L,
+    pub touchdown_speed: L,
+    pub touchdown_drift: L,
+    pub touchdown_miss: L,
+    /// 1 at the step the hook opens, else 0.
+    pub release: L,
+    /// 1 within the window after the release, else 0; m, |the vehicle's height error less its
+    /// value at the release| there (0 elsewhere).
+    pub after_release: L,
+    pub release_change: L,
+    /// rad, the line's swing while lowering (0 elsewhere).
+    pub lowering_swing: L,
+}
+
+impl<L: Lane> LastSample<L> {
+    /// Nothing of the last metres at this step.
+    pub fn none() -> Self {
+        let z = L::splat(0.0);
+        Self {
+            touchdown: z,
+            touchdown_speed: z,
+            touchdown_drift: z,
+            touchdown_miss: z,
+            release: z,
+            after_release: z,
+            release_change: z,
+            lowering_swing: z,
+        }
+    }
 }
 
 /// Online accumulator for one lane-set over all phases.
@@ -297,6 +444,17 @@ impl<L: Lane> PhaseAccumulator<L> {
                 sums.cross_sq += x.cross_sq * w;
                 sums.max_cross_sq = sums.max_cross_sq.max(x.cross_sq);
                 sums.max_specific_force_sq = sums.max_specific_force_sq.max(x.specific_force_sq);
+                sums.near_tilt_steps += x.near_tilt;
+                let e = &x.last;
+                sums.touchdowns += e.touchdown;
+                sums.touchdown_speed += e.touchdown * e.touchdown_speed;
+                sums.touchdown_drift += e.touchdown * e.touchdown_drift;
+                sums.touchdown_miss += e.touchdown * e.touchdown_miss;
+                sums.releases += e.release;
+                sums.release_time += e.release * t;
+                sums.release_seen += e.after_release;
+                sums.max_release_change = sums.max_release_change.max(e.release_change);
+                sums.max_lowering_swing = sums.max_lowering_swing.max(e.lowering_swing);
             }
         }
         self.block_sum += e_o;
@@ -448,6 +606,17 @@ mod tests {
                     tension: 5.0 - 10.0 * t,
                     slack: 1.0 - flag,
                     saturated: flag,
+                    near_tilt: 1.0 - flag,
+                    last: LastSample {
+                        touchdown: if k == 40 { 1.0 } else { 0.0 },
+                        touchdown_speed: 0.7,
+                        touchdown_drift: 0.2,
+                        touchdown_miss: 0.3,
+                        release: if k == 60 { 1.0 } else { 0.0 },
+                        after_release: if k >= 60 { 1.0 } else { 0.0 },
+                        release_change: if k >= 60 { 0.01 * (k - 60) as f64 } else { 0.0 },
+                        lowering_swing: if k < 40 { 0.1 * t } else { 0.0 },
+                    },
                 },
             );
         }
@@ -467,6 +636,56 @@ mod tests {
         assert!((row[14] - 30.0 * dt).abs() < 1e-12);
         // specific force 9.81 - t: its peak at t = 0.
         assert_eq!(row[18], 9.81);
+        // 71 steps near the tilt limit; the touchdown's values (0.7, 0.2, 0.3) at k = 40, the
+        // release at t = 0.6 s, the height change 0.4 m at its window's end, the swing while
+        // lowering 0.1 t up to t = 0.39 s.
+        let at = |name: &str| row[METRIC_NAMES.iter().position(|n| *n == name).unwrap()];
+        assert!((at("near_tilt_time") - 71.0 * dt).abs() < 1e-12);
+        assert_eq!(
+            (
+                at("touchdown_speed"),
+                at("touchdown_drift"),
+                at("touchdown_miss")
+            ),
+            (0.7, 0.2, 0.3)
+        );
+        assert_eq!(at("release_time"), 60.0 * dt);
+        assert!((at("release_height_change") - 0.4).abs() < 1e-12);
+        assert!((at("lowering_swing") - 0.039).abs() < 1e-12);
+        // A phase without the events: NaN for them, 0 for the durations and peaks.
+        let ph = [PhaseSteps { first: 0, last: 10 }];
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 10);
+        for k in 0..=10 {
+            acc.sample(
+                k,
+                k as f64 * dt,
+                &Sample {
+                    e_o: 0.0,
+                    tracking_sq: 0.0,
+                    cross_sq: 0.0,
+                    accel: 0.0,
+                    specific_force_sq: 0.0,
+                    swing: 0.0,
+                    tension: 0.0,
+                    slack: 0.0,
+                    saturated: 0.0,
+                    near_tilt: 0.0,
+                    last: LastSample::none(),
+                },
+            );
+        }
+        let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
+        let at = |name: &str| row[METRIC_NAMES.iter().position(|n| *n == name).unwrap()];
+        for name in [
+            "touchdown_speed",
+            "touchdown_drift",
+            "touchdown_miss",
+            "release_time",
+        ] {
+            assert!(at(name).is_nan(), "{name}");
+        }
+        assert!(at("release_height_change").is_nan());
+        assert_eq!((at("near_tilt_time"), at("lowering_swing")), (0.0, 0.0));
     }
 
     /// The peak specific force taken as the square root of the peak square is the peak of the
@@ -499,6 +718,8 @@ mod tests {
                     tension: 0.0,
                     slack: 0.0,
                     saturated: 0.0,
+                    near_tilt: 0.0,
+                    last: LastSample::none(),
                 },
             );
         }

@@ -26,8 +26,8 @@ use crate::config::{Config, GustComponent};
 use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
-    dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, Part, Payload, State, StateVar, Tick,
-    Trig, Vehicle, VehicleVisitor,
+    dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, State,
+    StateVar, Tick, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
@@ -138,17 +138,43 @@ pub trait ClosedLoop {
     fn rest(&self) -> Vec<f64>;
 }
 
-struct Loop<Pay: Payload, Act: Actuator, C, const N: usize> {
+/// The closed loop of one vehicle and law. The states are the vehicle's less the body's
+/// dependent one (`BodyKind::DEPENDENT`: the rigid body's qw, so that the linear model's
+/// attitude has three parameters, the quaternion's vector part, and no spurious zero mode).
+struct Loop<B: BodyKind, Pay: Payload, Act: Actuator, C, const N: usize> {
     vars: Vec<StateVar>,
-    plain: Vehicle<f64, Pay::At<f64>, Act::At<f64>>,
-    dual: Vehicle<Dual, Pay::At<Dual>, Act::At<Dual>>,
+    plain: Vehicle<f64, Pay::At<f64>, Act::At<f64>, B>,
+    dual: Vehicle<Dual, Pay::At<Dual>, Act::At<Dual>, B>,
     ctrl: C,
     r: Reference,
 }
 
-impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<Pay, Act, C, N> {
+impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<B, Pay, Act, C, N> {
+    /// The vehicle's full state from the loop's (the dependent state put back).
+    fn full<L: Lane>(s: &[L]) -> State<L, N> {
+        let mut full = [L::splat(0.0); N];
+        match B::DEPENDENT {
+            Some(k) => {
+                full[..k].copy_from_slice(&s[..k]);
+                full[k + 1..].copy_from_slice(&s[k..]);
+                B::complete(&mut full);
+            }
+            None => full.copy_from_slice(s),
+        }
+        full
+    }
+
+    /// The loop's states of a full vector (the dependent one left out).
+    fn reduce<L: Copy>(full: &[L]) -> Vec<L> {
+        let mut v = full.to_vec();
+        if let Some(k) = B::DEPENDENT {
+            v.remove(k);
+        }
+        v
+    }
+
     fn signals<L: Lane>(
-        v: &Vehicle<L, Pay::At<L>, Act::At<L>>,
+        v: &Vehicle<L, Pay::At<L>, Act::At<L>, B>,
         ctrl: &C,
         r: &Reference,
         s: &[L],
@@ -157,24 +183,23 @@ impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<Pay, Act, C, 
     where
         f64: crate::lane::Param<L>,
     {
-        let s: State<L, N> = s.try_into().expect("one value per state");
+        let s = Self::full(s);
         // Hover is time-invariant: the law and the actuators are asked at the flight's start.
-        let u = ctrl.control(
-            &Vehicle::<L, Pay::At<L>, Act::At<L>>::rigid(&s),
-            r,
-            Tick::START,
-        );
+        let frame = B::frame(&s);
+        let view = Vehicle::<L, Pay::At<L>, Act::At<L>, B>::rigid_at(&s, &frame);
+        let u = ctrl.control(&view, r, Tick::START);
         let cmd = v.actuator.command(&u, Tick::START);
-        let trig = Trig::of(&s);
-        let f = v.derivative(&s, &trig, &cmd, w);
-        let out = v.payload_outputs(&s, &trig, u.u1, w);
-        let mut y = s.to_vec();
+        let f = v.derivative(&s, &frame, &cmd, w);
+        let out = v.payload_outputs(&s, &frame, u.u1, w);
+        let mut y = Self::reduce(&s);
         y.extend([out.e_o, u.u1, u.tau[0], u.tau[1], u.tau[2], out.accel[2]]);
-        (f.to_vec(), y)
+        (Self::reduce(&f), y)
     }
 }
 
-impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> ClosedLoop for Loop<Pay, Act, C, N> {
+impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> ClosedLoop
+    for Loop<B, Pay, Act, C, N>
+{
     fn vars(&self) -> &[StateVar] {
         &self.vars
     }
@@ -186,7 +211,7 @@ impl<Pay: Payload, Act: Actuator, C: Control, const N: usize> ClosedLoop for Loo
     }
     fn rest(&self) -> Vec<f64> {
         let s: State<f64, N> = self.plain.rest_state(self.r.pos, [0.0; 3]);
-        s.to_vec()
+        Self::reduce(&s)
     }
 }
 
@@ -195,31 +220,38 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
     struct Build<'a>(&'a Config, ControllerKind, Reference);
     impl VehicleVisitor for Build<'_> {
         type Output = Box<dyn ClosedLoop>;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Box<dyn ClosedLoop> {
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
+            self,
+        ) -> Box<dyn ClosedLoop> {
             let Build(cfg, kind, r) = self;
             let parts = AnyVehicle::new(cfg);
-            let vars = crate::model::state_vars(cfg.payload.model, cfg.actuator.model);
-            struct Law<'a, Pay, Act, const N: usize> {
+            let mut vars = crate::model::state_vars_of::<B, Pay, Act>();
+            if let Some(k) = B::DEPENDENT {
+                vars.remove(k);
+            }
+            struct Law<'a, B, Pay, Act, const N: usize> {
                 cfg: &'a Config,
                 kind: ControllerKind,
                 parts: AnyVehicle,
                 vars: Vec<StateVar>,
                 r: Reference,
-                kinds: std::marker::PhantomData<(Pay, Act)>,
+                kinds: std::marker::PhantomData<(B, Pay, Act)>,
             }
-            impl<Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor for Law<'_, Pay, Act, N> {
+            impl<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor
+                for Law<'_, B, Pay, Act, N>
+            {
                 type Output = Box<dyn ClosedLoop>;
                 fn visit<C: Controller>(self) -> Box<dyn ClosedLoop> {
-                    Box::new(Loop::<Pay, Act, C, N> {
+                    Box::new(Loop::<B, Pay, Act, C, N> {
                         vars: self.vars,
-                        plain: self.parts.vehicle::<Pay, Act>(),
-                        dual: AnyVehicle::gather::<Dual, Pay, Act>(&[&self.parts]),
+                        plain: self.parts.vehicle_on::<B, Pay, Act>(),
+                        dual: AnyVehicle::gather_on::<Dual, B, Pay, Act>(&[&self.parts]),
                         ctrl: AnyController::new(self.kind, self.cfg).get::<C>().clone(),
                         r: self.r,
                     })
                 }
             }
-            let law = Law::<Pay, Act, N> {
+            let law = Law::<B, Pay, Act, N> {
                 cfg,
                 kind,
                 parts,
@@ -230,7 +262,12 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
             crate::control::dispatch(kind, law)
         }
     }
-    dispatch(cfg.payload.model, cfg.actuator.model, Build(cfg, kind, r))
+    dispatch(
+        cfg.vehicle.body,
+        cfg.payload.model,
+        cfg.actuator.model,
+        Build(cfg, kind, r),
+    )
 }
 
 /// The hover reference: the first waypoint's (or route point's) position, psi_ref = 0, no

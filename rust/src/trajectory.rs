@@ -135,6 +135,22 @@ impl Trajectory {
         }
     }
 
+    /// m, the line segment `segment` of a route pays out beyond `payload.length_min` when it is
+    /// a lowering (`trajectory.lower`), else None.
+    pub fn lowering(&self, segment: usize) -> Option<f64> {
+        self.segments
+            .get(segment)
+            .filter(|s| s.kind == SegmentKind::Lower)
+            .map(|s| s.payout)
+    }
+
+    /// The horizontal point (m) segment `segment` of a route lowers at, if it is a lowering.
+    pub fn drop_point(&self, segment: usize) -> Option<[f64; 2]> {
+        self.lowering(segment)?;
+        let p = self.route[self.segments[segment].from];
+        Some([p[0], p[1]])
+    }
+
     /// Route: `segment` indexes the schedule. A hold (and any time after the schedule) rests
     /// at its point; a leg moves along the straight line by its profile. psi_des = 0.
     #[inline]
@@ -147,7 +163,7 @@ impl Trajectory {
             return Reference::default();
         };
         let (a, b) = (self.route[seg.from], self.route[seg.to]);
-        if seg.kind == SegmentKind::Hold {
+        if seg.kind.rests() {
             return Reference {
                 pos: a,
                 ..Reference::default()

@@ -454,9 +454,11 @@ def test_scenario_show_diff_prints_only_what_differs_from_the_base(tmp_path, cap
 
 def test_scenario_keys_lists_every_key_with_a_value_set_accepts(capsys) -> None:
     assert main(["scenario", "keys"]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
+    out = capsys.readouterr().out
+    lines = out.split("\n\n")[0].strip().splitlines()  # then the keys it does not set
     paper = Scenario.paper()
     assert [line.split(" = ", 1)[0] for line in lines] == list(paper.keys())
+    assert "\n# Not set here" in out
     for line in lines:
         key, value = line.split(" = ", 1)
         assert parse_value(value) == paper[key], line

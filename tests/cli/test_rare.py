@@ -45,7 +45,7 @@ def test_rare_prints_its_table_and_writes_the_result(tmp_path: Path) -> None:
     # "  label   value" rows: the label and the value are two or more spaces apart.
     rows = dict(line.strip().split("  ", 1) for line in proc.stdout.splitlines()[1:])
     rows = {label: value.strip() for label, value in rows.items()}
-    assert proc.stdout.startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    assert proc.stdout.startswith("P(max_accel in P2 > 3.5 m/s²), pd, seed 2, 1000 innovations")
     assert rows["estimate"] == f"{r.probability:.3g}"
     assert rows["coefficient of variation"] == f"{r.cov:.3f}"
     assert rows["95 % interval"] == f"[{r.interval[0]:.3g}, {r.interval[1]:.3g}]"
@@ -65,7 +65,7 @@ def test_paired_controllers_print_both_and_their_ratio(tmp_path: Path) -> None:
                for c in ("pd", "smc")}  # fmt: skip
     assert not out.exists()
     lines = proc.stdout.splitlines()
-    assert lines[0].startswith("P(max_accel in P2 > 3.5), pd, seed 2, 1000 innovations")
+    assert lines[0].startswith("P(max_accel in P2 > 3.5 m/s²), pd, seed 2, 1000 innovations")
     heads = [line for line in lines if line.startswith("P(")]
     assert [h.split(", ")[1] for h in heads] == ["pd", "smc"]
     pd_, smc = results["pd"], results["smc"]

@@ -354,7 +354,10 @@ def delivery() -> quadrs.Scenario:
 def test_stable_at_hover_with_the_line_and_the_rotors(delivery) -> None:
     st = quadrs.stability(delivery, "se3")
     assert st.stable and (st.poles["real"] < -0.05).all(), st.poles
-    assert len(st.poles) == 22 and {"swing x"} <= set(st.poles["mode"])
+    # 12 of the body, 8 of the cable (the parcel's position and velocity, the line's length
+    # and rate: a winch's servo holds it, at -2 1/s), 4 of the rotors
+    assert len(st.poles) == 24 and {"swing x"} <= set(st.poles["mode"])
+    assert np.isclose(st.poles["real"], -2.0, atol=1e-4).sum() == 2
     # and the paper's vehicle with its defaults too
     assert quadrs.stability(quadrs.Scenario.paper(), "se3").stable
 
@@ -365,8 +368,13 @@ def test_it_holds_the_drop_hover_in_turbulence(delivery) -> None:
     assert f.status == "ok"
     start, end = sc.phase_windows["drop"]
     tr = f.trace[(f.trace.index >= start + 5.0) & (f.trace.index <= end)]
-    off = np.linalg.norm(tr[["x", "y", "z"]].to_numpy() - [0.0, 0.0, 5.0], axis=1)
-    assert off.max() < 1.0, off.max()
+    # No integrator: the law holds off downwind (+y, the wind from the east) by the steady
+    # drag over its position gain, about 1.6 m in the preset's 5 m/s; the turbulence moves it
+    # by less than a metre about that.
+    off = tr[["x", "y", "z"]].to_numpy() - [0.0, 0.0, 5.0]
+    steady = off.mean(axis=0)
+    assert 0.5 < steady[1] < 2.5 and np.abs(steady[[0, 2]]).max() < 0.3, steady
+    assert np.linalg.norm(off - steady, axis=1).max() < 1.0
 
 
 def test_it_flies_the_delivery_route_to_the_drop_point(delivery) -> None:
@@ -374,17 +382,16 @@ def test_it_flies_the_delivery_route_to_the_drop_point(delivery) -> None:
         warnings.simplefilter("error")  # no step-size or stability warning either
         f = quadrs.simulate(delivery, "se3", seed=1)
     assert f.status == "ok"
-    target = np.array(delivery.route.segments[-1].target)
-    start, end = delivery.phase_windows["drop"]
-    arrived = (
-        delivery.route.segments[-1].arrival if delivery.route.segments[-1].kind == "leg" else start
-    )
-    tr = f.trace[(f.trace.index >= max(start, arrived)) & (f.trace.index <= end)]
+    (drop,) = [s for s in delivery.route.segments if s.name == "drop"]
+    tr = f.trace[(f.trace.index >= drop.start) & (f.trace.index <= drop.end)]
     assert len(tr) > 1000
-    off = np.linalg.norm(tr[["x", "y", "z"]].to_numpy(dtype=float) - target, axis=1)
+    off = np.linalg.norm(tr[["x", "y", "z"]].to_numpy(dtype=float) - drop.target, axis=1)
     assert off.max() < 3.0, off.max()
     m = f.metrics.set_index("phase")
-    assert m.loc["flight", "slack_time"] == 0.0
+    # The line stays taut until the parcel is lowered onto the ground, and it is released there.
+    assert (m.loc[["lift", "climb", "transit", "descent"], "slack_time"] == 0.0).all()
+    assert m.loc["lower", "touchdown_miss"] < 3.0
+    assert drop.start - 8.0 < m.loc["flight", "release_time"] < drop.end
 
 
 def test_its_name_reaches_python_and_the_command_line(short) -> None:
@@ -413,7 +420,7 @@ def test_its_name_reaches_python_and_the_command_line(short) -> None:
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert out.returncode == 0, out.stderr
-    assert "se3 accel %" in out.stdout and "se3 track" in out.stdout
+    assert "se3 specific_force %" in out.stdout and "se3 track" in out.stdout
 
 
 def test_one_gain_of_the_defaulted_table_can_be_set_and_dispersed(short) -> None:

@@ -3,7 +3,11 @@ the engine's own definitions (a kind's file, metrics.rs), so a template cannot d
 
 from __future__ import annotations
 
-from quadrs import _core
+import itertools
+
+import pytest
+
+from quadrs import ScenarioError, _core
 from quadrs.scenario import units
 from quadrs.scenario.scenario import Scenario, presets
 
@@ -36,17 +40,43 @@ def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None
     name a scenario may give, its state layout described by the engine."""
     assert _core.PAYLOAD_MODELS[0] == "spring" and "cable" in _core.PAYLOAD_MODELS
     assert _core.ACTUATOR_MODELS[0] == "ideal" and "rotors" in _core.ACTUATOR_MODELS
-    for payload in _core.PAYLOAD_MODELS:
-        for actuator in _core.ACTUATOR_MODELS:
-            data = Scenario.preset("delivery").to_dict()
-            data["payload"]["model"], data["actuator"]["model"] = payload, actuator
-            if payload != "cable":  # the cable's keys are refused with another payload
-                for key in ("cable_length", "attachment_offset"):
-                    data["payload"].pop(key, None)
-            names = Scenario.from_dict(data).state_names
-            assert len(names) == len(set(names)), (payload, actuator, names)
-            assert ("omega_1" in names) == (actuator == "rotors"), (payload, actuator)
-            assert ("xc" in names) == (payload == "cable"), (payload, actuator)
+    assert _core.BODY_MODELS == ["paper", "rigid"]
+    for body, payload, actuator in itertools.product(
+        _core.BODY_MODELS, _core.PAYLOAD_MODELS, _core.ACTUATOR_MODELS
+    ):
+        data = Scenario.preset("delivery").to_dict()
+        data["payload"]["model"], data["actuator"]["model"] = payload, actuator
+        data["vehicle"]["body"] = body
+        if body == "paper":  # the body-axis drag and the rotor aerodynamics are the rigid body's
+            data["vehicle"].pop("drag_coefficients", None)
+            for key in ("rotor_drag", "flapping", "translational_lift"):
+                data["actuator"].pop(key, None)
+        if payload != "cable":  # the cable's keys are refused with another payload
+            for key in (
+                "cable_length",
+                "attachment_offset",
+                "winch_speed",
+                "winch_acceleration",
+                "length_min",
+                "release",
+                "release_delay",
+            ):
+                data["payload"].pop(key, None)
+            for key in ("stiffness", "damping", "friction"):  # the parcel's contact: the cable's
+                data["ground"].pop(key, None)
+            data["trajectory"].pop("lower", None)
+            data["trajectory"].pop("names", None)  # the lowering named one of them
+        if body == "rigid" and payload == "spring":  # the rigid body flies the cable only
+            with pytest.raises(ScenarioError, match=r"vehicle\.body"):
+                _ = Scenario.from_dict(data).state_names
+            continue
+        names = Scenario.from_dict(data).state_names
+        assert len(names) == len(set(names)), (payload, actuator, names)
+        assert ("omega_1" in names) == (actuator == "rotors"), (payload, actuator)
+        assert ("xc" in names) == (payload == "cable"), (payload, actuator)
+        rigid = ["qw", "qx", "qy", "qz", "wx", "wy", "wz"]
+        assert all((n in names) == (body == "rigid") for n in rigid), (body, names)
+        assert ("phi" in names) == (body == "paper"), (body, names)
 
 
 def test_every_key_of_every_preset_has_a_unit_and_a_label() -> None:

@@ -1,6 +1,7 @@
 """The SIMD paths through the whole stack: every path this CPU supports gives the same bits (the
-default mode), and forcing a path it cannot run is a clear error, never a crash. Each path runs
-in its own process (QUADRS_SIMD is read once per process)."""
+default mode; the paper's body and the delivery preset's rigid body), and forcing a path it
+cannot run is a clear error, never a crash. Each path runs in its own process (QUADRS_SIMD is
+read once per process)."""
 
 import os
 import subprocess
@@ -17,7 +18,7 @@ CODE = """
 import hashlib, warnings
 import numpy as np, quadrs
 from quadrs import _core
-from tests.conftest import SHORT
+from tests.conftest import DELIVERY_DROP, SHORT
 warnings.simplefilter("ignore")
 sc = quadrs.Scenario.paper().override(SHORT)
 d = sc.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.18, "high": 0.26}}})
@@ -27,6 +28,17 @@ for s in (sc, d):
     h.update(np.ascontiguousarray(mc.runs.select_dtypes("number").to_numpy()).tobytes())
 fl = quadrs.simulate(sc, "pd", seed=4, realisation=3)
 h.update(np.ascontiguousarray(fl.metrics.select_dtypes("number").to_numpy()).tobytes())
+# The rigid body (the delivery preset's) over its drop point in turbulence: a dispersed batch
+# and a traced flight with every law.
+rigid = quadrs.Scenario.preset("delivery").override(DELIVERY_DROP)
+cd = {"dist": "uniform", "low": 0.03, "high": 0.09}
+rd = rigid.override({"dispersions": {"vehicle.drag_coefficients[1]": cd}})
+for s in (rigid, rd):
+    mc = quadrs.monte_carlo(s, runs=9, seed=5, workers=2, progress=False)
+    h.update(np.ascontiguousarray(mc.runs.select_dtypes("number").to_numpy()).tobytes())
+for law in ("pd", "smc", "se3", "px4"):
+    fl = quadrs.simulate(rigid, law, seed=5, realisation=2, record_every=7)
+    h.update(np.ascontiguousarray(fl.trace.to_numpy()).tobytes())
 print(_core.simd_path(), h.hexdigest())
 """
 

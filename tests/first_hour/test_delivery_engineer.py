@@ -8,6 +8,7 @@ from __future__ import annotations
 import importlib
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -187,7 +188,7 @@ def test_the_eta_of_counted_pieces() -> None:
 
 
 # -- 2. the mission's answer leads with whether the route was flown -----------------------------
-def test_the_answer_leads_with_the_route_and_says_what_it_does_not_measure(
+def test_the_answer_leads_with_the_route_and_shows_the_time_near_the_tilt_limit(
     route_mc: quadrs.MonteCarloResult,
 ) -> None:
     r = mission_report(route_mc, 9.81)
@@ -195,12 +196,16 @@ def test_the_answer_leads_with_the_route_and_says_what_it_does_not_measure(
     text = r.to_text()
     assert text.startswith("Route: flown in all 12 flights")
     assert text.index("Route") < text.index("Parcel acceleration")
-    assert "Time near the tilt limit: not measured by this engine" in text
-    # The route's table: worst tracking and cross-track per phase, time at the thrust limit.
-    for m in ("max_tracking", "max_cross_track"):
+    # The engine measures the time near the tilt limit (near_tilt_time): the route's table
+    # shows it, and nothing says it is not measured.
+    assert "not measured" not in text
+    assert "near the tilt limit" in text and "near tilt worst s" in text
+    # The route's table: worst tracking and cross-track per phase, time at the thrust limit
+    # and near the tilt limit.
+    for m in ("max_tracking", "max_cross_track", "near_tilt_time"):
         sel = route_mc.runs[route_mc.runs["phase"] == "leg"][m]
         assert r.route.loc["leg", f"{m}_worst"] == pytest.approx(sel.max())
-    assert "saturated_time_mean" in r.route
+    assert "saturated_time_mean" in r.route and "near_tilt_time_mean" in r.route
 
 
 def test_a_route_not_held_is_the_first_thing_said(route_mc: quadrs.MonteCarloResult) -> None:
@@ -248,11 +253,12 @@ def test_mission_defaults_to_the_delivery_preset(
 
 
 # -- issue 42's mission items: zeros are not intervals; per-phase intervals are not joint -------
-def test_a_count_that_never_happened_is_a_one_sided_bound(
+def test_a_count_that_never_happened_is_a_bound_not_an_interval(
     route_mc: quadrs.MonteCarloResult,
 ) -> None:
     r = mission_report(route_mc, 1e3)
-    bound = 100 * (1 - 0.05 ** (1 / 12))  # Clopper-Pearson, one-sided, k = 0
+    # Clopper-Pearson, k = 0: the two-sided interval's upper end (issue 54: one convention)
+    bound = 100 * (1 - 0.025 ** (1 / 12))
     text = r.to_text()
     assert f"0 of 12 flights, P <= {bound:.3g}" in text
     assert "0 [0, 0]" not in text
@@ -374,8 +380,24 @@ def test_exceedance_figure_has_the_flight_panel_and_reaches_the_worst(
 
 # -- 7. a parcel that starts below the ground warns --------------------------------------------
 def test_a_parcel_below_the_ground_warns() -> None:
+    """A line that hangs the parcel below the ground at the start: a warning where the ground
+    only ends the vehicle's flight (no contact for the parcel), a refusal where the parcel meets
+    the ground (ground.stiffness, the delivery preset), whose winch starts the line reeled in
+    (payload.length_min)."""
+    slung = quadrs.Scenario.preset("slung")
+    # The vehicle at 0 m, the parcel about 1.05 m below it (attachment offset + line).
     with pytest.warns(quadrs.PlausibilityWarning, match="parcel starts below the ground"):
-        quadrs.Scenario.preset("delivery").override({"payload.cable_length": 2.0})
+        slung.override({"ground.enabled": True, "ground.altitude": -0.5})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", quadrs.PlausibilityWarning)
+        slung.override({"ground.enabled": True, "ground.altitude": -1.5})  # clear: no warning
+    base = quadrs.Scenario.preset("delivery")
+    reeled = base["initial.position"][2] + 0.5  # reeled in, the line is longer than the start
+    lower = list(base["trajectory.lower"])
+    lower[3] = base["payload.cable_length"] - reeled  # the most a lowering may pay out
+    with pytest.raises(quadrs.ScenarioError, match="must hang the parcel above the ground"):
+        base.override({"payload.length_min": reeled, "trajectory.lower": lower})
+    base.override({"payload.length_min": reeled - 1.0, "trajectory.lower": lower})  # clear
 
 
 # -- 9. the paper command and report do not claim to reproduce ----------------------------------

@@ -256,7 +256,7 @@ def test_ctrl_c_during_the_second_controller_keeps_the_first_estimate(
                              "--threshold", "0.5", "--per-level", "100", "--workers", "1",
                              "--controller", "pd,smc", capsys=capsys)  # fmt: skip
     assert code == 130, err
-    assert out.startswith("P(max_accel in P2 > 0.5), pd, seed 0"), out
+    assert out.startswith("P(max_accel in P2 > 0.5 m/s²), pd, seed 0"), out
     assert "estimate" in out and ", smc," not in out
     assert "quadrs rare (smc): interrupted after 0 finished levels" in err
 
@@ -294,14 +294,17 @@ def test_rare_escapes_the_phase_name_in_its_summary(capsys) -> None:
                              capsys=capsys)  # fmt: skip
     assert code == 0, err
     assert "\x1b" not in out + err and "\x07" not in out + err
-    assert out.startswith("P(max_accel in \\x1b]0;pwned\\x07P2 > 0.5)"), out
+    assert out.startswith("P(max_accel in \\x1b]0;pwned\\x07P2 > 0.5 m/s²)"), out
 
 
 # -- unclear ----------------------------------------------------------------------------------
 def test_messages_say_what_is_wrong(delivery: Scenario, tiny: Scenario, tmp_path: Path,
                                     capsys) -> None:  # fmt: skip
     with pytest.raises(ScenarioError, match=r"^trajectory\.names\[1\] must not be blank"):
-        delivery.override({"trajectory.names": ["lift", " ", "transit", "descent", "drop"]})
+        # One name per segment of the preset's route (as many as it names), the second blank.
+        names = list(delivery["trajectory.names"])
+        names[1] = " "
+        delivery.override({"trajectory.names": names})
     with pytest.raises(ScenarioError,
                        match=r"^trajectory\.route\[1\] must have 3 numbers, got 4$"):  # fmt: skip
         delivery.override({"trajectory.route[1]": [0.0, 0.0, 30.0, 1.0]})

@@ -338,6 +338,26 @@ def test_a_second_ctrl_c_soon_after_the_first_keeps_the_batch(tmp_path: Path, de
     assert saved.interrupted and len(saved.realisations) > 0
 
 
+def test_a_ctrl_c_while_the_batch_is_saved_keeps_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A Ctrl-C that lands after the batch is over (a second one, after the one that stopped
+    it) but before its file is written waits for the file: written whole, then status 130."""
+    write = MonteCarloResult.to_parquet
+
+    def interrupted_while_saving(self: MonteCarloResult, path: Path) -> None:
+        signal.raise_signal(signal.SIGINT)
+        write(self, path)
+
+    monkeypatch.setattr(MonteCarloResult, "to_parquet", interrupted_while_saving)
+    out = tmp_path / "runs.parquet"
+    code, _, err = run_cli("mc", "--runs", "4", "--workers", "1", "--controllers", "pd",
+                           "--no-progress", *TINY_CLI, "--out", str(out),
+                           capsys=capsys)  # fmt: skip
+    assert code == 130 and "interrupted" in err, err
+    assert len(MonteCarloResult.read_parquet(out).realisations) == 4
+
+
 # -- no traceback, one line -------------------------------------------------------------------
 def test_design_loop_bad_input_is_one_line(tiny: Scenario, tmp_path: Path, capsys) -> None:
     disperse = ["--disperse", "payload.mass=uniform(0.15,0.3)", "--runs", "2", "--no-progress"]

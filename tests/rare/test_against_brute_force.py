@@ -18,7 +18,7 @@ import quadrs
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
 from quadrs.rare.subset import subset_simulation
-from tests.conftest import DELIVERY_DROP
+from tests.conftest import FOURTH_ROUND_DELIVERY_DROP
 
 BRUTE = json.loads((Path(__file__).parents[1] / "data" / "rare_brute_force.json").read_text())
 
@@ -54,17 +54,20 @@ def test_flights_centre_on_brute_force_and_their_intervals_cover(
 
 
 @pytest.mark.slow
+# about 680 flights a seed, 9 s on 2 cores: 100 seeds take 15 minutes, the suite's hang limit
+@pytest.mark.timeout(2400)
 def test_the_delivery_vehicle_over_its_drop_point_centres_and_covers() -> None:
-    """The same on the delivery preset's vehicle, wind and turbulence over its drop point
-    (tests/conftest.py DELIVERY_DROP; benches/rare_cases.py "delivery-drop"): the parcel's
-    swing in the 15 s hover past the case's threshold, 100 seeds at per_level = 200, against
-    the brute-force value of tests/data/rare_brute_force.json (benches/brute_force.py
-    --case delivery-drop). About 50,000 flights: slow."""
+    """The same on the fourth round's delivery vehicle, wind and turbulence over its drop point
+    (tests/conftest.py FOURTH_ROUND_DELIVERY_DROP, the vehicle the reference was flown on;
+    benches/rare_cases.py "delivery-drop"): the parcel's swing in the 15 s hover past the
+    case's threshold, 100 seeds at per_level = 200, against the brute-force value of
+    tests/data/rare_brute_force.json (benches/brute_force.py --case delivery-drop). About
+    50,000 flights: slow."""
     case = BRUTE["cases"]["delivery-drop"]
     threshold = case["checked"]
     ref = case["thresholds"][threshold]
     p = ref["p"]
-    s = quadrs.Scenario.preset("delivery").override(DELIVERY_DROP)
+    s = quadrs.Scenario.preset("delivery").override(FOURTH_ROUND_DELIVERY_DROP)
     model = ScenarioModel(s, "pd", "max_swing", "drop", workers=2)
     runs = [subset_simulation(model.evaluate, model.dimension, float(threshold),
                               per_level=200, seed=seed) for seed in range(100)]  # fmt: skip
@@ -113,12 +116,13 @@ def test_every_sample_failing_gives_an_interval_inside_zero_one() -> None:
 
 
 def test_no_failure_on_level_zero_states_the_exact_bound() -> None:
-    """0 of N independent flights: 'no failure in N flights' and P <= 1 - 0.05^(1/N)."""
+    """0 of N independent flights: 'no failure in N flights' and P <= 1 - 0.025^(1/N), the
+    upper end of the two-sided 95 % interval (the one convention, docs/risk.md)."""
     r = quadrs.rare_event(limit_state=linear, dimension=10, threshold=8.0, per_level=200,
                           max_levels=1)  # fmt: skip
     assert isinstance(r, RareEventResult) and r.probability is None
     n = r.flights - r.run.pilot_flights
-    assert r.upper_bound == pytest.approx(1 - 0.05 ** (1 / n), rel=1e-12)
+    assert r.upper_bound == pytest.approx(1 - 0.025 ** (1 / n), rel=1e-12)
     assert r.interval == (0.0, r.upper_bound)
     assert f"no failure in {r.flights} flights" in repr(r)
 

@@ -1,5 +1,7 @@
 """Past one machine: Dask chunks equal the local run; checkpointed runs survive kills."""
 
+import contextlib
+import os
 import signal
 import subprocess
 import sys
@@ -255,3 +257,74 @@ def test_the_whole_vehicle_checkpointed_and_on_dask_equals_one_batch(cluster, tm
     pd.testing.assert_frame_equal(stored.runs, whole.runs)
     pd.testing.assert_frame_equal(MonteCarloResult.read_parquet(tmp_path / "r").runs, whole.runs)
     pd.testing.assert_frame_equal(remote.runs, whole.runs)
+
+
+def test_mission_tune_and_sensitivity_on_dask_equal_the_local_run(
+    short: Scenario, cluster, tmp_path
+) -> None:
+    """``mission``, ``tune`` and ``sens`` with ``--scheduler`` (the library calls' ``client=``)
+    give the local run's numbers, bit for bit."""
+    from dask.distributed import Client
+
+    from quadrs.cli.main import main
+    from quadrs.design.optimize import optimize
+    from quadrs.design.sensitivity import sensitivity
+    from tests.cli.test_main import SHORT
+
+    # mission, through the command line (the paper preset's short flight: quick).
+    remote, local = tmp_path / "remote.parquet", tmp_path / "local.parquet"
+    args = ["mission", "--preset", "paper", *SHORT, "--runs", "4", "--seed", "3",
+            "--no-progress"]  # fmt: skip
+    assert main([*args, "--scheduler", cluster.scheduler_address, "--out", str(remote)]) == 0
+    assert main([*args, "--out", str(local)]) == 0
+    a, b = MonteCarloResult.read_parquet(remote), MonteCarloResult.read_parquet(local)
+    assert len(b.runs) > 0
+    pd.testing.assert_frame_equal(a.runs, b.runs)
+    assert main([*args, "--scheduler", "tcp://127.0.0.1:1"]) == 2
+
+    s = short.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.15,
+                                                         "high": 0.35}}})  # fmt: skip
+    tune = dict(controller="pd", params={"controller.pd.kp[2]": (1.0, 3.0)}, objective="iae",
+                phases=("P2",), runs=3, seed=5, maxiter=1, popsize=2)  # fmt: skip
+    with Client(cluster) as client:
+        sens_remote = sensitivity(s, runs=4, seed=1, controllers=("pd",), progress=False,
+                                  client=client, chunk=5)  # fmt: skip
+        tuned_remote = optimize(s, **tune, client=client)  # type: ignore[arg-type]
+    sens_local = sensitivity(s, runs=4, seed=1, controllers=("pd",), progress=False)
+    assert sens_local.samples["row"].nunique() == 4 * (1 + 2 + 1)  # N (k + 2), k = mass, gust
+    pd.testing.assert_frame_equal(sens_remote.samples, sens_local.samples)
+    pd.testing.assert_frame_equal(sens_remote.indices, sens_local.indices)
+    tuned_local = optimize(s, **tune)  # type: ignore[arg-type]
+    pd.testing.assert_frame_equal(tuned_remote.history, tuned_local.history)
+    assert tuned_remote.best == tuned_local.best
+    assert tuned_remote.objective == tuned_local.objective
+
+
+def test_sensitivity_rows_survive_a_lost_worker(short: Scenario) -> None:
+    """A worker killed while it holds a chunk of the design: Dask runs that chunk again
+    elsewhere (its key is pure, its rows depend only on its inputs) and the result is the
+    local run's."""
+    distributed = pytest.importorskip("dask.distributed")
+    from quadrs.design.sensitivity import sensitivity
+
+    s = short.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.15,
+                                                         "high": 0.35}}})  # fmt: skip
+    local = sensitivity(s, runs=8, seed=2, controllers=("pd",), progress=False)
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    )
+    with cluster, distributed.Client(cluster) as client:
+        killed: list[str] = []
+
+        def kill_one(done: int) -> None:
+            # After the first chunk: the other worker is busy with (or queued for) the rest.
+            if not killed and done > 0:
+                victim = next(iter(client.scheduler_info()["workers"]))
+                killed.append(victim)
+                with contextlib.suppress(Exception):  # the worker dies before it answers
+                    client.run(os._exit, 1, workers=[victim], wait=False)
+
+        remote = sensitivity(s, runs=8, seed=2, controllers=("pd",), progress=False,
+                             client=client, chunk=4, on_progress=kill_one)  # fmt: skip
+    assert killed
+    pd.testing.assert_frame_equal(remote.samples, local.samples)

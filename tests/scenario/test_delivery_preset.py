@@ -27,16 +27,19 @@ def test_the_preset_is_the_vehicle_a_delivery_engineer_flies(delivery) -> None:
     legs = [s for s in delivery.route.segments if s.kind == "leg"]
     transit = max(legs, key=lambda s: s.length)
     assert 500.0 <= transit.length <= 2000.0 and transit.peak_speed == 10.0
-    # The flight lasts past the last arrival: the drop hover is flown.
+    # The flight lasts past the last arrival; over the drop point the parcel is lowered, then
+    # the vehicle hovers and climbs away.
     assert delivery.route.segments[-1].end == delivery["integrator.duration"]
-    assert delivery.route.segments[-1].arrival < delivery["integrator.duration"] - 10.0
+    kinds = [(s.name, s.kind) for s in delivery.route.segments]
+    assert kinds[3:7] == [("descent", "leg"), ("lower", "lower"), ("drop", "hold"),
+                          ("departure", "leg")]  # fmt: skip
 
 
 @pytest.mark.parametrize("controller", ["pd", "smc"])
 def test_its_gains_are_stable_at_hover_with_the_line_and_the_rotors(delivery, controller) -> None:
     st = quadrs.stability(delivery, controller)
     assert st.stable and (st.poles["real"] < -0.05).all(), st.poles
-    assert len(st.poles) == 22  # 12 rigid + 6 payload + 4 rotor speeds
+    assert len(st.poles) == 24  # 12 rigid + 6 payload + the winch's 2 + 4 rotor speeds
     assert {"swing x"} <= set(st.poles["mode"])
 
 
@@ -48,12 +51,20 @@ def test_the_pd_flies_the_mission_leg_by_leg(delivery) -> None:
     m = f.metrics.set_index("phase")
     assert list(m.index) == [s.name for s in delivery.route.segments] + [FLIGHT_PHASE]
     assert np.isfinite(m.to_numpy(dtype=float, na_value=np.nan)[:, :12]).all()
-    # The line never goes slack, carries about the parcel's weight, and swings.
+    # Up to the lowering the line never goes slack, carries about the parcel's weight, and
+    # swings; then the parcel touches down gently near the drop point, the line goes slack
+    # and the hook opens during the hover.
     weight = delivery["payload.mass"] * delivery["environment.gravity"]
-    assert (m["slack_time"] == 0).all()
-    assert 0.5 * weight < m.loc[FLIGHT_PHASE, "min_tension"] < weight
+    carried = m.loc[["lift", "climb", "transit", "descent"]]
+    assert (carried["slack_time"] == 0).all()
+    assert 0.5 * weight < carried["min_tension"].min() < weight
     assert weight < m.loc[FLIGHT_PHASE, "max_tension"] < 2 * weight
     assert 0.05 < m.loc[FLIGHT_PHASE, "max_swing"] < 1.2
+    assert 0.5 < m.loc["lower", "touchdown_speed"] < 1.5
+    assert m.loc["lower", "touchdown_miss"] < 3.0
+    lower, drop = delivery.route.segments[4:6]
+    assert m.loc["lower", "slack_time"] + m.loc["drop", "slack_time"] > 1.0
+    assert lower.start < m.loc[FLIGHT_PHASE, "release_time"] < drop.end
     # It arrives: within a few metres of the drop point, hovering.
     end = f.trace.iloc[-1]
     target = np.array(delivery.route.segments[-1].target)
@@ -79,16 +90,27 @@ def hook_angular_acceleration(f: quadrs.Flight, s: quadrs.Scenario) -> np.ndarra
 def test_the_smc_flies_the_route_because_it_meets_its_reaching_condition(delivery) -> None:
     """docs/model.md, "The SMC on a route": the attitude channels' switching gain must exceed
     the disturbance they reject, here the hook's moment. With the preset's 6 rad/s^2 it does
-    (the moment stays under half of it) and the SMC arrives within 3 m of the drop point;
-    with paper_stable_lateral's 1.432 the moment exceeds it and the attitude is lost."""
+    (the moment stays under half of it) and the SMC flies to the route's end, hovering there
+    downwind of it by the offset a law without an integrator leaves in the preset's breeze
+    (from the east, +y); with paper_stable_lateral's 1.432 the moment exceeds it and the
+    attitude is lost (on the paper's body)."""
     eps = delivery["controller.smc.epsilon_attitude"][0]
     f = quadrs.simulate(delivery, "smc", seed=1)
     assert f.status == "ok"
     assert hook_angular_acceleration(f, delivery).max() < eps / 2
-    end = f.trace.iloc[-1][["x", "y", "z"]].to_numpy(dtype=float)
-    assert np.linalg.norm(end - np.array(delivery.route.segments[-1].target)) < 3.0
+    end = f.trace.iloc[-1]
+    off = end[["x", "y", "z"]].to_numpy(dtype=float) - np.array(delivery.route.segments[-1].target)
+    assert np.abs(off[[0, 2]]).max() < 1.0 and 0.0 < off[1] < 5.0, off
+    assert np.linalg.norm(end[["vx", "vy", "vz"]].to_numpy(dtype=float)) < 0.5
 
-    weak = delivery.override({"controller.smc.epsilon_attitude": [1.432, 1.432, 1.1]})
+    # On the paper's body (Euler-angle rates as body rates: the SMC's own model of the
+    # vehicle) the weak gains lose the attitude to the hook's moment. The rigid body flies
+    # this seed to the end with them (measured, not explained here: docs/model.md "The SMC on
+    # a route" is the paper body's argument), so the condition is shown on the former.
+    paper_body = {"vehicle.body": "paper", "vehicle.drag_coefficients": None,
+                  "actuator.rotor_drag": None, "actuator.translational_lift": None,
+                  "actuator.flapping": None}  # fmt: skip
+    weak = delivery.override({**paper_body, "controller.smc.epsilon_attitude": [1.432, 1.432, 1.1]})
     lost = quadrs.simulate(weak, "smc", seed=1)
     assert lost.status == "tilt"
     assert hook_angular_acceleration(lost, weak).max() > 1.432

@@ -66,7 +66,7 @@ def hundred_metres_north() -> dict[str, Any]:
         item(22, alt=30.0),
         item(16, lat, lon, 30.0),
         item(16, lat + north(100.0), lon, 30.0, hold=4.0),
-        item(211, frame=2),  # DO_GRIPPER: releases the parcel, does not move
+        item(203, frame=2),  # DO_DIGICAM_CONTROL: does not move (not flown, named in a warning)
         item(21, lat + north(100.0), lon),
     ])  # fmt: skip
 

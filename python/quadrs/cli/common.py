@@ -17,6 +17,7 @@ __all__ = [
     "EXIT_USAGE",
     "BadInput",
     "dask_client",
+    "scheduler_option",
     "seed_and_workers",
 ]
 
@@ -49,6 +50,16 @@ def dask_client(address: str | None) -> Iterator[Any]:
         yield client
 
 
+def scheduler_option(p: argparse.ArgumentParser) -> None:
+    """``--scheduler ADDRESS``: the command's flights as tasks on a Dask cluster."""
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="fly on a Dask cluster, e.g. tcp://10.0.0.5:8786, with the same result as here "
+        "(needs pip install quadrs[dask])",
+    )
+
+
 def seed_and_workers(p: argparse.ArgumentParser) -> None:
     """The options every batch command takes: ``--seed`` and ``--workers``."""
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
@@ -66,17 +77,14 @@ def limit_option(text: str) -> tuple[str, float]:
     ``quadrs mc``, ``sweep``, ``report`` and ``mission`` alike; X in the unit the tables show
     (degrees for swing; for an acceleration m/s², or g with a ``g`` suffix: ``2g``), returned
     in the results' unit (radians, m/s²)."""
-    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
+    from quadrs.present.labels import metric_value
     from quadrs.stats.risk import parse_limit
 
     if "=" not in text:
         text = f"max_accel={text}"
     name, _, raw = text.partition("=")
-    scale, raw = 1.0, raw.strip()
-    if in_g(name.strip()) and raw[-1:] in ("g", "G"):  # 2g: in standard gravities
-        scale, raw = STANDARD_GRAVITY, raw[:-1].strip()
     try:
-        metric, value = parse_limit(f"{name}={raw}")
+        metric, _ = parse_limit(f"{name}=0")  # the metric's name checked
+        return metric, metric_value(metric, raw.strip() or "?")
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
-    return metric, scale * value / display_scale(metric)

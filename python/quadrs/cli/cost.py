@@ -101,6 +101,11 @@ def duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
+#: How much longer a job may take than its calibration says when the machine gets busier
+#: while it runs (measured: tune announced 36 s took 70 s beside other builds on 2 cores).
+LOADED = 2.0
+
+
 def announce(command: str, what: str, flights: int, calibration: Calibration) -> str:
     """One line: ``quadrs tune: 336 candidates of 200 flights (67,200 flights): about 5.4 h
     (0.29 s a flight on 2 threads, from 8 calibration flights)``."""
@@ -108,8 +113,9 @@ def announce(command: str, what: str, flights: int, calibration: Calibration) ->
     return (
         f"quadrs {command}: {what} ({flights:,} flights): about {duration(total)} "
         f"({calibration.per_flight:.2g} s a flight on {calibration.workers} thread"
-        f"{'s' * (calibration.workers != 1)}, from {calibration.flights} calibration flights); "
-        "Ctrl-C keeps what finished"
+        f"{'s' * (calibration.workers != 1)}, from {calibration.flights} calibration flights; "
+        f"up to {duration(LOADED * total)} if the machine gets busier, the progress bar's rate "
+        "updates it); Ctrl-C keeps what finished"
     )
 
 

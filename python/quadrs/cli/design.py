@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
+from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, dask_client, scheduler_option
 from quadrs.design.optimize import METHODS
 from quadrs.engine.calls import CONTROLLERS, PAPER_CONTROLLERS
 from quadrs.present.terminal import terminal_text
@@ -49,6 +49,7 @@ def _constraint(text: str) -> Any:
 
 def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
     from quadrs import _core
+    from quadrs.present.labels import INPUT_UNITS
 
     p = sub.add_parser(
         "tune",
@@ -95,7 +96,8 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         help="a constraint every chosen candidate must meet, repeatable: METRIC<=X (the mean "
         "over the runs), P(METRIC>T)<=P (the fraction of runs above T), "
         "quantile(METRIC,Q)<=X; >= too; METRIC@PHASE for one phase, else each --phase; "
-        "e.g. 'tracking_rms<=0.5' 'P(max_accel>8)<=0.01' (see docs/design-loop.md)",
+        "e.g. 'tracking_rms<=0.5' 'P(max_accel>8)<=0.01' 'max_swing@transit<=30'; X and T "
+        f"{INPUT_UNITS} (see docs/design-loop.md)",
     )
     p.add_argument("--runs", type=int, default=64, metavar="N", help="realisations (default: 64)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
@@ -126,6 +128,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         help="fly candidates that are unstable at hover instead of rejecting them",
     )
     p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    scheduler_option(p)
     p.add_argument(
         "--out", type=Path, required=True, metavar="FILE.toml", help="tuned scenario file"
     )
@@ -238,10 +241,11 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     middle = {k: (lo + hi) / 2 for k, (lo, hi) in params.items()}
     _tuned_toml(args, args.out, list(expand(middle)), scenario.override(expand(middle)))
     progress = sys.stderr.isatty()
-    _announce_tune(args, scenario, len(params))
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce_tune(args, scenario, len(params))
     history = args.history if args.history is not None else _default_history(args.out)
     flown: list[dict[str, Any]] = []
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), dask_client(args.scheduler) as client:
         warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
         try:
             result = optimize(
@@ -260,6 +264,7 @@ def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                 popsize=args.popsize,
                 constraints=args.constraint,
                 callback=flown.append,
+                client=client,
             )
         except KeyboardInterrupt:
             print("quadrs tune: interrupted during the first candidate: no candidate finished, "

@@ -1,8 +1,9 @@
 """``quadrs``: the command line.
 
 Exit status: 0 on success; 1 if an output could not be written (the results are then saved
-to a recovery file whose path is printed); 2 on bad input, with one line on stderr naming the
-key or file; 130 on Ctrl-C and 143 on SIGTERM, after saving what had finished. Set
+to a recovery file whose path is printed), if ``stability`` found the closed loop unstable, or
+if ``tune`` found no admissible or feasible candidate; 2 on bad input, with one line on
+stderr naming the key or file; 130 on Ctrl-C and 143 on SIGTERM, after saving what had finished. Set
 ``QUADRS_TRACEBACK=1`` to see the full traceback of an error instead of its one-line reason.
 """
 
@@ -25,6 +26,7 @@ from quadrs.cli.common import (
     EXIT_USAGE,
     BadInput,
     dask_client,
+    scheduler_option,
     seed_and_workers,
 )
 from quadrs.present.terminal import terminal_text
@@ -42,7 +44,9 @@ class Parser(argparse.ArgumentParser):
 
 
 # -- options ----------------------------------------------------------------------------------
-def _scenario_options() -> argparse.ArgumentParser:
+def _scenario_options(default_preset: str = "paper") -> argparse.ArgumentParser:
+    """The scenario's options, their help naming the command's own default preset (mission:
+    delivery, every other command: paper)."""
     from quadrs.scenario.scenario import presets
 
     common = argparse.ArgumentParser(add_help=False)
@@ -51,7 +55,7 @@ def _scenario_options() -> argparse.ArgumentParser:
         "--preset",
         default=None,
         choices=presets(),
-        help="start from a shipped preset (default: paper)",
+        help=f"start from a shipped preset (default: {default_preset})",
     )
     g.add_argument(
         "--scenario",
@@ -175,9 +179,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="A quadrotor with a spring-attached or cable-slung payload through "
         "turbulence, wind and gusts: single flights, paired Monte Carlo batches, sweeps, "
         "stability and tuning, mission risk along a route, rare events and the paper's "
-        "figures. Units are SI (m, s, kg, N, rad; frequencies in Hz).",
-        epilog="Exit status: 0 success, 2 bad input (one line on stderr), 130 Ctrl-C (what "
-        "finished is saved).",
+        "figures. Units are SI (m, s, kg, N; angles in scenario keys in rad; frequencies in "
+        "Hz), but degrees for headings (wind.heading), swing (every table and figure, --limit, "
+        "tune --constraint, rare --threshold) and PX4's angles and rates "
+        "([controller.px4], as PX4 states them). Default controller: run and tune fly smc "
+        "(the paper's proposed law, the paper preset's subject), mission and rare pd (the law "
+        "the delivery preset is tuned for and its documented answers use), mc, stability and "
+        "linearize both (paired); --controller picks another.",
+        epilog="Exit status: 0 success; 1 an output could not be written (the results go to a "
+        "recovery file), stability found an unstable closed loop, or tune found no admissible "
+        "or feasible candidate; 2 bad input (one line on stderr); 130 Ctrl-C, 143 SIGTERM "
+        "(what finished is saved).",
     )
     from quadrs._core import __version__
 
@@ -198,9 +210,9 @@ def build_parser() -> argparse.ArgumentParser:
     from quadrs.cli.rare import add_rare
 
     add_rare(sub, common)
-    from quadrs.cli.mission import add_mission
+    from quadrs.cli.mission import DEFAULT_PRESET, add_mission
 
-    add_mission(sub, common)
+    add_mission(sub, _scenario_options(DEFAULT_PRESET))
     return parser
 
 
@@ -392,18 +404,24 @@ def _print_limits(result: Any, args: argparse.Namespace) -> None:
         "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; a diverged run counts as "
         "exceeding from the phase it diverged in:"
     )
-    table = limits_table(result, args.limit, args.half_width / 100)
-    if "threshold" in table:  # in the unit the tables show (degrees for swing)
-        from quadrs.present.labels import UNITS, display_scale
-
-        scale = [display_scale(str(m)) for m in table.index]
-        table["threshold"] = table["threshold"].to_numpy(float) * scale
-        table.insert(list(table.columns).index("threshold") + 1, "unit",
-                     [UNITS.get(str(m), "") for m in table.index])  # fmt: skip
-    _print_frame(table)
+    _print_frame(_thresholds_shown(limits_table(result, args.limit, args.half_width / 100)))
     if {"pd", "smc"} <= set(result.controllers):
         print("\nSMC - PD, paired on the same gusts (Newcombe interval, exact McNemar p):")
-        _print_frame(limits_difference_table(result, args.limit))
+        _print_frame(_thresholds_shown(limits_difference_table(result, args.limit)))
+
+
+def _thresholds_shown(table: Any) -> Any:
+    """A limits table's ``threshold`` column in the unit the tables show (degrees for swing),
+    with that unit beside it: every table of limits the same way."""
+    from quadrs.present.labels import shown_unit, shown_value
+
+    if "threshold" in table:
+        metrics = [str(m) for m in table.index]
+        table["threshold"] = [shown_value(m, float(v)) for m, v in zip(metrics, table["threshold"],
+                                                                         strict=True)]  # fmt: skip
+        table.insert(list(table.columns).index("threshold") + 1, "unit",
+                     [shown_unit(m) for m in metrics])  # fmt: skip
+    return table
 
 
 def _add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
@@ -519,6 +537,7 @@ def _add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
         action="store_true",
         help="fly one gust for every row instead of treating the realisation as a factor",
     )
+    scheduler_option(p)
     p.add_argument("--out", type=Path, metavar="FILE.parquet", help="write every index here")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write index bar charts here")
     p.add_argument(
@@ -723,24 +742,30 @@ def cmd_mc(args: argparse.Namespace) -> int:
     _check_directories(args.plots)
     if args.scheduler is None:  # a cluster's speed is not this machine's
         _announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
-    with dask_client(args.scheduler) as client:
-        mc = monte_carlo(
-            scenario,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controllers,
-            workers=args.workers,
-            progress=_progress(args),
-            out=args.checkpoint,
-            resume=args.resume,
-            chunk=args.chunk,
-            client=client,
-            sampling=args.sampling,
-            fused=args.fused,
-        )
-    saved = True
-    if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-        saved = _save(mc.to_parquet, args.out)
+    from quadrs.engine.calls import deferred_signals
+
+    with contextlib.ExitStack() as keeping:
+        with dask_client(args.scheduler) as client:
+            mc = monte_carlo(
+                scenario,
+                runs=args.runs,
+                seed=args.seed,
+                controllers=args.controllers,
+                workers=args.workers,
+                progress=_progress(args),
+                out=args.checkpoint,
+                resume=args.resume,
+                chunk=args.chunk,
+                client=client,
+                sampling=args.sampling,
+                fused=args.fused,
+            )
+            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
+            # it) waits until what finished is saved, then ends the command (status 130).
+            keeping.enter_context(deferred_signals())
+        saved = True
+        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+            saved = _save(mc.to_parquet, args.out)
     if not mc.runs.empty:
         _print_dispersions(mc)
         if _is_mission(mc):
@@ -922,14 +947,30 @@ def _is_mission(mc: Any) -> bool:
 
 
 def _print_mission(mc: Any, args: argparse.Namespace) -> None:
-    """The mission's tables of each controller, at the first --limit (default max_accel at
-    1 g)."""
-    from quadrs.cli.mission import DEFAULT_LIMIT
+    """The mission's tables of each controller, at the first --limit; without one, the question
+    the mission was asked when it was saved (``MonteCarloResult.question``), else the
+    mission's default (max_specific_force at 2 g)."""
+    from quadrs.cli.mission import DEFAULT_LIMIT, DEFAULT_METRIC
     from quadrs.design.mission import mission_report
 
-    metric, limit = args.limit[0] if args.limit else ("max_accel", DEFAULT_LIMIT)
+    asked = dict(getattr(mc, "question", None) or {})
+    if args.limit:
+        asked["metric"], asked["limit"] = args.limit[0]
+    metric = asked.get("metric", DEFAULT_METRIC)
+    limit = asked.get("limit", DEFAULT_LIMIT)
+    extra = {k: asked[k] for k in ("track_limit", "cross_track_limit", "quantile")
+             if asked.get(k) is not None}  # fmt: skip
+    if asked and not args.limit:
+        print(f"(the question this mission was saved with: P({metric} > "
+              f"{_shown_limit(metric, limit)}))")  # fmt: skip
     for ctrl in mc.controllers:
-        print(mission_report(mc, limit, ctrl, metric=metric).to_text(width=100))
+        print(mission_report(mc, limit, ctrl, metric=metric, **extra).to_text(width=100))
+
+
+def _shown_limit(metric: str, limit: float) -> str:
+    from quadrs.present.labels import shown_unit, shown_value
+
+    return f"{shown_value(metric, limit):g} {shown_unit(metric)}".rstrip()
 
 
 def cmd_sensitivity(args: argparse.Namespace) -> int:
@@ -949,15 +990,17 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
     if args.phase is not None and args.phase not in scenario.phase_names:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
     _check_outputs(args.out)
-    sa = sensitivity(
-        scenario,
-        runs=args.runs,
-        seed=args.seed,
-        controllers=args.controllers,
-        workers=args.workers,
-        progress=_progress(args),
-        gust=not args.no_gust_factor,
-    )
+    with dask_client(args.scheduler) as client:
+        sa = sensitivity(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controllers,
+            workers=args.workers,
+            progress=_progress(args),
+            gust=not args.no_gust_factor,
+            client=client,
+        )
     status = EXIT_OK
     if args.out is not None and not _save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
         status = EXIT_FAIL
@@ -1075,7 +1118,29 @@ def cmd_scenario(args: argparse.Namespace) -> int:
                 print(f"{line:<{width}}  # {unit(key)}")
             except KeyError:  # a key the units table does not know (the engine refuses those)
                 print(line)
+        _print_unset_keys(scenario)
     return EXIT_OK
+
+
+def _print_unset_keys(scenario: Any) -> None:
+    """The keys this scenario does not set (optional tables such as ``wind.table``,
+    ``actuator.faults``, other kinds' parameters), with their units and labels: every key the
+    scenario may take, from the one table of them (``quadrs.scenario.units``)."""
+    import re
+
+    from quadrs.scenario.units import LABELS, UNITS
+
+    index = re.compile(r"\[\d+\]")
+    present = {index.sub("", k) for k in scenario.keys()}
+    unset = [k for k in sorted(UNITS) if k not in present
+             and not any(k.startswith(f"{p}.") for p in present)]  # fmt: skip
+    if not unset:
+        return
+    print("\n# Not set here (optional tables and other kinds' keys; --set or a file may give "
+          "them):")  # fmt: skip
+    width = min(max(len(k) for k in unset), 48)
+    for key in unset:
+        print(f"# {key:<{width}}  {UNITS[key]:<8} {LABELS.get(key, '')}".rstrip())
 
 
 COMMANDS = {

@@ -16,11 +16,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, seed_and_workers
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    dask_client,
+    scheduler_option,
+    seed_and_workers,
+)
 from quadrs.engine.calls import CONTROLLERS
 
-#: Default payload acceleration limit: 1 g (m/s^2).
-DEFAULT_LIMIT = 9.81
+#: The parcel's default question: its peak specific force (what an accelerometer in the box
+#: reads, packaging fragility's g: 1 g at rest) past 2 g (m/s^2, standard g), the 1 g of
+#: kinematic acceleration this limit was before added to gravity's when vertical.
+DEFAULT_METRIC = "max_specific_force"
+DEFAULT_LIMIT = 2.0 * 9.80665
 #: Default route tracking limit, m (quadrs.design.mission.TRACK_LIMIT).
 TRACK_LIMIT = 10.0
 #: The scenario mission flies without --preset or --scenario.
@@ -94,11 +104,13 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--limit",
         type=mission_limit,
-        default=("max_accel", DEFAULT_LIMIT),
-        metavar="A",
-        help="payload acceleration limit, m/s^2, as A or max_accel=A; or METRIC=X for another "
-        "metric (degrees for swing; an acceleration also in g: max_specific_force=2g) "
-        f"(default: {DEFAULT_LIMIT}, 1 g)",
+        default=(DEFAULT_METRIC, DEFAULT_LIMIT),
+        metavar="METRIC=X",
+        help="the parcel's question, P(METRIC > X): any metric, X in the unit the tables show "
+        "(degrees for swing; an acceleration in m/s^2 or g: max_specific_force=2g); a bare X "
+        "is max_accel=X, the kinematic acceleration (0 at rest) "
+        f"(default: {DEFAULT_METRIC}=2g, the specific force an accelerometer in the box "
+        "reads, 1 g at rest)",
     )
     p.add_argument(
         "--track-limit",
@@ -114,6 +126,13 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         default=None,
         metavar="M",
         help="likewise for the cross-track error, m (default: the --track-limit)",
+    )
+    p.add_argument(
+        "--touchdown-limit",
+        type=_positive,
+        default=1.0,
+        metavar="V",
+        help="a route that lowers its parcel leads with P(touchdown faster than V m/s) (default 1)",
     )
     p.add_argument(
         "--quantile",
@@ -138,7 +157,16 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         "home: x east, y north, z above home) or of a .csv of points (x,y,z or lat,lon,alt; "
         "optional hold), at the file's speed; docs/delivery.md",
     )
+    p.add_argument(
+        "--px4-params",
+        type=Path,
+        metavar="FILE",
+        help="the airframe's PX4 parameters for the px4 law, from a QGroundControl .params file "
+        "or a PX4 .ulg log: those [controller.px4] knows are read (PX4's names and units), "
+        'the others listed and ignored (docs/delivery.md, "PX4 files")',
+    )
     seed_and_workers(p)
+    scheduler_option(p)
     p.add_argument(
         "--out",
         type=Path,
@@ -181,6 +209,12 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     if args.preset is None and args.scenario is None:
         args.preset = DEFAULT_PRESET  # a mission is a route: the delivery preset's
     scenario = load_scenario(args)
+    if args.px4_params is not None:
+        from quadrs.scenario.px4_files import read_px4_parameters
+
+        read = read_px4_parameters(args.px4_params)
+        scenario = scenario.override({f"controller.px4.{k}": v for k, v in read.known.items()})
+        print(f"quadrs mission: --px4-params {read.note()}", file=sys.stderr)
     if args.out is not None and args.out.suffix.lower() != ".parquet":
         raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
     for name in ("runs", "workers"):
@@ -190,23 +224,33 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     check_int("--seed", args.seed)
     check_outputs(args.out)
     check_directories(args.plots)
-    _announce(scenario, args)
-    mc = monte_carlo(
-        scenario,
-        runs=args.runs,
-        seed=args.seed,
-        controllers=args.controller,
-        workers=args.workers,
-        progress=not args.no_progress and sys.stderr.isatty(),
-        spectra=False,
-    )
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        _announce(scenario, args)
+    with dask_client(args.scheduler) as client:
+        mc = monte_carlo(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controller,
+            workers=args.workers,
+            progress=not args.no_progress and sys.stderr.isatty(),
+            spectra=False,
+            client=client,
+        )
+    metric, limit = args.limit
+    mc.question = {  # saved with the runs: quadrs report asks it again
+        "metric": metric,
+        "limit": limit,
+        "track_limit": args.track_limit,
+        "cross_track_limit": args.cross_track_limit,
+        "quantile": args.quantile,
+    }
     saved = True
     if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
         saved = save(mc.to_parquet, args.out)
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
-    metric, limit = args.limit
     if len(args.controller) > 1:
         from quadrs.design.mission_compare import compare_laws
 
@@ -218,7 +262,8 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     else:
         reports = [mission_report(mc, limit, args.controller[0], args.quantile, metric=metric,
                                   track_limit=args.track_limit,
-                                  cross_track_limit=args.cross_track_limit)]  # fmt: skip
+                                  cross_track_limit=args.cross_track_limit,
+                                  touchdown_limit=args.touchdown_limit)]  # fmt: skip
         text = reports[0].to_text(width=100)
     if mc.interrupted:
         print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
@@ -233,11 +278,24 @@ def _announce(scenario: Any, args: argparse.Namespace) -> None:
     from quadrs.cli.cost import announce, calibrate, precheck, say
 
     precheck(scenario, args.controller, args.runs, args.workers, args.seed)
+    _say_clashes(scenario, args.controller)
     cal = calibrate(scenario, args.controller, args.workers, args.seed,
                     flights=min(args.runs, 8))  # fmt: skip
     duration = float(scenario["integrator.duration"])
     what = f"{args.runs} realisations of a {duration:g} s flight"
     say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))
+
+
+def _say_clashes(scenario: Any, controllers: tuple[str, ...]) -> None:
+    """Before flying, on stderr: each leg whose reference asks as much as or more than a limit
+    of the law (quadrs.design.route_limits): the flights will fall behind it there."""
+    from quadrs.design.route_limits import route_clashes
+    from quadrs.present.terminal import terminal_text
+
+    for law in controllers:
+        for clash in route_clashes(scenario, law):
+            print(terminal_text(f"quadrs mission: {law}: {clash} (the reference will be flown "
+                                "slower, off its schedule)"), file=sys.stderr)  # fmt: skip
 
 
 def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:

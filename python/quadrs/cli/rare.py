@@ -23,14 +23,20 @@ LoadScenario = Callable[[argparse.Namespace], Any]
 OPTION_WORDS = (("per_level", "--per-level"), ("max_levels", "--max-levels"), ("p0", "--p0"))
 
 
-def _threshold(text: str) -> float:
+def _threshold(text: str) -> str:
+    """``--threshold X`` as typed: read in the metric's unit once ``--metric`` is known
+    (``_threshold_value``)."""
+    return text
+
+
+def _threshold_value(metric: str, text: str) -> float:
+    """``--threshold``'s text -> the results' unit (SI), read as ``--limit`` reads its value."""
+    from quadrs.present.labels import metric_value
+
     try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"--threshold {text!r}: expected a finite number")
-    return value
+        return metric_value(metric, text)
+    except ValueError as e:
+        raise ValueError(f"--threshold {text!r}: {str(e).split(': ', 1)[-1]}") from None
 
 
 def _controllers(text: str) -> tuple[str, ...]:
@@ -55,6 +61,7 @@ def paired_paths(out: Path, controllers: tuple[str, ...]) -> dict[str, Path]:
 
 def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
     from quadrs import _core
+    from quadrs.present.labels import INPUT_UNITS
 
     p = sub.add_parser(
         "rare",
@@ -79,7 +86,7 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         required=True,
         type=_threshold,
         metavar="X",
-        help="estimate P(metric > X), X in the metric's SI unit",
+        help=f"estimate P(metric > X), X {INPUT_UNITS}",
     )
     p.add_argument(
         "--controller",
@@ -142,6 +149,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     finished levels are reported and saved)."""
     from quadrs.cli.common import dask_client
     from quadrs.cli.outputs import check_outputs, save
+    from quadrs.present.labels import shown_unit, shown_value
     from quadrs.rare import rare_event
     from quadrs.rare.result import RareEventComparison, RareEventResult
     from quadrs.rare.subset import Level, check_settings
@@ -158,6 +166,9 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         check_settings(args.per_level, args.p0, args.max_levels)
     except ValueError as e:
         raise ValueError(_option_words(str(e))) from None
+    args.threshold = _threshold_value(args.metric, args.threshold)
+    shown = f"{shown_value(args.metric, args.threshold):g} {shown_unit(args.metric)}"
+    shown_threshold = shown.rstrip()
     scenario = load_scenario(args)
     if args.phase not in scenario.phase_names:
         raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
@@ -181,7 +192,8 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
         flying[0] += level.level == 0
         who = f" ({controllers[flying[0]]})" if len(controllers) > 1 else ""
         if show:
-            print(f"quadrs rare{who}: level {level.level} done: cut {level.threshold:.4g}, "
+            print(f"quadrs rare{who}: level {level.level} done: cut "
+                  f"{shown_value(args.metric, level.threshold):.4g} {shown_unit(args.metric)}, "
                   f"conditional p {level.conditional_p:.3g}, acceptance "
                   f"{level.acceptance_rate:.2f}, {level.flights} flights; levels {eta.step()}"
                   f"{per_level}",
@@ -218,7 +230,7 @@ def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     for name, result in results.items():
         if result.interrupted:
             continue
-        print(f"P({value_name} > {args.threshold:g}), {name}, seed {args.seed}, "
+        print(f"P({value_name} > {shown_threshold}), {name}, seed {args.seed}, "
               f"{_inputs(result)} a flight")  # fmt: skip
         for label, text in summary_rows(result):
             print(f"  {label:<34} {text}")

@@ -20,6 +20,12 @@ Text form (the command line's, also accepted by :func:`quadrs.optimize`)::
     P(max_accel@leg2>8)<=0.01
     quantile(max_accel,0.99)<=8
 
+The text form's values of a metric (X and T) are in the unit the tables show, as ``--limit``
+reads them (:data:`quadrs.present.labels.INPUT_UNITS`: degrees for swing, ``max_swing@transit
+<=30`` is 30 degrees; an acceleration may be given in g, ``P(max_specific_force>1.5g)<=0.01``);
+a :class:`Constraint` holds them in the results' unit (SI, radians), and so does the mapping
+form. The text form is printed back in the shown unit.
+
 Python mapping form: ``{"tracking_rms": ("<=", 0.5), ("max_accel", "exceedance", 8.0): ("<=",
 0.01), ("max_accel", "quantile", 0.99): ("<=", 8.0)}``; a metric written ``metric@phase``
 restricts the constraint to that phase. Without a phase a constraint holds in every phase of
@@ -47,14 +53,16 @@ OPERATORS = ("<=", ">=", "<", ">")
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _METRIC = r"([A-Za-z_][A-Za-z0-9_]*)(?:@([^()<>=,\s]+))?"
 _OP = r"(<=|>=|<|>)"
+#: A metric's value as typed: a number, and optionally its unit (30deg, 0.5rad, 1.5g).
+_VALUE = rf"({_NUMBER}\s*(?:deg|rad|g|G)?)"
 _FORMS = (
-    ("exceedance", re.compile(rf"^P\(\s*{_METRIC}\s*>\s*({_NUMBER})\s*\)\s*{_OP}\s*({_NUMBER})$")),
+    ("exceedance", re.compile(rf"^P\(\s*{_METRIC}\s*>\s*{_VALUE}\s*\)\s*{_OP}\s*({_NUMBER})$")),
     (
         "quantile",
-        re.compile(rf"^quantile\(\s*{_METRIC}\s*,\s*({_NUMBER})\s*\)\s*{_OP}\s*({_NUMBER})$"),
+        re.compile(rf"^quantile\(\s*{_METRIC}\s*,\s*({_NUMBER})\s*\)\s*{_OP}\s*{_VALUE}$"),
     ),
-    ("mean", re.compile(rf"^mean\(\s*{_METRIC}\s*\)\s*{_OP}\s*({_NUMBER})$")),
-    ("mean", re.compile(rf"^{_METRIC}\s*{_OP}\s*({_NUMBER})$")),
+    ("mean", re.compile(rf"^mean\(\s*{_METRIC}\s*\)\s*{_OP}\s*{_VALUE}$")),
+    ("mean", re.compile(rf"^{_METRIC}\s*{_OP}\s*{_VALUE}$")),
 )
 
 
@@ -105,14 +113,23 @@ class Constraint:
         """The statistic as text, e.g. ``P(max_accel@P2>8)``: the history's value column."""
         target = self.metric if self.phase is None else f"{self.metric}@{self.phase}"
         if self.statistic == "exceedance":
-            return f"P({target}>{_fmt(float(self.level))})"  # type: ignore[arg-type]
+            return f"P({target}>{self._shown(float(self.level))})"  # type: ignore[arg-type]
         if self.statistic == "quantile":
             return f"quantile({target},{_fmt(float(self.level))})"  # type: ignore[arg-type]
         return target
 
     def __str__(self) -> str:
-        """The text form, e.g. ``P(max_accel>8)<=0.01``: the history's satisfied column."""
-        return f"{self.label}{self.op}{_fmt(self.bound)}"
+        """The text form, e.g. ``P(max_accel>8)<=0.01``: the history's satisfied column; a
+        metric's values in the unit the tables show (``max_swing<=30deg``)."""
+        bound = _fmt(self.bound) if self.statistic == "exceedance" else self._shown(self.bound)
+        return f"{self.label}{self.op}{bound}"
+
+    def _shown(self, value: float) -> str:
+        """A value of the metric as the text form gives it, with its unit if it is an angle."""
+        from quadrs.present.labels import DEGREE_METRICS, shown_value
+
+        text = _fmt(shown_value(self.metric, value))
+        return f"{text}deg" if self.metric in DEGREE_METRICS else text
 
     def satisfied(self, value: float) -> bool:
         """Does ``value`` meet the bound? NaN never does."""
@@ -209,14 +226,20 @@ def parse_constraint(text: str) -> Constraint:
         m = pattern.match(flat)
         if m is None:
             continue
+        from quadrs.present.labels import metric_value
+
         groups = m.groups()
         metric, phase = groups[0], groups[1]
-        if statistic == "mean":
-            level, op, bound = None, groups[2], groups[3]
-        else:
-            level, op, bound = float(groups[2]), groups[3], groups[4]
         try:
-            return Constraint(metric, op, float(bound), statistic, level, phase)
+            if metric not in _core.METRIC_NAMES:
+                Constraint(metric, "<=", 0.0)  # the message naming the metrics
+            if statistic == "mean":
+                level, op, bound = None, groups[2], metric_value(metric, groups[3])
+            elif statistic == "exceedance":
+                level, op, bound = metric_value(metric, groups[2]), groups[3], float(groups[4])
+            else:
+                level, op, bound = float(groups[2]), groups[3], metric_value(metric, groups[4])
+            return Constraint(metric, op, bound, statistic, level, phase)
         except ValueError as e:
             raise ValueError(f"{text!r}: {str(e).split(': ', 1)[-1]}") from None
     raise ValueError(

@@ -17,14 +17,21 @@ it covers the flight only where the phases do).
 The answer leads with whether the route was flown at all (:attr:`MissionReport.route`): a
 flight is off its route in a phase if its tracking error (``max_tracking``, the 3-D distance
 from the reference) or its cross-track error (``max_cross_track``) passed the user's limit, or
-if it diverged; the time at the thrust limit (``saturated_time``) is shown beside it. The
-engine measures no time near the controller's tilt limit: only a flight past
-``divergence.max_tilt`` is counted (as diverged, status "tilt").
+if it diverged; the time at the thrust limit (``saturated_time``) and near the law's tilt
+limit (``near_tilt_time``: above 90 % of ``controller.tilt_limit``) are shown beside it.
+
+A route that lowers its parcel (``trajectory.lower``) leads with the last metres
+(:attr:`MissionReport.last_metres`): the probability that the parcel touches down faster than
+``touchdown_limit`` (m/s), over the flights that touched down, with its interval; per phase in
+which a parcel touched down or was lowered, the touchdown's speed, drift and miss, the release
+and the vehicle's height change after it, and the swing while lowering.
 
 Each per-phase interval is a 95 % interval on its own, not a joint one: the "any phase" line
 (:attr:`MissionReport.joint`) is the fraction of flights that exceeded in at least one phase,
 with its own interval. A count that is zero in every flight is shown as "0 of N flights,
-P <= x %" with the one-sided Clopper-Pearson bound, not as an interval "0 [0, 0]".
+P <= x %", x the upper end of the same two-sided 95 % Clopper-Pearson interval every other
+count, figure and ``ci_high`` gives (docs/risk.md, "One interval convention"), not as an
+interval "0 [0, 0]".
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from quadrs.design.route_limits import LimitClash, route_clashes
 from quadrs.present.terminal import terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceedance_stats, quantile_interval
@@ -60,7 +68,9 @@ LOWS = ("min_tension",)
 #: Time spent in a bad state (s): the mean with its interval and the worst.
 DURATIONS = ("slack_time", "saturated_time")
 #: Shown in degrees: angles in the results are radians.
-DEGREES = ("max_swing", "rms_swing")
+DEGREES = ("max_swing", "rms_swing", "lowering_swing")
+#: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
+TOUCHDOWN_LIMIT = 1.0
 
 
 def _tracking_metrics(columns: Sequence[str]) -> list[str]:
@@ -92,8 +102,9 @@ class MissionReport:
     tracking: pd.DataFrame
     #: Was the route flown? Per phase: ``n``, ``diverged``, ``off_route`` (tracking or
     #: cross-track past its limit, or diverged), ``probability``/``ci_low``/``ci_high`` (exact,
-    #: two-sided) and ``p_max`` (one-sided upper bound), the worst ``max_tracking`` and
-    #: ``max_cross_track`` and the ``saturated_time`` mean and worst where the results have them.
+    #: two-sided) and ``p_max`` (its upper end, ``ci_high``: "P <= p_max" when none), the
+    #: worst ``max_tracking`` and ``max_cross_track`` and the ``saturated_time`` mean and
+    #: worst where the results have them.
     route: pd.DataFrame | None = None
     #: The joint rows (index ``acceleration`` and ``route``): the fraction of flights that
     #: exceeded (or left the route) in any of the scenario's phases, with its interval.
@@ -106,6 +117,41 @@ class MissionReport:
     routed: bool = True
     #: The parcel metric ``limit`` applies to (the ``acceleration`` table's).
     metric: str = "max_accel"
+    #: The last metres, per phase with a touchdown or a lowering and the whole flight (None
+    #: without them): ``n`` (flights), ``touchdowns``, ``diverged``, ``exceedances``,
+    #: ``judged`` (touchdowns and diverged flights), ``probability``/``ci_low``/``ci_high`` of
+    #: touchdown_speed > ``touchdown_limit`` among them (a diverged flight exceeds),
+    #: ``speed_q``/``_q_low``/``_q_high`` (its ``quantile``), ``speed_worst``, ``drift_worst``,
+    #: ``miss_worst``, ``miss_q``, ``released``, ``height_change_worst`` and
+    #: ``lowering_swing_worst`` (rad).
+    last_metres: pd.DataFrame | None = None
+    touchdown_limit: float = TOUCHDOWN_LIMIT
+
+    #: The legs whose reference asks as much as or more than a limit of the law (a velocity
+    #: limit, the tilt limit, the rotors' thrust), known before flying
+    #: (:func:`quadrs.design.route_limits.route_clashes`): why a route may not be flown.
+    clashes: tuple[LimitClash, ...] = ()
+
+    def last_metres_line(self) -> str:
+        """The lead line: how often the parcel touches down faster than the limit."""
+        t = self.last_metres
+        if t is None:
+            return ""
+        r = t.loc[self.whole]
+        n, k, touched = int(r["n"]), int(r["exceedances"]), int(r["judged"])
+        level = f"{self.confidence:.0%}"
+        if touched == 0:
+            return (f"Last metres: no parcel touched down in {n} flights "
+                    f"(touchdown_limit {self.touchdown_limit:g} m/s not judged)")  # fmt: skip
+        if k == 0:
+            said = f"0 of {touched}, p <= {_g(none_seen_bound(touched, self.confidence))}"
+        else:
+            said = (f"p = {_g(r['probability'])} [{_g(r['ci_low'])}, {_g(r['ci_high'])}] "
+                    f"({level} interval), {k} of {touched}")  # fmt: skip
+        missed = n - touched
+        rest = f"; {missed} of {n} flights never touched down" if missed else ""
+        return (f"Last metres: touchdown faster than {self.touchdown_limit:g} m/s: {said} "
+                f"touchdowns{rest}")  # fmt: skip
 
     @property
     def route_flown(self) -> bool:
@@ -133,6 +179,10 @@ class MissionReport:
         if int(r["diverged"]):
             causes = ", ".join(f"{s} {c}" for s, c in self.statuses)
             why.append(f"{int(r['diverged'])} diverged" + (f" ({causes})" if causes else ""))
+        if self.clashes:
+            law = self.controller.upper()
+            why.append(f"the route asks more than the {law} law allows: "
+                       + "; ".join(str(c) for c in self.clashes))  # fmt: skip
         return (f"Route{kind}: NOT FLOWN in {k} of {n} flights, P(off route) = "
                 f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %: "
                 + "; ".join(why))  # fmt: skip
@@ -142,7 +192,8 @@ class MissionReport:
         p = self.acceleration.loc[self.whole]
         return (
             f"<MissionReport {self.controller.upper()}, {self.runs} realisations: "
-            f"P({self.metric} > {self.limit:g}) over {self.whole} {100 * p['probability']:.3g} % "
+            f"P({self.metric} > {_shown_limit(self)}) over {self.whole} "
+            f"{100 * p['probability']:.3g} % "
             f"[{100 * p['ci_low']:.3g}, {100 * p['ci_high']:.3g}]>"
         )
 
@@ -154,6 +205,8 @@ class MissionReport:
 
         qp = f"q{100 * self.quantile:g}"
         tables = [] if self.route is None else [(self.verdict(), _route_text(self.route))]
+        if self.last_metres is not None:
+            tables.insert(0, (self.last_metres_line(), _last_metres_text(self.last_metres, qp)))
         tables.append((f"parcel {_shown_name(self.metric)}, P(> {_shown_limit(self)}) in %",
                        _acceleration_text(self.acceleration, qp, self.metric)))  # fmt: skip
         if len(self.payload.columns):
@@ -179,14 +232,22 @@ class MissionReport:
 
         limits = _limits_text(self.track_limit, self.cross_track_limit)
         parts = [fill(self.verdict()), ""]
+        if self.last_metres is not None:
+            parts = [
+                fill(self.last_metres_line()),
+                fill("Touchdown speed (m/s) and its " + qp + ", drift (m/s), miss from the "
+                     "drop point (m), flights released, the vehicle's height change after "
+                     "the release (m) and the line's swing while lowering (deg), per phase"),
+                _fit(_last_metres_text(self.last_metres, qp), width),
+                "",
+                *parts,
+            ]  # fmt: skip
         if self.route is not None:
             parts += [
                 fill(f"Route: off route = tracking or cross-track error past {limits}, or "
-                     "diverged; P in %; time at the thrust limit in s"),
+                     "diverged; P in %; time at the thrust limit and near the tilt limit in s"),
                 _fit(_route_text(self.route), width),
                 fill(_joint_line(self.joint, "route", "left the route")),
-                fill("Time near the tilt limit: not measured by this engine (a flight past "
-                     "divergence.max_tilt counts as diverged, status tilt)."),
                 "",
             ]  # fmt: skip
         parts += [
@@ -214,7 +275,8 @@ class MissionReport:
             fill(
                 f"Each row's interval is {level} for that phase alone, not joint over the phases; "
                 f"the '{ANY_PHASE}' lines count a flight once if it exceeded in any phase. "
-                f"'0 of N flights, P <= x %': none in N, x the one-sided {level} bound."
+                f"'0 of N flights, P <= x %': none in N, x the upper end of the two-sided "
+                f"{level} interval (as every interval here)."
             ),
         ]
         if self.whole == ALL_PHASES:
@@ -233,12 +295,14 @@ def mission_report(
     track_limit: float = TRACK_LIMIT,
     cross_track_limit: float | None = None,
     metric: str = "max_accel",
+    touchdown_limit: float = TOUCHDOWN_LIMIT,
 ) -> MissionReport:
     """The per-phase answer of :class:`MissionReport` for one controller of ``mc`` (default:
     its first). ``limit``: the payload acceleration limit (m/s^2); ``track_limit`` and
     ``cross_track_limit`` (m, default the tracking one): how far from its reference a flight
     may stray and still count as flying the route. ``metric``: the parcel's metric ``limit``
-    applies to (default max_accel; any metric of the results, in its stored unit)."""
+    applies to (default max_accel; any metric of the results, in its stored unit).
+    ``touchdown_limit``: the touchdown speed (m/s) the last metres' lead line judges."""
     from quadrs.stats.risk import check_metric, check_threshold
 
     check_metric(metric)
@@ -246,6 +310,7 @@ def mission_report(
         raise ValueError(f"metric {metric!r}: these results have no such column")
 
     limit = check_threshold(limit)
+    touchdown_limit = check_threshold(touchdown_limit)
     cross_track_limit = track_limit if cross_track_limit is None else cross_track_limit
     for name, v in (("track_limit", track_limit), ("cross_track_limit", cross_track_limit)):
         if not (math.isfinite(v) and v > 0):
@@ -318,6 +383,7 @@ def mission_report(
         counts = per[per != "ok"].value_counts()
         statuses = tuple((str(k), int(v)) for k, v in counts.items())
     routed = str(mc.scenario["trajectory.interpolation"]) == "route"
+    last = _last_metres_table(rows, values, present, touchdown_limit, quantile, confidence)
     acceleration = pd.DataFrame(acc_rows).set_index("phase")
     payload = pd.DataFrame(pay_rows).set_index("phase")
     tracking = pd.DataFrame(trk_rows).set_index("phase")
@@ -328,7 +394,89 @@ def mission_report(
     return MissionReport(ctrl, limit, float(quantile), float(confidence),
                          int(runs["realisation"].nunique()), whole, acceleration, payload,
                          tracking, route, joint, float(track_limit), float(cross_track_limit),
-                         statuses, routed, metric)  # fmt: skip
+                         statuses, routed, metric, last, float(touchdown_limit),
+                         tuple(route_clashes(mc.scenario, ctrl)))  # fmt: skip
+
+
+def _last_metres_table(
+    rows: list[str], values: Any, present: set[str], limit: float, quantile: float,
+    confidence: float,
+) -> pd.DataFrame | None:  # fmt: skip
+    """The last metres per phase with a touchdown or a lowering, and the whole flight (see
+    :attr:`MissionReport.last_metres`); None if the results have no touchdown metrics or no
+    flight lowered or touched down."""
+    need = {"touchdown_speed", "touchdown_drift", "touchdown_miss", "release_time",
+            "release_height_change", "lowering_swing"}  # fmt: skip
+    if not need <= present:
+        return None
+    out = []
+    for i, phase in enumerate(rows):
+        speed = values("touchdown_speed", phase)
+        swing = values("lowering_swing", phase)
+        whole = i == len(rows) - 1
+        if not whole and np.isnan(speed).all() and not (np.nan_to_num(swing) > 0).any():
+            continue
+        div = np.isinf(speed)
+        touched = np.isfinite(speed)
+        e = exceedance_stats(np.where(div, np.nan, speed), limit, div, confidence)
+        _, qv, qlo, qhi = quantile_interval(speed[touched], quantile, confidence)
+        miss = values("touchdown_miss", phase)
+        _, mq, _, _ = quantile_interval(miss[np.isfinite(miss)], quantile, confidence)
+        released = values("release_time", phase)
+        out.append({
+            "phase": phase, "n": len(speed), "touchdowns": int(touched.sum()),
+            "diverged": int(div.sum()), "judged": e.n, "exceedances": e.k,
+            "probability": e.probability, "ci_low": e.ci_low, "ci_high": e.ci_high,
+            "speed_q": qv, "speed_q_low": qlo, "speed_q_high": qhi,
+            "speed_worst": _worst(speed[touched], "max"),
+            "drift_worst": _worst(values("touchdown_drift", phase), "max"),
+            "miss_q": mq, "miss_worst": _worst(miss, "max"),
+            "released": int(np.isfinite(released).sum()),
+            "height_change_worst": _worst(values("release_height_change", phase), "max"),
+            "lowering_swing_worst": _worst(swing, "max"),
+        })  # fmt: skip
+    table = pd.DataFrame(out).set_index("phase")
+    if int(table["touchdowns"].sum()) == 0 and len(table) == 1:
+        return None
+    return table
+
+
+def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
+    deg = 180 / math.pi
+    return pd.DataFrame(
+        {
+            "runs": t["n"].astype(int),
+            "touched": t["touchdowns"].astype(int),
+            "P fast %": [
+                _count_or_interval(
+                    int(r.exceedances), int(r.judged), r.probability, r.ci_low, r.ci_high
+                )
+                if r.judged
+                else ""
+                for r in t.itertuples()
+            ],
+            f"speed {qp}": [
+                _interval(r.speed_q, r.speed_q_low, r.speed_q_high) for r in t.itertuples()
+            ],
+            "speed worst": [_g(v) for v in t["speed_worst"]],
+            "drift worst": [_g(v) for v in t["drift_worst"]],
+            "miss worst": [_g(v) for v in t["miss_worst"]],
+            "released": t["released"].astype(int),
+            "height change": [_g(v) for v in t["height_change_worst"]],
+            "swing worst": [_g(deg * v) for v in t["lowering_swing_worst"]],
+        },
+        index=t.index,
+    )
+
+
+def none_seen_bound(n: int, confidence: float = 0.95) -> float:
+    """What "0 of N flights, P <= x" prints: the upper end of the two-sided exact
+    (Clopper-Pearson) ``confidence`` interval with no event in ``n``, ``1 - ((1 -
+    confidence) / 2)**(1/n)``: the ``ci_high`` of the same count, and the figures' error bar
+    (one convention everywhere, docs/risk.md)."""
+    if n <= 0:
+        return math.nan
+    return float(1.0 - ((1.0 - confidence) / 2.0) ** (1.0 / n))
 
 
 def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
@@ -377,7 +525,7 @@ def _route_table(
         p, lo, hi = exceedance_interval(k, n, confidence)
         row: dict[str, Any] = {"phase": phase, "n": n, "diverged": diverged, "off_route": k,
                                "probability": p, "ci_low": lo, "ci_high": hi,
-                               "p_max": one_sided_upper(k, n, confidence)}  # fmt: skip
+                               "p_max": hi}  # fmt: skip
         for m in ("max_tracking", "max_cross_track"):
             if m in present:
                 row[f"{m}_worst"] = _worst(values(m, phase), "max")
@@ -389,6 +537,11 @@ def _route_table(
                 row["saturated_time_worst"] = _worst(x, "max")
                 row["saturated_time_flights"] = int((x > 0).sum())
                 row["saturated_time_n"] = int(x.size)
+        if "near_tilt_time" in present:
+            x = values("near_tilt_time", phase)
+            row["near_tilt_time_worst"] = _worst(x, "max")
+            if phase != ALL_PHASES:
+                row.update(_mean_columns("near_tilt_time", phase, wide, confidence))
         out.append(row)
     return pd.DataFrame(out).set_index("phase")
 
@@ -416,7 +569,7 @@ def _joint(
         n, k = len(hit), int(hit.sum())
         p, lo, hi = exceedance_interval(k, n, confidence)
         rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
-                     "ci_high": hi, "p_max": one_sided_upper(k, n, confidence)})  # fmt: skip
+                     "ci_high": hi, "p_max": hi})  # fmt: skip
     return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
                                        "ci_high", "p_max"]).set_index("table")  # fmt: skip
 
@@ -496,7 +649,7 @@ def _limits_text(track: float, cross: float) -> str:
 def _count_or_interval(k: int, n: int, p: float, lo: float, hi: float) -> str:
     """``0 of 200 flights, P <= 1.49`` when nothing happened, else ``p [lo, hi]`` (in %)."""
     if k == 0 and n > 0:
-        return f"0 of {n} flights, P <= {_pct(one_sided_upper(0, n))}"
+        return f"0 of {n} flights, P <= {_pct(none_seen_bound(n))}"
     return _interval(p, lo, hi, 100.0)
 
 
@@ -506,7 +659,7 @@ def _joint_line(joint: pd.DataFrame | None, table: str, what: str) -> str:
     r = joint.loc[table]
     n, k = int(r["n"]), int(r["count"])
     if k == 0:
-        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (one-sided 95 %)"
+        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (two-sided 95 % interval)"
     else:
         said = (f"{k} of {n} flights, P = "
                 f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %")  # fmt: skip
@@ -535,22 +688,25 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
             flights = getattr(r, "saturated_time_flights", math.nan)
             n = getattr(r, "saturated_time_n", math.nan)
             if isinstance(flights, (int, float)) and flights == 0 and n and n == n:
-                cells.append(f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}")
+                cells.append(f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}")
             else:
                 cells.append(_interval(r.saturated_time_mean, r.saturated_time_ci_low,
                                        r.saturated_time_ci_high))  # fmt: skip
         out["at thrust limit s"] = cells
         out["thrust worst s"] = [_g(v) for v in t["saturated_time_worst"]] if (
             "saturated_time_worst" in t) else ""  # fmt: skip
+    if "near_tilt_time_worst" in t:
+        out["near tilt worst s"] = [_g(v) for v in t["near_tilt_time_worst"]]
     return out
 
 
 def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
     """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
     the heading: a column more would not fit 100 columns)."""
-    from quadrs.present.labels import STANDARD_GRAVITY, in_g
+    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
 
     g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
+    scale = display_scale(metric)  # the heading's unit: degrees for swing
     return pd.DataFrame(
         {
             "runs": t["n"].astype(int),
@@ -560,8 +716,8 @@ def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
                 _count_or_interval(int(r.exceedances), int(r.n), r.probability, r.ci_low, r.ci_high)
                 for r in t.itertuples()
             ],
-            qp: [_interval(r.quantile, r.q_low, r.q_high) for r in t.itertuples()],
-            "worst": [_g(v) for v in t["worst"]],
+            qp: [_interval(r.quantile, r.q_low, r.q_high, scale) for r in t.itertuples()],
+            "worst": [_g(scale * v) for v in t["worst"]],
             **g,
         },
         index=t.index,
@@ -586,7 +742,7 @@ def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
     for m in ("slack_time",):  # the time at the thrust limit is in the route's table
         if f"{m}_mean" in t:
             out[f"{m} mean"] = [
-                f"0 of {int(n)} flights, P <= {_pct(one_sided_upper(0, int(n)))}"
+                f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}"
                 if n == n and n > 0 and k == 0 else _interval(a, b, c)
                 for a, b, c, k, n in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"],
                                          t.get(f"{m}_flights", pd.Series(math.nan, t.index)),

@@ -24,7 +24,7 @@ from quadrs.design.mission import (
     _shown_limit,
     _shown_name,
     mission_report,
-    one_sided_upper,
+    none_seen_bound,
 )
 from quadrs.present.terminal import terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
@@ -138,7 +138,8 @@ class LawComparison:
     def __repr__(self) -> str:
         runs = self.reports[self.reference].runs
         laws = ", ".join(self.controllers)
-        return f"<LawComparison {laws} on {runs} realisations, {self.metric} > {self.limit:g}>"
+        limit = _shown_limit(self.reports[self.reference])
+        return f"<LawComparison {laws} on {runs} realisations, {self.metric} > {limit}>"
 
 
 def compare_laws(
@@ -231,7 +232,7 @@ def _risk(r: MissionReport, phase: str) -> str:
     a = r.acceleration.loc[phase]
     n, k = int(a["n"]), int(a["exceedances"])
     if k == 0:
-        return f"0 of {n}, P <= {_g(100 * one_sided_upper(0, n))}"
+        return f"0 of {n}, P <= {_g(100 * none_seen_bound(n))}"
     return _ci(100 * a["probability"], 100 * a["ci_low"], 100 * a["ci_high"])
 
 

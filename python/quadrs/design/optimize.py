@@ -20,7 +20,7 @@ import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -31,6 +31,9 @@ from quadrs.engine.calls import U64_MAX, check_controller, check_int
 from quadrs.runs.montecarlo import monte_carlo
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_error
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dask.distributed import Client
 
 METHODS = ("differential_evolution", "nelder-mead")
 #: Offset of the held-out seed from the tuning seed.
@@ -286,6 +289,7 @@ def optimize(
     holdout_runs: int | None = None,
     callback: Callable[[dict[str, Any]], None] | None = None,
     constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None,
+    client: Client | None = None,
 ) -> OptimizeResult:
     """Minimise a Monte Carlo objective over bounded scenario keys.
 
@@ -295,7 +299,9 @@ def optimize(
     ``objective``: a metric name (``_core.METRIC_NAMES``):
     the mean over the ``runs`` realisations of that metric summed over ``phases``, for one
     ``controller``; or a callable ``f(mc) -> float`` of the :class:`MonteCarloResult` of
-    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``.
+    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``;
+    with ``client`` (a ``dask.distributed.Client``) as tasks on its workers, with the same
+    numbers, so the same search and result, as on this machine.
 
     Penalties (recorded, never NaN): a candidate not stable at hover under every controller
     scores ``penalty * (1 + max(0, largest real part))`` without flying when
@@ -322,7 +328,7 @@ def optimize(
     violating flown candidate is returned with ``feasible=False`` and an
     :class:`InfeasibleWarning`.
     """
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
@@ -352,7 +358,9 @@ def optimize(
     else:
         generations = 100 if maxiter is None else maxiter
         total = generations
-    bar = tqdm(total=total, disable=not progress, unit="eval", desc="tune", leave=False)
+    bar = tqdm(
+        total=total, disable=not shows_progress(progress), unit="eval", desc="tune", leave=False
+    )
 
     def fly(candidate: Scenario, seed_: int, count: int) -> MonteCarloResult:
         with warnings.catch_warnings():
@@ -365,6 +373,7 @@ def optimize(
                 workers=workers,
                 progress=False,
                 spectra=False,
+                client=client,
             )
         if mc.interrupted:
             raise _Stop

@@ -123,11 +123,13 @@ class StabilityReport:
     within it: e.g. a position without feedback) or "unstable". ``poles``: one row per pole,
     least stable first: ``real``, ``imag`` (1/s), ``frequency_hz`` (natural frequency |s|/2pi),
     ``damping`` (-real/|s|), ``mode`` ("lateral x/pitch", "lateral y/roll", "vertical",
-    "payload" or "yaw"), ``dominant`` (largest state in the eigenvector), ``status`` and
-    ``excited`` (whether this scenario drives the mode). ``lateral_sources``: what moves this
-    scenario sideways (empty: x and y stay exactly zero). ``jacobian``: the 14x14 closed-loop
-    matrix, states in ``quadrs._core.STATE_NAMES`` order. ``residual``: |ds/dt| at the
-    linearisation point (0 unless the closed loop has no hover equilibrium).
+    "payload", "swing x", "swing y", "yaw" or "actuator"), ``dominant`` (largest
+    state in the eigenvector), ``status`` and ``excited`` (whether this scenario drives the
+    mode). ``lateral_sources``: what moves this scenario sideways (empty: x and y stay exactly
+    zero). ``jacobian``: the closed-loop matrix (one row and column per state of the
+    scenario's layout), states in ``quadrs._core.STATE_NAMES`` order for the paper's 14.
+    ``residual``: |ds/dt| at the linearisation point (0 unless the closed loop has no hover
+    equilibrium).
     """
 
     controller: str

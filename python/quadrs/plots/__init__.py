@@ -773,7 +773,11 @@ def gust_spectrum(
 
 
 from quadrs.plots.mission import mission_risk  # noqa: E402, F401  (re-exported)
-from quadrs.plots.payload import payload_path, swing_tension  # noqa: E402,F401  (re-exported)
+from quadrs.plots.payload import (  # noqa: E402,F401  (re-exported)
+    lowering_path,
+    payload_path,
+    swing_tension,
+)
 from quadrs.plots.rotors import rotors  # noqa: E402, F401  (re-exported)
 from quadrs.plots.route import altitude_profile, ground_track  # noqa: E402, F401
 from quadrs.plots.wind import gust_spectra, gust_spectra_frame, wind_met  # noqa: E402, F401

@@ -17,10 +17,17 @@ __all__ = ["mission_risk"]
 
 
 def mission_risk(report: MissionReport) -> Figure:
-    """Two panels, one point per phase (the whole flight last): P(payload acceleration peak >
-    limit) in % with its exact interval, and the high quantile of the peak with its interval
-    beside the worst realisation (diverged ones are left off the worst)."""
+    """Two panels, one point per phase (the whole flight last): P(the parcel's metric >
+    limit) in % with its exact interval, and the high quantile of the metric with its interval
+    beside the worst realisation (diverged ones are left off the worst); both labelled by the
+    report's metric, in the unit the tables show (degrees for swing)."""
+    from quadrs.present.labels import PLAIN_LABELS, shown_unit, shown_value
+
     acc = report.acceleration
+    metric = report.metric
+    scale = shown_value(metric, 1.0)
+    unit = shown_unit(metric)
+    limit = f"{shown_value(metric, report.limit):g} {unit}".rstrip()
     fig = Figure(figsize=(7.0, 5.2), layout="constrained")
     FigureCanvasAgg(fig)
     top, bottom = fig.subplots(2, 1)
@@ -30,23 +37,23 @@ def mission_risk(report: MissionReport) -> Figure:
     lo, hi = 100 * acc["ci_low"].to_numpy(float), 100 * acc["ci_high"].to_numpy(float)
     top.errorbar(x, p, yerr=[p - lo, hi - p], fmt="o", color="tab:red", capsize=4,
                  label=f"exact {report.confidence:.0%} interval")  # fmt: skip
-    top.set_ylabel(f"P(peak > {report.limit:g} m/s²) (%)")
+    top.set_ylabel(f"P({metric} > {limit}) (%)")
     top.set_ylim(bottom=0)
     top.set_title(f"{report.controller.upper()}, {report.runs} realisations")
     top.legend(loc="best", fontsize="small")
-    q = acc["quantile"].to_numpy(float)
-    qlo = np.where(np.isfinite(acc["q_low"]), acc["q_low"], q)
-    qhi = np.where(np.isfinite(acc["q_high"]), acc["q_high"], q)
+    q = scale * acc["quantile"].to_numpy(float)
+    qlo = np.where(np.isfinite(acc["q_low"]), scale * acc["q_low"].to_numpy(float), q)
+    qhi = np.where(np.isfinite(acc["q_high"]), scale * acc["q_high"].to_numpy(float), q)
     finite = np.isfinite(q)
     label = f"{report.quantile:g}-quantile (an open upper bound not drawn)"
     yerr = [(q - qlo)[finite], (qhi - q)[finite]]
     bottom.errorbar(x[finite], q[finite], yerr=yerr, fmt="s", color="tab:blue", capsize=4,
                     label=label)  # fmt: skip
-    worst = acc["worst"].to_numpy(float)
+    worst = scale * acc["worst"].to_numpy(float)
     ok = np.isfinite(worst)
     bottom.plot(x[ok], worst[ok], "k^", label="worst")
-    bottom.axhline(report.limit, color="gray", linestyle="--", label="limit")
-    bottom.set_ylabel("Payload acceleration peak (m/s²)")
+    bottom.axhline(scale * report.limit, color="gray", linestyle="--", label="limit")
+    bottom.set_ylabel(PLAIN_LABELS.get(metric, f"{metric} ({unit})"))
     bottom.legend(loc="best", fontsize="small")
     for a in (top, bottom):
         a.set_xticks(x, names)

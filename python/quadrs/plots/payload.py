@@ -8,6 +8,7 @@ pyplot, saves PNG and SVG when given ``path``, and draws into the caller's Axes 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +26,10 @@ from quadrs.plots.base import (
     panel_axes,
     shade_gust,
 )
+from quadrs.runs.flight import Flight
+from quadrs.scenario.route import FLIGHT_PHASE
 
-__all__ = ["payload_path", "swing_tension"]
+__all__ = ["lowering_path", "payload_path", "swing_tension"]
 
 
 def swing_tension(
@@ -92,4 +95,72 @@ def payload_path(flights: Flights, path: str | Path | None = None, *, ax: AxesAr
         side.set_aspect("equal", adjustable="datalim")
         side.set_title(f"side view; {flight_title(label, flight)}")
         top.set_title("seen from above")
+    return finish_figure(fig, path)
+
+
+def _hooks(trace: pd.DataFrame, offset: float) -> np.ndarray:
+    """The hook's inertial position (m) at each row: ``offset`` below the centre of gravity
+    along the body's z axis (R = Rz(psi) Ry(theta) Rx(phi))."""
+    phi, theta, psi = (trace[c].to_numpy() for c in ("phi", "theta", "psi"))
+    body_z = np.column_stack([
+        np.cos(psi) * np.sin(theta) * np.cos(phi) + np.sin(psi) * np.sin(phi),
+        np.sin(psi) * np.sin(theta) * np.cos(phi) - np.cos(psi) * np.sin(phi),
+        np.cos(theta) * np.cos(phi),
+    ])  # fmt: skip
+    return trace[["x", "y", "z"]].to_numpy() - offset * body_z
+
+
+def lowering_path(
+    flight: Flight, path: str | Path | None = None, *, every: float = 1.0, ax: AxesArg = None
+) -> Figure:
+    """A parcel lowered by the winch, from its first lowering (``trajectory.lower``) to the
+    hook's release (or the flight's end): two panels, seen across the route (sideways y
+    against height) and from above (forward x against sideways y). The line from the hook to
+    the parcel is drawn every ``every`` s (grey), the parcel's path dashed black, the
+    vehicle's blue; the touchdown (the parcel's first contact with the ground) is a red cross,
+    the drop point it aims at (the lowering's route point, on the ground) a green ring.
+    Metres throughout, from ``Flight.trace`` and the scenario's route."""
+    sc = flight.scenario
+    route = sc.route
+    lowerings = route.lowerings if route is not None else []
+    if not lowerings:
+        raise ValueError("lowering_path: the flight's route lowers no parcel (trajectory.lower)")
+    tr = flight.trace
+    t = tr["t"].to_numpy() if "t" in tr else tr.index.to_numpy()
+    start = lowerings[0].start
+    whole = flight.metrics.set_index("phase").loc[FLIGHT_PHASE]
+    release = float(whole["release_time"])
+    stop = release if math.isfinite(release) else t[-1]
+    window = (t >= start) & (t <= stop)
+    part = tr[window]
+    hooks = _hooks(part, float(sc["payload.attachment_offset"] or 0.0))
+    parcel = part[["xc", "yc", "zc"]].to_numpy()
+    ground = float(sc["ground.altitude"])
+    drop = lowerings[0].origin
+    fig, (side, top) = panel_axes(ax, 2, width=9.0, height=4.0)
+    step = max(1, round(every / (t[1] - t[0]))) if len(t) > 1 else 1
+    for i in range(0, len(part), step):
+        for a, (h, v) in ((side, (1, 2)), (top, (0, 1))):
+            a.plot([hooks[i, h], parcel[i, h]], [hooks[i, v], parcel[i, v]], color="0.6",
+                   lw=0.8, label="line" if i == 0 else "_line")  # fmt: skip
+    touched = np.flatnonzero(parcel[:, 2] < ground)
+    for a, (h, v), (hl, vl) in ((side, (1, 2), ("sideways y (m)", "height z (m)")),
+                                (top, (0, 1), ("forward x (m)", "sideways y (m)"))):  # fmt: skip
+        a.plot(part[["x", "y", "z"]].to_numpy()[:, h], part[["x", "y", "z"]].to_numpy()[:, v],
+               color="tab:blue", lw=1.0, label="vehicle")  # fmt: skip
+        a.plot(parcel[:, h], parcel[:, v], color="black", ls="--", lw=1.0, label="parcel")
+        target = (drop[h], ground if v == 2 else drop[v])
+        a.plot(*target, "o", mfc="none", mec="tab:green", ms=10, mew=1.5, label="drop point")
+        if touched.size:
+            k = touched[0]
+            a.plot(parcel[k, h], parcel[k, v], "x", color="tab:red", ms=9, mew=2,
+                   label="touchdown")  # fmt: skip
+        a.set(xlabel=hl, ylabel=vl)
+        add_legend(a)
+    side.axhline(ground, color="0.3", lw=1.0)
+    side.set_title(f"lowering, seen across the route; {flight_title(flight.controller, flight)}")
+    miss = float(whole["touchdown_miss"])
+    top.set_title(f"seen from above: touchdown {miss:.2f} m from the drop point"
+                  if math.isfinite(miss) else "seen from above")  # fmt: skip
+    top.set_aspect("equal", adjustable="datalim")
     return finish_figure(fig, path)

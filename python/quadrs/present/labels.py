@@ -11,11 +11,22 @@ from quadrs import _core
 from quadrs.scenario.units import LABELS as KEY_LABELS
 from quadrs.scenario.units import UNITS as KEY_UNITS
 
-__all__ = ["DEGREE_METRICS", "PLAIN_LABELS", "STANDARD_GRAVITY", "UNITS", "display_scale", "in_g"]
+__all__ = [
+    "DEGREE_METRICS",
+    "INPUT_UNITS",
+    "PLAIN_LABELS",
+    "STANDARD_GRAVITY",
+    "UNITS",
+    "display_scale",
+    "in_g",
+    "metric_value",
+    "shown_unit",
+    "shown_value",
+]
 
 #: Metrics the results hold in radians and every figure and table shows in degrees (one unit
 #: per quantity in everything a person reads: the mission tables, the figures, --limit).
-DEGREE_METRICS = ("max_swing", "rms_swing")
+DEGREE_METRICS = ("max_swing", "rms_swing", "lowering_swing")
 
 
 def _shown(unit: str) -> str:
@@ -57,3 +68,51 @@ PLAIN_LABELS = {
         for key, label in KEY_LABELS.items()
     },
 }
+
+
+#: The one convention for a metric's value typed on the command line (``--limit``, ``tune
+#: --constraint``, ``rare --threshold``), said in their help: the unit the tables show.
+INPUT_UNITS = (
+    "in the unit the tables show: degrees for swing, m/s² for accelerations (or g with a g "
+    "suffix, 1.5g), SI otherwise; a deg or rad suffix says the angle's unit outright"
+)
+
+_SUFFIXES = {"deg": math.pi / 180.0, "rad": 1.0}
+
+
+def shown_unit(name: str) -> str:
+    """The unit a metric's values are shown and typed in (``max_swing`` -> ``deg``)."""
+    return UNITS.get(name, "")
+
+
+def metric_value(name: str, text: str) -> float:
+    """A value of metric ``name`` as typed (:data:`INPUT_UNITS`) -> the results' unit (SI:
+    radians, m/s²). ``30`` for max_swing is 30 degrees, ``0.5rad`` half a radian, ``1.5g`` for
+    an acceleration 1.5 standard g. ValueError for anything else (a unit that does not fit the
+    metric, a number that is not finite)."""
+    raw = text.strip()
+    scale = 1.0 / display_scale(name)
+    angle = name in DEGREE_METRICS
+    for suffix, factor in _SUFFIXES.items():
+        if raw.lower().endswith(suffix):
+            if not angle:
+                raise ValueError(f"{name} is not an angle: {text!r} takes no {suffix} suffix")
+            scale, raw = factor, raw[: -len(suffix)].strip()
+            break
+    else:
+        if raw[-1:] in ("g", "G"):
+            if not in_g(name):
+                raise ValueError(f"{name} is not an acceleration: {text!r} takes no g suffix")
+            scale, raw = STANDARD_GRAVITY, raw[:-1].strip()
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise ValueError(f"{name}: threshold must be a finite number {INPUT_UNITS}, got {text!r}")
+    return value * scale
+
+
+def shown_value(name: str, value: float) -> float:
+    """A metric's value in the results' unit (SI) -> as shown and typed (degrees for swing)."""
+    return value * display_scale(name)

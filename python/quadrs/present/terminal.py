@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import unicodedata
 
-__all__ = ["terminal_text"]
+__all__ = ["shows_progress", "terminal_text", "tqdm_class"]
 
 
 def terminal_text(text: str) -> str:
@@ -32,3 +32,17 @@ def tqdm_class() -> type:
     else:
         from tqdm.auto import tqdm
     return tqdm
+
+
+def shows_progress(progress: bool) -> bool:
+    """Whether a progress bar asked for (``progress``) is drawn: only where someone watches it,
+    stderr a terminal or a notebook's front end; never into a pipe, a file or a log."""
+    import sys
+
+    if not progress:
+        return False
+    isatty = getattr(sys.stderr, "isatty", None)
+    if callable(isatty) and isatty():
+        return True
+    kernel = sys.modules.get("ipykernel")
+    return kernel is not None and type(sys.stderr).__module__.startswith("ipykernel")

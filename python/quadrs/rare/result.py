@@ -330,7 +330,8 @@ class RareEventResult:
         if run.probability is None:
             return (
                 f"no failure in {run.flights} flights: P({self.value_name} > "
-                f"{run.threshold:g}) <= {run.upper_bound:.3g} (95 % upper confidence bound; "
+                f"{run.threshold:g}) <= {run.upper_bound:.3g} (the upper end of the two-sided "
+                "95 % interval; "
                 f"largest value {run.closest:.4g})"
             )
         lo, hi = self.interval or (math.nan, math.nan)

@@ -183,7 +183,8 @@ class ScenarioModel:
         return parameters_of_normals(self.scenario, xi[..., self.innovations :])
 
     def evaluate(self, xi: np.ndarray) -> np.ndarray:
-        """The metric of each row's flight (+inf where the flight diverged)."""
+        """The metric of each row's flight (+inf where the flight diverged; -inf where an
+        event's metric, such as ``touchdown_speed``, has no event in the phase)."""
         xi = np.ascontiguousarray(xi, dtype=np.float64)
         if xi.ndim != 2 or xi.shape[1] != self.dimension:
             raise ValueError(f"xi must have shape (N, {self.dimension}), got {xi.shape}")
@@ -195,8 +196,10 @@ class ScenarioModel:
             metrics = evaluate_on_dask(self.client, self._engine_args(), gust, values)
         else:
             metrics = run_rows(*self._engine_args(), gust, values, self.workers)
-        picked = metrics[:, self._phase_index, self._metric_index]
-        return np.where(np.isnan(picked), np.inf, picked)
+        row = metrics[:, self._phase_index, :]
+        picked = row[:, self._metric_index]
+        diverged = np.isnan(row).all(axis=1)
+        return np.where(diverged, np.inf, np.where(np.isnan(picked), -np.inf, picked))
 
     def _engine_args(self) -> tuple[str, str, list[str]]:
         return self.scenario.to_json(), self.controller, list(self.parameter_keys)

@@ -527,9 +527,10 @@ def _steps_of(pilot: SubsetRun) -> list[float]:
 
 
 def _upper_bound_zero(n: int, confidence: float) -> float:
-    """The one-sided upper confidence bound on a probability with 0 events in n independent
-    trials (Clopper-Pearson): 1 - (1 - confidence)^(1/n)."""
-    return -math.expm1(math.log1p(-confidence) / n)
+    """The upper end of the two-sided exact (Clopper-Pearson) ``confidence`` interval of a
+    probability with 0 events in n independent trials, 1 - ((1 - confidence) / 2)^(1/n): the
+    one interval convention of every table and figure (docs/risk.md)."""
+    return -math.expm1(math.log((1.0 - confidence) / 2.0) / n)
 
 
 def _interval(probability: float, cov: float, clusters: int) -> tuple[float, float]:

@@ -8,8 +8,12 @@ extra (``pip install quadrs[dask]``): nothing here imports it at module level.
 
 from __future__ import annotations
 
-from collections.abc import Generator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+import pandas as pd
 
 from quadrs import _core
 from quadrs.runs.chunk import Chunk, Design, fly_chunk
@@ -80,3 +84,66 @@ def run_on_dask(
             yield future.result()
     finally:
         client.cancel([f for f in futures if not f.done()])
+
+
+def run_rows(
+    scenario_toml: str,
+    controllers: Sequence[str],
+    seed: int,
+    first: int,
+    count: int,
+    workers: int,
+    values: pd.DataFrame,
+    streams: npt.NDArray[np.uint64],
+) -> pd.DataFrame:
+    """Rows ``first .. first + count`` of a design given row by row (each row's dispersed
+    values and gust stream: ``values`` and ``streams`` hold this chunk's rows only), flown on
+    whichever machine runs it: the very rows a local run of the whole design makes of them."""
+    from quadrs.runs.chunk import run_range, runs_frame
+
+    scenario = Scenario.from_toml_string(scenario_toml)
+    raw, _ = run_range(scenario, controllers, seed, first, count, workers, False, None, values,
+                       streams)  # fmt: skip
+    return runs_frame(raw, controllers, scenario.phase_names, first, values)
+
+
+def rows_on_dask(
+    client: Client,
+    scenario: Scenario,
+    controllers: Sequence[str],
+    seed: int,
+    values: pd.DataFrame,
+    streams: npt.NDArray[np.uint64],
+    chunk: int,
+    on_progress: Callable[[int], None] | None = None,
+) -> pd.DataFrame:
+    """Every row of a given design (``values``, ``streams``: one per row) flown as Dask tasks of
+    ``chunk`` rows, gathered in row order: the frame a local run gives, bit for bit (a row's
+    numbers depend only on its values, stream and the seed). A task lost with its worker is run
+    again (``retries``) and gives the same rows."""
+    from dask.base import tokenize
+    from dask.distributed import as_completed
+
+    threads = worker_threads(client)
+    toml = scenario.to_toml()
+    total = len(streams)
+    futures = {}
+    for first in range(0, total, chunk):
+        count = min(chunk, total - first)
+        part = values.iloc[first : first + count].reset_index(drop=True)
+        args = (toml, list(controllers), seed, first, count, threads, part,
+                np.asarray(streams[first : first + count]))  # fmt: skip
+        key = f"quadrs-rows-{first}-{count}-{tokenize(_core.__version__, *args)}"
+        futures[client.submit(run_rows, *args, key=key, pure=True, retries=2)] = (first, count)
+    parts: dict[int, pd.DataFrame] = {}
+    try:
+        done = 0
+        for future in as_completed(list(futures)):
+            first, count = futures[future]
+            parts[first] = future.result()
+            done += count
+            if on_progress is not None:
+                on_progress(done)
+    finally:
+        client.cancel([f for f in futures if not f.done()])
+    return pd.concat([parts[k] for k in sorted(parts)], ignore_index=True)

@@ -176,7 +176,7 @@ def _fly(
     todo: list[tuple[int, int]],
 ) -> MonteCarloResult:
     """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
@@ -212,7 +212,7 @@ def _fly(
         unit="run",
         desc="quadrs mc",
         delay=1.0,
-        disable=not progress,
+        disable=not shows_progress(progress),
     )
     interrupted = False
     try:
@@ -240,8 +240,11 @@ def _fly(
         # Between chunks (inside one, run_range already turned Ctrl-C into a cancel).
         interrupted = True
     finally:
-        bar.close()
-        flush()
+        # Closing the bar draws on the terminal: a Ctrl-C meanwhile must not skip the flush.
+        with deferred_signals(deliver=False) as closing:
+            bar.close()
+            flush()
+        interrupted = interrupted or bool(closing)
     # What finished is assembled whatever arrives meanwhile: a signal now only marks the
     # batch interrupted (the command line then saves it and exits 130).
     with deferred_signals(deliver=False) as held:

@@ -66,6 +66,10 @@ class MonteCarloResult(RunTables):
     #: The engine's arithmetic: "exact" (default; bit-identical on every machine) or "fused"
     #: (``monte_carlo(fused=True)``: fused multiply-adds, faster, not bit-identical).
     arithmetic: str = "exact"
+    #: The question a command asked of these runs and saves with them (``quadrs mission``:
+    #: ``metric``, ``limit`` in the results' unit, ``track_limit``, ``cross_track_limit``,
+    #: ``quantile``), which ``quadrs report`` asks again; None when none was.
+    question: dict[str, Any] | None = None
 
     def phases_only(self) -> pd.DataFrame:
         """``runs`` without the whole flight's ``flight`` rows: the scenario's phases alone."""
@@ -175,8 +179,9 @@ class MonteCarloResult(RunTables):
         if self.spectrum_sums is not None:
             spectra, data = spectra_attachment(self.spectrum_sums, record)
             attachments = {SPECTRA_KEY: data}
+        asked = {} if self.question is None else {"question": _question(self.question, path)}
         write_frame(self.runs, path, _META_KEY,
-                    record.metadata(interrupted=self.interrupted, spectra=spectra),
+                    record.metadata(interrupted=self.interrupted, spectra=spectra, **asked),
                     attachments=attachments)  # fmt: skip
 
     @classmethod
@@ -220,4 +225,21 @@ class MonteCarloResult(RunTables):
             interrupted=meta["interrupted"],
             sampling=meta["sampling"],
             arithmetic=meta.get("arithmetic", "exact"),
+            question=_question(meta["question"], path) if "question" in meta else None,
         )
+
+
+def _question(asked: Any, path: str | Path) -> dict[str, Any]:
+    """A saved question checked: a table with a metric the engine names and a finite limit,
+    the other entries numbers or None."""
+    from quadrs import _core
+    from quadrs.io.integrity import CorruptRunError
+
+    ok = (isinstance(asked, dict) and asked.get("metric") in _core.METRIC_NAMES
+          and all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)
+                                and np.isfinite(v)) for k, v in asked.items() if k != "metric")
+          and isinstance(asked.get("limit"), int | float))  # fmt: skip
+    if not ok:
+        raise CorruptRunError(f"{path}: its metadata 'question' must be a table with a metric "
+                              f"and a finite limit, got {asked!r}")  # fmt: skip
+    return dict(asked)

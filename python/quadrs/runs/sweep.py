@@ -249,11 +249,17 @@ def sweep(
 
 
 def _points_bar(total: int, progress: bool) -> Any:
-    from quadrs.present.terminal import tqdm_class
+    from quadrs.present.terminal import shows_progress, tqdm_class
 
     tqdm = tqdm_class()
 
-    return tqdm(total=total, unit="point", desc="quadrs sweep", delay=1.0, disable=not progress)
+    return tqdm(
+        total=total,
+        unit="point",
+        desc="quadrs sweep",
+        delay=1.0,
+        disable=not shows_progress(progress),
+    )
 
 
 def _empty_runs(grid: Mapping[str, Any], controllers: Sequence[str]) -> pd.DataFrame:

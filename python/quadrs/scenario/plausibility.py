@@ -32,6 +32,10 @@ class PlausibilityWarning(UserWarning):
 
 #: Largest plausible vehicle mass (kg): a heavier "vehicle" was most likely typed in grams.
 MAX_VEHICLE_MASS = 100.0
+#: A payload this many times the vehicle's mass was most likely typed in grams: a heavy-lift
+#: multirotor carries about its own mass (a 2.5 kg parcel under a 2.2 kg vehicle is a real
+#: question; a 500 "kg" parcel, 0.5 kg in grams, is a slip of 1000).
+GRAMS_RATIO = 10.0
 #: Largest plausible payload natural frequency (Hz) on a spring below a multirotor.
 MAX_NATURAL_FREQUENCY = 50.0
 #: Largest plausible w20 (m/s): MIL-F-8785C's "severe" is 45 kt (23 m/s) at 20 ft.
@@ -78,8 +82,9 @@ def findings(data: dict[str, Any]) -> list[str]:
     m, mc = _value(data, "vehicle.mass"), _value(data, "payload.mass")
     if m is not None and m > MAX_VEHICLE_MASS:
         out.append(f"{_fmt('vehicle.mass', m)} (> {MAX_VEHICLE_MASS:g}): typed in grams?")
-    if m is not None and mc is not None and mc > m:
-        out.append(f"{_fmt('payload.mass', mc)} exceeds vehicle.mass = {m:g} kg: typed in grams?")
+    if m is not None and mc is not None and mc > GRAMS_RATIO * m:
+        out.append(f"{_fmt('payload.mass', mc)} is over {GRAMS_RATIO:g} times vehicle.mass = "
+                   f"{m:g} kg: typed in grams?")  # fmt: skip
     fn = _value(data, "payload.natural_frequency")
     if fn is not None and fn > MAX_NATURAL_FREQUENCY:
         out.append(
@@ -111,7 +116,10 @@ def _parcel_below_ground(data: dict[str, Any]) -> str:
     if _value(data, "payload.model") != "cable" or _value(data, "ground.enabled") is not True:
         return ""
     position = _value(data, "initial.position")
-    length = _value(data, "payload.cable_length")
+    # With a winch the line starts reeled in (payload.length_min).
+    reeled = _value(data, "payload.length_min")
+    key = "payload.length_min" if reeled is not None else "payload.cable_length"
+    length = reeled if reeled is not None else _value(data, "payload.cable_length")
     offset = _value(data, "payload.attachment_offset") or 0.0
     ground = _value(data, "ground.altitude") or 0.0
     if not isinstance(position, list) or len(position) != 3 or length is None:
@@ -121,7 +129,7 @@ def _parcel_below_ground(data: dict[str, Any]) -> str:
         return ""
     return (
         f"the parcel starts below the ground: initial.position[2] = {position[2]:g} m - "
-        f"payload.attachment_offset = {offset:g} m - payload.cable_length = {length:g} m = "
+        f"payload.attachment_offset = {offset:g} m - {key} = {length:g} m = "
         f"{bottom:.3g} m < ground.altitude = {ground:g} m: start higher or shorten the line"
     )
 

@@ -21,10 +21,12 @@ Point = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class RouteSegment:
-    """One hold or leg of a route. Times in s from the start of the flight, lengths in m."""
+    """One hold, leg or lowering of a route. Times in s from the start of the flight, lengths
+    in m."""
 
     name: str
-    kind: Literal["hold", "leg"]
+    #: A lowering hovers at its point while the winch pays out ``payout`` m of line.
+    kind: Literal["hold", "leg", "lower"]
     #: When the segment begins (a leg leaves ``origin`` at rest).
     start: float
     #: When the reference is at rest at ``target`` (a hold: ``start``).
@@ -42,6 +44,8 @@ class RouteSegment:
     ramp: float
     #: s, at peak speed between the ramps.
     cruise: float
+    #: m, the line a lowering pays out beyond ``payload.length_min`` (0 for a hold or leg).
+    payout: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -64,6 +68,11 @@ class Route:
     @property
     def legs(self) -> list[RouteSegment]:
         return [s for s in self.segments if s.kind == "leg"]
+
+    @property
+    def lowerings(self) -> list[RouteSegment]:
+        """The segments that lower the parcel (``trajectory.lower``)."""
+        return [s for s in self.segments if s.kind == "lower"]
 
     @property
     def arrival(self) -> float:

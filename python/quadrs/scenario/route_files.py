@@ -26,6 +26,13 @@ flown in mission order, ``DO_JUMP`` included; what each command becomes:
   no change, -2 the plan's default (``hoverSpeed``); the engine flies one speed, so different
   speeds in one plan are refused, as is a climb (2) or descent (3) speed, which the engine
   cannot fly apart from the cruise speed.
+- ``DO_WINCH`` (42600) action 1 (relative length): the line ``param3`` m is paid out at the
+  current point (``trajectory.lower``; ``param4``, a rate in m/s, sets
+  ``payload.winch_speed``); action 6 (retract) is what the winch does after the release
+  anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
+  parcel rests (``payload.release = "touchdown"``); action 1 (grab) before any release is
+  the parcel hooked from the start. Any other winch or gripper action is refused naming
+  its item. At a point with a lowering the point's hold follows the lowering.
 - Commands that neither move the vehicle nor act on its payload (camera, gimbal, region of
   interest, video, ``CONDITION_DELAY``/``DISTANCE``/``YAW``, ``DO_LAND_START``): not flown,
   named in a warning.
@@ -84,6 +91,10 @@ Point = tuple[float, float, float]
 # MAVLink MAV_CMD values (mavlink common.xml).
 WAYPOINT, LOITER_UNLIM, LOITER_TURNS, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 18, 19, 20, 21, 22
 DELAY, JUMP, CHANGE_SPEED, SET_HOME, REPOSITION = 93, 177, 178, 179, 192
+# The winch and the gripper (MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER) and the actions read.
+WINCH, GRIPPER = 42600, 211
+WINCH_RELATIVE_LENGTH, WINCH_RETRACT = 1, 6
+GRIPPER_RELEASE, GRIPPER_GRAB = 0, 1
 #: Commands below this navigate; from here on they are conditions and DO_ commands.
 FIRST_NON_NAV = 100
 #: Commands that neither move the vehicle nor act on its payload: not flown, named in a
@@ -98,7 +109,6 @@ NOT_FLOWN = {
     530: "SET_CAMERA_MODE", 531: "SET_CAMERA_ZOOM", 532: "SET_CAMERA_FOCUS",
     1000: "DO_GIMBAL_MANAGER_PITCHYAW", 2000: "IMAGE_START_CAPTURE",
     2001: "IMAGE_STOP_CAPTURE", 2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE",
-    211: "DO_GRIPPER", 42600: "DO_WINCH",
 }  # fmt: skip
 #: Commands refused with a reason of their own (any other unknown command is refused too).
 REFUSED = {
@@ -142,6 +152,11 @@ class RouteFile:
     hold: tuple[float, ...]
     speed: float | None
     source: str
+    #: m of line lowered at each point (all 0 without a winch item), the hook's release
+    #: (``"touchdown"`` or None) and the winch's rate (m/s, or None).
+    lower: tuple[float, ...] = ()
+    release: str | None = None
+    winch_speed: float | None = None
 
     @property
     def length(self) -> float:
@@ -166,6 +181,12 @@ class RouteFile:
         }
         if self.speed is not None:
             route["trajectory.speed"] = self.speed
+        # The base's own lowerings went with its route.
+        route["trajectory.lower"] = list(self.lower) if any(x > 0 for x in self.lower) else None
+        if self.release is not None:
+            route["payload.release"] = self.release
+        if self.winch_speed is not None:
+            route["payload.winch_speed"] = self.winch_speed
         route.update(extra)
         data = base.to_dict()
         gust = data.get("gust", {})
@@ -174,9 +195,14 @@ class RouteFile:
             # The route's own time, from the engine's schedule of a flight surely long enough
             # for it (or of the duration given, which must then cover it).
             probe = float(extra.get("integrator.duration", self._time_bound(base, route)))
-            long = base.override({**route, "integrator.duration": probe, "gust.end": probe})
+            # The base's gust window is kept as it is (a window past the flight is allowed),
+            # except one over the whole flight, which follows the duration.
+            timing = {"gust.end": probe} if whole else {}
+            long = base.override({**route, "integrator.duration": probe, **timing})
             legs = long.route.legs if long.route is not None else []
-            needed = sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
+            lowerings = long.route.lowerings if long.route is not None else []
+            needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
+                      + sum(g.end - g.start for g in lowerings))  # fmt: skip
             dt = float(long["integrator.dt"])
             duration = math.ceil(needed / dt - 1e-6) * dt
             route.setdefault("integrator.duration", duration)
@@ -189,17 +215,28 @@ class RouteFile:
     def _time_bound(self, base: RoutableScenario, route: Mapping[str, Any]) -> float:
         """Seconds the route surely takes less than: a leg of length L at cruise speed V and
         acceleration bound A takes L/V + 2V/A (two ramps of 2V/A with L/V - 2V/A between; a
-        shorter leg, 2 sqrt(2L/A), is less), plus the holds and a margin."""
+        shorter leg, 2 sqrt(2L/A), is less), a lowering of P m at the winch's speed v and
+        acceleration a takes P/v + 2v/a (docs/model.md, "Routes"), plus the holds and a
+        margin."""
         try:
             speed = float(route.get("trajectory.speed", base["trajectory.speed"]))
             accel = float(route.get("trajectory.acceleration", base["trajectory.acceleration"]))
             hold = sum(float(h) for h in route.get("trajectory.hold", self.hold))
+            lower = [float(x) for x in route.get("trajectory.lower") or () if float(x) > 0]
+            if lower:
+                v = float(route.get("payload.winch_speed", base["payload.winch_speed"]))
+                a = float(route.get("payload.winch_acceleration",
+                                    base["payload.winch_acceleration"]))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             return 1e5  # the scenario refuses the route below, naming the key
         if not (math.isfinite(speed) and speed > 0 and math.isfinite(accel) and accel > 0):
             return 1e5
         legs = zip(self.points, self.points[1:], strict=False)
         t = sum(math.dist(a, b) / speed + 2 * speed / accel for a, b in legs) + hold
+        if lower:
+            if not (math.isfinite(v) and v > 0 and math.isfinite(a) and a > 0):
+                return 1e5
+            t += sum(p / v + 2 * v / a for p in lower)
         return 1.01 * t + 1.0
 
 
@@ -370,6 +407,9 @@ class _Builder:
         self.source = source
         self.points: list[Point] = []
         self.hold: list[float] = []
+        self.lower: list[float] = []
+        self.release: str | None = None
+        self.winch_speed: float | None = None
 
     def to(self, point: Point, hold: float = 0.0) -> None:
         if self.points and math.dist(point, self.points[-1]) < SAME_POINT:
@@ -377,11 +417,14 @@ class _Builder:
         else:
             self.points.append(point)
             self.hold.append(hold)
+            self.lower.append(0.0)
 
     def route(self, speed: float | None) -> RouteFile:
         if len(self.points) < 2:
             raise RouteFileError(f"{self.source}: the route goes nowhere (one point)")
-        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source)
+        lower = tuple(self.lower) if any(x > 0 for x in self.lower) else ()
+        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower,
+                         self.release, self.winch_speed)  # fmt: skip
 
 
 #: What flying one mission item does to the route: (route, params, item, where).
@@ -415,7 +458,8 @@ class _PlanRoute(_Builder):
         else:
             kind = "navigation command" if command < FIRST_NON_NAV else "command"
             why = REFUSED.get(command, "quadrs flies waypoint 16, loiter-time 19, return 20, "
-                              "land 21, take-off 22, delay 93, jump 177 and change-speed 178, "
+                              "land 21, take-off 22, delay 93, jump 177, change-speed 178, "
+                              "gripper 211 and winch 42600, "
                               "and ignores commands that do not move the vehicle "
                               "(docs/guarantees.md)")  # fmt: skip
             raise RouteFileError(f"{where}: {kind} {command} is not supported: {why}")
@@ -432,6 +476,36 @@ class _PlanRoute(_Builder):
                 "(trajectory.speed); keep one"
             )
         return next(iter(speeds)) if speeds else self.default_speed
+
+    def winch_or_gripper(self, command: int, params: list[Any], where: str) -> None:
+        """A ``DO_WINCH`` or ``DO_GRIPPER`` item (module docstring): a lowering at the current
+        point, or the hook's release after one; any other action refused naming the item."""
+        action = params[1]
+        if command == WINCH:
+            if action == WINCH_RETRACT:
+                return
+            if action != WINCH_RELATIVE_LENGTH:
+                raise RouteFileError(
+                    f"{where}: DO_WINCH action {action!r} is not supported (1, relative length: "
+                    "pay out params[2] m; 6, retract)"
+                )
+            length = _number(params[2], f"{where}: DO_WINCH params[2] (length, m)", 0.0)
+            if length <= 0:
+                raise RouteFileError(
+                    f"{where}: DO_WINCH params[2] must pay out line (> 0 m), got {length!r}"
+                )
+            self.lower[-1] += length
+            if params[3] not in (None, 0):
+                self.winch_speed = _number(params[3], f"{where}: DO_WINCH params[3] (rate, m/s)")
+            return
+        if action == GRIPPER_GRAB and self.release is None:
+            return
+        if action != GRIPPER_RELEASE or not any(x > 0 for x in self.lower):
+            raise RouteFileError(
+                f"{where}: DO_GRIPPER action {action!r} is not supported here (0, release, "
+                "after a DO_WINCH lowering; 1, grab, before any release)"
+            )
+        self.release = "touchdown"
 
     def horizontal(self, params: list[Any], where: str, optional: bool) -> tuple[float, float]:
         lat, lon = params[4], params[5]
@@ -530,6 +604,8 @@ HANDLERS: dict[int, ItemHandler] = {
     RTL: _return,
     DELAY: _delay,
     CHANGE_SPEED: _change_speed,
+    WINCH: lambda r, params, item, where: r.winch_or_gripper(WINCH, params, where),
+    GRIPPER: lambda r, params, item, where: r.winch_or_gripper(GRIPPER, params, where),
 }
 
 

@@ -358,7 +358,8 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
             "wind.table.file",
         )
     if not isinstance(name, str) or not name:
-        raise scenario_error(f"wind.table.file must name a CSV file, got {name!r}",
+        raise scenario_error(f"wind.table.file must name a CSV file or a PX4 .ulg log, got "
+                             f"{name!r}",
                              "wind.table.file")  # fmt: skip
     path = Path(name) if Path(name).is_absolute() else folder / name
     try:
@@ -736,13 +737,26 @@ class Scenario:
         return json.dumps(self._data, allow_nan=False)
 
     # -- variants -----------------------------------------------------------------------
+    def with_px4_params(self, path: str | Path) -> Scenario:
+        """A new Scenario whose ``[controller.px4]`` takes the airframe's parameters from a
+        QGroundControl ``.params`` file or a PX4 ``.ulg`` log: the parameters the table knows
+        (PX4's names and units), the rest of the file ignored
+        (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them). ScenarioError
+        naming the file for one that is neither."""
+        from quadrs.scenario.px4_files import read_px4_parameters
+
+        read = read_px4_parameters(path)
+        return self.override({f"controller.px4.{k}": v for k, v in read.known.items()})
+
     def override(self, changes: Mapping[str, Any]) -> Scenario:
         """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
         "payload.mass": 0.44, "phases[2].end": 65.0}``. Setting ``payload.stiffness``
         drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
         ``gust.intensity``); a value of None removes an
         optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
-        "route" drops the base's ``trajectory.waypoints`` unless they are given too."""
+        "route" drops the base's ``trajectory.waypoints`` unless they are given too; setting
+        ``trajectory.route`` or ``trajectory.interpolation`` drops the base's
+        ``trajectory.lower`` (its lowerings at the base route's points) unless given too."""
         keys = canonical_keys(changes, "override")
         changes = dict(zip(keys, changes.values(), strict=True))
         if "trajectory.route_file" in changes:
@@ -768,6 +782,11 @@ class Scenario:
             given = {k.removeprefix("trajectory."): v for k, v in changes.items()
                      if k.startswith("trajectory.")}  # fmt: skip
             _route_drops_waypoints(data.get("trajectory", {}), given)
+        if ({"trajectory.route", "trajectory.interpolation"} & changes.keys()
+                and "trajectory.lower" not in changes):  # fmt: skip
+            # A lowering is the line paid out at one point of the base's route: another route
+            # (or none) has no such point, so the base's lowerings go unless given again.
+            data.get("trajectory", {}).pop("lower", None)
         for key, value in changes.items():
             parts = _split_key(key)
             other = _EXCLUSIVE.get(key)
@@ -844,6 +863,17 @@ class Scenario:
             except (KeyError, IndexError, TypeError):
                 raise KeyError(key) from None
         return copy.deepcopy(node)
+
+    def __contains__(self, key: object) -> bool:
+        """``"gust.w20" in s``: whether the scenario holds that dotted key; False for anything
+        that is not a valid dotted key (a number, None, a malformed key)."""
+        if not isinstance(key, str):
+            return False
+        try:
+            self[key]
+        except (KeyError, ValueError):
+            return False
+        return True
 
     def get(self, key: str, default: Any = None) -> Any:
         try:

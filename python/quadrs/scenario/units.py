@@ -17,7 +17,7 @@ from quadrs import _core
 #: The keys only Python reads (a file the scenario names, read into numbers before the engine
 #: sees them): dotted key -> (unit, plain-English label).
 _PYTHON_KEYS: dict[str, tuple[str, str]] = {
-    "wind.table.file": ("-", "Wind table file (CSV)"),
+    "wind.table.file": ("-", "Wind table file (CSV, or a PX4 .ulg log by time)"),
 }
 
 #: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The

@@ -1,5 +1,6 @@
-"""A measured wind from a CSV file: the ``[wind.table]`` of a scenario (docs/model.md, "A
-measured wind").
+"""A measured wind from a CSV file (or a PX4 ``.ulg`` log's wind estimate,
+:func:`quadrs.scenario.px4_files.read_ulog_wind`): the ``[wind.table]`` of a scenario
+(docs/model.md, "A measured wind").
 
 The file has a header row and one row per sample: ``t`` (s, by time) or ``z`` (m, by altitude),
 then ``wind_x, wind_y, wind_z`` (m/s, inertial: x, y, z as the route's, z up), the first column
@@ -46,6 +47,12 @@ def read_wind_table(path: str | Path, by: str) -> list[list[float]]:
     if by not in FIRST:
         raise WindTableError(f'wind.table.by must be "time" or "altitude", got {by!r}')
     first = FIRST[by]
+    if path.suffix.lower() == ".ulg":  # a PX4 log: its wind estimate, by time
+        if by != "time":
+            raise WindTableError(f'wind table {name!r} is a PX4 log: by = "time", got {by!r}')
+        from quadrs.scenario.px4_files import read_ulog_wind
+
+        return read_ulog_wind(path)
     from quadrs.scenario.input_files import InputFileError, read_input_text
 
     try:

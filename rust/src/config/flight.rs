@@ -3,8 +3,9 @@
 //! `[divergence]` (the bounds past which a flight has diverged) and `[ground]` (the plane a
 //! flight ends at), with their checks.
 
-use super::params::params;
-use super::{finite, positive, ConfigError};
+use super::params::{not_numbers, params};
+use super::{finite, non_negative, positive, ConfigError};
+use serde::{Deserialize, Serialize};
 
 params! {
     pub struct Environment {
@@ -25,8 +26,27 @@ params! {
         position: [f64; 3] => "m", "Start position (x, y, z)";
         /// rad, roll, pitch, yaw.
         attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)";
+        /// How the flight starts: trimmed in the start's steady wind, or at rest as in still
+        /// air (docs/model.md, "The start: trimmed in the wind").
+        #[serde(default)]
+        trim: Trim => "-", "Start state: \"wind\" (trimmed in the steady wind) or \"rest\"";
     }
 }
+
+/// `initial.trim`: the state a flight starts from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trim {
+    /// In equilibrium with the steady wind at the start (mean wind, wind table, the turbulence's
+    /// mean): tilted into it, the payload at its steady line angle, the rotors at their steady
+    /// speeds; `rest` when that wind is zero.
+    #[default]
+    Wind,
+    /// At rest as in still air: level (`initial.attitude`), the payload straight below.
+    Rest,
+}
+
+not_numbers!(Trim);
 
 impl Initial {
     /// Check every value; the first problem found is returned with its key.
@@ -139,13 +159,24 @@ fn default_max_rate() -> f64 {
 
 params! {
     /// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
-    /// when `enabled`. No contact dynamics: the flight simply stops.
+    /// when `enabled`. The quadrotor has no contact dynamics (the flight simply stops); a cable
+    /// payload's parcel does, when `stiffness` is given: a spring-damper with friction at
+    /// `altitude` (docs/model.md, "The last metres"; `model::payload::cable`).
     #[derive(Default)]
     pub struct Ground {
         #[serde(default)]
         enabled: bool => "-", "Ground plane on";
         #[serde(default)]
         altitude: f64 => "m", "Ground altitude";
+        /// N/m, the ground's contact stiffness under the parcel (none: the parcel never meets it).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        stiffness: Option<f64> => "N/m", "Ground contact stiffness";
+        /// N s/m, the contact's damping (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping: Option<f64> => "N s/m", "Ground contact damping";
+        /// -, the Coulomb friction coefficient between parcel and ground (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        friction: Option<f64> => "-", "Ground friction coefficient";
     }
 }
 
@@ -164,6 +195,23 @@ impl Ground {
     pub fn validate(&self, initial: &Initial) -> Result<(), ConfigError> {
         let g = self;
         finite("ground.altitude", g.altitude)?;
+        if let Some(k) = g.stiffness {
+            positive("ground.stiffness", k)?;
+        }
+        for (key, x) in [
+            ("ground.damping", g.damping),
+            ("ground.friction", g.friction),
+        ] {
+            if let Some(x) = x {
+                if g.stiffness.is_none() {
+                    return Err(ConfigError::new(
+                        key,
+                        format!("{key} needs ground.stiffness (the parcel's contact), got {x:?} without it"),
+                    ));
+                }
+                non_negative(key, x)?;
+            }
+        }
         let z0 = initial.position[2];
         if g.enabled && z0 < g.altitude {
             return Err(ConfigError::new(

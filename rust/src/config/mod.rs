@@ -28,7 +28,7 @@ pub use crate::control::ControllerConfig;
 pub use crate::model::actuator::rotors::{RotorFault, RotorLayout, RotorParams};
 pub use crate::model::{ActuatorConfig, ActuatorKind, PayloadConfig, PayloadKind};
 pub use dispersions::{Dispersions, Distribution};
-pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, MAX_STEPS};
+pub use flight::{Divergence, Environment, Ground, Initial, Integrator, Metrics, Trim, MAX_STEPS};
 pub use gust::{Gust, GustComponent, GustModel};
 use params::Params;
 use serde::{Deserialize, Serialize};
@@ -245,6 +245,22 @@ impl Config {
     fn validate_values(&self, fixed: bool) -> Result<(), ConfigError> {
         self.vehicle.validate()?;
         self.payload.validate(self)?;
+        if self.vehicle.body == crate::model::BodyModel::Rigid
+            && !crate::model::RIGID_PAYLOADS.contains(&self.payload.model)
+        {
+            return Err(ConfigError::new(
+                "vehicle.body",
+                format!(
+                    "vehicle.body = \"rigid\" flies payload.model = {} only, got payload.model = \"{}\"",
+                    crate::model::RIGID_PAYLOADS
+                        .iter()
+                        .map(|p| format!("\"{}\"", p.name()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    self.payload.model.name()
+                ),
+            ));
+        }
         self.environment.validate()?;
         self.initial.validate()?;
         self.controller.validate(self)?;

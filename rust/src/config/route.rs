@@ -21,6 +21,7 @@ pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
             ("trajectory.speed", tr.speed.is_some()),
             ("trajectory.acceleration", tr.acceleration.is_some()),
             ("trajectory.hold", !tr.hold.is_empty()),
+            ("trajectory.lower", !tr.lower.is_empty()),
             ("trajectory.names", !tr.names.is_empty()),
         ] {
             if set {
@@ -113,7 +114,33 @@ pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
             ));
         }
     }
+    if !tr.lower.is_empty() && tr.lower.len() != r.len() {
+        return Err(ConfigError::new(
+            "trajectory.lower",
+            format!(
+                "trajectory.lower needs one value per route point ({}), got {}",
+                r.len(),
+                tr.lower.len()
+            ),
+        ));
+    }
+    for (i, x) in tr.lower.iter().enumerate() {
+        if !(x.is_finite() && *x >= 0.0) {
+            let key = format!("trajectory.lower[{i}]");
+            return Err(ConfigError::new(
+                &key,
+                format!("{key} must be >= 0 (m of line to pay out), got {x:?}"),
+            ));
+        }
+    }
     Ok(())
+}
+
+/// s, how long a lowering of `payout` m lasts (`trajectory.lower`): the pay-out at the winch's
+/// speed `v` with a ramp `v / a` at each end (`model::payload::cable`'s winch reaches its
+/// speed in about that, and settles within it).
+pub fn lowering_time(payout: f64, v: f64, a: f64) -> f64 {
+    payout / v + 2.0 * v / a
 }
 
 /// The route's schedule over the flight: holds and legs in time order, from t = 0 to
@@ -135,6 +162,28 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
     let mut out = Vec::with_capacity(2 * n);
     let mut t = 0.0;
     for i in 0..n {
+        let payout = tr.lower.get(i).copied().unwrap_or(0.0);
+        if payout > 0.0 {
+            // The winch's keys are the cable's, checked with it (`Cable::validate`).
+            let c = &cfg.payload.cable;
+            let span = lowering_time(
+                payout,
+                c.winch_speed.unwrap_or(f64::NAN),
+                c.winch_acceleration.unwrap_or(f64::NAN),
+            );
+            out.push(Segment {
+                name: format!("lower{}", i + 1),
+                kind: SegmentKind::Lower,
+                start: t,
+                arrival: t,
+                end: t + span,
+                from: i,
+                to: i,
+                profile: Profile::default(),
+                payout,
+            });
+            t += span;
+        }
         let h = tr.hold.get(i).copied().unwrap_or(0.0);
         if h > 0.0 {
             if h < MIN_STEPS * dt {
@@ -156,6 +205,7 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
                 from: i,
                 to: i,
                 profile: Profile::default(),
+                payout: 0.0,
             });
             t += h;
         }
@@ -198,6 +248,7 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
                 from: i,
                 to: i + 1,
                 profile,
+                payout: 0.0,
             });
             t += span;
         }
@@ -214,7 +265,7 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
     // What is left of the flight hovers at the last point: the last hold runs to the end, or
     // becomes one; a remainder shorter than MIN_STEPS steps closes the last leg instead.
     let last = out.last_mut().expect("a route has at least one leg");
-    if last.kind == SegmentKind::Hold || duration - t < MIN_STEPS * dt {
+    if last.kind.rests() || duration - t < MIN_STEPS * dt {
         last.end = duration;
     } else {
         out.push(Segment {
@@ -226,6 +277,7 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
             from: n - 1,
             to: n - 1,
             profile: Profile::default(),
+            payout: 0.0,
         });
     }
     if !tr.names.is_empty() {

@@ -123,6 +123,11 @@ mod tests {
                 "payload.drag_area",
                 "payload.cable_length",
                 "payload.attachment_offset",
+                "payload.winch_speed",
+                "payload.winch_acceleration",
+                "payload.length_min",
+                "payload.release",
+                "payload.release_delay",
             ]
         );
         let keys: Vec<String> = ActuatorConfig::keys().into_iter().map(|(k, _)| k).collect();
@@ -181,7 +186,8 @@ mod tests {
         assert!(
             e.message.ends_with(
                 "unknown field `colour`, expected one of `model`, `mass`, `natural_frequency`, \
-                 `stiffness`, `damping`, `drag_area`, `cable_length`, `attachment_offset`"
+                 `stiffness`, `damping`, `drag_area`, `cable_length`, `attachment_offset`, \
+                 `winch_speed`, `winch_acceleration`, `length_min`, `release`, `release_delay`"
             ),
             "{e}"
         );

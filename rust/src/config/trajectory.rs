@@ -40,6 +40,10 @@ params! {
         /// Route only: s, the hover at each point (one per point; empty: no holds).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         hold: Vec<f64> => "s", "Hover at each route point";
+        /// Route only: m, the line the winch pays out at each point (one per point; 0 or empty:
+        /// none): on arrival the vehicle hovers while the parcel is lowered, then holds.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        lower: Vec<f64> => "m", "Line lowered at each route point";
         /// Route only: the names of the route's segments (holds and legs, in time order) in place
         /// of leg1, hold2, ...; empty: those defaults.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]

@@ -2,6 +2,7 @@
 
 use super::params::params;
 use super::{finite, non_negative, positive, ConfigError};
+use crate::model::BodyModel;
 
 params! {
     pub struct Vehicle {
@@ -17,7 +18,19 @@ params! {
         drag_area: f64 => "m^2", "Quadrotor drag area";
         /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
         lateral_drag_area: f64 => "m^2", "Lateral drag area of quadrotor and payload";
+        /// Which body flies: "paper" (Euler angles, drag per inertial axis; the default) or
+        /// "rigid" (unit quaternion, true body rates, body-axis drag).
+        #[serde(default, skip_serializing_if = "BodyModel::is_paper")]
+        body: BodyModel => "-", "Body model";
+        /// N/(m/s)^2, the rigid body's drag -|v_b| diag(c) v_b along its own axes (c_x, c_y,
+        /// c_z); the paper's body uses the drag areas instead.
+        #[serde(default, skip_serializing_if = "is_zero3")]
+        drag_coefficients: [f64; 3] => "N/(m/s)^2", "Body-axis drag coefficients (x, y, z)";
     }
+}
+
+fn is_zero3(c: &[f64; 3]) -> bool {
+    *c == [0.0; 3]
 }
 
 impl Vehicle {
@@ -43,6 +56,19 @@ impl Vehicle {
         non_negative("vehicle.arm_length", v.arm_length)?;
         non_negative("vehicle.drag_area", v.drag_area)?;
         non_negative("vehicle.lateral_drag_area", v.lateral_drag_area)?;
+        for (i, c) in v.drag_coefficients.iter().enumerate() {
+            non_negative(format_args!("vehicle.drag_coefficients[{i}]"), *c)?;
+        }
+        if v.body == BodyModel::Paper && v.drag_coefficients != [0.0; 3] {
+            return Err(ConfigError::new(
+                "vehicle.drag_coefficients",
+                format!(
+                    "vehicle.drag_coefficients applies to vehicle.body = \"rigid\" only (the \
+                     paper's body takes vehicle.drag_area and vehicle.lateral_drag_area), got {:?}",
+                    v.drag_coefficients
+                ),
+            ));
+        }
         Ok(())
     }
 }

@@ -4,7 +4,7 @@
 
 use super::spectra::{poly_abs2, rational, von_karman_psd_exact, Rational};
 use crate::config::{GustComponent, GustModel};
-use crate::lane::KernelOps;
+use crate::lane::{explog, KernelOps};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use rand_chacha::ChaCha8Rng;
 
@@ -296,45 +296,25 @@ pub(super) struct DrydenLanes<'a, L> {
     pub out: &'a mut [L; 3],
 }
 
-/// Each lane's `exp(-k)` (`k` capped at `K_MAX`) of a Dryden axis, kept so that a later axis
-/// with the same `k` in a lane (the longitudinal and lateral scale lengths are one) takes the
-/// same libm call's value instead of calling it again.
-pub(super) struct ExpOfK<const M: usize> {
-    pub k: [f64; M],
-    pub e: [f64; M],
-}
-
-impl<const M: usize> ExpOfK<M> {
-    /// No axis's yet (read only once an axis has written it).
-    pub const EMPTY: Self = Self {
-        k: [0.0; M],
-        e: [0.0; M],
-    };
-}
-
 /// [`GustFilter::rescaled_coefficients`] of a Dryden filter of `component` for every lane at
-/// once, `sigma`, `length`, `airspeed`, `dt` and `c` (the unit output row) per lane: bit for bit
-/// each lane's. libm's `exp` and `expm1` are called per lane (their bits are glibc's); the
-/// closed forms around them (`Phi`, `exp_tail3`'s series, the 2x2 Cholesky) run in lane values,
-/// the same operations in the same order (no operation fused), so in the same bits. Lanes
-/// whose scales `rescaled_coefficients` rejects get NaN; a lane whose Cholesky pivot is not
-/// positive takes the scalar [`dryden_matrices`] (its eigen-factor fallback). `shared`: an
-/// earlier axis's `exp(-k)` per lane, taken where that lane's `k` is the same; this axis's are
-/// left in `mine`. Written into `d`.
+/// once (that function is this one on `f64`), `sigma`, `length`, `airspeed`, `dt` and `c` (the
+/// unit output row) per lane: the closed forms of [`dryden_matrices`] in lane values, with the
+/// lane-valued `exp` and `expm1` ([`crate::lane::explog`], within 1 ulp of the true values)
+/// instead of libm's, and the same operations in the same order on every lane type (no
+/// operation fused), so each lane has the bits of the `f64` evaluation. Lanes whose scales
+/// `rescaled_coefficients` rejects get NaN; a lane whose Cholesky pivot is not positive takes
+/// `noise_factor`'s eigen-factor of its `I - Phi Phi^T`. Written into `d`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
+pub(super) fn dryden_lanes<L: KernelOps>(
     component: GustComponent,
     sigma: L,
     length: L,
     airspeed: L,
     dt: L,
     c: [L; 2],
-    shared: Option<&ExpOfK<M>>,
-    mine: &mut ExpOfK<M>,
     d: DrydenLanes<'_, L>,
 ) {
-    assert!(L::LANES <= M);
     let zero = L::splat(0.0);
     // `rescaled_coefficients`' checks: `sigma >= 0` finite, `L`, `V`, `dt` and `k` > 0 finite.
     let k = airspeed * dt / length;
@@ -345,20 +325,9 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
         .and_bits(ok(airspeed))
         .and_bits(ok(dt))
         .and_bits(ok(k));
-    // `dryden_matrices`' cap (`f64::min`: the same as the lanes' `minpd` for any k that passes).
+    // `dryden_matrices`' cap.
     let kc = k.min(L::splat(K_MAX));
-    for l in 0..L::LANES {
-        let kl = kc.lane(l);
-        mine.k[l] = kl;
-        mine.e[l] = match shared {
-            Some(s) if s.k[l].to_bits() == kl.to_bits() => s.e[l],
-            _ => (-kl).exp(),
-        };
-    }
-    let e = L::from_fn(
-        #[inline(always)]
-        |l| mine.e[l],
-    );
+    let e = explog::exp(-kc);
     let n = match component {
         GustComponent::Longitudinal => 1,
         GustComponent::Lateral | GustComponent::Vertical => 2,
@@ -368,16 +337,10 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
         d.out[1] = c[1] * sigma;
     }
     let mut scalar = zero;
+    let mut q = [zero; 3];
     match component {
         GustComponent::Longitudinal => {
-            let mut m = [0.0; M];
-            for (l, m) in m.iter_mut().enumerate().take(L::LANES) {
-                *m = (-2.0 * mine.k[l]).exp_m1();
-            }
-            let m = L::from_fn(
-                #[inline(always)]
-                |l| m[l],
-            );
+            let m = explog::expm1(L::splat(-2.0) * kc);
             d.phi[0][0] = e;
             d.g[0][0] = (-m).sqrt();
         }
@@ -387,14 +350,7 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
             d.phi[1][0] = -e * kc;
             d.phi[1][1] = e * (L::splat(1.0) - kc);
             let x = L::splat(2.0) * kc;
-            let mut ex = [0.0; M];
-            for (l, ex) in ex.iter_mut().enumerate().take(L::LANES) {
-                *ex = (-(2.0 * mine.k[l])).exp();
-            }
-            let ex = L::from_fn(
-                #[inline(always)]
-                |l| ex[l],
-            );
+            let ex = explog::exp(-x);
             let series = x.cmp_le(L::splat(2.0));
             let s3 = exp_tail3_lanes(x, series.and_bits(valid));
             let (mut q11, mut q22) = (ex * s3, ex * (L::splat(2.0) * x + s3));
@@ -420,6 +376,7 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
             d.g[1][0] = l21;
             d.g[1][1] = l22;
             scalar = valid.xor_bits(valid.and_bits(pivots));
+            q = [q11, q12, q22];
         }
     }
     // The rare lanes: NaN where the scales are rejected, scalar where a pivot is not positive.
@@ -429,18 +386,26 @@ pub(super) fn dryden_lanes<L: KernelOps, const M: usize>(
     if rejected | fallback != 0 {
         for l in 0..L::LANES {
             let bit = 1 << l;
-            let scalar = if rejected & bit != 0 {
+            if rejected & bit != 0 {
                 d.out[..n].iter_mut().for_each(|v| v.set_lane(l, f64::NAN));
-                ([[f64::NAN; 3]; 3], [[f64::NAN; 3]; 3])
+                for i in 0..n {
+                    for j in 0..n {
+                        d.phi[i][j].set_lane(l, f64::NAN);
+                        d.g[i][j].set_lane(l, f64::NAN);
+                    }
+                }
             } else if fallback & bit != 0 {
-                dryden_matrices(component, k.lane(l))
-            } else {
-                continue;
-            };
-            for i in 0..n {
-                for j in 0..n {
-                    d.phi[i][j].set_lane(l, scalar.0[i][j]);
-                    d.g[i][j].set_lane(l, scalar.1[i][j]);
+                // `chol2`'s fallback on this lane's I - Phi Phi^T (finite: the scales are).
+                let q = DMatrix::from_row_slice(
+                    2,
+                    2,
+                    &[q[0].lane(l), q[1].lane(l), q[1].lane(l), q[2].lane(l)],
+                );
+                let g = noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2));
+                for i in 0..2 {
+                    for j in 0..2 {
+                        d.g[i][j].set_lane(l, g[(i, j)]);
+                    }
                 }
             }
         }
@@ -689,10 +654,13 @@ impl GustFilter {
         )
     }
 
-    /// The `Phi`, `G` and `sigma c` of [`rescaled`](Self::rescaled)`(sigma, length_scale,
-    /// airspeed)`, bit for bit, or [`Coefficients::NAN`] where that errs (what
-    /// [`poisoned`](Self::poisoned) flies). Dryden without building a filter (no copies of the
-    /// whole filter, no allocation): what the lane-set path computes per lane and step.
+    /// The `Phi`, `G` and `sigma c` of this filter re-discretised for new scales, or
+    /// [`Coefficients::NAN`] where [`rescaled`](Self::rescaled) errs (what
+    /// [`poisoned`](Self::poisoned) flies): the numbers of turbulence that follows the vehicle,
+    /// computed every step. Dryden: [`dryden_lanes`] on `f64` (the lane-valued `exp` and
+    /// `expm1`, so the lane-set path gives each lane these bits; within a few ulp of
+    /// `rescaled`'s libm closed forms), without building a filter or allocating. Von Karman:
+    /// `rescaled`'s, bit for bit.
     #[inline]
     pub fn rescaled_coefficients(
         &self,
@@ -710,16 +678,54 @@ impl GustFilter {
                 if !(valid && ok(length_scale) && ok(airspeed) && ok(self.dt) && ok(k)) {
                     return Coefficients::NAN;
                 }
-                let (phi, g) = dryden_matrices(self.component, k);
-                // `new`'s `out = c * sigma`, element by element.
-                let out = [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma];
-                Coefficients { phi, g, out }
+                let mut out = Coefficients {
+                    phi: [[0.0; 3]; 3],
+                    g: [[0.0; 3]; 3],
+                    out: [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma],
+                };
+                dryden_lanes(
+                    self.component,
+                    sigma,
+                    length_scale,
+                    airspeed,
+                    self.dt,
+                    [self.c[0], self.c[1]],
+                    DrydenLanes {
+                        phi: &mut out.phi,
+                        g: &mut out.g,
+                        out: &mut out.out,
+                    },
+                );
+                out
             }
             GustModel::VonKarman => match self.rescaled(sigma, length_scale, airspeed) {
                 Ok(f) => f.coefficients(),
                 Err(_) => Coefficients::NAN,
             },
         }
+    }
+
+    /// This filter re-discretised for new scales as turbulence that follows the vehicle flies
+    /// it every step: [`rescaled_coefficients`](Self::rescaled_coefficients)' numbers (so the
+    /// per-realisation path and the lane-set path fly the same bits), or
+    /// [`poisoned`](Self::poisoned) where the scales are rejected.
+    #[inline]
+    pub fn rescaled_following(&self, sigma: f64, length_scale: f64, airspeed: f64) -> Self {
+        if self.model == GustModel::VonKarman {
+            return self
+                .rescaled(sigma, length_scale, airspeed)
+                .unwrap_or_else(|_| self.poisoned());
+        }
+        let c = self.rescaled_coefficients(sigma, length_scale, airspeed);
+        let mut f = *self;
+        f.phi = Matrix3::from_fn(|i, j| c.phi[i][j]);
+        f.chol = Matrix3::from_fn(|i, j| c.g[i][j]);
+        f.out = Vector3::from(c.out);
+        f.sigma = sigma;
+        f.length_scale = length_scale;
+        f.airspeed = airspeed;
+        f.k = airspeed * self.dt / length_scale;
+        f
     }
 
     /// This filter's `Phi`, `G` and `sigma c`.
@@ -1365,8 +1371,32 @@ pub(super) mod tests {
                 let base = filt(model, c, 1.0, 0.2);
                 for (sigma, l, v) in scales {
                     let got = base.rescaled_coefficients(sigma, l, v);
+                    let following = base.rescaled_following(sigma, l, v).coefficients();
+                    assert_eq!(bits(&got), bits(&following), "{model:?} {c:?}");
                     match base.rescaled(sigma, l, v) {
-                        Ok(f) => assert_eq!(bits(&got), bits(&f.coefficients()), "{model:?} {c:?}"),
+                        // Von Karman: rescaled's; Dryden: the lane-valued exp and expm1 in
+                        // place of libm's, so within a few ulp of the built filter.
+                        Ok(f) if model == GustModel::VonKarman => {
+                            assert_eq!(bits(&got), bits(&f.coefficients()), "{model:?} {c:?}")
+                        }
+                        Ok(f) => {
+                            let want = f.coefficients();
+                            let close = |a: f64, b: f64| {
+                                (a - b).abs() <= 8.0 * f64::EPSILON * b.abs().max(1e-300)
+                            };
+                            for i in 0..3 {
+                                assert!(close(got.out[i], want.out[i]), "out {c:?} {sigma}");
+                                for j in 0..3 {
+                                    assert!(close(got.phi[i][j], want.phi[i][j]), "phi {c:?}");
+                                    assert!(
+                                        close(got.g[i][j], want.g[i][j]),
+                                        "g {c:?} {l} {v}: {} vs {}",
+                                        got.g[i][j],
+                                        want.g[i][j]
+                                    );
+                                }
+                            }
+                        }
                         Err(_) => assert_eq!(bits(&got), bits(&Coefficients::NAN)),
                     }
                 }
@@ -1565,21 +1595,7 @@ pub(super) mod tests {
                     .map(|s| GustFilter::new(GustModel::Dryden, c, 1.0, 2.0, 10.0, s.3).unwrap())
                     .collect();
                 let unit = [0, 1].map(|i| L::from_fn(|l| base[l].unit_output()[i]));
-                // A previous axis's exp(-k) with the same k in even lanes, another in odd ones.
-                let mut prev = ExpOfK {
-                    k: [0.0; 8],
-                    e: [0.0; 8],
-                };
-                for (l, s) in g.iter().enumerate() {
-                    let k = (s.2 * s.3 / s.1).min(K_MAX);
-                    prev.k[l] = if l % 2 == 0 { k } else { k * 0.5 };
-                    prev.e[l] = (-prev.k[l]).exp();
-                }
-                for shared in [None, Some(&prev)] {
-                    let mut mine = ExpOfK {
-                        k: [0.0; 8],
-                        e: [0.0; 8],
-                    };
+                {
                     let seven = L::splat(7.0);
                     let (mut phi, mut g3, mut out) = ([[seven; 3]; 3], [[seven; 3]; 3], [seven; 3]);
                     dryden_lanes(
@@ -1589,8 +1605,6 @@ pub(super) mod tests {
                         lanes(&|s| s.2),
                         lanes(&|s| s.3),
                         unit,
-                        shared,
-                        &mut mine,
                         DrydenLanes {
                             phi: &mut phi,
                             g: &mut g3,

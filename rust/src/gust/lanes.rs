@@ -1,10 +1,11 @@
 //! The wind of a whole lane-set at once ([`LaneWind`]): the turbulence ([`LaneGust`]) with each
 //! lane's normals drawn in bulk from its own source (the realisation's seeded stream or its
 //! given innovations, exactly as [`WindField::sample_at`] would draw them) and the forming
-//! filters advanced as lane values; where the scales follow the vehicle, each lane's filter
-//! numbers for the step (the same scalar functions as the per-realisation path: libm's `exp`,
-//! `pow`, `ln` per lane, so the same bits); the `[wind]` mean wind per lane and the discrete
-//! gusts once per lane-set where the lanes share them.
+//! filters advanced as lane values; where the scales follow the vehicle, every lane's scales
+//! and filter numbers for the step in lane values (the lane-valued `pow`, `exp` and `expm1` of
+//! `lane::explog`, which the per-realisation path runs on `f64`, so the same bits); the
+//! `[wind]` mean wind per lane and the discrete gusts once per lane-set where the lanes share
+//! them.
 //!
 //! Per lane the arithmetic is operation for operation that of the per-realisation path
 //! (`WindField::sample_at`: `step_fixed`, `GustFilter::output`, the axes' turn), with the lane
@@ -14,7 +15,8 @@
 //! (no per-normal dispatch on the source, no per-step match on the filters' orders), and the
 //! filters of all lanes advance in one pass of vector arithmetic.
 
-use super::filter::{dryden_lanes, Coefficients, DrydenLanes, ExpOfK, Normals};
+use super::filter::{dryden_lanes, Coefficients, DrydenLanes, Normals};
+use super::spectra::low_altitude_scales_lanes;
 use super::wind::{Kinematics, Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
@@ -508,10 +510,10 @@ type Rescaling<'r, L> = (
 /// Each lane's `WindField::at_vehicle` (the mean air, the `[wind]` mean wind and a table's
 /// wind, into `steady[l]`) and, with `rescale`, the step's filter numbers of every lane
 /// written into the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the
-/// Dryden axes' by [`dryden_lanes`] for all lanes at once (libm per lane, the closed forms in
-/// lane values), the others lane by lane. Kept out of the flight loop's line so that the loop
-/// saves its vector registers once per step around it, not around every libm call it makes
-/// (every vector register is the caller's to save); compiled for the lane type's
+/// scales and the Dryden axes' numbers by [`dryden_lanes`] for all lanes at once, the others
+/// lane by lane. Kept out of the flight loop's line so that the loop saves its vector
+/// registers once per step around it, not around every per-lane call it makes (the mean air's
+/// sources; every vector register is the caller's to save); compiled for the lane type's
 /// instruction set (`Lane::within`).
 #[inline(never)]
 fn at_vehicles<L: KernelOps>(
@@ -536,20 +538,18 @@ fn at_vehicles_within<L: KernelOps>(
     rescale: Option<Rescaling<'_, L>>,
     steady: &mut [[f64; 3]; MAX_LANES],
 ) {
-    // Each lane's scales: sigma and L per axis, V.
-    let mut sigma = [[0.0; MAX_LANES]; 3];
-    let mut length = [[0.0; MAX_LANES]; 3];
+    // Each lane's altitude, W20 and V, from which the scales come.
+    let mut altitude = [1.0; MAX_LANES];
+    let mut w20 = [0.0; MAX_LANES];
     let mut airspeed = [0.0; MAX_LANES];
     for (l, f) in fields.iter().enumerate() {
-        let (m, scales) = f.at_vehicle(step, &kin[l], rescale.is_some());
+        let (m, inputs) = f.at_vehicle(step, &kin[l], rescale.is_some());
         if let Some(m) = m {
             steady[l] = m;
         }
-        if let Some((s, len, v)) = scales {
-            for i in 0..3 {
-                sigma[i][l] = s[i];
-                length[i][l] = len[i];
-            }
+        if let Some((h, w, v)) = inputs {
+            altitude[l] = h;
+            w20[l] = w;
             airspeed[l] = v;
         }
     }
@@ -563,10 +563,8 @@ fn at_vehicles_within<L: KernelOps>(
         )
     };
     let v = lanes(&airspeed);
-    // The last Dryden axis's exp(-k) per lane, for the next to share where its k is the same.
-    let mut exps = (ExpOfK::<MAX_LANES>::EMPTY, ExpOfK::EMPTY);
-    let (mut mine, mut last) = (&mut exps.0, &mut exps.1);
-    let mut any = false;
+    // `WindField::follow_scales`' scales, every lane at once.
+    let (sigma, length) = low_altitude_scales_lanes(lanes(&altitude), lanes(&w20));
     for (axis, (c, how)) in components.iter_mut().zip(plan).enumerate() {
         match how {
             Rescale::None => {}
@@ -577,27 +575,26 @@ fn at_vehicles_within<L: KernelOps>(
             } => {
                 dryden_lanes(
                     *component,
-                    lanes(&sigma[axis]),
-                    lanes(&length[axis]),
+                    sigma[axis],
+                    length[axis],
                     v,
                     *dt,
                     *unit,
-                    any.then_some(&*last),
-                    mine,
                     DrydenLanes {
                         phi: &mut c.phi,
                         g: &mut c.g,
                         out: &mut c.out,
                     },
                 );
-                std::mem::swap(&mut mine, &mut last);
-                any = true;
             }
             Rescale::PerLane => {
                 for (l, out) in coefficients.iter_mut().enumerate().take(L::LANES) {
                     let base = fields[l].filters()[axis].expect("orders checked alike");
-                    out[axis] =
-                        base.rescaled_coefficients(sigma[axis][l], length[axis][l], airspeed[l]);
+                    out[axis] = base.rescaled_coefficients(
+                        sigma[axis].lane(l),
+                        length[axis].lane(l),
+                        airspeed[l],
+                    );
                 }
                 match c.order {
                     1 => c.set::<1>(coefficients, axis),

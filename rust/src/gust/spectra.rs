@@ -2,6 +2,7 @@
 //! scale formulas, the exact von Karman PSD, and each filter's rational form.
 
 use crate::config::{GustComponent, GustModel};
+use crate::lane::{explog, KernelOps};
 
 /// Metres in one foot (the MIL-F-8785C low-altitude formulas take feet).
 pub const METRES_PER_FOOT: f64 = 0.3048;
@@ -32,6 +33,21 @@ pub fn low_altitude_scales(altitude_m: f64, w20: f64) -> ([f64; 3], [f64; 3]) {
     let sigma_z = 0.1 * w20;
     let sigma_xy = sigma_z / d.powf(0.4);
     let l_xy = h_ft / d.powf(1.2) * METRES_PER_FOOT;
+    ([sigma_xy, sigma_xy, sigma_z], [l_xy, l_xy, altitude_m])
+}
+
+/// [`low_altitude_scales`] for every lane at once with the lane-valued `pow`
+/// ([`crate::lane::explog::pow`], within 1 ulp, the same bits on every lane path): the scales
+/// of turbulence that follows the vehicle, computed every step (the per-realisation path
+/// takes it with `L = f64`, so both fly the same bits). The fixed scales a filter is built
+/// for keep libm's [`low_altitude_scales`] (the paper's numbers).
+#[inline(always)]
+pub fn low_altitude_scales_lanes<L: KernelOps>(altitude_m: L, w20: L) -> ([L; 3], [L; 3]) {
+    let h_ft = altitude_m / L::splat(METRES_PER_FOOT);
+    let d = L::splat(0.177) + h_ft * 0.000823;
+    let sigma_z = L::splat(0.1) * w20;
+    let sigma_xy = sigma_z / explog::pow(d, L::splat(0.4));
+    let l_xy = h_ft / explog::pow(d, L::splat(1.2)) * METRES_PER_FOOT;
     ([sigma_xy, sigma_xy, sigma_z], [l_xy, l_xy, altitude_m])
 }
 

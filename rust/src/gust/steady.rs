@@ -5,6 +5,7 @@
 //! `wind.roughness`.
 
 use super::source::{Moment, WindSource};
+use crate::lane::explog;
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_number, Field, Key};
@@ -31,7 +32,9 @@ pub enum Shear {
 
 /// The shear factor f(h) of `wind.shear` at height `h` (m) with roughness `z0` (m): 1 for
 /// `none`; `ln(h / z0) / ln(6.096 / z0)` for `log` when h > z0, else 0 (so exactly 1 at
-/// 6.096 m, and a NaN height gives NaN).
+/// 6.096 m, and a NaN height gives NaN). `ln` is the engine's lane-valued one
+/// (`lane::explog::ln`, within 1 ulp), evaluated on `f64` here and per lane on the lane-set
+/// path alike.
 #[inline]
 pub fn shear_factor(shear: Shear, h: f64, z0: f64) -> f64 {
     shear_factor_with(shear, h, z0, shear_log_reference(z0))
@@ -40,7 +43,7 @@ pub fn shear_factor(shear: Shear, h: f64, z0: f64) -> f64 {
 /// ln(20 ft / z0): the log profile's denominator, for [`shear_factor_with`].
 #[inline]
 pub fn shear_log_reference(z0: f64) -> f64 {
-    (REFERENCE_HEIGHT / z0).ln()
+    explog::ln(REFERENCE_HEIGHT / z0)
 }
 
 /// [`shear_factor`] with its denominator computed once (`log_reference =
@@ -49,7 +52,7 @@ pub fn shear_log_reference(z0: f64) -> f64 {
 pub fn shear_factor_with(shear: Shear, h: f64, z0: f64, log_reference: f64) -> f64 {
     match shear {
         Shear::None => 1.0,
-        Shear::Log if h > z0 => (h / z0).ln() / log_reference,
+        Shear::Log if h > z0 => explog::ln(h / z0) / log_reference,
         Shear::Log if h.is_nan() => f64::NAN,
         Shear::Log => 0.0,
     }

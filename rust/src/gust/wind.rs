@@ -3,8 +3,8 @@
 
 use super::filter::{step_fixed, GustFilter, Normals};
 use super::source::Moment;
-use super::spectra::low_altitude_scales;
 use super::spectra::METRES_PER_FOOT;
+use super::spectra::{low_altitude_scales, low_altitude_scales_lanes};
 use super::{AnySource, Prescribed};
 use crate::config::{Config, ConfigError, GustAirspeed, GustAltitude, GustComponent};
 use rand::SeedableRng;
@@ -553,18 +553,24 @@ impl WindField {
         let mut out = self.filters;
         for (i, slot) in out.iter_mut().enumerate() {
             if let Some(base) = slot {
-                *slot = Some(
-                    base.rescaled(sigma[i], length[i], v)
-                        .unwrap_or_else(|_| base.poisoned()),
-                );
+                *slot = Some(base.rescaled_following(sigma[i], length[i], v));
             }
         }
         out
     }
 
-    /// `rescale`'s scales: (sigma, L) per component and V.
+    /// `rescale`'s scales: (sigma, L) per component ([`low_altitude_scales_lanes`] of
+    /// `follow_inputs`' altitude) and V.
     #[inline]
     fn follow_scales(f: &Follow, kin: &Kinematics, mean: [f64; 3]) -> ([f64; 3], [f64; 3], f64) {
+        let (h, w20, v) = Self::follow_inputs(f, kin, mean);
+        let (sigma, length) = low_altitude_scales_lanes(h, w20);
+        (sigma, length, v)
+    }
+
+    /// What the step's scales are computed from: the altitude, W20 and the airspeed V.
+    #[inline(always)]
+    fn follow_inputs(f: &Follow, kin: &Kinematics, mean: [f64; 3]) -> (f64, f64, f64) {
         let (lo, hi) = VEHICLE_ALTITUDE_RANGE;
         let h = match f.altitude {
             GustAltitude::Fixed(h) => h,
@@ -579,16 +585,15 @@ impl WindField {
                     .max(f.min_airspeed)
             }
         };
-        let (sigma, length) = low_altitude_scales(h, f.w20);
-        (sigma, length, v)
+        (h, f.w20, v)
     }
 
     /// [`sample_at`](Self::sample_at)'s work that reads the quadrotor, for the lane-set path
     /// ([`super::lanes::LaneWind`]) to do per lane: the `[wind]` mean wind at the quadrotor
     /// (`None` where it does not blow) and, when `scales` is asked and the turbulence follows
-    /// the vehicle, the step's scales (`rescale`'s: sigma and L per component, V), from which
-    /// the lane-set computes the filters' numbers (`GustFilter::rescaled_coefficients`'s, bit
-    /// for bit).
+    /// the vehicle, what the step's scales come from (`follow_inputs`: altitude, W20, V), from
+    /// which the lane-set computes the scales and the filters' numbers (`rescale`'s, bit for
+    /// bit).
     #[inline(always)]
     #[allow(clippy::type_complexity)]
     pub(super) fn at_vehicle(
@@ -596,7 +601,7 @@ impl WindField {
         step: u64,
         kin: &Kinematics,
         scales: bool,
-    ) -> (Option<[f64; 3]>, Option<([f64; 3], [f64; 3], f64)>) {
+    ) -> (Option<[f64; 3]>, Option<(f64, f64, f64)>) {
         let kin = if self.follows_vehicle() {
             *kin
         } else {
@@ -604,7 +609,7 @@ impl WindField {
         };
         let steady = self.mean_air(self.moment(step), &kin);
         let scales = match (scales, &self.follow) {
-            (true, Some(f)) => Some(Self::follow_scales(f, &kin, steady.unwrap_or([0.0; 3]))),
+            (true, Some(f)) => Some(Self::follow_inputs(f, &kin, steady.unwrap_or([0.0; 3]))),
             _ => None,
         };
         (steady, scales)

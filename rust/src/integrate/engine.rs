@@ -2,6 +2,7 @@
 //! to the flight loop (`FlightRequest`), and the engine's public methods.
 
 use super::*;
+use crate::config::Trim;
 
 /// What may differ between realisations: one vehicle's physical parameters, controllers,
 /// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
@@ -20,6 +21,9 @@ pub struct Realisation {
     pub(super) limits: [f64; 4],
     /// m, the flight ends below this z (`ground.*`; minus infinity when off).
     pub(super) floor: f64,
+    /// cos(0.9 `controller.tilt_limit`): a tilt past 90 % of the law's limit has
+    /// cos(phi) cos(theta) below it (`near_tilt_time`).
+    pub(super) near_tilt_cos: f64,
 }
 
 impl Realisation {
@@ -36,7 +40,7 @@ impl Realisation {
             Some(c) => c.wind.clone(),
             None => WindField::new(cfg)?,
         };
-        let x0 = initial_state(&vehicle, cfg);
+        let x0 = initial_state(&vehicle, cfg, &wind)?;
         let d = &cfg.divergence;
         Ok(Self {
             vehicle,
@@ -45,6 +49,7 @@ impl Realisation {
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
             floor: cfg.ground.floor(),
+            near_tilt_cos: (0.9 * cfg.controller.tilt_limit).cos(),
         })
     }
 }
@@ -56,21 +61,56 @@ impl Realisation {
     }
 }
 
-/// The state a flight of `cfg` starts from: at rest at `initial.*`, payload and actuators at
-/// hover.
-pub fn initial_state(parts: &AnyVehicle, cfg: &Config) -> Vec<f64> {
-    struct Rest<'a>(&'a AnyVehicle, &'a Config);
-    impl VehicleVisitor for Rest<'_> {
+/// The state a flight of `cfg` starts from, at `initial.*`: with `initial.trim = "wind"`
+/// trimmed in the steady wind `wind` blows at the start (`start_wind`), with `"rest"` (or in
+/// still air) at rest, payload and actuators at hover. A vehicle that cannot hover in the
+/// start's wind (no trim exists: too much drag, too little thrust) starts at rest too, and its
+/// flight shows what the wind does to it (it is flown and flagged, as any other).
+pub fn initial_state(
+    parts: &AnyVehicle,
+    cfg: &Config,
+    wind: &WindField,
+) -> Result<Vec<f64>, ConfigError> {
+    struct Start<'a>(&'a AnyVehicle, &'a Config, [f64; 3]);
+    impl VehicleVisitor for Start<'_> {
         type Output = Vec<f64>;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<f64> {
-            let Rest(parts, cfg) = self;
-            let s: State<f64, N> = parts
-                .vehicle::<Pay, Act>()
-                .rest_state(cfg.initial.position, cfg.initial.attitude);
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+            let Start(parts, cfg, w) = self;
+            let i = &cfg.initial;
+            let v = parts.vehicle_on::<B, Pay, Act>();
+            let s: State<f64, N> = v
+                .trim_state(i.position, i.attitude, w)
+                .unwrap_or_else(|_| v.rest_state(i.position, i.attitude));
             s.to_vec()
         }
     }
-    dispatch(cfg.payload.model, cfg.actuator.model, Rest(parts, cfg))
+    let w = match cfg.initial.trim {
+        Trim::Wind => start_wind(wind, cfg.initial.position[2]),
+        Trim::Rest => [0.0; 3],
+    };
+    Ok(dispatch(
+        cfg.vehicle.body,
+        cfg.payload.model,
+        cfg.actuator.model,
+        Start(parts, cfg, w),
+    ))
+}
+
+/// m/s, the steady wind at the start, at altitude `z0`: every deterministic source at step 0
+/// and, if the turbulence's window is open then, its mean (not its random part).
+pub fn start_wind(wind: &WindField, z0: f64) -> [f64; 3] {
+    let kin = Kinematics {
+        z: z0,
+        vel: [0.0; 3],
+    };
+    let mut w = wind.deterministic(0, &kin);
+    if wind.is_active(0) {
+        let m = wind.mean_wind();
+        for i in 0..3 {
+            w[i] += m[i];
+        }
+    }
+    w
 }
 
 /// One request to the flight loop: which law, and for a dispersed batch the realisations, one
@@ -147,7 +187,7 @@ impl Engine {
         let decimation = cfg.decimation();
         Ok(Self {
             realisation: Realisation::new(&cfg)?,
-            vars: state_vars(cfg.payload.model, cfg.actuator.model),
+            vars: state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
             trajectory: Trajectory::new(&cfg),
             phases: phase_steps(&cfg),
             steps,
@@ -173,7 +213,11 @@ impl Engine {
 
     /// Trace columns after `t`.
     pub fn trace_columns(&self) -> Vec<&'static str> {
-        trace_columns(self.cfg.payload.model, self.cfg.actuator.model)
+        trace_columns(
+            self.cfg.vehicle.body,
+            self.cfg.payload.model,
+            self.cfg.actuator.model,
+        )
     }
 
     /// An empty trace for one flight, a row every `every` steps.

@@ -14,7 +14,7 @@ macro_rules! flight_loop_for {
         #[doc = concat!("The CPU must support ", $features, ".")]
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        unsafe fn $name<L, Pay, Act, C, const N: usize>(
+        unsafe fn $name<L, B, Pay, Act, C, const N: usize>(
             &self,
             realisations: &[&Realisation],
             req: &FlightRequest,
@@ -23,11 +23,12 @@ macro_rules! flight_loop_for {
         ) -> Option<Vec<LaneResult>>
         where
             L: KernelOps,
+            B: BodyKind,
             Pay: Payload,
             Act: Actuator,
             C: Controller,
         {
-            self.fly_law::<L, Pay, Act, C, N>(realisations, req, trace, planner)
+            self.fly_law::<L, B, Pay, Act, C, N>(realisations, req, trace, planner)
         }
     )+};
 }
@@ -40,8 +41,8 @@ macro_rules! flight_loop_for {
 /// baseline one. The arithmetic never contracts or reorders, so the same lanes give the same
 /// bits in any of them.
 pub trait LoopEntry: KernelOps {
-    /// Fly law `C` on the vehicle of kinds `Pay`, `Act` (`N` states), one realisation per lane.
-    fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+    /// Fly law `C` on the vehicle of kinds `B`, `Pay`, `Act` (`N` states), one realisation per lane.
+    fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
         engine: &Engine,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -53,14 +54,14 @@ pub trait LoopEntry: KernelOps {
 macro_rules! portable_entry {
     ($($ty:ty),+) => {$(
         impl LoopEntry for $ty {
-            fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
                 engine: &Engine,
                 realisations: &[&Realisation],
                 req: &FlightRequest,
                 trace: Option<&mut Trace>,
                 planner: &mut FftPlanner<f64>,
             ) -> Option<Vec<LaneResult>> {
-                engine.fly_law::<Self, Pay, Act, C, N>(realisations, req, trace, planner)
+                engine.fly_law::<Self, B, Pay, Act, C, N>(realisations, req, trace, planner)
             }
         }
     )+};
@@ -73,7 +74,7 @@ macro_rules! intrinsic_entry {
     ($($ty:ty => $isa:expr, $fused:expr, $name:ident;)+) => {$(
         #[cfg(target_arch = "x86_64")]
         impl LoopEntry for $ty {
-            fn enter<Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
                 engine: &Engine,
                 realisations: &[&Realisation],
                 req: &FlightRequest,
@@ -89,7 +90,7 @@ macro_rules! intrinsic_entry {
                 );
                 // SAFETY: the CPU supports the instruction set (asserted just above).
                 unsafe {
-                    engine.$name::<Self, Pay, Act, C, N>(realisations, req, trace, planner)
+                    engine.$name::<Self, B, Pay, Act, C, N>(realisations, req, trace, planner)
                 }
             }
         }

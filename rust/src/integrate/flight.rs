@@ -33,6 +33,10 @@ fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
 
+/// s, the window after the hook opens over which the vehicle's height change is taken
+/// (`release_height_change`).
+pub const RELEASE_WINDOW: f64 = 5.0;
+
 impl Engine {
     /// Fly on the vehicle kinds (`model::dispatch`) and law (`control::dispatch`) of the
     /// request: dispatch to the loop compiled for them and lane type `L` (`LoopEntry::enter`).
@@ -64,26 +68,28 @@ impl Engine {
         }
         impl<L: LoopEntry> VehicleVisitor for Fly<'_, '_, '_, L> {
             type Output = Option<Vec<LaneResult>>;
-            fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+            fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
+                self,
+            ) -> Self::Output {
                 let kind = self.req.kind;
-                let law = Law::<L, Pay, Act, N> {
+                let law = Law::<L, B, Pay, Act, N> {
                     fly: self,
                     kinds: PhantomData,
                 };
                 crate::control::dispatch(kind, law)
             }
         }
-        struct Law<'e, 'r, 't, L, Pay, Act, const N: usize> {
+        struct Law<'e, 'r, 't, L, B, Pay, Act, const N: usize> {
             fly: Fly<'e, 'r, 't, L>,
-            kinds: PhantomData<(Pay, Act)>,
+            kinds: PhantomData<(B, Pay, Act)>,
         }
-        impl<L: LoopEntry, Pay: Payload, Act: Actuator, const N: usize> ControllerVisitor
-            for Law<'_, '_, '_, L, Pay, Act, N>
+        impl<L: LoopEntry, B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>
+            ControllerVisitor for Law<'_, '_, '_, L, B, Pay, Act, N>
         {
             type Output = Option<Vec<LaneResult>>;
             fn visit<C: Controller>(self) -> Self::Output {
                 let f = self.fly;
-                L::enter::<Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
+                L::enter::<B, Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
             }
         }
         let fly = Fly {
@@ -94,13 +100,14 @@ impl Engine {
             planner,
             kinds: PhantomData::<L>,
         };
-        dispatch(self.cfg.payload.model, self.cfg.actuator.model, fly)
+        let cfg = &self.cfg;
+        dispatch(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model, fly)
     }
 
     /// Gather the lanes' realisations into lane-valued parameters and fly law `C`: the body of
     /// every compiled loop (`LoopEntry::enter`), inlined there with everything it calls.
     #[inline(always)]
-    pub(super) fn fly_law<L, Pay, Act, C, const N: usize>(
+    pub(super) fn fly_law<L, B, Pay, Act, C, const N: usize>(
         &self,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -109,20 +116,22 @@ impl Engine {
     ) -> Option<Vec<LaneResult>>
     where
         L: KernelOps,
+        B: BodyKind,
         Pay: Payload,
         Act: Actuator,
         C: Controller,
     {
         let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
-        let vehicle = AnyVehicle::gather::<L, Pay, Act>(&each);
+        // Mutable: a payload's winch target and hook change along the flight (`last_metres`).
+        let mut vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
         let kind = req.kind;
         let laws: Vec<&C> = realisations
             .iter()
             .map(|c| c.laws.get(kind).get::<C>())
             .collect();
         let ctrl = C::gather::<L>(&laws);
-        self.fly_loop::<L, Pay::At<L>, Act::At<L>, C::At<L>, N>(
-            &vehicle,
+        self.fly_loop::<L, B, Pay::At<L>, Act::At<L>, C::At<L>, N>(
+            &mut vehicle,
             &ctrl,
             realisations,
             req,
@@ -133,9 +142,9 @@ impl Engine {
 
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn fly_loop<L, Pay, Act, C, const N: usize>(
+    fn fly_loop<L, B, Pay, Act, C, const N: usize>(
         &self,
-        vehicle: &Vehicle<L, Pay, Act>,
+        vehicle: &mut Vehicle<L, Pay, Act, B>,
         ctrl: &C,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -144,10 +153,12 @@ impl Engine {
     ) -> Option<Vec<LaneResult>>
     where
         L: KernelOps,
+        B: BodyKind,
         Pay: crate::model::PayloadModel<L>,
         Act: ActuatorModel<L>,
         C: Control<L>,
     {
+        type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
         let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
         let mut s = x0;
@@ -198,6 +209,9 @@ impl Engine {
         let gust_to = windy().map(|c| c.wind.end_step()).max();
         let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
         let floor = L::from_fn(|l| realisations[l].floor);
+        // The rigid body's roll and pitch are no states: held to `divergence.max_tilt` here.
+        let derives_tilt = !B::DERIVED.is_empty();
+        let max_tilt = L::from_fn(|l| realisations[l].limits[Bound::Tilt as usize]);
         let grounded = realisations.iter().any(|c| c.floor > f64::NEG_INFINITY);
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let mut extra = [zero; MAX_ACTUATOR_SIGNALS];
@@ -207,14 +221,25 @@ impl Engine {
         let blows = realisations.iter().any(|c| c.wind.blows());
         let mut held = [zero; 3];
         // The law's discrete memory (none for a static law), and each lane's at its start.
-        let mem0 = ctrl.memory(&Vehicle::<L, Pay, Act>::rigid(&x0));
+        let mem0 = ctrl.memory(&V::<L, Pay, Act, B>::rigid(&x0));
         let mut mem = mem0;
+        // The tilt past 90 % of the law's limit (`near_tilt_time`): cos(phi) cos(theta) below.
+        let near_tilt_cos = L::from_fn(|l| realisations[l].near_tilt_cos);
+        // The last metres: a lowering's line to pay out and the point it lowers at (the last
+        // lowering's; before any, the reference's), per lane the height error at the release
+        // and its time.
+        let mut payout: Option<f64> = None;
+        let mut drop_at: Option<[f64; 2]> = None;
+        let mut release_err = [f64::NAN; MAX_LANES];
+        let mut release_t = [f64::NAN; MAX_LANES];
 
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
             if t + TIME_SLACK >= ref_changes {
                 r = self.trajectory.at(t, &mut segment);
                 ref_changes = self.trajectory.next_change(segment);
+                payout = self.trajectory.lowering(segment);
+                drop_at = self.trajectory.drop_point(segment).or(drop_at);
                 // Each lane's line (they differ before the first waypoint, which each lane's
                 // own initial position leads to), once per segment: it depends on nothing else.
                 if segment != line_of {
@@ -229,21 +254,16 @@ impl Engine {
                     );
                 }
             }
-            let trig = Trig::of(&s);
+            let trig = B::frame(&s);
             let tick = Tick { step: k, t };
-            let u = ctrl.step_with(
-                &Vehicle::<L, Pay, Act>::rigid(&s),
-                &trig,
-                &r,
-                tick,
-                &mut mem,
-            );
+            let view = V::<L, Pay, Act, B>::rigid_at(&s, &trig);
+            let u = ctrl.step_with(&view, &B::trig(&trig, &view.att), &r, tick, &mut mem);
             let cmd = vehicle.actuator.command(&u, tick);
             // Outside the gust window `sample_at` returns zeros without touching the state
             // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
             // window is open and nothing else blows (most of a paper flight).
             let at = |lane: usize| {
-                let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                let rigid = V::<L, Pay, Act, B>::rigid(&s);
                 move || Kinematics {
                     z: rigid.pos[2].lane(lane),
                     vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
@@ -262,7 +282,7 @@ impl Engine {
                         k as u64,
                         #[inline(always)]
                         || {
-                            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+                            let rigid = V::<L, Pay, Act, B>::rigid(&s);
                             (rigid.pos[2], rigid.vel)
                         },
                     ));
@@ -295,14 +315,56 @@ impl Engine {
                 }
             };
             held = w;
+            // The route's cue to the payload and its events, before the step (a hook that opens
+            // now is open over the step).
+            let cue = Cue {
+                t,
+                dt: self.dt,
+                payout,
+            };
+            let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
-            let rigid = Vehicle::<L, Pay, Act>::rigid(&s);
+            let rigid = V::<L, Pay, Act, B>::rigid(&s);
             let e = [
                 rigid.pos[0] * -1.0 + r.pos[0],
                 rigid.pos[1] * -1.0 + r.pos[1],
                 rigid.pos[2] * -1.0 + r.pos[2],
             ];
+            let last = match events {
+                None => LastSample::none(),
+                Some(ev) => {
+                    let drop = drop_at.unwrap_or([r.pos[0], r.pos[1]]);
+                    let [vx, vy, vz] = ev.approach;
+                    let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
+                    let mut after = [0.0; MAX_LANES];
+                    let mut change = [0.0; MAX_LANES];
+                    for l in 0..L::LANES {
+                        if ev.release.lane(l) > 0.0 {
+                            release_t[l] = t;
+                            release_err[l] = e[2].lane(l);
+                        }
+                        if t - release_t[l] <= RELEASE_WINDOW + TIME_SLACK {
+                            after[l] = 1.0;
+                            change[l] = (e[2].lane(l) - release_err[l]).abs();
+                        }
+                    }
+                    LastSample {
+                        touchdown: ev.touchdown,
+                        touchdown_speed: vz.abs(),
+                        touchdown_drift: vx.mul_add(vx, vy * vy).sqrt(),
+                        touchdown_miss: mx.mul_add(mx, my * my).sqrt(),
+                        release: ev.release,
+                        after_release: L::from_fn(|l| after[l]),
+                        release_change: L::from_fn(|l| change[l]),
+                        lowering_swing: if payout.is_some() {
+                            out.swing * (one - ev.grounded)
+                        } else {
+                            zero
+                        },
+                    }
+                }
+            };
             let [ax, ay, az] = out.accel;
             // |a| without the square root's rounding where the acceleration is vertical only.
             let accel = (ax * ax + ay * ay + az * az).sqrt();
@@ -323,22 +385,30 @@ impl Engine {
                     tension: out.tension,
                     slack: L::select(out.tension.cmp_le(zero), one, zero),
                     saturated: vehicle.actuator.saturated(&cmd),
+                    near_tilt: L::select(
+                        crate::model::Frame::axes(&trig)[2][2].cmp_le(near_tilt_cos),
+                        one,
+                        zero,
+                    ),
+                    last,
                 },
             );
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && diverged_at[0].is_nan() {
-                    let lay = Vehicle::<L, Pay, Act>::LAYOUT;
+                    let lay = V::<L, Pay, Act, B>::LAYOUT;
                     vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
+                    let derived = &view.att[..B::DERIVED.len()];
                     tr.push(&TraceRow {
                         t,
                         s: &s,
+                        derived,
                         r: &r,
                         u: &u,
                         w: &w,
                         e_o: out.e_o,
                         accel_c: accel,
-                        drag_z: vehicle.body.vertical_drag(rigid.vel[2], w[2]),
+                        drag_z: crate::model::Frame::drag(&trig, &vehicle.body, &rigid.vel, &w)[2],
                         swing: out.swing,
                         tension: out.tension,
                         extra,
@@ -357,6 +427,13 @@ impl Engine {
             if grounded {
                 ok &= floor.le_mask(s[ix::Z]);
             }
+            let tilt = if derives_tilt {
+                let att = B::euler(&s, &B::frame(&s));
+                ok &= att[0].abs().le_mask(max_tilt) & att[1].abs().le_mask(max_tilt);
+                [att[0], att[1]]
+            } else {
+                [zero; 2]
+            };
             if ok != L::ALL {
                 for (lane, at) in diverged_at.iter_mut().enumerate().take(L::LANES) {
                     if at.is_nan() && ok & (1 << lane) == 0 {
@@ -364,7 +441,12 @@ impl Engine {
                         alive -= 1;
                         let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
                         let c = realisations[lane];
-                        status[lane] = classify(&self.vars, &values, &c.limits, c.floor);
+                        let tilt = if derives_tilt {
+                            vec![tilt[0].lane(lane), tilt[1].lane(lane)]
+                        } else {
+                            Vec::new()
+                        };
+                        status[lane] = classify(&self.vars, &values, &tilt, &c.limits, c.floor);
                         // Park the lane on a benign state so its neighbours' arithmetic stays clean.
                         for (x, x0) in s.iter_mut().zip(realisations[lane].x0.iter()) {
                             x.set_lane(lane, *x0);

@@ -17,10 +17,12 @@ use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps, Lane};
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
-use crate::metrics::{PhaseAccumulator, Sample, N_METRICS};
+use crate::metrics::{LastSample, PhaseAccumulator, Sample, N_METRICS};
+use crate::model::payload::Cue;
 use crate::model::{
     dispatch, ix, state_from_fn, state_vars, Actuator, ActuatorKind, ActuatorModel, AnyVehicle,
-    Bound, Inputs, Payload, PayloadKind, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
+    BodyKind, BodyModel, Bound, Inputs, Payload, PayloadKind, State, StateVar, Tick, Vehicle,
+    VehicleVisitor,
 };
 use crate::trajectory::{phase_steps, PhaseSteps, Reference, Trajectory, TIME_SLACK};
 use rustfft::FftPlanner;

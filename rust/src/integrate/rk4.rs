@@ -2,14 +2,15 @@
 
 use super::*;
 
-/// One RK4 step of the vehicle with the actuator command and wind held; `trig` are the sines
-/// and cosines of `s`'s angles (the controller needed them too). The later stages get theirs
-/// from these by angle addition (`Trig::advanced`).
+/// One RK4 step of the vehicle with the actuator command and wind held; `trig` is `s`'s
+/// attitude (`BodyKind::frame`; the controller needed it too). The later stages get theirs
+/// from it (`BodyKind::advanced`: on the paper's body by angle addition, `Trig::advanced`).
+/// The step ends with `BodyKind::project` (the rigid body's quaternion renormalised).
 #[inline(always)]
-pub fn rk4_step<L: KernelOps, Pay, Act, const N: usize>(
-    vehicle: &Vehicle<L, Pay, Act>,
+pub fn rk4_step<L: KernelOps, Pay, Act, B: BodyKind, const N: usize>(
+    vehicle: &Vehicle<L, Pay, Act, B>,
     s: &State<L, N>,
-    trig: &Trig<L>,
+    trig: &B::Frame<L>,
     cmd: &Act::Command,
     w: &[L; 3],
     dt: f64,
@@ -29,10 +30,10 @@ where
 /// becomes the step's end, each element from its own old value as in `rk4_step` (the same
 /// bits), without a copy of the whole state per step.
 #[inline(always)]
-pub fn rk4_advance<L: KernelOps, Pay, Act, const N: usize>(
-    vehicle: &Vehicle<L, Pay, Act>,
+pub fn rk4_advance<L: KernelOps, Pay, Act, B: BodyKind, const N: usize>(
+    vehicle: &Vehicle<L, Pay, Act, B>,
     s: &mut State<L, N>,
-    trig: &Trig<L>,
+    trig: &B::Frame<L>,
     k1: &State<L, N>,
     cmd: &Act::Command,
     w: &[L; 3],
@@ -49,13 +50,15 @@ pub fn rk4_advance<L: KernelOps, Pay, Act, const N: usize>(
         )
     }
     let s2 = stage(s, k1, 0.5 * dt);
-    let k2 = vehicle.derivative(&s2, &trig.advanced(k1, 0.5 * dt, &s2), cmd, w);
+    let k2 = vehicle.derivative(&s2, &B::advanced(trig, k1, 0.5 * dt, &s2), cmd, w);
     let s3 = stage(s, &k2, 0.5 * dt);
-    let k3 = vehicle.derivative(&s3, &trig.advanced(&k2, 0.5 * dt, &s3), cmd, w);
+    let k3 = vehicle.derivative(&s3, &B::advanced(trig, &k2, 0.5 * dt, &s3), cmd, w);
     let s4 = stage(s, &k3, dt);
-    let k4 = vehicle.derivative(&s4, &trig.advanced(&k3, dt, &s4), cmd, w);
+    let k4 = vehicle.derivative(&s4, &B::advanced(trig, &k3, dt, &s4), cmd, w);
     let h6 = dt / 6.0;
     for i in 0..N {
         s[i] = (k1[i] + (k2[i] + k3[i]) * 2.0 + k4[i]).mul_add(L::splat(h6), s[i]);
     }
+    // The rigid body's quaternion back to unit length (nothing on the paper's body).
+    B::project(s);
 }

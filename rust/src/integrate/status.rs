@@ -65,7 +65,14 @@ impl ExitStatus {
 
 /// Why the state `s` (one lane's values) failed its checks: non-finite first, then the ground
 /// (`floor`, the quadrotor's z), then the first bound exceeded in the order of `Bound`.
-pub(super) fn classify(vars: &[StateVar], s: &[f64], limits: &[f64; 4], floor: f64) -> ExitStatus {
+/// `tilt` are roll and pitch where they are no states (the rigid body's, derived), else empty.
+pub(super) fn classify(
+    vars: &[StateVar],
+    s: &[f64],
+    tilt: &[f64],
+    limits: &[f64; 4],
+    floor: f64,
+) -> ExitStatus {
     if s.iter().any(|x| !x.is_finite()) {
         return ExitStatus::NonFinite;
     }
@@ -75,9 +82,12 @@ pub(super) fn classify(vars: &[StateVar], s: &[f64], limits: &[f64; 4], floor: f
     [Bound::Distance, Bound::Tilt, Bound::Speed, Bound::Rate]
         .into_iter()
         .find(|&b| {
-            vars.iter()
-                .zip(s)
-                .any(|(v, x)| v.bound == Some(b) && x.abs() > limits[b as usize])
+            let limit = limits[b as usize];
+            (b == Bound::Tilt && tilt.iter().any(|x| x.abs() > limit))
+                || vars
+                    .iter()
+                    .zip(s)
+                    .any(|(v, x)| v.bound == Some(b) && x.abs() > limit)
         })
         .map_or(ExitStatus::NonFinite, ExitStatus::of)
 }

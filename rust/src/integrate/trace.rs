@@ -27,24 +27,29 @@ pub const SIGNAL_COLUMNS: [&str; 16] = [
 /// Most extra trace columns an actuator kind may have.
 pub(super) const MAX_ACTUATOR_SIGNALS: usize = 8;
 
-/// Every trace column after `t` of a vehicle with these kinds: its states, `SIGNAL_COLUMNS`,
-/// then the actuator's own.
-pub fn trace_columns(payload: PayloadKind, actuator: ActuatorKind) -> Vec<&'static str> {
+/// Every trace column after `t` of a vehicle with these kinds: its states, the body's derived
+/// columns (`BodyKind::DERIVED`), `SIGNAL_COLUMNS`, then the actuator's own.
+pub fn trace_columns(
+    body: BodyModel,
+    payload: PayloadKind,
+    actuator: ActuatorKind,
+) -> Vec<&'static str> {
     struct Columns;
     impl VehicleVisitor for Columns {
         type Output = Vec<&'static str>;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
             let extra = <Act::At<f64> as ActuatorModel<f64>>::SIGNALS;
             assert!(extra.len() <= MAX_ACTUATOR_SIGNALS);
-            let vars = crate::model::state_vars_of::<Pay, Act>();
+            let vars = crate::model::state_vars_of::<B, Pay, Act>();
             vars.iter()
                 .map(|v| v.name)
+                .chain(B::DERIVED.iter().copied())
                 .chain(SIGNAL_COLUMNS)
                 .chain(extra.iter().copied())
                 .collect()
         }
     }
-    dispatch(payload, actuator, Columns)
+    dispatch(body, payload, actuator, Columns)
 }
 
 /// Rows of (t, trace columns...) every `every` steps, for lane 0 of a flight.
@@ -68,9 +73,13 @@ impl Trace {
     }
 
     pub(super) fn push<L: Lane, const N: usize>(&mut self, row: &TraceRow<L, N>) {
-        debug_assert_eq!(self.width, 1 + N + SIGNAL_COLUMNS.len() + row.extra.len());
+        debug_assert_eq!(
+            self.width,
+            1 + N + row.derived.len() + SIGNAL_COLUMNS.len() + row.extra.len()
+        );
         self.data.push(row.t);
         self.data.extend(row.s.iter().map(|x| x.lane(0)));
+        self.data.extend(row.derived.iter().map(|x| x.lane(0)));
         let r = row.r;
         self.data
             .extend_from_slice(&[r.pos[0], r.pos[1], r.pos[2], r.psi, row.u.u1.lane(0)]);
@@ -87,6 +96,8 @@ impl Trace {
 pub(super) struct TraceRow<'a, L, const N: usize> {
     pub(super) t: f64,
     pub(super) s: &'a State<L, N>,
+    /// The body's derived columns (`BodyKind::DERIVED`).
+    pub(super) derived: &'a [L],
     pub(super) r: &'a Reference,
     /// The controller's command held over the step starting at `t`.
     pub(super) u: &'a Inputs<L>,

@@ -127,6 +127,12 @@ impl Lane for Dual {
             },
         )
     }
+    fn atan2(self, x: Self) -> Self {
+        Self {
+            v: self.v.atan2(x.v),
+            d: (x.v * self.d - self.v * x.d) / (x.v * x.v + self.v * self.v),
+        }
+    }
     fn asin(self) -> Self {
         Self {
             v: self.v.asin(),

@@ -112,6 +112,16 @@ pub trait Lane:
     fn le_mask(self, bound: Self) -> u32 {
         (0..Self::LANES).fold(0, |m, i| m | ((self.lane(i) <= bound.lane(i)) as u32) << i)
     }
+    /// The angle of (x, y) = (`x`, `self`), lane by lane with the standard library's `atan2`
+    /// (the same bits on every lane type): for the few angles read once per step (the rigid
+    /// body's Euler angles), not for the hot derivative.
+    #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        Self::from_fn(
+            #[inline(always)]
+            |i| self.lane(i).atan2(x.lane(i)),
+        )
+    }
     #[inline(always)]
     fn clamp(self, lo: Self, hi: Self) -> Self {
         self.max(lo).min(hi)
@@ -163,6 +173,10 @@ pub trait KernelOps: Lane + Param<Self> {
     fn add_bits(self, other: Self) -> Self;
     /// Bit patterns shifted left by 62.
     fn shl62_bits(self) -> Self;
+    /// Bit patterns shifted left by 52 (an integer in the low bits to an exponent field).
+    fn shl52_bits(self) -> Self;
+    /// Bit patterns shifted right by 52, zeros shifted in (an exponent field to the low bits).
+    fn shr52_bits(self) -> Self;
 }
 
 #[inline(always)]
@@ -260,6 +274,14 @@ impl KernelOps for f64 {
     fn shl62_bits(self) -> Self {
         f64::from_bits(self.to_bits() << 62)
     }
+    #[inline(always)]
+    fn shl52_bits(self) -> Self {
+        f64::from_bits(self.to_bits() << 52)
+    }
+    #[inline(always)]
+    fn shr52_bits(self) -> Self {
+        f64::from_bits(self.to_bits() >> 52)
+    }
 }
 
 /// Operators of a lane type from its inherent `add_`, `sub_`, `mul_`, `div_` and `Lane` methods.
@@ -351,6 +373,7 @@ pub use portable::F64x4;
 mod portable;
 
 pub mod dual;
+pub mod explog;
 pub mod isa;
 pub mod kernels;
 pub mod random;
@@ -444,7 +467,21 @@ mod tests {
             let (s, c) = v.sin_cos();
             let a = (v * 0.3).asin();
             let m = v.max(L::splat(0.1)).min(L::splat(2.0));
+            let (e, em1, lg) = (explog::exp(v), explog::expm1(v), explog::ln(v));
+            let pw = explog::pow(v.abs(), L::splat(0.4));
             for (i, &x) in chunk.iter().enumerate() {
+                assert_eq!(e.lane(i).to_bits(), explog::exp(x).to_bits(), "exp {x}");
+                assert_eq!(
+                    em1.lane(i).to_bits(),
+                    explog::expm1(x).to_bits(),
+                    "expm1 {x}"
+                );
+                assert_eq!(lg.lane(i).to_bits(), explog::ln(x).to_bits(), "ln {x}");
+                assert_eq!(
+                    pw.lane(i).to_bits(),
+                    explog::pow(x.abs(), 0.4).to_bits(),
+                    "pow {x}"
+                );
                 let (ss, cc) = Lane::sin_cos(x);
                 assert_eq!(s.lane(i).to_bits(), ss.to_bits(), "sin {x}");
                 assert_eq!(c.lane(i).to_bits(), cc.to_bits(), "cos {x}");

@@ -142,4 +142,12 @@ impl KernelOps for F64x4 {
     fn shl62_bits(self) -> Self {
         each!(|x| x.shl62_bits(), self)
     }
+    #[inline(always)]
+    fn shl52_bits(self) -> Self {
+        each!(|x| x.shl52_bits(), self)
+    }
+    #[inline(always)]
+    fn shr52_bits(self) -> Self {
+        each!(|x| x.shr52_bits(), self)
+    }
 }

@@ -85,6 +85,7 @@ macro_rules! x86_lane {
         and = $and:expr, xor = $xor:expr,
         cmp_le = $le:expr, cmp_ge = $ge:expr, cmp_ne = $ne:expr,
         select = $select:expr, add_epi64 = $add64:expr, shl62 = $shl62:expr,
+        shl52 = $shl52:expr, shr52 = $shr52:expr,
         le_bits = $le_bits:expr,
         $(within = $within:expr,)?
         $(fma = $fma:expr,)?
@@ -251,6 +252,14 @@ macro_rules! x86_lane {
             fn shl62_bits(self) -> Self {
                 x86_lane!(@op $regs $shl62; self.0)
             }
+            #[inline(always)]
+            fn shl52_bits(self) -> Self {
+                x86_lane!(@op $regs $shl52; self.0)
+            }
+            #[inline(always)]
+            fn shr52_bits(self) -> Self {
+                x86_lane!(@op $regs $shr52; self.0)
+            }
         }
     };
 }
@@ -270,6 +279,14 @@ mod sse2 {
     #[inline(always)]
     pub unsafe fn shl62(a: __m128d) -> __m128d {
         _mm_castsi128_pd(_mm_slli_epi64::<62>(_mm_castpd_si128(a)))
+    }
+    #[inline(always)]
+    pub unsafe fn shl52(a: __m128d) -> __m128d {
+        _mm_castsi128_pd(_mm_slli_epi64::<52>(_mm_castpd_si128(a)))
+    }
+    #[inline(always)]
+    pub unsafe fn shr52(a: __m128d) -> __m128d {
+        _mm_castsi128_pd(_mm_srli_epi64::<52>(_mm_castpd_si128(a)))
     }
     /// Bit `i` set where lane `i` has `a <= b` (false for NaN).
     #[inline(always)]
@@ -303,6 +320,14 @@ mod avx2 {
     #[inline(always)]
     pub unsafe fn shl62(a: __m256d) -> __m256d {
         _mm256_castsi256_pd(_mm256_slli_epi64::<62>(_mm256_castpd_si256(a)))
+    }
+    #[inline(always)]
+    pub unsafe fn shl52(a: __m256d) -> __m256d {
+        _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_castpd_si256(a)))
+    }
+    #[inline(always)]
+    pub unsafe fn shr52(a: __m256d) -> __m256d {
+        _mm256_castsi256_pd(_mm256_srli_epi64::<52>(_mm256_castpd_si256(a)))
     }
     /// Bit `i` set where lane `i` has `a <= b` (false for NaN).
     #[inline(always)]
@@ -352,6 +377,14 @@ mod avx512 {
     pub unsafe fn shl62(a: __m512d) -> __m512d {
         _mm512_castsi512_pd(_mm512_slli_epi64::<62>(_mm512_castpd_si512(a)))
     }
+    #[inline(always)]
+    pub unsafe fn shl52(a: __m512d) -> __m512d {
+        _mm512_castsi512_pd(_mm512_slli_epi64::<52>(_mm512_castpd_si512(a)))
+    }
+    #[inline(always)]
+    pub unsafe fn shr52(a: __m512d) -> __m512d {
+        _mm512_castsi512_pd(_mm512_srli_epi64::<52>(_mm512_castpd_si512(a)))
+    }
     /// Bit `i` set where lane `i` has `a <= b` (false for NaN).
     #[inline(always)]
     pub unsafe fn le_bits(a: __m512d, b: __m512d) -> u32 {
@@ -369,6 +402,7 @@ x86_lane! {
     and = _mm_and_pd, xor = _mm_xor_pd,
     cmp_le = _mm_cmple_pd, cmp_ge = _mm_cmpge_pd, cmp_ne = _mm_cmpneq_pd,
     select = sse2::select, add_epi64 = sse2::add_epi64, shl62 = sse2::shl62,
+    shl52 = sse2::shl52, shr52 = sse2::shr52,
     le_bits = sse2::le_bits,
 }
 
@@ -385,6 +419,7 @@ x86_lane! {
     cmp_le = _mm256_cmp_pd::<_CMP_LE_OQ>, cmp_ge = _mm256_cmp_pd::<_CMP_GE_OQ>,
     cmp_ne = _mm256_cmp_pd::<_CMP_NEQ_UQ>,
     select = avx2::select, add_epi64 = avx2::add_epi64, shl62 = avx2::shl62,
+    shl52 = avx2::shl52, shr52 = avx2::shr52,
     le_bits = avx2::le_bits, within = avx2::within,
 }
 
@@ -402,5 +437,6 @@ x86_lane! {
     cmp_le = avx512::cmp::<_CMP_LE_OQ>, cmp_ge = avx512::cmp::<_CMP_GE_OQ>,
     cmp_ne = avx512::cmp::<_CMP_NEQ_UQ>,
     select = avx512::select, add_epi64 = avx512::add_epi64, shl62 = avx512::shl62,
+    shl52 = avx512::shl52, shr52 = avx512::shr52,
     le_bits = avx512::le_bits, within = avx512::within,
 }

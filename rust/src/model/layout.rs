@@ -93,10 +93,37 @@ pub const VEHICLE_VELOCITIES: [StateVar; 6] = [
     vehicle("r", Axis::Yaw, Some(Bound::Rate)),
 ];
 
-/// Where each part's states sit: `[vehicle positions and angles (6), payload positions (dof),
-/// vehicle velocities and rates (6), payload velocities (dof), actuator states]`.
+/// The rigid body's positions and attitude quaternion (`model::body::Rigid`).
+pub const RIGID_POSITIONS: [StateVar; 7] = [
+    vehicle("x", Axis::X, Some(Bound::Distance)),
+    vehicle("y", Axis::Y, Some(Bound::Distance)),
+    vehicle("z", Axis::Z, Some(Bound::Distance)),
+    // The quaternion's components are bounded by 1: the tilt is checked on the derived roll
+    // and pitch (`BodyKind::tilt`).
+    vehicle("qw", Axis::Other, None),
+    vehicle("qx", Axis::Roll, None),
+    vehicle("qy", Axis::Pitch, None),
+    vehicle("qz", Axis::Yaw, None),
+];
+
+/// The rigid body's velocities and true body rates.
+pub const RIGID_VELOCITIES: [StateVar; 6] = [
+    vehicle("vx", Axis::X, Some(Bound::Speed)),
+    vehicle("vy", Axis::Y, Some(Bound::Speed)),
+    vehicle("vz", Axis::Z, Some(Bound::Speed)),
+    vehicle("wx", Axis::Roll, Some(Bound::Rate)),
+    vehicle("wy", Axis::Pitch, Some(Bound::Rate)),
+    vehicle("wz", Axis::Yaw, Some(Bound::Rate)),
+];
+
+/// Where each part's states sit: `[vehicle positions and attitude (3 + attitude), payload
+/// positions (dof), vehicle velocities and rates (6), payload velocities (dof), actuator
+/// states]`. The paper's body has 3 attitude states (Euler angles), the rigid body 4 (a
+/// quaternion).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
+    /// The attitude's states (3 Euler angles, or 4 quaternion components).
+    pub attitude: usize,
     /// The payload's degrees of freedom (1 for the vertical spring, 3 for the cable).
     pub payload_dof: usize,
     /// The actuator's states (0 ideal, 4 rotors).
@@ -104,56 +131,85 @@ pub struct Layout {
 }
 
 impl Layout {
+    /// The paper's body's layout (Euler angles).
     pub const fn new(payload_dof: usize, actuator_states: usize) -> Self {
+        Self::with_attitude(3, payload_dof, actuator_states)
+    }
+
+    /// A body whose attitude takes `attitude` states.
+    pub const fn with_attitude(
+        attitude: usize,
+        payload_dof: usize,
+        actuator_states: usize,
+    ) -> Self {
         Self {
+            attitude,
             payload_dof,
             actuator_states,
         }
     }
 
+    /// The vehicle's positions and attitude states.
+    const fn poses(self) -> usize {
+        3 + self.attitude
+    }
+
     /// Number of states.
     pub const fn len(self) -> usize {
-        12 + 2 * self.payload_dof + self.actuator_states
+        self.poses() + 6 + 2 * self.payload_dof + self.actuator_states
     }
 
     pub const fn is_empty(self) -> bool {
         false
     }
 
-    /// Index of the payload's first position.
-    pub const fn payload(self) -> usize {
-        ix::PAYLOAD
+    /// Index of the attitude's first state (phi, or qw).
+    pub const fn att(self) -> usize {
+        ix::PHI
     }
 
-    /// Index of vx (then vy, vz, p, q, r).
+    /// Index of the payload's first position.
+    pub const fn payload(self) -> usize {
+        self.poses()
+    }
+
+    /// Index of vx (then vy, vz, and the three rates).
     pub const fn vel(self) -> usize {
-        6 + self.payload_dof
+        self.poses() + self.payload_dof
+    }
+
+    /// Index of the first rate (p or wx).
+    pub const fn rate(self) -> usize {
+        self.vel() + 3
     }
 
     /// Index of the payload's first velocity.
     pub const fn payload_vel(self) -> usize {
-        12 + self.payload_dof
+        self.poses() + 6 + self.payload_dof
     }
 
     /// Index of the actuator's first state.
     pub const fn actuator(self) -> usize {
-        12 + 2 * self.payload_dof
+        self.poses() + 6 + 2 * self.payload_dof
     }
 
-    /// Every state in order, from the payload's and the actuator's own lists.
+    /// Every state in order, from the body's, the payload's and the actuator's own lists.
     pub fn vars(
         self,
+        body: (&[StateVar], &[StateVar]),
         payload_positions: &[StateVar],
         payload_velocities: &[StateVar],
         actuator: &[StateVar],
     ) -> Vec<StateVar> {
+        assert_eq!(body.0.len(), self.poses());
+        assert_eq!(body.1.len(), 6);
         assert_eq!(payload_positions.len(), self.payload_dof);
         assert_eq!(payload_velocities.len(), self.payload_dof);
         assert_eq!(actuator.len(), self.actuator_states);
         let mut out = Vec::with_capacity(self.len());
-        out.extend_from_slice(&VEHICLE_POSITIONS);
+        out.extend_from_slice(body.0);
         out.extend_from_slice(payload_positions);
-        out.extend_from_slice(&VEHICLE_VELOCITIES);
+        out.extend_from_slice(body.1);
         out.extend_from_slice(payload_velocities);
         out.extend_from_slice(actuator);
         out

@@ -14,12 +14,15 @@ pub mod body;
 mod kinds;
 pub mod layout;
 pub mod payload;
+mod trim;
 
 pub use actuator::{Actuator, ActuatorModel};
-pub use body::Body;
+pub use body::{
+    Body, BodyKind, BodyModel, Frame, Paper, Rigid as RigidBody, Rotation, BODY_MODELS,
+};
 pub use kinds::{
     dispatch, ActuatorConfig, ActuatorKind, AnyActuator, AnyPayload, PayloadConfig, PayloadKind,
-    ACTUATOR_KINDS, PAYLOAD_KINDS,
+    ACTUATOR_KINDS, PAYLOAD_KINDS, RIGID_PAYLOADS,
 };
 pub use layout::{Axis, Bound, Layout, Part, StateVar};
 pub use payload::{Payload, PayloadModel, PayloadOutputs};
@@ -104,10 +107,11 @@ pub struct Inputs<L> {
 #[derive(Clone, Copy, Debug)]
 pub struct Rigid<L> {
     pub pos: [L; 3],
-    /// Roll, pitch, yaw.
+    /// Roll, pitch, yaw (the rigid body's derived from its quaternion, yaw in (-pi, pi]).
     pub att: [L; 3],
     pub vel: [L; 3],
-    /// Euler-angle rates p, q, r.
+    /// The paper's body: Euler-angle rates p, q, r used as body rates; the rigid body: the
+    /// true body rates wx, wy, wz.
     pub rate: [L; 3],
 }
 
@@ -202,45 +206,55 @@ impl<L: KernelOps> Trig<L> {
     }
 }
 
-/// One vehicle: the rigid quadrotor, its payload and its actuators, with parameters of type
-/// `L` (an `f64` for one vehicle, a lane type for one vehicle per lane, dual numbers for the
-/// linearisation). `N` states in the order of `Layout::of::<Pay, Act>()`.
+/// One vehicle: the quadrotor of body kind `B`, its payload and its actuators, with
+/// parameters of type `L` (an `f64` for one vehicle, a lane type for one vehicle per lane,
+/// dual numbers for the linearisation). `N` states in the order of `Vehicle::LAYOUT`.
 #[derive(Clone, Debug)]
-pub struct Vehicle<L, Pay, Act> {
+pub struct Vehicle<L, Pay, Act, B = Paper> {
     pub body: Body<L>,
     pub payload: Pay,
     pub actuator: Act,
+    pub kind: std::marker::PhantomData<B>,
 }
 
-impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> {
+impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<L, Pay, Act, B> {
     /// Where each part's states sit in the state vector.
-    pub const LAYOUT: Layout = Layout::new(Pay::DOF, Act::STATES);
+    pub const LAYOUT: Layout =
+        Layout::with_attitude(<B::Frame<f64> as Frame<f64>>::ATT, Pay::DOF, Act::STATES);
 
     /// The quadrotor's rigid-body state within `s`.
     #[inline(always)]
     pub fn rigid<const N: usize>(s: &State<L, N>) -> Rigid<L> {
+        Self::rigid_at(s, &B::frame(s))
+    }
+
+    /// The quadrotor's rigid-body state within `s`, whose attitude is `f`.
+    #[inline(always)]
+    pub fn rigid_at<const N: usize>(s: &State<L, N>, f: &B::Frame<L>) -> Rigid<L> {
         let v = Self::LAYOUT.vel();
         Rigid {
             pos: [s[ix::X], s[ix::Y], s[ix::Z]],
-            att: [s[ix::PHI], s[ix::THETA], s[ix::PSI]],
+            att: B::euler(s, f),
             vel: [s[v], s[v + 1], s[v + 2]],
             rate: [s[v + 3], s[v + 4], s[v + 5]],
         }
     }
 
     /// ds/dt with the actuator's command `cmd` and the wind `w` (m/s, inertial) held over the
-    /// step; `trig` are the sines and cosines of `s`'s angles.
+    /// step; `trig` is `s`'s attitude (`BodyKind::frame`).
     #[inline(always)]
     pub fn derivative<const N: usize>(
         &self,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        trig: &B::Frame<L>,
         cmd: &Act::Command,
         w: &[L; 3],
     ) -> State<L, N> {
         self.derivative_with(
             s,
+            trig,
             cmd,
+            w,
             #[inline(always)]
             |p, body, u1, ds| (p.accelerations(body, s, trig, u1, w, ds), ()),
         )
@@ -254,41 +268,55 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
     pub fn derivative_and_outputs<const N: usize>(
         &self,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        trig: &B::Frame<L>,
         cmd: &Act::Command,
         w: &[L; 3],
         u1: L,
     ) -> (State<L, N>, PayloadOutputs<L>) {
         self.derivative_with(
             s,
+            trig,
             cmd,
+            w,
             #[inline(always)]
             |p, body, u1_felt, ds| p.accelerations_and_outputs(body, s, trig, u1_felt, u1, w, ds),
         )
     }
 
     /// ds/dt, the payload's part by `payload` (the torque it applies, and anything else it
-    /// returns), given the felt thrust.
+    /// returns), given the felt thrust; the actuator's aerodynamic wrench (`ActuatorModel::aero`,
+    /// the rotors' on the rigid body) added to the quadrotor's.
     #[inline(always)]
     fn derivative_with<const N: usize, R>(
         &self,
         s: &State<L, N>,
+        frame: &B::Frame<L>,
         cmd: &Act::Command,
+        w: &[L; 3],
         payload: impl FnOnce(&Pay, &Body<L>, L, &mut State<L, N>) -> (Option<[L; 3]>, R),
     ) -> (State<L, N>, R) {
-        const { assert!(N == Layout::new(Pay::DOF, Act::STATES).len()) };
+        const { assert!(N == Self::LAYOUT.len()) };
         let lay = Self::LAYOUT;
         let u = self.actuator.inputs(cmd, s, lay.actuator());
         let mut ds = [s[0]; N];
-        // Kinematics: positions move with the velocities, angles with the rates.
-        let (v, pv) = (lay.vel(), lay.payload_vel());
-        for i in 0..3 {
-            ds[i] = s[v + i];
-            ds[ix::PHI + i] = s[v + 3 + i];
-        }
-        ds[ix::PAYLOAD..ix::PAYLOAD + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
+        // Kinematics: positions move with the velocities, the attitude with the rates.
+        let (v, pv, pp) = (lay.vel(), lay.payload_vel(), lay.payload());
+        ds[..3].copy_from_slice(&s[v..v + 3]);
+        B::attitude_rates(s, lay, &mut ds);
+        ds[pp..pp + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
         let (torque, out) = payload(&self.payload, &self.body, u.u1, &mut ds);
-        let rdot = self.body.rotation(&Self::rigid(s).rate, &u.tau, &torque);
+        let rates = [s[v + 3], s[v + 4], s[v + 5]];
+        let mut tau = u.tau;
+        let air = [s[v] - w[0], s[v + 1] - w[1], s[v + 2] - w[2]];
+        let axes = frame.axes();
+        if let Some((f, m)) = self.actuator.aero(s, lay.actuator(), &air, &axes, &rates) {
+            for i in 0..3 {
+                let fi = axes[0][i] * f[0] + axes[1][i] * f[1] + axes[2][i] * f[2];
+                ds[v + i] += fi * self.body.inv_m;
+                tau[i] += m[i];
+            }
+        }
+        let rdot = self.body.rotation(&rates, &tau, &torque);
         ds[v + 3..v + 6].copy_from_slice(&rdot);
         self.actuator.derivative(cmd, s, lay.actuator(), &mut ds);
         (ds, out)
@@ -299,7 +327,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
     pub fn payload_outputs<const N: usize>(
         &self,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        trig: &B::Frame<L>,
         u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
@@ -307,9 +335,9 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>> Vehicle<L, Pay, Act> 
     }
 }
 
-impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>> Vehicle<f64, Pay, Act> {
-    /// A state at rest at `position` and `attitude`, payload and actuators at their hover
-    /// equilibria.
+impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>, B: BodyKind> Vehicle<f64, Pay, Act, B> {
+    /// A state at rest at `position` and `attitude` (roll, pitch, yaw), payload and actuators
+    /// at their hover equilibria.
     pub fn rest_state<const N: usize>(
         &self,
         position: [f64; 3],
@@ -317,24 +345,29 @@ impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>> Vehicle<f64, Pay, Act> {
     ) -> State<f64, N> {
         let mut s = [0.0; N];
         s[..3].copy_from_slice(&position);
-        s[ix::PHI..ix::PHI + 3].copy_from_slice(&attitude);
+        B::set_attitude(&mut s, attitude);
         let lay = Self::LAYOUT;
-        self.payload.rest(&self.body, &mut s, lay);
+        self.payload.rest(&self.body, &B::frame(&s), &mut s);
         self.actuator.rest(&mut s, lay.actuator());
         s
     }
 }
 
-/// Work to do on a vehicle whose payload and actuator kinds are known at compile time: the
-/// flight loop, the linearisation, the state names. `N` is the number of states.
+/// Work to do on a vehicle whose body, payload and actuator kinds are known at compile time:
+/// the flight loop, the linearisation, the state names. `N` is the number of states.
 pub trait VehicleVisitor {
     type Output;
-    fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output;
+    fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output;
 }
 
-/// The number of states of a vehicle with kinds `Pay`, `Act` (`Layout::len`).
-pub const fn state_count<Pay: Payload, Act: Actuator>() -> usize {
-    Layout::new(Pay::POSITIONS.len(), Act::VARS.len()).len()
+/// The number of states of a vehicle with kinds `B`, `Pay`, `Act` (`Layout::len`).
+pub const fn state_count<B: BodyKind, Pay: Payload, Act: Actuator>() -> usize {
+    Layout::with_attitude(
+        <B::Frame<f64> as Frame<f64>>::ATT,
+        Pay::POSITIONS.len(),
+        Act::VARS.len(),
+    )
+    .len()
 }
 
 /// m, how far a validated scenario's payload hangs below the centre of gravity at hover.
@@ -342,11 +375,12 @@ pub fn hover_drop(cfg: &crate::config::Config) -> f64 {
     struct Drop<'a>(&'a AnyPayload);
     impl VehicleVisitor for Drop<'_> {
         type Output = f64;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> f64 {
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> f64 {
             Pay::of(self.0).hover_drop()
         }
     }
     dispatch(
+        cfg.vehicle.body,
         cfg.payload.model,
         cfg.actuator.model,
         Drop(&AnyPayload::new(cfg)),
@@ -354,23 +388,28 @@ pub fn hover_drop(cfg: &crate::config::Config) -> f64 {
 }
 
 /// Every state of a vehicle with these kinds, in order.
-pub fn state_vars(payload: PayloadKind, actuator: ActuatorKind) -> Vec<StateVar> {
+pub fn state_vars(body: BodyModel, payload: PayloadKind, actuator: ActuatorKind) -> Vec<StateVar> {
     struct Vars;
     impl VehicleVisitor for Vars {
         type Output = Vec<StateVar>;
-        fn visit<Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<StateVar> {
-            let vars = state_vars_of::<Pay, Act>();
+        fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Vec<StateVar> {
+            let vars = state_vars_of::<B, Pay, Act>();
             assert_eq!(vars.len(), N, "model::dispatch gives the wrong state count");
             vars
         }
     }
-    dispatch(payload, actuator, Vars)
+    dispatch(body, payload, actuator, Vars)
 }
 
-/// Every state of a vehicle with kinds `Pay`, `Act`, in order.
-pub fn state_vars_of<Pay: Payload, Act: Actuator>() -> Vec<StateVar> {
-    let lay = Layout::new(Pay::POSITIONS.len(), Act::VARS.len());
-    lay.vars(Pay::POSITIONS, Pay::VELOCITIES, Act::VARS)
+/// Every state of a vehicle with kinds `B`, `Pay`, `Act`, in order.
+pub fn state_vars_of<B: BodyKind, Pay: Payload, Act: Actuator>() -> Vec<StateVar> {
+    let lay = B::layout(Pay::POSITIONS.len(), Act::VARS.len());
+    lay.vars(
+        (B::POSITIONS, B::VELOCITIES),
+        Pay::POSITIONS,
+        Pay::VELOCITIES,
+        Act::VARS,
+    )
 }
 
 /// One vehicle's parameters, all kinds, resolved once from a validated scenario: what may
@@ -391,10 +430,10 @@ impl AnyVehicle {
         }
     }
 
-    /// The vehicle with kinds `Pay`, `Act`, one per lane of `L` (`each[l]` in lane `l`).
-    pub fn gather<L: Lane, Pay: Payload, Act: Actuator>(
+    /// The vehicle with kinds `B`, `Pay`, `Act`, one per lane of `L` (`each[l]` in lane `l`).
+    pub fn gather_on<L: Lane, B: BodyKind, Pay: Payload, Act: Actuator>(
         each: &[&AnyVehicle],
-    ) -> Vehicle<L, Pay::At<L>, Act::At<L>> {
+    ) -> Vehicle<L, Pay::At<L>, Act::At<L>, B> {
         let bodies: Vec<&Body> = each.iter().map(|p| &p.body).collect();
         let payloads: Vec<&Pay> = each.iter().map(|p| Pay::of(&p.payload)).collect();
         let actuators: Vec<&Act> = each.iter().map(|p| Act::of(&p.actuator)).collect();
@@ -402,12 +441,27 @@ impl AnyVehicle {
             body: Body::gather(&bodies),
             payload: Pay::gather(&payloads),
             actuator: Act::gather(&actuators),
+            kind: std::marker::PhantomData,
         }
     }
 
-    /// This one vehicle (`f64` parameters).
+    /// The paper's body with kinds `Pay`, `Act`, one per lane of `L`.
+    pub fn gather<L: Lane, Pay: Payload, Act: Actuator>(
+        each: &[&AnyVehicle],
+    ) -> Vehicle<L, Pay::At<L>, Act::At<L>> {
+        Self::gather_on::<L, Paper, Pay, Act>(each)
+    }
+
+    /// This one vehicle on body `B` (`f64` parameters).
+    pub fn vehicle_on<B: BodyKind, Pay: Payload, Act: Actuator>(
+        &self,
+    ) -> Vehicle<f64, Pay::At<f64>, Act::At<f64>, B> {
+        Self::gather_on::<f64, B, Pay, Act>(&[self])
+    }
+
+    /// This one vehicle on the paper's body (`f64` parameters).
     pub fn vehicle<Pay: Payload, Act: Actuator>(&self) -> Vehicle<f64, Pay::At<f64>, Act::At<f64>> {
-        Self::gather::<f64, Pay, Act>(&[self])
+        self.vehicle_on::<Paper, Pay, Act>()
     }
 }
 

@@ -22,7 +22,7 @@ fn derivative(v: &Paper, s: &State<f64, NX>, u: &Inputs<f64>, w: &[f64; 3]) -> S
 
 #[test]
 fn the_paper_layout_is_the_papers_state_vector() {
-    let names: Vec<&str> = state_vars(PayloadKind::Spring, ActuatorKind::Ideal)
+    let names: Vec<&str> = state_vars(Default::default(), PayloadKind::Spring, ActuatorKind::Ideal)
         .iter()
         .map(|v| v.name)
         .collect();
@@ -32,7 +32,7 @@ fn the_paper_layout_is_the_papers_state_vector() {
     );
     assert_eq!(Paper::LAYOUT.len(), NX);
     // Every state but yaw has a runaway bound; positions, angles, speeds and rates each theirs.
-    let vars = state_vars(PayloadKind::Spring, ActuatorKind::Ideal);
+    let vars = state_vars(Default::default(), PayloadKind::Spring, ActuatorKind::Ideal);
     let bounded: Vec<_> = vars
         .iter()
         .filter(|v| v.bound.is_none())
@@ -48,7 +48,7 @@ fn hover_is_an_equilibrium_of_the_plant() {
     let v = paper_vehicle(&paper());
     let s: State<f64, NX> = v.rest_state([1.0, -2.0, 2.0], [0.0, 0.0, 0.5]);
     let ds = derivative(&v, &s, &hover(&v), &[0.0; 3]);
-    let vars = state_vars(PayloadKind::Spring, ActuatorKind::Ideal);
+    let vars = state_vars(Default::default(), PayloadKind::Spring, ActuatorKind::Ideal);
     for (i, d) in ds.iter().enumerate() {
         assert!(d.abs() < 1e-12, "d{}/dt = {d}", vars[i].name);
     }
@@ -192,7 +192,7 @@ fn every_registered_pair_flies_with_its_layouts_state_count() {
     for &p in PAYLOAD_KINDS {
         for &a in ACTUATOR_KINDS {
             // The quadrotor's 12 states come first, whatever the kinds.
-            let vars = state_vars(p, a);
+            let vars = state_vars(Default::default(), p, a);
             let own = vars.iter().filter(|v| v.part == Part::Vehicle).count();
             assert_eq!(own, 12, "{p:?} {a:?}");
             let mut cfg = paper();

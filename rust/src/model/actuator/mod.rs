@@ -50,6 +50,23 @@ pub trait ActuatorModel<L: Lane>: Sync {
     /// Put the actuator states at hover (`s[at..at + STATES]`).
     fn rest<const N: usize>(&self, s: &mut State<L, N>, at: usize);
 
+    /// The actuator's aerodynamic wrench on the airframe at `s` (its states from `at`), in body
+    /// axes (force N, moment N m), for the air's velocity relative to the vehicle `air` (m/s,
+    /// inertial: v - wind), the body's axes `axes` (the columns of R) and its body rates `rates`
+    /// (rad/s); None (the default) where it has none. Flown on the rigid body only (the paper's
+    /// body refuses the keys that make one).
+    #[inline(always)]
+    fn aero<const N: usize>(
+        &self,
+        _s: &State<L, N>,
+        _at: usize,
+        _air: &[L; 3],
+        _axes: &[[L; 3]; 3],
+        _rates: &[L; 3],
+    ) -> Option<([L; 3], [L; 3])> {
+        None
+    }
+
     /// The kind's extra trace columns (`SIGNALS`, in order) at `s` with `cmd` held.
     #[inline(always)]
     fn signals<const N: usize>(

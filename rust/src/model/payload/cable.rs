@@ -1,28 +1,41 @@
-//! The cable-slung payload (docs/model.md, "Cable-slung payload"): a point mass on a massless
-//! elastic cable that swings freely in 3-D and goes slack, hooked `h` below the centre of
-//! gravity. Three degrees of freedom: `xc, yc, zc` and `vxc, vyc, vzc`.
+//! The cable-slung payload (docs/model.md, "Cable-slung payload" and "The last metres"): a
+//! point mass on a massless elastic cable that swings freely in 3-D and goes slack, hooked `h`
+//! below the centre of gravity, its unstretched length L paid out and reeled in by a winch.
+//! Four degrees of freedom: `xc, yc, zc, line` and `vxc, vyc, vzc, line_rate`.
 //!
 //! ```text
 //! hook          a  = p + R hb,   hb = (0, 0, -h)
-//! hook velocity va = v + R (w x hb),   w = (p, q, r)
+//! hook velocity va = v + R (w x hb),   w = (p, q, r), the body's rates
 //! cable         d = pc - a,  l = |d|,  u = d / l,  ldot = u . (vc - va)
-//! tension       T = max(0, k (l - L0) + c ldot)   if l > L0,   else T = 0
-//! payload       mc dvc/dt = -T u - mc g e3 + Fdc
+//! tension       T = H max(0, k (l - L) + c (ldot - L'))   if l > L,   else T = 0
+//! payload       mc dvc/dt = -T u - mc g e3 + Fdc + Fg
 //! quadrotor     m  dv/dt  =  U1 R e3 + T u - m g e3 + Fd
 //! torque        tau += hb x (R^T (T u))
 //! payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
+//! winch         L'' = clamp(kw (clamp(kp (L* - L), -vw, vw) - L'), -aw, aw),
+//!               kp = aw / vw,  kw = 4 kp   (L* the route's target)
+//! ground        n = zg - zc,  N = max(0, kg n - cg vzc) if n > 0, else 0
+//!               Fg = (-mu N vxc / s, -mu N vyc / s, N),  s = sqrt(vxc^2 + vyc^2 + eps^2)
 //! ```
 //!
-//! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body.
+//! The quadrotor's own drag Fd acts on its mass m alone: the payload is its own body. R and Fd
+//! are the body's (`Frame`: the paper's Euler angles and inertial-axis drag, or the rigid
+//! body's quaternion and body-axis drag); the state indices follow its layout.
+//! The line is massless, so the tension the winch holds while paying out is the tension of the elastic
+//! line, and the winch's work on the system is -T L' (`cable_tests.rs` checks the balance). The
+//! winch is a speed servo stiff enough that the tension never slows it (a rated drum). H is the
+//! hook: 1 while the parcel hangs, 0 from the step it opens (`payload.release`) on, when the
+//! parcel leaves the vehicle's equations: its states still move (a free body on the ground),
+//! but nothing of them reaches the quadrotor.
 
-use super::{Payload, PayloadModel, PayloadOutputs};
+use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::Lane;
-use crate::model::body::{drag, Body};
+use crate::model::body::{Body, Frame};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
-use crate::model::{ix, Layout, State, Trig};
+use crate::model::{ix, Layout, State};
 
 params! {
     /// The cable's own keys in `[payload]` (beside the point mass's, `config::payload::Shared`).
@@ -35,8 +48,93 @@ params! {
         /// m, the hook's distance below the centre of gravity along the body z axis (default 0).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         attachment_offset: Option<f64> => "m", "Hook below the centre of gravity";
+        /// m/s, the winch's largest pay-out and reel-in speed (none: no winch, the line stays
+        /// at `cable_length`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        winch_speed: Option<f64> => "m/s", "Winch pay-out and reel-in speed";
+        /// m/s^2, the winch's largest acceleration of the line.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        winch_acceleration: Option<f64> => "m/s^2", "Winch acceleration";
+        /// m, the line reeled in (the start, and after the release; default `cable_length`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        length_min: Option<f64> => "m", "Line length reeled in";
+        /// When the hook opens: "touchdown" (the parcel rests on the ground with the line
+        /// slack for `release_delay`) or a time in s; none: never.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        release: Option<Release> => "s", "Hook release, \"touchdown\" or a time";
+        /// s, how long the parcel rests with the line slack before the hook opens (default 1).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        release_delay: Option<f64> => "s", "Rest before the hook opens";
     }
 }
+
+/// `payload.release`: "touchdown", or a time (s, dispersible).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Release {
+    Touchdown,
+    At(f64),
+}
+
+/// The word `payload.release` takes.
+const TOUCHDOWN: &str = "touchdown";
+
+impl serde::Serialize for Release {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Release::Touchdown => s.serialize_str(TOUCHDOWN),
+            Release::At(t) => s.serialize_f64(*t),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Release {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = Release;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "\"{TOUCHDOWN}\" or a time in s")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Release, E> {
+                if v == TOUCHDOWN {
+                    Ok(Release::Touchdown)
+                } else {
+                    Err(E::custom(format_args!(
+                        "payload.release must be \"{TOUCHDOWN}\" or a time in s, got {v:?}"
+                    )))
+                }
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Release, E> {
+                Ok(Release::At(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Release, E> {
+                Ok(Release::At(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Release, E> {
+                Ok(Release::At(v as f64))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// A release time is a number a dispersion can draw; "touchdown" is not.
+impl crate::config::params::Field for Release {
+    fn target(&mut self, rest: &[crate::config::params::Seg]) -> crate::config::params::Target<'_> {
+        match self {
+            Release::At(t) => t.target(rest),
+            Release::Touchdown => crate::config::params::not_number(rest),
+        }
+    }
+}
+
+/// m/s, the friction's regularisation speed: below it the Coulomb force grows linearly with
+/// the sliding speed (a resting parcel is held, not chattering between signs).
+pub const FRICTION_SPEED: f64 = 0.01;
+/// m/s, a parcel on the ground slower than this rests (`payload.release = "touchdown"`).
+pub const REST_SPEED: f64 = 0.1;
+/// s, the release delay without `payload.release_delay`.
+pub const RELEASE_DELAY: f64 = 1.0;
 
 /// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -56,13 +154,60 @@ pub struct Cable<L = f64> {
     pub hover_length: L,
     /// 1 / mc, computed once.
     inv_mc: L,
+    /// The winch: m/s and m/s^2 (its bounds), 1/s (its position and speed gains), m (the
+    /// reeled-in length and the full line).
+    pub winch_speed: L,
+    pub winch_acceleration: L,
+    winch_kp: L,
+    winch_kw: L,
+    pub length_min: L,
+    pub length_max: L,
+    /// m, the length the winch drives the line to (set by the route: `last_metres`).
+    pub target: L,
+    /// The ground under the parcel: m (its height), N/m, N s/m, - (friction).
+    pub ground: L,
+    pub ground_k: L,
+    pub ground_c: L,
+    pub friction: L,
+    /// Any lane's parcel can meet the ground (else the contact is not computed at all).
+    pub contact: bool,
+    /// The hook: s (a release time, or infinity), 1 or 0 (opens on touchdown), s (the delay).
+    pub release_at: L,
+    pub release_on_touchdown: L,
+    pub release_delay: L,
+    /// Events: 1 while hooked, 1 once touched down, s resting with the line slack.
+    pub hooked: L,
+    touched: L,
+    resting: L,
+    /// m/s, the parcel's velocity at the previous step (`LastMetres::approach`).
+    approach: [L; 3],
 }
 
-const LAYOUT: Layout = Layout::new(3, 0);
-const XC: usize = ix::PAYLOAD;
-const VX: usize = LAYOUT.vel();
-const P: usize = VX + 3;
-const VXC: usize = LAYOUT.payload_vel();
+/// The cable's states and the quadrotor's it reads, on the body of attitude `F` (the actuator's
+/// states come after all of them).
+struct Ix {
+    xc: usize,
+    line: usize,
+    vx: usize,
+    p: usize,
+    vxc: usize,
+    vline: usize,
+}
+
+impl Ix {
+    #[inline(always)]
+    fn of<L: Lane, F: Frame<L>>() -> Self {
+        let lay: Layout = F::layout(4, 0);
+        Self {
+            xc: lay.payload(),
+            line: lay.payload() + 3,
+            vx: lay.vel(),
+            p: lay.rate(),
+            vxc: lay.payload_vel(),
+            vline: lay.payload_vel() + 3,
+        }
+    }
+}
 
 const fn payload(name: &'static str, axis: Axis, bound: Bound) -> StateVar {
     StateVar::new(name, axis, Some(bound), Part::Payload)
@@ -75,9 +220,23 @@ impl OwnsKeys for Cable {
     /// neither may be given when another payload flies.
     fn validate(c: &CableParams, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
         if !flown {
+            let release = c.release.map(|r| match r {
+                Release::At(t) => t,
+                Release::Touchdown => f64::NAN,
+            });
             for (key, value) in [
                 ("payload.cable_length", c.cable_length),
                 ("payload.attachment_offset", c.attachment_offset),
+                ("payload.winch_speed", c.winch_speed),
+                ("payload.winch_acceleration", c.winch_acceleration),
+                ("payload.length_min", c.length_min),
+                ("payload.release", release),
+                ("payload.release_delay", c.release_delay),
+                ("ground.stiffness", cfg.ground.stiffness),
+                (
+                    "trajectory.lower",
+                    cfg.trajectory.lower.iter().copied().find(|x| *x != 0.0),
+                ),
             ] {
                 if let Some(x) = value {
                     return Err(ConfigError::new(
@@ -99,10 +258,125 @@ impl OwnsKeys for Cable {
             ));
         };
         positive("payload.cable_length", l0)?;
-        match c.attachment_offset {
-            Some(h) => non_negative("payload.attachment_offset", h),
-            None => Ok(()),
+        if let Some(h) = c.attachment_offset {
+            non_negative("payload.attachment_offset", h)?;
         }
+        Self::validate_last_metres(c, l0, cfg)
+    }
+}
+
+impl Cable {
+    /// The winch, the hook and the lowerings of the route (`flown`, `cable_length` = `l0`).
+    fn validate_last_metres(c: &CableParams, l0: f64, cfg: &Config) -> Result<(), ConfigError> {
+        let winch = c.winch_speed.is_some() || c.winch_acceleration.is_some();
+        if winch {
+            for (key, x) in [
+                ("payload.winch_speed", c.winch_speed),
+                ("payload.winch_acceleration", c.winch_acceleration),
+            ] {
+                match x {
+                    Some(x) => positive(key, x)?,
+                    None => {
+                        return Err(ConfigError::new(
+                            key,
+                            format!(
+                                "{key} must be given with the winch's other key \
+                                 (payload.winch_speed and payload.winch_acceleration)"
+                            ),
+                        ))
+                    }
+                }
+            }
+        }
+        let min = c.length_min.unwrap_or(l0);
+        positive("payload.length_min", min)?;
+        if min > l0 {
+            return Err(ConfigError::new(
+                "payload.length_min",
+                format!(
+                    "payload.length_min must be at most payload.cable_length ({l0:?} m), got {min:?}"
+                ),
+            ));
+        }
+        if c.length_min.is_some() && !winch {
+            return Err(ConfigError::new(
+                "payload.length_min",
+                "payload.length_min needs a winch (payload.winch_speed and \
+                 payload.winch_acceleration)",
+            ));
+        }
+        for (i, x) in cfg.trajectory.lower.iter().enumerate() {
+            let key = format!("trajectory.lower[{i}]");
+            if *x > 0.0 && !winch {
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} lowers the parcel: it needs a winch (payload.winch_speed and \
+                         payload.winch_acceleration), got {x:?} m without one"
+                    ),
+                ));
+            }
+            if min + x > l0 {
+                return Err(ConfigError::new(
+                    &key,
+                    format!(
+                        "{key} must be at most payload.cable_length - payload.length_min \
+                         ({:?} m of line to pay out), got {x:?}",
+                        l0 - min
+                    ),
+                ));
+            }
+        }
+        if let Some(d) = c.release_delay {
+            non_negative("payload.release_delay", d)?;
+        }
+        match c.release {
+            Some(Release::At(t)) => non_negative("payload.release", t)?,
+            Some(Release::Touchdown) if cfg.ground.stiffness.is_none() => {
+                return Err(ConfigError::new(
+                    "payload.release",
+                    "payload.release = \"touchdown\" needs a ground the parcel meets \
+                     (ground.stiffness)",
+                ))
+            }
+            _ => {}
+        }
+        if cfg.ground.stiffness.is_some() {
+            // The parcel starts hanging clear of the ground.
+            let p = &cfg.payload;
+            let stretch = p.mass * cfg.environment.gravity / cfg.stiffness();
+            if !stretch.is_finite() {
+                // A spring too soft to hold the parcel: name the key that set it.
+                let key = if p.stiffness.is_some() {
+                    "payload.stiffness"
+                } else {
+                    "payload.natural_frequency"
+                };
+                let value = p.stiffness.or(p.natural_frequency).unwrap_or(f64::NAN);
+                return Err(ConfigError::new(
+                    key,
+                    format!(
+                        "{key} is too small to hold the parcel above the ground (its weight \
+                         stretches the line {stretch:?} m), got {value:?}"
+                    ),
+                ));
+            }
+            let hang = c.attachment_offset.unwrap_or(0.0) + min + stretch;
+            let z = cfg.initial.position[2] - hang;
+            if z <= cfg.ground.altitude {
+                return Err(ConfigError::new(
+                    "initial.position[2]",
+                    format!(
+                        "initial.position[2] must hang the parcel above the ground \
+                         (ground.altitude = {:?} m; the parcel hangs {hang:?} m below the \
+                         vehicle: payload.attachment_offset, the line's starting length and \
+                         its stretch under the parcel's weight), got {:?}",
+                        cfg.ground.altitude, cfg.initial.position[2]
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -112,17 +386,33 @@ impl Payload for Cable {
         payload("xc", Axis::X, Bound::Distance),
         payload("yc", Axis::Y, Bound::Distance),
         payload("zc", Axis::Z, Bound::Distance),
+        // The winch's line: no motion of the load by itself (stability names it apart).
+        payload("line", Axis::Other, Bound::Distance),
     ];
     const VELOCITIES: &'static [StateVar] = &[
         payload("vxc", Axis::X, Bound::Speed),
         payload("vyc", Axis::Y, Bound::Speed),
         payload("vzc", Axis::Z, Bound::Speed),
+        payload("line_rate", Axis::Other, Bound::Speed),
     ];
 
     fn new(c: &CableParams, cfg: &Config) -> Self {
         let p = &cfg.payload;
         let k = cfg.stiffness();
-        let rest_length = c.cable_length.unwrap_or(f64::NAN); // required: `validate`
+        let length_max = c.cable_length.unwrap_or(f64::NAN); // required: `validate`
+        let rest_length = c.length_min.unwrap_or(length_max);
+        // Without a winch the line is held at its length by the same servo (its own modes,
+        // at -2 1/s, stay apart from the vehicle's: nothing drives them).
+        let (v, a) = (
+            c.winch_speed.unwrap_or(1.0),
+            c.winch_acceleration.unwrap_or(1.0),
+        );
+        let g = &cfg.ground;
+        let (release_at, on_touchdown) = match c.release {
+            Some(Release::At(t)) => (t, 0.0),
+            Some(Release::Touchdown) => (f64::INFINITY, 1.0),
+            None => (f64::INFINITY, 0.0),
+        };
         Self {
             mc: p.mass,
             k,
@@ -132,6 +422,25 @@ impl Payload for Cable {
             drag_payload: 0.5 * cfg.gust.air_density * p.drag_area,
             hover_length: rest_length + p.mass * cfg.environment.gravity / k,
             inv_mc: 1.0 / p.mass,
+            winch_speed: v,
+            winch_acceleration: a,
+            winch_kp: a / v,
+            winch_kw: 4.0 * a / v,
+            length_min: rest_length,
+            length_max,
+            target: rest_length,
+            ground: g.altitude,
+            ground_k: g.stiffness.unwrap_or(0.0),
+            ground_c: g.damping.unwrap_or(0.0),
+            friction: g.friction.unwrap_or(0.0),
+            contact: g.stiffness.is_some(),
+            release_at,
+            release_on_touchdown: on_touchdown,
+            release_delay: c.release_delay.unwrap_or(RELEASE_DELAY),
+            hooked: 1.0,
+            touched: 0.0,
+            resting: 0.0,
+            approach: [0.0; 3],
         }
     }
 
@@ -151,35 +460,27 @@ impl Payload for Cable {
             drag_payload: at(|p| p.drag_payload),
             hover_length: at(|p| p.hover_length),
             inv_mc: at(|p| p.inv_mc),
+            winch_speed: at(|p| p.winch_speed),
+            winch_acceleration: at(|p| p.winch_acceleration),
+            winch_kp: at(|p| p.winch_kp),
+            winch_kw: at(|p| p.winch_kw),
+            length_min: at(|p| p.length_min),
+            length_max: at(|p| p.length_max),
+            target: at(|p| p.target),
+            ground: at(|p| p.ground),
+            ground_k: at(|p| p.ground_k),
+            ground_c: at(|p| p.ground_c),
+            friction: at(|p| p.friction),
+            contact: each.iter().any(|p| p.contact),
+            release_at: at(|p| p.release_at),
+            release_on_touchdown: at(|p| p.release_on_touchdown),
+            release_delay: at(|p| p.release_delay),
+            hooked: at(|p| p.hooked),
+            touched: at(|p| p.touched),
+            resting: at(|p| p.resting),
+            approach: vec3(|i| L::from_fn(|l| each[l].approach[i])),
         }
     }
-}
-
-/// The columns of R = Rz(psi) Ry(theta) Rx(phi): the body's x, y and z axes in inertial axes.
-#[inline(always)]
-fn axes<L: Lane>(t: &Trig<L>) -> [[L; 3]; 3] {
-    let Trig {
-        sphi,
-        cphi,
-        sth,
-        cth,
-        spsi,
-        cpsi,
-    } = *t;
-    let (ss, cs) = (sth * sphi, sth * cphi);
-    [
-        [cpsi * cth, spsi * cth, -sth],
-        [
-            cpsi.mul_add(ss, -(spsi * cphi)),
-            spsi.mul_add(ss, cpsi * cphi),
-            cth * sphi,
-        ],
-        [
-            cs.mul_add(cpsi, spsi * sphi),
-            cs.mul_add(spsi, -(sphi * cpsi)),
-            cphi * cth,
-        ],
-    ]
 }
 
 /// `[f(0), f(1), f(2)]`, always inlined (`array::map` is not guaranteed to be: see
@@ -218,24 +519,32 @@ pub struct Line<L> {
 }
 
 impl<L: Lane> Cable<L> {
-    /// The hook, the cable's direction and its tension at `s` (`axes` from `s`'s angles).
+    /// The hook, the cable's direction and its tension at `s` (whose attitude is `frame`).
     #[inline(always)]
-    pub fn line<const N: usize>(&self, s: &State<L, N>, axes: &[[L; 3]; 3]) -> Line<L> {
-        let [ex, ey, ez] = axes;
+    pub fn line<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, frame: &F) -> Line<L> {
+        let Ix {
+            xc,
+            line: ln,
+            vx,
+            p,
+            vxc,
+            vline,
+        } = Ix::of::<L, F>();
+        let [ex, ey, ez] = &frame.axes();
         let h = self.offset;
         // a = p + R (0, 0, -h);  va = v + R (w x hb) with w x hb = (-h q, h p, 0).
         let hook: [L; 3] = vec3(
             #[inline(always)]
             |i| (-h).mul_add(ez[i], s[ix::X + i]),
         );
-        let (hq, hp) = (h * s[P + 1], h * s[P]);
+        let (hq, hp) = (h * s[p + 1], h * s[p]);
         let va: [L; 3] = vec3(
             #[inline(always)]
-            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[VX + i])),
+            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[vx + i])),
         );
         let d: [L; 3] = vec3(
             #[inline(always)]
-            |i| s[XC + i] - hook[i],
+            |i| s[xc + i] - hook[i],
         );
         let length = dot(&d, &d).sqrt();
         let inv = L::splat(1.0) / length;
@@ -245,38 +554,78 @@ impl<L: Lane> Cable<L> {
         );
         let rel = vec3(
             #[inline(always)]
-            |i| s[VXC + i] - va[i],
+            |i| s[vxc + i] - va[i],
         );
-        let ldot = dot(&u, &rel);
-        let stretch = length - self.rest_length;
+        // The strain's rate is that of the distance less the pay-out: ldot - L'.
+        let ldot = dot(&u, &rel) - s[vline];
+        let stretch = length - s[ln];
         let pull = L::splat(0.0).max(stretch.mul_add(self.k, self.c * ldot));
         Line {
             hook,
             d,
             length,
             u,
-            tension: where_positive(stretch, pull),
+            // The hook open: nothing of the line reaches either body.
+            tension: where_positive(self.hooked, where_positive(stretch, pull)),
         }
+    }
+
+    /// N, the ground's force on the parcel at `s` (zero where it does not touch; only called
+    /// when a lane has contact).
+    #[inline(always)]
+    fn ground_force<F: Frame<L>, const N: usize>(&self, s: &State<L, N>) -> [L; 3] {
+        let Ix { xc, vxc, .. } = Ix::of::<L, F>();
+        let depth = self.ground - s[xc + 2];
+        let (vx, vy, vz) = (s[vxc], s[vxc + 1], s[vxc + 2]);
+        let normal = where_positive(
+            depth,
+            L::splat(0.0).max(depth.mul_add(self.ground_k, -(self.ground_c * vz))),
+        );
+        let slide = vx.mul_add(
+            vx,
+            vy.mul_add(vy, L::splat(FRICTION_SPEED * FRICTION_SPEED)),
+        );
+        let k = -(self.friction * normal) / slide.sqrt();
+        [vx * k, vy * k, normal]
+    }
+
+    /// L'', the winch's speed servo driving the line toward `target` within its bounds.
+    #[inline(always)]
+    fn winch<F: Frame<L>, const N: usize>(&self, s: &State<L, N>) -> L {
+        let Ix {
+            line: ln, vline, ..
+        } = Ix::of::<L, F>();
+        let v = self.winch_speed;
+        let a = self.winch_acceleration;
+        let rate = (self.winch_kp * (self.target - s[ln])).clamp(-v, v);
+        (self.winch_kw * (rate - s[vline])).clamp(-a, a)
     }
 
     /// mc dvc/dt = -T u - mc g e3 + Fdc: the payload's inertial acceleration.
     #[inline(always)]
-    fn acceleration<const N: usize>(
+    fn acceleration<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
         line: &Line<L>,
         w: &[L; 3],
     ) -> [L; 3] {
+        let vxc = Ix::of::<L, F>().vxc;
         let rel = vec3(
             #[inline(always)]
-            |i| s[VXC + i] - w[i],
+            |i| s[vxc + i] - w[i],
         );
         let k = dot(&rel, &rel).sqrt() * (-self.drag_payload);
         let mut a = vec3(
             #[inline(always)]
             |i| rel[i].mul_add(k, -(line.tension * line.u[i])) * self.inv_mc,
         );
+        if self.contact {
+            let f = self.ground_force::<F, N>(s);
+            for i in 0..3 {
+                a[i] = f[i].mul_add(self.inv_mc, a[i]);
+            }
+        }
         a[2] = a[2] - body.g;
         a
     }
@@ -294,64 +643,120 @@ impl<L: Lane> Cable<L> {
 }
 
 impl<L: Lane> PayloadModel<L> for Cable<L> {
-    const DOF: usize = 3;
+    const DOF: usize = 4;
 
     #[inline(always)]
-    fn accelerations<const N: usize>(
+    fn accelerations<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
-        let axes = axes(trig);
-        self.accelerations_of(body, s, &axes, &self.line(s, &axes), u1, w, ds)
+        self.accelerations_of(body, s, frame, &self.line(s, frame), u1, w, ds)
     }
 
     #[inline(always)]
-    fn outputs<const N: usize>(
+    fn outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         _u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
-        let line = self.line(s, &axes(trig));
-        let accel = self.acceleration(body, s, &line, w);
-        self.outputs_of(s, &line, accel)
+        let line = self.line(s, frame);
+        let accel = self.acceleration::<F, N>(body, s, &line, w);
+        self.outputs_of::<F, N>(s, &line, accel)
     }
 
     /// The line and the payload's acceleration once for both (the same bits as apart).
     #[inline(always)]
-    fn accelerations_and_outputs<const N: usize>(
+    fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         _u1_out: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let axes = axes(trig);
-        let line = self.line(s, &axes);
-        let torque = self.accelerations_of(body, s, &axes, &line, u1, w, ds);
+        let line = self.line(s, frame);
+        let torque = self.accelerations_of(body, s, frame, &line, u1, w, ds);
         // `accelerations_of` stored the payload's acceleration in `ds`.
-        let accel = [ds[VXC], ds[VXC + 1], ds[VXC + 2]];
-        (torque, self.outputs_of(s, &line, accel))
+        let vxc = Ix::of::<L, F>().vxc;
+        let accel = [ds[vxc], ds[vxc + 1], ds[vxc + 2]];
+        (torque, self.outputs_of::<F, N>(s, &line, accel))
     }
 
-    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+    fn rest<F: Frame<L>, const N: usize>(&self, _body: &Body<L>, frame: &F, s: &mut State<L, N>) {
         // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
-        let ez = axes(&Trig::of(s))[2];
+        let Ix {
+            xc,
+            line,
+            vx,
+            vxc,
+            vline,
+            ..
+        } = Ix::of::<L, F>();
+        let ez = frame.axes()[2];
         for i in 0..3 {
-            s[XC + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
-            s[VXC + i] = s[VX + i];
+            s[xc + i] = (-self.offset).mul_add(ez[i], s[ix::X + i]);
+            s[vxc + i] = s[vx + i];
         }
-        s[XC + 2] = s[XC + 2] - self.hover_length;
+        s[xc + 2] = s[xc + 2] - self.hover_length;
+        s[line] = self.rest_length;
+        s[vline] = L::splat(0.0);
+    }
+
+    /// The winch's target from the route, then the events of this step: first touchdown
+    /// (the parcel below the ground's height), rest (on the ground, slower than REST_SPEED,
+    /// the line slack) and the hook opening (at `release_at`, or after resting
+    /// `release_delay`); released lanes reel the line in.
+    fn last_metres<F: Frame<L>, const N: usize>(
+        &mut self,
+        s: &State<L, N>,
+        frame: &F,
+        cue: &Cue,
+    ) -> Option<LastMetres<L>> {
+        let Ix { xc, vxc, .. } = Ix::of::<L, F>();
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let on = |gate: L| where_positive(gate, one);
+        let vel = [s[vxc], s[vxc + 1], s[vxc + 2]];
+        let approach = std::mem::replace(&mut self.approach, vel);
+        let mut touchdown = zero;
+        if self.contact {
+            let contact = on(self.ground - s[xc + 2]) * on(self.ground_k);
+            touchdown = contact * (one - self.touched);
+            self.touched = self.touched.max(contact);
+            let speed = dot(&vel, &vel).sqrt();
+            let slack = one - on(self.line(s, frame).tension);
+            let rests = contact * on(L::splat(REST_SPEED) - speed) * slack;
+            self.resting = (self.resting + cue.dt) * rests;
+        }
+        let half = cue.dt * 0.5;
+        let due = on(L::splat(cue.t + half) - self.release_at).max(
+            self.release_on_touchdown * on(self.resting - self.release_delay + half) * self.touched,
+        );
+        let release = self.hooked * due;
+        self.hooked = self.hooked - release;
+        if let Some(payout) = cue.payout {
+            self.target = self.length_min + L::splat(payout);
+        }
+        // Released: the winch reels the line in.
+        self.target = self.target * self.hooked + self.length_min * (one - self.hooked);
+        Some(LastMetres {
+            touchdown,
+            release,
+            hooked: self.hooked,
+            grounded: self.touched,
+            pos: [s[xc], s[xc + 1], s[xc + 2]],
+            vel,
+            approach,
+        })
     }
 }
 
@@ -359,11 +764,11 @@ impl<L: Lane> Cable<L> {
     /// `PayloadModel::accelerations` with the line at `s` given.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn accelerations_of<const N: usize>(
+    fn accelerations_of<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        axes: &[[L; 3]; 3],
+        frame: &F,
         line: &Line<L>,
         u1: L,
         w: &[L; 3],
@@ -373,18 +778,17 @@ impl<L: Lane> Cable<L> {
             #[inline(always)]
             |i| line.tension * line.u[i],
         );
-        let fd = [
-            drag(body.drag_lateral, s[VX], w[0]),
-            drag(body.drag_lateral, s[VX + 1], w[1]),
-            body.vertical_drag(s[VX + 2], w[2]),
-        ];
+        let Ix { vx, vxc, .. } = Ix::of::<L, F>();
+        let axes = &frame.axes();
+        let fd = frame.drag(body, &[s[vx], s[vx + 1], s[vx + 2]], w);
         let thrust = &axes[2];
         for i in 0..3 {
-            ds[VX + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
+            ds[vx + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
         }
-        ds[VX + 2] = ds[VX + 2] - body.g;
-        let ac = self.acceleration(body, s, line, w);
-        ds[VXC..VXC + 3].copy_from_slice(&ac);
+        ds[vx + 2] = ds[vx + 2] - body.g;
+        let ac = self.acceleration::<F, N>(body, s, line, w);
+        ds[vxc..vxc + 3].copy_from_slice(&ac);
+        ds[Ix::of::<L, F>().vline] = self.winch::<F, N>(s);
         // hb x f with hb = (0, 0, -h) and f = R^T (T u) = (ex . Tu, ey . Tu, ez . Tu).
         let h = self.offset;
         let (fx, fy) = (dot(&axes[0], &pull), dot(&axes[1], &pull));
@@ -393,17 +797,21 @@ impl<L: Lane> Cable<L> {
 
     /// `PayloadModel::outputs` with the line at `s` and the payload's acceleration given.
     #[inline(always)]
-    fn outputs_of<const N: usize>(
+    fn outputs_of<F: Frame<L>, const N: usize>(
         &self,
         s: &State<L, N>,
         line: &Line<L>,
         accel: [L; 3],
     ) -> PayloadOutputs<L> {
+        let Ix { xc, line: ln, .. } = Ix::of::<L, F>();
+        // Relative to the line's present length (the same bits while it is not paid out);
+        // nothing once the hook is open.
+        let e_o = ((s[xc + 2] - line.hook[2]) + self.hover_length) + (s[ln] - self.rest_length);
         PayloadOutputs {
-            e_o: (s[XC + 2] - line.hook[2]) + self.hover_length,
+            e_o: e_o * self.hooked,
             accel,
             tension: line.tension,
-            swing: Self::swing(line),
+            swing: Self::swing(line) * self.hooked,
         }
     }
 }
@@ -411,3 +819,7 @@ impl<L: Lane> Cable<L> {
 #[cfg(test)]
 #[path = "cable_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "winch_tests.rs"]
+mod winch_tests;

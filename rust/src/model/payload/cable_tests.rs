@@ -7,9 +7,14 @@ use crate::config::tests::paper;
 use crate::config::PayloadKind;
 use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
-use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Vehicle};
+use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Trig, Vehicle};
 
-const NX: usize = 18;
+const NX: usize = 20;
+const LAYOUT: Layout = Layout::new(4, 0);
+const XC: usize = LAYOUT.payload();
+const VX: usize = LAYOUT.vel();
+const VXC: usize = LAYOUT.payload_vel();
+const P: usize = LAYOUT.rate();
 type Slung = Vehicle<f64, Cable, Ideal>;
 const YC: usize = XC + 1;
 const ZC: usize = XC + 2;
@@ -78,31 +83,49 @@ fn swung(v: &Slung, angle: f64, vc: [f64; 3]) -> State<f64, NX> {
 /// Kinetic, gravitational and elastic energy of the payload (J), the hook fixed.
 fn energy(v: &Slung, s: &State<f64, NX>) -> f64 {
     let p = &v.payload;
-    let line = p.line(s, &axes(&Trig::of(s)));
+    let line = p.line(s, &Trig::of(s));
     let stretch = (line.length - p.rest_length).max(0.0);
     let speed2: f64 = (0..3).map(|i| s[VXC + i] * s[VXC + i]).sum();
     0.5 * p.mc * speed2 + p.mc * v.body.g * s[ZC] + 0.5 * p.k * stretch * stretch
 }
 
 fn p_line(v: &Slung, s: &State<f64, NX>) -> Line<f64> {
-    v.payload.line(s, &axes(&Trig::of(s)))
+    v.payload.line(s, &Trig::of(s))
 }
 
 #[test]
-fn the_cable_layout_has_eighteen_named_bounded_states() {
-    let vars = state_vars(PayloadKind::Cable, ActuatorKind::Ideal);
+fn the_cable_layout_has_twenty_named_bounded_states() {
+    let vars = state_vars(Default::default(), PayloadKind::Cable, ActuatorKind::Ideal);
     let names: Vec<&str> = vars.iter().map(|v| v.name).collect();
     assert_eq!(
         names,
         [
-            "x", "y", "z", "phi", "theta", "psi", "xc", "yc", "zc", "vx", "vy", "vz", "p", "q",
-            "r", "vxc", "vyc", "vzc"
+            "x",
+            "y",
+            "z",
+            "phi",
+            "theta",
+            "psi",
+            "xc",
+            "yc",
+            "zc",
+            "line",
+            "vx",
+            "vy",
+            "vz",
+            "p",
+            "q",
+            "r",
+            "vxc",
+            "vyc",
+            "vzc",
+            "line_rate"
         ]
     );
-    for v in &vars[XC..XC + 3] {
+    for v in &vars[XC..XC + 4] {
         assert_eq!((v.part, v.bound), (Part::Payload, Some(Bound::Distance)));
     }
-    for v in &vars[VXC..VXC + 3] {
+    for v in &vars[VXC..VXC + 4] {
         assert_eq!((v.part, v.bound), (Part::Payload, Some(Bound::Speed)));
     }
     assert_eq!(
@@ -117,7 +140,7 @@ fn hover_is_a_fixed_point() {
     let v = vehicle(&cfg);
     let s: State<f64, NX> = v.rest_state([1.0, -2.0, 2.0], [0.0, 0.0, 0.5]);
     let ds = derivative(&v, &s, &hover_thrust(&v), &[0.0; 3]);
-    let vars = state_vars(PayloadKind::Cable, ActuatorKind::Ideal);
+    let vars = state_vars(Default::default(), PayloadKind::Cable, ActuatorKind::Ideal);
     for (i, d) in ds.iter().enumerate() {
         assert!(d.abs() < 1e-12, "d{}/dt = {d}", vars[i].name);
     }
@@ -210,7 +233,7 @@ fn a_slack_cable_has_no_tension_and_the_payload_falls_freely() {
     let (mut slack, mut taut_again) = (0, false);
     for _ in 0..2000 {
         s = fixed_hook_step(&v, &s, 1e-3);
-        let line = p.line(&s, &axes(&Trig::of(&s)));
+        let line = p.line(&s, &Trig::of(&s));
         let ds = derivative(&v, &s, &hover_thrust(&v), &[0.0; 3]);
         if line.length <= p.rest_length {
             slack += 1;
@@ -229,16 +252,16 @@ fn a_slack_cable_has_no_tension_and_the_payload_falls_freely() {
     let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 3.0], [0.0; 3]);
     s[ZC] += 0.1 * p.rest_length;
     s[VXC + 2] = -50.0;
-    let line = p.line(&s, &axes(&Trig::of(&s)));
+    let line = p.line(&s, &Trig::of(&s));
     assert!(line.length < p.rest_length);
     assert!((line.length - p.rest_length) * p.k + p.c * 50.0 > 0.0);
     assert_eq!(line.tension, 0.0);
     let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 3.0], [0.0; 3]);
     s[VXC + 2] = 50.0;
-    assert_eq!(p.line(&s, &axes(&Trig::of(&s))).tension, 0.0);
+    assert_eq!(p.line(&s, &Trig::of(&s)).tension, 0.0);
     // Taut: exactly k (l - L0) + c ldot.
     s[VXC + 2] = -0.3;
-    let line = p.line(&s, &axes(&Trig::of(&s)));
+    let line = p.line(&s, &Trig::of(&s));
     let want = p.k * (line.length - p.rest_length) + p.c * 0.3;
     assert!(
         (line.tension - want).abs() < 1e-12 * want,
@@ -279,7 +302,7 @@ fn the_cable_force_is_internal_and_torque_free_at_the_centre_of_gravity() {
                 "axis {i}: {total} vs {external}"
             );
         }
-        let line = v.payload.line(&s, &axes(&Trig::of(&s)));
+        let line = v.payload.line(&s, &Trig::of(&s));
         assert!(line.tension > 1.0);
         let rates_equal = (0..3).all(|i| ds[P + i] == ds_free[P + i]);
         assert_eq!(rates_equal, h == 0.0, "h = {h}");

@@ -11,12 +11,12 @@
 mod cable;
 mod spring;
 
-pub use cable::{Cable, CableParams, Line};
+pub use cable::{Cable, CableParams, Line, Release};
 pub use spring::{Spring, SpringParams};
 
-use super::body::Body;
+use super::body::{Body, Frame};
 use super::layout::StateVar;
-use super::{Layout, State, Trig};
+use super::State;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
 
@@ -37,6 +37,35 @@ pub struct PayloadOutputs<L> {
     pub swing: L,
 }
 
+/// What the route tells the payload at one step (`PayloadModel::last_metres`).
+#[derive(Clone, Copy, Debug)]
+pub struct Cue {
+    /// s, the step's time, and the step.
+    pub t: f64,
+    pub dt: f64,
+    /// m, the line a lowering in progress pays out beyond the reeled-in length
+    /// (`trajectory.lower`), else None (the winch keeps its target).
+    pub payout: Option<f64>,
+}
+
+/// The last metres at one step (lane values: 1 or 0 for the events), for the metrics.
+#[derive(Clone, Copy, Debug)]
+pub struct LastMetres<L> {
+    /// 1 at the step of the parcel's first contact with the ground, else 0.
+    pub touchdown: L,
+    /// 1 at the step the hook opens, else 0.
+    pub release: L,
+    /// 1 while the parcel hangs on the hook, 0 once released; 1 once it has touched down.
+    pub hooked: L,
+    pub grounded: L,
+    /// m and m/s, the parcel's inertial position and velocity.
+    pub pos: [L; 3],
+    pub vel: [L; 3],
+    /// m/s, its velocity at the previous step: the speed it met the ground with (by the step
+    /// at which the contact is first seen, the ground has already pushed for part of it).
+    pub approach: [L; 3],
+}
+
 /// A payload's dynamics, with parameters of lane type `L`.
 pub trait PayloadModel<L: Lane>: Sync {
     /// Degrees of freedom: the payload has this many positions (after the quadrotor's angles)
@@ -45,23 +74,25 @@ pub trait PayloadModel<L: Lane>: Sync {
 
     /// Write the quadrotor's translational accelerations (`ds[vx..vx + 3]`) and the payload's
     /// (`ds[payload_vel..]`) for total thrust `u1` and wind `w` (m/s, inertial); return the
-    /// torque the payload applies to the quadrotor (body axes), if it applies one.
-    fn accelerations<const N: usize>(
+    /// torque the payload applies to the quadrotor (body axes), if it applies one. `frame` is
+    /// the body's attitude at `s` (its axes, its own drag, and where the states sit:
+    /// `Frame::layout`).
+    fn accelerations<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]>;
 
     /// What the loop records (`PayloadOutputs`) at `s`.
-    fn outputs<const N: usize>(
+    fn outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L>;
@@ -72,22 +103,37 @@ pub trait PayloadModel<L: Lane>: Sync {
     /// the state its RK4 step starts from, so the first stage's derivative shares them.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn accelerations_and_outputs<const N: usize>(
+    fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         u1_out: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let torque = self.accelerations(body, s, trig, u1, w, ds);
-        (torque, self.outputs(body, s, trig, u1_out, w))
+        let torque = self.accelerations(body, s, frame, u1, w, ds);
+        (torque, self.outputs(body, s, frame, u1_out, w))
     }
 
-    /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest).
-    fn rest<const N: usize>(&self, body: &Body<L>, s: &mut State<L, N>, layout: Layout);
+    /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest), whose
+    /// attitude is `frame`.
+    fn rest<F: Frame<L>, const N: usize>(&self, body: &Body<L>, frame: &F, s: &mut State<L, N>);
+
+    /// The last metres (docs/model.md): once per step, before it, at `s` (`frame` its attitude),
+    /// the payload takes the route's `cue` (a winch's target), updates its events (first
+    /// touchdown, the hook opening) and returns them; None for a payload that never meets
+    /// the ground nor leaves the hook (then the flight loop records none).
+    #[inline(always)]
+    fn last_metres<F: Frame<L>, const N: usize>(
+        &mut self,
+        _s: &State<L, N>,
+        _frame: &F,
+        _cue: &Cue,
+    ) -> Option<LastMetres<L>> {
+        None
+    }
 }
 
 /// A payload kind's parameters for one vehicle, resolved once from the scenario.

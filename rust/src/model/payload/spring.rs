@@ -7,9 +7,9 @@ use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
 use crate::lane::Lane;
-use crate::model::body::{drag, Body};
+use crate::model::body::{drag, Body, Frame};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
-use crate::model::{ix, Layout, State, Trig};
+use crate::model::{ix, Layout, State};
 
 params! {
     /// The spring's own keys in `[payload]`: none beyond the point mass's
@@ -101,30 +101,24 @@ impl<L: Lane> Spring<L> {
 
     /// The lateral accelerations of quadrotor and payload together (mass m + mc).
     #[inline(always)]
-    fn lateral<const N: usize>(
+    fn lateral<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
     ) -> [L; 2] {
-        let Trig {
-            sphi,
-            cphi,
-            sth,
-            spsi,
-            cpsi,
-            ..
-        } = *trig;
+        const { assert!(F::ATT == 3, "the spring flies on the paper's body only") };
         let fdx = drag(body.drag_lateral, s[VX], w[0]);
         let fdy = drag(body.drag_lateral, s[VY], w[1]);
         // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
-        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly.
-        let cs = cphi * sth;
+        // mode (`Lane::mul_add`); `a - b c` is `(-b) c + a`, exactly. The thrust's direction
+        // R e3 (`Frame::axes`).
+        let thrust = frame.axes()[2];
         [
-            cs.mul_add(cpsi, spsi * sphi).mul_add(u1, fdx) * self.inv_m_lateral,
-            cs.mul_add(spsi, -(sphi * cpsi)).mul_add(u1, fdy) * self.inv_m_lateral,
+            thrust[0].mul_add(u1, fdx) * self.inv_m_lateral,
+            thrust[1].mul_add(u1, fdy) * self.inv_m_lateral,
         ]
     }
 
@@ -140,36 +134,36 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
     const DOF: usize = 1;
 
     #[inline(always)]
-    fn accelerations<const N: usize>(
+    fn accelerations<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
         let fdz = body.vertical_drag(s[VZ], w[2]);
         let spring = self.force(s);
-        [ds[VX], ds[VY]] = self.lateral(body, s, trig, u1, w);
-        let az = (trig.cphi * trig.cth).mul_add(u1, -spring) + fdz;
+        [ds[VX], ds[VY]] = self.lateral(body, s, frame, u1, w);
+        let az = frame.axes()[2][2].mul_add(u1, -spring) + fdz;
         ds[VZ] = az * body.inv_m - body.g;
         ds[VZC] = self.acceleration(body, s, spring, w[2]);
         None
     }
 
     #[inline(always)]
-    fn outputs<const N: usize>(
+    fn outputs<F: Frame<L>, const N: usize>(
         &self,
         body: &Body<L>,
         s: &State<L, N>,
-        trig: &Trig<L>,
+        frame: &F,
         u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
         let spring = self.force(s);
         // The payload moves laterally with the quadrotor (docs/model.md section 12).
-        let [ax, ay] = self.lateral(body, s, trig, u1, w);
+        let [ax, ay] = self.lateral(body, s, frame, u1, w);
         PayloadOutputs {
             e_o: s[ZC] - s[ix::Z] + self.hover_offset,
             accel: [ax, ay, self.acceleration(body, s, spring, w[2])],
@@ -178,7 +172,7 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
         }
     }
 
-    fn rest<const N: usize>(&self, _body: &Body<L>, s: &mut State<L, N>, _layout: Layout) {
+    fn rest<F: Frame<L>, const N: usize>(&self, _body: &Body<L>, _frame: &F, s: &mut State<L, N>) {
         s[ZC] = s[ix::Z] - self.hover_offset;
     }
 }

@@ -52,6 +52,16 @@ pub struct Rotors<L = f64> {
     /// computed exactly as without them).
     sags: bool,
     faulty: bool,
+    /// m, rotor i's hub (x, y) in body axes: l (cos a_i, sin a_i).
+    hubs: [[L; 2]; 4],
+    /// Rotor aerodynamics (RotorPy's `Multirotor.compute_body_wrench`): the H-force
+    /// coefficients (k_d, k_d, k_z), N per (rad/s m/s); the flapping moment's k_flap, N m per
+    /// (rad/s m/s); translational lift k_h, N per (m/s)^2.
+    rotor_drag: [L; 3],
+    flapping: L,
+    lift: L,
+    /// Whether any lane has a rotor aerodynamic term (else `aero` is None: no arithmetic).
+    aerodynamic: bool,
 }
 
 /// What the rotors are told at the start of a step and hold over its four RK4 stages.
@@ -119,6 +129,14 @@ impl Actuator for Rotors {
             fault_fraction,
             sags: a.battery_sag != 0.0,
             faulty: !a.faults.is_empty(),
+            hubs: arm_directions(a.layout)
+                .map(|[c, s]| [cfg.vehicle.arm_length * c, cfg.vehicle.arm_length * s]),
+            rotor_drag: a.rotor_drag,
+            flapping: a.flapping,
+            lift: a.translational_lift,
+            aerodynamic: a.rotor_drag != [0.0; 3]
+                || a.flapping != 0.0
+                || a.translational_lift != 0.0,
         }
     }
 
@@ -141,6 +159,13 @@ impl Actuator for Rotors {
             fault_fraction: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_fraction[i])),
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
+            hubs: std::array::from_fn(|i| {
+                std::array::from_fn(|j| L::from_fn(|l| each[l].hubs[i][j]))
+            }),
+            rotor_drag: std::array::from_fn(|i| L::from_fn(|l| each[l].rotor_drag[i])),
+            flapping: at(&|r| r.flapping),
+            lift: at(&|r| r.lift),
+            aerodynamic: each.iter().any(|r| r.aerodynamic),
         }
     }
 }
@@ -201,6 +226,50 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
     /// The actual thrusts kf w_i^2 (N), and whether the step's command was clamped (0 or 1).
     const SIGNALS: &'static [&'static str] =
         &["thrust_1", "thrust_2", "thrust_3", "thrust_4", "saturated"];
+
+    /// RotorPy's rotor aerodynamics, per rotor i at hub r_i with speed w_i and local airspeed
+    /// v_i = R^T (v - wind) + W x r_i (body axes): the H-force -w_i diag(k_d, k_d, k_z) v_i,
+    /// translational lift k_h (v_ix^2 + v_iy^2) along body z, both at the hub (moment
+    /// r_i x f), and the flapping moment -k_flap w_i (v_i x e3).
+    #[inline(always)]
+    fn aero<const N: usize>(
+        &self,
+        s: &State<L, N>,
+        at: usize,
+        air: &[L; 3],
+        axes: &[[L; 3]; 3],
+        rates: &[L; 3],
+    ) -> Option<([L; 3], [L; 3])> {
+        if !self.aerodynamic {
+            return None;
+        }
+        let dot = |a: &[L; 3]| a[0] * air[0] + a[1] * air[1] + a[2] * air[2];
+        let vb = [dot(&axes[0]), dot(&axes[1]), dot(&axes[2])];
+        let [wx, wy, wz] = *rates;
+        let [kd, kd_y, kz] = self.rotor_drag;
+        let zero = L::splat(0.0);
+        let (mut f, mut m) = ([zero; 3], [zero; 3]);
+        for i in 0..4 {
+            let w = s[at + i];
+            let [rx, ry] = self.hubs[i];
+            // v_i = v_b + W x (rx, ry, 0)
+            let vx = vb[0] - wz * ry;
+            let vy = vb[1] + wz * rx;
+            let vz = vb[2] + wx * ry - wy * rx;
+            let hx = -(w * kd * vx);
+            let hy = -(w * kd_y * vy);
+            let hz = -(w * kz * vz) + self.lift * (vx * vx + vy * vy);
+            f[0] += hx;
+            f[1] += hy;
+            f[2] += hz;
+            // r_i x (hx, hy, hz), and the flapping moment -k_flap w (vy, -vx, 0)
+            let flap = self.flapping * w;
+            m[0] += ry * hz - flap * vy;
+            m[1] += flap * vx - rx * hz;
+            m[2] += rx * hy - ry * hx;
+        }
+        Some((f, m))
+    }
 
     #[inline(always)]
     fn command(&self, u: &Inputs<L>, at: Tick) -> RotorCommand<L> {
@@ -324,6 +393,7 @@ mod tests {
     #[test]
     fn the_rotor_states_follow_the_payloads_velocities() {
         let names: Vec<&str> = crate::model::state_vars(
+            Default::default(),
             crate::model::PayloadKind::Spring,
             crate::model::ActuatorKind::Rotors,
         )

@@ -33,6 +33,15 @@ params! {
         /// The fraction of `thrust_max` lost by the end of the flight, linearly (rotors only).
         #[serde(default, skip_serializing_if = "is_zero")]
         battery_sag: f64 => "-", "Fraction of the rotor thrust limit lost by the end (battery sag)";
+        /// The rotor's H-force -w diag(k_d, k_d, k_z) v_i (RotorPy's k_d, k_d, k_z; rigid body).
+        #[serde(default, skip_serializing_if = "is_zero3")]
+        rotor_drag: [f64; 3] => "N/(rad/s m/s)", "Rotor drag (H-force) coefficients (k_d, k_d, k_z)";
+        /// The blade-flapping moment -k_flap w (v_i x e3) (RotorPy's k_flap; rigid body).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        flapping: f64 => "N m/(rad/s m/s)", "Rotor blade-flapping moment coefficient";
+        /// Translational lift k_h (v_ix^2 + v_iy^2) per rotor (RotorPy's k_h; rigid body).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        translational_lift: f64 => "N/(m/s)^2", "Rotor translational lift coefficient";
     }
 }
 
@@ -52,6 +61,10 @@ params! {
 
 fn is_zero(x: &f64) -> bool {
     *x == 0.0
+}
+
+fn is_zero3(x: &[f64; 3]) -> bool {
+    *x == [0.0; 3]
 }
 
 impl RotorParams {
@@ -75,6 +88,9 @@ impl Default for RotorParams {
             thrust_max: default_rotor_thrust_max(),
             faults: Vec::new(),
             battery_sag: 0.0,
+            rotor_drag: [0.0; 3],
+            flapping: 0.0,
+            translational_lift: 0.0,
         }
     }
 }
@@ -102,6 +118,34 @@ pub fn default_rotor_thrust_max() -> f64 {
 }
 
 impl RotorParams {
+    /// The rotor aerodynamic coefficients: each >= 0, and nonzero only on the rigid body (they
+    /// need its body rates and body-axis airspeed: docs/model.md, "Bodies").
+    fn validate_aero(&self, cfg: &Config) -> Result<(), ConfigError> {
+        let a = self;
+        for (i, k) in a.rotor_drag.iter().enumerate() {
+            non_negative(format_args!("actuator.rotor_drag[{i}]"), *k)?;
+        }
+        non_negative("actuator.flapping", a.flapping)?;
+        non_negative("actuator.translational_lift", a.translational_lift)?;
+        if cfg.vehicle.body == crate::model::BodyModel::Paper {
+            let given = [
+                ("actuator.rotor_drag", a.rotor_drag != [0.0; 3]),
+                ("actuator.flapping", a.flapping != 0.0),
+                ("actuator.translational_lift", a.translational_lift != 0.0),
+            ];
+            if let Some((key, _)) = given.into_iter().find(|(_, set)| *set) {
+                return Err(ConfigError::new(
+                    key,
+                    format!(
+                        "{key} applies to vehicle.body = \"rigid\" only (rotor aerodynamics need \
+                         the true body rates and body-axis airspeed)"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Every rotor key in range always; whether the rotors can hold this vehicle in hover and
     /// the lag can be integrated at this step only when they fly (`flown`).
     pub fn validate(&self, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
@@ -121,6 +165,7 @@ impl RotorParams {
             ));
         }
         self.validate_faults(flown, cfg)?;
+        self.validate_aero(cfg)?;
         if !flown {
             return Ok(());
         }

@@ -1,0 +1,216 @@
+//! The last metres' checks on the cable (docs/model.md, "The last metres"): the energy balance
+//! with the winch's work, the hook's release, the ground's hold on a resting parcel.
+
+use super::*;
+use crate::config::tests::paper;
+use crate::config::PayloadKind;
+use crate::model::actuator::Ideal;
+use crate::model::{state_from_fn, AnyVehicle, Inputs, Trig, Vehicle};
+
+const NX: usize = 20;
+const LAYOUT: Layout = Layout::new(4, 0);
+const XC: usize = LAYOUT.payload();
+const LINE: usize = XC + 3;
+const VX: usize = LAYOUT.vel();
+const VXC: usize = LAYOUT.payload_vel();
+const VLINE: usize = VXC + 3;
+type Slung = Vehicle<f64, Cable, Ideal>;
+const ZC: usize = XC + 2;
+const VZ: usize = VX + 2;
+
+/// The paper's vehicle with a winch on a cable of `l0` m reeled in to `min` m, a ground at 0.
+fn winch_config(l0: f64, min: f64) -> Config {
+    let mut cfg = paper();
+    cfg.payload.model = PayloadKind::Cable;
+    let c = &mut cfg.payload.cable;
+    c.cable_length = Some(l0);
+    c.attachment_offset = Some(0.1);
+    c.winch_speed = Some(0.5);
+    c.winch_acceleration = Some(0.5);
+    c.length_min = Some(min);
+    cfg.payload.natural_frequency = Some(3.0);
+    cfg.ground.stiffness = Some(2.0e4);
+    cfg.ground.damping = Some(50.0);
+    cfg.ground.friction = Some(0.5);
+    cfg.initial.position = [0.0, 0.0, 10.0];
+    cfg.validate().expect("a valid winch scenario");
+    cfg
+}
+
+fn vehicle(cfg: &Config) -> Slung {
+    AnyVehicle::new(cfg).vehicle::<Cable, Ideal>()
+}
+
+fn hover_thrust(v: &Slung) -> Inputs<f64> {
+    Inputs {
+        u1: (v.body.m + v.payload.mc) * v.body.g,
+        tau: [0.0; 3],
+    }
+}
+
+fn derivative(v: &Slung, s: &State<f64, NX>) -> State<f64, NX> {
+    v.derivative(s, &Trig::of(s), &hover_thrust(v), &[0.0; 3])
+}
+
+/// With the hook fixed, no damping and no drag, the parcel's energy (kinetic, gravitational,
+/// elastic about the present length L) changes only by the winch's work: dE/dt = -T L'. The
+/// work is integrated with the state (one more equation of the same RK4), so E - W is an
+/// invariant whose error is RK4's: it falls 16 times (fourth order) or more when dt halves.
+#[test]
+fn energy_changes_by_the_winchs_work_to_rk4_order() {
+    let mut cfg = winch_config(6.0, 1.0);
+    cfg.gust.air_density = 0.0;
+    cfg.payload.damping = 0.0;
+    let mut v = vehicle(&cfg);
+    // Paying out toward 5 m, faster and faster (L'' = kw (v - L') > 0, within the bounds).
+    v.payload.target = 5.0;
+    let (mc, g, k) = (v.payload.mc, v.body.g, v.payload.k);
+    let energy = |s: &State<f64, NX>| {
+        let line = v.payload.line(s, &Trig::of(s));
+        let stretch = (line.length - s[LINE]).max(0.0);
+        let speed2: f64 = (0..3).map(|i| s[VXC + i] * s[VXC + i]).sum();
+        0.5 * mc * speed2 + mc * g * s[ZC] + 0.5 * k * stretch * stretch
+    };
+    let start = {
+        let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 10.0], [0.0; 3]);
+        // Swung 0.3 rad in x-z, moving sideways; the line already paying out at 0.9 v.
+        let l = v.payload.hover_length;
+        s[XC] = l * 0.3f64.sin();
+        s[ZC] = 10.0 - 0.1 - l * 0.3f64.cos();
+        s[VXC + 1] = 0.6;
+        s[VLINE] = 0.45;
+        s
+    };
+    // d(s, W)/dt: the vehicle held still (its derivatives zeroed), W' = -T L'.
+    let f = |s: &State<f64, NX>, _w: f64| {
+        let mut ds = derivative(&v, s);
+        for i in (0..6).chain(VX..VX + 6) {
+            ds[i] = 0.0;
+        }
+        let t = v.payload.line(s, &Trig::of(s)).tension;
+        (ds, -t * s[VLINE])
+    };
+    let drift = |dt: f64| {
+        let (mut s, mut w) = (start, 0.0);
+        let e0 = energy(&s);
+        let mut worst: f64 = 0.0;
+        let add = |a: &State<f64, NX>, k: &State<f64, NX>, h: f64| -> State<f64, NX> {
+            state_from_fn(|i| a[i] + h * k[i])
+        };
+        for _ in 0..(4.0 / dt).round() as usize {
+            let (k1, w1) = f(&s, w);
+            let (k2, w2) = f(&add(&s, &k1, 0.5 * dt), w);
+            let (k3, w3) = f(&add(&s, &k2, 0.5 * dt), w);
+            let (k4, w4) = f(&add(&s, &k3, dt), w);
+            s = state_from_fn(|i| s[i] + dt / 6.0 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]));
+            w += dt / 6.0 * (w1 + 2.0 * (w2 + w3) + w4);
+            worst = worst.max((energy(&s) - w - e0).abs());
+        }
+        // The line stayed taut and paid out over a metre: the work is not a small term.
+        assert!(s[LINE] > 2.5, "{}", s[LINE]);
+        assert!(w.abs() > 2.0, "winch work {w} J");
+        worst / (mc * g * v.payload.hover_length)
+    };
+    let (coarse, fine) = (drift(4e-3), drift(2e-3));
+    assert!(fine < 1e-7, "relative energy error {fine:e}");
+    let ratio = coarse / fine;
+    assert!(
+        (14.0..40.0).contains(&ratio),
+        "{coarse:e} / {fine:e} = {ratio}"
+    );
+}
+
+/// At hover the vehicle's thrust carries the parcel too; the instant the hook opens it
+/// accelerates up by the released weight over its own mass, and from then on no payload state
+/// reaches the vehicle's equations.
+#[test]
+fn the_release_leaves_the_released_weight_over_the_mass_and_nothing_of_the_payload() {
+    let cfg = winch_config(3.0, 1.0);
+    let mut v = vehicle(&cfg);
+    let s: State<f64, NX> = v.rest_state([0.3, -0.2, 10.0], [0.0; 3]);
+    assert!(derivative(&v, &s)[VZ].abs() < 1e-12);
+    v.payload.release_at = 2.0;
+    let cue = |t: f64| Cue {
+        t,
+        dt: 1e-3,
+        payout: None,
+    };
+    let trig = Trig::of(&s);
+    let before = v.payload.last_metres(&s, &trig, &cue(1.998)).unwrap();
+    assert_eq!((before.release, before.hooked), (0.0, 1.0));
+    let at = v.payload.last_metres(&s, &trig, &cue(1.9996)).unwrap();
+    assert_eq!((at.release, at.hooked), (1.0, 0.0));
+    let ds = derivative(&v, &s);
+    let expected = v.payload.mc * v.body.g / v.body.m;
+    assert!(
+        (ds[VZ] - expected).abs() < 1e-9,
+        "{} vs mc g / m = {expected}",
+        ds[VZ]
+    );
+    // The parcel falls freely (no line), the line is reeled in, the outputs say nothing.
+    assert!((ds[VXC + 2] + v.body.g).abs() < 1e-12, "{}", ds[VXC + 2]);
+    assert_eq!(v.payload.target, 1.0);
+    let out = v.payload_outputs(&s, &trig, 0.0, &[0.0; 3]);
+    assert_eq!((out.e_o, out.tension, out.swing), (0.0, 0.0, 0.0));
+    // Any payload state: the vehicle's derivative is the same, bit for bit.
+    let vehicle_rows = |ds: &State<f64, NX>| [&ds[..6], &ds[VX..VX + 6]].concat();
+    let base = vehicle_rows(&ds);
+    for (i, x) in [(XC, 0.7), (XC + 1, -1.3), (ZC, -4.0), (LINE, 2.2)]
+        .into_iter()
+        .chain([(VXC, 3.0), (VXC + 1, -0.5), (VXC + 2, -6.0), (VLINE, 0.5)])
+    {
+        let mut moved = s;
+        moved[i] += x;
+        assert_eq!(vehicle_rows(&derivative(&v, &moved)), base, "state {i}");
+    }
+    // And it stays open.
+    let later = v.payload.last_metres(&s, &trig, &cue(5.0)).unwrap();
+    assert_eq!((later.release, later.hooked), (0.0, 0.0));
+}
+
+/// A parcel resting on the ground with the line slack sinks in by its weight over the
+/// stiffness and stays there; sliding, friction slows it at mu g; the hook opens after
+/// `release_delay` at rest.
+#[test]
+fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
+    let mut cfg = winch_config(12.0, 1.0);
+    cfg.gust.air_density = 0.0;
+    cfg.payload.cable.release = Some(Release::Touchdown);
+    cfg.payload.cable.release_delay = Some(0.5);
+    cfg.validate().unwrap();
+    let mut v = vehicle(&cfg);
+    let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 10.0], [0.0; 3]);
+    let (mc, g, kg) = (v.payload.mc, v.body.g, v.payload.ground_k);
+    // On the ground at its static depth, the line paid out beyond the distance: slack.
+    s[ZC] = -mc * g / kg;
+    s[LINE] = 11.0;
+    let ds = derivative(&v, &s);
+    assert!(ds[VXC + 2].abs() < 1e-12, "{}", ds[VXC + 2]);
+    assert_eq!(v.payload.line(&s, &Trig::of(&s)).tension, 0.0);
+    // Sliding at 1 m/s (far above the regularisation speed): decelerated at mu g.
+    let mut sliding = s;
+    sliding[VXC] = 1.0;
+    let a = derivative(&v, &sliding)[VXC];
+    let mu = v.payload.friction;
+    assert!(
+        (a + mu * g / (1.0 + (FRICTION_SPEED * FRICTION_SPEED)).sqrt()).abs() < 1e-12,
+        "{a}"
+    );
+    // Touchdown at the first step in contact, then the hook opens 0.5 s later.
+    let trig = Trig::of(&s);
+    let mut opened = None;
+    for k in 0..1000 {
+        let cue = Cue {
+            t: k as f64 * 1e-3,
+            dt: 1e-3,
+            payout: None,
+        };
+        let ev = v.payload.last_metres(&s, &trig, &cue).unwrap();
+        assert_eq!(ev.touchdown, if k == 0 { 1.0 } else { 0.0 });
+        if ev.release == 1.0 {
+            opened = Some(cue.t);
+        }
+    }
+    let t = opened.expect("the hook opens");
+    assert!((t - 0.5).abs() < 1.5e-3, "{t}");
+}
