@@ -26,7 +26,7 @@ def test_the_preset_is_the_vehicle_a_delivery_engineer_flies(delivery) -> None:
     assert delivery["gust.end"] == delivery["integrator.duration"]
     legs = [s for s in delivery.route.segments if s.kind == "leg"]
     transit = max(legs, key=lambda s: s.length)
-    assert 500.0 <= transit.length <= 2000.0 and transit.peak_speed == 10.0
+    assert 500.0 <= transit.length <= 2000.0 and transit.peak_speed == 8.0
     # The flight lasts past the last arrival; over the drop point the parcel is lowered, then
     # the vehicle hovers and climbs away.
     assert delivery.route.segments[-1].end == delivery["integrator.duration"]
@@ -60,6 +60,11 @@ def test_the_pd_flies_the_mission_leg_by_leg(delivery) -> None:
     assert 0.5 * weight < carried["min_tension"].min() < weight
     assert weight < m.loc[FLIGHT_PHASE, "max_tension"] < 2 * weight
     assert 0.05 < m.loc[FLIGHT_PHASE, "max_swing"] < 1.2
+    # Its cruise is one the PD flies within the route's 10 m in the crosswind (at 10 m/s the
+    # body's and rotors' drag hold it about 10 m behind its reference); only the transit leans
+    # past 90 % of the tilt limit, in the gusts.
+    assert m.loc["transit", "max_tracking"] < 9.0
+    assert (m.drop(index=["transit", FLIGHT_PHASE])["near_tilt_time"] == 0.0).all()
     assert 0.5 < m.loc["lower", "touchdown_speed"] < 1.5
     assert m.loc["lower", "touchdown_miss"] < 3.0
     lower, drop = delivery.route.segments[4:6]
