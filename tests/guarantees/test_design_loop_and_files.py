@@ -356,6 +356,14 @@ def test_a_ctrl_c_while_the_batch_is_saved_keeps_it(
                            capsys=capsys)  # fmt: skip
     assert code == 130 and "interrupted" in err, err
     assert len(MonteCarloResult.read_parquet(out).realisations) == 4
+    # and the mission command alike (its batch, then its file with the saved question)
+    mission_out = tmp_path / "mission.parquet"
+    code, _, err = run_cli("mission", "--preset", "paper", "--runs", "4", "--workers", "1",
+                           "--no-progress", *TINY_CLI, "--out", str(mission_out),
+                           capsys=capsys)  # fmt: skip
+    assert code == 130, err
+    kept = MonteCarloResult.read_parquet(mission_out)
+    assert len(kept.realisations) == 4 and kept.question is not None
 
 
 # -- no traceback, one line -------------------------------------------------------------------

@@ -9,6 +9,7 @@ Kept apart from :mod:`quadrs.cli.main`, which registers the subcommand.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import math
 import sys
@@ -226,28 +227,34 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
     check_directories(args.plots)
     if args.scheduler is None:  # a cluster's speed is not this machine's
         _announce(scenario, args)
-    with dask_client(args.scheduler) as client:
-        mc = monte_carlo(
-            scenario,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controller,
-            workers=args.workers,
-            progress=not args.no_progress and sys.stderr.isatty(),
-            spectra=False,
-            client=client,
-        )
-    metric, limit = args.limit
-    mc.question = {  # saved with the runs: quadrs report asks it again
-        "metric": metric,
-        "limit": limit,
-        "track_limit": args.track_limit,
-        "cross_track_limit": args.cross_track_limit,
-        "quantile": args.quantile,
-    }
-    saved = True
-    if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-        saved = save(mc.to_parquet, args.out)
+    from quadrs.engine.calls import deferred_signals
+
+    with contextlib.ExitStack() as keeping:
+        with dask_client(args.scheduler) as client:
+            mc = monte_carlo(
+                scenario,
+                runs=args.runs,
+                seed=args.seed,
+                controllers=args.controller,
+                workers=args.workers,
+                progress=not args.no_progress and sys.stderr.isatty(),
+                spectra=False,
+                client=client,
+            )
+            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
+            # it) waits until what finished is saved, then ends the command (status 130).
+            keeping.enter_context(deferred_signals())
+        metric, limit = args.limit
+        mc.question = {  # saved with the runs: quadrs report asks it again
+            "metric": metric,
+            "limit": limit,
+            "track_limit": args.track_limit,
+            "cross_track_limit": args.cross_track_limit,
+            "quantile": args.quantile,
+        }
+        saved = True
+        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+            saved = save(mc.to_parquet, args.out)
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
