@@ -1,4 +1,4 @@
-"""The lane-valued exp, expm1, ln and pow's error table (docs/performance.md, "Transcendental
+"""The lane-valued exp, expm1, ln, pow and atan2's error table (docs/performance.md, "Transcendental
 functions in lane values"), and the check that every lane path gives the same bits.
 
     python benches/lane_math_error.py            # 20,000 points per range (about a minute)
@@ -50,6 +50,13 @@ RANGES: list[tuple[str, float, str, float, float, str]] = [
     ("ln", 0.0, "ln, subnormals", 5e-324, 2.2e-308, "log"),
     ("pow", -2.5, "pow(x, -2.5)", 1e-3, 1e3, "log"),
     ("pow", 11.3, "pow(x, 11.3)", 1e-3, 1e3, "log"),
+    # The rigid body's Euler angles, atan2(x, y) = the angle of (y, x): roll and pitch near
+    # level (y near 1), the yaw and the other quadrants; then near the axes.
+    ("atan2", 1.0, "atan2(s, 1), roll near level", -1.0, 1.0, "lin"),
+    ("atan2", -0.8, "atan2(s, -0.8), left half", -10.0, 10.0, "lin"),
+    ("atan2", 1.0, "atan2(s, 1), tiny s", 1e-300, 1e-3, "log"),
+    ("atan2", 1e-3, "atan2(s, 1e-3), near pi/2", -1e3, 1e3, "lin"),
+    ("atan2", -1.0, "atan2(s, -1), near pi", -1e-3, 1e-3, "lin"),
 ]
 
 EXACT: dict[str, Callable[[mpmath.mpf, float], mpmath.mpf]] = {
@@ -57,6 +64,7 @@ EXACT: dict[str, Callable[[mpmath.mpf, float], mpmath.mpf]] = {
     "expm1": lambda x, y: mpmath.expm1(x),
     "ln": lambda x, y: mpmath.log(x),
     "pow": lambda x, y: mpmath.power(x, mpmath.mpf(y)),
+    "atan2": lambda x, y: mpmath.atan2(x, mpmath.mpf(y)),
 }
 
 

@@ -1,7 +1,7 @@
 """Typed stub of the Rust extension (checked against it by mypy.stubtest).
 
 The engine's results are plain dicts; their keys and types are spelled out below as
-TypedDicts (they exist only for the type checker), read off rust/src/lib.rs.
+TypedDicts (they exist only for the type checker), read off rust/src/bindings/.
 """
 
 from typing import Any, TypedDict, final

@@ -26,8 +26,8 @@ use crate::config::{Config, GustComponent};
 use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
-    dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, State,
-    StateVar, Tick, Vehicle, VehicleVisitor,
+    dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, PayloadModel,
+    State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
@@ -187,7 +187,13 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<
         // Hover is time-invariant: the law and the actuators are asked at the flight's start.
         let frame = B::frame(&s);
         let view = Vehicle::<L, Pay::At<L>, Act::At<L>, B>::rigid_at(&s, &frame);
-        let u = ctrl.control(&view, r, Tick::START);
+        // A law that sees the payload sees it here too (`Control::SEES_PAYLOAD`).
+        let u = if C::SEES_PAYLOAD {
+            let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
+            ctrl.control_seeing(&view, &trig, &v.payload.view(&s, &frame), r, Tick::START)
+        } else {
+            ctrl.control(&view, r, Tick::START)
+        };
         let cmd = v.actuator.command(&u, Tick::START);
         let f = v.derivative(&s, &frame, &cmd, w);
         let out = v.payload_outputs(&s, &frame, u.u1, w);

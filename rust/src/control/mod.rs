@@ -23,7 +23,7 @@ use crate::config::keys::{Seg, Target};
 use crate::config::params::{Field, Key, Params, Table};
 use crate::config::{non_negative, positive, Config, ConfigError};
 use crate::lane::{KernelOps, Lane, Param};
-use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
@@ -44,7 +44,15 @@ pub type Memory<L> = [L; MEMORY_SLOTS];
 /// loop calls `step_with` once per step, and its default is `control_with`, so a static law is
 /// untouched. `control_with` is then the law with its memory at rest at `s`: what the
 /// linearisation differentiates (docs/architecture.md, "A law with memory").
+///
+/// A law sees the rigid body only, unless it sets `SEES_PAYLOAD`: then the flight loop and the
+/// linearisation also give it what it may see of the payload (`PayloadView`, from the payload
+/// model at the same state) through `control_seeing` and `step_seeing`, whose defaults ignore
+/// it. A law that does not set it costs nothing: the view is never computed.
 pub trait Control<P = f64>: Sync {
+    /// The law reads the payload's view (`control_seeing`, `step_seeing`).
+    const SEES_PAYLOAD: bool = false;
+
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
     fn control_with<L: Lane>(
@@ -89,6 +97,41 @@ pub trait Control<P = f64>: Sync {
         P: Param<L>,
     {
         self.control_with(s, trig, r, at)
+    }
+
+    /// `control_with` for a law that also sees the payload (`seen`: `PayloadView`); by
+    /// default it ignores it.
+    #[inline(always)]
+    fn control_seeing<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        _seen: &PayloadView<L>,
+        r: &Reference,
+        at: Tick,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.control_with(s, trig, r, at)
+    }
+
+    /// `step_with` for a law that also sees the payload (`seen`); by default it ignores it.
+    /// The flight loop calls this one, with the view computed only if `SEES_PAYLOAD`.
+    #[inline(always)]
+    fn step_seeing<L: KernelOps>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        _seen: &PayloadView<L>,
+        r: &Reference,
+        at: Tick,
+        mem: &mut Memory<L>,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.step_with(s, trig, r, at, mem)
     }
 }
 

@@ -1,10 +1,12 @@
-//! PD cascade (paper eqs. 4-7).
+//! PD cascade (paper eqs. 4-7), with optional feedback of the parcel's swing (docs/model.md,
+//! "The swing-damping PD").
 
-use super::{non_negative3, position_errors, Control, Controller, Shared};
+use super::{non_negative3, position_errors, Control, Controller, Memory, Shared};
+use crate::config::non_negative;
 use crate::config::params::params;
 use crate::config::{Config, ConfigError};
-use crate::lane::{gather3, Lane, Param};
-use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::lane::{gather3, KernelOps, Lane, Param};
+use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
 params! {
@@ -16,8 +18,21 @@ params! {
         /// roll, pitch, yaw gains (torque per rad, per rad/s).
         kp_attitude: [f64; 3] => "N m/rad", "PD attitude gains (roll, pitch, yaw)";
         kd_attitude: [f64; 3] => "N m s/rad", "PD body-rate gains (roll, pitch, yaw)";
+        /// Horizontal acceleration commanded per unit of the line's horizontal lean (the
+        /// parcel's offset from below its attachment over the line's length: the swing angle's
+        /// sine), toward the parcel; 0 (the default): off.
+        #[serde(default)]
+        swing_gain: f64 => "m/s^2", "PD swing-angle feedback";
+        /// Horizontal acceleration commanded per unit of the lean's rate (rad/s at small
+        /// angles), toward where the parcel swings: damps the swing; 0 (the default): off.
+        #[serde(default)]
+        swing_damping: f64 => "m/s", "PD swing-rate feedback";
     }
 }
+
+/// m, the least line length the swing feedback divides by (a parcel at its attachment, or off
+/// the hook, leans nowhere).
+const MIN_SWING_LENGTH: f64 = 1e-6;
 
 /// Gains `P = f64` (one vehicle) or a lane type (one vehicle per lane, `Pd::gather`).
 #[derive(Clone, Debug)]
@@ -28,6 +43,11 @@ pub struct Pd<P = f64> {
     kd: [P; 3],
     kp_attitude: [P; 3],
     kd_attitude: [P; 3],
+    /// The swing feedback (`swing_gain`, `swing_damping`), and whether any lane flies it: if
+    /// none, the law is the paper's, bit for bit.
+    swing_gain: P,
+    swing_damping: P,
+    swing: bool,
 }
 
 impl Controller for Pd {
@@ -38,7 +58,9 @@ impl Controller for Pd {
         non_negative3(key, "kp", &k.kp)?;
         non_negative3(key, "kd", &k.kd)?;
         non_negative3(key, "kp_attitude", &k.kp_attitude)?;
-        non_negative3(key, "kd_attitude", &k.kd_attitude)
+        non_negative3(key, "kd_attitude", &k.kd_attitude)?;
+        non_negative(format_args!("{key}.swing_gain"), k.swing_gain)?;
+        non_negative(format_args!("{key}.swing_damping"), k.swing_damping)
     }
 
     fn new(k: &PdGains, cfg: &Config) -> Self {
@@ -48,6 +70,9 @@ impl Controller for Pd {
             kd: k.kd,
             kp_attitude: k.kp_attitude,
             kd_attitude: k.kd_attitude,
+            swing_gain: k.swing_gain,
+            swing_damping: k.swing_damping,
+            swing: k.swing_gain != 0.0 || k.swing_damping != 0.0,
         }
     }
 
@@ -60,11 +85,16 @@ impl Controller for Pd {
             kd: at3(|p| p.kd),
             kp_attitude: at3(|p| p.kp_attitude),
             kd_attitude: at3(|p| p.kd_attitude),
+            swing_gain: L::from_fn(|l| each[l].swing_gain),
+            swing_damping: L::from_fn(|l| each[l].swing_damping),
+            swing: each.iter().any(|p| p.swing),
         }
     }
 }
 
 impl<P: Copy + Sync> Control<P> for Pd<P> {
+    const SEES_PAYLOAD: bool = true;
+
     #[inline(always)]
     fn control_with<L: Lane>(
         &self,
@@ -72,6 +102,54 @@ impl<P: Copy + Sync> Control<P> for Pd<P> {
         trig: &Trig<L>,
         r: &Reference,
         _at: Tick,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.law(s, trig, None, r)
+    }
+
+    #[inline(always)]
+    fn control_seeing<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        seen: &PayloadView<L>,
+        r: &Reference,
+        _at: Tick,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.law(s, trig, Some(seen), r)
+    }
+
+    #[inline(always)]
+    fn step_seeing<L: KernelOps>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        seen: &PayloadView<L>,
+        r: &Reference,
+        at: Tick,
+        _mem: &mut Memory<L>,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        self.control_seeing(s, trig, seen, r, at)
+    }
+}
+
+impl<P: Copy> Pd<P> {
+    /// The law at `s`, with the swing feedback where it is on and the payload is `seen`.
+    #[inline(always)]
+    fn law<L: Lane>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        seen: Option<&PayloadView<L>>,
+        r: &Reference,
     ) -> Inputs<L>
     where
         P: Param<L>,
@@ -86,8 +164,16 @@ impl<P: Copy + Sync> Control<P> for Pd<P> {
         let u1 = (e[2] * kpz.get() + ed[2] * kdz.get() + g) * mt * sh.inv_tilt(cphi, cth);
         let u1 = sh.limit_thrust(u1);
         let m_u1 = sh.mass_over_thrust(u1);
-        let ux = (e[0] * kpx.get() + ed[0] * kdx.get()) * m_u1;
-        let uy = (e[1] * kpy.get() + ed[1] * kdy.get()) * m_u1;
+        // The commanded horizontal accelerations, and the swing's where it is fed back.
+        let mut ax = e[0] * kpx.get() + ed[0] * kdx.get();
+        let mut ay = e[1] * kpy.get() + ed[1] * kdy.get();
+        if let (true, Some(seen)) = (self.swing, seen) {
+            let [sx, sy] = self.swing_acceleration(seen);
+            ax += sx;
+            ay += sy;
+        }
+        let ux = ax * m_u1;
+        let uy = ay * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
 
         let [kp0, kp1, kp2] = self.kp_attitude;
@@ -100,6 +186,30 @@ impl<P: Copy + Sync> Control<P> for Pd<P> {
             (L::splat(r.psi) - s.att[2]) * kp2 + (L::splat(r.psi_dot) - s.rate[2]) * kd2,
         ];
         Inputs { u1, tau }
+    }
+
+    /// m/s^2, the horizontal acceleration the swing feedback adds: with u the line's unit
+    /// vector from the attachment to the parcel and u' its rate, `swing_gain` u_h +
+    /// `swing_damping` u'_h (x, y): the vehicle moves under the parcel, and with it as it
+    /// swings, which damps the pendulum.
+    #[inline(always)]
+    fn swing_acceleration<L: Lane>(&self, seen: &PayloadView<L>) -> [L; 2]
+    where
+        P: Param<L>,
+    {
+        let [dx, dy, dz] = seen.pos;
+        let [vx, vy, vz] = seen.vel;
+        let length = (dx * dx + dy * dy + dz * dz)
+            .sqrt()
+            .max(L::splat(MIN_SWING_LENGTH));
+        let inv = L::splat(1.0) / length;
+        let (ux, uy, uz) = (dx * inv, dy * inv, dz * inv);
+        // u' = (v - u (u . v)) / l: the relative velocity across the line, over its length.
+        let along = ux * vx + uy * vy + uz * vz;
+        let rate_x = (vx - ux * along) * inv;
+        let rate_y = (vy - uy * along) * inv;
+        let (k, c): (L, L) = (self.swing_gain.get(), self.swing_damping.get());
+        [ux * k + rate_x * c, uy * k + rate_y * c]
     }
 }
 
@@ -121,5 +231,57 @@ mod tests {
         let u = pd.control(&s, &r, Tick::START);
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         assert!((u.u1 - mt * (9.81 + 1.5 * 0.1)).abs() < 1e-12);
+    }
+
+    /// A parcel 0.1 m forward of below its hook on a 1 m line, swinging forward at 0.3 m/s.
+    fn swinging() -> PayloadView<f64> {
+        PayloadView {
+            pos: [0.1, 0.0, -0.995],
+            vel: [0.3, 0.0, 0.03],
+        }
+    }
+
+    fn seeing(pd: &Pd, seen: &PayloadView<f64>) -> Inputs<f64> {
+        let mut s = crate::control::tests::at_rest([0.0, 0.0, 2.0], 0.0);
+        s.vel[0] = 0.2;
+        let r = Reference {
+            pos: [0.5, -0.2, 2.0],
+            ..Reference::default()
+        };
+        let trig = Trig::of_angles(0.0, 0.0, 0.0);
+        pd.control_seeing(&s, &trig, seen, &r, Tick::START)
+    }
+
+    #[test]
+    fn without_swing_gains_the_payload_is_not_seen() {
+        let cfg = paper();
+        let pd = Pd::new(&cfg.controller.pd, &cfg);
+        let blind = seeing(&pd, &PayloadView::none());
+        let u = seeing(&pd, &swinging());
+        assert_eq!(u.u1.to_bits(), blind.u1.to_bits());
+        assert_eq!(u.tau.map(f64::to_bits), blind.tau.map(f64::to_bits));
+    }
+
+    #[test]
+    fn swing_damping_pitches_toward_the_swing() {
+        let cfg = paper();
+        let mut gains = cfg.controller.pd.clone();
+        gains.swing_damping = 2.0;
+        let pd = Pd::new(&gains, &cfg);
+        let still = seeing(&pd, &PayloadView::none());
+        let u = seeing(&pd, &swinging());
+        // Forward: a larger pitch command (theta > 0 accelerates toward +x at psi = 0); the
+        // thrust and the roll are the same.
+        assert!(u.tau[1] > still.tau[1] + 1e-3, "{u:?} vs {still:?}");
+        assert_eq!(u.u1.to_bits(), still.u1.to_bits());
+        assert_eq!(u.tau[0].to_bits(), still.tau[0].to_bits());
+        let mut bad = gains.clone();
+        bad.swing_damping = -1.0;
+        let e = Pd::validate(&bad, "controller.pd", &cfg).unwrap_err();
+        assert_eq!(e.key, "controller.pd.swing_damping");
+        bad.swing_damping = 0.0;
+        bad.swing_gain = f64::NAN;
+        let e = Pd::validate(&bad, "controller.pd", &cfg).unwrap_err();
+        assert_eq!(e.key, "controller.pd.swing_gain");
     }
 }

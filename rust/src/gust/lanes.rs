@@ -208,9 +208,21 @@ impl<'a, L: Lane> LaneGust<'a, L> {
     }
 
     /// Start the filters (stationary states, at the window's first step) if not yet, and
-    /// advance them once per step up to `step`.
+    /// advance them once per step up to `step`. Out of the hot loop's line, so compiled for
+    /// the lane type's instruction set through `Lane::within` (else each lane operation in it
+    /// would be a call).
     #[inline(never)]
     fn advance_to(&mut self, step: u64) {
+        let lane = self.base[0];
+        lane.within(
+            #[inline(always)]
+            |_| self.advance_within(step),
+        );
+    }
+
+    /// `advance_to`'s body, inlined into the instruction set's frame.
+    #[inline(always)]
+    fn advance_within(&mut self, step: u64) {
         if !self.started {
             let row = self.take_step();
             let LaneGust {

@@ -1,8 +1,16 @@
 //! The compiled scenario (`Engine`): what may differ between realisations (`Realisation`), a request
 //! to the flight loop (`FlightRequest`), and the engine's public methods.
 
-use super::*;
-use crate::config::Trim;
+use super::trace::{trace_columns, Trace};
+use crate::config::{Config, ConfigError, Trim};
+use crate::control::{ControllerKind, Laws};
+use crate::gust::{Kinematics, WindField};
+use crate::lane::isa::Isa;
+use crate::model::{
+    dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, State, StateVar, VehicleVisitor,
+};
+use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
+use std::sync::atomic::AtomicBool;
 
 /// What may differ between realisations: one vehicle's physical parameters, controllers,
 /// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed

@@ -1,7 +1,16 @@
 //! The way into the flight loop: one function per lane type, compiled for the instruction set
 //! its operations need (`LoopEntry`), and the engine's `fly`, `fly_set`.
 
-use super::*;
+use super::engine::{Engine, FlightRequest, Realisation, MAX_LANES};
+use super::flight::LaneResult;
+use super::trace::Trace;
+use crate::control::Controller;
+use crate::lane::isa::Isa;
+use crate::lane::{F64x4, KernelOps};
+#[cfg(target_arch = "x86_64")]
+use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
+use crate::model::{Actuator, BodyKind, Payload};
+use rustfft::FftPlanner;
 
 /// `fly_law` compiled with target features: one generic `unsafe fn $name` per (name, features),
 /// instantiated per (lane type, vehicle, law).

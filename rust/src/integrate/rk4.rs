@@ -1,6 +1,7 @@
 //! One classical RK4 step of the vehicle, its command and wind held over the four stages.
 
-use super::*;
+use crate::lane::{KernelOps, Lane};
+use crate::model::{state_from_fn, ActuatorModel, BodyKind, State, Vehicle};
 
 /// One RK4 step of the vehicle with the actuator command and wind held; `trig` is `s`'s
 /// attitude (`BodyKind::frame`; the controller needed it too). The later stages get theirs

@@ -1,6 +1,6 @@
 //! Why a flight ended (`ExitStatus`) and how a failed state is classified.
 
-use super::*;
+use crate::model::{ix, Bound, StateVar};
 
 /// Why a flight ended (docs/model.md section 11): it ran to the end, or a state went
 /// non-finite or past its runaway bound (`divergence.*`).

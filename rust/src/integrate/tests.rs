@@ -1,9 +1,18 @@
-use super::*;
+use super::engine::{Engine, FlightRequest, MAX_LANES};
+use super::flight::LaneResult;
+use super::rk4::rk4_step;
+use super::status::{classify, ExitStatus};
+use super::trace::trace_columns;
 use crate::config::tests::paper;
+use crate::config::Config;
+use crate::control::ControllerKind;
+use crate::lane::isa::Isa;
+use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
 use crate::model::paper_ix::{self as ix, NX};
 use crate::model::payload::Spring;
-use crate::model::{PaperVehicle, Trig};
+use crate::model::{state_from_fn, AnyVehicle, Inputs, PaperVehicle, State, Trig};
+use rustfft::FftPlanner;
 
 fn paper_vehicle(cfg: &Config) -> PaperVehicle {
     AnyVehicle::new(cfg).vehicle::<Spring, Ideal>()

@@ -1,7 +1,12 @@
 //! The trace: its columns (the layout's states, the common signals, the actuator's own) and
 //! its rows, lane 0 of a flight every `every` steps.
 
-use super::*;
+use crate::lane::Lane;
+use crate::model::{
+    dispatch, Actuator, ActuatorKind, ActuatorModel, BodyKind, BodyModel, Inputs, Payload,
+    PayloadKind, State, VehicleVisitor,
+};
+use crate::trajectory::Reference;
 
 /// Trace columns after the states (whose names come from the layout), in order; the actuator's
 /// own (`ActuatorModel::SIGNALS`) follow.

@@ -129,7 +129,7 @@ impl Lane for Dual {
     }
     fn atan2(self, x: Self) -> Self {
         Self {
-            v: self.v.atan2(x.v),
+            v: Lane::atan2(self.v, x.v),
             d: (x.v * self.d - self.v * x.d) / (x.v * x.v + self.v * self.v),
         }
     }

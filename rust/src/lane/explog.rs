@@ -285,9 +285,10 @@ pub fn pow<L: KernelOps>(x: L, y: L) -> L {
 }
 
 /// The functions [`evaluate`] knows, by name.
-pub const FUNCTIONS: [&str; 4] = ["exp", "expm1", "ln", "pow"];
+pub const FUNCTIONS: [&str; 5] = ["exp", "expm1", "ln", "pow", "atan2"];
 
-/// `function` (one of [`FUNCTIONS`]; `pow` takes `y` as its exponent) of every `x`, on the
+/// `function` (one of [`FUNCTIONS`]; `pow` takes `y` as its exponent, `atan2` as its second
+/// argument: atan2(x, y) is the angle of the point (y, x)) of every `x`, on the
 /// lane path `path`: "scalar" (`f64`), "sse2" (`F64x4`), "avx2" (`F64x4Avx`), "avx512"
 /// (`F64x8Avx512`): the measurement and cross-path check behind `benches/lane_math_error.py`.
 /// An error names a function or path that does not exist or a path this CPU cannot run.
@@ -305,7 +306,8 @@ pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64
                 0 => exp(v),
                 1 => expm1(v),
                 2 => ln(v),
-                _ => pow(v, L::splat(y)),
+                3 => pow(v, L::splat(y)),
+                _ => super::kernels::atan2(v, L::splat(y)),
             };
             out.extend((0..chunk.len()).map(|l| r.lane(l)));
         }

@@ -168,3 +168,75 @@ pub fn asin<L: KernelOps>(x: L) -> L {
     let a = L::select(big, L::splat(std::f64::consts::FRAC_PI_2) - z1, z2);
     a.xor_bits(x.and_bits(L::splat(SIGN)))
 }
+
+/// Cephes' atan rational approximation (`atan.c`), valid for |z| <= 0.66: P from the highest
+/// power down, Q monic.
+const P4ATAN: f64 = -8.750_608_600_031_904_122_785E-1;
+const P3ATAN: f64 = -1.615_753_718_733_365_076_637E1;
+const P2ATAN: f64 = -7.500_855_792_314_704_667_340E1;
+const P1ATAN: f64 = -1.228_866_684_490_136_173_410E2;
+const P0ATAN: f64 = -6.485_021_904_942_025_371_773E1;
+const Q4ATAN: f64 = 2.485_846_490_142_306_297_962E1;
+const Q3ATAN: f64 = 1.650_270_098_316_988_542_046E2;
+const Q2ATAN: f64 = 4.328_810_604_912_902_668_951E2;
+const Q1ATAN: f64 = 4.853_903_996_359_136_964_868E2;
+const Q0ATAN: f64 = 1.945_506_571_482_613_964_425E2;
+/// Cephes' switch to `(t - 1) / (t + 1)` about pi/4.
+const ATAN_MEDIUM: f64 = 0.66;
+/// k pi/4 for k = 1..4: the nearest double (HI) and the rest (LO, from the exact value), so
+/// that the final sum `(r + lo) + hi` rounds once at the scale of the result.
+const QUARTER_PI_HI: [f64; 4] = [
+    std::f64::consts::FRAC_PI_4,
+    std::f64::consts::FRAC_PI_2,
+    2.356_194_490_192_345, // 3 pi/4
+    std::f64::consts::PI,
+];
+const QUARTER_PI_LO: [f64; 4] = [
+    3.061_616_997_868_383E-17,
+    6.123_233_995_736_766E-17,
+    9.184_850_993_605_148E-17,
+    1.224_646_799_147_353_2E-16,
+];
+
+/// The angle of (x, y) in (-pi, pi], as the standard library's `y.atan2(x)` within 1 ulp
+/// (`benches/lane_math_error.py` measures it), branch-free and without FMA, so that every lane
+/// path gives the same bits. The point is folded into the first octant (t = min/max of |x|,
+/// |y|), atan t taken from Cephes' rational approximation (about pi/4 on (t - 1) / (t + 1),
+/// formed from |x| and |y| directly, whose difference is exact), and the fold undone in one
+/// sum `(+-r + lo) + hi` with k pi/4 in two parts. Signed zeros as the standard library's
+/// (atan2(+-0, -0) = +-pi); both infinite: an odd multiple of pi/4; NaN in, NaN out.
+#[inline(always)]
+pub fn atan2<L: KernelOps>(y: L, x: L) -> L {
+    let c = L::splat;
+    let (xa, ya) = (x.abs(), y.abs());
+    // |y| > |x| (false for NaN and for equal magnitudes, zeros included).
+    let swap = ya.cmp_ge(xa).and_bits(ya.cmp_ne(xa));
+    let num = L::select(swap, xa, ya);
+    let den = L::select(swap, ya, xa);
+    let medium = num.cmp_ge(den * ATAN_MEDIUM).and_bits(den.cmp_ne(c(0.0)));
+    let z = L::select(medium, num - den, num) / L::select(medium, num + den, den);
+    // num = den (zeros, infinities, or on the diagonal): atan 0 about the base.
+    let z = L::select(num.cmp_ne(den), z, c(0.0));
+    let zz = z * z;
+    let px = zz.mul_add(c(P4ATAN), c(P3ATAN));
+    let px = px.mul_add(zz, c(P2ATAN));
+    let px = px.mul_add(zz, c(P1ATAN));
+    let px = px.mul_add(zz, c(P0ATAN));
+    let qx = zz + c(Q4ATAN);
+    let qx = qx.mul_add(zz, c(Q3ATAN));
+    let qx = qx.mul_add(zz, c(Q2ATAN));
+    let qx = qx.mul_add(zz, c(Q1ATAN));
+    let qx = qx.mul_add(zz, c(Q0ATAN));
+    let r = (px / qx).mul_add(z * zz, z);
+    // Unfold: the angle of (|x|, |y|) is q pi/4 + sigma r, q in 0..=4 and sigma = -1 where
+    // the point was swapped or x is negative (not both). x's sign by its bit (-0 counts).
+    let sign_x = c(1.0).xor_bits(x.and_bits(c(SIGN)));
+    let negative = sign_x.cmp_le(c(0.0));
+    let sigma = L::select(swap, -sign_x, sign_x);
+    let q = L::select(swap, c(2.0), L::select(negative, c(4.0), c(0.0)))
+        + L::select(medium, sigma, c(0.0));
+    let at_least = [0.5, 1.5, 2.5, 3.5].map(|k| q.cmp_ge(c(k)));
+    let pick = |t: [f64; 4]| (0..4).fold(c(0.0), |v, k| L::select(at_least[k], c(t[k]), v));
+    let angle = (r * sigma + pick(QUARTER_PI_LO)) + pick(QUARTER_PI_HI);
+    angle.xor_bits(y.and_bits(c(SIGN)))
+}

@@ -72,6 +72,9 @@ pub trait Lane:
     fn set_lane(&mut self, i: usize, x: f64);
     fn sin_cos(self) -> (Self, Self);
     fn asin(self) -> Self;
+    /// The angle of (x, y) = (`x`, `self`) in (-pi, pi] (`kernels::atan2`: within 1 ulp of
+    /// the standard library's, the same bits on every lane type).
+    fn atan2(self, x: Self) -> Self;
     fn abs(self) -> Self;
     fn sqrt(self) -> Self;
     /// Lane-wise `if self > other { self } else { other }` (x86 `maxpd` semantics).
@@ -111,16 +114,6 @@ pub trait Lane:
     #[inline(always)]
     fn le_mask(self, bound: Self) -> u32 {
         (0..Self::LANES).fold(0, |m, i| m | ((self.lane(i) <= bound.lane(i)) as u32) << i)
-    }
-    /// The angle of (x, y) = (`x`, `self`), lane by lane with the standard library's `atan2`
-    /// (the same bits on every lane type): for the few angles read once per step (the rigid
-    /// body's Euler angles), not for the hot derivative.
-    #[inline(always)]
-    fn atan2(self, x: Self) -> Self {
-        Self::from_fn(
-            #[inline(always)]
-            |i| self.lane(i).atan2(x.lane(i)),
-        )
     }
     #[inline(always)]
     fn clamp(self, lo: Self, hi: Self) -> Self {
@@ -237,6 +230,10 @@ impl Lane for f64 {
     #[inline(always)]
     fn asin(self) -> Self {
         kernels::asin(self)
+    }
+    #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        kernels::atan2(self, x)
     }
 }
 
@@ -429,6 +426,53 @@ mod tests {
         assert!(kernels::asin(1.5).is_nan() && kernels::asin(f64::NAN).is_nan());
     }
 
+    #[test]
+    fn atan2_kernel_matches_libm() {
+        let mut worst: f64 = 0.0;
+        let mut a: f64 = -4.0;
+        while a < 4.0 {
+            for r in [1e-300, 1e-8, 0.3, 1.0, 7.5, 1e12] {
+                let (y, x) = (r * a.sin(), r * a.cos());
+                let got = kernels::atan2(y, x);
+                // near +-pi/4 multiples the result is O(1): relative error in ulps
+                worst = worst.max(ulps(got, y.atan2(x)));
+            }
+            a += 0.000_913;
+        }
+        assert!(worst <= 2.0, "worst atan2 error {worst} ulp against libm");
+        let inf = f64::INFINITY;
+        for (y, x) in [
+            (0.0, 0.0),
+            (-0.0, 0.0),
+            (0.0, -0.0),
+            (-0.0, -0.0),
+            (1.0, 0.0),
+            (-1.0, -0.0),
+            (0.0, -3.0),
+            (-0.0, -3.0),
+            (inf, 1.0),
+            (1.0, -inf),
+            (inf, inf),
+            (-inf, -inf),
+            (2.0, 2.0),
+            (-2.0, 2.0),
+        ] {
+            let (got, want) = (kernels::atan2(y, x), y.atan2(x));
+            assert!(
+                got.to_bits() == want.to_bits() || ulps(got, want) <= 1.0,
+                "atan2({y}, {x}) = {got}, libm {want}"
+            );
+            assert_eq!(
+                got.is_sign_negative(),
+                want.is_sign_negative(),
+                "atan2({y}, {x})"
+            );
+        }
+        for (y, x) in [(f64::NAN, 1.0), (1.0, f64::NAN), (f64::NAN, f64::NAN)] {
+            assert!(kernels::atan2(y, x).is_nan());
+        }
+    }
+
     /// `asin`'s shortcut (every lane below 0.625: only the second approximation) gives the
     /// bits of the full evaluation, which a lane at or above 0.625 beside it forces.
     #[test]
@@ -469,6 +513,14 @@ mod tests {
             let m = v.max(L::splat(0.1)).min(L::splat(2.0));
             let (e, em1, lg) = (explog::exp(v), explog::expm1(v), explog::ln(v));
             let pw = explog::pow(v.abs(), L::splat(0.4));
+            // atan2 in every quadrant, with both zeros' signs.
+            let quadrants = |x: f64| [(x, 0.7), (0.7, x), (-x, -2.0), (x, -0.0), (-0.0, x)];
+            let at: Vec<L> = (0..5)
+                .map(|k| {
+                    let y = L::from_fn(|i| quadrants(chunk[i])[k].0);
+                    y.atan2(L::from_fn(|i| quadrants(chunk[i])[k].1))
+                })
+                .collect();
             for (i, &x) in chunk.iter().enumerate() {
                 assert_eq!(e.lane(i).to_bits(), explog::exp(x).to_bits(), "exp {x}");
                 assert_eq!(
@@ -482,6 +534,13 @@ mod tests {
                     explog::pow(x.abs(), 0.4).to_bits(),
                     "pow {x}"
                 );
+                for (k, &(yy, xx)) in quadrants(x).iter().enumerate() {
+                    assert_eq!(
+                        at[k].lane(i).to_bits(),
+                        Lane::atan2(yy, xx).to_bits(),
+                        "atan2({yy}, {xx})"
+                    );
+                }
                 let (ss, cc) = Lane::sin_cos(x);
                 assert_eq!(s.lane(i).to_bits(), ss.to_bits(), "sin {x}");
                 assert_eq!(c.lane(i).to_bits(), cc.to_bits(), "cos {x}");

@@ -77,6 +77,10 @@ impl Lane for F64x4 {
         kernels::asin(self)
     }
     #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        kernels::atan2(self, x)
+    }
+    #[inline(always)]
     fn abs(self) -> Self {
         each!(|x| x.abs(), self)
     }

@@ -173,6 +173,10 @@ macro_rules! x86_lane {
                 kernels::asin(self)
             }
             #[inline(always)]
+            fn atan2(self, x: Self) -> Self {
+                kernels::atan2(self, x)
+            }
+            #[inline(always)]
             fn abs(self) -> Self {
                 self.and_bits(Self::splat(f64::from_bits(!(1u64 << 63))))
             }

@@ -25,7 +25,7 @@ pub use kinds::{
     ACTUATOR_KINDS, PAYLOAD_KINDS, RIGID_PAYLOADS,
 };
 pub use layout::{Axis, Bound, Layout, Part, StateVar};
-pub use payload::{Payload, PayloadModel, PayloadOutputs};
+pub use payload::{Payload, PayloadModel, PayloadOutputs, PayloadView};
 
 use crate::lane::{KernelOps, Lane};
 

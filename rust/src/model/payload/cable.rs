@@ -28,7 +28,7 @@
 //! parcel leaves the vehicle's equations: its states still move (a free body on the ground),
 //! but nothing of them reaches the quadrotor.
 
-use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs};
+use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::{non_negative, positive, Config, ConfigError};
@@ -525,23 +525,11 @@ impl<L: Lane> Cable<L> {
         let Ix {
             xc,
             line: ln,
-            vx,
-            p,
             vxc,
             vline,
+            ..
         } = Ix::of::<L, F>();
-        let [ex, ey, ez] = &frame.axes();
-        let h = self.offset;
-        // a = p + R (0, 0, -h);  va = v + R (w x hb) with w x hb = (-h q, h p, 0).
-        let hook: [L; 3] = vec3(
-            #[inline(always)]
-            |i| (-h).mul_add(ez[i], s[ix::X + i]),
-        );
-        let (hq, hp) = (h * s[p + 1], h * s[p]);
-        let va: [L; 3] = vec3(
-            #[inline(always)]
-            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[vx + i])),
-        );
+        let (hook, va) = self.hook::<F, N>(s, frame);
         let d: [L; 3] = vec3(
             #[inline(always)]
             |i| s[xc + i] - hook[i],
@@ -568,6 +556,25 @@ impl<L: Lane> Cable<L> {
             // The hook open: nothing of the line reaches either body.
             tension: where_positive(self.hooked, where_positive(stretch, pull)),
         }
+    }
+
+    /// The hook's inertial position a and velocity va at `s` (whose attitude is `frame`).
+    #[inline(always)]
+    fn hook<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, frame: &F) -> ([L; 3], [L; 3]) {
+        let Ix { vx, p, .. } = Ix::of::<L, F>();
+        let [ex, ey, ez] = &frame.axes();
+        let h = self.offset;
+        // a = p + R (0, 0, -h);  va = v + R (w x hb) with w x hb = (-h q, h p, 0).
+        let hook: [L; 3] = vec3(
+            #[inline(always)]
+            |i| (-h).mul_add(ez[i], s[ix::X + i]),
+        );
+        let (hq, hp) = (h * s[p + 1], h * s[p]);
+        let va: [L; 3] = vec3(
+            #[inline(always)]
+            |i| hp.mul_add(ey[i], (-hq).mul_add(ex[i], s[vx + i])),
+        );
+        (hook, va)
     }
 
     /// N, the ground's force on the parcel at `s` (zero where it does not touch; only called
@@ -692,6 +699,23 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         (torque, self.outputs_of::<F, N>(s, &line, accel))
     }
 
+    /// The parcel relative to the hook (nothing once the hook is open).
+    #[inline(always)]
+    fn view<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, frame: &F) -> PayloadView<L> {
+        let Ix { xc, vxc, .. } = Ix::of::<L, F>();
+        let (hook, va) = self.hook::<F, N>(s, frame);
+        PayloadView {
+            pos: vec3(
+                #[inline(always)]
+                |i| (s[xc + i] - hook[i]) * self.hooked,
+            ),
+            vel: vec3(
+                #[inline(always)]
+                |i| (s[vxc + i] - va[i]) * self.hooked,
+            ),
+        }
+    }
+
     fn rest<F: Frame<L>, const N: usize>(&self, _body: &Body<L>, frame: &F, s: &mut State<L, N>) {
         // pc = a - l_eq e3, vc = v: hanging straight below the hook, moving with it.
         let Ix {
@@ -715,7 +739,10 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
     /// The winch's target from the route, then the events of this step: first touchdown
     /// (the parcel below the ground's height), rest (on the ground, slower than REST_SPEED,
     /// the line slack) and the hook opening (at `release_at`, or after resting
-    /// `release_delay`); released lanes reel the line in.
+    /// `release_delay`); released lanes reel the line in. Inlined into the flight loop: an
+    /// out-of-line function is compiled for the baseline instruction set, so each lane
+    /// operation in it would be a call.
+    #[inline(always)]
     fn last_metres<F: Frame<L>, const N: usize>(
         &mut self,
         s: &State<L, N>,

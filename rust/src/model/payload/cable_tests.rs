@@ -523,3 +523,25 @@ fn stability_sees_the_cable_states_and_names_the_swing_modes() {
         }
     }
 }
+
+/// What a law sees of the parcel (`PayloadModel::view`) is the line below the hook: the same d
+/// as the dynamics', and the parcel's velocity less the hook's (here the vehicle rolls, so the
+/// hook moves); nothing once the hook is open.
+#[test]
+fn a_law_sees_the_parcel_relative_to_the_hook() {
+    let mut v = vehicle(&cable_config(1.0, 3.0, 0.1));
+    let mut s = swung(&v, 0.3, [0.4, -0.1, 0.05]);
+    s[VX] = 0.2;
+    s[P] = 0.5;
+    let trig = Trig::of(&s);
+    let seen = v.payload.view(&s, &trig);
+    assert_eq!(seen.pos, p_line(&v, &s).d);
+    // va = v + R (w x hb), hb = (0, 0, -h): at level attitude w x hb = (0, h p, 0).
+    let want = [0.4 - 0.2, -0.1 - 0.1 * 0.5, 0.05];
+    for (got, want) in seen.vel.iter().zip(want) {
+        assert!((got - want).abs() < 1e-15, "{:?}", seen.vel);
+    }
+    v.payload.hooked = 0.0;
+    let seen = v.payload.view(&s, &trig);
+    assert_eq!((seen.pos, seen.vel), ([0.0; 3], [0.0; 3]));
+}

@@ -37,6 +37,30 @@ pub struct PayloadOutputs<L> {
     pub swing: L,
 }
 
+/// What a control law may see of the payload at one instant (`PayloadModel::view`,
+/// `control::Control::step_seeing`): the parcel relative to where it hangs from the vehicle
+/// (its attachment: the cable's hook, the spring's end at the centre of gravity), in inertial
+/// axes. Zero for a payload that moves with the vehicle, and once the parcel has left it.
+#[derive(Clone, Copy, Debug)]
+pub struct PayloadView<L> {
+    /// m, the parcel's position minus its attachment's.
+    pub pos: [L; 3],
+    /// m/s, the parcel's velocity minus its attachment's.
+    pub vel: [L; 3],
+}
+
+impl<L: Lane> PayloadView<L> {
+    /// Nothing to see: the parcel at its attachment, moving with it.
+    #[inline(always)]
+    pub fn none() -> Self {
+        let zero = L::splat(0.0);
+        Self {
+            pos: [zero; 3],
+            vel: [zero; 3],
+        }
+    }
+}
+
 /// What the route tells the payload at one step (`PayloadModel::last_metres`).
 #[derive(Clone, Copy, Debug)]
 pub struct Cue {
@@ -115,6 +139,14 @@ pub trait PayloadModel<L: Lane>: Sync {
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
         let torque = self.accelerations(body, s, frame, u1, w, ds);
         (torque, self.outputs(body, s, frame, u1_out, w))
+    }
+
+    /// What a control law sees of the payload at `s` (`frame` its attitude): `PayloadView`.
+    /// Computed only for a law that asks for it (`Control::SEES_PAYLOAD`); by default,
+    /// nothing (a payload that moves with the vehicle).
+    #[inline(always)]
+    fn view<F: Frame<L>, const N: usize>(&self, _s: &State<L, N>, _frame: &F) -> PayloadView<L> {
+        PayloadView::none()
     }
 
     /// Put the payload at its hover equilibrium below the quadrotor of `s` (at rest), whose

@@ -2,7 +2,7 @@
 //! of zero rest length. It moves only vertically; laterally it travels with the quadrotor, so
 //! the lateral mass is m + mc. One degree of freedom: `zc`, `vzc`.
 
-use super::{Payload, PayloadModel, PayloadOutputs};
+use super::{Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::params::params;
 use crate::config::section::OwnsKeys;
 use crate::config::Config;
@@ -169,6 +169,17 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
             accel: [ax, ay, self.acceleration(body, s, spring, w[2])],
             tension: spring,
             swing: L::splat(0.0),
+        }
+    }
+
+    /// The parcel below the centre of gravity, where the spring hangs from: vertical only.
+    #[inline(always)]
+    fn view<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, _frame: &F) -> PayloadView<L> {
+        const { assert!(F::ATT == 3, "the spring flies on the paper's body only") };
+        let zero = L::splat(0.0);
+        PayloadView {
+            pos: [zero, zero, s[ZC] - s[ix::Z]],
+            vel: [zero, zero, s[VZC] - s[VZ]],
         }
     }
 

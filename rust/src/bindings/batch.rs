@@ -1,0 +1,173 @@
+//! Many flights at once: a Monte Carlo chunk (`run_batch`) and one flight per row of given
+//! standard normals (`run_innovations`), on a pool of worker threads.
+
+use super::checks::{
+    check_innovations, check_workers, controllers as controller_kinds, flight_memory,
+};
+use super::errors::{guarded, scenario_error};
+use super::flight::innovations_dispersion;
+use super::progress::{counters, Progress};
+use crate::control::ControllerKind;
+use crate::dispersion::Dispersion;
+use crate::integrate::Engine;
+use crate::memory;
+use crate::metrics::N_METRICS;
+use crate::montecarlo::{pool, run_batch as batch, run_innovations as innovations_batch, Batch};
+use numpy::ndarray::{Array1, Array2, Array4};
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::borrow::Cow;
+
+/// `Engine.run_batch`: realisations first..first+count of every controller.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_batch<'py>(
+    py: Python<'py>,
+    engine: &Engine,
+    controllers: Vec<String>,
+    seed: u64,
+    first: u64,
+    count: usize,
+    workers: usize,
+    spectra: bool,
+    progress: Option<&Bound<'py, Progress>>,
+    dispersion_keys: Vec<String>,
+    dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
+    streams: Option<PyReadonlyArray1<'py, u64>>,
+    fused: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let e = Cow::Borrowed(engine);
+    let kinds = controller_kinds(&controllers)?;
+    if count == 0 {
+        return Err(PyValueError::new_err("runs must be >= 1, got 0"));
+    }
+    check_workers(workers)?;
+    let e = match fused {
+        false => e,
+        true => Cow::Owned(
+            e.into_owned()
+                .with_fused(true)
+                .map_err(PyValueError::new_err)?,
+        ),
+    };
+    let row = kinds.len() * e.phase_count() * N_METRICS;
+    memory::check(
+        "batch results (runs * controllers * phases * metrics)",
+        count as u128 * (row + kinds.len() + 1) as u128,
+        8,
+    )
+    .and_then(|()| flight_memory(&e, e.lanes_per_set(), workers))
+    .map_err(PyMemoryError::new_err)?;
+    let dispersion = match (dispersion_keys.is_empty(), dispersion_values) {
+        (true, None) => None,
+        (false, Some(v)) => {
+            let v = v.as_array();
+            let shape = v.shape();
+            if shape != [count, dispersion_keys.len()] {
+                return Err(PyValueError::new_err(format!(
+                    "dispersion_values must have shape ({count}, {}), got {shape:?}",
+                    dispersion_keys.len()
+                )));
+            }
+            let values = v.iter().copied().collect();
+            Some(Dispersion::new(&e.cfg, dispersion_keys, values, count).map_err(scenario_error)?)
+        }
+        _ => {
+            return Err(PyValueError::new_err(
+                "dispersion_keys and dispersion_values go together",
+            ))
+        }
+    };
+    let streams: Option<Vec<u64>> = streams.map(|s| s.as_array().iter().copied().collect());
+    let b = Batch {
+        want_spectra: spectra,
+        dispersion: dispersion.as_ref(),
+        streams: streams.as_deref(),
+        ..Batch::new(&kinds, seed, first, count)
+    };
+    let (done, cancel) = counters(progress);
+    let out = py.detach(|| {
+        guarded("run_batch", || {
+            pool(workers).install(|| {
+                b.check()?;
+                Ok(batch(&e, &b, &done, &cancel))
+            })
+        })
+    })?;
+    let out = out.map_err(scenario_error)?;
+    let n_ctrl = kinds.len();
+    let n_phase = e.phase_count();
+    let d = PyDict::new(py);
+    let metrics = Array4::from_shape_vec((count, n_ctrl, n_phase, N_METRICS), out.metrics)
+        .expect("metrics shape");
+    d.set_item("metrics", metrics.into_pyarray(py))?;
+    let diverged = Array2::from_shape_vec((count, n_ctrl), out.diverged_at).expect("shape");
+    d.set_item("diverged_at", diverged.into_pyarray(py))?;
+    let status = Array2::from_shape_vec((count, n_ctrl), out.status).expect("shape");
+    d.set_item("status", status.into_pyarray(py))?;
+    d.set_item("done", Array1::from_vec(out.done).into_pyarray(py))?;
+    if spectra {
+        // Per phase: (n_ctrl, bins) arrays of the ensemble sum and sum of squares.
+        let per_phase = |src: &Vec<Vec<Vec<f64>>>| -> Vec<Bound<'py, numpy::PyArray2<f64>>> {
+            (0..n_phase)
+                .map(|p| {
+                    let bins = src.first().map_or(0, |c| c[p].len());
+                    let flat: Vec<f64> = src.iter().flat_map(|c| c[p].iter().copied()).collect();
+                    Array2::from_shape_vec((n_ctrl, bins), flat)
+                        .expect("shape")
+                        .into_pyarray(py)
+                })
+                .collect()
+        };
+        d.set_item("spectrum_sum", per_phase(&out.spectra.sum))?;
+        d.set_item("spectrum_sum_sq", per_phase(&out.spectra.sum_sq))?;
+        d.set_item("spectrum_count", out.spectra.count)?;
+    }
+    Ok(d)
+}
+
+/// `Engine.run_innovations`: one flight of `controller` per row of `xi`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_innovations<'py>(
+    py: Python<'py>,
+    engine: &Engine,
+    controller: &str,
+    xi: PyReadonlyArray2<'py, f64>,
+    progress: Option<&Bound<'py, Progress>>,
+    workers: Option<usize>,
+    dispersion_keys: Vec<String>,
+    dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
+) -> PyResult<Bound<'py, PyArray3<f64>>> {
+    let e = engine;
+    use numpy::ndarray::Array3;
+    let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+    let xi = xi.as_array();
+    let (n, dim) = (xi.nrows(), xi.ncols());
+    check_innovations(e, dim)?;
+    let values = dispersion_values.map(|v| v.as_array().to_owned());
+    let dispersion = innovations_dispersion(e, dispersion_keys, values.as_ref(), n)?;
+    let workers =
+        workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    check_workers(workers)?;
+    let rows: Vec<&[f64]> = match xi.as_slice() {
+        Some(flat) if dim > 0 => flat.chunks(dim).collect(),
+        Some(_) => vec![&[][..]; n],
+        None => return Err(PyValueError::new_err("xi must be C-contiguous")),
+    };
+    let n_phase = e.phase_count();
+    let (done, cancel) = counters(progress);
+    let flown = py.detach(|| {
+        guarded("run_innovations", || {
+            innovations_batch(e, kind, &rows, dispersion.as_ref(), workers, &done, &cancel)
+        })
+    })?;
+    let Some(metrics) = flown else {
+        return Err(PyKeyboardInterrupt::new_err(
+            "run_innovations was cancelled",
+        ));
+    };
+    Ok(Array3::from_shape_vec((n, n_phase, N_METRICS), metrics)
+        .expect("shape")
+        .into_pyarray(py))
+}

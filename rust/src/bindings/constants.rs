@@ -1,0 +1,103 @@
+//! The module's constants: the metrics, scenario keys, controllers, models, state and trace
+//! names, and exit statuses, each read from its one definition in the engine.
+
+use crate::control::ControllerKind;
+use crate::integrate::{trace_columns, ExitStatus};
+use crate::metrics::{METRICS, METRIC_NAMES};
+use crate::model::{state_vars, ActuatorKind, PayloadKind};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// Add the constants to the module.
+pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("METRIC_NAMES", METRIC_NAMES.to_vec())?;
+    // The metrics of an event (NaN in a phase or flight without it), in METRIC_NAMES' order.
+    let events: Vec<&str> = METRICS.iter().filter(|x| x.event).map(|x| x.name).collect();
+    m.add("EVENT_METRICS", events)?;
+    // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
+    let units = PyDict::new(m.py());
+    let labels = PyDict::new(m.py());
+    for metric in &METRICS {
+        units.set_item(metric.name, metric.unit)?;
+        labels.set_item(metric.name, metric.label)?;
+    }
+    m.add("METRIC_UNITS", units)?;
+    m.add("METRIC_LABELS", labels)?;
+    // The unit and label of every scenario key (dotted, indices dropped), from the
+    // declaration beside its section's struct or in its kind's file (`config::params!`).
+    let units = PyDict::new(m.py());
+    let labels = PyDict::new(m.py());
+    for (key, k) in crate::config::Config::keys() {
+        units.set_item(&key, k.unit)?;
+        labels.set_item(&key, k.label)?;
+    }
+    m.add("KEY_UNITS", units)?;
+    m.add("KEY_LABELS", labels)?;
+    // Each controller kind's default table (JSON text), where it has one.
+    let defaults = PyDict::new(m.py());
+    for (name, table) in crate::config::ControllerConfig::default_tables() {
+        if let Some(json) = table {
+            defaults.set_item(name, json)?;
+        }
+    }
+    m.add("CONTROLLER_DEFAULTS", defaults)?;
+    m.add(
+        "CONTROLLER_NAMES",
+        ControllerKind::ALL
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>(),
+    )?;
+    // The payload and actuator models (`payload.model`, `actuator.model`), registered once
+    // (`model::kinds!`).
+    m.add(
+        "PAYLOAD_MODELS",
+        crate::model::PAYLOAD_KINDS
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>(),
+    )?;
+    m.add(
+        "ACTUATOR_MODELS",
+        crate::model::ACTUATOR_KINDS
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>(),
+    )?;
+    // The bodies (`vehicle.body`).
+    m.add(
+        "BODY_MODELS",
+        crate::model::BODY_MODELS
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>(),
+    )?;
+    // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
+    // description (`describe`) and its flights.
+    let vars = state_vars(
+        Default::default(),
+        PayloadKind::default(),
+        ActuatorKind::default(),
+    );
+    m.add(
+        "TRACE_COLUMNS",
+        trace_columns(
+            Default::default(),
+            PayloadKind::default(),
+            ActuatorKind::default(),
+        ),
+    )?;
+    m.add(
+        "STATE_NAMES",
+        vars.iter().map(|v| v.name).collect::<Vec<_>>(),
+    )?;
+    m.add(
+        "EXIT_STATUSES",
+        ExitStatus::ALL.map(ExitStatus::name).to_vec(),
+    )?;
+    m.add(
+        "EXIT_MESSAGES",
+        ExitStatus::ALL.map(ExitStatus::message).to_vec(),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,456 @@
+//! The flight loop's steps (`Engine::fly_loop`), each inlined into the loop: the reference
+//! and its leg (`Leg`), the wind (`Winds`), the last metres (`Release`), the metrics' sample
+//! (`sample_metrics`), the runaway bounds (`Runaway`) and how each lane's flight ended
+//! (`Ends`).
+
+use super::engine::{FlightRequest, Realisation, MAX_LANES};
+use super::flight::RELEASE_WINDOW;
+use super::status::{classify, ExitStatus};
+use crate::control::Memory;
+use crate::gust::{Kinematics, LaneWind, WindField, WindState};
+use crate::lane::{KernelOps, Lane};
+use crate::metrics::{LastSample, PhaseAccumulator, Sample};
+use crate::model::payload::{LastMetres, PayloadOutputs};
+use crate::model::{ix, state_from_fn, ActuatorModel, BodyKind, Bound, State, StateVar, Vehicle};
+use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
+
+#[inline(always)]
+fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
+    let (a, u) = line;
+    let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+    let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+    let q = [
+        d[0] - along * u[0],
+        d[1] - along * u[1],
+        d[2] - along * u[2],
+    ];
+    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+}
+
+/// The step's sample of the metrics (`PhaseAccumulator::sample`): the payload's oscillation,
+/// acceleration and specific force, the tracking and cross-track errors (`e`, the position
+/// error; `pos`, the vehicle's position; `line`, the leg's), the attachment's swing and
+/// tension, saturation, the tilt near the law's limit and the last metres. Returns the
+/// payload's |a|, which the trace records too.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn sample_metrics<L, B, Pay, Act>(
+    acc: &mut PhaseAccumulator<L>,
+    k: usize,
+    t: f64,
+    vehicle: &Vehicle<L, Pay, Act, B>,
+    cmd: &Act::Command,
+    trig: &B::Frame<L>,
+    out: &PayloadOutputs<L>,
+    e: &[L; 3],
+    pos: &[L; 3],
+    line: &([L; 3], [L; 3]),
+    near_tilt_cos: L,
+    last: LastSample<L>,
+) -> L
+where
+    L: KernelOps,
+    B: BodyKind,
+    Pay: crate::model::PayloadModel<L>,
+    Act: ActuatorModel<L>,
+{
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    let [ax, ay, az] = out.accel;
+    // |a| without the square root's rounding where the acceleration is vertical only.
+    let accel = (ax * ax + ay * ay + az * az).sqrt();
+    // The specific force a - g (g = (0, 0, -g)): what an accelerometer on the payload reads.
+    let fz = az + vehicle.body.g;
+    // Its square: the metric is its peak, whose square root is taken at the end.
+    let specific_force_sq = ax * ax + ay * ay + fz * fz;
+    acc.sample(
+        k,
+        t,
+        &Sample {
+            e_o: out.e_o,
+            tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
+            cross_sq: cross_track_sq(pos, line),
+            accel,
+            specific_force_sq,
+            swing: out.swing,
+            tension: out.tension,
+            slack: L::select(out.tension.cmp_le(zero), one, zero),
+            saturated: vehicle.actuator.saturated(cmd),
+            near_tilt: L::select(
+                crate::model::Frame::axes(trig)[2][2].cmp_le(near_tilt_cos),
+                one,
+                zero,
+            ),
+            last,
+        },
+    );
+    accel
+}
+
+/// The reference and the leg it is on, refreshed only when the trajectory changes
+/// (`Trajectory::next_change`).
+pub(super) struct Leg<L> {
+    segment: usize,
+    pub(super) r: Reference,
+    changes: f64,
+    /// The straight line of the current leg (a point, a unit direction): cross-track error.
+    pub(super) line: ([L; 3], [L; 3]),
+    line_of: usize,
+    /// The last metres: a lowering's line to pay out and the point it lowers at (the last
+    /// lowering's; before any, the reference's).
+    pub(super) payout: Option<f64>,
+    drop_at: Option<[f64; 2]>,
+}
+
+impl<L: Lane> Leg<L> {
+    #[inline(always)]
+    pub(super) fn new() -> Self {
+        Self {
+            segment: 0,
+            r: Reference::default(),
+            changes: f64::NEG_INFINITY,
+            line: ([L::splat(0.0); 3], [L::splat(0.0); 3]),
+            line_of: usize::MAX,
+            payout: None,
+            drop_at: None,
+        }
+    }
+
+    /// The reference at `t`, and the leg's line, payout and drop point where they change.
+    #[inline(always)]
+    pub(super) fn follow(
+        &mut self,
+        trajectory: &Trajectory,
+        t: f64,
+        realisations: &[&Realisation],
+    ) {
+        if t + TIME_SLACK >= self.changes {
+            self.r = trajectory.at(t, &mut self.segment);
+            self.changes = trajectory.next_change(self.segment);
+            self.payout = trajectory.lowering(self.segment);
+            self.drop_at = trajectory.drop_point(self.segment).or(self.drop_at);
+            // Each lane's line (they differ before the first waypoint, which each lane's
+            // own initial position leads to), once per segment: it depends on nothing else.
+            if self.segment != self.line_of {
+                self.line_of = self.segment;
+                let mut lines = [([0.0; 3], [0.0; 3]); MAX_LANES];
+                for (l, c) in realisations.iter().enumerate() {
+                    lines[l] = trajectory.line(self.segment, [c.x0[0], c.x0[1], c.x0[2]]);
+                }
+                self.line = (
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].0[i])),
+                    [0, 1, 2].map(|i| L::from_fn(|l| lines[l].1[i])),
+                );
+            }
+        }
+    }
+}
+
+/// The wind the lanes fly, sampled at the start of each step and held over it.
+pub(super) struct Winds<'f, 'a, L> {
+    /// Each lane's wind state (its filters' states and their normals).
+    states: Vec<WindState<'a>>,
+    /// The wind of the whole lane-set at once where the lanes' fields allow it
+    /// (`LaneWind::new`): the same numbers as the per-lane `sample_at`, drawn from the same
+    /// sources. Else the per-lane path.
+    set: Option<LaneWind<'f, 'a, L>>,
+    lanes: [[f64; 3]; MAX_LANES],
+    /// Steps inside any lane's gust window (lanes may differ in a dispersed batch).
+    gust_from: u64,
+    gust_to: u64,
+    /// A deterministic wind source in any lane (a mean wind, a discrete gust, a table, a
+    /// prescribed wind): the wind is sampled at every step.
+    blows: bool,
+    held: [L; 3],
+}
+
+impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
+    #[inline(always)]
+    pub(super) fn new(
+        realisations: &[&Realisation],
+        req: &FlightRequest<'a>,
+        fields: &[&'f WindField],
+    ) -> Self {
+        let states: Vec<WindState> = match req.innovations {
+            Some(xi) => {
+                assert_eq!(xi.len(), L::LANES, "one row of innovations per lane");
+                xi.iter()
+                    .zip(realisations)
+                    .map(|(x, c)| c.wind.given(x))
+                    .collect()
+            }
+            None => req
+                .indices
+                .iter()
+                .zip(realisations)
+                .map(|(&i, c)| c.wind.realisation(req.seed, i))
+                .collect(),
+        };
+        let set = LaneWind::<L>::new(fields, states.iter().map(|w| w.source()).collect());
+        let windy = || realisations.iter().filter(|c| c.wind.enabled());
+        let gust_from = windy().map(|c| c.wind.start_step()).min();
+        let gust_to = windy().map(|c| c.wind.end_step()).max();
+        let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
+        Self {
+            states,
+            set,
+            lanes: [[0.0; 3]; MAX_LANES],
+            gust_from,
+            gust_to,
+            blows: realisations.iter().any(|c| c.wind.blows()),
+            held: [L::splat(0.0); 3],
+        }
+    }
+
+    /// The wind of step `k` in state `s`. The row at t_k holds the wind of step k. The `last`
+    /// row (t = duration) has no step after it: it holds the last step's wind (the hold runs
+    /// to its end), so no metric sees a wind that no step flies, and no innovation is drawn for
+    /// it.
+    #[inline(always)]
+    pub(super) fn sample<Pay, Act, B, const N: usize>(
+        &mut self,
+        k: usize,
+        last: bool,
+        s: &State<L, N>,
+        realisations: &[&Realisation],
+    ) -> [L; 3]
+    where
+        Pay: crate::model::PayloadModel<L>,
+        Act: ActuatorModel<L>,
+        B: BodyKind,
+    {
+        type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
+        // Outside the gust window `sample_at` returns zeros without touching the state
+        // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
+        // window is open and nothing else blows (most of a paper flight).
+        let at = |lane: usize| {
+            let rigid = V::<L, Pay, Act, B>::rigid(s);
+            move || Kinematics {
+                z: rigid.pos[2].lane(lane),
+                vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
+            }
+        };
+        let w: [L; 3] = if last {
+            self.held
+        } else {
+            // The lane-set's wind when `set` flies it (else the per-lane values).
+            let mut wind_set: Option<[L; 3]> = None;
+            if let Some(g) = self.set.as_mut() {
+                wind_set = Some(g.sample(
+                    k as u64,
+                    #[inline(always)]
+                    || {
+                        let rigid = V::<L, Pay, Act, B>::rigid(s);
+                        (rigid.pos[2], rigid.vel)
+                    },
+                ));
+            } else if self.blows || (self.gust_from..self.gust_to).contains(&(k as u64)) {
+                for (lane, ((ws, v), c)) in self
+                    .states
+                    .iter_mut()
+                    .zip(self.lanes.iter_mut())
+                    .zip(realisations)
+                    .enumerate()
+                {
+                    *v = c.wind.sample_at(ws, k as u64, at(lane));
+                }
+            } else {
+                self.lanes = [[0.0; 3]; MAX_LANES];
+            }
+            #[inline(always)]
+            fn wind_of<L: Lane>(lanes: &[[f64; 3]; MAX_LANES], c: usize) -> L {
+                L::from_fn(
+                    #[inline(always)]
+                    |lane| lanes[lane][c],
+                )
+            }
+            match wind_set {
+                Some(w) => w,
+                None => [
+                    wind_of(&self.lanes, 0),
+                    wind_of(&self.lanes, 1),
+                    wind_of(&self.lanes, 2),
+                ],
+            }
+        };
+        self.held = w;
+        w
+    }
+}
+
+/// Per lane, the height error at the hook's release and its time (the last metres).
+pub(super) struct Release {
+    err: [f64; MAX_LANES],
+    t: [f64; MAX_LANES],
+}
+
+impl Release {
+    #[inline(always)]
+    pub(super) fn new() -> Self {
+        Self {
+            err: [f64::NAN; MAX_LANES],
+            t: [f64::NAN; MAX_LANES],
+        }
+    }
+
+    /// The last metres' sample of the step at `t` (none without the payload's `events`):
+    /// the touchdown's speeds and miss from the drop point, the release and the height change
+    /// over the window after it, the swing while lowering. `e`: the position error.
+    #[inline(always)]
+    pub(super) fn sample<L: Lane>(
+        &mut self,
+        events: Option<LastMetres<L>>,
+        leg: &Leg<L>,
+        e: &[L; 3],
+        t: f64,
+        swing: L,
+    ) -> LastSample<L> {
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        match events {
+            None => LastSample::none(),
+            Some(ev) => {
+                let drop = leg.drop_at.unwrap_or([leg.r.pos[0], leg.r.pos[1]]);
+                let [vx, vy, vz] = ev.approach;
+                let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
+                let mut after = [0.0; MAX_LANES];
+                let mut change = [0.0; MAX_LANES];
+                for l in 0..L::LANES {
+                    if ev.release.lane(l) > 0.0 {
+                        self.t[l] = t;
+                        self.err[l] = e[2].lane(l);
+                    }
+                    if t - self.t[l] <= RELEASE_WINDOW + TIME_SLACK {
+                        after[l] = 1.0;
+                        change[l] = (e[2].lane(l) - self.err[l]).abs();
+                    }
+                }
+                LastSample {
+                    touchdown: ev.touchdown,
+                    touchdown_speed: vz.abs(),
+                    touchdown_drift: vx.mul_add(vx, vy * vy).sqrt(),
+                    touchdown_miss: mx.mul_add(mx, my * my).sqrt(),
+                    release: ev.release,
+                    after_release: L::from_fn(|l| after[l]),
+                    release_change: L::from_fn(|l| change[l]),
+                    lowering_swing: if leg.payout.is_some() {
+                        swing * (one - ev.grounded)
+                    } else {
+                        zero
+                    },
+                }
+            }
+        }
+    }
+}
+
+/// The bounds past which a lane's flight ends.
+pub(super) struct Runaway<L, const N: usize> {
+    limit: State<L, N>,
+    floor: L,
+    grounded: bool,
+    derives_tilt: bool,
+    max_tilt: L,
+}
+
+impl<L: Lane, const N: usize> Runaway<L, N> {
+    /// Each state's runaway bound per lane and the other bounds a flight ends at (the floor,
+    /// the rigid body's tilt).
+    #[inline(always)]
+    pub(super) fn new<B: BodyKind>(vars: &[StateVar], realisations: &[&Realisation]) -> Self {
+        Self {
+            // Infinite where a state has no bound: then only a non-finite value ends the
+            // flight. NaN compares false, so the masks also catch non-finite states.
+            limit: state_from_fn(|i| {
+                L::from_fn(|l| match vars[i].bound {
+                    Some(b) => realisations[l].limits[b as usize],
+                    None => f64::INFINITY,
+                })
+            }),
+            floor: L::from_fn(|l| realisations[l].floor),
+            grounded: realisations.iter().any(|c| c.floor > f64::NEG_INFINITY),
+            // The rigid body's roll and pitch are no states: held to `divergence.max_tilt` here.
+            derives_tilt: !B::DERIVED.is_empty(),
+            max_tilt: L::from_fn(|l| realisations[l].limits[Bound::Tilt as usize]),
+        }
+    }
+
+    /// The mask of the lanes within every bound in state `s`, and the rigid body's roll and
+    /// pitch (None for a body with them as states).
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    pub(super) fn check<B: BodyKind>(&self, s: &State<L, N>) -> (u32, Option<[L; 2]>) {
+        let mut ok = L::ALL;
+        for i in 0..N {
+            ok &= s[i].abs().le_mask(self.limit[i]);
+        }
+        if self.grounded {
+            ok &= self.floor.le_mask(s[ix::Z]);
+        }
+        let tilt = if self.derives_tilt {
+            let att = B::euler(s, &B::frame(s));
+            ok &= att[0].abs().le_mask(self.max_tilt) & att[1].abs().le_mask(self.max_tilt);
+            Some([att[0], att[1]])
+        } else {
+            None
+        };
+        (ok, tilt)
+    }
+}
+
+/// How each lane's flight ended: its divergence time (NaN while it flies) and status, and the
+/// lanes still flying.
+pub(super) struct Ends {
+    pub(super) diverged_at: [f64; MAX_LANES],
+    pub(super) status: [ExitStatus; MAX_LANES],
+    pub(super) alive: usize,
+}
+
+impl Ends {
+    /// `lanes` lanes, all flying.
+    #[inline(always)]
+    pub(super) fn new(lanes: usize) -> Self {
+        Self {
+            diverged_at: [f64::NAN; MAX_LANES],
+            status: [ExitStatus::Ok; MAX_LANES],
+            alive: lanes,
+        }
+    }
+
+    /// End the flight of each lane still flying outside `ok` (a lane mask) after the step at
+    /// `t` (of `dt`), and say why (`tilt`: the rigid body's roll and pitch, where they are no
+    /// states); park the lane on its initial state and memory.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn retire<L: Lane, const N: usize>(
+        &mut self,
+        ok: u32,
+        t: f64,
+        dt: f64,
+        tilt: Option<[L; 2]>,
+        s: &mut State<L, N>,
+        mem: &mut Memory<L>,
+        mem0: &Memory<L>,
+        realisations: &[&Realisation],
+        vars: &[StateVar],
+    ) {
+        for (lane, at) in self.diverged_at.iter_mut().enumerate().take(L::LANES) {
+            if at.is_nan() && ok & (1 << lane) == 0 {
+                *at = t + dt;
+                self.alive -= 1;
+                let values: Vec<f64> = s.iter().map(|x| x.lane(lane)).collect();
+                let c = realisations[lane];
+                let tilt = match tilt {
+                    Some(tilt) => vec![tilt[0].lane(lane), tilt[1].lane(lane)],
+                    None => Vec::new(),
+                };
+                self.status[lane] = classify(vars, &values, &tilt, &c.limits, c.floor);
+                // Park the lane on a benign state so its neighbours' arithmetic stays clean.
+                for (x, x0) in s.iter_mut().zip(realisations[lane].x0.iter()) {
+                    x.set_lane(lane, *x0);
+                }
+                for (m, m0) in mem.iter_mut().zip(mem0.iter()) {
+                    m.set_lane(lane, m0.lane(lane));
+                }
+            }
+        }
+    }
+}
