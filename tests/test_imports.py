@@ -205,7 +205,7 @@ RUST = Path(__file__).resolve().parent.parent / "rust" / "src"
 def rust_module_graph() -> dict[str, set[str]]:
     """Top-level engine module -> the top-level modules its code names (`crate::x`), from
     the sources without comments and unit tests (a test may reach for anything). lib.rs,
-    the bindings, is the root and left out."""
+    the crate root, is left out."""
     import re
 
     graph: dict[str, set[str]] = {}
@@ -249,10 +249,17 @@ CROSS_CUTTING = {"guarantees", "first_hour", "data"}
 def test_the_tests_mirror_the_package():
     """Each folder under tests/ is a layer of the package (tests/runs for quadrs.runs, ...) or a
     cross-cutting suite named by its topic; a test file sits in one of them or, for the
-    package as a whole (its face, its layers, its examples), at the top."""
+    package as a whole (its face, its layers, its modules' and engine files' sizes, its
+    examples), at the top."""
     tests = Path(__file__).resolve().parent
     layers = {layer.removeprefix(PACKAGE + ".") for layer in LAYERS[1:-1]}
     folders = {p.name for p in tests.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
     assert folders - layers - CROSS_CUTTING == set()
     top = {p.name for p in tests.glob("test_*.py")}
-    assert top <= {"test_imports.py", "test_public_api.py", "test_examples.py"}, top
+    assert top <= {
+        "test_imports.py",
+        "test_public_api.py",
+        "test_module_sizes.py",
+        "test_engine_file_sizes.py",
+        "test_examples.py",
+    }, top

@@ -1,12 +1,16 @@
-"""What every ``quadrs`` subcommand module shares: the bad-input error and the Dask client
-of ``--scheduler``. Imported by :mod:`quadrs.cli.main` and the other command modules beside it
-alike, so that none of them imports another."""
+"""What every ``quadrs`` subcommand module shares: the exit statuses, the bad-input error, the
+Dask client of ``--scheduler``, and the options several commands take, each declared once
+here (a function that adds it to a command's parser) with the reading of its value. Imported
+by :mod:`quadrs.cli.main` and the command modules beside it alike, so that none of them
+imports another."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 __all__ = [
@@ -16,9 +20,26 @@ __all__ = [
     "EXIT_TERMINATED",
     "EXIT_USAGE",
     "BadInput",
+    "batch_options",
+    "check_positive",
+    "controller_names",
+    "controller_option",
+    "controllers_option",
     "dask_client",
+    "limit_option",
+    "limit_options",
+    "no_progress_option",
+    "one_line",
+    "paper_controllers",
+    "parquet_out_option",
+    "plots_option",
+    "progress",
+    "scenario_options",
     "scheduler_option",
     "seed_and_workers",
+    "seed_option",
+    "table_options",
+    "workers_option",
 ]
 
 #: Exit statuses of every subcommand: done; done but a check failed (or nothing was saved);
@@ -50,25 +71,234 @@ def dask_client(address: str | None) -> Iterator[Any]:
         yield client
 
 
-def scheduler_option(p: argparse.ArgumentParser) -> None:
-    """``--scheduler ADDRESS``: the command's flights as tasks on a Dask cluster."""
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="fly on a Dask cluster, e.g. tcp://10.0.0.5:8786, with the same result as here "
-        "(needs pip install quadrs[dask])",
+def one_line(text: str) -> str:
+    """A message's lines joined into one (``quadrs: warning: ...`` and errors alike)."""
+    return "; ".join(line.strip() for line in text.strip().splitlines() if line.strip())
+
+
+def check_positive(name: str, value: int | None, minimum: int = 1) -> None:
+    """BadInput unless an integer option's ``value`` (None: not given) is at least
+    ``minimum``."""
+    if value is not None and value < minimum:
+        raise BadInput(f"{name} must be >= {minimum}, got {value}")
+
+
+def progress(args: argparse.Namespace) -> bool:
+    """Progress bars on a terminal only: none in logs, pipes or CI output."""
+    return not args.no_progress and sys.stderr.isatty()
+
+
+# -- the scenario's options -------------------------------------------------------------------
+def scenario_options(default_preset: str = "paper") -> argparse.ArgumentParser:
+    """The scenario's options (``--preset``, ``--scenario``, ``--set``, ``--disperse``) as a
+    parent parser, their help naming the command's own default preset (mission: delivery,
+    every other command: paper)."""
+    from quadrs.scenario.dispersion import DISTRIBUTIONS
+    from quadrs.scenario.scenario import presets
+
+    common = argparse.ArgumentParser(add_help=False)
+    g = common.add_argument_group("scenario")
+    g.add_argument(
+        "--preset",
+        default=None,
+        choices=presets(),
+        help=f"start from a shipped preset (default: {default_preset})",
     )
+    g.add_argument(
+        "--scenario",
+        metavar="FILE.toml",
+        type=Path,
+        help='start from a scenario file instead (it may begin with base = "paper" and give '
+        "only what differs)",
+    )
+    g.add_argument(
+        "--set",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        dest="overrides",
+        help="override one dotted key, repeatable; VALUE in TOML syntax and SI units, e.g. "
+        "payload.mass=0.44 (kg), gust.w20=15 (m/s), payload.natural_frequency=4 (Hz), "
+        "integrator.duration=10 (s), 'trajectory.interpolation=\"min_jerk\"'; "
+        "`quadrs scenario keys` lists every key with its value and unit",
+    )
+    g.add_argument(
+        "--disperse",
+        metavar="KEY=DIST(ARGS)",
+        action="append",
+        default=[],
+        dest="dispersions",
+        help="give a numeric key a distribution, repeatable: "
+        + ", ".join(f"{d}({','.join(p)})" for d, p in DISTRIBUTIONS.items())
+        + " (lognormal's of the logarithm); e.g. payload.mass=uniform(0.1,0.4); "
+        "see docs/dispersions.md",
+    )
+    return common
+
+
+# -- options of batches -----------------------------------------------------------------------
+def seed_option(p: argparse.ArgumentParser, help: str = "master seed (default: 0)") -> None:
+    """``--seed S``, 0 by default."""
+    p.add_argument("--seed", type=int, default=0, metavar="S", help=help)
+
+
+def workers_option(
+    p: argparse.ArgumentParser,
+    help: str = "worker threads (default: every core this process may use)",
+) -> None:
+    """``--workers W``: threads, every core by default (None)."""
+    p.add_argument("--workers", type=int, default=None, metavar="W", help=help)
 
 
 def seed_and_workers(p: argparse.ArgumentParser) -> None:
     """The options every batch command takes: ``--seed`` and ``--workers``."""
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    seed_option(p)
+    workers_option(p)
+
+
+def scheduler_option(
+    p: argparse.ArgumentParser,
+    help: str = "fly on a Dask cluster, e.g. tcp://10.0.0.5:8786, with the same result as here "
+    "(needs pip install quadrs[dask])",
+) -> None:
+    """``--scheduler ADDRESS``: the command's flights as tasks on a Dask cluster."""
+    p.add_argument("--scheduler", metavar="ADDRESS", help=help)
+
+
+def no_progress_option(
+    p: argparse.ArgumentParser,
+    help: str = "no progress bar (there is none anyway unless stderr is a terminal)",
+) -> None:
+    """``--no-progress``."""
+    p.add_argument("--no-progress", action="store_true", help=help)
+
+
+def parquet_out_option(p: argparse.ArgumentParser, help: str) -> None:
+    """``--out FILE.parquet``: where the command saves what it found."""
+    p.add_argument("--out", type=Path, metavar="FILE.parquet", help=help)
+
+
+def plots_option(p: argparse.ArgumentParser, help: str) -> None:
+    """``--plots DIR``: where the command writes its figures."""
+    p.add_argument("--plots", type=Path, metavar="DIR", help=help)
+
+
+def controller_names() -> tuple[str, ...]:
+    """The engine's controllers (the package's one list, quadrs.engine.calls.CONTROLLERS)."""
+    from quadrs.engine.calls import CONTROLLERS
+
+    return CONTROLLERS
+
+
+def paper_controllers() -> tuple[str, ...]:
+    """The paper's pair, the default of the batch commands (quadrs.engine.calls)."""
+    from quadrs.engine.calls import PAPER_CONTROLLERS
+
+    return PAPER_CONTROLLERS
+
+
+def _controllers(text: str) -> tuple[str, ...]:
+    names = tuple(c.strip() for c in text.split(",") if c.strip())
+    known = controller_names()
+    bad = [c for c in names if c not in known]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"controllers are {' and/or '.join(known)}, got {text!r}")
+    return names
+
+
+def controller_option(p: argparse.ArgumentParser, both: bool = False) -> None:
+    """``--controller``: one law, smc by default (``run``, ``tune``); ``both``: or both of
+    the paper's, the default (``stability``, ``linearize``)."""
+    if both:
+        p.add_argument(
+            "--controller",
+            choices=(*controller_names(), "both"),
+            default="both",
+            help="a law, or both of the paper's (pd and smc; the default)",
+        )
+    else:
+        p.add_argument(
+            "--controller",
+            choices=controller_names(),
+            default="smc",
+            help="controller (default: smc)",
+        )
+
+
+def controllers_option(p: argparse.ArgumentParser, what: str) -> None:
+    """``--controllers LIST``: comma-separated controllers, the paper's pair by default;
+    ``what`` begins the help ("comma-separated controllers to fly")."""
     p.add_argument(
-        "--workers",
+        "--controllers",
+        type=_controllers,
+        default=paper_controllers(),
+        metavar="LIST",
+        help=f"{what}, of {','.join(controller_names())} "
+        f"(default: the paper's {','.join(paper_controllers())})",
+    )
+
+
+def _values(text: str) -> list[Any]:
+    """A list of values: comma-separated TOML values, or a TOML array (``--values``,
+    ``--frequencies``, ``--masses``). Its name is argparse's word for a value it cannot read."""
+    from quadrs.scenario.scenario import parse_value
+
+    text = text.strip()
+    if text.startswith("["):
+        value = parse_value(text)
+        if not isinstance(value, list):
+            raise argparse.ArgumentTypeError(f"not a TOML array: {text!r}")
+        return value
+    values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
+    if not values:
+        raise argparse.ArgumentTypeError("no values given")
+    return values
+
+
+def batch_options(p: argparse.ArgumentParser, runs: int, out_help: str) -> None:
+    """The options of a paired Monte Carlo batch (``mc``, ``sweep``): ``--runs`` (``runs`` by
+    default), ``--seed``, ``--workers``, ``--controllers``, ``--out`` (``out_help``),
+    ``--no-progress``, ``--scheduler`` and ``--sampling``."""
+    from quadrs.scenario.dispersion import SAMPLINGS
+
+    p.add_argument(
+        "--runs",
         type=int,
-        default=None,
-        metavar="W",
-        help="worker threads (default: every core this process may use)",
+        default=runs,
+        metavar="N",
+        help="gust realisations (each flown by every controller) (default: %(default)s)",
+    )
+    seed_and_workers(p)
+    controllers_option(p, "comma-separated controllers to fly")
+    parquet_out_option(p, out_help)
+    no_progress_option(p)
+    scheduler_option(
+        p,
+        help="run the chunks on a Dask cluster, e.g. tcp://10.0.0.5:8786 "
+        "(needs pip install quadrs[dask])",
+    )
+    p.add_argument(
+        "--sampling",
+        choices=SAMPLINGS,
+        default="random",
+        help="how the values of dispersed keys are drawn: independent per realisation "
+        "(random), or a stratified design over the batch (lhs, sobol) (default: random)",
+    )
+
+
+# -- what the tables show ---------------------------------------------------------------------
+def table_options(p: argparse.ArgumentParser) -> None:
+    """``--wide`` and ``--no-paper``: how Table 3 is printed."""
+    p.add_argument(
+        "--wide",
+        action="store_true",
+        help="print Table 3 in one wide row per phase with full intervals (about 190 columns)",
+    )
+    p.add_argument(
+        "--no-paper",
+        action="store_true",
+        help="leave the paper's own P values out of Table 3 (they are shown for the paper "
+        "preset only)",
     )
 
 
@@ -88,3 +318,42 @@ def limit_option(text: str) -> tuple[str, float]:
         return metric, metric_value(metric, raw.strip() or "?")
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _limit(text: str) -> tuple[str, float]:
+    """``--limit`` (:func:`limit_option`)."""
+    return limit_option(text)
+
+
+def _half_width(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 < value < 50:
+        raise argparse.ArgumentTypeError(f"must be in (0, 50) percentage points, got {text!r}")
+    return value
+
+
+def limit_options(p: argparse.ArgumentParser) -> None:
+    """``--limit METRIC=THRESHOLD`` (repeatable) and ``--half-width PP``: the exceedance
+    tables of ``mc``, ``sweep`` and ``report``."""
+    p.add_argument(
+        "--limit",
+        metavar="METRIC=THRESHOLD",
+        action="append",
+        type=_limit,
+        default=[],
+        help="print P(METRIC > THRESHOLD) per controller and phase with its exact 95%% "
+        "interval and the runs needed for a chosen width, e.g. max_accel=2.0 (m/s^2; a bare "
+        "2.0 means max_accel), max_swing=30 (degrees); "
+        "repeatable; a run counts as exceeding in the phase it diverged in and later ones",
+    )
+    p.add_argument(
+        "--half-width",
+        type=_half_width,
+        default=1.0,
+        metavar="PP",
+        help="interval half-width, in percentage points, for the runs-needed column of "
+        "--limit (default: %(default)s)",
+    )

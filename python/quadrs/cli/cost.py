@@ -16,7 +16,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["ANNOUNCE_AFTER", "Calibration", "Eta", "announce", "calibrate", "duration", "say"]
+__all__ = [
+    "ANNOUNCE_AFTER",
+    "Calibration",
+    "Eta",
+    "announce",
+    "announce_batch",
+    "calibrate",
+    "duration",
+    "say",
+]
 
 #: A job estimated to take at least this long (s) is announced before it starts; a shorter
 #: one just runs.
@@ -147,3 +156,23 @@ class Eta:
             left = elapsed / self.done * (self.total - self.done)
             text += f", about {duration(left)} left"
         return text
+
+
+def announce_batch(
+    command: str,
+    scenario: Any,
+    controllers: Sequence[str],
+    runs: int,
+    workers: int | None,
+    seed: int,
+    extra: int = 0,
+    what: str = "",
+) -> None:
+    """Say on stderr what a long batch flies and roughly how long: ``runs`` realisations of
+    each controller, plus ``extra`` flights (``mc``, ``paper``)."""
+    precheck(scenario, controllers, runs, workers, seed)
+    cal = calibrate(scenario, controllers, workers, seed, flights=min(runs, 8))
+    flights = runs * len(controllers) + extra
+    names = " and ".join(c.upper() for c in controllers)
+    what = what or f"{runs} realisations x {names}"
+    say(announce(command, what, flights, cal), cal.estimate(flights))

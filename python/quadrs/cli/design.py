@@ -14,9 +14,18 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK, dask_client, scheduler_option
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    controller_option,
+    dask_client,
+    scheduler_option,
+    seed_option,
+    workers_option,
+)
 from quadrs.design.optimize import METHODS
-from quadrs.engine.calls import CONTROLLERS, PAPER_CONTROLLERS
+from quadrs.engine.calls import PAPER_CONTROLLERS
 from quadrs.present.terminal import terminal_text
 
 
@@ -61,9 +70,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         "flying (the mode is named). Writes a scenario "
         "file that bases on the input and holds the tuned values (see docs/design-loop.md).",
     )
-    p.add_argument(
-        "--controller", choices=CONTROLLERS, default="smc", help="controller (default: smc)"
-    )
+    controller_option(p)
     p.add_argument(
         "--param",
         type=_param,
@@ -100,7 +107,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         f"{INPUT_UNITS} (see docs/design-loop.md)",
     )
     p.add_argument("--runs", type=int, default=64, metavar="N", help="realisations (default: 64)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="master seed (default: 0)")
+    seed_option(p)
     p.add_argument(
         "--method",
         choices=METHODS,
@@ -127,7 +134,7 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
         action="store_true",
         help="fly candidates that are unstable at hover instead of rejecting them",
     )
-    p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
+    workers_option(p, help="threads (default: all)")
     scheduler_option(p)
     p.add_argument(
         "--out", type=Path, required=True, metavar="FILE.toml", help="tuned scenario file"
@@ -144,12 +151,7 @@ def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
         "the gust's statistically equivalent wind sigma_z sqrt(2/pi)), print its poles and the "
         "gust-to-e_o transmissibility of each controller, optionally plot it.",
     )
-    p.add_argument(
-        "--controller",
-        choices=(*CONTROLLERS, "both"),
-        default="both",
-        help="a law, or both of the paper's (pd and smc; the default)",
-    )
+    controller_option(p, both=True)
     p.add_argument(
         "--wind",
         type=float,
@@ -209,11 +211,8 @@ def _tuned_toml(args: argparse.Namespace, out: Path, keys: list[str], tuned: Any
             "its base).\n" + tuned.to_toml())  # fmt: skip
 
 
-#: How the command line turns its options into a scenario (quadrs.cli.main.load_scenario).
-LoadScenario = Callable[[argparse.Namespace], Any]
-
-
-def cmd_tune(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+def cmd_tune(args: argparse.Namespace) -> int:
+    from quadrs.cli.scenario_args import load_scenario
     from quadrs.design.optimize import InfeasibleWarning, check_tuning, expand, optimize
     from quadrs.engine.calls import check_int
     from quadrs.io.files import atomic_write_bytes, atomic_write_frame, check_writable
@@ -416,9 +415,10 @@ def _print_phase_effects(effects: Any, metric: str, tuned: tuple[str, ...]) -> N
         print(terminal_text(f"quadrs tune: note: {note}"), file=sys.stderr)
 
 
-def cmd_linearize(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+def cmd_linearize(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from quadrs.cli.scenario_args import load_scenario
     from quadrs.hover.linear import OUTPUT_NAMES, equivalent_wind, linearize
     from quadrs.io.files import atomic_write, check_writable
 

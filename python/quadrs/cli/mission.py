@@ -22,6 +22,10 @@ from quadrs.cli.common import (
     EXIT_INTERRUPT,
     EXIT_OK,
     dask_client,
+    no_progress_option,
+    parquet_out_option,
+    plots_option,
+    progress,
     scheduler_option,
     seed_and_workers,
 )
@@ -168,18 +172,11 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     seed_and_workers(p)
     scheduler_option(p)
-    p.add_argument(
-        "--out",
-        type=Path,
-        metavar="FILE.parquet",
-        help="write the runs with their run record (as quadrs mc --out; quadrs report reads it)",
+    parquet_out_option(
+        p, "write the runs with their run record (as quadrs mc --out; quadrs report reads it)"
     )
-    p.add_argument("--plots", type=Path, metavar="DIR", help="write the figures here")
-    p.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress bar (there is none anyway unless stderr is a terminal)",
-    )
+    plots_option(p, "write the figures here")
+    no_progress_option(p)
 
 
 def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
@@ -197,12 +194,9 @@ def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
                 p._option_string_actions[option] = own
 
 
-#: How the command line turns its options into a scenario (quadrs.cli.main.load_scenario).
-LoadScenario = Callable[[argparse.Namespace], Any]
-
-
-def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+def cmd_mission(args: argparse.Namespace) -> int:
     from quadrs.cli.outputs import check_directories, check_outputs, save
+    from quadrs.cli.scenario_args import load_scenario
     from quadrs.design.mission import mission_report
     from quadrs.engine.calls import check_int
     from quadrs.runs.montecarlo import monte_carlo
@@ -237,7 +231,7 @@ def cmd_mission(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
                 seed=args.seed,
                 controllers=args.controller,
                 workers=args.workers,
-                progress=not args.no_progress and sys.stderr.isatty(),
+                progress=progress(args),
                 spectra=False,
                 client=client,
             )

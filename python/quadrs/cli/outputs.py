@@ -1,15 +1,22 @@
 """Saving the command line's outputs so that finished work is never lost: outputs checked
 before any work, and a recovery copy (whose path is printed) when the target cannot be
-written after it. Shared by :mod:`quadrs.cli.main` and :mod:`quadrs.cli.design`."""
+written after it. Shared by the command modules beside it."""
 
 from __future__ import annotations
 
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from quadrs.cli.common import BadInput
 from quadrs.io.files import check_writable
+
+
+def check_suffix(path: Path | None, allowed: Sequence[str], option: str) -> None:
+    """BadInput unless an output's name ends in one of ``allowed`` (None: not given)."""
+    if path is not None and path.suffix.lower() not in allowed:
+        raise BadInput(f"{option} {str(path)!r}: expected a file ending in {' or '.join(allowed)}")
 
 
 def check_outputs(*paths: Path | None) -> None:

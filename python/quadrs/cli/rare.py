@@ -9,15 +9,21 @@ import argparse
 import math
 import re
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_INTERRUPT, EXIT_OK
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    no_progress_option,
+    parquet_out_option,
+    scheduler_option,
+    seed_option,
+    workers_option,
+)
 from quadrs.cli.cost import Eta, duration, say
 from quadrs.engine.calls import CONTROLLERS
-
-LoadScenario = Callable[[argparse.Namespace], Any]
 
 #: The library's argument names -> the options that set them, in the sampler's messages.
 OPTION_WORDS = (("per_level", "--per-level"), ("max_levels", "--max-levels"), ("p0", "--p0"))
@@ -117,23 +123,20 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         metavar="K",
         help="deepest level tried (default: enough for about 1e-12)",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default: 0)")
-    p.add_argument("--workers", type=int, default=None, metavar="W", help="threads (default: all)")
-    p.add_argument(
-        "--out",
-        type=Path,
-        metavar="FILE.parquet",
-        help="write the result here (the failure samples with their innovations, the levels "
+    seed_option(p, help="seed (default: 0)")
+    workers_option(p, help="threads (default: all)")
+    parquet_out_option(
+        p,
+        "write the result here (the failure samples with their innovations, the levels "
         "and the run record; RareEventResult.read_parquet reads it); with several "
         "controllers, FILE-<controller>.parquet each",
     )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
+    scheduler_option(
+        p,
         help="fly each level's flights on a Dask cluster, e.g. tcp://10.0.0.5:8786 (needs pip "
         "install quadrs[dask]); the result is the same as on one machine",
     )
-    p.add_argument("--no-progress", action="store_true", help="no per-level progress lines")
+    no_progress_option(p, help="no per-level progress lines")
 
 
 def _option_words(text: str) -> str:
@@ -143,12 +146,13 @@ def _option_words(text: str) -> str:
     return text
 
 
-def cmd_rare(args: argparse.Namespace, load_scenario: LoadScenario) -> int:
+def cmd_rare(args: argparse.Namespace) -> int:
     """Subset simulation of one controller, or of several paired on the same gusts (each
     one's table, then the ratios to the first): optional Parquet; 130 if interrupted (the
     finished levels are reported and saved)."""
     from quadrs.cli.common import dask_client
     from quadrs.cli.outputs import check_outputs, save
+    from quadrs.cli.scenario_args import load_scenario
     from quadrs.present.labels import shown_unit, shown_value
     from quadrs.rare import rare_event
     from quadrs.rare.result import RareEventComparison, RareEventResult

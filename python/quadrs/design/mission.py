@@ -38,45 +38,68 @@ from __future__ import annotations
 
 import math
 import textwrap
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from quadrs.design.mission_tables import (
+    ALL_PHASES,
+    ANY_PHASE,
+    DEGREES,
+    DURATIONS,
+    FLIGHT_PHASE,
+    LOWS,
+    PEAKS,
+    TOUCHDOWN_LIMIT,
+    TRACK_LIMIT,
+    _joint,
+    _last_metres_table,
+    _mean_columns,
+    _route_table,
+    _tracking_metrics,
+    _worst,
+    none_seen_bound,
+    one_sided_upper,
+)
+from quadrs.design.mission_text import (
+    _acceleration_text,
+    _fit,
+    _g,
+    _interval,
+    _joint_line,
+    _last_metres_text,
+    _limits_text,
+    _payload_text,
+    _pct,
+    _route_text,
+    _shown_limit,
+    _shown_name,
+    _tracking_text,
+)
 from quadrs.design.route_limits import LimitClash, route_clashes
 from quadrs.present.terminal import terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceedance_stats, quantile_interval
-from quadrs.stats.summary import mean_ci, phase_diverged
+from quadrs.stats.summary import phase_diverged
 
-__all__ = ["ALL_PHASES", "ANY_PHASE", "FLIGHT_PHASE", "MissionReport", "mission_report"]
-
-#: The whole-flight phase of results that carry one.
-FLIGHT_PHASE = "flight"
-#: The row standing for the whole flight when the results have no FLIGHT_PHASE.
-ALL_PHASES = "all phases"
-#: The joint row: a flight counted once if it exceeded in any of the scenario's phases.
-ANY_PHASE = "any phase"
-#: Default tracking (and cross-track) limit of the route, m.
-TRACK_LIMIT = 10.0
-#: Payload metrics whose worst realisation is its largest value (and a high quantile).
-PEAKS = ("max_swing", "max_tension")
-#: ... and whose worst is its smallest value.
-LOWS = ("min_tension",)
-#: Time spent in a bad state (s): the mean with its interval and the worst.
-DURATIONS = ("slack_time", "saturated_time")
-#: Shown in degrees: angles in the results are radians.
-DEGREES = ("max_swing", "rms_swing", "lowering_swing")
-#: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
-TOUCHDOWN_LIMIT = 1.0
-
-
-def _tracking_metrics(columns: Sequence[str]) -> list[str]:
-    """The tracking-error metrics the results have (3-D RMS, and any per-leg maximum or
-    cross-track error the engine adds)."""
-    return [c for c in columns if "tracking" in c or "cross_track" in c]
+#: What this module offers (its tables and text are made beside it, in mission_tables and
+#: mission_text).
+__all__ = [
+    "ALL_PHASES",
+    "ANY_PHASE",
+    "DEGREES",
+    "DURATIONS",
+    "FLIGHT_PHASE",
+    "LOWS",
+    "PEAKS",
+    "TOUCHDOWN_LIMIT",
+    "TRACK_LIMIT",
+    "MissionReport",
+    "mission_report",
+    "none_seen_bound",
+    "one_sided_upper",
+]
 
 
 @dataclass(frozen=True)
@@ -396,390 +419,3 @@ def mission_report(
                          tracking, route, joint, float(track_limit), float(cross_track_limit),
                          statuses, routed, metric, last, float(touchdown_limit),
                          tuple(route_clashes(mc.scenario, ctrl)))  # fmt: skip
-
-
-def _last_metres_table(
-    rows: list[str], values: Any, present: set[str], limit: float, quantile: float,
-    confidence: float,
-) -> pd.DataFrame | None:  # fmt: skip
-    """The last metres per phase with a touchdown or a lowering, and the whole flight (see
-    :attr:`MissionReport.last_metres`); None if the results have no touchdown metrics or no
-    flight lowered or touched down."""
-    need = {"touchdown_speed", "touchdown_drift", "touchdown_miss", "release_time",
-            "release_height_change", "lowering_swing"}  # fmt: skip
-    if not need <= present:
-        return None
-    out = []
-    for i, phase in enumerate(rows):
-        speed = values("touchdown_speed", phase)
-        swing = values("lowering_swing", phase)
-        whole = i == len(rows) - 1
-        if not whole and np.isnan(speed).all() and not (np.nan_to_num(swing) > 0).any():
-            continue
-        div = np.isinf(speed)
-        touched = np.isfinite(speed)
-        e = exceedance_stats(np.where(div, np.nan, speed), limit, div, confidence)
-        _, qv, qlo, qhi = quantile_interval(speed[touched], quantile, confidence)
-        miss = values("touchdown_miss", phase)
-        _, mq, _, _ = quantile_interval(miss[np.isfinite(miss)], quantile, confidence)
-        released = values("release_time", phase)
-        out.append({
-            "phase": phase, "n": len(speed), "touchdowns": int(touched.sum()),
-            "diverged": int(div.sum()), "judged": e.n, "exceedances": e.k,
-            "probability": e.probability, "ci_low": e.ci_low, "ci_high": e.ci_high,
-            "speed_q": qv, "speed_q_low": qlo, "speed_q_high": qhi,
-            "speed_worst": _worst(speed[touched], "max"),
-            "drift_worst": _worst(values("touchdown_drift", phase), "max"),
-            "miss_q": mq, "miss_worst": _worst(miss, "max"),
-            "released": int(np.isfinite(released).sum()),
-            "height_change_worst": _worst(values("release_height_change", phase), "max"),
-            "lowering_swing_worst": _worst(swing, "max"),
-        })  # fmt: skip
-    table = pd.DataFrame(out).set_index("phase")
-    if int(table["touchdowns"].sum()) == 0 and len(table) == 1:
-        return None
-    return table
-
-
-def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
-    deg = 180 / math.pi
-    return pd.DataFrame(
-        {
-            "runs": t["n"].astype(int),
-            "touched": t["touchdowns"].astype(int),
-            "P fast %": [
-                _count_or_interval(
-                    int(r.exceedances), int(r.judged), r.probability, r.ci_low, r.ci_high
-                )
-                if r.judged
-                else ""
-                for r in t.itertuples()
-            ],
-            f"speed {qp}": [
-                _interval(r.speed_q, r.speed_q_low, r.speed_q_high) for r in t.itertuples()
-            ],
-            "speed worst": [_g(v) for v in t["speed_worst"]],
-            "drift worst": [_g(v) for v in t["drift_worst"]],
-            "miss worst": [_g(v) for v in t["miss_worst"]],
-            "released": t["released"].astype(int),
-            "height change": [_g(v) for v in t["height_change_worst"]],
-            "swing worst": [_g(deg * v) for v in t["lowering_swing_worst"]],
-        },
-        index=t.index,
-    )
-
-
-def none_seen_bound(n: int, confidence: float = 0.95) -> float:
-    """What "0 of N flights, P <= x" prints: the upper end of the two-sided exact
-    (Clopper-Pearson) ``confidence`` interval with no event in ``n``, ``1 - ((1 -
-    confidence) / 2)**(1/n)``: the ``ci_high`` of the same count, and the figures' error bar
-    (one convention everywhere, docs/risk.md)."""
-    if n <= 0:
-        return math.nan
-    return float(1.0 - ((1.0 - confidence) / 2.0) ** (1.0 / n))
-
-
-def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
-    """The one-sided exact (Clopper-Pearson) upper bound of a probability seen ``k`` times in
-    ``n``: ``1 - (1 - confidence)**(1/n)`` for k = 0 (3/n, the "rule of three", for large n)."""
-    from scipy import stats
-
-    if n <= 0:
-        return math.nan
-    if k >= n:
-        return 1.0
-    return float(stats.beta.ppf(confidence, k + 1, n - k))
-
-
-def _off_route(
-    values: Any, phase: str, present: set[str], track_limit: float, cross_limit: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per realisation: (off the route in ``phase``, defined); diverged counts as off."""
-    off: np.ndarray | None = None
-    for metric, lim in (("max_tracking", track_limit), ("max_cross_track", cross_limit)):
-        if metric not in present:
-            continue
-        x = values(metric, phase)
-        hit = np.where(np.isnan(x), False, x > lim)
-        off = hit if off is None else off | hit
-    assert off is not None
-    return off, np.ones(off.shape, bool)
-
-
-def _route_table(
-    rows: list[str], values: Any, wide: dict[str, pd.DataFrame], runs: pd.DataFrame,
-    present: set[str], confidence: float, track_limit: float, cross_limit: float,
-) -> pd.DataFrame | None:  # fmt: skip
-    """Per row: was the route flown (see :attr:`MissionReport.route`); None if the results
-    have no tracking maxima (older files)."""
-    from quadrs.stats.risk import exceedance_interval
-
-    if not {"max_tracking", "max_cross_track"} & present:
-        return None
-    out = []
-    for phase in rows:
-        off, _ = _off_route(values, phase, present, track_limit, cross_limit)
-        ref = values("max_tracking" if "max_tracking" in present else "max_cross_track", phase)
-        diverged = int(np.isinf(ref).sum())
-        n, k = len(off), int(off.sum())
-        p, lo, hi = exceedance_interval(k, n, confidence)
-        row: dict[str, Any] = {"phase": phase, "n": n, "diverged": diverged, "off_route": k,
-                               "probability": p, "ci_low": lo, "ci_high": hi,
-                               "p_max": hi}  # fmt: skip
-        for m in ("max_tracking", "max_cross_track"):
-            if m in present:
-                row[f"{m}_worst"] = _worst(values(m, phase), "max")
-        if "saturated_time" in present:
-            row.update(_mean_columns("saturated_time", phase, wide, confidence))
-            if phase != ALL_PHASES:
-                sel = wide[phase]
-                x = sel["saturated_time"].to_numpy(float)[~phase_diverged(sel.reset_index())]
-                row["saturated_time_worst"] = _worst(x, "max")
-                row["saturated_time_flights"] = int((x > 0).sum())
-                row["saturated_time_n"] = int(x.size)
-        if "near_tilt_time" in present:
-            x = values("near_tilt_time", phase)
-            row["near_tilt_time_worst"] = _worst(x, "max")
-            if phase != ALL_PHASES:
-                row.update(_mean_columns("near_tilt_time", phase, wide, confidence))
-        out.append(row)
-    return pd.DataFrame(out).set_index("phase")
-
-
-def _joint(
-    own: list[str], values: Any, present: set[str], limit: float, confidence: float,
-    track_limit: float, cross_limit: float, metric: str = "max_accel",
-) -> pd.DataFrame:  # fmt: skip
-    """Flights that exceeded the acceleration limit (or left the route) in any of ``own``."""
-    from quadrs.stats.risk import exceedance_interval
-
-    rows = []
-    acc = np.zeros(0, bool)
-    off = np.zeros(0, bool)
-    for i, phase in enumerate(own):
-        x = values(metric, phase)
-        hit = np.isinf(x) | np.where(np.isnan(x), False, x > limit)
-        acc = hit if i == 0 else acc | hit
-        if {"max_tracking", "max_cross_track"} & present:
-            o, _ = _off_route(values, phase, present, track_limit, cross_limit)
-            off = o if i == 0 else off | o
-    for name, hit in (("acceleration", acc), ("route", off)):
-        if not hit.size:
-            continue
-        n, k = len(hit), int(hit.sum())
-        p, lo, hi = exceedance_interval(k, n, confidence)
-        rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
-                     "ci_high": hi, "p_max": hi})  # fmt: skip
-    return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
-                                       "ci_high", "p_max"]).set_index("table")  # fmt: skip
-
-
-def _worst(x: np.ndarray, worst: str) -> float:
-    x = x[~np.isnan(x)]
-    if not x.size:
-        return math.nan
-    return float(x.max() if worst == "max" else x.min())
-
-
-def _mean_columns(
-    metric: str, phase: str, wide: dict[str, pd.DataFrame], confidence: float
-) -> dict[str, float]:
-    if phase == ALL_PHASES:
-        return {f"{metric}_mean": math.nan, f"{metric}_ci_low": math.nan,
-                f"{metric}_ci_high": math.nan}  # fmt: skip
-    sel = wide[phase]
-    x = sel[metric].to_numpy(float)
-    x = x[~phase_diverged(sel.reset_index())]
-    _, mean, lo, hi = mean_ci(x, confidence)
-    out = {f"{metric}_mean": mean, f"{metric}_ci_low": lo, f"{metric}_ci_high": hi}
-    if metric in DURATIONS:  # how many flights spent any time there (0: "0 of N flights")
-        out |= {f"{metric}_flights": float((x > 0).sum()), f"{metric}_n": float(x.size)}
-    return out
-
-
-# -- text ---------------------------------------------------------------------------------------
-def _g(v: float, digits: int = 3) -> str:
-    if isinstance(v, float) and math.isnan(v):
-        return ""
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return f"{v:.{digits}g}"
-
-
-def _interval(v: float, lo: float, hi: float, scale: float = 1.0, digits: int = 3) -> str:
-    if math.isnan(v):
-        return ""
-    return f"{_g(scale * v, digits)} [{_g(scale * lo, digits)}, {_g(scale * hi, digits)}]"
-
-
-def _shown_name(metric: str) -> str:
-    """``acceleration (m/s^2)`` for max_accel; ``max_swing (deg)``; ``max_tension (N)``."""
-    from quadrs.present.labels import UNITS
-
-    if metric == "max_accel":
-        return "acceleration (m/s^2)"
-    unit = UNITS.get(metric, "").replace("²", "^2")
-    return f"{metric} ({unit})" if unit else metric
-
-
-def _unit(metric: str) -> str:
-    from quadrs.present.labels import UNITS
-
-    return UNITS.get(metric, "").replace("²", "^2")
-
-
-def _shown_limit(report: MissionReport) -> str:
-    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
-
-    shown = f"{display_scale(report.metric) * report.limit:g}"
-    if in_g(report.metric):
-        return f"{shown} m/s^2 ({report.limit / STANDARD_GRAVITY:.3g} g)"
-    unit = _unit(report.metric)
-    return f"{shown} {unit}" if unit else shown
-
-
-def _pct(p: float) -> str:
-    return _g(100 * float(p))
-
-
-def _limits_text(track: float, cross: float) -> str:
-    return f"{track:g} m" if track == cross else f"{track:g} m and {cross:g} m"
-
-
-def _count_or_interval(k: int, n: int, p: float, lo: float, hi: float) -> str:
-    """``0 of 200 flights, P <= 1.49`` when nothing happened, else ``p [lo, hi]`` (in %)."""
-    if k == 0 and n > 0:
-        return f"0 of {n} flights, P <= {_pct(none_seen_bound(n))}"
-    return _interval(p, lo, hi, 100.0)
-
-
-def _joint_line(joint: pd.DataFrame | None, table: str, what: str) -> str:
-    if joint is None or table not in joint.index:
-        return ""
-    r = joint.loc[table]
-    n, k = int(r["n"]), int(r["count"])
-    if k == 0:
-        said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (two-sided 95 % interval)"
-    else:
-        said = (f"{k} of {n} flights, P = "
-                f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %")  # fmt: skip
-    return f"{ANY_PHASE}: {said} {what} in at least one phase (a joint statement)"
-
-
-def _route_text(t: pd.DataFrame) -> pd.DataFrame:
-    out = pd.DataFrame(
-        {
-            "runs": t["n"].astype(int),
-            "diverged": t["diverged"].astype(int),
-            "off route": t["off_route"].astype(int),
-            "P off route %": [
-                _count_or_interval(int(r.off_route), int(r.n), r.probability, r.ci_low, r.ci_high)
-                for r in t.itertuples()
-            ],
-        },
-        index=t.index,
-    )
-    for m, name in (("max_tracking", "tracking worst m"), ("max_cross_track", "cross worst m")):
-        if f"{m}_worst" in t:
-            out[name] = [_g(v) for v in t[f"{m}_worst"]]
-    if "saturated_time_mean" in t:
-        cells = []
-        for r in t.itertuples():
-            flights = getattr(r, "saturated_time_flights", math.nan)
-            n = getattr(r, "saturated_time_n", math.nan)
-            if isinstance(flights, (int, float)) and flights == 0 and n and n == n:
-                cells.append(f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}")
-            else:
-                cells.append(_interval(r.saturated_time_mean, r.saturated_time_ci_low,
-                                       r.saturated_time_ci_high))  # fmt: skip
-        out["at thrust limit s"] = cells
-        out["thrust worst s"] = [_g(v) for v in t["saturated_time_worst"]] if (
-            "saturated_time_worst" in t) else ""  # fmt: skip
-    if "near_tilt_time_worst" in t:
-        out["near tilt worst s"] = [_g(v) for v in t["near_tilt_time_worst"]]
-    return out
-
-
-def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
-    """The parcel's table; an acceleration's worst also in standard g (the limit's g is in
-    the heading: a column more would not fit 100 columns)."""
-    from quadrs.present.labels import STANDARD_GRAVITY, display_scale, in_g
-
-    g = {"worst g": [_g(v / STANDARD_GRAVITY) for v in t["worst"]]} if in_g(metric) else {}
-    scale = display_scale(metric)  # the heading's unit: degrees for swing
-    return pd.DataFrame(
-        {
-            "runs": t["n"].astype(int),
-            "diverged": t["diverged"].astype(int),
-            "exceed": t["exceedances"].astype(int),
-            "P exceed %": [
-                _count_or_interval(int(r.exceedances), int(r.n), r.probability, r.ci_low, r.ci_high)
-                for r in t.itertuples()
-            ],
-            qp: [_interval(r.quantile, r.q_low, r.q_high, scale) for r in t.itertuples()],
-            "worst": [_g(scale * v) for v in t["worst"]],
-            **g,
-        },
-        index=t.index,
-    )
-
-
-def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
-    out = pd.DataFrame(index=t.index)
-    for m in PEAKS:
-        if f"{m}_worst" not in t:
-            continue
-        scale = 180 / math.pi if m in DEGREES else 1.0
-        name = m.removeprefix("max_")
-        out[f"{name} {qp}"] = [
-            _interval(a, b, c, scale)
-            for a, b, c in zip(t[f"{m}_q"], t[f"{m}_q_low"], t[f"{m}_q_high"], strict=True)
-        ]
-        out[f"{name} worst"] = [_g(scale * v) for v in t[f"{m}_worst"]]
-    for m in LOWS:
-        if f"{m}_worst" in t:
-            out["tension lowest"] = [_g(v) for v in t[f"{m}_worst"]]
-    for m in ("slack_time",):  # the time at the thrust limit is in the route's table
-        if f"{m}_mean" in t:
-            out[f"{m} mean"] = [
-                f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}"
-                if n == n and n > 0 and k == 0 else _interval(a, b, c)
-                for a, b, c, k, n in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"],
-                                         t.get(f"{m}_flights", pd.Series(math.nan, t.index)),
-                                         t.get(f"{m}_n", pd.Series(math.nan, t.index)),
-                                         strict=True)
-            ]  # fmt: skip
-    return out
-
-
-def _tracking_text(t: pd.DataFrame) -> pd.DataFrame:
-    out = pd.DataFrame(index=t.index)
-    for col in [c for c in t.columns if c.endswith("_mean")]:
-        m = col.removesuffix("_mean")
-        out[f"{m} mean"] = [
-            _interval(a, b, c)
-            for a, b, c in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"], strict=True)
-        ]
-        out[f"{m} worst"] = [_g(v) for v in t[f"{m}_worst"]]
-    return out
-
-
-def _fit(frame: pd.DataFrame, width: int) -> str:
-    """``frame`` as text in blocks of columns, each at most ``width`` wide (the index repeated
-    in each; a single column wider than ``width`` gets a block of its own)."""
-
-    def render(cols: list[str]) -> str:
-        return terminal_text(frame[cols].to_string())
-
-    blocks: list[str] = []
-    current: list[str] = []
-    for col in frame.columns:
-        trial = [*current, col]
-        if current and max(len(line) for line in render(trial).splitlines()) > width:
-            blocks.append(render(current))
-            current = [col]
-        else:
-            current = trial
-    if current or not blocks:
-        blocks.append(render(current) if current else terminal_text(frame.to_string()))
-    return "\n\n".join(blocks)

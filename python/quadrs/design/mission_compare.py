@@ -18,14 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from quadrs.design.mission import (
-    MissionReport,
-    _fit,
-    _shown_limit,
-    _shown_name,
-    mission_report,
-    none_seen_bound,
-)
+from quadrs.design.mission import MissionReport, mission_report, none_seen_bound
+from quadrs.design.mission_text import _fit, _shown_limit, _shown_name
 from quadrs.present.terminal import terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceeds, paired_exceedance

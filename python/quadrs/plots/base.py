@@ -11,6 +11,7 @@ from typing import Any
 
 import matplotlib
 import numpy as np
+import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -18,6 +19,7 @@ from matplotlib.figure import Figure
 from quadrs.io.files import atomic_write
 from quadrs.present.labels import PLAIN_LABELS, UNITS
 from quadrs.runs.flight import Flight
+from quadrs.scenario.route import FLIGHT_PHASE
 
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
 FMAX = 10.0
@@ -210,3 +212,14 @@ def loglog_axes(a: Axes, fmax: float) -> None:
     a.set_yscale("log")
     a.set_xlim(right=fmax)
     a.grid(True, which="both", alpha=0.3)
+
+
+def all_phases(df: pd.DataFrame) -> list[str]:
+    """Every phase of a table, the whole-flight phase (if any) last."""
+    own = own_phases(df)
+    return own + ([FLIGHT_PHASE] if (df["phase"] == FLIGHT_PHASE).any() else [])
+
+
+def own_phases(df: pd.DataFrame) -> list[str]:
+    """The phases in a table's ``phase`` column, the whole-flight phase left out."""
+    return [str(p) for p in pd.unique(df["phase"]) if p != FLIGHT_PHASE]

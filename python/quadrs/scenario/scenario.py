@@ -3,6 +3,10 @@
 A Scenario is an immutable nested mapping shaped exactly like its TOML file. Values are
 checked by the engine itself (one set of rules, in Rust), so a Scenario that exists is one
 the engine accepts; every error names the dotted key and the offending value.
+
+The parts it is made of sit beside it: dotted keys and single values (``keys``), the nested
+tables (``tables``), the presets and scenario files read (``preset_files``) and the TOML
+written like a preset (``toml_layout``); their public names are offered here too.
 """
 
 from __future__ import annotations
@@ -11,12 +15,9 @@ import contextvars
 import copy
 import json
 import math
-import os
-import re
 import sys
 from collections.abc import Iterable, Iterator, Mapping
 from functools import cached_property
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -29,25 +30,66 @@ else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
 
 from quadrs import _core
 from quadrs.scenario import plausibility
+from quadrs.scenario.keys import (
+    ScenarioError,
+    _dotted,
+    _split_key,
+    canonical_key,
+    canonical_keys,
+    parse_value,
+    scenario_error,
+    toml_value,
+)
+from quadrs.scenario.preset_files import (
+    _BASE_KEY,
+    MAX_FILE_BYTES,
+    MAX_TEXT_CHARS,
+    _preset_text,
+    _read_text,
+    _real,
+    base_preset,
+    presets,
+)
 from quadrs.scenario.route import FLIGHT_PHASE, Route
+from quadrs.scenario.tables import (
+    MAX_DEPTH,
+    _complete_controller_tables,
+    _differences,
+    _frozen,
+    _merge,
+    _plain,
+    _route_drops_waypoints,
+    _seed_controller_table,
+    _seeded,
+)
+from quadrs.scenario.toml_layout import _layout_like
 
-ScenarioError = _core.ScenarioError
-
-
-def scenario_error(message: str, key: str | None) -> ScenarioError:
-    """A :class:`ScenarioError` whose ``key`` attribute names the dotted key at fault (as
-    the engine's own do), None when no single key is."""
-    error = ScenarioError(message)
-    error.key = key
-    return error
-
+#: What this module offers; its keys, tables, preset files and TOML layout are made beside
+#: it (keys, tables, preset_files, toml_layout).
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_TEXT_CHARS",
+    "OPTIONAL_TABLES",
+    "Scenario",
+    "ScenarioError",
+    "base_preset",
+    "canonical_key",
+    "canonical_keys",
+    "design_keys",
+    "key_value",
+    "parse_value",
+    "presets",
+    "scenario_error",
+    "start_height",
+    "toml_value",
+]
 
 #: Top-level tables the engine fills with defaults when a scenario omits them (so that
 #: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
 OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
 
-_PRESET_DIR = "presets"
-_BASE_KEY = "base"
+
 #: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
 _BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
     "_BASE_CHAIN", default=()
@@ -64,115 +106,6 @@ _EXCLUSIVE = {
 }
 #: Optional tables below the top level that setting one of their keys creates.
 _CREATED_TABLES = frozenset({"wind.table"})
-#: Column at which the presets start their end-of-line comments.
-_COMMENT_COLUMN = 38
-_SEGMENT = re.compile(r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*)(?P<index>(\[\d+\])*)$")
-
-
-def presets() -> list[str]:
-    """Names of the presets shipped with quadrs."""
-    files = resources.files("quadrs").joinpath(_PRESET_DIR).iterdir()
-    return sorted(f.name.removesuffix(".toml") for f in files if f.name.endswith(".toml"))
-
-
-def _preset_text(name: str) -> str:
-    if name not in presets():
-        raise ScenarioError(f"preset must be one of {presets()}, got {name!r}")
-    return resources.files("quadrs").joinpath(_PRESET_DIR).joinpath(f"{name}.toml").read_text()
-
-
-def base_preset(path: str | Path) -> str | None:
-    """The preset a scenario file starts from: its ``base`` if that names a preset, followed
-    through files that base on other files; None if there is none or the file is unreadable
-    (reading the scenario itself reports why)."""
-    path, seen = Path(path), set()
-    while _real(path) not in seen:
-        seen.add(_real(path))
-        try:
-            base = tomllib.loads(_read_text(path)).get(_BASE_KEY)
-        except (OSError, ValueError, RecursionError):
-            return None
-        if not isinstance(base, str):
-            return None
-        if base in presets():
-            return base
-        path = path.parent / base
-    return None
-
-
-def _real(path: Path) -> Path:
-    """``path`` with its symlinks resolved as far as they go (a loop does not raise: reading
-    the file then reports it)."""
-    return Path(os.path.realpath(path))
-
-
-def _read_text(path: Path) -> str:
-    """A scenario file's text, read as every input file is (quadrs.io.files.read_input_text):
-    at most MAX_FILE_BYTES (a device such as /dev/zero is refused, not read forever; a pipe,
-    ``<(...)``, is read); UTF-8. ScenarioError naming the file otherwise."""
-    from quadrs.scenario.input_files import InputFileError, read_input_text
-
-    try:
-        return read_input_text(path, "scenario file", MAX_FILE_BYTES, streams=True)
-    except InputFileError as e:
-        raise ScenarioError(f"{e}: not a scenario") from None
-    except OSError as e:
-        raise ScenarioError(
-            f"scenario file {str(path)!r} cannot be read: {e.strerror or e}"
-        ) from None
-
-
-def parse_value(text: str) -> Any:
-    """A command-line value: TOML syntax (numbers, booleans, arrays, quoted strings), else a
-    bare string. ``"2"`` -> 2, ``"[1, 2]"`` -> [1, 2], ``"min_jerk"`` -> "min_jerk"."""
-    try:
-        value = tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-    except RecursionError:
-        raise scenario_error(f"{text[:40]!r}...: a value nested too deeply", None) from None
-    return value
-
-
-def _split_key(key: str) -> list[str | int]:
-    """``"phases[1].end"`` -> ["phases", 1, "end"]."""
-    if not isinstance(key, str) or not key:
-        raise scenario_error(f"scenario keys are dotted strings, got {key!r}", None)
-    parts: list[str | int] = []
-    for segment in key.split("."):
-        m = _SEGMENT.match(segment)
-        if m is None:
-            raise scenario_error(f"{key}: not a valid dotted key (segment {segment!r})", key)
-        parts.append(m["name"])
-        parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", m["index"]))
-    return parts
-
-
-def canonical_key(key: str) -> str:
-    """The one spelling of a dotted key: ``"controller.pd.kp[02]"`` -> ``"controller.pd.kp[2]"``
-    (indices without leading zeros). Every key a user gives (dispersions, ``override``,
-    sweeps, optimised parameters) goes through it, so two spellings never name two keys."""
-    out = ""
-    for part in _split_key(key):
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else part)
-    return out
-
-
-def canonical_keys(keys: Iterable[str], what: str) -> list[str]:
-    """``keys`` in their canonical spelling; ScenarioError naming both spellings if two of
-    them are one key (``what``: where they were given, for the message)."""
-    seen: dict[str, str] = {}
-    out = []
-    for key in keys:
-        canon = canonical_key(key)
-        if canon in seen:
-            raise scenario_error(
-                f"{what}: {seen[canon]!r} and {key!r} are the same key ({canon}); give it once",
-                canon,
-            )
-        seen[canon] = key
-        out.append(canon)
-    return out
 
 
 def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]:
@@ -190,60 +123,6 @@ def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]
                 key,
             )
     return keys
-
-
-#: Deepest nesting of tables and arrays a scenario may have (the presets use 3).
-MAX_DEPTH = 32
-#: Largest scenario file read (bytes): a binary or endless file is refused, not read forever.
-MAX_FILE_BYTES = 1 << 20
-#: Largest scenario text parsed (characters). Text quadrs wrote itself (the scenario a saved
-#: result or checkpoint carries, ``to_toml``, a scenario re-read after its route or wind table
-#: was read in) holds every row of its wind table and route, so it may be far larger than a
-#: file a user writes; this only guards against absurd sizes.
-MAX_TEXT_CHARS = 256 << 20
-#: Integers in a scenario lie in [-2**63, 2**63).
-_INT_LIMIT = 1 << 63
-
-
-def _plain(value: Any, key: str = "") -> Any:
-    """Tuples and numpy scalars -> plain TOML-able Python values, checked on the way: only
-    tables, arrays, strings, booleans, finite numbers and integers within 64 bits, nested at
-    most MAX_DEPTH deep (dates, times and other objects are refused, naming the key). Walks
-    with an explicit stack, so no input can exhaust Python's recursion limit."""
-    root: list[Any] = [None]
-    stack: list[tuple[Any, str, Any, Any, int]] = [(value, key, root, 0, 0)]
-    while stack:
-        v, k, parent, slot, depth = stack.pop()
-        where = k or "scenario"
-        if depth > MAX_DEPTH:
-            raise scenario_error(f"{where}: nested more than {MAX_DEPTH} levels deep", k or None)
-        if isinstance(v, Mapping):
-            table: dict[str, Any] = {}
-            parent[slot] = table
-            for kk, vv in v.items():
-                kk = str(kk)
-                table[kk] = None
-                stack.append((vv, f"{k}.{kk}" if k else kk, table, kk, depth + 1))
-            continue
-        if isinstance(v, list | tuple):
-            array: list[Any] = [None] * len(v)
-            parent[slot] = array
-            stack.extend((vv, f"{k}[{i}]", array, i, depth + 1) for i, vv in enumerate(v))
-            continue
-        if not isinstance(v, str | bytes) and hasattr(v, "item") and callable(v.item):
-            v = v.item()  # numpy scalar
-        if isinstance(v, float) and not math.isfinite(v):
-            raise scenario_error(f"{where} must be a finite number, got {v!r}", k or None)
-        if isinstance(v, int) and not isinstance(v, bool) and not -_INT_LIMIT <= v < _INT_LIMIT:
-            raise scenario_error(f"{where} must be an integer within 64 bits, got {v}", k or None)
-        if not isinstance(v, bool | int | float | str):
-            raise scenario_error(
-                f"{where}: a scenario holds numbers, booleans, strings, arrays and tables, "
-                f"got {type(v).__name__} {v!r}",
-                k or None,
-            )
-        parent[slot] = v
-    return root[0]
 
 
 def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -370,14 +249,6 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
     table["points"] = points
 
 
-def _seed_controller_table(controller: dict[str, Any], kind: Any) -> None:
-    """A law's table the scenario leaves out flies the engine's defaults: setting one key of
-    it (``controller.se3.kR``) starts from them (``_core.CONTROLLER_DEFAULTS``)."""
-    defaults = _core.CONTROLLER_DEFAULTS.get(kind) if isinstance(kind, str) else None
-    if defaults is not None and kind not in controller:
-        controller[kind] = json.loads(defaults)
-
-
 def key_value(scenario: Scenario, key: str) -> Any:
     """``scenario[key]``, or for a key of a law's table the scenario leaves out, the engine's
     default that setting the key starts from (``controller.px4.MPC_XY_P`` on a scenario with
@@ -399,205 +270,6 @@ def key_value(scenario: Scenario, key: str) -> Any:
             except (KeyError, IndexError, TypeError):
                 raise KeyError(key) from None
         return node
-
-
-def _complete_controller_tables(data: dict[str, Any]) -> None:
-    """A law's table that gives only some keys (``[controller.px4]`` with the few values a
-    user's airframe changes) takes the rest from the engine's defaults, in place; a key the
-    law does not know is still refused by the engine, naming it."""
-    controller = data.get("controller")
-    if not isinstance(controller, dict):
-        return
-    for kind, text in _core.CONTROLLER_DEFAULTS.items():
-        table = controller.get(kind)
-        if isinstance(table, dict):
-            controller[kind] = {**json.loads(text), **table}
-
-
-def _seeded(base: dict[str, Any], data: Mapping[str, Any]) -> dict[str, Any]:
-    """``base`` with the engine's defaults for each law's table that ``data`` has and ``base``
-    leaves out (what setting one key of it starts from, :func:`_seed_controller_table`): so
-    that one ``--set controller.px4.X`` differs from the base in X alone."""
-    mine, theirs = data.get("controller"), base.get("controller")
-    if not isinstance(mine, Mapping) or not isinstance(theirs, dict):
-        return base
-    missing = [k for k in _core.CONTROLLER_DEFAULTS if k in mine and k not in theirs]
-    if not missing:
-        return base
-    out = dict(base)
-    out["controller"] = dict(theirs)
-    for kind in missing:
-        _seed_controller_table(out["controller"], kind)
-    return out
-
-
-def _frozen(value: Any) -> Any:
-    """A hashable image of a plain value that is equal exactly when the values are equal
-    (tables ignore key order; equal numbers hash equally, as Python guarantees)."""
-    if isinstance(value, dict):
-        return frozenset((k, _frozen(v)) for k, v in value.items())
-    if isinstance(value, list):
-        return tuple(_frozen(v) for v in value)
-    return value
-
-
-def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-    """Tables merge key by key; anything else (arrays, values) replaces. A file that turns
-    its base into a route (``trajectory.interpolation = "route"``) drops the base's
-    waypoints, as :meth:`Scenario.override` does."""
-    out = copy.deepcopy(base)
-    for k, v in extra.items():
-        if isinstance(v, Mapping) and isinstance(out.get(k), dict):
-            out[k] = _merge(out[k], v)
-        else:
-            out[k] = copy.deepcopy(v)
-    trajectory = extra.get("trajectory")
-    if isinstance(trajectory, Mapping) and isinstance(out.get("trajectory"), dict):
-        _route_drops_waypoints(out["trajectory"], trajectory)
-    return out
-
-
-def _route_drops_waypoints(merged: dict[str, Any], given: Mapping[str, Any]) -> None:
-    """A scenario made a route on top of a waypoint base flies the route: the base's
-    ``waypoints`` (which a route refuses) go, unless given alongside."""
-    if given.get("interpolation") == "route" and "waypoints" not in given:
-        merged.pop("waypoints", None)
-
-
-def _leaves(data: Mapping[str, Any], path: tuple[str, ...] = ()) -> dict[tuple[str, ...], Any]:
-    """Every value below nested tables by its path; arrays (of tables too) are one value."""
-    out: dict[tuple[str, ...], Any] = {}
-    for k, v in data.items():
-        here = (*path, k)
-        if isinstance(v, Mapping):
-            out.update(_leaves(v, here))
-        else:
-            out[here] = v
-    return out
-
-
-def _differences(
-    data: Mapping[str, Any], base: Mapping[str, Any]
-) -> dict[tuple[str, ...], tuple[Any, Any]]:
-    mine, theirs = _leaves(data), _leaves(base)
-    return {
-        path: (theirs.get(path), mine.get(path))
-        for path in [*theirs, *(p for p in mine if p not in theirs)]
-        if mine.get(path) != theirs.get(path)
-    }
-
-
-def _dotted(path: tuple[str, ...]) -> str:
-    """A path as a dotted key, quoting parts that hold a dot (``dispersions."payload.mass"``)."""
-    return ".".join(json.dumps(p) if not _SEGMENT.match(p) else p for p in path)
-
-
-def _preset_document(preset: str, flat: bool) -> Any:
-    """The preset's text as a tomlkit document; ``flat``: with its ``base`` chain merged in
-    (tables key by key, the preset's own lines over its base's), so that it holds every key."""
-    import tomlkit
-    from tomlkit.items import Table
-
-    doc = tomlkit.parse(_preset_text(preset))
-    base = doc.get(_BASE_KEY)
-    if not flat or base is None:
-        return doc
-    whole = _preset_document(str(base), flat=True)
-
-    def merge(into: Any, extra: Any) -> None:
-        for key, item in extra.items():
-            if isinstance(item, Table) and isinstance(into.get(key), Table):
-                merge(into[key], item)
-            else:
-                into[key] = item
-
-    del doc[_BASE_KEY]
-    merge(whole, doc)
-    return whole
-
-
-def _layout_like(scenario: Scenario, preset: str) -> str:
-    """``scenario`` written over the text of ``preset`` (see :meth:`Scenario.to_toml`)."""
-    import tomlkit
-    from tomlkit.items import Item, Table
-
-    base = Scenario.preset(preset)
-    differences = _differences(scenario._data, _seeded(base._data, scenario._data))
-    doc = _preset_document(preset, flat=False)
-
-    def held(parts: tuple[str, ...]) -> bool:
-        node: Any = doc
-        for part in parts:
-            if not isinstance(node, dict) or part not in node:
-                return False
-            node = node[part]
-        return True
-
-    # A key the preset only inherits through `base` cannot be removed from a file that bases
-    # on it: then write the whole scenario, laid out like the preset with its base merged in.
-    if any(new is None and not held(p) for p, (_, new) in differences.items()):
-        doc = _preset_document(preset, flat=True)
-    added: set[int] = set()  # tables the preset lacks: their lines need no "preset: not set"
-    for parts, (old, new) in differences.items():
-        node: Any = doc
-        for part in parts[:-1]:
-            if part not in node:
-                node[part] = tomlkit.table()
-                added.add(id(node[part]))
-            node = node[part]
-        fresh = id(node) in added
-        last = parts[-1]
-        if new is None:
-            del node[last]
-        elif isinstance(new, list) and new and all(isinstance(v, dict) for v in new):
-            tables = tomlkit.aot()
-            for row in new:
-                table = tomlkit.table()
-                table.update(row)
-                tables.append(table)
-            node[last] = tables
-        else:
-            item = tomlkit.item(new)
-            if not fresh:
-                held_item = node.get(last)
-                before = (
-                    held_item.trivia.comment.lstrip("# ") if isinstance(held_item, Item) else ""
-                )
-                was = f"{preset}: {'not set' if old is None else toml_value(old)}"
-                item.comment(f"{before}; {was}" if before else was)
-                # The preset aligns its comments at one column: keep them aligned.
-                width = len(f"{last} = {item.as_string()}")
-                item.trivia.comment_ws = " " * max(1, _COMMENT_COLUMN - width)
-            node[last] = item
-
-    # Tables of the preset this scenario does not have (the delivery's [ground] under a paper
-    # scenario) go whole, not as empty tables that would read back as a different scenario.
-    def prune(node: Any, data: Any) -> None:
-        for key in list(node.keys()):
-            if isinstance(node[key], Table):
-                if not isinstance(data, dict) or key not in data:
-                    del node[key]
-                else:
-                    prune(node[key], data[key])
-
-    prune(doc, scenario._data)
-    # A blank line before every table header, as in the presets.
-    return re.sub(r"(?<=[^\n])\n(?=\[)", "\n\n", tomlkit.dumps(doc))
-
-
-def toml_value(value: Any) -> str:
-    """``value`` in TOML syntax on one line (what ``quadrs --set KEY=VALUE`` accepts back)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    return json.dumps(str(value))
 
 
 class Scenario:
@@ -720,7 +392,7 @@ class Scenario:
         """
         if like is None:
             return tomli_w.dumps(self._data)
-        return _layout_like(self, like)
+        return _layout_like(self._data, Scenario.preset(like)._data, like)
 
     def differences(self, base: Scenario) -> dict[str, tuple[Any, Any]]:
         """Dotted keys whose value differs from ``base``: key -> (base value, this value),

@@ -1,0 +1,135 @@
+"""``quadrs mc``: a paired Monte Carlo batch (every controller through the same gusts) and its
+Table-3 summary (a route's mission tables instead); the runs saved, checkpointed and resumed,
+figures and exceedance tables on request."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from pathlib import Path
+from typing import Any
+
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    BadInput,
+    batch_options,
+    check_positive,
+    dask_client,
+    limit_options,
+    plots_option,
+    progress,
+    table_options,
+)
+
+__all__ = ["add_mc", "cmd_mc"]
+
+
+def add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
+    p = sub.add_parser(
+        "mc",
+        parents=[common],
+        help="Monte Carlo batch; prints the Table-3 summary",
+        description="Fly many gust realisations with every controller (paired: the same gust "
+        "for each) and print the paper's Table 3 with 95% confidence intervals (IAE in m s, "
+        "ITAE in m s^2; P = 100 SMC/PD in percent).",
+    )
+    batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
+    table_options(p)
+    plots_option(p, "write the batch's figures here")
+    p.add_argument(
+        "--checkpoint",
+        type=Path,
+        metavar="DIR",
+        help="append each finished chunk of realisations to this Parquet dataset directory "
+        "as it completes, so a killed run loses at most the chunks in flight",
+    )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --checkpoint DIR: fly only the realisations it lacks "
+        "(same scenario, seed and controllers required)",
+    )
+    p.add_argument(
+        "--chunk",
+        type=int,
+        metavar="N",
+        help="realisations per chunk (default: about 1/20 of the runs when checkpointing, "
+        "4 tasks per thread on Dask, else all at once)",
+    )
+    p.add_argument(
+        "--fused",
+        action="store_true",
+        help="fused multiply-adds: faster, equal to the default to about 1e-12 but not bit for "
+        "bit, and not across instruction sets (docs/performance.md); recorded in --out and "
+        "--checkpoint",
+    )
+    limit_options(p)
+
+
+def cmd_mc(args: argparse.Namespace) -> int:
+    """A Monte Carlo batch: Table 3, optional Parquet and figures; 130 if interrupted."""
+    from quadrs.cli.outputs import check_directories, check_outputs, check_suffix, save
+    from quadrs.cli.scenario_args import load_scenario
+    from quadrs.cli.tables import (
+        is_mission,
+        print_dispersions,
+        print_limits,
+        print_mission,
+        print_table3,
+    )
+    from quadrs.runs.montecarlo import monte_carlo
+
+    scenario = load_scenario(args)
+    check_suffix(args.out, (".parquet",), "--out")
+    check_positive("--runs", args.runs)
+    check_positive("--workers", args.workers)
+    check_positive("--chunk", args.chunk)
+    if args.resume and args.checkpoint is None:
+        raise BadInput("--resume needs --checkpoint DIR (the run to continue)")
+    if args.checkpoint is not None and not args.resume and args.checkpoint.exists():
+        if any(args.checkpoint.iterdir()):
+            raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
+    check_outputs(args.out)
+    check_directories(args.plots)
+    if args.scheduler is None:  # a cluster's speed is not this machine's
+        from quadrs.cli.cost import announce_batch
+
+        announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
+    from quadrs.engine.calls import deferred_signals
+
+    with contextlib.ExitStack() as keeping:
+        with dask_client(args.scheduler) as client:
+            mc = monte_carlo(
+                scenario,
+                runs=args.runs,
+                seed=args.seed,
+                controllers=args.controllers,
+                workers=args.workers,
+                progress=progress(args),
+                out=args.checkpoint,
+                resume=args.resume,
+                chunk=args.chunk,
+                client=client,
+                sampling=args.sampling,
+                fused=args.fused,
+            )
+            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
+            # it) waits until what finished is saved, then ends the command (status 130).
+            keeping.enter_context(deferred_signals())
+        saved = True
+        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
+            saved = save(mc.to_parquet, args.out)
+    if not mc.runs.empty:
+        print_dispersions(mc)
+        if is_mission(mc):
+            print_mission(mc, args)
+        else:
+            print_table3(mc, args)
+        print_limits(mc, args)
+    if args.plots is not None and not mc.runs.empty:
+        from quadrs.cli.figures import mc_plots
+
+        mc_plots(mc, args.plots, args.limit)
+    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL

@@ -1,0 +1,94 @@
+"""``quadrs report``: the summary of a saved Monte Carlo, mission or sweep file (or a
+checkpoint directory) printed again, with its exceedance tables and figures on request."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from quadrs.cli.common import EXIT_OK, BadInput, limit_options, plots_option, table_options
+
+__all__ = ["add_report", "cmd_report"]
+
+#: Files quadrs writes that ``report`` does not read: their kind -> what to say instead.
+_NOT_REPORTED = {
+    "rare_event": "a rare-event result (quadrs rare --out): report reads Monte Carlo, mission "
+    "and sweep files; read it with RareEventResult.read_parquet",
+    "flight": "one flight's trace (quadrs run --trace): report reads Monte Carlo, mission and "
+    "sweep files; read it with quadrs.Flight.read_parquet",
+}
+
+
+def add_report(sub: Any) -> None:
+    p = sub.add_parser(
+        "report",
+        help="reprint the summary of a saved Monte Carlo, mission or sweep file",
+        description="Reprint the Table-3 summary (or a sweep's summary) from a Parquet file "
+        "written by `quadrs mc --out` or `quadrs sweep --out`; for the flights of a route "
+        "(`quadrs mission --out`), the mission's tables at the first --limit (default "
+        "max_accel=9.81).",
+    )
+    p.add_argument(
+        "file",
+        type=Path,
+        metavar="RUNS",
+        help="the saved runs: a .parquet file (mc --out, sweep --out) or a --checkpoint directory",
+    )
+    plots_option(p, "write figures from the file here")
+    limit_options(p)
+    table_options(p)
+
+
+def _file_kind(path: Path) -> str | None:
+    """The ``kind`` a quadrs Parquet file's metadata names (None if it names none)."""
+    from quadrs.io.parquet import read_meta
+
+    meta = read_meta(path, b"quadrs")
+    kind = meta.get("kind") if isinstance(meta, dict) else None
+    return kind if isinstance(kind, str) else None
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Reprint a saved batch's (or sweep's) summary; figures from it."""
+    from quadrs.cli.figures import mc_plots, sweep_plots
+    from quadrs.cli.tables import (
+        is_mission,
+        print_frame,
+        print_limits,
+        print_mission,
+        print_table3,
+    )
+    from quadrs.runs.montecarlo import MonteCarloResult
+    from quadrs.runs.sweep import SweepResult, is_sweep_file
+
+    if args.file.is_dir():
+        from quadrs.runs.store import RunStore
+
+        if not RunStore(args.file).exists():
+            raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
+    elif not args.file.exists():
+        raise BadInput(f"{str(args.file)!r}: no such file")
+    kind = None if args.file.is_dir() else _file_kind(args.file)
+    if kind in _NOT_REPORTED:
+        raise BadInput(f"{str(args.file)!r} is {_NOT_REPORTED[kind]}")
+    if not args.file.is_dir() and is_sweep_file(args.file):
+        result = SweepResult.read_parquet(args.file)
+        print_frame(result.compact())
+        print_limits(result, args)
+        if args.plots is not None:
+            sweep_plots(result, args.plots)
+    else:
+        mc = MonteCarloResult.read_parquet(args.file)
+        note = " (interrupted batch)" if mc.interrupted else ""
+        print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
+        if mc.runs.empty:  # a run stopped before its first realisation finished
+            return EXIT_OK
+        if is_mission(mc):
+            print_mission(mc, args)
+        else:
+            print_table3(mc, args)
+        print_limits(mc, args)
+        if args.plots is not None:
+            mc_plots(mc, args.plots, args.limit)
+    return EXIT_OK

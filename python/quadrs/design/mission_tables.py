@@ -1,0 +1,212 @@
+"""The numbers of a mission's answer (:func:`quadrs.design.mission.mission_report`), phase by
+phase: whether the route was flown, the last metres, the joint "any phase" rows, the worst
+values and the means with their intervals, and the bound of a count that is zero; with the
+names of the rows and the groups of metrics the answer shows."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from quadrs.stats.risk import exceedance_stats, quantile_interval
+from quadrs.stats.summary import mean_ci, phase_diverged
+
+#: The whole-flight phase of results that carry one.
+FLIGHT_PHASE = "flight"
+#: The row standing for the whole flight when the results have no FLIGHT_PHASE.
+ALL_PHASES = "all phases"
+#: The joint row: a flight counted once if it exceeded in any of the scenario's phases.
+ANY_PHASE = "any phase"
+#: Default tracking (and cross-track) limit of the route, m.
+TRACK_LIMIT = 10.0
+#: Payload metrics whose worst realisation is its largest value (and a high quantile).
+PEAKS = ("max_swing", "max_tension")
+#: ... and whose worst is its smallest value.
+LOWS = ("min_tension",)
+#: Time spent in a bad state (s): the mean with its interval and the worst.
+DURATIONS = ("slack_time", "saturated_time")
+#: Shown in degrees: angles in the results are radians.
+DEGREES = ("max_swing", "rms_swing", "lowering_swing")
+#: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
+TOUCHDOWN_LIMIT = 1.0
+
+
+def _tracking_metrics(columns: Sequence[str]) -> list[str]:
+    """The tracking-error metrics the results have (3-D RMS, and any per-leg maximum or
+    cross-track error the engine adds)."""
+    return [c for c in columns if "tracking" in c or "cross_track" in c]
+
+
+def _last_metres_table(
+    rows: list[str], values: Any, present: set[str], limit: float, quantile: float,
+    confidence: float,
+) -> pd.DataFrame | None:  # fmt: skip
+    """The last metres per phase with a touchdown or a lowering, and the whole flight (see
+    :attr:`MissionReport.last_metres`); None if the results have no touchdown metrics or no
+    flight lowered or touched down."""
+    need = {"touchdown_speed", "touchdown_drift", "touchdown_miss", "release_time",
+            "release_height_change", "lowering_swing"}  # fmt: skip
+    if not need <= present:
+        return None
+    out = []
+    for i, phase in enumerate(rows):
+        speed = values("touchdown_speed", phase)
+        swing = values("lowering_swing", phase)
+        whole = i == len(rows) - 1
+        if not whole and np.isnan(speed).all() and not (np.nan_to_num(swing) > 0).any():
+            continue
+        div = np.isinf(speed)
+        touched = np.isfinite(speed)
+        e = exceedance_stats(np.where(div, np.nan, speed), limit, div, confidence)
+        _, qv, qlo, qhi = quantile_interval(speed[touched], quantile, confidence)
+        miss = values("touchdown_miss", phase)
+        _, mq, _, _ = quantile_interval(miss[np.isfinite(miss)], quantile, confidence)
+        released = values("release_time", phase)
+        out.append({
+            "phase": phase, "n": len(speed), "touchdowns": int(touched.sum()),
+            "diverged": int(div.sum()), "judged": e.n, "exceedances": e.k,
+            "probability": e.probability, "ci_low": e.ci_low, "ci_high": e.ci_high,
+            "speed_q": qv, "speed_q_low": qlo, "speed_q_high": qhi,
+            "speed_worst": _worst(speed[touched], "max"),
+            "drift_worst": _worst(values("touchdown_drift", phase), "max"),
+            "miss_q": mq, "miss_worst": _worst(miss, "max"),
+            "released": int(np.isfinite(released).sum()),
+            "height_change_worst": _worst(values("release_height_change", phase), "max"),
+            "lowering_swing_worst": _worst(swing, "max"),
+        })  # fmt: skip
+    table = pd.DataFrame(out).set_index("phase")
+    if int(table["touchdowns"].sum()) == 0 and len(table) == 1:
+        return None
+    return table
+
+
+def none_seen_bound(n: int, confidence: float = 0.95) -> float:
+    """What "0 of N flights, P <= x" prints: the upper end of the two-sided exact
+    (Clopper-Pearson) ``confidence`` interval with no event in ``n``, ``1 - ((1 -
+    confidence) / 2)**(1/n)``: the ``ci_high`` of the same count, and the figures' error bar
+    (one convention everywhere, docs/risk.md)."""
+    if n <= 0:
+        return math.nan
+    return float(1.0 - ((1.0 - confidence) / 2.0) ** (1.0 / n))
+
+
+def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
+    """The one-sided exact (Clopper-Pearson) upper bound of a probability seen ``k`` times in
+    ``n``: ``1 - (1 - confidence)**(1/n)`` for k = 0 (3/n, the "rule of three", for large n)."""
+    from scipy import stats
+
+    if n <= 0:
+        return math.nan
+    if k >= n:
+        return 1.0
+    return float(stats.beta.ppf(confidence, k + 1, n - k))
+
+
+def _off_route(
+    values: Any, phase: str, present: set[str], track_limit: float, cross_limit: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per realisation: (off the route in ``phase``, defined); diverged counts as off."""
+    off: np.ndarray | None = None
+    for metric, lim in (("max_tracking", track_limit), ("max_cross_track", cross_limit)):
+        if metric not in present:
+            continue
+        x = values(metric, phase)
+        hit = np.where(np.isnan(x), False, x > lim)
+        off = hit if off is None else off | hit
+    assert off is not None
+    return off, np.ones(off.shape, bool)
+
+
+def _route_table(
+    rows: list[str], values: Any, wide: dict[str, pd.DataFrame], runs: pd.DataFrame,
+    present: set[str], confidence: float, track_limit: float, cross_limit: float,
+) -> pd.DataFrame | None:  # fmt: skip
+    """Per row: was the route flown (see :attr:`MissionReport.route`); None if the results
+    have no tracking maxima (older files)."""
+    from quadrs.stats.risk import exceedance_interval
+
+    if not {"max_tracking", "max_cross_track"} & present:
+        return None
+    out = []
+    for phase in rows:
+        off, _ = _off_route(values, phase, present, track_limit, cross_limit)
+        ref = values("max_tracking" if "max_tracking" in present else "max_cross_track", phase)
+        diverged = int(np.isinf(ref).sum())
+        n, k = len(off), int(off.sum())
+        p, lo, hi = exceedance_interval(k, n, confidence)
+        row: dict[str, Any] = {"phase": phase, "n": n, "diverged": diverged, "off_route": k,
+                               "probability": p, "ci_low": lo, "ci_high": hi,
+                               "p_max": hi}  # fmt: skip
+        for m in ("max_tracking", "max_cross_track"):
+            if m in present:
+                row[f"{m}_worst"] = _worst(values(m, phase), "max")
+        if "saturated_time" in present:
+            row.update(_mean_columns("saturated_time", phase, wide, confidence))
+            if phase != ALL_PHASES:
+                sel = wide[phase]
+                x = sel["saturated_time"].to_numpy(float)[~phase_diverged(sel.reset_index())]
+                row["saturated_time_worst"] = _worst(x, "max")
+                row["saturated_time_flights"] = int((x > 0).sum())
+                row["saturated_time_n"] = int(x.size)
+        if "near_tilt_time" in present:
+            x = values("near_tilt_time", phase)
+            row["near_tilt_time_worst"] = _worst(x, "max")
+            if phase != ALL_PHASES:
+                row.update(_mean_columns("near_tilt_time", phase, wide, confidence))
+        out.append(row)
+    return pd.DataFrame(out).set_index("phase")
+
+
+def _joint(
+    own: list[str], values: Any, present: set[str], limit: float, confidence: float,
+    track_limit: float, cross_limit: float, metric: str = "max_accel",
+) -> pd.DataFrame:  # fmt: skip
+    """Flights that exceeded the acceleration limit (or left the route) in any of ``own``."""
+    from quadrs.stats.risk import exceedance_interval
+
+    rows = []
+    acc = np.zeros(0, bool)
+    off = np.zeros(0, bool)
+    for i, phase in enumerate(own):
+        x = values(metric, phase)
+        hit = np.isinf(x) | np.where(np.isnan(x), False, x > limit)
+        acc = hit if i == 0 else acc | hit
+        if {"max_tracking", "max_cross_track"} & present:
+            o, _ = _off_route(values, phase, present, track_limit, cross_limit)
+            off = o if i == 0 else off | o
+    for name, hit in (("acceleration", acc), ("route", off)):
+        if not hit.size:
+            continue
+        n, k = len(hit), int(hit.sum())
+        p, lo, hi = exceedance_interval(k, n, confidence)
+        rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
+                     "ci_high": hi, "p_max": hi})  # fmt: skip
+    return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
+                                       "ci_high", "p_max"]).set_index("table")  # fmt: skip
+
+
+def _worst(x: np.ndarray, worst: str) -> float:
+    x = x[~np.isnan(x)]
+    if not x.size:
+        return math.nan
+    return float(x.max() if worst == "max" else x.min())
+
+
+def _mean_columns(
+    metric: str, phase: str, wide: dict[str, pd.DataFrame], confidence: float
+) -> dict[str, float]:
+    if phase == ALL_PHASES:
+        return {f"{metric}_mean": math.nan, f"{metric}_ci_low": math.nan,
+                f"{metric}_ci_high": math.nan}  # fmt: skip
+    sel = wide[phase]
+    x = sel[metric].to_numpy(float)
+    x = x[~phase_diverged(sel.reset_index())]
+    _, mean, lo, hi = mean_ci(x, confidence)
+    out = {f"{metric}_mean": mean, f"{metric}_ci_low": lo, f"{metric}_ci_high": hi}
+    if metric in DURATIONS:  # how many flights spent any time there (0: "0 of N flights")
+        out |= {f"{metric}_flights": float((x > 0).sum()), f"{metric}_n": float(x.size)}
+    return out
