@@ -74,6 +74,9 @@ pub struct BatchOutput {
 /// Thread pools kept alive between calls (most recently used last).
 pub const POOLS_KEPT: usize = 2;
 
+/// Each worker thread's stack (see `pool`).
+const WORKER_STACK: usize = 16 << 20;
+
 /// A rayon pool of `workers` threads, reused across calls. Only the `POOLS_KEPT` most recently
 /// used sizes are kept: a pool evicted while a batch still runs on it lives until that batch
 /// ends (the batch holds an `Arc`), then its threads exit. So calling with many different
@@ -93,6 +96,10 @@ pub fn pool(workers: usize) -> Arc<rayon::ThreadPool> {
         let built = rayon::ThreadPoolBuilder::new()
             .num_threads(workers)
             .thread_name(|i| format!("quadrs-worker-{i}"))
+            // A flight's frames hold whole lane-sets of states (eight lanes of every state on
+            // AVX-512): an unoptimised build needs between 2 and 4 MiB, past the 2 MiB a
+            // thread gets by default. Reserved, not touched: address space, not memory.
+            .stack_size(WORKER_STACK)
             .build()
             .expect("thread pool");
         pools.push((workers, Arc::new(built)));
