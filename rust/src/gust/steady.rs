@@ -9,7 +9,8 @@ use crate::lane::explog;
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_number, Field, Key};
-use crate::config::{finite, non_negative, Config, ConfigError, Wind};
+use crate::config::{finite, non_negative, ConfigError};
+use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
 /// m, the MIL-F-8785C reference height of the mean wind (20 ft).
@@ -102,7 +103,7 @@ impl WindSource for Steady {
     }
 
     /// Blows where `wind.speed` is not 0.
-    fn build(cfg: &Config) -> Option<Self> {
+    fn build(cfg: &WindContext) -> Option<Self> {
         let wind = &cfg.wind;
         let chi = wind.heading.to_radians();
         (wind.speed != 0.0).then_some(Steady {
