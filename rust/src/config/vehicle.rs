@@ -1,4 +1,5 @@
-//! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag) and its checks.
+//! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag, which body flies:
+//! `BodyModel`) and its checks.
 
 use super::params::params;
 use super::{finite, non_negative, positive, ConfigError};

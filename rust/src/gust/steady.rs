@@ -97,7 +97,7 @@ const KEYS: [Key; 4] = [
 
 impl WindSource for Steady {
     const MEAN_AIR: bool = true;
-    /// Fields of `[wind]` itself (`config::Wind`), not a table of its own.
+    /// Fields of `[wind]` itself (`gust::Wind`), not a table of its own.
     fn keys() -> Vec<(String, Key)> {
         KEYS.iter().map(|k| (k.name.to_string(), *k)).collect()
     }

@@ -176,7 +176,7 @@ macro_rules! kinds {
             }
         }
 
-        /// Read key by key (`config::section`): each value as its owner's field type.
+        /// Read key by key (`model::section`): each value as its owner's field type.
         impl<'de> serde::Deserialize<'de> for $Section {
             fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
                 struct Table;

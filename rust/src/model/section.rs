@@ -1,9 +1,10 @@
 //! A section of the scenario that a family of kinds shares (`[payload]`, `[actuator]`): one flat
 //! table holding the keys every kind of the family has (`model`, the payload's `mass`, ...,
-//! declared in `config::payload` and `config::actuator` as `Shared`) and the keys each kind
-//! owns (the cable's `cable_length`, the rotors' `thrust_max`), declared in the kind's own file
-//! (`model::payload::cable`, `model::actuator::rotors`). `model::kinds!` assembles the section's
-//! struct from the registration; this file holds what its reading needs.
+//! declared as `Shared` in `payload::shared` and `actuator::shared`) and the keys each kind owns
+//! (the cable's `cable_length`, the rotors' `thrust_max`), declared in the kind's own file
+//! (`payload::cable`, `actuator::rotors`). `model::kinds!` assembles the section's struct from
+//! the registration; this file holds what its reading needs, and `ModelContext`, what a kind is
+//! built and checked from.
 //!
 //! The table is read key by key, each value as its owner's field type where it stands, so that
 //! serde_path_to_error names the dotted key of a mistyped value (`payload.cable_length`) and an

@@ -1,7 +1,7 @@
 //! `[actuator]`: the key every actuator kind shares (which kind flies). Each kind's own keys
 //! are declared and checked in its file (`model::actuator::rotors::params`), the section
 //! assembled from the registration `model::kinds!` (`ActuatorConfig`, read by
-//! `config::section`).
+//! `model::section`).
 
 use super::{ActuatorConfig, ActuatorKind};
 use crate::config::params::params;

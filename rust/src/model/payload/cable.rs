@@ -29,17 +29,13 @@
 //! but nothing of them reaches the quadrotor.
 
 use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
-use crate::config::params::params;
-use crate::config::{non_negative, positive, ConfigError};
+use crate::config::{non_negative, params::params, positive, ConfigError};
 use crate::lane::Lane;
 use crate::model::body::{Body, Frame};
-use crate::model::layout::{Axis, Bound, Part, StateVar};
-use crate::model::section::OwnsKeys;
-use crate::model::ModelContext;
-use crate::model::{ix, Layout, State};
+use crate::model::{ix, Axis, Bound, Layout, ModelContext, OwnsKeys, Part, State, StateVar};
 
 params! {
-    /// The cable's own keys in `[payload]` (beside the point mass's, `config::payload::Shared`).
+    /// The cable's own keys in `[payload]` (beside the point mass's, `model::payload::Shared`).
     /// Optional in the table, so that another kind's scenario reads without them; required
     /// when the cable flies (`validate`).
     pub struct CableParams {

@@ -1,7 +1,7 @@
 //! `[payload]`: the keys every payload kind shares (which kind flies, and the point mass on its
 //! attachment) and their checks. Each kind's own keys are declared and checked in its file
 //! (`model::payload::cable`), the section assembled from the registration `model::kinds!`
-//! (`PayloadConfig`, read by `config::section`).
+//! (`PayloadConfig`, read by `model::section`).
 
 use super::PayloadKind;
 use crate::config::params::params;

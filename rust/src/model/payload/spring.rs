@@ -13,7 +13,7 @@ use crate::model::{ix, Layout, State};
 
 params! {
     /// The spring's own keys in `[payload]`: none beyond the point mass's
-    /// (`config::payload::Shared`).
+    /// (`model::payload::Shared`).
     pub struct SpringParams {}
 }
 
