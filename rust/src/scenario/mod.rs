@@ -14,11 +14,11 @@
 pub mod keys;
 
 use crate::config::keys::Seg;
+use crate::config::{dispersions, params, route, trajectory};
 pub use crate::config::{
-    dispersions, flight, params, route, trajectory, vehicle, wind, BodyModel, ConfigError, Context,
-    Dispersions, Distribution, Divergence, Environment, Ground, Gust, GustAirspeed, GustAltitude,
-    GustComponent, GustModel, Initial, Integrator, Intensity, Interpolation, Metrics, Phase,
-    Trajectory, Trim, Vehicle, Winch, LEGS, MAX_STEPS,
+    BodyModel, ConfigError, Context, Dispersions, Distribution, Divergence, Environment, Ground,
+    Gust, GustAirspeed, GustAltitude, GustComponent, GustModel, Initial, Integrator, Intensity,
+    Interpolation, Metrics, Phase, Trajectory, Trim, Vehicle, Winch, LEGS, MAX_STEPS,
 };
 pub use crate::control::{ControlContext, ControllerConfig};
 pub use crate::gust::gusts::{DiscreteGust, GustShape};
