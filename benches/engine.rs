@@ -17,10 +17,10 @@
 //!
 //! Both controllers are flown in turn (PD then SMC), as a paired realisation is.
 
-use _core::config::Config;
 use _core::control::ControllerKind;
 use _core::integrate::{Engine, FlightRequest};
 use _core::lane::isa::Isa;
+use _core::scenario::Config;
 use criterion::measurement::WallTime;
 use criterion::{
     criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion, Throughput,

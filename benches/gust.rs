@@ -8,8 +8,8 @@
 //! normals per step); `outside`: 75,000 steps before the window (zeros). Throughput is in
 //! samples (`elem/s`).
 
-use _core::config::Config;
 use _core::gust::WindField;
+use _core::scenario::Config;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 use std::time::Duration;
@@ -27,7 +27,7 @@ fn paper() -> Config {
 }
 
 fn gust(c: &mut Criterion) {
-    let field = WindField::new(&paper()).unwrap();
+    let field = WindField::new(&paper().wind_context()).unwrap();
     let first = (25.0 / DT).round() as u64;
     let n = ((40.0 - 25.0) / DT).round() as u64;
     let mut g = c.benchmark_group("gust");

@@ -7,10 +7,10 @@
 //! SIMD, to compare physics before and after a change; `metrics-lateral` the same off the
 //! vertical line, with all gust components). CTRL: pd | smc (default pd).
 
-use _core::config::Config;
 use _core::control::ControllerKind;
 use _core::integrate::{Engine, FlightRequest};
 use _core::montecarlo::{pool, run_batch, Batch};
+use _core::scenario::Config;
 use rustfft::FftPlanner;
 use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::time::Instant;

@@ -3,7 +3,7 @@
 //! JSON: every value arrives bit for bit) and is validated like any scenario.
 
 use crate::config::keys::Seg;
-use crate::config::{Config, ConfigError};
+use crate::scenario::{Config, ConfigError};
 
 /// The values a batch's realisations fly: row `j` (realisation `first + j`) sets `keys` to
 /// `values[j * keys.len()..][..keys.len()]` in the scenario.
@@ -107,7 +107,7 @@ impl Dispersion {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
 
     #[test]
     fn rows_set_their_keys_and_bad_draws_name_key_and_realisation() {

@@ -371,8 +371,8 @@ pub fn run_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
-    use crate::config::Config;
+    use crate::scenario::tests::paper;
+    use crate::scenario::Config;
 
     fn short() -> Config {
         let mut cfg = paper();

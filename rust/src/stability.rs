@@ -22,13 +22,13 @@
 //! decomposed on its own: the eigenvalues of identical x and y loops then never mix their
 //! eigenvectors, and each pole keeps an unambiguous mode label.
 
-use crate::config::{Config, GustComponent};
 use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
 use crate::lane::{dual::Dual, Lane};
 use crate::model::{
     dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, PayloadModel,
     State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
+use crate::scenario::{Config, GustComponent};
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
 
@@ -230,7 +230,7 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
             self,
         ) -> Box<dyn ClosedLoop> {
             let Build(cfg, kind, r) = self;
-            let parts = AnyVehicle::new(cfg);
+            let parts = AnyVehicle::new(&cfg.model_context());
             let mut vars = crate::model::state_vars_of::<B, Pay, Act>();
             if let Some(k) = B::DEPENDENT {
                 vars.remove(k);
@@ -252,7 +252,9 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
                         vars: self.vars,
                         plain: self.parts.vehicle_on::<B, Pay, Act>(),
                         dual: AnyVehicle::gather_on::<Dual, B, Pay, Act>(&[&self.parts]),
-                        ctrl: AnyController::new(self.kind, self.cfg).get::<C>().clone(),
+                        ctrl: AnyController::new(self.kind, &self.cfg.control_context())
+                            .get::<C>()
+                            .clone(),
                         r: self.r,
                     })
                 }
@@ -723,16 +725,16 @@ pub fn lateral_sources(cfg: &Config) -> Vec<&'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
     use crate::model::actuator::Ideal;
     use crate::model::paper_ix::{self as ix, NX};
     use crate::model::payload::Spring;
+    use crate::scenario::tests::paper;
 
     /// Rows of C and D (the paper layout).
     const NY: usize = NX + SIGNAL_OUTPUTS.len();
 
     fn paper_vehicle(cfg: &Config) -> crate::model::PaperVehicle {
-        AnyVehicle::new(cfg).vehicle::<Spring, Ideal>()
+        AnyVehicle::new(&cfg.model_context()).vehicle::<Spring, Ideal>()
     }
 
     fn poles_of(a: &Analysis, mode: &str) -> Vec<Complex<f64>> {

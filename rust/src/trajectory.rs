@@ -1,7 +1,7 @@
 //! Reference trajectory from waypoints, and the flight's named phases (docs/model.md section 3).
 
 use crate::config::route::FLIGHT_PHASE;
-use crate::config::{Config, Interpolation};
+use crate::config::{Context, Interpolation};
 use crate::legs::{Segment, SegmentKind};
 
 /// Desired position (x, y, z), yaw and their first two derivatives at one instant.
@@ -31,7 +31,7 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
-    pub fn new(cfg: &Config) -> Self {
+    pub fn new(cfg: &Context) -> Self {
         let w = &cfg.trajectory.waypoints;
         let [x, y, z] = cfg.initial.position;
         Self {
@@ -233,7 +233,7 @@ impl PhaseSteps {
 
 /// Each phase of the scenario on the step grid: the samples whose time lies in [start, end].
 /// After them, the whole flight (`FLIGHT_PHASE`): every sample, 0 to the last step.
-pub fn phase_steps(cfg: &Config) -> Vec<PhaseSteps> {
+pub fn phase_steps(cfg: &Context) -> Vec<PhaseSteps> {
     let dt = cfg.integrator.dt;
     let steps = cfg.steps();
     cfg.phases
@@ -254,7 +254,7 @@ pub fn phase_steps(cfg: &Config) -> Vec<PhaseSteps> {
 }
 
 /// The names of `phase_steps`' phases: the scenario's, then `FLIGHT_PHASE`.
-pub fn phase_names(cfg: &Config) -> Vec<String> {
+pub fn phase_names(cfg: &Context) -> Vec<String> {
     cfg.phases
         .iter()
         .map(|p| p.name.clone())
@@ -265,12 +265,12 @@ pub fn phase_names(cfg: &Config) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
 
     #[test]
     fn step_reference_jumps_at_waypoints() {
         let cfg = paper();
-        let tr = Trajectory::new(&cfg);
+        let tr = Trajectory::new(&cfg.context());
         let mut seg = 0;
         assert_eq!(tr.at(0.0, &mut seg).pos, [0.0, 0.0, 2.0]);
         assert_eq!(tr.at(59.9998, &mut seg).pos[2], 2.0);
@@ -287,7 +287,7 @@ mod tests {
         cfg.initial.position = [0.0; 3];
         cfg.initial.attitude = [0.0; 3];
         cfg.trajectory.waypoints = vec![[0.0, 1.0, -2.0, 3.0, 0.4], [10.0, 1.0, -2.0, 0.0, 0.0]];
-        let tr = Trajectory::new(&cfg);
+        let tr = Trajectory::new(&cfg.context());
         let mut seg = 0;
         let mid = tr.at(2.0, &mut seg);
         assert!((mid.pos[2] - 1.5).abs() < 1e-12, "symmetric halfway");
@@ -324,16 +324,16 @@ mod tests {
     #[test]
     fn min_jerk_tends_to_step_and_never_overruns_the_next_waypoint() {
         let mut cfg = paper();
-        let step = Trajectory::new(&cfg);
+        let step = Trajectory::new(&cfg.context());
         cfg.trajectory.interpolation = Interpolation::MinJerk;
         cfg.trajectory.transition = 0.0;
-        let zero = Trajectory::new(&cfg);
+        let zero = Trajectory::new(&cfg.context());
         for t in [0.0, 1.0, 59.9, 60.0, 65.0] {
             assert_eq!(zero.at(t, &mut 0), step.at(t, &mut 0), "t = {t}");
         }
         // a transition longer than the gap ends at the next waypoint's time
         cfg.trajectory.transition = 100.0;
-        let long = Trajectory::new(&cfg);
+        let long = Trajectory::new(&cfg.context());
         let r = long.at(60.0 - 1e-6, &mut 0);
         assert!(
             (r.pos[2] - 2.0).abs() < 1e-9 && r.vel[2].abs() < 1e-6,
@@ -344,7 +344,7 @@ mod tests {
     #[test]
     fn paper_phases_on_the_grid() {
         let cfg = paper();
-        let ph = phase_steps(&cfg);
+        let ph = phase_steps(&cfg.context());
         assert_eq!(
             ph[0],
             PhaseSteps {

@@ -1,10 +1,10 @@
 //! Checks of the arguments Python passes, before the engine runs.
 
 use super::errors::scenario_error;
-use crate::config::Config;
 use crate::control::ControllerKind;
 use crate::integrate::Engine;
 use crate::memory;
+use crate::scenario::Config;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 

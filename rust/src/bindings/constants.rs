@@ -27,7 +27,7 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // declaration beside its section's struct or in its kind's file (`config::params!`).
     let units = PyDict::new(m.py());
     let labels = PyDict::new(m.py());
-    for (key, k) in crate::config::Config::keys() {
+    for (key, k) in crate::scenario::Config::keys() {
         units.set_item(&key, k.unit)?;
         labels.set_item(&key, k.label)?;
     }
@@ -35,7 +35,7 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("KEY_LABELS", labels)?;
     // Each controller kind's default table (JSON text), where it has one.
     let defaults = PyDict::new(m.py());
-    for (name, table) in crate::config::ControllerConfig::default_tables() {
+    for (name, table) in crate::scenario::ControllerConfig::default_tables() {
         if let Some(json) = table {
             defaults.set_item(name, json)?;
         }

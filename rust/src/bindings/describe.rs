@@ -2,10 +2,10 @@
 
 use super::checks::isa;
 use super::errors::scenario_error;
-use crate::config::Config;
 use crate::gust;
 use crate::integrate::trace_columns;
 use crate::model::state_vars;
+use crate::scenario::Config;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -16,13 +16,16 @@ use pyo3::types::{PyDict, PyList};
 pub(super) fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Bound<'py, PyDict>> {
     isa()?;
     let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-    gust::WindField::check(&cfg).map_err(scenario_error)?;
+    gust::WindField::check(&cfg.wind_context()).map_err(scenario_error)?;
     let d = PyDict::new(py);
     d.set_item("stiffness", cfg.stiffness())?;
-    d.set_item("hover_offset", crate::model::hover_drop(&cfg))?;
+    d.set_item(
+        "hover_offset",
+        crate::model::hover_drop(&cfg.model_context()),
+    )?;
     d.set_item("steps", cfg.steps())?;
     d.set_item("turbulence_w20", cfg.turbulence_w20())?;
-    d.set_item("phases", crate::trajectory::phase_names(&cfg))?;
+    d.set_item("phases", crate::trajectory::phase_names(&cfg.context()))?;
     let windows: Vec<(String, f64, f64)> = cfg
         .phases
         .iter()
@@ -35,7 +38,7 @@ pub(super) fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Boun
         .collect();
     d.set_item("phase_windows", windows)?;
     let route = PyList::empty(py);
-    for s in crate::config::route::schedule(&cfg).map_err(scenario_error)? {
+    for s in crate::config::route::schedule(&cfg.context()).map_err(scenario_error)? {
         let seg = PyDict::new(py);
         seg.set_item("name", &s.name)?;
         seg.set_item("kind", s.kind.name())?;
@@ -62,7 +65,7 @@ pub(super) fn describe<'py>(py: Python<'py>, config_json: &str) -> PyResult<Boun
         trace_columns(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
     )?;
     let grids: Vec<Bound<'py, PyArray1<f64>>> = crate::metrics::spectrum_grid(
-        &crate::trajectory::phase_steps(&cfg),
+        &crate::trajectory::phase_steps(&cfg.context()),
         cfg.integrator.dt,
         cfg.decimation(),
         cfg.steps(),

@@ -3,10 +3,10 @@
 
 use super::checks::check_workers;
 use super::errors::{guarded, scenario_error};
-use crate::config::{Config, GustComponent, GustModel};
 use crate::gust;
 use crate::memory;
 use crate::montecarlo::pool;
+use crate::scenario::{Config, GustComponent, GustModel};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::exceptions::{PyMemoryError, PyValueError};
@@ -21,7 +21,7 @@ pub(super) fn mean_wind<'py>(
     altitudes: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let cfg = Config::from_json(config_json).map_err(scenario_error)?;
-    let field = gust::WindField::new(&cfg).map_err(scenario_error)?;
+    let field = gust::WindField::new(&cfg.wind_context()).map_err(scenario_error)?;
     let h = altitudes.as_slice()?;
     let out = Array2::from_shape_fn((h.len(), 3), |(i, j)| field.mean_at(h[i])[j]);
     Ok(out.into_pyarray(py))

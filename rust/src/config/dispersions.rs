@@ -2,7 +2,7 @@
 //! Checked here with every other field; sampling the values (random, Latin hypercube, Sobol)
 //! is the Python layer's job (scipy.stats/qmc), and flying them `crate::dispersion`'s.
 
-use super::{Config, ConfigError};
+use super::ConfigError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -31,7 +31,9 @@ pub enum Distribution {
 /// design's dimensions and of the result columns).
 pub type Dispersions = BTreeMap<String, Distribution>;
 
-fn check_distribution(key: &str, d: &Distribution) -> Result<(), ConfigError> {
+/// One distribution of `[dispersions]` sound (its key's checks are the assembled scenario's,
+/// `scenario::Config::per_realisation_key`).
+pub fn check_distribution(key: &str, d: &Distribution) -> Result<(), ConfigError> {
     let err = |msg: String| ConfigError {
         key: format!("dispersions.{key}"),
         message: format!("dispersions: {key:?}: {msg}"),
@@ -94,14 +96,4 @@ fn check_distribution(key: &str, d: &Distribution) -> Result<(), ConfigError> {
             }
         }
     }
-}
-
-/// Check a scenario's `[dispersions]` table: every key a per-realisation number
-/// (`Config::per_realisation_key`), every distribution sound.
-pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
-    for (key, dist) in &cfg.dispersions {
-        cfg.per_realisation_key(key)?;
-        check_distribution(key, dist)?;
-    }
-    Ok(())
 }

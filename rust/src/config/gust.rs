@@ -238,8 +238,8 @@ impl Gust {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::{paper, with};
-    use crate::config::Config;
+    use crate::scenario::tests::{paper, with};
+    use crate::scenario::Config;
 
     #[test]
     fn gust_words_are_one_vocabulary() {

@@ -117,7 +117,7 @@ pub trait Params {
     fn target(&mut self, field: &str, rest: &[Seg]) -> Target<'_>;
     /// The value of key `name` read from `map` as its field's type (so a mistyped value's
     /// error carries its dotted key), as JSON; `None` (nothing read) if `name` is not a key
-    /// of these parameters. For a table whose keys several `Params` share (`config::section`).
+    /// of these parameters. For a table whose keys several `Params` share (`model::section`).
     fn read_value<'de, A: serde::de::MapAccess<'de>>(
         name: &str,
         map: &mut A,

@@ -2,7 +2,7 @@
 //! schedule of holds and legs a route's values give (`schedule`), and the phases of
 //! `phases = "legs"` (`leg_phases`). The motion along a leg is `crate::legs`.
 
-use crate::config::{Config, ConfigError, Interpolation, Phase};
+use crate::config::{ConfigError, Context, Interpolation, Phase};
 use crate::legs::{length, Profile, Segment, SegmentKind, TIME_SLACK};
 
 /// The whole-flight phase every result carries after the scenario's own phases.
@@ -13,7 +13,7 @@ pub const FLIGHT_PHASE: &str = "flight";
 pub const MIN_STEPS: f64 = 4.0;
 
 /// The keys of a route that can be checked without the step grid.
-pub fn validate(cfg: &Config) -> Result<(), ConfigError> {
+pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
     let tr = &cfg.trajectory;
     if tr.interpolation != Interpolation::Route {
         for (key, set) in [
@@ -147,7 +147,7 @@ pub fn lowering_time(payout: f64, v: f64, a: f64) -> f64 {
 /// `integrator.duration` (the time after the last arrival is a hold at the last point). Checks
 /// what needs the step grid: a hold or leg shorter than MIN_STEPS steps, a route longer than the
 /// flight, `trajectory.names`. Empty unless the scenario flies a route; `validate` first.
-pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
+pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
     let tr = &cfg.trajectory;
     if tr.interpolation != Interpolation::Route {
         return Ok(Vec::new());
@@ -165,11 +165,10 @@ pub fn schedule(cfg: &Config) -> Result<Vec<Segment>, ConfigError> {
         let payout = tr.lower.get(i).copied().unwrap_or(0.0);
         if payout > 0.0 {
             // The winch's keys are the cable's, checked with it (`Cable::validate`).
-            let c = &cfg.payload.cable;
             let span = lowering_time(
                 payout,
-                c.winch_speed.unwrap_or(f64::NAN),
-                c.winch_acceleration.unwrap_or(f64::NAN),
+                cfg.winch.speed.unwrap_or(f64::NAN),
+                cfg.winch.acceleration.unwrap_or(f64::NAN),
             );
             out.push(Segment {
                 name: format!("lower{}", i + 1),
@@ -340,7 +339,7 @@ fn abridged(names: &[&str]) -> String {
 }
 
 /// `phases = "legs"`: one phase per segment of the schedule, covering the flight.
-pub fn leg_phases(cfg: &Config) -> Result<Vec<Phase>, ConfigError> {
+pub fn leg_phases(cfg: &Context) -> Result<Vec<Phase>, ConfigError> {
     if cfg.trajectory.interpolation != Interpolation::Route {
         return Err(ConfigError::new(
             "phases",
@@ -374,7 +373,8 @@ pub fn leg_phases(cfg: &Config) -> Result<Vec<Phase>, ConfigError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper_value;
+    use crate::scenario::tests::paper_value;
+    use crate::scenario::Config;
     use crate::trajectory::{phase_steps, Reference, Trajectory};
     use serde_json::json;
     use std::f64::consts::PI;
@@ -417,10 +417,10 @@ mod tests {
                 c["integrator"]["duration"] = json!(30.0);
             })
             .unwrap();
-            let seg = &schedule(&cfg).unwrap()[0];
+            let seg = &schedule(&cfg.context()).unwrap()[0];
             assert_eq!((seg.profile.ramp, seg.profile.cruise), (t, 15.0));
             assert_eq!(seg.arrival, 25.0);
-            let tr = Trajectory::new(&cfg);
+            let tr = Trajectory::new(&cfg.context());
             let r = tr.at(t / 2.0, &mut 0);
             assert!((r.pos[axis] - s_half).abs() < 1e-12, "{r:?}");
             assert!((r.vel[axis] - v / 2.0).abs() < 1e-12);
@@ -443,8 +443,8 @@ mod tests {
     fn reference_rests_at_every_point_within_its_bounds_and_is_continuous() {
         let cfg = route_cfg(|_| {}).unwrap();
         let (speed, accel) = (8.0, 1.5);
-        let segs = schedule(&cfg).unwrap();
-        let tr = Trajectory::new(&cfg);
+        let segs = schedule(&cfg.context()).unwrap();
+        let tr = Trajectory::new(&cfg.context());
         // At rest at each point on arrival, exactly.
         for s in &segs {
             let r = tr.at(s.arrival, &mut 0);
@@ -524,7 +524,7 @@ mod tests {
         }
         // On the step grid: consecutive phases share their boundary sample, the last ends on
         // the last step, and the whole-flight phase follows.
-        let steps = phase_steps(&cfg);
+        let steps = phase_steps(&cfg.context());
         assert_eq!(steps.len(), cfg.phases.len() + 1);
         for w in steps[..cfg.phases.len()].windows(2) {
             assert_eq!(w[0].last, w[1].first);

@@ -3,7 +3,7 @@
 //! their checks (the reference itself is `crate::trajectory`).
 
 use super::params::{not_numbers, params, Key, Params};
-use super::{finite, non_negative, route, Config, ConfigError, Integrator};
+use super::{finite, non_negative, route, ConfigError, Context, Integrator};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -99,7 +99,7 @@ impl Phase {
 impl Trajectory {
     /// Check every value (the route's through `route::validate`); the first problem found is
     /// returned with its key.
-    pub fn validate(&self, cfg: &Config) -> Result<(), ConfigError> {
+    pub fn validate(&self, cfg: &Context) -> Result<(), ConfigError> {
         route::validate(cfg)?;
         let tr = self.transition;
         if !(tr.is_finite() && tr >= 0.0) {

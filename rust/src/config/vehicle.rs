@@ -1,8 +1,8 @@
-//! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag) and its checks.
+//! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag, which body flies:
+//! `BodyModel`) and its checks.
 
 use super::params::params;
 use super::{finite, non_negative, positive, ConfigError};
-use crate::model::BodyModel;
 
 params! {
     pub struct Vehicle {
@@ -72,3 +72,36 @@ impl Vehicle {
         Ok(())
     }
 }
+
+/// Which body flies (`vehicle.body`): the paper's (default) or the rigid body.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum BodyModel {
+    /// Euler angles whose rates are used as body rates; drag per inertial axis (the paper's).
+    #[default]
+    Paper,
+    /// A unit quaternion, true body rates, Euler's equations; drag in body axes.
+    Rigid,
+}
+
+/// Every body, in the order the Python layer lists them (`_core.BODY_MODELS`).
+pub const BODY_MODELS: &[BodyModel] = &[BodyModel::Paper, BodyModel::Rigid];
+
+impl BodyModel {
+    /// The public name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Rigid => "rigid",
+        }
+    }
+
+    /// The default: skipped when a scenario is written out, so the paper's read as before.
+    pub fn is_paper(&self) -> bool {
+        *self == Self::Paper
+    }
+}
+
+super::params::not_numbers!(BodyModel);

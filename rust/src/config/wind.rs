@@ -3,17 +3,10 @@
 //! the vehicle (`gust.altitude = "vehicle"`, `gust.airspeed = "relative"`, `gust.intensity`).
 
 //!
-//! The wind sources' own types (their tables, checks, keys and physics) live in their files in
-//! `gust/` (`gust::source`, docs/architecture.md "Wind"); they are named here for the `[wind]`
-//! table that holds them.
+//! The `[wind]` table itself (`gust::Wind`) and its sources' own types (their tables, checks,
+//! keys and physics) live in their files in `gust/` (`gust::source`, docs/architecture.md
+//! "Wind").
 
-use super::ConfigError;
-pub use crate::gust::gusts::{discrete_gust, DiscreteGust, GustShape};
-pub use crate::gust::steady::{
-    shear_factor, shear_factor_with, shear_log_reference, Shear, DEFAULT_ROUGHNESS,
-    REFERENCE_HEIGHT,
-};
-pub use crate::gust::table::{table_wind, TableBy, WindTable};
 use serde::{Deserialize, Serialize};
 
 /// m/s, default `gust.min_airspeed`: the floor of the relative airspeed convecting the
@@ -112,55 +105,6 @@ impl Intensity {
     }
 }
 
-/// The `[wind]` table: the keys of the wind sources (`gust/source.rs`: the mean wind with its
-/// shear, the discrete gusts, a measured table), each kind's checks and keys in its own file.
-/// Absent: no wind outside the section-4 gust window (the paper's flight).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Wind {
-    /// m/s, W20: the mean wind at 20 ft (6.096 m).
-    #[serde(default)]
-    pub speed: f64,
-    /// deg, the direction the wind blows toward, counter-clockwise from +x.
-    #[serde(default)]
-    pub heading: f64,
-    #[serde(default)]
-    pub shear: Shear,
-    /// m, z0 of the log profile.
-    #[serde(default = "default_roughness")]
-    pub roughness: f64,
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub gusts: Vec<DiscreteGust>,
-    /// A measured wind added to the others (`[wind.table]`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub table: Option<WindTable>,
-}
-
-fn default_roughness() -> f64 {
-    DEFAULT_ROUGHNESS
-}
-
 pub(super) fn default_min_airspeed() -> f64 {
     DEFAULT_MIN_AIRSPEED
-}
-
-impl Default for Wind {
-    /// Every key at its serde default (no source blows): the defaults are the fields' own, so
-    /// a source's table is one field here.
-    fn default() -> Self {
-        serde_json::from_str("{}").expect("every `[wind]` key has a default")
-    }
-}
-
-impl Wind {
-    /// No mean wind and no discrete gust (then the table is left out of the JSON form).
-    pub fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
-
-    /// Check every value; the first problem found is returned with its key (each source's
-    /// checks, in registration order: `gust::AnySource::validate`).
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        crate::gust::AnySource::validate(self)
-    }
 }

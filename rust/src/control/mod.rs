@@ -21,11 +21,28 @@ pub use smc::Smc;
 
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{Field, Key, Params, Table};
-use crate::config::{non_negative, positive, Config, ConfigError};
+use crate::config::{non_negative, positive, ConfigError};
 use crate::lane::{KernelOps, Lane, Param};
-use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
+use crate::model::{Inputs, ModelContext, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+/// What a law is built and checked from: the payload and actuator kinds' view of the scenario
+/// (`model::ModelContext`, read through it as `cfg.vehicle`, `cfg.payload.mass`,
+/// `cfg.actuator.rotors`) and the controllers' own section. The model sits below the laws: a
+/// law reads the vehicle's kinds, never the reverse.
+#[derive(Debug, Clone, Copy)]
+pub struct ControlContext<'a> {
+    pub model: ModelContext<'a>,
+    pub controller: &'a ControllerConfig,
+}
+
+impl<'a> std::ops::Deref for ControlContext<'a> {
+    type Target = ModelContext<'a>;
+    fn deref(&self) -> &ModelContext<'a> {
+        &self.model
+    }
+}
 
 /// Slots of a law's discrete memory (`Control::step_with`): enough for every registered law.
 pub const MEMORY_SLOTS: usize = 22;
@@ -152,8 +169,8 @@ pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static
     }
     /// Check every parameter; `key` is the table's dotted key (`"controller.pd"`), which every
     /// message names as `{key}.{name}`.
-    fn validate(p: &Self::Params, key: &str, cfg: &Config) -> Result<(), ConfigError>;
-    fn new(p: &Self::Params, cfg: &Config) -> Self;
+    fn validate(p: &Self::Params, key: &str, cfg: &ControlContext) -> Result<(), ConfigError>;
+    fn new(p: &Self::Params, cfg: &ControlContext) -> Self;
     /// One vehicle per lane: lane `l` of every gain is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
 }
@@ -244,7 +261,7 @@ macro_rules! controllers {
             }
 
             /// Every kind's table is there and its values in range.
-            fn validate_kinds(&self, cfg: &Config) -> Result<(), ConfigError> {
+            fn validate_kinds(&self, cfg: &ControlContext) -> Result<(), ConfigError> {
                 $(
                     let key = concat!("controller.", stringify!($name));
                     match &self.$name.0 {
@@ -280,7 +297,7 @@ macro_rules! controllers {
 
         impl AnyController {
             /// The law `kind` of a validated scenario.
-            pub fn new(kind: ControllerKind, cfg: &Config) -> Self {
+            pub fn new(kind: ControllerKind, cfg: &ControlContext) -> Self {
                 match kind {
                     $(ControllerKind::$Ty => {
                         Self::$Ty(<$Ty as Controller>::new(&cfg.controller.$name, cfg))
@@ -391,7 +408,7 @@ impl ControllerConfig {
     }
 
     /// Check every value: the shared keys, then each kind's table.
-    pub fn validate(&self, cfg: &Config) -> Result<(), ConfigError> {
+    pub fn validate(&self, cfg: &ControlContext) -> Result<(), ConfigError> {
         let tl = self.tilt_limit;
         positive("controller.tilt_limit", tl)?;
         if tl > std::f64::consts::FRAC_PI_2 {
@@ -451,7 +468,7 @@ impl ControllerKind {
 pub struct Laws(Vec<AnyController>);
 
 impl Laws {
-    pub fn new(cfg: &Config) -> Self {
+    pub fn new(cfg: &ControlContext) -> Self {
         Self(
             ControllerKind::ALL
                 .iter()
@@ -486,7 +503,7 @@ pub struct Shared<P = f64> {
 const MIN_TILT_COS: f64 = 1e-6;
 
 impl Shared {
-    pub fn new(cfg: &Config) -> Self {
+    pub fn new(cfg: &ControlContext) -> Self {
         let c = &cfg.controller;
         let mt = if c.mass_compensation {
             cfg.vehicle.mass + cfg.payload.mass
@@ -584,7 +601,7 @@ fn position_errors<L: Lane>(s: &Rigid<L>, r: &Reference) -> ([L; 3], [L; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
 
     /// At rest at `pos` with yaw `psi`.
     pub(crate) fn at_rest(pos: [f64; 3], psi: f64) -> Rigid<f64> {
@@ -611,8 +628,8 @@ mod tests {
         let cfg = paper();
         let w = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
         for u in [
-            hover_inputs(&Pd::new(&cfg.controller.pd, &cfg)),
-            hover_inputs(&Smc::new(&cfg.controller.smc, &cfg)),
+            hover_inputs(&Pd::new(&cfg.controller.pd, &cfg.control_context())),
+            hover_inputs(&Smc::new(&cfg.controller.smc, &cfg.control_context())),
         ] {
             assert!((u.u1 - w).abs() < 1e-12, "U1 = {} vs weight {w}", u.u1);
             assert_eq!(u.tau, [0.0; 3]);
@@ -654,22 +671,22 @@ mod tests {
 
     #[test]
     fn a_missing_controller_table_is_named() {
-        let mut v = crate::config::tests::paper_value();
+        let mut v = crate::scenario::tests::paper_value();
         v["controller"].as_object_mut().unwrap().remove("smc");
-        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
         assert_eq!(e.key, "controller.smc");
         assert_eq!(
             e.message,
             "controller.smc must be given (the smc law's parameters)"
         );
-        let mut v = crate::config::tests::paper_value();
+        let mut v = crate::scenario::tests::paper_value();
         v["controller"]["pd"]["kq"] = serde_json::json!([1, 2, 3]);
-        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
         assert_eq!(e.key, "controller.pd.kq");
         assert!(e.message.contains("unknown field `kq`"), "{e}");
-        let mut v = crate::config::tests::paper_value();
+        let mut v = crate::scenario::tests::paper_value();
         v["controller"]["smc"]["eta"][1] = serde_json::json!(-1.0);
-        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
         assert_eq!(e.key, "controller.smc.eta[1]");
         assert_eq!(e.message, "controller.smc.eta[1] must be >= 0, got -1.0");
     }
@@ -679,8 +696,11 @@ mod tests {
         for &kind in ControllerKind::ALL {
             assert_eq!(ControllerKind::parse(kind.name()), Ok(kind));
             let cfg = paper();
-            assert_eq!(AnyController::new(kind, &cfg).kind(), kind);
-            assert_eq!(Laws::new(&cfg).get(kind).kind(), kind);
+            assert_eq!(
+                AnyController::new(kind, &cfg.control_context()).kind(),
+                kind
+            );
+            assert_eq!(Laws::new(&cfg.control_context()).get(kind).kind(), kind);
         }
         let e = ControllerKind::parse("lqr").unwrap_err();
         assert!(
@@ -692,7 +712,7 @@ mod tests {
 
     #[test]
     fn attitude_inversion_reproduces_the_virtual_inputs() {
-        let sh = Shared::new(&paper());
+        let sh = Shared::new(&paper().control_context());
         for &(ux, uy, psi) in &[(0.1, -0.2, 0.5), (-0.3, 0.05, -2.0), (0.0, 0.4, 3.0)] {
             let (spsi, cpsi) = f64::sin_cos(psi);
             let (phi, th): (f64, f64) = sh.desired_attitude(ux, uy, spsi, cpsi);
@@ -707,7 +727,7 @@ mod tests {
     fn tilt_limit_bounds_the_commanded_angles() {
         let mut cfg = paper();
         cfg.controller.tilt_limit = 0.2;
-        let sh = Shared::new(&cfg);
+        let sh = Shared::new(&cfg.control_context());
         let (phi, th): (f64, f64) = sh.desired_attitude(5.0, -5.0, 0.0, 1.0);
         assert!((phi.abs() - 0.2).abs() < 1e-12 && (th.abs() - 0.2).abs() < 1e-12);
     }

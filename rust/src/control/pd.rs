@@ -1,10 +1,11 @@
 //! PD cascade (paper eqs. 4-7), with optional feedback of the parcel's swing (docs/model.md,
 //! "The swing-damping PD").
 
+use super::ControlContext;
 use super::{non_negative3, position_errors, Control, Controller, Memory, Shared};
 use crate::config::non_negative;
 use crate::config::params::params;
-use crate::config::{Config, ConfigError};
+use crate::config::ConfigError;
 use crate::lane::{gather3, KernelOps, Lane, Param};
 use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -54,7 +55,7 @@ impl Controller for Pd {
     type Params = PdGains;
     type At<L: Lane> = Pd<L>;
 
-    fn validate(k: &PdGains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(k: &PdGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
         non_negative3(key, "kp", &k.kp)?;
         non_negative3(key, "kd", &k.kd)?;
         non_negative3(key, "kp_attitude", &k.kp_attitude)?;
@@ -63,7 +64,7 @@ impl Controller for Pd {
         non_negative(format_args!("{key}.swing_damping"), k.swing_damping)
     }
 
-    fn new(k: &PdGains, cfg: &Config) -> Self {
+    fn new(k: &PdGains, cfg: &ControlContext) -> Self {
         Self {
             shared: Shared::new(cfg),
             kp: k.kp,
@@ -216,12 +217,12 @@ impl<P: Copy> Pd<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
 
     #[test]
     fn altitude_error_raises_thrust_by_kp() {
         let cfg = paper();
-        let pd = Pd::new(&cfg.controller.pd, &cfg);
+        let pd = Pd::new(&cfg.controller.pd, &cfg.control_context());
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
         let r = Reference {
@@ -255,7 +256,7 @@ mod tests {
     #[test]
     fn without_swing_gains_the_payload_is_not_seen() {
         let cfg = paper();
-        let pd = Pd::new(&cfg.controller.pd, &cfg);
+        let pd = Pd::new(&cfg.controller.pd, &cfg.control_context());
         let blind = seeing(&pd, &PayloadView::none());
         let u = seeing(&pd, &swinging());
         assert_eq!(u.u1.to_bits(), blind.u1.to_bits());
@@ -267,7 +268,7 @@ mod tests {
         let cfg = paper();
         let mut gains = cfg.controller.pd.clone();
         gains.swing_damping = 2.0;
-        let pd = Pd::new(&gains, &cfg);
+        let pd = Pd::new(&gains, &cfg.control_context());
         let still = seeing(&pd, &PayloadView::none());
         let u = seeing(&pd, &swinging());
         // Forward: a larger pitch command (theta > 0 accelerates toward +x at psi = 0); the
@@ -277,11 +278,11 @@ mod tests {
         assert_eq!(u.tau[0].to_bits(), still.tau[0].to_bits());
         let mut bad = gains.clone();
         bad.swing_damping = -1.0;
-        let e = Pd::validate(&bad, "controller.pd", &cfg).unwrap_err();
+        let e = Pd::validate(&bad, "controller.pd", &cfg.control_context()).unwrap_err();
         assert_eq!(e.key, "controller.pd.swing_damping");
         bad.swing_damping = 0.0;
         bad.swing_gain = f64::NAN;
-        let e = Pd::validate(&bad, "controller.pd", &cfg).unwrap_err();
+        let e = Pd::validate(&bad, "controller.pd", &cfg.control_context()).unwrap_err();
         assert_eq!(e.key, "controller.pd.swing_gain");
     }
 }

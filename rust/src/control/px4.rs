@@ -7,9 +7,10 @@
 //! filtered derivatives and the allocator's saturation status advance once per control step.
 
 use super::px4_allocator::{allocate, Mixer};
+use super::ControlContext;
 use super::{Control, Controller, Memory, Shared};
 use crate::config::params::params;
-use crate::config::{non_negative, positive, Config, ConfigError};
+use crate::config::{non_negative, positive, ConfigError};
 use crate::lane::{gather3, KernelOps, Lane, Param};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
@@ -206,7 +207,7 @@ impl Controller for Px4 {
         Some(Px4Params::default())
     }
 
-    fn validate(k: &Px4Params, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(k: &Px4Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
         let nn = [
             ("MPC_XY_P", k.MPC_XY_P),
             ("MPC_Z_P", k.MPC_Z_P),
@@ -314,7 +315,7 @@ impl Controller for Px4 {
         Ok(())
     }
 
-    fn new(k: &Px4Params, cfg: &Config) -> Self {
+    fn new(k: &Px4Params, cfg: &ControlContext) -> Self {
         let shared = Shared::new(cfg);
         let g = cfg.environment.gravity;
         let dt = cfg.integrator.dt;
@@ -407,7 +408,7 @@ impl Controller for Px4 {
 /// airframe: the rotors' `layout`, quad X by default) and the reaction torque per thrust of the
 /// rotors its outputs drive: the rotors' own `torque_ratio` when the actuator is the rotors,
 /// else PX4's belief `yaw_torque_ratio`.
-fn px4_geometry(k: &Px4Params, cfg: &Config) -> (RotorLayout, f64) {
+fn px4_geometry(k: &Px4Params, cfg: &ControlContext) -> (RotorLayout, f64) {
     let rotors = &cfg.actuator.rotors;
     match cfg.actuator.model {
         ActuatorKind::Rotors => (rotors.layout, rotors.torque_ratio),
@@ -763,11 +764,12 @@ impl<P: Copy + Sync> Control<P> for Px4<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
     use crate::control::tests::at_rest;
+    use crate::scenario::tests::paper;
+    use crate::scenario::Config;
 
     fn px4(cfg: &Config) -> Px4 {
-        Px4::new(&Px4Params::default(), cfg)
+        Px4::new(&Px4Params::default(), &cfg.control_context())
     }
 
     #[test]
@@ -876,10 +878,10 @@ mod tests {
 
     #[test]
     fn a_bad_value_is_named() {
-        let mut v = crate::config::tests::paper_value();
+        let mut v = crate::scenario::tests::paper_value();
         v["controller"]["px4"] = serde_json::to_value(Px4Params::default()).unwrap();
         v["controller"]["px4"]["MPC_TILTMAX_AIR"] = serde_json::json!(95.0);
-        let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+        let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
         assert_eq!(e.key, "controller.px4.MPC_TILTMAX_AIR");
         assert!(e.message.contains("between 0 and 90 deg"), "{e}");
     }
@@ -887,10 +889,10 @@ mod tests {
     #[test]
     fn a_least_thrust_at_or_above_hover_is_refused() {
         for min in [0.5, 0.6] {
-            let mut v = crate::config::tests::paper_value();
+            let mut v = crate::scenario::tests::paper_value();
             v["controller"]["px4"] = serde_json::to_value(Px4Params::default()).unwrap();
             v["controller"]["px4"]["MPC_THR_MIN"] = serde_json::json!(min);
-            let e = crate::config::Config::from_json(&v.to_string()).unwrap_err();
+            let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
             assert_eq!(e.key, "controller.px4.MPC_THR_MIN");
             assert!(e.message.contains("below MPC_THR_HOVER"), "{e}");
         }

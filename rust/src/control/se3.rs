@@ -6,9 +6,10 @@
 //! `R` once). Gains per axis, normalised by the controller's mass and inertia as RotorPy's are:
 //! Lee's gain matrices are `m diag(kx)`, `m diag(kv)`, `J diag(kR)`, `J diag(kW)`.
 
+use super::ControlContext;
 use super::{non_negative3, position_errors, Control, Controller, Shared, MIN_TILT_COS};
 use crate::config::params::params;
-use crate::config::{Config, ConfigError};
+use crate::config::ConfigError;
 use crate::lane::{gather3, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -56,14 +57,14 @@ impl Controller for Se3 {
         Some(DEFAULTS)
     }
 
-    fn validate(k: &Se3Gains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(k: &Se3Gains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
         non_negative3(key, "kx", &k.kx)?;
         non_negative3(key, "kv", &k.kv)?;
         non_negative3(key, "kR", &k.kR)?;
         non_negative3(key, "kW", &k.kW)
     }
 
-    fn new(k: &Se3Gains, cfg: &Config) -> Self {
+    fn new(k: &Se3Gains, cfg: &ControlContext) -> Self {
         Self {
             shared: Shared::new(cfg),
             kx: k.kx,
@@ -213,11 +214,12 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
+    use crate::scenario::Config;
 
     fn law() -> (Se3, Config) {
         let cfg = paper();
-        (Se3::new(&cfg.controller.se3, &cfg), cfg)
+        (Se3::new(&cfg.controller.se3, &cfg.control_context()), cfg)
     }
 
     fn state(pos: [f64; 3], att: [f64; 3], rate: [f64; 3]) -> Rigid<f64> {
@@ -384,7 +386,7 @@ mod tests {
     fn desired_axes_are_a_rotation_within_the_tilt_limit() {
         let mut cfg = paper();
         cfg.controller.tilt_limit = 0.4;
-        let c = Se3::new(&cfg.controller.se3, &cfg);
+        let c = Se3::new(&cfg.controller.se3, &cfg.control_context());
         let (s, co) = 0.7f64.sin_cos();
         for f in [
             [0.5, -0.2, 20.0],
@@ -420,12 +422,12 @@ mod tests {
     fn thrust_is_along_the_body_axis_and_limited() {
         let mut cfg = paper();
         cfg.controller.thrust_max = Some(20.0);
-        let c = Se3::new(&cfg.controller.se3, &cfg);
+        let c = Se3::new(&cfg.controller.se3, &cfg.control_context());
         let s = state([0.0, 0.0, 1.0], [0.1, 0.0, 0.0], [0.0; 3]);
         let u = c.control(&s, &hover_ref(0.0), Tick::START);
         assert_eq!(u.u1, 20.0);
         cfg.controller.thrust_max = None;
-        let c = Se3::new(&cfg.controller.se3, &cfg);
+        let c = Se3::new(&cfg.controller.se3, &cfg.control_context());
         let u = c.control(&s, &hover_ref(0.0), Tick::START);
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         let fz = mt * (DEFAULTS.kx[2] * 1.0 + cfg.environment.gravity);
@@ -440,7 +442,7 @@ mod tests {
         let mut other = cfg.clone();
         other.controller.se3.kx = [2.0, 0.5, 3.0];
         other.controller.se3.kR = [50.0, 80.0, 10.0];
-        let d = Se3::new(&other.controller.se3, &other);
+        let d = Se3::new(&other.controller.se3, &other.control_context());
         let laws = [&c, &d, &c, &d];
         let lanes: Se3<F64x4> = Se3::gather(&laws);
         let s1 = state([0.3, -0.4, 1.7], [0.1, -0.05, 0.2], [0.2, 0.1, -0.3]);
@@ -471,11 +473,11 @@ mod tests {
         use crate::control::ControllerKind;
         use crate::stability::{closed_loop, closed_loop_jacobian};
         let mut slung = paper();
-        slung.payload.model = crate::config::PayloadKind::Cable;
+        slung.payload.model = crate::scenario::PayloadKind::Cable;
         slung.payload.cable.cable_length = Some(1.0);
         slung.payload.cable.attachment_offset = Some(0.05);
         slung.payload.natural_frequency = Some(10.0);
-        slung.actuator.model = crate::config::ActuatorKind::Rotors;
+        slung.actuator.model = crate::scenario::ActuatorKind::Rotors;
         slung.validate().expect("a valid slung scenario on rotors");
         for cfg in [paper(), slung] {
             let r = Reference {

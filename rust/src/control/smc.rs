@@ -1,8 +1,9 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
+use super::ControlContext;
 use super::{non_negative3, position_errors, Control, Controller, Shared};
 use crate::config::params::params;
-use crate::config::{positive, Config, ConfigError};
+use crate::config::{positive, ConfigError};
 use crate::lane::{gather3, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -41,7 +42,7 @@ impl Controller for Smc {
     type Params = SmcGains;
     type At<L: Lane> = Smc<L>;
 
-    fn validate(k: &SmcGains, key: &str, _cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(k: &SmcGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
         non_negative3(key, "epsilon", &k.epsilon)?;
         non_negative3(key, "lambda", &k.lambda)?;
         non_negative3(key, "eta", &k.eta)?;
@@ -51,7 +52,7 @@ impl Controller for Smc {
         positive(format_args!("{key}.gamma"), k.gamma)
     }
 
-    fn new(k: &SmcGains, cfg: &Config) -> Self {
+    fn new(k: &SmcGains, cfg: &ControlContext) -> Self {
         Self {
             shared: Shared::new(cfg),
             epsilon: k.epsilon,
@@ -148,12 +149,12 @@ impl<P: Copy + Sync> Control<P> for Smc<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
+    use crate::scenario::tests::paper;
 
     #[test]
     fn sliding_surface_law_by_hand() {
         let cfg = paper();
-        let smc = Smc::new(&cfg.controller.smc, &cfg);
+        let smc = Smc::new(&cfg.controller.smc, &cfg.control_context());
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
         s.vel[2] = 0.05;

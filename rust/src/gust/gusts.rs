@@ -7,7 +7,8 @@ use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
-use crate::config::{finite, non_negative, positive, Config, ConfigError, Wind};
+use crate::config::{finite, non_negative, positive, ConfigError};
+use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
 /// `wind.gusts[i].shape`: the 1-cosine discrete gust.
@@ -68,7 +69,7 @@ impl WindSource for Gusts {
     }
 
     /// Blows where the scenario lists a gust.
-    fn build(cfg: &Config) -> Option<Self> {
+    fn build(cfg: &WindContext) -> Option<Self> {
         let gusts = &cfg.wind.gusts;
         (!gusts.is_empty()).then(|| Gusts(gusts.clone()))
     }

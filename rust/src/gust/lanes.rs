@@ -710,20 +710,20 @@ fn advance<L: Lane, const N: usize>(c: &mut Component<L>, rows: &Rows, r: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{Config, GustAltitude, GustComponent, GustModel};
     use crate::lane::F64x4;
+    use crate::scenario::{Config, GustAltitude, GustComponent, GustModel};
     use rand::Rng;
 
     /// The paper preset's gust with `edit` applied, for the step `dt` (window [0.5, 3) s).
     fn field(dt: f64, edit: impl Fn(&mut Config)) -> WindField {
-        let mut cfg = crate::config::tests::paper();
+        let mut cfg = crate::scenario::tests::paper();
         cfg.gust.enabled = true;
         cfg.gust.start = 0.5;
         cfg.gust.end = 3.0;
         cfg.integrator.dt = dt;
         edit(&mut cfg);
         cfg.validate().unwrap();
-        WindField::new(&cfg).unwrap()
+        WindField::new(&cfg.wind_context()).unwrap()
     }
 
     /// Every lane of `LaneGust` against `WindField::sample` of the same realisation, bit for
@@ -899,7 +899,7 @@ mod tests {
 
     // ---- The whole wind of a lane-set --------------------------------------------------
 
-    use crate::config::{DiscreteGust, GustAirspeed, GustShape, Shear, TableBy, WindTable};
+    use crate::scenario::{DiscreteGust, GustAirspeed, GustShape, Shear, TableBy, WindTable};
 
     fn ramp(start: f64) -> DiscreteGust {
         DiscreteGust {

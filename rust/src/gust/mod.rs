@@ -23,10 +23,12 @@
 //! Layout: [`spectra`] (the scales and spectra), [`filter`] (the exactly discretised
 //! forming filter), [`wind`] (the wind field a flight samples and stationary series),
 //! [`lanes`] (the same turbulence for a whole lane-set at once, what the flight loop flies),
-//! [`source`] (the seam of the deterministic wind sources, one file each, registered below).
+//! [`source`] (the seam of the deterministic wind sources, one file each, registered below),
+//! [`section`] (the `[wind]` table they read, and `WindContext`, what they are built from).
 
 pub mod filter;
 pub mod lanes;
+pub mod section;
 pub mod source;
 pub mod spectra;
 pub mod wind;
@@ -42,6 +44,7 @@ source::wind_sources! {
 
 pub use filter::{Coefficients, GustFilter};
 pub use lanes::{LaneGust, LaneWind};
+pub use section::{Wind, WindContext};
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
 pub use wind::{
     fill_series, realisation_rng, Kinematics, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,

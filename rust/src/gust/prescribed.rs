@@ -6,7 +6,8 @@ use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::Key;
-use crate::config::{Config, ConfigError, Wind};
+use crate::config::ConfigError;
+use crate::gust::{Wind, WindContext};
 use std::sync::Arc;
 
 /// The rows of a prescribed wind (m/s, inertial), one per step; NaN past the last row (a
@@ -22,7 +23,7 @@ impl WindSource for Prescribed {
     }
 
     /// Never from the scenario (`WindField::prescribed` adds it).
-    fn build(_cfg: &Config) -> Option<Self> {
+    fn build(_cfg: &WindContext) -> Option<Self> {
         None
     }
 

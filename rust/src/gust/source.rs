@@ -14,7 +14,8 @@
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::Key;
-use crate::config::{Config, ConfigError, Wind};
+use crate::config::ConfigError;
+use crate::gust::{Wind, WindContext};
 
 /// When a source is asked for its wind: the step, held over `[t, t + dt)`, and its time
 /// `t = step dt` (s), computed once per step for every source.
@@ -35,7 +36,7 @@ pub trait WindSource: Sized {
     /// it with `params!` and gives `Table::keys_under("name")`.
     fn keys() -> Vec<(String, Key)>;
     /// The source of a validated scenario; `None` where it does not blow.
-    fn build(cfg: &Config) -> Option<Self>;
+    fn build(cfg: &WindContext) -> Option<Self>;
     /// Check its values in the `[wind]` table; the first problem found, naming its key.
     fn validate(wind: &Wind) -> Result<(), ConfigError>;
     /// What the dotted key `wind.<field><rest>` names, for a `field` this kind owns (the first
@@ -115,7 +116,7 @@ macro_rules! wind_sources {
 
             /// The scenario's sources that blow, in the summation order: the mean air's first,
             /// then the others, each in registration order.
-            pub fn of(cfg: &crate::config::Config) -> Vec<AnySource> {
+            pub fn of(cfg: &crate::gust::WindContext<'_>) -> Vec<AnySource> {
                 let mut all = Vec::new();
                 $(
                     if let Some(s) = <$kind as source::WindSource>::build(cfg) {
@@ -128,7 +129,7 @@ macro_rules! wind_sources {
 
             /// Every kind's checks of the `[wind]` table, in registration order.
             pub fn validate(
-                wind: &crate::config::Wind,
+                wind: &crate::gust::Wind,
             ) -> Result<(), crate::config::ConfigError> {
                 $(<$kind as source::WindSource>::validate(wind)?;)+
                 Ok(())
@@ -136,7 +137,7 @@ macro_rules! wind_sources {
 
             /// What `wind.<field><rest>` names: the target of the kind that owns `field`.
             pub fn target<'w>(
-                wind: &'w mut crate::config::Wind,
+                wind: &'w mut crate::gust::Wind,
                 field: &str,
                 rest: &[crate::config::keys::Seg],
             ) -> crate::config::keys::Target<'w> {
@@ -165,10 +166,10 @@ mod tests {
     use super::super::steady::{shear_factor, Shear};
     use super::super::table::{table_wind, TableBy, WindTable};
     use super::super::{AnySource, Kinematics, WindField};
-    use crate::config::Config;
+    use crate::scenario::Config;
 
     fn windy() -> Config {
-        let mut cfg = crate::config::tests::paper();
+        let mut cfg = crate::scenario::tests::paper();
         cfg.gust.enabled = false;
         cfg.wind.speed = 4.0;
         cfg.wind.heading = 150.0;
@@ -208,7 +209,7 @@ mod tests {
     fn the_list_is_the_registration_in_the_summation_order() {
         assert_eq!(AnySource::NAMES, ["steady", "gusts", "table", "prescribed"]);
         let cfg = windy();
-        let field = WindField::new(&cfg).unwrap();
+        let field = WindField::new(&cfg.wind_context()).unwrap();
         let names: Vec<_> = field.sources().iter().map(AnySource::name).collect();
         // The mean air's first (steady, table), then the others in registration order.
         assert_eq!(names, ["steady", "table", "gusts"]);
@@ -246,7 +247,7 @@ mod tests {
                 [(7.0 * t).sin(), -0.5 * (3.0 * t).cos(), 0.1 * t]
             })
             .collect();
-        let plain = WindField::new(&cfg).unwrap();
+        let plain = WindField::new(&cfg.wind_context()).unwrap();
         let given = plain.clone().prescribed(rows.clone());
         assert!(plain.follows_vehicle() && given.blows() && !given.enabled());
         let chi = cfg.wind.heading.to_radians();

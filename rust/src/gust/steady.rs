@@ -9,7 +9,8 @@ use crate::lane::explog;
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_number, Field, Key};
-use crate::config::{finite, non_negative, Config, ConfigError, Wind};
+use crate::config::{finite, non_negative, ConfigError};
+use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
 /// m, the MIL-F-8785C reference height of the mean wind (20 ft).
@@ -96,13 +97,13 @@ const KEYS: [Key; 4] = [
 
 impl WindSource for Steady {
     const MEAN_AIR: bool = true;
-    /// Fields of `[wind]` itself (`config::Wind`), not a table of its own.
+    /// Fields of `[wind]` itself (`gust::Wind`), not a table of its own.
     fn keys() -> Vec<(String, Key)> {
         KEYS.iter().map(|k| (k.name.to_string(), *k)).collect()
     }
 
     /// Blows where `wind.speed` is not 0.
-    fn build(cfg: &Config) -> Option<Self> {
+    fn build(cfg: &WindContext) -> Option<Self> {
         let wind = &cfg.wind;
         let chi = wind.heading.to_radians();
         (wind.speed != 0.0).then_some(Steady {

@@ -7,7 +7,8 @@ use super::source::{Moment, WindSource};
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
-use crate::config::{finite, Config, ConfigError, Wind};
+use crate::config::{finite, ConfigError};
+use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
 /// `wind.table.by`: what a wind table's first column is.
@@ -104,7 +105,7 @@ impl WindSource for Table {
     }
 
     /// Blows where the scenario has a `[wind.table]`.
-    fn build(cfg: &Config) -> Option<Self> {
+    fn build(cfg: &WindContext) -> Option<Self> {
         cfg.wind.table.clone().map(Table)
     }
 

@@ -6,7 +6,8 @@ use super::source::Moment;
 use super::spectra::METRES_PER_FOOT;
 use super::spectra::{low_altitude_scales, low_altitude_scales_lanes};
 use super::{AnySource, Prescribed};
-use crate::config::{Config, ConfigError, GustAirspeed, GustAltitude, GustComponent};
+use crate::config::{ConfigError, GustAirspeed, GustAltitude, GustComponent};
+use crate::gust::WindContext;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -219,7 +220,7 @@ impl WindField {
     /// Intensities and scale lengths ([`low_altitude_scales`], per component) and the
     /// airspeed the kept filters are built for: the fixed values, or where the scales follow
     /// the vehicle the lowest altitude (10 ft) and `gust.min_airspeed`.
-    fn scales(cfg: &Config) -> ([f64; 3], [f64; 3], f64) {
+    fn scales(cfg: &WindContext) -> ([f64; 3], [f64; 3], f64) {
         let g = &cfg.gust;
         let altitude = match g.altitude {
             GustAltitude::Fixed(h) => h,
@@ -236,7 +237,7 @@ impl WindField {
     /// Whether [`WindField::new`] can discretise every active component for this step, checked
     /// without building the filters (what validating a scenario runs: e.g. a `gust.altitude`
     /// so small that `airspeed * dt / length_scale` overflows is refused there, naming `gust`).
-    pub fn check(cfg: &Config) -> Result<(), ConfigError> {
+    pub fn check(cfg: &WindContext) -> Result<(), ConfigError> {
         let g = &cfg.gust;
         if !g.enabled {
             return Ok(());
@@ -263,7 +264,7 @@ impl WindField {
     /// filters kept here are those of the lowest altitude (10 ft) and airspeed
     /// `gust.min_airspeed` (or the fixed values): they fix the orders, the draws and the
     /// innovations; each step uses its own.
-    pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+    pub fn new(cfg: &WindContext) -> Result<Self, ConfigError> {
         let (g, dt, wind) = (&cfg.gust, cfg.integrator.dt, &cfg.wind);
         let chi = wind.heading.to_radians();
         let sources = AnySource::of(cfg);
@@ -754,6 +755,7 @@ mod tests {
     use super::super::filter::tests::{filt, KS, MODELS};
     use super::*;
     use crate::config::GustModel;
+    use crate::scenario::Config;
 
     fn serial_row(f: &GustFilter, seed: u64, index: u64, steps: usize) -> Vec<f64> {
         let mut rng = realisation_rng(seed, index);
@@ -768,16 +770,19 @@ mod tests {
 
     #[test]
     fn check_refuses_what_new_cannot_build_and_builds_nothing() {
-        let mut cfg = crate::config::tests::paper();
+        let mut cfg = crate::scenario::tests::paper();
         cfg.gust.enabled = true;
         cfg.validate().unwrap();
-        assert!(WindField::check(&cfg).is_ok() && WindField::new(&cfg).is_ok());
+        assert!(
+            WindField::check(&cfg.wind_context()).is_ok()
+                && WindField::new(&cfg.wind_context()).is_ok()
+        );
         // An altitude so small that the step in scale lengths overflows: refused by both,
         // with the same key and message.
         cfg.gust.altitude = crate::config::GustAltitude::Fixed(5e-324);
         cfg.validate().unwrap();
-        let checked = WindField::check(&cfg).unwrap_err();
-        let Err(built) = WindField::new(&cfg) else {
+        let checked = WindField::check(&cfg.wind_context()).unwrap_err();
+        let Err(built) = WindField::new(&cfg.wind_context()) else {
             panic!("new built a filter check refuses");
         };
         assert_eq!(
@@ -790,7 +795,7 @@ mod tests {
         );
         // Turbulence off: nothing to discretise.
         cfg.gust.enabled = false;
-        assert!(WindField::check(&cfg).is_ok());
+        assert!(WindField::check(&cfg.wind_context()).is_ok());
     }
 
     #[test]
@@ -895,7 +900,7 @@ mod tests {
     /// The paper preset's gust with a short window: vertical Dryden, h = 2 m, W20 = 10 m/s,
     /// V = 10 m/s, [1, 2) s.
     fn spec() -> Config {
-        let mut cfg = crate::config::tests::paper();
+        let mut cfg = crate::scenario::tests::paper();
         cfg.gust.enabled = true;
         cfg.gust.model = GustModel::Dryden;
         cfg.gust.components = vec![GustComponent::Vertical];
@@ -912,7 +917,7 @@ mod tests {
     fn field(s: &Config, dt: f64) -> WindField {
         let mut cfg = s.clone();
         cfg.integrator.dt = dt;
-        WindField::new(&cfg).unwrap()
+        WindField::new(&cfg.wind_context()).unwrap()
     }
 
     #[test]
@@ -1036,7 +1041,7 @@ mod tests {
         s.gust.altitude = GustAltitude::Fixed(1e300);
         s.gust.airspeed = GustAirspeed::Fixed(1e-300);
         assert!(s.validate().is_ok());
-        let e = WindField::new(&s).unwrap_err();
+        let e = WindField::new(&s.wind_context()).unwrap_err();
         assert_eq!(e.key, "gust");
         assert!(
             e.message
@@ -1047,7 +1052,7 @@ mod tests {
 
     // ---- Wind over the whole flight ----------------------------------------------------
 
-    use crate::config::{Intensity, Shear};
+    use crate::scenario::{Intensity, Shear};
 
     /// A field of `spec()` with all three components, the window open from step 0 on, and
     /// `edit` applied.
@@ -1140,8 +1145,8 @@ mod tests {
     /// the turbulence too (the relative airspeed is through the same mean air).
     #[test]
     fn a_wind_table_interpolates_holds_and_adds_like_a_mean_wind() {
-        use crate::config::wind::table_wind;
-        use crate::config::{TableBy, WindTable};
+        use crate::gust::table::table_wind;
+        use crate::scenario::{TableBy, WindTable};
         let points = [
             [0.0, 1.0, 0.0, -1.0],
             [10.0, 3.0, 2.0, 1.0],
@@ -1223,8 +1228,8 @@ mod tests {
 
     #[test]
     fn wind_table_rows_are_checked_naming_the_row() {
-        use crate::config::{TableBy, WindTable};
-        let mut c = crate::config::tests::paper();
+        use crate::scenario::{TableBy, WindTable};
+        let mut c = crate::scenario::tests::paper();
         c.wind.table = Some(WindTable {
             by: TableBy::Time,
             points: vec![[0.0, 1.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]],
@@ -1262,8 +1267,8 @@ mod tests {
 
     #[test]
     fn discrete_gust_shapes_reach_a_and_return_to_zero() {
-        use crate::config::wind::discrete_gust;
-        use crate::config::{DiscreteGust, GustShape};
+        use crate::gust::gusts::discrete_gust;
+        use crate::scenario::{DiscreteGust, GustShape};
         let a = [1.5, -2.0, 0.75];
         for (start, d) in [(2.0, 3.0), (0.0, 0.7), (1.1, 1e-3)] {
             let ramp = DiscreteGust {

@@ -2,13 +2,13 @@
 //! to the flight loop (`FlightRequest`), and the engine's public methods.
 
 use super::trace::{trace_columns, Trace};
-use crate::config::{Config, ConfigError, Trim};
 use crate::control::{ControllerKind, Laws};
 use crate::gust::{Kinematics, WindField};
 use crate::lane::isa::Isa;
 use crate::model::{
     dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, State, StateVar, VehicleVisitor,
 };
+use crate::scenario::{Config, ConfigError, Trim};
 use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
 use std::sync::atomic::AtomicBool;
 
@@ -43,16 +43,16 @@ impl Realisation {
     /// The realisation of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
     /// step: its discretised filters are reused rather than rebuilt).
     pub fn with_wind_of(cfg: &Config, other: Option<&Realisation>) -> Result<Self, ConfigError> {
-        let vehicle = AnyVehicle::new(cfg);
+        let vehicle = AnyVehicle::new(&cfg.model_context());
         let wind = match other {
             Some(c) => c.wind.clone(),
-            None => WindField::new(cfg)?,
+            None => WindField::new(&cfg.wind_context())?,
         };
         let x0 = initial_state(&vehicle, cfg, &wind)?;
         let d = &cfg.divergence;
         Ok(Self {
             vehicle,
-            laws: Laws::new(cfg),
+            laws: Laws::new(&cfg.control_context()),
             wind,
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
@@ -196,8 +196,8 @@ impl Engine {
         Ok(Self {
             realisation: Realisation::new(&cfg)?,
             vars: state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
-            trajectory: Trajectory::new(&cfg),
-            phases: phase_steps(&cfg),
+            trajectory: Trajectory::new(&cfg.context()),
+            phases: phase_steps(&cfg.context()),
             steps,
             dt,
             decimation,

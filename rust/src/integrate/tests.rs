@@ -3,8 +3,6 @@ use super::flight::LaneResult;
 use super::rk4::rk4_step;
 use super::status::{classify, ExitStatus};
 use super::trace::trace_columns;
-use crate::config::tests::paper;
-use crate::config::Config;
 use crate::control::ControllerKind;
 use crate::lane::isa::Isa;
 use crate::lane::F64x4;
@@ -12,10 +10,12 @@ use crate::model::actuator::Ideal;
 use crate::model::paper_ix::{self as ix, NX};
 use crate::model::payload::Spring;
 use crate::model::{state_from_fn, AnyVehicle, Inputs, PaperVehicle, State, Trig};
+use crate::scenario::tests::paper;
+use crate::scenario::Config;
 use rustfft::FftPlanner;
 
 fn paper_vehicle(cfg: &Config) -> PaperVehicle {
-    AnyVehicle::new(cfg).vehicle::<Spring, Ideal>()
+    AnyVehicle::new(&cfg.model_context()).vehicle::<Spring, Ideal>()
 }
 
 fn step(v: &PaperVehicle, s: &State<f64, NX>, u: &Inputs<f64>, dt: f64) -> State<f64, NX> {
@@ -435,7 +435,7 @@ fn fused_mode_is_close_to_the_default_and_refused_without_fma() {
 /// A short paper flight in the whole-flight wind: a sheared mean wind at 30 deg, turbulence
 /// on all axes following the vehicle's altitude and airspeed, a ramp and a pulse.
 fn windy_cfg() -> Config {
-    use crate::config::{
+    use crate::scenario::{
         DiscreteGust, GustAirspeed, GustAltitude, GustComponent, GustShape, Shear,
     };
     let mut cfg = paper();

@@ -7,41 +7,10 @@ use super::layout::{
     Layout, StateVar, RIGID_POSITIONS, RIGID_VELOCITIES, VEHICLE_POSITIONS, VEHICLE_VELOCITIES,
 };
 use super::{ix, State, Trig};
-use crate::config::Config;
+use crate::config::Context;
 use crate::lane::{gather3, KernelOps, Lane};
 
-/// Which body flies (`vehicle.body`): the paper's (default) or the rigid body.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum BodyModel {
-    /// Euler angles whose rates are used as body rates; drag per inertial axis (the paper's).
-    #[default]
-    Paper,
-    /// A unit quaternion, true body rates, Euler's equations; drag in body axes.
-    Rigid,
-}
-
-/// Every body, in the order the Python layer lists them (`_core.BODY_MODELS`).
-pub const BODY_MODELS: &[BodyModel] = &[BodyModel::Paper, BodyModel::Rigid];
-
-impl BodyModel {
-    /// The public name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Paper => "paper",
-            Self::Rigid => "rigid",
-        }
-    }
-
-    /// The default: skipped when a scenario is written out, so the paper's read as before.
-    pub fn is_paper(&self) -> bool {
-        *self == Self::Paper
-    }
-}
-
-crate::config::params::not_numbers!(BodyModel);
+pub use crate::config::vehicle::{BodyModel, BODY_MODELS};
 
 /// The quadrotor's parameters, resolved once from the scenario (plant inertia = nominal +
 /// error). `L = f64` is one vehicle; a lane type carries one vehicle per lane (`gather`).
@@ -66,7 +35,7 @@ pub struct Body<L = f64> {
 
 impl Body {
     /// The quadrotor of a validated scenario.
-    pub fn new(cfg: &Config) -> Self {
+    pub fn new(cfg: &Context) -> Self {
         let half_rho = 0.5 * cfg.gust.air_density;
         let v = &cfg.vehicle;
         let inertia = [

@@ -3,12 +3,12 @@
 //! quaternion's Euler angles and rotation matrix agree with the paper's; the body-axis drag.
 
 use super::*;
-use crate::config::tests::paper;
-use crate::config::{Config, PayloadKind};
 use crate::integrate::rk4_step;
 use crate::model::actuator::Ideal;
 use crate::model::payload::Cable;
 use crate::model::{AnyVehicle, Inputs, State, Vehicle};
+use crate::scenario::tests::paper;
+use crate::scenario::{Config, PayloadKind};
 
 type Spinning = Vehicle<f64, Cable, Ideal, Rigid>;
 const NX: usize = 21;
@@ -42,7 +42,7 @@ fn momentum_energy(v: &Spinning, s: &State<f64, NX>) -> ([f64; 3], f64) {
 #[test]
 fn torque_free_rotation_conserves_momentum_and_energy() {
     let cfg = rigid_config();
-    let v: Spinning = AnyVehicle::new(&cfg).vehicle_on::<Rigid, Cable, Ideal>();
+    let v: Spinning = AnyVehicle::new(&cfg.model_context()).vehicle_on::<Rigid, Cable, Ideal>();
     let mut s: State<f64, NX> = v.rest_state([0.0; 3], [0.1, -0.2, 0.3]);
     let r = Spinning::LAYOUT.rate();
     // Near the intermediate axis: the tumbling is strong, w x J w large.
@@ -84,7 +84,7 @@ fn torque_free_rotation_conserves_momentum_and_energy() {
 #[test]
 fn dropping_the_gyroscopic_term_breaks_the_momentum() {
     let cfg = rigid_config();
-    let v: Spinning = AnyVehicle::new(&cfg).vehicle_on::<Rigid, Cable, Ideal>();
+    let v: Spinning = AnyVehicle::new(&cfg.model_context()).vehicle_on::<Rigid, Cable, Ideal>();
     let w = [0.3, 4.0, -0.5];
     let wdot = v.body.rotation(&w, &[0.0; 3], &None);
     // J dw/dt = -w x J w, not 0.
@@ -131,7 +131,7 @@ fn quaternion_euler_and_rotation_agree_with_the_papers_angles() {
 fn body_drag_is_quadratic_in_body_axes() {
     let mut cfg = rigid_config();
     cfg.vehicle.drag_coefficients = [0.5, 0.7, 1.1];
-    let v: Spinning = AnyVehicle::new(&cfg).vehicle_on::<Rigid, Cable, Ideal>();
+    let v: Spinning = AnyVehicle::new(&cfg.model_context()).vehicle_on::<Rigid, Cable, Ideal>();
     let euler = [0.2, -0.3, 0.9];
     let rot = Rotation::of_quaternion(Rigid::quaternion_of_euler(euler));
     let (vel, wind) = ([3.0, -1.0, 0.5], [1.0, 2.0, -0.5]);

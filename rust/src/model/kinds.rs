@@ -10,7 +10,7 @@ use super::{actuator, payload, state_count, Actuator, Payload, VehicleVisitor};
 /// "cable"`) and the field of its keys in the section's struct (`cfg.payload.cable`); `Type`
 /// implements `Payload` or `Actuator` (its parameters, their keys and checks in its file).
 /// Generates, per family, the name enum (`PayloadKind`), the section (`PayloadConfig`: the
-/// shared keys of `config::payload::Shared` and every kind's own, one flat table), the kinds'
+/// shared keys of `model::payload::Shared` and every kind's own, one flat table), the kinds'
 /// parameters for one vehicle (`AnyPayload`), and `dispatch`, a line per (payload, actuator)
 /// pair with its state count from the kinds' own constants (`state_count`).
 macro_rules! kinds {
@@ -103,18 +103,18 @@ macro_rules! kinds {
         $(#[$smeta])*
         #[derive(Debug, Clone, serde::Serialize)]
         pub struct $Section {
-            #[doc = concat!("The keys every kind has, `model` first (`config::", stringify!($family), "::Shared`).")]
+            #[doc = concat!("The keys every kind has, `model` first (`model::", stringify!($family), "::Shared`).")]
             #[serde(flatten)]
-            pub shared: crate::config::$family::Shared,
+            pub shared: $family::Shared,
             $(
                 #[doc = concat!("The `", stringify!($name), "` kind's own keys.")]
                 #[serde(flatten)]
-                pub $name: <$family::$K as crate::config::section::OwnsKeys>::Params,
+                pub $name: <$family::$K as crate::model::section::OwnsKeys>::Params,
             )+
         }
 
         impl std::ops::Deref for $Section {
-            type Target = crate::config::$family::Shared;
+            type Target = $family::Shared;
             fn deref(&self) -> &Self::Target {
                 &self.shared
             }
@@ -129,8 +129,8 @@ macro_rules! kinds {
         impl $Section {
             /// Each owner's keys: the shared ones, then each kind's, in registration order.
             pub const OWNERS: &'static [&'static [crate::config::params::Key]] = &[
-                <crate::config::$family::Shared as crate::config::params::Params>::KEYS,
-                $(<<$family::$K as crate::config::section::OwnsKeys>::Params as crate::config::params::Params>::KEYS,)+
+                <$family::Shared as crate::config::params::Params>::KEYS,
+                $(<<$family::$K as crate::model::section::OwnsKeys>::Params as crate::config::params::Params>::KEYS,)+
             ];
 
             /// The section from an empty table: every key at its default (an error if a shared
@@ -143,8 +143,8 @@ macro_rules! kinds {
             /// name (`payload.mass`, `actuator.faults.start`).
             pub fn keys() -> Vec<(String, crate::config::params::Key)> {
                 use crate::config::params::Params;
-                let mut keys = crate::config::$family::Shared::keys_under(stringify!($family));
-                $(keys.extend(<$family::$K as crate::config::section::OwnsKeys>::keys(stringify!($family)));)+
+                let mut keys = $family::Shared::keys_under(stringify!($family));
+                $(keys.extend(<$family::$K as crate::model::section::OwnsKeys>::keys(stringify!($family)));)+
                 keys
             }
 
@@ -156,10 +156,10 @@ macro_rules! kinds {
             ) -> crate::config::params::Target<'_> {
                 use crate::config::params::Params;
                 let owns = |keys: &[crate::config::params::Key]| keys.iter().any(|k| k.name == field);
-                if owns(crate::config::$family::Shared::KEYS) {
+                if owns($family::Shared::KEYS) {
                     return self.shared.target(field, rest);
                 }
-                $(if owns(<<$family::$K as crate::config::section::OwnsKeys>::Params as Params>::KEYS) {
+                $(if owns(<<$family::$K as crate::model::section::OwnsKeys>::Params as Params>::KEYS) {
                     return self.$name.target(field, rest);
                 })+
                 crate::config::params::Target::Missing
@@ -168,15 +168,15 @@ macro_rules! kinds {
             /// The shared keys' checks, then each kind's (`flown` for the model that flies).
             pub fn validate(
                 &self,
-                cfg: &crate::config::Config,
+                cfg: &crate::model::ModelContext,
             ) -> Result<(), crate::config::ConfigError> {
                 self.shared.validate(cfg)?;
-                $(<$family::$K as crate::config::section::OwnsKeys>::validate(&self.$name, self.model == $Kind::$K, cfg)?;)+
+                $(<$family::$K as crate::model::section::OwnsKeys>::validate(&self.$name, self.model == $Kind::$K, cfg)?;)+
                 Ok(())
             }
         }
 
-        /// Read key by key (`config::section`): each value as its owner's field type.
+        /// Read key by key (`model::section`): each value as its owner's field type.
         impl<'de> serde::Deserialize<'de> for $Section {
             fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
                 struct Table;
@@ -192,16 +192,16 @@ macro_rules! kinds {
                         mut map: M,
                     ) -> Result<$Section, M::Error> {
                         use crate::config::params::Params;
-                        use crate::config::section::{part, KnownKey};
+                        use crate::model::section::{part, KnownKey};
                         let mut shared = serde_json::Map::new();
                         $(let mut $name = serde_json::Map::new();)+
                         while let Some(key) = map.next_key_seed(KnownKey($Section::OWNERS))? {
-                            if let Some(v) = crate::config::$family::Shared::read_value(&key, &mut map)? {
+                            if let Some(v) = $family::Shared::read_value(&key, &mut map)? {
                                 shared.insert(key, v);
                                 continue;
                             }
                             $(if let Some(v) =
-                                <<$family::$K as crate::config::section::OwnsKeys>::Params as Params>::read_value(&key, &mut map)?
+                                <<$family::$K as crate::model::section::OwnsKeys>::Params as Params>::read_value(&key, &mut map)?
                             {
                                 $name.insert(key, v);
                                 continue;
@@ -225,7 +225,7 @@ macro_rules! kinds {
         }
 
         impl $Any {
-            pub fn new(cfg: &crate::config::Config) -> Self {
+            pub fn new(cfg: &crate::model::ModelContext) -> Self {
                 let section = &cfg.$family;
                 match section.model {
                     $($Kind::$K => Self::$K(<$family::$K as $Trait>::new(&section.$name, cfg)),)+

@@ -14,6 +14,7 @@ pub mod body;
 mod kinds;
 pub mod layout;
 pub mod payload;
+pub mod section;
 mod trim;
 
 pub use actuator::{Actuator, ActuatorModel};
@@ -26,6 +27,7 @@ pub use kinds::{
 };
 pub use layout::{Axis, Bound, Layout, Part, StateVar};
 pub use payload::{Payload, PayloadModel, PayloadOutputs, PayloadView};
+pub use section::{ModelContext, OwnsKeys};
 
 use crate::lane::{KernelOps, Lane};
 
@@ -371,7 +373,7 @@ pub const fn state_count<B: BodyKind, Pay: Payload, Act: Actuator>() -> usize {
 }
 
 /// m, how far a validated scenario's payload hangs below the centre of gravity at hover.
-pub fn hover_drop(cfg: &crate::config::Config) -> f64 {
+pub fn hover_drop(cfg: &ModelContext) -> f64 {
     struct Drop<'a>(&'a AnyPayload);
     impl VehicleVisitor for Drop<'_> {
         type Output = f64;
@@ -422,7 +424,7 @@ pub struct AnyVehicle {
 }
 
 impl AnyVehicle {
-    pub fn new(cfg: &crate::config::Config) -> Self {
+    pub fn new(cfg: &ModelContext) -> Self {
         Self {
             body: Body::new(cfg),
             payload: AnyPayload::new(cfg),

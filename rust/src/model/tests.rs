@@ -1,12 +1,12 @@
 use super::*;
-use crate::config::tests::paper;
-use crate::config::Config;
+use crate::scenario::tests::paper;
+use crate::scenario::Config;
 
 type Paper = Vehicle<f64, payload::Spring, actuator::Ideal>;
 const NX: usize = 14;
 
 fn paper_vehicle(cfg: &Config) -> Paper {
-    AnyVehicle::new(cfg).vehicle::<payload::Spring, actuator::Ideal>()
+    AnyVehicle::new(&cfg.model_context()).vehicle::<payload::Spring, actuator::Ideal>()
 }
 
 fn hover(v: &Paper) -> Inputs<f64> {
@@ -97,7 +97,10 @@ fn gathered_lanes_fly_their_own_vehicle() {
     cfgs[1].payload.mass = 0.4;
     cfgs[2].vehicle.inertia[0] = 0.03;
     cfgs[3].gust.air_density = 0.9;
-    let parts: Vec<AnyVehicle> = cfgs.iter().map(AnyVehicle::new).collect();
+    let parts: Vec<AnyVehicle> = cfgs
+        .iter()
+        .map(|c| AnyVehicle::new(&c.model_context()))
+        .collect();
     let refs: Vec<&AnyVehicle> = parts.iter().collect();
     let lanes = AnyVehicle::gather::<F64x4, payload::Spring, actuator::Ideal>(&refs);
     let mut s: State<f64, NX> =
@@ -199,8 +202,8 @@ fn every_registered_pair_flies_with_its_layouts_state_count() {
             cfg.payload.model = p;
             cfg.payload.cable.cable_length = Some(1.0);
             cfg.actuator.model = a;
-            assert_eq!(AnyPayload::new(&cfg).name(), p);
-            assert_eq!(AnyActuator::new(&cfg).name(), a);
+            assert_eq!(AnyPayload::new(&cfg.model_context()).name(), p);
+            assert_eq!(AnyActuator::new(&cfg.model_context()).name(), a);
         }
     }
     let names = |k: &[String]| k.iter().collect::<std::collections::HashSet<_>>().len();

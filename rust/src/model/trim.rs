@@ -103,10 +103,10 @@ impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>, B: BodyKind> Vehicle<f64, 
 
 #[cfg(test)]
 mod tests {
-    use crate::config::Config;
     use crate::model::actuator::{ActuatorModel, Rotors};
     use crate::model::payload::Cable;
     use crate::model::{AnyVehicle, Inputs, State, Tick, Trig, Vehicle};
+    use crate::scenario::Config;
 
     const NX: usize = 24;
 
@@ -133,7 +133,8 @@ mod tests {
     #[test]
     fn the_trim_balances_the_parcels_drag_on_its_weight() {
         let cfg = delivery();
-        let v: Vehicle<f64, Cable, Rotors> = AnyVehicle::new(&cfg).vehicle::<Cable, Rotors>();
+        let v: Vehicle<f64, Cable, Rotors> =
+            AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Rotors>();
         let wind = [0.0, 8.0, 0.0];
         let s: State<f64, NX> = v
             .trim_state([0.0, 0.0, 2.0], [0.0, 0.0, 0.3], wind)
@@ -198,7 +199,8 @@ mod tests {
     #[test]
     fn no_wind_is_the_rest_state_bit_for_bit() {
         let cfg = delivery();
-        let v: Vehicle<f64, Cable, Rotors> = AnyVehicle::new(&cfg).vehicle::<Cable, Rotors>();
+        let v: Vehicle<f64, Cable, Rotors> =
+            AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Rotors>();
         let a: State<f64, NX> = v
             .trim_state([1.0, 2.0, 3.0], [0.1, 0.0, 0.3], [0.0; 3])
             .unwrap();
@@ -213,23 +215,26 @@ mod tests {
         use crate::gust::WindField;
         use crate::integrate::initial_state;
         let mut cfg = delivery();
-        let parts = AnyVehicle::new(&cfg);
+        let parts = AnyVehicle::new(&cfg.model_context());
         let i = cfg.initial.clone();
         let rest: State<f64, NX> = parts
             .vehicle::<Cable, Rotors>()
             .rest_state(i.position, i.attitude);
-        let trimmed = initial_state(&parts, &cfg, &WindField::new(&cfg).unwrap()).unwrap();
+        let trimmed =
+            initial_state(&parts, &cfg, &WindField::new(&cfg.wind_context()).unwrap()).unwrap();
         assert_ne!(trimmed, rest.to_vec()); // the preset's 5 m/s breeze tilts it
         cfg.vehicle.lateral_drag_area = 1e155;
-        let parts = AnyVehicle::new(&cfg);
-        let start = initial_state(&parts, &cfg, &WindField::new(&cfg).unwrap()).unwrap();
+        let parts = AnyVehicle::new(&cfg.model_context());
+        let start =
+            initial_state(&parts, &cfg, &WindField::new(&cfg.wind_context()).unwrap()).unwrap();
         assert_eq!(start, rest.to_vec());
     }
 
     #[test]
     fn a_wind_no_tilt_can_hold_is_refused() {
         let cfg = delivery();
-        let v: Vehicle<f64, Cable, Rotors> = AnyVehicle::new(&cfg).vehicle::<Cable, Rotors>();
+        let v: Vehicle<f64, Cable, Rotors> =
+            AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Rotors>();
         let e = v
             .trim_state::<NX>([0.0; 3], [0.0; 3], [0.0, 400.0, 0.0])
             .unwrap_err();

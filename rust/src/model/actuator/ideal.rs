@@ -3,10 +3,10 @@
 
 use super::{Actuator, ActuatorModel};
 use crate::config::params::params;
-use crate::config::section::OwnsKeys;
-use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::layout::StateVar;
+use crate::model::section::OwnsKeys;
+use crate::model::ModelContext;
 use crate::model::{Inputs, State, Tick};
 
 params! {
@@ -25,7 +25,7 @@ impl Actuator for Ideal {
     type At<L: Lane> = Ideal;
     const VARS: &'static [StateVar] = &[];
 
-    fn new(_: &IdealParams, _cfg: &Config) -> Self {
+    fn new(_: &IdealParams, _cfg: &ModelContext) -> Self {
         Ideal
     }
 

@@ -10,14 +10,16 @@
 
 mod ideal;
 pub mod rotors;
+pub mod shared;
 
 pub use ideal::{Ideal, IdealParams};
 pub use rotors::{RotorParams, Rotors};
+pub use shared::Shared;
 
 use super::layout::StateVar;
 use super::{Inputs, State, Tick};
-use crate::config::section::OwnsKeys;
-use crate::config::Config;
+use crate::model::section::OwnsKeys;
+use crate::model::ModelContext;
 
 pub use super::{ActuatorConfig, ActuatorKind, AnyActuator};
 use crate::lane::Lane;
@@ -91,7 +93,7 @@ pub trait Actuator: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     /// The kind's states (`STATES` of them).
     const VARS: &'static [StateVar];
     /// The parameters of a validated scenario (`p`: the kind's keys).
-    fn new(p: &<Self as OwnsKeys>::Params, cfg: &Config) -> Self;
+    fn new(p: &<Self as OwnsKeys>::Params, cfg: &ModelContext) -> Self;
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).
     fn of(any: &AnyActuator) -> &Self {

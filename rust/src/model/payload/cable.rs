@@ -29,16 +29,13 @@
 //! but nothing of them reaches the quadrotor.
 
 use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
-use crate::config::params::params;
-use crate::config::section::OwnsKeys;
-use crate::config::{non_negative, positive, Config, ConfigError};
+use crate::config::{non_negative, params::params, positive, ConfigError};
 use crate::lane::Lane;
 use crate::model::body::{Body, Frame};
-use crate::model::layout::{Axis, Bound, Part, StateVar};
-use crate::model::{ix, Layout, State};
+use crate::model::{ix, Axis, Bound, Layout, ModelContext, OwnsKeys, Part, State, StateVar};
 
 params! {
-    /// The cable's own keys in `[payload]` (beside the point mass's, `config::payload::Shared`).
+    /// The cable's own keys in `[payload]` (beside the point mass's, `model::payload::Shared`).
     /// Optional in the table, so that another kind's scenario reads without them; required
     /// when the cable flies (`validate`).
     pub struct CableParams {
@@ -218,7 +215,7 @@ impl OwnsKeys for Cable {
 
     /// The cable's keys: the length is required and positive, the hook's offset at least 0;
     /// neither may be given when another payload flies.
-    fn validate(c: &CableParams, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(c: &CableParams, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         if !flown {
             let release = c.release.map(|r| match r {
                 Release::At(t) => t,
@@ -267,7 +264,11 @@ impl OwnsKeys for Cable {
 
 impl Cable {
     /// The winch, the hook and the lowerings of the route (`flown`, `cable_length` = `l0`).
-    fn validate_last_metres(c: &CableParams, l0: f64, cfg: &Config) -> Result<(), ConfigError> {
+    fn validate_last_metres(
+        c: &CableParams,
+        l0: f64,
+        cfg: &ModelContext,
+    ) -> Result<(), ConfigError> {
         let winch = c.winch_speed.is_some() || c.winch_acceleration.is_some();
         if winch {
             for (key, x) in [
@@ -396,7 +397,7 @@ impl Payload for Cable {
         payload("line_rate", Axis::Other, Bound::Speed),
     ];
 
-    fn new(c: &CableParams, cfg: &Config) -> Self {
+    fn new(c: &CableParams, cfg: &ModelContext) -> Self {
         let p = &cfg.payload;
         let k = cfg.stiffness();
         let length_max = c.cable_length.unwrap_or(f64::NAN); // required: `validate`

@@ -3,11 +3,12 @@
 //! dual-number linearisation.
 
 use super::*;
-use crate::config::tests::paper;
-use crate::config::PayloadKind;
 use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
 use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Trig, Vehicle};
+use crate::scenario::tests::paper;
+use crate::scenario::Config;
+use crate::scenario::PayloadKind;
 
 const NX: usize = 20;
 const LAYOUT: Layout = Layout::new(4, 0);
@@ -32,7 +33,7 @@ fn cable_config(l0: f64, fn_hz: f64, h: f64) -> Config {
 }
 
 fn vehicle(cfg: &Config) -> Slung {
-    AnyVehicle::new(cfg).vehicle::<Cable, Ideal>()
+    AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Ideal>()
 }
 
 fn hover_thrust(v: &Slung) -> Inputs<f64> {
@@ -319,7 +320,10 @@ fn gathered_lanes_fly_their_own_cable() {
         cable_config(1.0, 3.0, 0.3),
     ];
     cfgs[0].payload.damping = 0.4;
-    let parts: Vec<AnyVehicle> = cfgs.iter().map(AnyVehicle::new).collect();
+    let parts: Vec<AnyVehicle> = cfgs
+        .iter()
+        .map(|c| AnyVehicle::new(&c.model_context()))
+        .collect();
     let refs: Vec<&AnyVehicle> = parts.iter().collect();
     let lanes = AnyVehicle::gather::<F64x4, Cable, Ideal>(&refs);
     let mut s: State<f64, NX> = vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
@@ -405,7 +409,10 @@ fn the_shared_first_stage_is_the_derivative_and_the_outputs_bit_for_bit() {
             // On lanes: each lane a different state.
             let sl: State<F64x4, NX> = state_from_fn(|i| F64x4::from_fn(|l| states[l][i]));
             let lanes = AnyVehicle::gather::<F64x4, Cable, Ideal>(
-                &[&AnyVehicle::new(&cable_config(1.0, 3.0, 0.1))].repeat(4),
+                &[&AnyVehicle::new(
+                    &cable_config(1.0, 3.0, 0.1).model_context(),
+                )]
+                .repeat(4),
             );
             let ul = Inputs {
                 u1: F64x4::splat(u.u1),

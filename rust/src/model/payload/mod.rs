@@ -9,16 +9,18 @@
 //! line; docs/architecture.md).
 
 mod cable;
+pub mod shared;
 mod spring;
 
 pub use cable::{Cable, CableParams, Line, Release};
+pub use shared::Shared;
 pub use spring::{Spring, SpringParams};
 
 use super::body::{Body, Frame};
 use super::layout::StateVar;
 use super::State;
-use crate::config::section::OwnsKeys;
-use crate::config::Config;
+use crate::model::section::OwnsKeys;
+use crate::model::ModelContext;
 
 pub use super::{AnyPayload, PayloadConfig, PayloadKind};
 use crate::lane::Lane;
@@ -176,7 +178,7 @@ pub trait Payload: OwnsKeys + Clone + Sync + Send + Sized + 'static {
     const POSITIONS: &'static [StateVar];
     const VELOCITIES: &'static [StateVar];
     /// The parameters of a validated scenario (`p`: the kind's keys).
-    fn new(p: &<Self as OwnsKeys>::Params, cfg: &Config) -> Self;
+    fn new(p: &<Self as OwnsKeys>::Params, cfg: &ModelContext) -> Self;
     /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
     /// This kind's parameters inside the combined enum (`model::dispatch` matched the kind).

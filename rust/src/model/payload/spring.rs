@@ -4,16 +4,16 @@
 
 use super::{Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::params::params;
-use crate::config::section::OwnsKeys;
-use crate::config::Config;
 use crate::lane::Lane;
 use crate::model::body::{drag, Body, Frame};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
+use crate::model::section::OwnsKeys;
+use crate::model::ModelContext;
 use crate::model::{ix, Layout, State};
 
 params! {
     /// The spring's own keys in `[payload]`: none beyond the point mass's
-    /// (`config::payload::Shared`).
+    /// (`model::payload::Shared`).
     pub struct SpringParams {}
 }
 
@@ -60,7 +60,7 @@ impl Payload for Spring {
         Part::Payload,
     )];
 
-    fn new(_: &SpringParams, cfg: &Config) -> Self {
+    fn new(_: &SpringParams, cfg: &ModelContext) -> Self {
         let (m, mc) = (cfg.vehicle.mass, cfg.payload.mass);
         let kc = cfg.stiffness();
         Self {

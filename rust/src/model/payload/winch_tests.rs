@@ -2,10 +2,11 @@
 //! with the winch's work, the hook's release, the ground's hold on a resting parcel.
 
 use super::*;
-use crate::config::tests::paper;
-use crate::config::PayloadKind;
 use crate::model::actuator::Ideal;
 use crate::model::{state_from_fn, AnyVehicle, Inputs, Trig, Vehicle};
+use crate::scenario::tests::paper;
+use crate::scenario::Config;
+use crate::scenario::PayloadKind;
 
 const NX: usize = 20;
 const LAYOUT: Layout = Layout::new(4, 0);
@@ -38,7 +39,7 @@ fn winch_config(l0: f64, min: f64) -> Config {
 }
 
 fn vehicle(cfg: &Config) -> Slung {
-    AnyVehicle::new(cfg).vehicle::<Cable, Ideal>()
+    AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Ideal>()
 }
 
 fn hover_thrust(v: &Slung) -> Inputs<f64> {

@@ -17,10 +17,11 @@ mod allocation;
 mod params;
 
 use super::{Actuator, ActuatorModel};
-use crate::config::section::OwnsKeys;
-use crate::config::{Config, ConfigError};
+use crate::config::ConfigError;
 use crate::lane::Lane;
 use crate::model::layout::{Axis, Part, StateVar};
+use crate::model::section::OwnsKeys;
+use crate::model::ModelContext;
 use crate::model::{state_from_fn, Inputs, State, Tick};
 
 pub use allocation::{allocation, allocation_inverse, arm_directions, RotorLayout, SPIN};
@@ -88,7 +89,7 @@ pub const ROTOR_VARS: [StateVar; 4] = [
 impl OwnsKeys for Rotors {
     type Params = RotorParams;
 
-    fn validate(p: &RotorParams, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(p: &RotorParams, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         p.validate(flown, cfg)
     }
 
@@ -101,7 +102,7 @@ impl Actuator for Rotors {
     type At<L: Lane> = Rotors<L>;
     const VARS: &'static [StateVar] = &ROTOR_VARS;
 
-    fn new(a: &RotorParams, cfg: &Config) -> Self {
+    fn new(a: &RotorParams, cfg: &ModelContext) -> Self {
         let m = allocation(a.layout, cfg.vehicle.arm_length, a.torque_ratio);
         // `Config::validate` refuses l = 0 or cq = 0 with rotors; were M singular anyway, the
         // flight would end non-finite at once rather than panic.
@@ -366,10 +367,11 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::paper;
     use crate::model::payload::Spring;
     use crate::model::ActuatorKind;
     use crate::model::{AnyVehicle, Trig, Vehicle};
+    use crate::scenario::tests::paper;
+    use crate::scenario::Config;
 
     const NX: usize = 18;
     const OMEGA: usize = 14;
@@ -383,7 +385,7 @@ mod tests {
     }
 
     fn vehicle(cfg: &Config) -> Vehicle<f64, Spring, Rotors> {
-        AnyVehicle::new(cfg).vehicle::<Spring, Rotors>()
+        AnyVehicle::new(&cfg.model_context()).vehicle::<Spring, Rotors>()
     }
 
     fn weight(cfg: &Config) -> f64 {
@@ -568,7 +570,10 @@ mod tests {
             }
             cfgs.push(c);
         }
-        let parts: Vec<AnyVehicle> = cfgs.iter().map(AnyVehicle::new).collect();
+        let parts: Vec<AnyVehicle> = cfgs
+            .iter()
+            .map(|c| AnyVehicle::new(&c.model_context()))
+            .collect();
         let each: Vec<&Rotors> = parts.iter().map(|p| Rotors::of(&p.actuator)).collect();
         let lanes: Rotors<F64x4> = Rotors::gather(&each);
         let u = Inputs {

@@ -4,7 +4,8 @@
 
 use super::allocation::{self, RotorLayout};
 use crate::config::params::{self, params, Params};
-use crate::config::{finite, non_negative, positive, Config, ConfigError};
+use crate::config::{finite, non_negative, positive, ConfigError};
+use crate::model::ModelContext;
 
 params! {
     /// The rotors' keys in `[actuator]` (docs/model.md section 8 and "Rotors"): flown only when
@@ -120,7 +121,7 @@ pub fn default_rotor_thrust_max() -> f64 {
 impl RotorParams {
     /// The rotor aerodynamic coefficients: each >= 0, and nonzero only on the rigid body (they
     /// need its body rates and body-axis airspeed: docs/model.md, "Bodies").
-    fn validate_aero(&self, cfg: &Config) -> Result<(), ConfigError> {
+    fn validate_aero(&self, cfg: &ModelContext) -> Result<(), ConfigError> {
         let a = self;
         for (i, k) in a.rotor_drag.iter().enumerate() {
             non_negative(format_args!("actuator.rotor_drag[{i}]"), *k)?;
@@ -148,7 +149,7 @@ impl RotorParams {
 
     /// Every rotor key in range always; whether the rotors can hold this vehicle in hover and
     /// the lag can be integrated at this step only when they fly (`flown`).
-    pub fn validate(&self, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+    pub fn validate(&self, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         let a = self;
         positive("actuator.thrust_coefficient", a.thrust_coefficient)?;
         positive("actuator.torque_ratio", a.torque_ratio)?;
@@ -248,7 +249,7 @@ impl RotorParams {
     /// `actuator.faults` and `actuator.battery_sag`: each value in range, at most one fault a
     /// rotor, and none of them without rotors (the ideal actuators have no rotor to fail and
     /// no thrust limit to sag).
-    fn validate_faults(&self, flown: bool, cfg: &Config) -> Result<(), ConfigError> {
+    fn validate_faults(&self, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         let a = self;
         let sag = a.battery_sag;
         if !(sag.is_finite() && (0.0..1.0).contains(&sag)) {
@@ -314,7 +315,7 @@ impl RotorParams {
     /// over the flight: the battery only sags and a fault only starts) must hold the weight.
     /// Else the scenario is refused, naming the fault (or the sag) that takes the total below
     /// the weight and the numbers, rather than flown to a slow fall that could end `ok`.
-    fn validate_fault_hover(&self, cfg: &Config, weight: f64) -> Result<(), ConfigError> {
+    fn validate_fault_hover(&self, cfg: &ModelContext, weight: f64) -> Result<(), ConfigError> {
         let a = self;
         if a.faults.is_empty() && a.battery_sag == 0.0 {
             return Ok(());
@@ -374,8 +375,9 @@ impl RotorParams {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::tests::{paper, with};
     use crate::model::ActuatorKind;
+    use crate::scenario::tests::{paper, with};
+    use crate::scenario::Config;
 
     /// The paper's scenario on rotors, `edit`ed, validated.
     fn on_rotors(edit: impl FnOnce(&mut Config)) -> Result<(), ConfigError> {

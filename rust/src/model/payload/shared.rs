@@ -1,10 +1,12 @@
 //! `[payload]`: the keys every payload kind shares (which kind flies, and the point mass on its
 //! attachment) and their checks. Each kind's own keys are declared and checked in its file
 //! (`model::payload::cable`), the section assembled from the registration `model::kinds!`
-//! (`PayloadConfig`, read by `config::section`).
+//! (`PayloadConfig`, read by `model::section`).
 
-use super::params::params;
-use super::{non_negative, positive, Config, ConfigError, PayloadKind};
+use super::PayloadKind;
+use crate::config::params::params;
+use crate::config::{non_negative, positive, ConfigError};
+use crate::model::ModelContext;
 
 params! {
     /// The keys of `[payload]` every kind has.
@@ -27,7 +29,7 @@ params! {
 
 impl Shared {
     /// Check every shared value; the first problem found is returned with its key.
-    pub fn validate(&self, _cfg: &Config) -> Result<(), ConfigError> {
+    pub fn validate(&self, _cfg: &ModelContext) -> Result<(), ConfigError> {
         let p = self;
         positive("payload.mass", p.mass)?;
         match (p.stiffness, p.natural_frequency) {

@@ -1,10 +1,12 @@
 //! `[actuator]`: the key every actuator kind shares (which kind flies). Each kind's own keys
 //! are declared and checked in its file (`model::actuator::rotors::params`), the section
 //! assembled from the registration `model::kinds!` (`ActuatorConfig`, read by
-//! `config::section`).
+//! `model::section`).
 
-use super::params::params;
-use super::{ActuatorConfig, ActuatorKind, Config, ConfigError};
+use super::{ActuatorConfig, ActuatorKind};
+use crate::config::params::params;
+use crate::config::ConfigError;
+use crate::model::ModelContext;
 
 params! {
     /// The keys of `[actuator]` every kind has.
@@ -17,7 +19,7 @@ params! {
 
 impl Shared {
     /// Nothing to check beyond the model's name (serde read it).
-    pub fn validate(&self, _cfg: &Config) -> Result<(), ConfigError> {
+    pub fn validate(&self, _cfg: &ModelContext) -> Result<(), ConfigError> {
         Ok(())
     }
 }

@@ -1,17 +1,19 @@
 //! A section of the scenario that a family of kinds shares (`[payload]`, `[actuator]`): one flat
 //! table holding the keys every kind of the family has (`model`, the payload's `mass`, ...,
-//! declared in `config::payload` and `config::actuator` as `Shared`) and the keys each kind
-//! owns (the cable's `cable_length`, the rotors' `thrust_max`), declared in the kind's own file
-//! (`model::payload::cable`, `model::actuator::rotors`). `model::kinds!` assembles the section's
-//! struct from the registration; this file holds what its reading needs.
+//! declared as `Shared` in `payload::shared` and `actuator::shared`) and the keys each kind owns
+//! (the cable's `cable_length`, the rotors' `thrust_max`), declared in the kind's own file
+//! (`payload::cable`, `actuator::rotors`). `model::kinds!` assembles the section's struct from
+//! the registration; this file holds what its reading needs, and `ModelContext`, what a kind is
+//! built and checked from.
 //!
 //! The table is read key by key, each value as its owner's field type where it stands, so that
 //! serde_path_to_error names the dotted key of a mistyped value (`payload.cable_length`) and an
 //! unknown key is refused with the section's every key, as `deny_unknown_fields` words it. Each
 //! owner's keys are then read into its struct, which fills its defaults.
 
-use super::params::{Key, Params};
-use super::{Config, ConfigError};
+use super::{ActuatorConfig, PayloadConfig};
+use crate::config::params::{Key, Params};
+use crate::config::{ConfigError, Context};
 use serde::de::{self, DeserializeOwned, DeserializeSeed, Visitor};
 use std::fmt;
 
@@ -24,7 +26,7 @@ pub trait OwnsKeys {
 
     /// Check the kind's keys (`flown`: this kind is the section's `model`); messages name each
     /// key dotted under the section (`payload.cable_length`).
-    fn validate(_p: &Self::Params, _flown: bool, _cfg: &Config) -> Result<(), ConfigError> {
+    fn validate(_p: &Self::Params, _flown: bool, _cfg: &ModelContext) -> Result<(), ConfigError> {
         Ok(())
     }
 
@@ -91,12 +93,40 @@ pub fn shared_key(owners: &[&'static [Key]]) -> Option<&'static str> {
         .map(|k| k.name)
 }
 
+/// What a payload or actuator kind is built and checked from: the sections below the kinds
+/// (`config::Context`, read through it as `cfg.vehicle`, `cfg.integrator`) and the two
+/// families' own sections. The controllers build on it (`control::ControlContext`).
+#[derive(Debug, Clone, Copy)]
+pub struct ModelContext<'a> {
+    pub sections: Context<'a>,
+    pub payload: &'a PayloadConfig,
+    pub actuator: &'a ActuatorConfig,
+}
+
+impl<'a> std::ops::Deref for ModelContext<'a> {
+    type Target = Context<'a>;
+    fn deref(&self) -> &Context<'a> {
+        &self.sections
+    }
+}
+
+impl ModelContext<'_> {
+    /// kc in N/m, from whichever of stiffness / natural frequency was given.
+    pub fn stiffness(&self) -> f64 {
+        match (self.payload.stiffness, self.payload.natural_frequency) {
+            (Some(k), _) => k,
+            (None, Some(fn_hz)) => self.payload.mass * (2.0 * std::f64::consts::PI * fn_hz).powi(2),
+            (None, None) => f64::NAN, // rejected by validate()
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::shared_key;
-    use crate::config::tests::{paper, with};
-    use crate::config::{ActuatorConfig, ActuatorKind, PayloadConfig, PayloadKind};
+    use crate::model::{ActuatorConfig, ActuatorKind, PayloadConfig, PayloadKind};
     use crate::model::{ACTUATOR_KINDS, PAYLOAD_KINDS};
+    use crate::scenario::tests::{paper, with};
     use serde_json::json;
 
     #[test]
@@ -105,7 +135,7 @@ mod tests {
         assert_eq!(shared_key(ActuatorConfig::OWNERS), None);
         assert_eq!(shared_key(&[&[], &[]]), None);
         // It finds one: the keys of one owner declared twice.
-        let shared = <crate::config::payload::Shared as crate::config::params::Params>::KEYS;
+        let shared = <crate::model::payload::Shared as crate::config::params::Params>::KEYS;
         assert_eq!(shared_key(&[shared, &[], shared]), Some("model"));
     }
 
@@ -144,7 +174,7 @@ mod tests {
         assert_eq!(v["payload"]["cable_length"], json!(1.5));
         assert_eq!(v["payload"]["model"], json!("cable"));
         assert_eq!(v["actuator"]["thrust_max"], json!(12.0));
-        let again: crate::config::Config = serde_json::from_value(v.clone()).unwrap();
+        let again: crate::scenario::Config = serde_json::from_value(v.clone()).unwrap();
         assert_eq!(serde_json::to_value(&again).unwrap(), v);
     }
 
