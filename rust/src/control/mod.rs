@@ -70,6 +70,13 @@ pub trait Control<P = f64>: Sync {
     /// The law reads the payload's view (`control_seeing`, `step_seeing`).
     const SEES_PAYLOAD: bool = false;
 
+    /// Whether this law, as built, reads the view: `SEES_PAYLOAD` by default; a law whose
+    /// payload feedback is off in every lane says no, and the flight loop skips the view.
+    #[inline(always)]
+    fn reads_payload(&self) -> bool {
+        Self::SEES_PAYLOAD
+    }
+
     /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
     /// flight loop computes them once and shares them with the plant's first RK4 stage.
     fn control_with<L: Lane>(
@@ -134,7 +141,8 @@ pub trait Control<P = f64>: Sync {
     }
 
     /// `step_with` for a law that also sees the payload (`seen`); by default it ignores it.
-    /// The flight loop calls this one, with the view computed only if `SEES_PAYLOAD`.
+    /// The flight loop calls this one, with the view computed only if `SEES_PAYLOAD` and
+    /// `reads_payload()`.
     #[inline(always)]
     fn step_seeing<L: KernelOps>(
         &self,

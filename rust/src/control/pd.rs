@@ -97,6 +97,11 @@ impl<P: Copy + Sync> Control<P> for Pd<P> {
     const SEES_PAYLOAD: bool = true;
 
     #[inline(always)]
+    fn reads_payload(&self) -> bool {
+        self.swing
+    }
+
+    #[inline(always)]
     fn control_with<L: Lane>(
         &self,
         s: &Rigid<L>,

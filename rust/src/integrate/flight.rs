@@ -185,6 +185,7 @@ impl Engine {
         let near_tilt_cos = L::from_fn(|l| realisations[l].near_tilt_cos);
         let mut release = Release::new();
 
+        let reads_payload = ctrl.reads_payload();
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
             leg.follow(&self.trajectory, t, realisations);
@@ -193,7 +194,7 @@ impl Engine {
             let tick = Tick { step: k, t };
             let view = V::<L, Pay, Act, B>::rigid_at(&s, &trig);
             // What the law sees of the payload: only computed for a law that reads it.
-            let seen = if C::SEES_PAYLOAD {
+            let seen = if C::SEES_PAYLOAD && reads_payload {
                 vehicle.payload.view(&s, &trig)
             } else {
                 crate::model::PayloadView::none()
