@@ -4,8 +4,9 @@
 //! filters advanced as lane values; where the scales follow the vehicle, every lane's scales
 //! and filter numbers for the step in lane values (the lane-valued `pow`, `exp` and `expm1` of
 //! `lane::explog`, which the per-realisation path runs on `f64`, so the same bits); the
-//! `[wind]` mean wind per lane and the discrete gusts once per lane-set where the lanes share
-//! them.
+//! `[wind]` mean wind in lane values too (the log shear's `ln` on the lane type) where it is
+//! each lane's only mean air, else the mean air per lane; the discrete gusts once per lane-set
+//! where the lanes share them.
 //!
 //! Per lane the arithmetic is operation for operation that of the per-realisation path
 //! (`WindField::sample_at`: `step_fixed`, `GustFilter::output`, the axes' turn), with the lane
@@ -17,6 +18,7 @@
 
 use super::filter::{dryden_lanes, Coefficients, DrydenLanes, Normals};
 use super::spectra::low_altitude_scales_lanes;
+use super::steady::SteadyLanes;
 use super::wind::{Kinematics, Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
@@ -336,6 +338,9 @@ pub struct LaneWind<'f, 'a, L> {
     follow: bool,
     /// A mean air blows (a `[wind]` mean wind or a `[wind.table]`, in every lane).
     steady: bool,
+    /// The mean air in lane values, where every lane's is exactly one `[wind]` mean wind of
+    /// the same shear kind (else it is summed lane by lane, `WindField::at_vehicle`).
+    mean: Option<SteadyLanes<L>>,
     others: Others,
     /// How many other sources each lane has (the same kinds in every lane).
     other_count: usize,
@@ -403,6 +408,14 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
             (false, false) => Others::PerLane,
         };
         let follow = first.enabled() && first.turbulence_follows();
+        let steadies: Option<Vec<_>> = fields
+            .iter()
+            .map(|f| match f.mean_sources() {
+                [AnySource::Steady(s)] => Some(s),
+                _ => None,
+            })
+            .collect();
+        let mean = steadies.and_then(|s| SteadyLanes::new(&s));
         let rescale = std::array::from_fn(|axis| {
             let Some(f0) = first.filters()[axis].filter(|_| follow) else {
                 return Rescale::None;
@@ -425,6 +438,7 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
             gust,
             follow,
             steady: first.has_steady(),
+            mean,
             others,
             other_count: first.others().len(),
             others_read,
@@ -446,11 +460,15 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
         if !turbulent && !blows {
             return [zero; 3];
         }
-        let mut steady = [[0.0; 3]; MAX_LANES];
+        let mut steady = [zero; 3];
         let rescale = turbulent && self.follow;
         let mut kin = [Kinematics::AT_REST; MAX_LANES];
+        // Every lane's altitude (at rest where none is asked: then no lane's mean air reads
+        // it).
+        let mut height = L::splat(Kinematics::AT_REST.z);
         if (self.steady || rescale || self.others_read) && self.reads_vehicle {
             let (z, vel) = at();
+            height = z;
             for (l, k) in kin.iter_mut().enumerate().take(L::LANES) {
                 *k = Kinematics {
                     z: z.lane(l),
@@ -467,6 +485,7 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
                 step,
                 &self.fields,
                 &kin,
+                self.mean.as_ref().map(|m| (m, height)),
                 components.map(|c| (c, &self.rescale, &mut *self.coefficients)),
                 &mut steady,
             );
@@ -476,11 +495,8 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
             _ => [zero; 3],
         };
         if self.steady {
-            for (i, w) in w.iter_mut().enumerate() {
-                *w += L::from_fn(
-                    #[inline(always)]
-                    |l| steady[l][i],
-                );
+            for (w, m) in w.iter_mut().zip(steady) {
+                *w += m;
             }
         }
         // Each other source added in turn, as `WindField::sample_at` adds them.
@@ -520,7 +536,8 @@ type Rescaling<'r, L> = (
 );
 
 /// Each lane's `WindField::at_vehicle` (the mean air, the `[wind]` mean wind and a table's
-/// wind, into `steady[l]`) and, with `rescale`, the step's filter numbers of every lane
+/// wind, into `steady` as lane values; with `mean`, the lane-set's `[wind]` mean wind at the
+/// lanes' altitudes, every lane at once, and the scales' inputs lane by lane from it) and, with `rescale`, the step's filter numbers of every lane
 /// written into the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the
 /// scales and the Dryden axes' numbers by [`dryden_lanes`] for all lanes at once, the others
 /// lane by lane. Kept out of the flight loop's line so that the loop saves its vector
@@ -532,12 +549,13 @@ fn at_vehicles<L: KernelOps>(
     step: u64,
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
+    mean: Option<(&SteadyLanes<L>, L)>,
     rescale: Option<Rescaling<'_, L>>,
-    steady: &mut [[f64; 3]; MAX_LANES],
+    steady: &mut [L; 3],
 ) {
     L::splat(0.0).within(
         #[inline(always)]
-        |_| at_vehicles_within(step, fields, kin, rescale, steady),
+        |_| at_vehicles_within(step, fields, kin, mean, rescale, steady),
     )
 }
 
@@ -547,32 +565,53 @@ fn at_vehicles_within<L: KernelOps>(
     step: u64,
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
+    mean: Option<(&SteadyLanes<L>, L)>,
     rescale: Option<Rescaling<'_, L>>,
-    steady: &mut [[f64; 3]; MAX_LANES],
+    steady: &mut [L; 3],
 ) {
-    // Each lane's altitude, W20 and V, from which the scales come.
-    let mut altitude = [1.0; MAX_LANES];
-    let mut w20 = [0.0; MAX_LANES];
-    let mut airspeed = [0.0; MAX_LANES];
-    for (l, f) in fields.iter().enumerate() {
-        let (m, inputs) = f.at_vehicle(step, &kin[l], rescale.is_some());
-        if let Some(m) = m {
-            steady[l] = m;
-        }
-        if let Some((h, w, v)) = inputs {
-            altitude[l] = h;
-            w20[l] = w;
-            airspeed[l] = v;
-        }
-    }
-    let Some((components, plan, coefficients)) = rescale else {
-        return;
-    };
     let lanes = |a: &[f64; MAX_LANES]| {
         L::from_fn(
             #[inline(always)]
             |l| a[l],
         )
+    };
+    // Each lane's altitude, W20 and V, from which the scales come.
+    let mut altitude = [1.0; MAX_LANES];
+    let mut w20 = [0.0; MAX_LANES];
+    let mut airspeed = [0.0; MAX_LANES];
+    let mut put = |l: usize, inputs: Option<(f64, f64, f64)>| {
+        if let Some((h, w, v)) = inputs {
+            altitude[l] = h;
+            w20[l] = w;
+            airspeed[l] = v;
+        }
+    };
+    if let Some((m, z)) = mean {
+        *steady = m.at(z);
+        if rescale.is_some() {
+            for (l, f) in fields.iter().enumerate() {
+                let m = [steady[0].lane(l), steady[1].lane(l), steady[2].lane(l)];
+                put(l, f.follow_at(&kin[l], m));
+            }
+        }
+    } else {
+        let mut per_lane = [[0.0; 3]; MAX_LANES];
+        for (l, f) in fields.iter().enumerate() {
+            let (m, inputs) = f.at_vehicle(step, &kin[l], rescale.is_some());
+            if let Some(m) = m {
+                per_lane[l] = m;
+            }
+            put(l, inputs);
+        }
+        *steady = std::array::from_fn(|i| {
+            L::from_fn(
+                #[inline(always)]
+                |l| per_lane[l][i],
+            )
+        });
+    }
+    let Some((components, plan, coefficients)) = rescale else {
+        return;
     };
     let v = lanes(&airspeed);
     // `WindField::follow_scales`' scales, every lane at once.
@@ -1087,6 +1126,98 @@ mod tests {
                 wind_matches::<F64x8Avx512>(&[f; 8], sources, one, 260, kin);
             }
         }
+    }
+
+    /// `SteadyLanes::at` on the lane type `L` against each lane's `Steady::at`, bit for bit
+    /// (the same NaN too), for lanes with their own W20, heading and roughness, at heights
+    /// below, at and above z0, at 20 ft, far up, NaN and infinite.
+    fn mean_wind_matches<L: KernelOps>(shear: Shear) {
+        use super::super::source::{Moment, WindSource};
+        use super::super::steady::{Steady, SteadyLanes, REFERENCE_HEIGHT};
+        let z0 = |l: usize| [0.0457, 0.01, 0.3, 1.7, 0.08, 0.002, 0.5, 6.0][l];
+        let steadies: Vec<Steady> = (0..L::LANES)
+            .map(|l| {
+                let mut cfg = crate::scenario::tests::paper();
+                cfg.wind.speed = 1.5 + 0.7 * l as f64;
+                cfg.wind.heading = -40.0 + 37.0 * l as f64;
+                cfg.wind.shear = shear;
+                cfg.wind.roughness = z0(l);
+                cfg.validate().unwrap();
+                Steady::build(&cfg.wind_context()).expect("a wind blows")
+            })
+            .collect();
+        let refs: Vec<&Steady> = steadies.iter().collect();
+        let set = SteadyLanes::<L>::new(&refs).expect("one shear kind");
+        let now = Moment { step: 3, t: 0.03 };
+        let heights: [&dyn Fn(usize) -> f64; 12] = [
+            &|l| z0(l) * 0.5,
+            &z0,
+            &|l| z0(l) * (1.0 + f64::EPSILON),
+            &|_| REFERENCE_HEIGHT,
+            &|l| 0.2 + 1.3 * l as f64,
+            &|l| 12.0 + 40.0 * l as f64,
+            &|_| 1e6,
+            &|_| 0.0,
+            &|_| -3.0,
+            &|l| if l % 2 == 0 { f64::NAN } else { 7.0 },
+            &|_| f64::INFINITY,
+            &|l| {
+                if l % 2 == 1 {
+                    f64::NEG_INFINITY
+                } else {
+                    1e-300
+                }
+            },
+        ];
+        for h in heights {
+            let w = set.at(L::from_fn(h));
+            for (l, s) in steadies.iter().enumerate() {
+                let kin = Kinematics {
+                    z: h(l),
+                    vel: [0.0; 3],
+                };
+                let want = s.at(now, &kin);
+                for i in 0..3 {
+                    assert_eq!(
+                        w[i].lane(l).to_bits(),
+                        want[i].to_bits(),
+                        "{shear:?} lane {l} at {} axis {i}",
+                        h(l)
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_lane_valued_mean_wind_is_each_lanes_bit_for_bit() {
+        use super::super::source::WindSource;
+        use super::super::steady::{Steady, SteadyLanes};
+        for shear in [Shear::Log, Shear::None] {
+            mean_wind_matches::<f64>(shear);
+            mean_wind_matches::<F64x4>(shear);
+            #[cfg(target_arch = "x86_64")]
+            {
+                use crate::lane::{F64x4Avx, F64x8Avx512};
+                if Isa::Avx2.supported() {
+                    mean_wind_matches::<F64x4Avx>(shear);
+                }
+                if Isa::Avx512.supported() {
+                    mean_wind_matches::<F64x8Avx512>(shear);
+                }
+            }
+        }
+        // Lanes of different shear kinds are left to the per-lane path.
+        let built: Vec<Steady> = [Shear::Log, Shear::None]
+            .iter()
+            .map(|&shear| {
+                let mut cfg = crate::scenario::tests::paper();
+                cfg.wind.speed = 3.0;
+                cfg.wind.shear = shear;
+                Steady::build(&cfg.wind_context()).unwrap()
+            })
+            .collect();
+        assert!(SteadyLanes::<F64x4>::new(&[&built[0], &built[1], &built[0], &built[0]]).is_none());
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! `wind.roughness`.
 
 use super::source::{Moment, WindSource};
-use crate::lane::explog;
+use crate::lane::{explog, KernelOps};
 use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_number, Field, Key};
@@ -151,5 +151,57 @@ impl WindSource for Steady {
     #[inline]
     fn reads_vehicle(&self) -> bool {
         self.shear != Shear::None
+    }
+}
+
+/// The `[wind]` mean wind of a whole lane-set in lane values, each lane with its own
+/// realisation's W20, heading and roughness (gathered once, when the lane-set is built): the
+/// same operations in the same order as [`Steady::at`] (`shear_factor_with`'s, the log
+/// profile's `ln` on the lane type), so each lane's wind is bitwise its scalar one. Only for
+/// lanes alike in their shear kind.
+#[derive(Clone, Copy)]
+pub(super) struct SteadyLanes<L> {
+    shear: Shear,
+    w20: L,
+    roughness: L,
+    log_reference: L,
+    cos: L,
+    sin: L,
+}
+
+impl<L: KernelOps> SteadyLanes<L> {
+    /// Lane `l` flying `lanes[l]`; `None` where the lanes' shear kinds differ.
+    pub(super) fn new(lanes: &[&Steady]) -> Option<Self> {
+        assert_eq!(lanes.len(), L::LANES, "one mean wind per lane");
+        let shear = lanes[0].shear;
+        if lanes.iter().any(|s| s.shear != shear) {
+            return None;
+        }
+        let get = |f: fn(&Steady) -> f64| L::from_fn(|l| f(lanes[l]));
+        Some(SteadyLanes {
+            shear,
+            w20: get(|s| s.w20),
+            roughness: get(|s| s.roughness),
+            log_reference: get(|s| s.log_reference),
+            cos: get(|s| s.cos),
+            sin: get(|s| s.sin),
+        })
+    }
+
+    /// Every lane's [`Steady::at`] at altitudes `h` (m), bit for bit: f(h) as
+    /// `shear_factor_with` computes it (its branches as selects, the canonical NaN for a NaN
+    /// height), then `W20 f (cos chi, sin chi, 0)`.
+    #[inline(always)]
+    pub(super) fn at(&self, h: L) -> [L; 3] {
+        let f = match self.shear {
+            Shear::None => L::splat(1.0),
+            Shear::Log => {
+                let log = explog::ln(h / self.roughness) / self.log_reference;
+                let f = L::select(h.cmp_le(self.roughness), L::splat(0.0), log);
+                L::select(h.cmp_ne(h), L::splat(f64::NAN), f)
+            }
+        };
+        let s = self.w20 * f;
+        [s * self.cos, s * self.sin, L::splat(0.0)]
     }
 }

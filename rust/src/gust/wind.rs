@@ -616,6 +616,25 @@ impl WindField {
         (steady, scales)
     }
 
+    /// [`at_vehicle`](Self::at_vehicle)'s scales' inputs with the mean air given (`mean`, the
+    /// lane-set's lane-valued `[wind]` mean wind): `follow_inputs` at the quadrotor where the
+    /// field follows it (else at rest); `None` where the turbulence's scales do not follow.
+    #[inline(always)]
+    pub(super) fn follow_at(&self, kin: &Kinematics, mean: [f64; 3]) -> Option<(f64, f64, f64)> {
+        let kin = if self.follows_vehicle() {
+            *kin
+        } else {
+            Kinematics::AT_REST
+        };
+        let f = self.follow.as_ref()?;
+        Some(Self::follow_inputs(f, &kin, mean))
+    }
+
+    /// The mean air's sources (the `[wind]` mean wind, a `[wind.table]`), in summation order.
+    pub(super) fn mean_sources(&self) -> &[AnySource] {
+        &self.sources[..self.mean_len]
+    }
+
     /// Whether the turbulence's scales follow the vehicle (`gust.altitude = "vehicle"` or
     /// `gust.airspeed = "relative"`).
     pub(super) fn turbulence_follows(&self) -> bool {
