@@ -32,14 +32,8 @@ pub struct LaneResult {
     pub spectra: Vec<Vec<f64>>,
 }
 
-/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
-/// the point itself where the direction is zero): the squared cross-track error.
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
-
-/// s, the window after the hook opens over which the vehicle's height change is taken
-/// (`release_height_change`).
-pub const RELEASE_WINDOW: f64 = 5.0;
 
 impl Engine {
     /// Fly on the vehicle kinds (`model::dispatch`) and law (`control::dispatch`) of the

@@ -4,7 +4,6 @@
 //! (`Ends`).
 
 use super::engine::{FlightRequest, Realisation, MAX_LANES};
-use super::flight::RELEASE_WINDOW;
 use super::status::{classify, ExitStatus};
 use crate::control::Memory;
 use crate::gust::{Kinematics, LaneWind, WindField, WindState};
@@ -14,6 +13,12 @@ use crate::model::payload::{LastMetres, PayloadOutputs};
 use crate::model::{ix, state_from_fn, ActuatorModel, BodyKind, Bound, State, StateVar, Vehicle};
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
 
+/// s, the window after the hook opens over which the vehicle's height change is taken
+/// (`release_height_change`).
+pub const RELEASE_WINDOW: f64 = 5.0;
+
+/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
+/// the point itself where the direction is zero): the squared cross-track error.
 #[inline(always)]
 fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
     let (a, u) = line;
