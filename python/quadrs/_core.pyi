@@ -32,6 +32,7 @@ ACTUATOR_MODELS: list[str]
 BODY_MODELS: list[str]
 #: Each controller kind's default table (JSON text), for the kinds that have one.
 CONTROLLER_DEFAULTS: dict[str, str]
+ONE_OF_KEYS: list[tuple[str, str]]
 
 _Floats = npt.NDArray[np.float64]
 

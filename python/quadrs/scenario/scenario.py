@@ -94,16 +94,11 @@ OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
 _BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
     "_BASE_CHAIN", default=()
 )
-# Pairs of keys that give one thing two ways (the attachment; the turbulence's W20): setting
-# one replaces the other.
-_EXCLUSIVE = {
-    "payload.stiffness": "payload.natural_frequency",
-    "payload.natural_frequency": "payload.stiffness",
-    "gust.w20": "gust.intensity",
-    "gust.intensity": "gust.w20",
-    "wind.table.file": "wind.table.points",
-    "wind.table.points": "wind.table.file",
-}
+# Pairs of keys that give one thing two ways (the attachment's stiffness or natural frequency,
+# the turbulence's W20 or level: each declared once, beside its owner in the engine; the wind
+# table's file, which Python reads, or its rows): setting one replaces the other.
+_ONE_OF = [*_core.ONE_OF_KEYS, ("wind.table.file", "wind.table.points")]
+_EXCLUSIVE = {a: b for pair in _ONE_OF for a, b in (pair, pair[::-1])}
 #: Optional tables below the top level that setting one of their keys creates.
 _CREATED_TABLES = frozenset({"wind.table"})
 

@@ -33,6 +33,14 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add("KEY_UNITS", units)?;
     m.add("KEY_LABELS", labels)?;
+    // The pairs of keys that give one thing two ways: setting one replaces the other.
+    m.add(
+        "ONE_OF_KEYS",
+        crate::scenario::Config::ONE_OF
+            .iter()
+            .map(|pair| (pair.keys[0], pair.keys[1]))
+            .collect::<Vec<_>>(),
+    )?;
     // Each controller kind's default table (JSON text), where it has one.
     let defaults = PyDict::new(m.py());
     for (name, table) in crate::scenario::ControllerConfig::default_tables() {

@@ -3,7 +3,7 @@
 
 use super::params::{not_number, not_numbers, params, Field, Seg, Target};
 use super::wind::{self, GustAirspeed, GustAltitude, Intensity};
-use super::{finite, non_negative, positive, ConfigError};
+use super::{finite, non_negative, positive, ConfigError, OneOf};
 use serde::{Deserialize, Serialize};
 
 /// Which spectrum the gust's forming filters realise (`gust.model`).
@@ -163,6 +163,12 @@ params! {
     }
 }
 
+/// The turbulence's level, as W20 or as the standard's named level: exactly one of the two.
+pub const TURBULENCE_LEVEL: OneOf = OneOf {
+    keys: ["gust.w20", "gust.intensity"],
+    named_if_both: 1,
+};
+
 impl Gust {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -181,21 +187,9 @@ impl Gust {
         if let GustAltitude::Fixed(h) = g.altitude {
             positive("gust.altitude", h)?;
         }
-        match (g.w20, g.intensity) {
-            (Some(_), Some(_)) => {
-                return Err(ConfigError::new(
-                    "gust.intensity",
-                    "give exactly one of gust.w20 and gust.intensity, got both",
-                ))
-            }
-            (None, None) => {
-                return Err(ConfigError::new(
-                    "gust.w20",
-                    "give exactly one of gust.w20 and gust.intensity, got neither",
-                ))
-            }
-            (Some(w), None) => non_negative("gust.w20", w)?,
-            (None, Some(_)) => {}
+        TURBULENCE_LEVEL.check([g.w20.is_some(), g.intensity.is_some()])?;
+        if let Some(w) = g.w20 {
+            non_negative("gust.w20", w)?;
         }
         if let GustAirspeed::Fixed(v) = g.airspeed {
             if !(v.is_finite() && v > 0.0) {

@@ -48,6 +48,33 @@ impl ConfigError {
     }
 }
 
+/// Two keys that give one thing two ways (the attachment's stiffness or natural frequency, the
+/// turbulence's W20 or named level): exactly one of them is given. Declared beside the keys'
+/// owner and checked there; Python reads every pair (`_core.ONE_OF_KEYS`, from
+/// `scenario::Config::ONE_OF`) so that setting one key replaces the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OneOf {
+    pub keys: [&'static str; 2],
+    /// The key an error names when both are given (the other one when neither is).
+    pub named_if_both: usize,
+}
+
+impl OneOf {
+    /// Refuses both or neither (`given`: whether each key is set), naming a key.
+    pub(crate) fn check(&self, given: [bool; 2]) -> Result<(), ConfigError> {
+        let [a, b] = self.keys;
+        let (named, got) = match given {
+            [true, true] => (self.keys[self.named_if_both], "both"),
+            [false, false] => (self.keys[1 - self.named_if_both], "neither"),
+            _ => return Ok(()),
+        };
+        Err(ConfigError::new(
+            named,
+            format!("give exactly one of {a} and {b}, got {got}"),
+        ))
+    }
+}
+
 /// The winch's keys a route's lowering needs (`payload.winch_speed`,
 /// `payload.winch_acceleration`, the cable's: checked with it), passed down as plain values.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -164,6 +164,13 @@ impl Config {
         keys
     }
 
+    /// The pairs of keys that give one thing two ways (exactly one of each given), each
+    /// declared beside its owner: `_core.ONE_OF_KEYS`.
+    pub const ONE_OF: [crate::config::OneOf; 2] = [
+        crate::model::payload::ATTACHMENT,
+        crate::config::gust::TURBULENCE_LEVEL,
+    ];
+
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).expect("a Config always serialises")
     }
@@ -468,6 +475,57 @@ pub(crate) mod tests {
         assert_eq!(e.key, "vehicle.mass");
         let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();
         assert!(e.message.contains("exactly one"), "{e}");
+    }
+
+    #[test]
+    fn each_pair_of_keys_for_one_thing_takes_exactly_one() {
+        let keys: Vec<String> = Config::keys().into_iter().map(|(k, _)| k).collect();
+        for pair in Config::ONE_OF {
+            assert!(
+                pair.keys.iter().all(|k| keys.iter().any(|x| x == k)),
+                "{pair:?}"
+            );
+        }
+        // The paper gives the attachment's natural frequency: its stiffness too is both.
+        let e = with(|v| v["payload"]["stiffness"] = 30.0.into()).unwrap_err();
+        assert_eq!(e.key, "payload.stiffness");
+        assert_eq!(
+            e.message,
+            "give exactly one of payload.stiffness and payload.natural_frequency, got both"
+        );
+        let e = with(|v| {
+            v["payload"]
+                .as_object_mut()
+                .unwrap()
+                .remove("natural_frequency");
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "payload.natural_frequency");
+        assert!(e.message.ends_with("got neither"), "{e}");
+        // Either one alone is checked as a number.
+        let e = with(|v| {
+            v["payload"]
+                .as_object_mut()
+                .unwrap()
+                .remove("natural_frequency");
+            v["payload"]["stiffness"] = (-1.0).into();
+        })
+        .unwrap_err();
+        assert_eq!(e.message, "payload.stiffness must be > 0, got -1.0");
+        let e = with(|v| v["gust"]["intensity"] = "light".into()).unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            (
+                "gust.intensity",
+                "give exactly one of gust.w20 and gust.intensity, got both"
+            )
+        );
+        let e = with(|v| {
+            v["gust"].as_object_mut().unwrap().remove("w20");
+        })
+        .unwrap_err();
+        assert_eq!(e.key, "gust.w20");
+        assert!(e.message.ends_with("got neither"), "{e}");
     }
 
     #[test]

@@ -13,7 +13,7 @@ pub mod shared;
 mod spring;
 
 pub use cable::{Cable, CableParams, Line, Release};
-pub use shared::Shared;
+pub use shared::{Shared, ATTACHMENT};
 pub use spring::{Spring, SpringParams};
 
 use super::body::{Body, Frame};

@@ -5,7 +5,7 @@
 
 use super::PayloadKind;
 use crate::config::params::params;
-use crate::config::{non_negative, positive, ConfigError};
+use crate::config::{non_negative, positive, ConfigError, OneOf};
 use crate::model::ModelContext;
 
 params! {
@@ -27,24 +27,24 @@ params! {
     }
 }
 
+/// The attachment's stiffness, given directly or as the natural frequency it has with the
+/// payload's mass: exactly one of the two.
+pub const ATTACHMENT: OneOf = OneOf {
+    keys: ["payload.stiffness", "payload.natural_frequency"],
+    named_if_both: 0,
+};
+
 impl Shared {
     /// Check every shared value; the first problem found is returned with its key.
     pub fn validate(&self, _cfg: &ModelContext) -> Result<(), ConfigError> {
         let p = self;
         positive("payload.mass", p.mass)?;
-        match (p.stiffness, p.natural_frequency) {
-            (Some(_), Some(_)) => {
-                return Err(ConfigError::new(
-                    "payload.stiffness",
-                    "give exactly one of payload.stiffness and payload.natural_frequency, got both",
-                ))
-            }
-            (None, None) => return Err(ConfigError::new(
-                "payload.natural_frequency",
-                "give exactly one of payload.stiffness and payload.natural_frequency, got neither",
-            )),
-            (Some(k), None) => positive("payload.stiffness", k)?,
-            (None, Some(f)) => positive("payload.natural_frequency", f)?,
+        ATTACHMENT.check([p.stiffness.is_some(), p.natural_frequency.is_some()])?;
+        if let Some(k) = p.stiffness {
+            positive("payload.stiffness", k)?;
+        }
+        if let Some(f) = p.natural_frequency {
+            positive("payload.natural_frequency", f)?;
         }
         non_negative("payload.damping", p.damping)?;
         non_negative("payload.drag_area", p.drag_area)
