@@ -137,6 +137,18 @@ def test_the_calibration_flies_in_the_engine_not_the_batch(short: quadrs.Scenari
     assert cal.flights == 4 and cal.workers == 1 and cal.per_flight > 0
 
 
+def test_the_calibration_keeps_every_worker_busy(short: quadrs.Scenario) -> None:
+    """By default one lane-set a worker (8 flights were one AVX-512 set, on one of two
+    workers: the estimate doubled), never more than the batch flies."""
+    from quadrs import _core
+    from quadrs.cli.cost import calibrate
+
+    lanes = _core.lanes_per_set()
+    assert lanes == {"avx512": 8}.get(_core.simd_path(), 4)
+    assert calibrate(short, ("pd",), workers=2).flights == 2 * lanes
+    assert calibrate(short, ("pd", "smc"), workers=2, at_most=3).flights == 2 * 3
+
+
 def test_tune_interrupted_keeps_the_candidates_flown_without_history(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

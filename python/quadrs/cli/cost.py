@@ -76,15 +76,21 @@ def calibrate(
     workers: int | None = None,
     seed: int = 0,
     flights: int | None = None,
+    at_most: int | None = None,
 ) -> Calibration:
-    """Fly ``flights`` realisations (default: a few per thread) of ``scenario`` with
-    ``controllers`` in the engine and time them: the batch's own first realisations (with
-    random sampling of any dispersions), so that a draw the scenario refuses is refused
-    naming a realisation the batch has. Ctrl-C raises KeyboardInterrupt."""
+    """Fly ``flights`` realisations (default: one lane-set per thread, the least that keeps
+    every thread busy, so the time is the machine's; at most ``at_most``, the batch's size)
+    of ``scenario`` with ``controllers`` in the engine and time them: the batch's own first
+    realisations (with random sampling of any dispersions), so that a draw the scenario
+    refuses is refused naming a realisation the batch has. Ctrl-C raises
+    KeyboardInterrupt."""
+    from quadrs import _core
     from quadrs.runs.chunk import Design, run_range
 
     n_workers = _workers(workers)
-    count = flights if flights is not None else 4 * n_workers
+    count = flights if flights is not None else _core.lanes_per_set() * n_workers
+    if at_most is not None:
+        count = max(1, min(count, at_most))
     first = 0
     values = Design("random", first, count).values(scenario, seed, first, count)
     start = time.perf_counter()
@@ -171,7 +177,7 @@ def announce_batch(
     """Say on stderr what a long batch flies and roughly how long: ``runs`` realisations of
     each controller, plus ``extra`` flights (``mc``, ``paper``)."""
     precheck(scenario, controllers, runs, workers, seed)
-    cal = calibrate(scenario, controllers, workers, seed, flights=min(runs, 8))
+    cal = calibrate(scenario, controllers, workers, seed, at_most=runs)
     flights = runs * len(controllers) + extra
     names = " and ".join(c.upper() for c in controllers)
     what = what or f"{runs} realisations x {names}"

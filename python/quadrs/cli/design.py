@@ -361,8 +361,7 @@ def _announce_tune(args: argparse.Namespace, scenario: Any, n_params: int) -> No
 
     precheck(scenario, (args.controller,), args.runs, args.workers, args.seed)
     candidates, flights = tune_budget(args, n_params)
-    cal = calibrate(scenario, (args.controller,), args.workers, args.seed,
-                    flights=min(args.runs, 16))  # fmt: skip
+    cal = calibrate(scenario, (args.controller,), args.workers, args.seed, at_most=args.runs)
     what = f"up to {candidates} candidates of {args.runs} flights, then 3 checks"
     say(announce("tune", what, flights, cal), cal.estimate(flights))
 

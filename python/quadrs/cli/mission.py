@@ -280,8 +280,7 @@ def _announce(scenario: Any, args: argparse.Namespace) -> None:
 
     precheck(scenario, args.controller, args.runs, args.workers, args.seed)
     _say_clashes(scenario, args.controller)
-    cal = calibrate(scenario, args.controller, args.workers, args.seed,
-                    flights=min(args.runs, 8))  # fmt: skip
+    cal = calibrate(scenario, args.controller, args.workers, args.seed, at_most=args.runs)
     duration = float(scenario["integrator.duration"])
     what = f"{args.runs} realisations of a {duration:g} s flight"
     say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))

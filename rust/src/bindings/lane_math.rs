@@ -13,6 +13,13 @@ pub(super) fn simd_path() -> PyResult<&'static str> {
     isa().map(|i| i.name())
 }
 
+/// Realisations the batch path flies at once per worker on `simd_path()` (8 on AVX-512, else
+/// 4): a calibration that is to time the machine flies at least one such set per worker.
+#[pyfunction]
+pub(super) fn lanes_per_set() -> PyResult<usize> {
+    isa().map(|i| i.lane_count())
+}
+
 /// The engine's lane-valued `function` ("exp", "expm1", "ln", "pow": x^y, "atan2": the angle
 /// of the point (y, x), as `math.atan2(x, y)`) of every `x`, on
 /// the lane path `path` ("scalar", "sse2", "avx2", "avx512"): for measuring their error

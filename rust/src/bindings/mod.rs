@@ -35,7 +35,7 @@ mod _core {
     #[pymodule_export]
     use super::errors::_panic_for_tests;
     #[pymodule_export]
-    use super::lane_math::{lane_math, simd_path};
+    use super::lane_math::{lane_math, lanes_per_set, simd_path};
     #[pymodule_export]
     use super::progress::Progress;
     #[pymodule_export]
