@@ -227,13 +227,6 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
         // Outside the gust window `sample_at` returns zeros without touching the state
         // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
         // window is open and nothing else blows (most of a paper flight).
-        let at = |lane: usize| {
-            let rigid = V::<L, Pay, Act, B>::rigid(s);
-            move || Kinematics {
-                z: rigid.pos[2].lane(lane),
-                vel: [0, 1, 2].map(|i| rigid.vel[i].lane(lane)),
-            }
-        };
         let w: [L; 3] = if last {
             self.held
         } else {
@@ -256,7 +249,18 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
                     .zip(realisations)
                     .enumerate()
                 {
-                    *v = c.wind.sample_at(ws, k as u64, at(lane));
+                    // Read here, where the lane type's instruction set is enabled: in a
+                    // closure `sample_at` calls, each lane operation would be a call.
+                    let rigid = V::<L, Pay, Act, B>::rigid(s);
+                    let kin = Kinematics {
+                        z: rigid.pos[2].lane(lane),
+                        vel: [
+                            rigid.vel[0].lane(lane),
+                            rigid.vel[1].lane(lane),
+                            rigid.vel[2].lane(lane),
+                        ],
+                    };
+                    *v = c.wind.sample_at(ws, k as u64, || kin);
                 }
             } else {
                 self.lanes = [[0.0; 3]; MAX_LANES];

@@ -235,8 +235,27 @@ pub fn atan2<L: KernelOps>(y: L, x: L) -> L {
     let sigma = L::select(swap, -sign_x, sign_x);
     let q = L::select(swap, c(2.0), L::select(negative, c(4.0), c(0.0)))
         + L::select(medium, sigma, c(0.0));
-    let at_least = [0.5, 1.5, 2.5, 3.5].map(|k| q.cmp_ge(c(k)));
-    let pick = |t: [f64; 4]| (0..4).fold(c(0.0), |v, k| L::select(at_least[k], c(t[k]), v));
-    let angle = (r * sigma + pick(QUARTER_PI_LO)) + pick(QUARTER_PI_HI);
+    // Written out, no closure or array `map`: a closure the optimiser leaves out of line is
+    // compiled without the lane type's instruction set, every lane operation in it a call.
+    let at_least = [
+        q.cmp_ge(c(0.5)),
+        q.cmp_ge(c(1.5)),
+        q.cmp_ge(c(2.5)),
+        q.cmp_ge(c(3.5)),
+    ];
+    let angle = (r * sigma + quarter_pi_multiple(&at_least, QUARTER_PI_LO))
+        + quarter_pi_multiple(&at_least, QUARTER_PI_HI);
     angle.xor_bits(y.and_bits(c(SIGN)))
+}
+
+/// `t[k]` for the largest `k` with `at_least[k]` (0 where none): `q pi/4`'s part `t` for q in
+/// 1..=4, selected in increasing `k`.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // the selects in increasing k, one per index
+fn quarter_pi_multiple<L: KernelOps>(at_least: &[L; 4], t: [f64; 4]) -> L {
+    let mut v = L::splat(0.0);
+    for k in 0..4 {
+        v = L::select(at_least[k], L::splat(t[k]), v);
+    }
+    v
 }

@@ -23,6 +23,14 @@ fn positive<L: KernelOps>(x: L) -> L {
     x.cmp_ge(zero).and_bits(x.cmp_ne(zero))
 }
 
+/// Mask of `x > 0` and finite. (A function, not a closure: a closure the optimiser leaves out
+/// of line is compiled without the lane type's instruction set, every lane operation in it a
+/// call.)
+#[inline(always)]
+fn finite_positive<L: KernelOps>(x: L) -> L {
+    finite(x).and_bits(positive(x))
+}
+
 /// Mask of `x.is_finite()`.
 #[inline(always)]
 fn finite<L: KernelOps>(x: L) -> L {
@@ -81,13 +89,12 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
     let zero = L::splat(0.0);
     // `rescaled_coefficients`' checks: `sigma >= 0` finite, `L`, `V`, `dt` and `k` > 0 finite.
     let k = airspeed * dt / length;
-    let ok = |x: L| finite(x).and_bits(positive(x));
     let valid = finite(sigma)
         .and_bits(sigma.cmp_ge(zero))
-        .and_bits(ok(length))
-        .and_bits(ok(airspeed))
-        .and_bits(ok(dt))
-        .and_bits(ok(k));
+        .and_bits(finite_positive(length))
+        .and_bits(finite_positive(airspeed))
+        .and_bits(finite_positive(dt))
+        .and_bits(finite_positive(k));
     // `dryden_matrices`' cap.
     let kc = k.min(L::splat(K_MAX));
     let e = explog::exp(-kc);
