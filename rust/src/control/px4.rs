@@ -11,7 +11,7 @@ use super::ControlContext;
 use super::{Control, Controller, Memory, Shared};
 use crate::config::params::params;
 use crate::config::{non_negative, positive, ConfigError};
-use crate::lane::{gather3, KernelOps, Lane, Param};
+use crate::lane::{each3, gather3, KernelOps, Lane, Param};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -416,6 +416,22 @@ fn px4_geometry(k: &Px4Params, cfg: &ControlContext) -> (RotorLayout, f64) {
     }
 }
 
+/// A weight in [0, 1] that is 1 where `excess` <= 0 and falls to 0 just above: the reference's
+/// feed-forward where its velocity is within the limits. (Functions, not closures, in the law:
+/// see `lane::each3`.)
+#[inline(always)]
+fn feed_forward_weight<L: Lane>(excess: L) -> L {
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    (excess * L::splat(-1e9) + one).max(zero).min(one)
+}
+
+/// One output row's weighted sum of the motor outputs: thrust or a torque in N or N m.
+#[inline(always)]
+fn motor_sum<L: Lane, P: Param<L>>(row: &[P; 4], m: &[L; 4]) -> L {
+    let w: [L; 4] = [row[0].get(), row[1].get(), row[2].get(), row[3].get()];
+    w[0] * m[0] + w[1] * m[1] + w[2] * m[2] + w[3] * m[3]
+}
+
 /// A 4 x 4 parameter matrix as lane values.
 #[inline(always)]
 fn lanes44<L: Lane, P: Param<L>>(m: &[[P; 4]; 4]) -> [[L; 4]; 4] {
@@ -490,8 +506,10 @@ impl<P: Copy + Sync> Px4<P> {
         let g: L = self.shared.g.get();
         let one = L::splat(1.0);
         // Position P, plus the reference velocity as feed-forward, then the velocity limits.
-        let mut v_sp = [0, 1, 2]
-            .map(|i| (L::splat(r.pos[i]) - s.pos[i]) * self.pos_p[i].get() + L::splat(r.vel[i]));
+        let mut v_sp = each3(
+            #[inline(always)]
+            |i| (L::splat(r.pos[i]) - s.pos[i]) * self.pos_p[i].get() + L::splat(r.vel[i]),
+        );
         let k = shrink(
             (v_sp[0] * v_sp[0] + v_sp[1] * v_sp[1]).sqrt(),
             self.vel_max_xy.get(),
@@ -504,18 +522,22 @@ impl<P: Copy + Sync> Px4<P> {
         // the reference's velocity is within the limits: a route that asks for more is not a
         // trajectory PX4's own generator would give, and its acceleration fed forward past a
         // clamped velocity setpoint would push the vehicle past the limit.
-        let zero = L::splat(0.0);
-        let within = |excess: L| (excess * L::splat(-1e9) + one).max(zero).min(one);
-        let ff_xy = within(L::splat(r.vel[0].hypot(r.vel[1])) - self.vel_max_xy.get());
-        let ff_z = within(L::splat(r.vel[2]) - self.vel_max_up.get())
-            * within(L::splat(-r.vel[2]) - vmax_dn);
+        let ff_xy = feed_forward_weight(L::splat(r.vel[0].hypot(r.vel[1])) - self.vel_max_xy.get());
+        let ff_z = feed_forward_weight(L::splat(r.vel[2]) - self.vel_max_up.get())
+            * feed_forward_weight(L::splat(-r.vel[2]) - vmax_dn);
         let ff = [ff_xy, ff_xy, ff_z];
-        let vel_err = [0, 1, 2].map(|i| v_sp[i] - s.vel[i]);
-        let acc_sp = [0, 1, 2].map(|i| {
-            vel_err[i] * self.vel_p[i].get() + mem[VEL_INT + i]
-                - mem[VEL_DOT + i] * self.vel_d[i].get()
-                + ff[i] * r.acc[i]
-        });
+        let vel_err = each3(
+            #[inline(always)]
+            |i| v_sp[i] - s.vel[i],
+        );
+        let acc_sp = each3(
+            #[inline(always)]
+            |i| {
+                vel_err[i] * self.vel_p[i].get() + mem[VEL_INT + i]
+                    - mem[VEL_DOT + i] * self.vel_d[i].get()
+                    + ff[i] * r.acc[i]
+            },
+        );
         // Acceleration to thrust: tilt limit on the horizontal acceleration (the thrust
         // direction assumes g vertically), collective thrust from the hover thrust.
         let k = shrink(
@@ -599,16 +621,25 @@ impl<P: Copy + Sync> Px4<P> {
         // Rate setpoint: P on the error, the yaw-rate reference about the world z axis (in
         // body axes: the third row of R), then the rate limits.
         let world_z = [-sth, sphi * cth, cphi * cth];
-        let rate_sp = [0, 1, 2].map(|i| {
-            let max: L = self.rate_max[i].get();
-            (qe[i + 1] * sgn * self.att_p[i].get() + world_z[i] * r.psi_dot).clamp(-max, max)
-        });
+        let rate_sp = each3(
+            #[inline(always)]
+            |i| {
+                let max: L = self.rate_max[i].get();
+                (qe[i + 1] * sgn * self.att_p[i].get() + world_z[i] * r.psi_dot).clamp(-max, max)
+            },
+        );
         // Rate PID (derivative on the measurement), normalised torque, then N m.
-        let rate_err = [0, 1, 2].map(|i| rate_sp[i] - s.rate[i]);
-        let torque = [0, 1, 2].map(|i| {
-            rate_err[i] * self.rate_p[i].get() + mem[RATE_INT + i]
-                - mem[RATE_DOT + i] * self.rate_d[i].get()
-        });
+        let rate_err = each3(
+            #[inline(always)]
+            |i| rate_sp[i] - s.rate[i],
+        );
+        let torque = each3(
+            #[inline(always)]
+            |i| {
+                rate_err[i] * self.rate_p[i].get() + mem[RATE_INT + i]
+                    - mem[RATE_DOT + i] * self.rate_d[i].get()
+            },
+        );
         // PX4's allocator: normalised torques and thrust (along body z down) to motor outputs
         // in [0, 1]; each motor's thrust is its output times T_full / 4.
         let c = [torque[0], torque[1], torque[2], -thrust];
@@ -619,12 +650,12 @@ impl<P: Copy + Sync> Px4<P> {
             &lanes44(&self.effect),
         );
         let m = &a.motors;
-        let si = |row: &[P; 4]| -> L {
-            let w: [L; 4] = row.map(|x| x.get());
-            w[0] * m[0] + w[1] * m[1] + w[2] * m[2] + w[3] * m[3]
-        };
-        let u1 = self.shared.limit_thrust(si(&self.out[0]));
-        let tau = [si(&self.out[1]), si(&self.out[2]), si(&self.out[3])];
+        let u1 = self.shared.limit_thrust(motor_sum(&self.out[0], m));
+        let tau = [
+            motor_sum(&self.out[1], m),
+            motor_sum(&self.out[2], m),
+            motor_sum(&self.out[3], m),
+        ];
         (
             Inputs { u1, tau },
             Cascade {

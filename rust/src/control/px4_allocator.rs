@@ -9,7 +9,7 @@
 //! thrust (`THRUST_Z`, along body z down: a lift is negative), as the desaturation's "reduce
 //! thrust only" test reads that sign. The normalisation is the same in either frame.
 
-use crate::lane::Lane;
+use crate::lane::{each3, each4, Lane};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use nalgebra::{Matrix4, SVD};
 
@@ -102,6 +102,12 @@ impl Mixer {
 
 /// PX4's `matrix::geninv`: the pseudo-inverse (a singular geometry, e.g. a zero arm, leaves
 /// its axis without motors rather than failing). NaN if the decomposition does not converge.
+/// Column `axis` of a 4 x 4 matrix of lane values.
+#[inline(always)]
+fn column<L: Copy>(m: &[[L; 4]; 4], axis: usize) -> [L; 4] {
+    [m[0][axis], m[1][axis], m[2][axis], m[3][axis]]
+}
+
 fn pseudo_inverse(e: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
     let m = Matrix4::from_fn(|i, j| e[i][j]);
     let inv = SVD::try_new(m, true, true, f64::EPSILON, 1000)
@@ -171,31 +177,51 @@ pub fn allocate<L: Lane>(
     inv: &[[L; 4]; 4],
     effect: &[[L; 4]; 4],
 ) -> Allocated<L> {
-    let col = |axis: usize| -> [L; 4] { [0, 1, 2, 3].map(|i| mix[i][axis]) };
-    let inv_col = |axis: usize| -> [L; 4] { [0, 1, 2, 3].map(|i| inv[i][axis]) };
+    // (No closures or array `map` here: see `lane::each3`.)
     // Without yaw; thrust only reduced, then roll, then pitch given up where they must be.
-    let mut u = [0, 1, 2, 3].map(|i| {
-        mix[i][ROLL] * c[ROLL] + mix[i][PITCH] * c[PITCH] + mix[i][THRUST_Z] * c[THRUST_Z]
-    });
-    let (thrust, thrust_inv) = (col(THRUST_Z), inv_col(THRUST_Z));
+    let mut u = each4(
+        #[inline(always)]
+        |i| mix[i][ROLL] * c[ROLL] + mix[i][PITCH] * c[PITCH] + mix[i][THRUST_Z] * c[THRUST_Z],
+    );
+    let (thrust, thrust_inv) = (column(mix, THRUST_Z), column(inv, THRUST_Z));
     desaturate(&mut u, &thrust, &thrust_inv, MOTOR_MAX, true);
-    desaturate(&mut u, &col(ROLL), &inv_col(ROLL), MOTOR_MAX, false);
-    desaturate(&mut u, &col(PITCH), &inv_col(PITCH), MOTOR_MAX, false);
+    desaturate(
+        &mut u,
+        &column(mix, ROLL),
+        &column(inv, ROLL),
+        MOTOR_MAX,
+        false,
+    );
+    desaturate(
+        &mut u,
+        &column(mix, PITCH),
+        &column(inv, PITCH),
+        MOTOR_MAX,
+        false,
+    );
     // mixYaw: yaw added and given up first (15 % headroom at the top), then thrust reduced.
-    let yaw = col(YAW);
+    let yaw = column(mix, YAW);
     for i in 0..4 {
         u[i] += yaw[i] * c[YAW];
     }
-    desaturate(&mut u, &yaw, &inv_col(YAW), YAW_HEADROOM, false);
+    desaturate(&mut u, &yaw, &column(inv, YAW), YAW_HEADROOM, false);
     desaturate(&mut u, &thrust, &thrust_inv, MOTOR_MAX, true);
-    let motors = u.map(|x| x.clamp(L::splat(MOTOR_MIN), L::splat(MOTOR_MAX)));
-    let unallocated = [ROLL, PITCH, YAW].map(|j| {
-        let given = effect[j][0] * motors[0]
-            + effect[j][1] * motors[1]
-            + effect[j][2] * motors[2]
-            + effect[j][3] * motors[3];
-        c[j] - given
-    });
+    let motors = each4(
+        #[inline(always)]
+        |i| u[i].clamp(L::splat(MOTOR_MIN), L::splat(MOTOR_MAX)),
+    );
+    let axes = [ROLL, PITCH, YAW];
+    let unallocated = each3(
+        #[inline(always)]
+        |k| {
+            let j = axes[k];
+            let given = effect[j][0] * motors[0]
+                + effect[j][1] * motors[1]
+                + effect[j][2] * motors[2]
+                + effect[j][3] * motors[3];
+            c[j] - given
+        },
+    );
     Allocated {
         motors,
         unallocated,

@@ -42,6 +42,23 @@ pub fn gather3<T, L: Lane>(each: &[&T], f: impl Fn(&T) -> [f64; 3]) -> [L; 3] {
     [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
 }
 
+/// `[f(0), f(1), f(2)]`, built where it is called. In the flight loop, for lane values, in
+/// place of an array's `map` or `std::array::from_fn`: the optimiser may leave those, and the
+/// closure they call, out of the loop's line, and a function out of line is compiled without
+/// the lane type's instruction set, every lane operation in it a call (the lane-valued `atan2`
+/// had one such `map`: the vehicle flew 2.3x faster once it was written out;
+/// docs/performance.md). Pass the closure with `#[inline(always)]`.
+#[inline(always)]
+pub fn each3<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
+/// `[f(0), f(1), f(2), f(3)]`, built where it is called: [`each3`] for four.
+#[inline(always)]
+pub fn each4<T>(mut f: impl FnMut(usize) -> T) -> [T; 4] {
+    [f(0), f(1), f(2), f(3)]
+}
+
 pub trait Lane:
     Copy
     + Send
