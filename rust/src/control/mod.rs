@@ -22,7 +22,7 @@ pub use smc::Smc;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{params, Key, Params, Table};
 use crate::config::ConfigError;
-use crate::lane::{KernelOps, Lane, Param};
+use crate::lane::{gather, Gathered, KernelOps, Lane, Param};
 use crate::model::section::{part, KnownKey};
 use crate::model::{Inputs, ModelContext, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -551,23 +551,13 @@ impl Shared {
             sin_tilt: c.tilt_limit.sin(),
         }
     }
+}
 
-    /// One vehicle per lane (see `AnyVehicle::gather`).
-    pub fn gather<L: Lane>(each: &[&Shared]) -> Shared<L> {
-        let at = |f: fn(&Shared) -> f64| L::from_fn(|l| f(each[l]));
-        Shared {
-            mt: at(|s| s.mt),
-            g: at(|s| s.g),
-            inertia: [
-                at(|s| s.inertia[0]),
-                at(|s| s.inertia[1]),
-                at(|s| s.inertia[2]),
-            ],
-            thrust_min: at(|s| s.thrust_min),
-            thrust_max: at(|s| s.thrust_max),
-            thrust_floor: at(|s| s.thrust_floor),
-            sin_tilt: at(|s| s.sin_tilt),
-        }
+/// One vehicle per lane (see `AnyVehicle::gather`): a law's `gather` gathers its `shared`.
+impl<L: Lane> Gathered for Shared<L> {
+    type From = Shared;
+    fn gather_from<'a>(lane: impl Fn(usize) -> &'a Shared + Copy) -> Self {
+        gather!(|l| lane(l) => Shared { mt, g, inertia, thrust_min, thrust_max, thrust_floor, sin_tilt })
     }
 }
 

@@ -5,7 +5,7 @@ use super::ControlContext;
 use super::{position_errors, Control, Controller, Memory, Shared};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, KernelOps, Lane, Param};
+use crate::lane::{gather, KernelOps, Lane, Param};
 use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -72,18 +72,10 @@ impl Controller for Pd {
     }
 
     fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
-        let at3 = |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Pd {
-            shared: Shared::gather(&shared),
-            kp: at3(|p| p.kp),
-            kd: at3(|p| p.kd),
-            kp_attitude: at3(|p| p.kp_attitude),
-            kd_attitude: at3(|p| p.kd_attitude),
-            swing_gain: L::from_fn(|l| each[l].swing_gain),
-            swing_damping: L::from_fn(|l| each[l].swing_damping),
+        gather!(|l| each[l] => Pd {
+            shared, kp, kd, kp_attitude, kd_attitude, swing_gain, swing_damping;
             swing: each.iter().any(|p| p.swing),
-        }
+        })
     }
 }
 

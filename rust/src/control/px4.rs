@@ -11,7 +11,7 @@ use super::ControlContext;
 use super::{Control, Controller, Memory, Shared};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, KernelOps, Lane, Param};
+use crate::lane::{gather, KernelOps, Lane, Param};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -318,43 +318,12 @@ impl Controller for Px4 {
     }
 
     fn gather<L: Lane>(each: &[&Px4]) -> Px4<L> {
-        let at = |f: fn(&Px4) -> f64| -> L { L::from_fn(|l| f(each[l])) };
-        let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let at44 = |f: fn(&Px4) -> &[[f64; 4]; 4]| -> [[L; 4]; 4] {
-            std::array::from_fn(|i| std::array::from_fn(|j| L::from_fn(|l| f(each[l])[i][j])))
-        };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Px4 {
-            shared: Shared::gather(&shared),
-            pos_p: at3(|p| p.pos_p),
-            vel_p: at3(|p| p.vel_p),
-            vel_i: at3(|p| p.vel_i),
-            vel_d: at3(|p| p.vel_d),
-            vel_max_xy: at(|p| p.vel_max_xy),
-            vel_max_up: at(|p| p.vel_max_up),
-            vel_max_dn: at(|p| p.vel_max_dn),
-            acc_max_xy: at(|p| p.acc_max_xy),
-            thr_hover: at(|p| p.thr_hover),
-            thr_min: at(|p| p.thr_min),
-            thr_max: at(|p| p.thr_max),
-            thr_xy_marg: at(|p| p.thr_xy_marg),
-            att_p: at3(|p| p.att_p),
-            yaw_w: at(|p| p.yaw_w),
-            rate_max: at3(|p| p.rate_max),
-            rate_p: at3(|p| p.rate_p),
-            rate_i: at3(|p| p.rate_i),
-            rate_d: at3(|p| p.rate_d),
-            rate_int_lim: at3(|p| p.rate_int_lim),
-            thrust_full: at(|p| p.thrust_full),
-            mix: at44(|p| &p.mix),
-            mix_inv: at44(|p| &p.mix_inv),
-            effect: at44(|p| &p.effect),
-            out: at44(|p| &p.out),
-            status_every: at(|p| p.status_every),
-            dt: at(|p| p.dt),
-            alpha_vel: at(|p| p.alpha_vel),
-            alpha_rate: at(|p| p.alpha_rate),
-        }
+        gather!(|l| each[l] => Px4 {
+            shared, pos_p, vel_p, vel_i, vel_d, vel_max_xy, vel_max_up, vel_max_dn, acc_max_xy,
+            thr_hover, thr_min, thr_max, thr_xy_marg, att_p, yaw_w, rate_max, rate_p, rate_i,
+            rate_d, rate_int_lim, thrust_full, mix, mix_inv, effect, out, status_every, dt,
+            alpha_vel, alpha_rate,
+        })
     }
 }
 

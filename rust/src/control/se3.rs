@@ -10,7 +10,7 @@ use super::ControlContext;
 use super::{position_errors, Control, Controller, Shared, MIN_TILT_COS};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, Lane, Param};
+use crate::lane::{gather, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -72,15 +72,7 @@ impl Controller for Se3 {
     }
 
     fn gather<L: Lane>(each: &[&Se3]) -> Se3<L> {
-        let at3 = |f: fn(&Se3) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Se3 {
-            shared: Shared::gather(&shared),
-            kx: at3(|p| p.kx),
-            kv: at3(|p| p.kv),
-            k_r: at3(|p| p.k_r),
-            k_w: at3(|p| p.k_w),
-        }
+        gather!(|l| each[l] => Se3 { shared, kx, kv, k_r, k_w })
     }
 }
 

@@ -4,7 +4,7 @@ use super::ControlContext;
 use super::{position_errors, Control, Controller, Shared};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, Lane, Param};
+use crate::lane::{gather, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -60,18 +60,9 @@ impl Controller for Smc {
     }
 
     fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
-        let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Smc {
-            shared: Shared::gather(&shared),
-            epsilon: at3(|p| p.epsilon),
-            lambda: at3(|p| p.lambda),
-            eta: at3(|p| p.eta),
-            epsilon_attitude: at3(|p| p.epsilon_attitude),
-            lambda_attitude: at3(|p| p.lambda_attitude),
-            eta_attitude: at3(|p| p.eta_attitude),
-            gamma: L::from_fn(|l| each[l].gamma),
-        }
+        gather!(|l| each[l] => Smc {
+            shared, epsilon, lambda, eta, epsilon_attitude, lambda_attitude, eta_attitude, gamma,
+        })
     }
 }
 

@@ -35,13 +35,6 @@
 
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
-/// Lane `l` of a 3-vector parameter read by `f` from `each[l]`: one vehicle per lane (the
-/// `gather` of a kind's parameters).
-#[inline]
-pub fn gather3<T, L: Lane>(each: &[&T], f: impl Fn(&T) -> [f64; 3]) -> [L; 3] {
-    [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
-}
-
 pub trait Lane:
     Copy
     + Send
@@ -371,6 +364,9 @@ mod portable;
 
 pub mod dual;
 pub mod explog;
+mod gather;
+pub(crate) use gather::gather;
+pub use gather::Gathered;
 pub mod isa;
 pub mod kernels;
 pub mod random;
