@@ -3,29 +3,29 @@
 //! `[divergence]` (the bounds past which a flight has diverged) and `[ground]` (the plane a
 //! flight ends at), with their checks.
 
-use super::params::{not_numbers, params};
-use super::{finite, non_negative, positive, ConfigError};
+use super::params::{not_numbers, params, Params};
+use super::{non_negative, ConfigError};
 use serde::{Deserialize, Serialize};
 
 params! {
     pub struct Environment {
-        gravity: f64 => "m/s^2", "Gravity";
+        gravity: f64 => "m/s^2", "Gravity", positive;
     }
 }
 
 impl Environment {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        positive("environment.gravity", self.gravity)
+        self.check_bounds("environment")
     }
 }
 
 params! {
     pub struct Initial {
         /// m, quadrotor x, y, z; the payload starts at its hover equilibrium below it.
-        position: [f64; 3] => "m", "Start position (x, y, z)";
+        position: [f64; 3] => "m", "Start position (x, y, z)", finite;
         /// rad, roll, pitch, yaw.
-        attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)";
+        attitude: [f64; 3] => "rad", "Start attitude (roll, pitch, yaw)", finite;
         /// How the flight starts: trimmed in the start's steady wind, or at rest as in still
         /// air (docs/model.md, "The start: trimmed in the wind").
         #[serde(default)]
@@ -51,12 +51,7 @@ not_numbers!(Trim);
 impl Initial {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        for (i, x) in self.position.iter().enumerate() {
-            finite(format_args!("initial.position[{i}]"), *x)?;
-        }
-        for (i, x) in self.attitude.iter().enumerate() {
-            finite(format_args!("initial.attitude[{i}]"), *x)?;
-        }
+        self.check_bounds("initial")?;
         for i in 0..2 {
             let a = self.attitude[i];
             if a.abs() >= std::f64::consts::FRAC_PI_2 {
@@ -76,8 +71,8 @@ pub const MAX_STEPS: f64 = 2.0e9;
 
 params! {
     pub struct Integrator {
-        dt: f64 => "s", "Integration step";
-        duration: f64 => "s", "Flight duration";
+        dt: f64 => "s", "Integration step", positive;
+        duration: f64 => "s", "Flight duration", positive;
     }
 }
 
@@ -85,8 +80,7 @@ impl Integrator {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let it = self;
-        positive("integrator.dt", it.dt)?;
-        positive("integrator.duration", it.duration)?;
+        it.check_bounds("integrator")?;
         if it.dt > it.duration {
             return Err(ConfigError::new(
                 "integrator.dt",
@@ -112,40 +106,37 @@ impl Integrator {
 params! {
     pub struct Metrics {
         /// Hz, rate at which e_o is block-averaged for the amplitude spectra.
-        spectrum_rate: f64 => "Hz", "Spectrum sample rate";
+        spectrum_rate: f64 => "Hz", "Spectrum sample rate", positive;
     }
 }
 
 impl Metrics {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        positive("metrics.spectrum_rate", self.spectrum_rate)
+        self.check_bounds("metrics")
     }
 }
 
 params! {
     pub struct Divergence {
         /// m, a realisation whose quadrotor or payload strays further than this from the origin diverged.
-        max_distance: f64 => "m", "Largest distance from the origin before divergence";
+        max_distance: f64 => "m", "Largest distance from the origin before divergence", positive;
         /// rad, a realisation whose roll or pitch exceeds this diverged.
-        max_tilt: f64 => "rad", "Largest roll or pitch before divergence";
+        max_tilt: f64 => "rad", "Largest roll or pitch before divergence", positive;
         /// m/s, a realisation whose quadrotor or payload moves faster than this along any axis
         /// diverged: catches a numerically unstable step (finite but absurd states) early.
         #[serde(default = "default_max_speed")]
-        max_speed: f64 => "m/s", "Largest speed along an axis before divergence";
+        max_speed: f64 => "m/s", "Largest speed along an axis before divergence", positive;
         /// rad/s, a realisation whose body rate p, q or r exceeds this diverged.
         #[serde(default = "default_max_rate")]
-        max_rate: f64 => "rad/s", "Largest body rate before divergence";
+        max_rate: f64 => "rad/s", "Largest body rate before divergence", positive;
     }
 }
 
 impl Divergence {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        positive("divergence.max_distance", self.max_distance)?;
-        positive("divergence.max_tilt", self.max_tilt)?;
-        positive("divergence.max_speed", self.max_speed)?;
-        positive("divergence.max_rate", self.max_rate)
+        self.check_bounds("divergence")
     }
 }
 
@@ -167,10 +158,10 @@ params! {
         #[serde(default)]
         enabled: bool => "-", "Ground plane on";
         #[serde(default)]
-        altitude: f64 => "m", "Ground altitude";
+        altitude: f64 => "m", "Ground altitude", finite;
         /// N/m, the ground's contact stiffness under the parcel (none: the parcel never meets it).
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        stiffness: Option<f64> => "N/m", "Ground contact stiffness";
+        stiffness: Option<f64> => "N/m", "Ground contact stiffness", positive;
         /// N s/m, the contact's damping (default 0).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         damping: Option<f64> => "N s/m", "Ground contact damping";
@@ -194,10 +185,8 @@ impl Ground {
     /// found is returned with its key.
     pub fn validate(&self, initial: &Initial) -> Result<(), ConfigError> {
         let g = self;
-        finite("ground.altitude", g.altitude)?;
-        if let Some(k) = g.stiffness {
-            positive("ground.stiffness", k)?;
-        }
+        g.check_bounds("ground")?;
+        // Not bounds: a damping or friction without the stiffness is refused as such first.
         for (key, x) in [
             ("ground.damping", g.damping),
             ("ground.friction", g.friction),

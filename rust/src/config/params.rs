@@ -3,10 +3,13 @@
 //! keys refused, so a misspelt key is named), its dotted keys with their units and labels
 //! (`Params::KEYS`, which reach Python through `_core.KEY_UNITS` and `_core.KEY_LABELS`), and
 //! the typed targets a dispersion, a sweep or an optimisation sets (`Params::target`: a key's
-//! path, `Seg`s, to what it names, a `Target`). `keys` reads whole dotted keys with these; this
-//! file names no other of `config`'s modules.
+//! path, `Seg`s, to what it names, a `Target`) and the simple bounds its keys declare
+//! (`Params::check_bounds`). `keys` reads whole dotted keys with these; this file names no other
+//! of `config`'s modules but `ConfigError` and its three checks.
 
+use super::ConfigError;
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// One step of a dotted key: a table field or an array index.
 #[derive(Debug, Clone, PartialEq)]
@@ -109,6 +112,40 @@ pub(crate) use not_numbers;
 
 not_numbers!(u32, bool, String);
 
+/// A check of one number under its dotted key (`config::finite`, `positive`, `non_negative`).
+pub type Check<'a> = &'a dyn Fn(&dyn fmt::Display, f64) -> Result<(), ConfigError>;
+
+/// A value a key's bound applies to: each of its numbers is checked under its own dotted key.
+pub trait Bounded {
+    fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError>;
+}
+
+impl Bounded for f64 {
+    fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError> {
+        check(key, *self)
+    }
+}
+
+/// Element `i` is checked as `{key}[{i}]`, in order.
+impl<T: Bounded, const N: usize> Bounded for [T; N] {
+    fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError> {
+        for (i, x) in self.iter().enumerate() {
+            x.check_each(&format_args!("{key}[{i}]"), check)?;
+        }
+        Ok(())
+    }
+}
+
+/// An optional value is checked only when it is set.
+impl<T: Bounded> Bounded for Option<T> {
+    fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError> {
+        match self {
+            Some(x) => x.check_each(key, check),
+            None => Ok(()),
+        }
+    }
+}
+
 /// Parameters declared with `params!`.
 pub trait Params {
     /// Every key, in declaration order.
@@ -122,6 +159,10 @@ pub trait Params {
         name: &str,
         map: &mut A,
     ) -> Result<Option<serde_json::Value>, A::Error>;
+    /// Check the simple bounds the keys declare (`non_negative`, `positive`, `finite`), in declaration
+    /// order, each number under its dotted key `{prefix}.{name}` (`[i]` after it for an
+    /// element): the first that fails is the error. The rules across keys are the table's own.
+    fn check_bounds(&self, prefix: &str) -> Result<(), ConfigError>;
 
     /// Every key as a dotted key under `prefix` (`"vehicle"` -> `"vehicle.mass"`).
     fn keys_under(prefix: &str) -> Vec<(String, Key)> {
@@ -133,8 +174,12 @@ pub trait Params {
 }
 
 /// A table of parameters (a kind's, or a section of the scenario): `name: type => "unit",
-/// "label";` per key, with its doc comment and serde attributes above it. Generates the struct
-/// (`deny_unknown_fields`), its `Params` and its `Field` (so a list of such tables, like
+/// "label";` per key, with its doc comment and serde attributes above it, and optionally a
+/// simple bound after the label, the name of the check in `config` that words its message:
+/// `name: f64 => "m", "Arm length", non_negative;` (>= 0; also `positive`, > 0, and `finite`),
+/// on a number, each number of a row (`name[i]`), or an optional number when it is set.
+/// Generates the struct (`deny_unknown_fields`), its `Params` (with `check_bounds`: the
+/// declared bounds in declaration order) and its `Field` (so a list of such tables, like
 /// `[[actuator.faults]]`, is a key with the entries' keys under it).
 macro_rules! params {
     (
@@ -142,7 +187,7 @@ macro_rules! params {
         pub struct $Name:ident {
             $(
                 $(#[$fmeta:meta])*
-                $field:ident: $ty:ty => $unit:literal, $label:literal;
+                $field:ident: $ty:ty => $unit:literal, $label:literal $(, $check:ident)?;
             )*
         }
     ) => {
@@ -161,6 +206,18 @@ macro_rules! params {
                     label: $label,
                 },
             )*];
+
+            #[allow(unused_variables)] // a table without bounds
+            fn check_bounds(&self, prefix: &str) -> Result<(), $crate::config::ConfigError> {
+                $($(
+                    $crate::config::params::Bounded::check_each(
+                        &self.$field,
+                        &format_args!(concat!("{}.", stringify!($field)), prefix),
+                        &|key: &dyn std::fmt::Display, x: f64| $crate::config::$check(key, x),
+                    )?;
+                )?)*
+                Ok(())
+            }
 
             #[allow(unused_variables)] // a table without keys
             fn target(

@@ -1,23 +1,23 @@
 //! `[vehicle]`: the quadrotor's airframe (mass, inertia, arm, drag, which body flies:
 //! `BodyModel`) and its checks.
 
-use super::params::params;
-use super::{finite, non_negative, positive, ConfigError};
+use super::params::{params, Params};
+use super::ConfigError;
 
 params! {
     pub struct Vehicle {
         /// kg, the quadrotor alone.
-        mass: f64 => "kg", "Quadrotor mass";
+        mass: f64 => "kg", "Quadrotor mass", positive;
         /// kg m^2, nominal (what the controller believes): Ixx, Iyy, Izz.
-        inertia: [f64; 3] => "kg m^2", "Quadrotor inertia, nominal (Ixx, Iyy, Izz)";
+        inertia: [f64; 3] => "kg m^2", "Quadrotor inertia, nominal (Ixx, Iyy, Izz)", positive;
         /// kg m^2, plant inertia minus nominal (the paper's Delta I).
-        inertia_error: [f64; 3] => "kg m^2", "Inertia error, plant minus nominal (Ixx, Iyy, Izz)";
+        inertia_error: [f64; 3] => "kg m^2", "Inertia error, plant minus nominal (Ixx, Iyy, Izz)", finite;
         /// m, arm length (Table 1; the model applies torques directly, so it is informational).
-        arm_length: f64 => "m", "Arm length";
+        arm_length: f64 => "m", "Arm length", non_negative;
         /// m^2, Cd times projected area for vertical drag.
-        drag_area: f64 => "m^2", "Quadrotor drag area";
+        drag_area: f64 => "m^2", "Quadrotor drag area", non_negative;
         /// m^2, Cd times projected area for horizontal drag of vehicle plus payload.
-        lateral_drag_area: f64 => "m^2", "Lateral drag area of quadrotor and payload";
+        lateral_drag_area: f64 => "m^2", "Lateral drag area of quadrotor and payload", non_negative;
         /// Which body flies: "paper" (Euler angles, drag per inertial axis; the default) or
         /// "rigid" (unit quaternion, true body rates, body-axis drag).
         #[serde(default, skip_serializing_if = "BodyModel::is_paper")]
@@ -25,7 +25,7 @@ params! {
         /// N/(m/s)^2, the rigid body's drag -|v_b| diag(c) v_b along its own axes (c_x, c_y,
         /// c_z); the paper's body uses the drag areas instead.
         #[serde(default, skip_serializing_if = "is_zero3")]
-        drag_coefficients: [f64; 3] => "N/(m/s)^2", "Body-axis drag coefficients (x, y, z)";
+        drag_coefficients: [f64; 3] => "N/(m/s)^2", "Body-axis drag coefficients (x, y, z)", non_negative;
     }
 }
 
@@ -37,14 +37,10 @@ impl Vehicle {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let v = self;
-        positive("vehicle.mass", v.mass)?;
-        for (i, x) in v.inertia.iter().enumerate() {
-            positive(format_args!("vehicle.inertia[{i}]"), *x)?;
-        }
+        v.check_bounds("vehicle")?;
         for (i, x) in v.inertia_error.iter().enumerate() {
-            let key = format!("vehicle.inertia_error[{i}]");
-            finite(&key, *x)?;
             if v.inertia[i] + x <= 0.0 {
+                let key = format!("vehicle.inertia_error[{i}]");
                 return Err(ConfigError::new(
                     &key,
                     format!(
@@ -52,12 +48,6 @@ impl Vehicle {
                     ),
                 ));
             }
-        }
-        non_negative("vehicle.arm_length", v.arm_length)?;
-        non_negative("vehicle.drag_area", v.drag_area)?;
-        non_negative("vehicle.lateral_drag_area", v.lateral_drag_area)?;
-        for (i, c) in v.drag_coefficients.iter().enumerate() {
-            non_negative(format_args!("vehicle.drag_coefficients[{i}]"), *c)?;
         }
         if v.body == BodyModel::Paper && v.drag_coefficients != [0.0; 3] {
             return Err(ConfigError::new(

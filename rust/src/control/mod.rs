@@ -20,9 +20,10 @@ pub use se3::Se3;
 pub use smc::Smc;
 
 use crate::config::keys::{Seg, Target};
-use crate::config::params::{Field, Key, Params, Table};
-use crate::config::{non_negative, positive, ConfigError};
-use crate::lane::{KernelOps, Lane, Param};
+use crate::config::params::{params, Key, Params, Table};
+use crate::config::ConfigError;
+use crate::lane::{gather, Gathered, KernelOps, Lane, Param};
+use crate::model::section::{part, KnownKey};
 use crate::model::{Inputs, ModelContext, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -223,28 +224,70 @@ macro_rules! controllers {
             }
         }
 
-        /// `[controller]`: what every law shares, then one table per kind.
-        #[derive(Debug, Clone, Serialize, Deserialize)]
-        #[serde(deny_unknown_fields)]
+        /// `[controller]`: what every law shares (`SharedParams`, its keys directly under
+        /// `[controller]`, read through `Deref`), then one table per kind.
+        #[derive(Debug, Clone, Serialize)]
         pub struct ControllerConfig {
-            /// Use m + mc in the control laws (the paper's proposal) instead of m.
-            pub mass_compensation: bool,
-            /// rad, bound on the commanded roll and pitch.
-            pub tilt_limit: f64,
-            /// N, the thrust is never divided by less than this (guards Ux, Uy).
-            pub thrust_floor: f64,
-            /// N, optional saturation of the total thrust.
-            #[serde(default, skip_serializing_if = "Option::is_none")]
-            pub thrust_min: Option<f64>,
-            #[serde(default, skip_serializing_if = "Option::is_none")]
-            pub thrust_max: Option<f64>,
+            #[serde(flatten)]
+            pub shared: SharedParams,
             $(
-                #[serde(default, skip_serializing_if = "Table::is_absent")]
+                #[serde(skip_serializing_if = "Table::is_absent")]
                 pub $name: Table<<$Ty as Controller>::Params>,
             )+
         }
 
+        /// Read key by key, as `[payload]` is (`model::section`; serde's `flatten` would let an
+        /// unknown key through): a shared key as its field's type (so a mistyped value names its
+        /// dotted key), a kind's table as the table, any other key refused with every key of
+        /// `[controller]` named, as `deny_unknown_fields` words it.
+        impl<'de> Deserialize<'de> for ControllerConfig {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                struct Visit;
+                impl<'de> serde::de::Visitor<'de> for Visit {
+                    type Value = ControllerConfig;
+
+                    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                        f.write_str("the [controller] table")
+                    }
+
+                    fn visit_map<M: serde::de::MapAccess<'de>>(
+                        self,
+                        mut map: M,
+                    ) -> Result<ControllerConfig, M::Error> {
+                        let mut shared = serde_json::Map::new();
+                        $(let mut $name = Table::default();)+
+                        while let Some(key) = map.next_key_seed(KnownKey(ControllerConfig::OWNERS))? {
+                            if let Some(v) = SharedParams::read_value(&key, &mut map)? {
+                                shared.insert(key, v);
+                                continue;
+                            }
+                            match key.as_str() {
+                                $(stringify!($name) => $name = map.next_value()?,)+
+                                _ => return Err(serde::de::Error::custom(format_args!("no owner for `{key}`"))),
+                            }
+                        }
+                        Ok(ControllerConfig {
+                            shared: part(shared)?,
+                            $($name,)+
+                        })
+                    }
+                }
+                d.deserialize_map(Visit)
+            }
+        }
+
         impl ControllerConfig {
+            /// The keys of `[controller]`: the shared ones, then the kinds' tables (for the
+            /// message that refuses another).
+            const OWNERS: &'static [&'static [Key]] = &[
+                SharedParams::KEYS,
+                &[$(Key {
+                    name: stringify!($name),
+                    unit: "-",
+                    label: concat!("The ", stringify!($name), " law's parameters"),
+                }),+],
+            ];
+
             /// Each kind's default table as JSON text (`None` for a kind without defaults):
             /// what a scenario that leaves the table out flies, for Python to show and to
             /// start from when one key of it is set.
@@ -351,48 +394,47 @@ controllers! {
     se3 => Se3,
 }
 
-/// The keys every law shares, directly under `[controller]`.
-pub const SHARED_KEYS: [Key; 5] = [
-    Key {
-        name: "mass_compensation",
-        unit: "-",
-        label: "Payload mass in the control laws",
-    },
-    Key {
-        name: "tilt_limit",
-        unit: "rad",
-        label: "Largest commanded roll and pitch",
-    },
-    Key {
-        name: "thrust_floor",
-        unit: "N",
-        label: "Least thrust the laws divide by",
-    },
-    Key {
-        name: "thrust_min",
-        unit: "N",
-        label: "Least total thrust",
-    },
-    Key {
-        name: "thrust_max",
-        unit: "N",
-        label: "Largest total thrust",
-    },
-];
+params! {
+    /// The keys of `[controller]` every law shares (`ControllerConfig::shared`).
+    pub struct SharedParams {
+        /// Use m + mc in the control laws (the paper's proposal) instead of m.
+        mass_compensation: bool => "-", "Payload mass in the control laws";
+        /// rad, bound on the commanded roll and pitch.
+        tilt_limit: f64 => "rad", "Largest commanded roll and pitch", positive;
+        /// N, the thrust is never divided by less than this (guards Ux, Uy).
+        thrust_floor: f64 => "N", "Least thrust the laws divide by", positive;
+        /// N, optional saturation of the total thrust.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        thrust_min: Option<f64> => "N", "Least total thrust", non_negative;
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        thrust_max: Option<f64> => "N", "Largest total thrust", positive;
+    }
+}
+
+impl std::ops::Deref for ControllerConfig {
+    type Target = SharedParams;
+    fn deref(&self) -> &SharedParams {
+        &self.shared
+    }
+}
+
+impl std::ops::DerefMut for ControllerConfig {
+    fn deref_mut(&mut self) -> &mut SharedParams {
+        &mut self.shared
+    }
+}
 
 impl ControllerConfig {
     /// Every key of `[controller]` with its unit and label, as dotted keys (indices dropped):
     /// the shared ones, then each kind's.
     pub fn keys() -> Vec<(String, Key)> {
-        let shared = SHARED_KEYS
-            .iter()
-            .map(|k| (format!("controller.{}", k.name), *k));
+        let shared = SharedParams::keys_under("controller");
         let kinds = ControllerKind::ALL.iter().flat_map(|kind| {
             kind.keys()
                 .iter()
                 .map(move |k| (format!("controller.{}.{}", kind.name(), k.name), *k))
         });
-        shared.chain(kinds).collect()
+        shared.into_iter().chain(kinds).collect()
     }
 
     /// The typed target of the key `controller.<path>` (`path` after `controller`).
@@ -402,35 +444,24 @@ impl ControllerConfig {
             _ => "",
         };
         let rest = path.get(1..).unwrap_or(&[]);
-        match field(0) {
-            "mass_compensation" => self.mass_compensation.target(rest),
-            "tilt_limit" => self.tilt_limit.target(rest),
-            "thrust_floor" => self.thrust_floor.target(rest),
-            "thrust_min" => self.thrust_min.target(rest),
-            "thrust_max" => self.thrust_max.target(rest),
-            name => {
-                let (kind_field, sub) = (field(1), path.get(2..).unwrap_or(&[]));
-                self.kind_target(name, kind_field, sub)
-            }
+        if SharedParams::KEYS.iter().any(|k| k.name == field(0)) {
+            return self.shared.target(field(0), rest);
         }
+        self.kind_target(field(0), field(1), path.get(2..).unwrap_or(&[]))
     }
 
-    /// Check every value: the shared keys, then each kind's table.
+    /// Check every value: the shared keys (their bounds, then the rules across them), then
+    /// each kind's table.
     pub fn validate(&self, cfg: &ControlContext) -> Result<(), ConfigError> {
+        self.shared.check_bounds("controller")?;
         let tl = self.tilt_limit;
-        positive("controller.tilt_limit", tl)?;
         if tl > std::f64::consts::FRAC_PI_2 {
             return Err(ConfigError::new(
                 "controller.tilt_limit",
                 format!("controller.tilt_limit must be at most pi/2 rad, got {tl:?}"),
             ));
         }
-        positive("controller.thrust_floor", self.thrust_floor)?;
-        if let Some(x) = self.thrust_min {
-            non_negative("controller.thrust_min", x)?;
-        }
         if let Some(x) = self.thrust_max {
-            positive("controller.thrust_max", x)?;
             if x <= self.thrust_min.unwrap_or(0.0) {
                 return Err(ConfigError::new(
                     "controller.thrust_max",
@@ -440,14 +471,6 @@ impl ControllerConfig {
         }
         self.validate_kinds(cfg)
     }
-}
-
-/// Each of the three numbers of `{key}.{name}` is >= 0 (for a kind's `validate`).
-pub(crate) fn non_negative3(key: &str, name: &str, values: &[f64; 3]) -> Result<(), ConfigError> {
-    for (i, x) in values.iter().enumerate() {
-        non_negative(format_args!("{key}.{name}[{i}]"), *x)?;
-    }
-    Ok(())
 }
 
 impl ControllerKind {
@@ -528,23 +551,13 @@ impl Shared {
             sin_tilt: c.tilt_limit.sin(),
         }
     }
+}
 
-    /// One vehicle per lane (see `AnyVehicle::gather`).
-    pub fn gather<L: Lane>(each: &[&Shared]) -> Shared<L> {
-        let at = |f: fn(&Shared) -> f64| L::from_fn(|l| f(each[l]));
-        Shared {
-            mt: at(|s| s.mt),
-            g: at(|s| s.g),
-            inertia: [
-                at(|s| s.inertia[0]),
-                at(|s| s.inertia[1]),
-                at(|s| s.inertia[2]),
-            ],
-            thrust_min: at(|s| s.thrust_min),
-            thrust_max: at(|s| s.thrust_max),
-            thrust_floor: at(|s| s.thrust_floor),
-            sin_tilt: at(|s| s.sin_tilt),
-        }
+/// One vehicle per lane (see `AnyVehicle::gather`): a law's `gather` gathers its `shared`.
+impl<L: Lane> Gathered for Shared<L> {
+    type From = Shared;
+    fn gather_from<'a>(lane: impl Fn(usize) -> &'a Shared + Copy) -> Self {
+        gather!(|l| lane(l) => Shared { mt, g, inertia, thrust_min, thrust_max, thrust_floor, sin_tilt })
     }
 }
 

@@ -2,11 +2,10 @@
 //! "The swing-damping PD").
 
 use super::ControlContext;
-use super::{non_negative3, position_errors, Control, Controller, Memory, Shared};
-use crate::config::non_negative;
-use crate::config::params::params;
+use super::{position_errors, Control, Controller, Memory, Shared};
+use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, KernelOps, Lane, Param};
+use crate::lane::{gather, KernelOps, Lane, Param};
 use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -14,20 +13,20 @@ params! {
     /// `[controller.pd]`: the PD law's gains, every one >= 0.
     pub struct PdGains {
         /// x, y, z position gains.
-        kp: [f64; 3] => "1/s^2", "PD position gains (x, y, z)";
-        kd: [f64; 3] => "1/s", "PD velocity gains (x, y, z)";
+        kp: [f64; 3] => "1/s^2", "PD position gains (x, y, z)", non_negative;
+        kd: [f64; 3] => "1/s", "PD velocity gains (x, y, z)", non_negative;
         /// roll, pitch, yaw gains (torque per rad, per rad/s).
-        kp_attitude: [f64; 3] => "N m/rad", "PD attitude gains (roll, pitch, yaw)";
-        kd_attitude: [f64; 3] => "N m s/rad", "PD body-rate gains (roll, pitch, yaw)";
+        kp_attitude: [f64; 3] => "N m/rad", "PD attitude gains (roll, pitch, yaw)", non_negative;
+        kd_attitude: [f64; 3] => "N m s/rad", "PD body-rate gains (roll, pitch, yaw)", non_negative;
         /// Horizontal acceleration commanded per unit of the line's horizontal lean (the
         /// parcel's offset from below its attachment over the line's length: the swing angle's
         /// sine), toward the parcel; 0 (the default): off.
         #[serde(default)]
-        swing_gain: f64 => "m/s^2", "PD swing-angle feedback";
+        swing_gain: f64 => "m/s^2", "PD swing-angle feedback", non_negative;
         /// Horizontal acceleration commanded per unit of the lean's rate (rad/s at small
         /// angles), toward where the parcel swings: damps the swing; 0 (the default): off.
         #[serde(default)]
-        swing_damping: f64 => "m/s", "PD swing-rate feedback";
+        swing_damping: f64 => "m/s", "PD swing-rate feedback", non_negative;
     }
 }
 
@@ -56,12 +55,7 @@ impl Controller for Pd {
     type At<L: Lane> = Pd<L>;
 
     fn validate(k: &PdGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        non_negative3(key, "kp", &k.kp)?;
-        non_negative3(key, "kd", &k.kd)?;
-        non_negative3(key, "kp_attitude", &k.kp_attitude)?;
-        non_negative3(key, "kd_attitude", &k.kd_attitude)?;
-        non_negative(format_args!("{key}.swing_gain"), k.swing_gain)?;
-        non_negative(format_args!("{key}.swing_damping"), k.swing_damping)
+        k.check_bounds(key)
     }
 
     fn new(k: &PdGains, cfg: &ControlContext) -> Self {
@@ -78,18 +72,10 @@ impl Controller for Pd {
     }
 
     fn gather<L: Lane>(each: &[&Pd]) -> Pd<L> {
-        let at3 = |f: fn(&Pd) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Pd {
-            shared: Shared::gather(&shared),
-            kp: at3(|p| p.kp),
-            kd: at3(|p| p.kd),
-            kp_attitude: at3(|p| p.kp_attitude),
-            kd_attitude: at3(|p| p.kd_attitude),
-            swing_gain: L::from_fn(|l| each[l].swing_gain),
-            swing_damping: L::from_fn(|l| each[l].swing_damping),
+        gather!(|l| each[l] => Pd {
+            shared, kp, kd, kp_attitude, kd_attitude, swing_gain, swing_damping;
             swing: each.iter().any(|p| p.swing),
-        }
+        })
     }
 }
 

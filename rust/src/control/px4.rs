@@ -9,9 +9,9 @@
 use super::px4_allocator::{allocate, Mixer};
 use super::ControlContext;
 use super::{Control, Controller, Memory, Shared};
-use crate::config::params::params;
-use crate::config::{non_negative, positive, ConfigError};
-use crate::lane::{each3, gather3, KernelOps, Lane, Param};
+use crate::config::params::{params, Params};
+use crate::config::ConfigError;
+use crate::lane::{each3, gather, KernelOps, Lane, Param};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -21,47 +21,47 @@ params! {
     /// (degrees, deg/s, normalised thrust and torque), PX4's defaults where they fit.
     #[allow(non_snake_case)]
     pub struct Px4Params {
-        MPC_XY_P: f64 => "1/s", "PX4 horizontal position gain";
-        MPC_Z_P: f64 => "1/s", "PX4 vertical position gain";
-        MPC_XY_VEL_P_ACC: f64 => "1/s", "PX4 horizontal velocity P gain";
-        MPC_XY_VEL_I_ACC: f64 => "1/s^2", "PX4 horizontal velocity I gain";
-        MPC_XY_VEL_D_ACC: f64 => "-", "PX4 horizontal velocity D gain";
-        MPC_Z_VEL_P_ACC: f64 => "1/s", "PX4 vertical velocity P gain";
-        MPC_Z_VEL_I_ACC: f64 => "1/s^2", "PX4 vertical velocity I gain";
-        MPC_Z_VEL_D_ACC: f64 => "-", "PX4 vertical velocity D gain";
-        MPC_VELD_LP: f64 => "Hz", "PX4 velocity-derivative low-pass cutoff";
-        MPC_XY_VEL_MAX: f64 => "m/s", "PX4 largest horizontal velocity setpoint";
-        MPC_Z_VEL_MAX_UP: f64 => "m/s", "PX4 largest ascent velocity setpoint";
-        MPC_Z_VEL_MAX_DN: f64 => "m/s", "PX4 largest descent velocity setpoint";
+        MPC_XY_P: f64 => "1/s", "PX4 horizontal position gain", non_negative;
+        MPC_Z_P: f64 => "1/s", "PX4 vertical position gain", non_negative;
+        MPC_XY_VEL_P_ACC: f64 => "1/s", "PX4 horizontal velocity P gain", non_negative;
+        MPC_XY_VEL_I_ACC: f64 => "1/s^2", "PX4 horizontal velocity I gain", non_negative;
+        MPC_XY_VEL_D_ACC: f64 => "-", "PX4 horizontal velocity D gain", non_negative;
+        MPC_Z_VEL_P_ACC: f64 => "1/s", "PX4 vertical velocity P gain", non_negative;
+        MPC_Z_VEL_I_ACC: f64 => "1/s^2", "PX4 vertical velocity I gain", non_negative;
+        MPC_Z_VEL_D_ACC: f64 => "-", "PX4 vertical velocity D gain", non_negative;
+        MPC_VELD_LP: f64 => "Hz", "PX4 velocity-derivative low-pass cutoff", positive;
+        MPC_XY_VEL_MAX: f64 => "m/s", "PX4 largest horizontal velocity setpoint", positive;
+        MPC_Z_VEL_MAX_UP: f64 => "m/s", "PX4 largest ascent velocity setpoint", positive;
+        MPC_Z_VEL_MAX_DN: f64 => "m/s", "PX4 largest descent velocity setpoint", positive;
         MPC_TILTMAX_AIR: f64 => "deg", "PX4 largest tilt of the thrust setpoint";
-        MPC_THR_HOVER: f64 => "-", "PX4 hover thrust (normalised)";
-        MPC_THR_MIN: f64 => "-", "PX4 least collective thrust (normalised)";
-        MPC_THR_MAX: f64 => "-", "PX4 largest collective thrust (normalised)";
-        MPC_THR_XY_MARG: f64 => "-", "PX4 horizontal thrust margin (normalised)";
-        MC_ROLL_P: f64 => "1/s", "PX4 roll attitude gain";
-        MC_PITCH_P: f64 => "1/s", "PX4 pitch attitude gain";
-        MC_YAW_P: f64 => "1/s", "PX4 yaw attitude gain";
-        MC_YAW_WEIGHT: f64 => "-", "PX4 yaw weight of the attitude error";
-        MC_ROLLRATE_MAX: f64 => "deg/s", "PX4 largest roll-rate setpoint";
-        MC_PITCHRATE_MAX: f64 => "deg/s", "PX4 largest pitch-rate setpoint";
-        MC_YAWRATE_MAX: f64 => "deg/s", "PX4 largest yaw-rate setpoint";
-        MC_ROLLRATE_P: f64 => "s/rad", "PX4 roll-rate P gain (normalised torque)";
-        MC_ROLLRATE_I: f64 => "1/rad", "PX4 roll-rate I gain (normalised torque)";
-        MC_ROLLRATE_D: f64 => "s^2/rad", "PX4 roll-rate D gain (normalised torque)";
-        MC_PITCHRATE_P: f64 => "s/rad", "PX4 pitch-rate P gain (normalised torque)";
-        MC_PITCHRATE_I: f64 => "1/rad", "PX4 pitch-rate I gain (normalised torque)";
-        MC_PITCHRATE_D: f64 => "s^2/rad", "PX4 pitch-rate D gain (normalised torque)";
-        MC_YAWRATE_P: f64 => "s/rad", "PX4 yaw-rate P gain (normalised torque)";
-        MC_YAWRATE_I: f64 => "1/rad", "PX4 yaw-rate I gain (normalised torque)";
-        MC_YAWRATE_D: f64 => "s^2/rad", "PX4 yaw-rate D gain (normalised torque)";
-        MC_RR_INT_LIM: f64 => "-", "PX4 roll-rate integrator limit (normalised torque)";
-        MC_PR_INT_LIM: f64 => "-", "PX4 pitch-rate integrator limit (normalised torque)";
-        MC_YR_INT_LIM: f64 => "-", "PX4 yaw-rate integrator limit (normalised torque)";
-        IMU_DGYRO_CUTOFF: f64 => "Hz", "PX4 rate-derivative low-pass cutoff";
+        MPC_THR_HOVER: f64 => "-", "PX4 hover thrust (normalised)", positive;
+        MPC_THR_MIN: f64 => "-", "PX4 least collective thrust (normalised)", non_negative;
+        MPC_THR_MAX: f64 => "-", "PX4 largest collective thrust (normalised)", positive;
+        MPC_THR_XY_MARG: f64 => "-", "PX4 horizontal thrust margin (normalised)", non_negative;
+        MC_ROLL_P: f64 => "1/s", "PX4 roll attitude gain", non_negative;
+        MC_PITCH_P: f64 => "1/s", "PX4 pitch attitude gain", non_negative;
+        MC_YAW_P: f64 => "1/s", "PX4 yaw attitude gain", non_negative;
+        MC_YAW_WEIGHT: f64 => "-", "PX4 yaw weight of the attitude error", non_negative;
+        MC_ROLLRATE_MAX: f64 => "deg/s", "PX4 largest roll-rate setpoint", positive;
+        MC_PITCHRATE_MAX: f64 => "deg/s", "PX4 largest pitch-rate setpoint", positive;
+        MC_YAWRATE_MAX: f64 => "deg/s", "PX4 largest yaw-rate setpoint", positive;
+        MC_ROLLRATE_P: f64 => "s/rad", "PX4 roll-rate P gain (normalised torque)", non_negative;
+        MC_ROLLRATE_I: f64 => "1/rad", "PX4 roll-rate I gain (normalised torque)", non_negative;
+        MC_ROLLRATE_D: f64 => "s^2/rad", "PX4 roll-rate D gain (normalised torque)", non_negative;
+        MC_PITCHRATE_P: f64 => "s/rad", "PX4 pitch-rate P gain (normalised torque)", non_negative;
+        MC_PITCHRATE_I: f64 => "1/rad", "PX4 pitch-rate I gain (normalised torque)", non_negative;
+        MC_PITCHRATE_D: f64 => "s^2/rad", "PX4 pitch-rate D gain (normalised torque)", non_negative;
+        MC_YAWRATE_P: f64 => "s/rad", "PX4 yaw-rate P gain (normalised torque)", non_negative;
+        MC_YAWRATE_I: f64 => "1/rad", "PX4 yaw-rate I gain (normalised torque)", non_negative;
+        MC_YAWRATE_D: f64 => "s^2/rad", "PX4 yaw-rate D gain (normalised torque)", non_negative;
+        MC_RR_INT_LIM: f64 => "-", "PX4 roll-rate integrator limit (normalised torque)", non_negative;
+        MC_PR_INT_LIM: f64 => "-", "PX4 pitch-rate integrator limit (normalised torque)", non_negative;
+        MC_YR_INT_LIM: f64 => "-", "PX4 yaw-rate integrator limit (normalised torque)", non_negative;
+        IMU_DGYRO_CUTOFF: f64 => "Hz", "PX4 rate-derivative low-pass cutoff", positive;
         /// PX4's `CA_ROTORn_KM`: the rotors' yaw torque per unit thrust as the allocator
         /// believes it. The normalised allocation does not depend on it; it sets the yaw
         /// torque of the ideal actuator (the rotors' own `torque_ratio` sets it on rotors).
-        yaw_torque_ratio: f64 => "m", "Yaw torque per rotor thrust (PX4 CA_ROTOR_KM)";
+        yaw_torque_ratio: f64 => "m", "Yaw torque per rotor thrust (PX4 CA_ROTOR_KM)", positive;
     }
 }
 
@@ -208,53 +208,7 @@ impl Controller for Px4 {
     }
 
     fn validate(k: &Px4Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        let nn = [
-            ("MPC_XY_P", k.MPC_XY_P),
-            ("MPC_Z_P", k.MPC_Z_P),
-            ("MPC_XY_VEL_P_ACC", k.MPC_XY_VEL_P_ACC),
-            ("MPC_XY_VEL_I_ACC", k.MPC_XY_VEL_I_ACC),
-            ("MPC_XY_VEL_D_ACC", k.MPC_XY_VEL_D_ACC),
-            ("MPC_Z_VEL_P_ACC", k.MPC_Z_VEL_P_ACC),
-            ("MPC_Z_VEL_I_ACC", k.MPC_Z_VEL_I_ACC),
-            ("MPC_Z_VEL_D_ACC", k.MPC_Z_VEL_D_ACC),
-            ("MPC_THR_MIN", k.MPC_THR_MIN),
-            ("MPC_THR_XY_MARG", k.MPC_THR_XY_MARG),
-            ("MC_ROLL_P", k.MC_ROLL_P),
-            ("MC_PITCH_P", k.MC_PITCH_P),
-            ("MC_YAW_P", k.MC_YAW_P),
-            ("MC_YAW_WEIGHT", k.MC_YAW_WEIGHT),
-            ("MC_ROLLRATE_P", k.MC_ROLLRATE_P),
-            ("MC_ROLLRATE_I", k.MC_ROLLRATE_I),
-            ("MC_ROLLRATE_D", k.MC_ROLLRATE_D),
-            ("MC_PITCHRATE_P", k.MC_PITCHRATE_P),
-            ("MC_PITCHRATE_I", k.MC_PITCHRATE_I),
-            ("MC_PITCHRATE_D", k.MC_PITCHRATE_D),
-            ("MC_YAWRATE_P", k.MC_YAWRATE_P),
-            ("MC_YAWRATE_I", k.MC_YAWRATE_I),
-            ("MC_YAWRATE_D", k.MC_YAWRATE_D),
-            ("MC_RR_INT_LIM", k.MC_RR_INT_LIM),
-            ("MC_PR_INT_LIM", k.MC_PR_INT_LIM),
-            ("MC_YR_INT_LIM", k.MC_YR_INT_LIM),
-        ];
-        for (name, x) in nn {
-            non_negative(format_args!("{key}.{name}"), x)?;
-        }
-        let pos = [
-            ("MPC_VELD_LP", k.MPC_VELD_LP),
-            ("MPC_XY_VEL_MAX", k.MPC_XY_VEL_MAX),
-            ("MPC_Z_VEL_MAX_UP", k.MPC_Z_VEL_MAX_UP),
-            ("MPC_Z_VEL_MAX_DN", k.MPC_Z_VEL_MAX_DN),
-            ("MPC_THR_HOVER", k.MPC_THR_HOVER),
-            ("MPC_THR_MAX", k.MPC_THR_MAX),
-            ("MC_ROLLRATE_MAX", k.MC_ROLLRATE_MAX),
-            ("MC_PITCHRATE_MAX", k.MC_PITCHRATE_MAX),
-            ("MC_YAWRATE_MAX", k.MC_YAWRATE_MAX),
-            ("IMU_DGYRO_CUTOFF", k.IMU_DGYRO_CUTOFF),
-            ("yaw_torque_ratio", k.yaw_torque_ratio),
-        ];
-        for (name, x) in pos {
-            positive(format_args!("{key}.{name}"), x)?;
-        }
+        k.check_bounds(key)?;
         let range = |name: &str, x: f64, lo: f64, hi: f64, what: &str| {
             if x > lo && x < hi {
                 Ok(())
@@ -364,43 +318,12 @@ impl Controller for Px4 {
     }
 
     fn gather<L: Lane>(each: &[&Px4]) -> Px4<L> {
-        let at = |f: fn(&Px4) -> f64| -> L { L::from_fn(|l| f(each[l])) };
-        let at3 = |f: fn(&Px4) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let at44 = |f: fn(&Px4) -> &[[f64; 4]; 4]| -> [[L; 4]; 4] {
-            std::array::from_fn(|i| std::array::from_fn(|j| L::from_fn(|l| f(each[l])[i][j])))
-        };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Px4 {
-            shared: Shared::gather(&shared),
-            pos_p: at3(|p| p.pos_p),
-            vel_p: at3(|p| p.vel_p),
-            vel_i: at3(|p| p.vel_i),
-            vel_d: at3(|p| p.vel_d),
-            vel_max_xy: at(|p| p.vel_max_xy),
-            vel_max_up: at(|p| p.vel_max_up),
-            vel_max_dn: at(|p| p.vel_max_dn),
-            acc_max_xy: at(|p| p.acc_max_xy),
-            thr_hover: at(|p| p.thr_hover),
-            thr_min: at(|p| p.thr_min),
-            thr_max: at(|p| p.thr_max),
-            thr_xy_marg: at(|p| p.thr_xy_marg),
-            att_p: at3(|p| p.att_p),
-            yaw_w: at(|p| p.yaw_w),
-            rate_max: at3(|p| p.rate_max),
-            rate_p: at3(|p| p.rate_p),
-            rate_i: at3(|p| p.rate_i),
-            rate_d: at3(|p| p.rate_d),
-            rate_int_lim: at3(|p| p.rate_int_lim),
-            thrust_full: at(|p| p.thrust_full),
-            mix: at44(|p| &p.mix),
-            mix_inv: at44(|p| &p.mix_inv),
-            effect: at44(|p| &p.effect),
-            out: at44(|p| &p.out),
-            status_every: at(|p| p.status_every),
-            dt: at(|p| p.dt),
-            alpha_vel: at(|p| p.alpha_vel),
-            alpha_rate: at(|p| p.alpha_rate),
-        }
+        gather!(|l| each[l] => Px4 {
+            shared, pos_p, vel_p, vel_i, vel_d, vel_max_xy, vel_max_up, vel_max_dn, acc_max_xy,
+            thr_hover, thr_min, thr_max, thr_xy_marg, att_p, yaw_w, rate_max, rate_p, rate_i,
+            rate_d, rate_int_lim, thrust_full, mix, mix_inv, effect, out, status_every, dt,
+            alpha_vel, alpha_rate,
+        })
     }
 }
 

@@ -7,10 +7,10 @@
 //! Lee's gain matrices are `m diag(kx)`, `m diag(kv)`, `J diag(kR)`, `J diag(kW)`.
 
 use super::ControlContext;
-use super::{non_negative3, position_errors, Control, Controller, Shared, MIN_TILT_COS};
-use crate::config::params::params;
+use super::{position_errors, Control, Controller, Shared, MIN_TILT_COS};
+use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather3, Lane, Param};
+use crate::lane::{gather, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -20,13 +20,13 @@ params! {
     #[allow(non_snake_case)]
     pub struct Se3Gains {
         /// x, y, z position gains (Lee's k_x divided by the mass).
-        kx: [f64; 3] => "1/s^2", "SE(3) position gains (x, y, z)";
+        kx: [f64; 3] => "1/s^2", "SE(3) position gains (x, y, z)", non_negative;
         /// x, y, z velocity gains (Lee's k_v divided by the mass).
-        kv: [f64; 3] => "1/s", "SE(3) velocity gains (x, y, z)";
+        kv: [f64; 3] => "1/s", "SE(3) velocity gains (x, y, z)", non_negative;
         /// Attitude-error gains about the body axes (Lee's k_R divided by the inertia).
-        kR: [f64; 3] => "1/s^2", "SE(3) attitude gains (body x, y, z)";
+        kR: [f64; 3] => "1/s^2", "SE(3) attitude gains (body x, y, z)", non_negative;
         /// Body-rate gains (Lee's k_Omega divided by the inertia).
-        kW: [f64; 3] => "1/s", "SE(3) body-rate gains (body x, y, z)";
+        kW: [f64; 3] => "1/s", "SE(3) body-rate gains (body x, y, z)", non_negative;
     }
 }
 
@@ -58,10 +58,7 @@ impl Controller for Se3 {
     }
 
     fn validate(k: &Se3Gains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        non_negative3(key, "kx", &k.kx)?;
-        non_negative3(key, "kv", &k.kv)?;
-        non_negative3(key, "kR", &k.kR)?;
-        non_negative3(key, "kW", &k.kW)
+        k.check_bounds(key)
     }
 
     fn new(k: &Se3Gains, cfg: &ControlContext) -> Self {
@@ -75,15 +72,7 @@ impl Controller for Se3 {
     }
 
     fn gather<L: Lane>(each: &[&Se3]) -> Se3<L> {
-        let at3 = |f: fn(&Se3) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Se3 {
-            shared: Shared::gather(&shared),
-            kx: at3(|p| p.kx),
-            kv: at3(|p| p.kv),
-            k_r: at3(|p| p.k_r),
-            k_w: at3(|p| p.k_w),
-        }
+        gather!(|l| each[l] => Se3 { shared, kx, kv, k_r, k_w })
     }
 }
 

@@ -1,10 +1,10 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
 use super::ControlContext;
-use super::{non_negative3, position_errors, Control, Controller, Shared};
-use crate::config::params::params;
-use crate::config::{positive, ConfigError};
-use crate::lane::{gather3, Lane, Param};
+use super::{position_errors, Control, Controller, Shared};
+use crate::config::params::{params, Params};
+use crate::config::ConfigError;
+use crate::lane::{gather, Lane, Param};
 use crate::model::{Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
@@ -12,14 +12,14 @@ params! {
     /// `[controller.smc]`: the sliding-mode law's gains (x, y, z channels, then roll, pitch,
     /// yaw), every one >= 0, and its boundary layer.
     pub struct SmcGains {
-        epsilon: [f64; 3] => "m/s^2 (x, y, z)", "SMC switching gains (x, y, z)";
-        lambda: [f64; 3] => "1/s", "SMC sliding-surface slopes (x, y, z)";
-        eta: [f64; 3] => "1/s", "SMC reaching gains (x, y, z)";
-        epsilon_attitude: [f64; 3] => "rad/s^2", "SMC switching gains (roll, pitch, yaw)";
-        lambda_attitude: [f64; 3] => "1/s", "SMC sliding-surface slopes (roll, pitch, yaw)";
-        eta_attitude: [f64; 3] => "1/s", "SMC reaching gains (roll, pitch, yaw)";
+        epsilon: [f64; 3] => "m/s^2 (x, y, z)", "SMC switching gains (x, y, z)", non_negative;
+        lambda: [f64; 3] => "1/s", "SMC sliding-surface slopes (x, y, z)", non_negative;
+        eta: [f64; 3] => "1/s", "SMC reaching gains (x, y, z)", non_negative;
+        epsilon_attitude: [f64; 3] => "rad/s^2", "SMC switching gains (roll, pitch, yaw)", non_negative;
+        lambda_attitude: [f64; 3] => "1/s", "SMC sliding-surface slopes (roll, pitch, yaw)", non_negative;
+        eta_attitude: [f64; 3] => "1/s", "SMC reaching gains (roll, pitch, yaw)", non_negative;
         /// Boundary-layer width of sat(s) = s / (|s| + gamma), > 0.
-        gamma: f64 => "m/s (x, y, z) or rad/s", "SMC boundary-layer width";
+        gamma: f64 => "m/s (x, y, z) or rad/s", "SMC boundary-layer width", positive;
     }
 }
 
@@ -43,13 +43,7 @@ impl Controller for Smc {
     type At<L: Lane> = Smc<L>;
 
     fn validate(k: &SmcGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        non_negative3(key, "epsilon", &k.epsilon)?;
-        non_negative3(key, "lambda", &k.lambda)?;
-        non_negative3(key, "eta", &k.eta)?;
-        non_negative3(key, "epsilon_attitude", &k.epsilon_attitude)?;
-        non_negative3(key, "lambda_attitude", &k.lambda_attitude)?;
-        non_negative3(key, "eta_attitude", &k.eta_attitude)?;
-        positive(format_args!("{key}.gamma"), k.gamma)
+        k.check_bounds(key)
     }
 
     fn new(k: &SmcGains, cfg: &ControlContext) -> Self {
@@ -66,18 +60,9 @@ impl Controller for Smc {
     }
 
     fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
-        let at3 = |f: fn(&Smc) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        let shared: Vec<&Shared> = each.iter().map(|p| &p.shared).collect();
-        Smc {
-            shared: Shared::gather(&shared),
-            epsilon: at3(|p| p.epsilon),
-            lambda: at3(|p| p.lambda),
-            eta: at3(|p| p.eta),
-            epsilon_attitude: at3(|p| p.epsilon_attitude),
-            lambda_attitude: at3(|p| p.lambda_attitude),
-            eta_attitude: at3(|p| p.eta_attitude),
-            gamma: L::from_fn(|l| each[l].gamma),
-        }
+        gather!(|l| each[l] => Smc {
+            shared, epsilon, lambda, eta, epsilon_attitude, lambda_attitude, eta_attitude, gamma,
+        })
     }
 }
 

@@ -35,13 +35,6 @@
 
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
-/// Lane `l` of a 3-vector parameter read by `f` from `each[l]`: one vehicle per lane (the
-/// `gather` of a kind's parameters).
-#[inline]
-pub fn gather3<T, L: Lane>(each: &[&T], f: impl Fn(&T) -> [f64; 3]) -> [L; 3] {
-    [0, 1, 2].map(|i| L::from_fn(|l| f(each[l])[i]))
-}
-
 /// `[f(0), f(1), f(2)]`, built where it is called. In the flight loop, for lane values, in
 /// place of an array's `map` or `std::array::from_fn`: the optimiser may leave those, and the
 /// closure they call, out of the loop's line, and a function out of line is compiled without
@@ -388,6 +381,9 @@ mod portable;
 
 pub mod dual;
 pub mod explog;
+mod gather;
+pub(crate) use gather::gather;
+pub use gather::Gathered;
 pub mod isa;
 pub mod kernels;
 pub mod random;

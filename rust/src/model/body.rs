@@ -8,7 +8,7 @@ use super::layout::{
 };
 use super::{ix, State, Trig};
 use crate::config::Context;
-use crate::lane::{gather3, KernelOps, Lane};
+use crate::lane::{gather, KernelOps, Lane};
 
 pub use crate::config::vehicle::{BodyModel, BODY_MODELS};
 
@@ -57,18 +57,9 @@ impl Body {
 
     /// One vehicle per lane: lane `l` of every parameter is `each[l]`'s.
     pub fn gather<L: Lane>(each: &[&Body]) -> Body<L> {
-        let at = |f: fn(&Body) -> f64| L::from_fn(|l| f(each[l]));
-        let at3 = |f: fn(&Body) -> [f64; 3]| -> [L; 3] { gather3(each, f) };
-        Body {
-            m: at(|b| b.m),
-            g: at(|b| b.g),
-            inertia: at3(|b| b.inertia),
-            drag_quad: at(|b| b.drag_quad),
-            drag_lateral: at(|b| b.drag_lateral),
-            drag_coefficients: at3(|b| b.drag_coefficients),
-            inv_m: at(|b| b.inv_m),
-            inv_inertia: at3(|b| b.inv_inertia),
-        }
+        gather!(|l| each[l] => Body {
+            m, g, inertia, drag_quad, drag_lateral, drag_coefficients, inv_m, inv_inertia,
+        })
     }
 }
 

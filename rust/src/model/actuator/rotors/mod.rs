@@ -18,7 +18,7 @@ mod params;
 
 use super::{Actuator, ActuatorModel};
 use crate::config::ConfigError;
-use crate::lane::Lane;
+use crate::lane::{gather, Lane};
 use crate::model::layout::{Axis, Part, StateVar};
 use crate::model::section::OwnsKeys;
 use crate::model::ModelContext;
@@ -142,32 +142,13 @@ impl Actuator for Rotors {
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Rotors<L> {
-        let at = |f: &dyn Fn(&Rotors) -> f64| L::from_fn(|l| f(each[l]));
-        let at44 = |f: fn(&Rotors) -> &[[f64; 4]; 4]| -> [[L; 4]; 4] {
-            std::array::from_fn(|i| std::array::from_fn(|j| L::from_fn(|l| f(each[l])[i][j])))
-        };
-        Rotors {
-            allocation: at44(|r| &r.allocation),
-            inverse: at44(|r| &r.inverse),
-            kf: at(&|r| r.kf),
-            thrust_min: at(&|r| r.thrust_min),
-            thrust_max: at(&|r| r.thrust_max),
-            hover_speed: at(&|r| r.hover_speed),
-            inv_kf: at(&|r| r.inv_kf),
-            inv_tau: at(&|r| r.inv_tau),
-            sag_rate: at(&|r| r.sag_rate),
-            fault_start: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_start[i])),
-            fault_fraction: std::array::from_fn(|i| L::from_fn(|l| each[l].fault_fraction[i])),
+        gather!(|l| each[l] => Rotors {
+            allocation, inverse, kf, thrust_min, thrust_max, hover_speed, inv_kf, inv_tau,
+            sag_rate, fault_start, fault_fraction, hubs, rotor_drag, flapping, lift;
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
-            hubs: std::array::from_fn(|i| {
-                std::array::from_fn(|j| L::from_fn(|l| each[l].hubs[i][j]))
-            }),
-            rotor_drag: std::array::from_fn(|i| L::from_fn(|l| each[l].rotor_drag[i])),
-            flapping: at(&|r| r.flapping),
-            lift: at(&|r| r.lift),
             aerodynamic: each.iter().any(|r| r.aerodynamic),
-        }
+        })
     }
 }
 
