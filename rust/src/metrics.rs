@@ -4,19 +4,23 @@
 //! (`max_specific_force`, |a - g|: how fragility is specified; docs/risk.md), the 3-D tracking error,
 //! the attachment's swing and tension, slack and actuator saturation times.
 //!
-//! Integrals use the trapezoidal rule on the step grid. The amplitude spectrum needs the signal,
-//! so e_o is also kept block-averaged at `metrics.spectrum_rate` (a few thousand numbers per
-//! flight, allocated once per flight, never per step).
+//! A metric is one entry of `metrics!` below: its name, unit and label, the signal it derives
+//! from what the flight loop hands over at each step (`Views`), how the signal folds into the
+//! phase's running sum (`fold`) and its value from that sum. Integrals use the trapezoidal rule
+//! on the step grid. The amplitude spectrum needs the signal, so e_o is also kept
+//! block-averaged at `metrics.spectrum_rate` (a few thousand numbers per flight, allocated once
+//! per flight, never per step).
 
-use crate::lane::Lane;
-use crate::trajectory::PhaseSteps;
+use crate::control::ControllerConfig;
+use crate::lane::{KernelOps, Lane};
+use crate::model::{PayloadOutputs, Rigid};
+use crate::trajectory::{PhaseSteps, Reference};
 use rustfft::{num_complex::Complex, FftPlanner};
 
 /// One metric: its column name, its unit (SI, as the engine stores it; "-" for none), a
 /// plain-English label (no unit: figures and tables add theirs) and its value from one
-/// phase's running sums. The one place a metric is defined: the column order of every metrics
-/// array, `_core.METRIC_NAMES`, `_core.METRIC_UNITS` and `_core.METRIC_LABELS` come from
-/// `METRICS`.
+/// phase's running sums. The column order of every metrics array, `_core.METRIC_NAMES`,
+/// `_core.METRIC_UNITS` and `_core.METRIC_LABELS` come from `METRICS`, which `metrics!` writes.
 pub struct Metric {
     pub name: &'static str,
     pub unit: &'static str,
@@ -27,9 +31,53 @@ pub struct Metric {
     value: fn(&Totals) -> f64,
 }
 
+/// What the flight loop hands the metrics at one step (lane values): each metric derives its
+/// signal from these views (`metrics!`).
+#[derive(Clone, Copy)]
+pub struct Views<'a, L> {
+    /// s, the step's time.
+    pub t: f64,
+    /// The vehicle's rigid-body state.
+    pub rigid: &'a Rigid<L>,
+    /// The body's x, y and z axes in inertial axes (the columns of R).
+    pub axes: [[L; 3]; 3],
+    /// m/s^2, gravity.
+    pub g: L,
+    /// The payload's outputs (e_o, acceleration, tension, swing).
+    pub out: &'a PayloadOutputs<L>,
+    /// The reference.
+    pub r: &'a Reference,
+    /// m, the position error p_ref - p.
+    pub e: &'a [L; 3],
+    /// The straight line of the current leg (a point, a unit direction; `Trajectory::line`).
+    pub line: &'a ([L; 3], [L; 3]),
+    /// 1 where an actuator command was clamped over this step, else 0.
+    pub saturated: L,
+    /// The last metres (`LastSample::none()` for a payload without them).
+    pub last: &'a LastSample<L>,
+}
+
+/// The laws' limits a metric may compare against (`given` in `metrics!`), one realisation's,
+/// read from `[controller]`.
+#[derive(Clone, Debug)]
+pub struct LawLimits {
+    /// rad, the bound on the commanded roll and pitch (`controller.tilt_limit`).
+    pub tilt_limit: f64,
+}
+
+impl LawLimits {
+    pub fn of(c: &ControllerConfig) -> Self {
+        Self {
+            tilt_limit: c.tilt_limit,
+        }
+    }
+}
+
 /// One lane's running sums over one phase, and what a value needs besides them.
 pub struct Totals {
-    s: Sums<f64>,
+    /// Each metric's running sum, and its event's count (0 for a metric without one).
+    s: PerMetric<f64>,
+    n: PerMetric<f64>,
     /// s, the phase's length.
     span: f64,
     /// s, the step.
@@ -39,221 +87,386 @@ pub struct Totals {
 }
 
 impl Totals {
-    /// A value recorded at the phase's touchdown; NaN where the phase has none.
-    fn once(&self, value: f64) -> f64 {
-        if self.s.touchdowns > 0.0 {
-            value
-        } else {
-            f64::NAN
-        }
-    }
-
     /// sqrt(integral / span): the RMS of a signal whose squared integral is `sq`.
     fn rms(&self, sq: f64) -> f64 {
         (sq / self.span).sqrt()
     }
 }
 
-/// Every metric, in column order.
-pub const METRICS: [Metric; 26] = [
-    Metric {
-        name: "iae",
+/// How a signal `x` folds into its running sum `s` at a step of trapezoid weight `w` (s) and
+/// time `t`: `sum` adds it, `integral` its trapezoid area, `time_integral` its area times t,
+/// `max` and `min` keep the extreme (from the initial value given, 0 by default).
+macro_rules! fold {
+    (sum, $s:expr, $x:expr, $w:expr, $t:expr) => {
+        $s += $x
+    };
+    (integral, $s:expr, $x:expr, $w:expr, $t:expr) => {
+        $s += $x * $w
+    };
+    (time_integral, $s:expr, $x:expr, $w:expr, $t:expr) => {
+        $s += $x * ($w * $t)
+    };
+    (max, $s:expr, $x:expr, $w:expr, $t:expr) => {
+        $s = $s.max($x)
+    };
+    (min, $s:expr, $x:expr, $w:expr, $t:expr) => {
+        $s = $s.min($x)
+    };
+}
+
+/// An event's value (`count`: how often it counted in the phase), NaN where it never did; a
+/// metric without an event (`None`), its value.
+fn gated(count: Option<f64>, value: f64) -> f64 {
+    match count {
+        Some(n) if n > 0.0 => value,
+        Some(_) => f64::NAN,
+        None => value,
+    }
+}
+
+/// The first of its arguments, else the default (`$d`).
+macro_rules! or {
+    ($d:expr;) => {
+        $d
+    };
+    ($d:expr; $x:expr) => {
+        $x
+    };
+}
+
+/// The metrics, in column order: per entry its name, `unit`, `label`, and
+/// - `event: |v| flag`: an event's (1 at the steps it counts, else 0); the value is NaN in a
+///   phase where it never counts;
+/// - `given: |laws| value`: a number per realisation from the laws' limits (`LawLimits`), taken
+///   once per flight and handed to the signal as its second argument;
+/// - `signal: |v| x` or `|v, given| x`: the step's signal from the views `v` (a lane value), once
+///   per step; an earlier entry's signal is the local of its name (shared, not recomputed);
+/// - `fold`: how the signal folds into the phase's running sum (`fold!`; `max(init)`);
+/// - `value: |totals, sum| x`: the phase's value from its running sum.
+///
+/// It writes `METRICS`, `N_METRICS`, `PerMetric` (a lane value per metric: the running sums,
+/// the event counts, the given values and the signals of a step) and `PhaseAccumulator`'s fold.
+macro_rules! metrics {
+    ($(
+        $(#[$doc:meta])*
+        $name:ident {
+            unit: $unit:literal,
+            label: $label:literal,
+            $(event: |$ev:pat_param| $event:expr,)?
+            $(given: |$law:pat_param| $given:expr,)?
+            $(
+                signal: |$v:pat_param $(, $c:pat_param)?| $signal:expr,
+                fold: $fold:ident $(($init:expr))?,
+            )?
+            value: |$t:pat_param, $x:pat_param| $value:expr,
+        }
+    )+) => {
+        pub const N_METRICS: usize = [$(stringify!($name)),+].len();
+
+        /// Every metric, in column order.
+        pub const METRICS: [Metric; N_METRICS] = [$(
+            Metric {
+                name: stringify!($name),
+                unit: $unit,
+                label: $label,
+                event: or!(false; $({ let _ = stringify!($event); true })?),
+                value: |totals| {
+                    let ($t, $x) = (totals, totals.s.$name);
+                    let count = or!(None; $({
+                        let _ = stringify!($event);
+                        Some(totals.n.$name)
+                    })?);
+                    gated(count, $value)
+                },
+            },
+        )+];
+
+        /// One lane value per metric: its signal at a step, its running sum over a phase (from
+        /// its fold's initial value), its event's count, its given value.
+        #[derive(Clone, Copy, Debug)]
+        pub struct PerMetric<L> {
+            $($(#[$doc])* pub $name: L,)+
+        }
+
+        impl<L: Lane> PerMetric<L> {
+            /// Each metric's initial running sum.
+            fn start() -> Self {
+                Self { $($name: L::splat(or!(0.0; $($($init)?)?)),)+ }
+            }
+
+            /// Zero for every metric.
+            fn zero() -> Self {
+                Self { $($name: L::splat(0.0),)+ }
+            }
+
+            fn lane(&self, lane: usize) -> PerMetric<f64> {
+                PerMetric { $($name: self.$name.lane(lane),)+ }
+            }
+
+            /// Each metric's given value (0 without one) of the laws' limits, one per lane.
+            fn given(laws: &[&LawLimits]) -> Self {
+                Self {
+                    $($name: L::from_fn(|_lane| {
+                        or!(0.0; $({
+                            let $law = laws[_lane];
+                            $given
+                        })?)
+                    }),)+
+                }
+            }
+        }
+
+        impl<L: KernelOps> PhaseAccumulator<L> {
+            /// The signals of the step whose views are `views`, folded into the running sums of
+            /// every phase holding step `k` (k = 0, 1, 2, ... in turn). Returns the signals.
+            #[inline(always)]
+            pub fn sample(&mut self, k: usize, views: &Views<L>) -> PerMetric<L> {
+                let t = views.t;
+                $(
+                    let $name: L = or!(L::splat(0.0); $({
+                        let $v = views;
+                        $(let $c = self.given.$name;)?
+                        $signal
+                    })?);
+                )+
+                let signals = PerMetric { $($name,)+ };
+                let events = PerMetric {
+                    $($name: or!(L::splat(0.0); $({
+                        let $ev = views;
+                        $event
+                    })?),)+
+                };
+                for (ph, run) in self.phases.iter().zip(self.sums.iter_mut()) {
+                    if ph.contains(k) {
+                        let w = if k == ph.first || k == ph.last {
+                            0.5 * self.dt
+                        } else {
+                            self.dt
+                        };
+                        $($(fold!($fold, run.s.$name, signals.$name, w, t);)?)+
+                        $($(
+                            let _ = stringify!($event);
+                            run.n.$name += events.$name;
+                        )?)+
+                    }
+                }
+                self.block(views.out.e_o);
+                signals
+            }
+        }
+    };
+}
+
+metrics! {
+    /// m s, the trapezoid integral of |e_o|.
+    iae {
         unit: "m s",
         label: "Integrated absolute displacement, IAE",
-        event: false,
-        value: |t| t.s.iae,
-    },
-    Metric {
-        name: "itae",
+        signal: |v| v.out.e_o.abs(),
+        fold: integral,
+        value: |_, x| x,
+    }
+    itae {
         unit: "m s^2",
         label: "Time-weighted IAE, ITAE",
-        event: false,
-        value: |t| t.s.itae,
-    },
-    Metric {
-        name: "max_abs",
+        signal: |_| iae,
+        fold: time_integral,
+        value: |_, x| x,
+    }
+    max_abs {
         unit: "m",
         label: "Peak |payload relative displacement|",
-        event: false,
-        value: |t| t.s.max_abs,
-    },
-    Metric {
-        name: "rms",
+        signal: |_| iae,
+        fold: max,
+        value: |_, x| x,
+    }
+    rms {
         unit: "m",
         label: "RMS payload relative displacement",
-        event: false,
-        value: |t| t.rms(t.s.sq),
-    },
-    Metric {
-        name: "tracking_rms",
+        signal: |v| v.out.e_o * v.out.e_o,
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    /// m^2, the squared 3-D position error |p_ref - p|^2.
+    tracking_rms {
         unit: "m",
         label: "RMS 3-D tracking error",
-        event: false,
-        value: |t| t.rms(t.s.tracking_sq),
-    },
-    Metric {
-        name: "peak_frequency",
+        signal: |v| v.e[0] * v.e[0] + v.e[1] * v.e[1] + v.e[2] * v.e[2],
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    // The spectrum's peak: from the block-averaged e_o (`finish`), no signal of its own.
+    peak_frequency {
         unit: "Hz",
         label: "Frequency of the displacement's spectral peak",
-        event: false,
-        value: |t| t.peak.0,
-    },
-    Metric {
-        name: "peak_amplitude",
+        value: |t, _| t.peak.0,
+    }
+    peak_amplitude {
         unit: "m",
         label: "Amplitude of the displacement's spectral peak",
-        event: false,
-        value: |t| t.peak.1,
-    },
-    Metric {
-        name: "max_accel",
+        value: |t, _| t.peak.1,
+    }
+    /// m/s^2, the magnitude of the payload's inertial acceleration.
+    max_accel {
         unit: "m/s^2",
         label: "Payload acceleration peak",
-        event: false,
-        value: |t| t.s.max_accel,
-    },
-    Metric {
-        name: "rms_accel",
+        signal: |v| {
+            let [ax, ay, az] = v.out.accel;
+            (ax * ax + ay * ay + az * az).sqrt()
+        },
+        fold: max,
+        value: |_, x| x,
+    }
+    rms_accel {
         unit: "m/s^2",
         label: "Payload acceleration RMS",
-        event: false,
-        value: |t| t.rms(t.s.accel_sq),
-    },
-    Metric {
-        name: "max_swing",
+        signal: |_| max_accel * max_accel,
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    /// rad, the attachment's angle from the vertical.
+    max_swing {
         unit: "rad",
         label: "Peak swing angle of the line",
-        event: false,
-        value: |t| t.s.max_swing,
-    },
-    Metric {
-        name: "rms_swing",
+        signal: |v| v.out.swing,
+        fold: max,
+        value: |_, x| x,
+    }
+    rms_swing {
         unit: "rad",
         label: "RMS swing angle of the line",
-        event: false,
-        value: |t| t.rms(t.s.swing_sq),
-    },
-    Metric {
-        name: "max_tension",
+        signal: |_| max_swing * max_swing,
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    /// N, the force the attachment carries.
+    max_tension {
         unit: "N",
         label: "Peak line tension",
-        event: false,
-        value: |t| t.s.max_tension,
-    },
-    Metric {
-        name: "min_tension",
+        signal: |v| v.out.tension,
+        fold: max(f64::NEG_INFINITY),
+        value: |_, x| x,
+    }
+    min_tension {
         unit: "N",
         label: "Lowest line tension",
-        event: false,
-        value: |t| t.s.min_tension,
-    },
-    Metric {
-        name: "slack_time",
+        signal: |_| max_tension,
+        fold: min(f64::INFINITY),
+        value: |_, x| x,
+    }
+    /// 1 where the attachment is slack (tension <= 0), else 0.
+    slack_time {
         unit: "s",
         label: "Time with the line slack",
-        event: false,
-        value: |t| t.s.slack_steps * t.dt,
-    },
-    Metric {
-        name: "saturated_time",
+        signal: |v| L::select(v.out.tension.cmp_le(L::splat(0.0)), L::splat(1.0), L::splat(0.0)),
+        fold: sum,
+        value: |t, x| x * t.dt,
+    }
+    saturated_time {
         unit: "s",
         label: "Time with a rotor at its limit",
-        event: false,
-        value: |t| t.s.saturated_steps * t.dt,
-    },
-    Metric {
-        name: "max_tracking",
+        signal: |v| v.saturated,
+        fold: sum,
+        value: |t, x| x * t.dt,
+    }
+    max_tracking {
         unit: "m",
         label: "Peak 3-D tracking error",
-        event: false,
-        value: |t| t.s.max_tracking_sq.sqrt(),
-    },
-    Metric {
-        name: "rms_cross_track",
+        signal: |_| tracking_rms,
+        fold: max,
+        value: |_, x| x.sqrt(),
+    }
+    /// m^2, the squared distance from the current leg's straight line (cross-track error).
+    rms_cross_track {
         unit: "m",
         label: "RMS cross-track error",
-        event: false,
-        value: |t| t.rms(t.s.cross_sq),
-    },
-    Metric {
-        name: "max_cross_track",
+        signal: |v| cross_track_sq(&v.rigid.pos, v.line),
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    max_cross_track {
         unit: "m",
         label: "Peak cross-track error",
-        event: false,
-        value: |t| t.s.max_cross_sq.sqrt(),
-    },
-    Metric {
-        name: "max_specific_force",
+        signal: |_| rms_cross_track,
+        fold: max,
+        value: |_, x| x.sqrt(),
+    }
+    /// m^2/s^4, the squared specific force |a - g| (g pointing down): what an accelerometer on
+    /// the payload reads (g at rest, 0 in free fall). Its largest square's root is the largest
+    /// |a - g| bit for bit (a correctly rounded square root is monotone): one square root per
+    /// flight, not per step.
+    max_specific_force {
         unit: "m/s^2",
         label: "Peak specific force on the payload, |a - g|",
-        event: false,
-        value: |t| t.s.max_specific_force_sq.sqrt(),
-    },
-    Metric {
-        name: "near_tilt_time",
+        signal: |v| {
+            let [ax, ay, az] = v.out.accel;
+            let fz = az + v.g;
+            ax * ax + ay * ay + fz * fz
+        },
+        fold: max,
+        value: |_, x| x.sqrt(),
+    }
+    /// 1 where the tilt is past 90 % of the law's limit: cos(phi) cos(theta), the body's z
+    /// axis' vertical component, at most cos(0.9 `tilt_limit`) (given once per flight).
+    near_tilt_time {
         unit: "s",
         label: "Time with the tilt above 90 % of the law's limit",
-        event: false,
-        value: |t| t.s.near_tilt_steps * t.dt,
-    },
+        given: |laws| (0.9 * laws.tilt_limit).cos(),
+        signal: |v, near| L::select(v.axes[2][2].cmp_le(near), L::splat(1.0), L::splat(0.0)),
+        fold: sum,
+        value: |t, x| x * t.dt,
+    }
     // The last metres (docs/model.md): each event's value in the phase it falls in, NaN in
     // the others (and in a flight without it).
-    Metric {
-        name: "touchdown_speed",
+    touchdown_speed {
         unit: "m/s",
         label: "Parcel's vertical speed at touchdown",
-        event: true,
-        value: |t| t.once(t.s.touchdown_speed),
-    },
-    Metric {
-        name: "touchdown_drift",
+        event: |v| v.last.touchdown,
+        signal: |v| v.last.touchdown * v.last.touchdown_speed,
+        fold: sum,
+        value: |_, x| x,
+    }
+    touchdown_drift {
         unit: "m/s",
         label: "Parcel's horizontal speed at touchdown",
-        event: true,
-        value: |t| t.once(t.s.touchdown_drift),
-    },
-    Metric {
-        name: "touchdown_miss",
+        event: |v| v.last.touchdown,
+        signal: |v| v.last.touchdown * v.last.touchdown_drift,
+        fold: sum,
+        value: |_, x| x,
+    }
+    touchdown_miss {
         unit: "m",
         label: "Touchdown's distance from the drop point",
-        event: true,
-        value: |t| t.once(t.s.touchdown_miss),
-    },
-    Metric {
-        name: "release_time",
+        event: |v| v.last.touchdown,
+        signal: |v| v.last.touchdown * v.last.touchdown_miss,
+        fold: sum,
+        value: |_, x| x,
+    }
+    release_time {
         unit: "s",
         label: "Time the hook opens",
-        event: true,
-        value: |t| {
-            if t.s.releases > 0.0 {
-                t.s.release_time
-            } else {
-                f64::NAN
-            }
-        },
-    },
-    Metric {
-        name: "release_height_change",
+        event: |v| v.last.release,
+        signal: |v| v.last.release * v.t,
+        fold: sum,
+        value: |_, x| x,
+    }
+    /// The largest height change within the window after the release.
+    release_height_change {
         unit: "m",
         label: "Vehicle's largest height change in the 5 s after the release",
-        event: true,
-        value: |t| {
-            if t.s.release_seen > 0.0 {
-                t.s.max_release_change
-            } else {
-                f64::NAN
-            }
-        },
-    },
-    Metric {
-        name: "lowering_swing",
+        event: |v| v.last.after_release,
+        signal: |v| v.last.release_change,
+        fold: max,
+        value: |_, x| x,
+    }
+    lowering_swing {
         unit: "rad",
         label: "Peak swing angle of the line while lowering",
-        event: false,
-        value: |t| t.s.max_lowering_swing,
-    },
-];
-pub const N_METRICS: usize = METRICS.len();
+        signal: |v| v.last.lowering_swing,
+        fold: max,
+        value: |_, x| x,
+    }
+}
 
 /// Column order of every metrics array the engine returns (`METRICS`' names).
 pub const METRIC_NAMES: [&str; N_METRICS] = {
@@ -266,90 +479,19 @@ pub const METRIC_NAMES: [&str; N_METRICS] = {
     names
 };
 
-/// The running sums of one phase, each starting at its initial value: a struct of lane values
-/// (`Sums<L>`), and one lane's values of them (`Sums<f64>`, `lane`).
-macro_rules! sums {
-    ($($(#[$doc:meta])* $field:ident: $init:expr,)+) => {
-        #[derive(Clone, Copy)]
-        struct Sums<L> {
-            $($(#[$doc])* $field: L,)+
-        }
-
-        impl<L: Lane> Sums<L> {
-            fn new() -> Self {
-                Self { $($field: L::splat($init),)+ }
-            }
-
-            fn lane(&self, lane: usize) -> Sums<f64> {
-                Sums { $($field: self.$field.lane(lane),)+ }
-            }
-        }
-    };
-}
-
-sums! {
-    iae: 0.0,
-    itae: 0.0,
-    sq: 0.0,
-    tracking_sq: 0.0,
-    max_abs: 0.0,
-    accel_sq: 0.0,
-    max_accel: 0.0,
-    swing_sq: 0.0,
-    max_swing: 0.0,
-    max_tension: f64::NEG_INFINITY,
-    min_tension: f64::INFINITY,
-    /// Steps (at t_k) with the attachment slack, and with an actuator command clamped.
-    slack_steps: 0.0,
-    saturated_steps: 0.0,
-    max_tracking_sq: 0.0,
-    cross_sq: 0.0,
-    max_cross_sq: 0.0,
-    /// The largest |a - g|^2: its square root at the end is the largest |a - g| bit for bit
-    /// (a correctly rounded square root is monotone), one square root per flight, not per step.
-    max_specific_force_sq: 0.0,
-    near_tilt_steps: 0.0,
-    /// The first touchdown (at most one per flight) and the hook's opening: how many in the
-    /// phase (0 or 1) and their values (the sum of the one).
-    touchdowns: 0.0,
-    touchdown_speed: 0.0,
-    touchdown_drift: 0.0,
-    touchdown_miss: 0.0,
-    releases: 0.0,
-    release_time: 0.0,
-    /// Steps within the window after the release, and the largest height change there.
-    release_seen: 0.0,
-    max_release_change: 0.0,
-    max_lowering_swing: 0.0,
-}
-
-/// What the flight loop hands the accumulator at one step (lane values).
-#[derive(Clone, Copy, Debug)]
-pub struct Sample<L> {
-    /// m, the relative oscillation.
-    pub e_o: L,
-    /// m^2, the squared 3-D position error |p_ref - p|^2.
-    pub tracking_sq: L,
-    /// m^2, the squared distance from the current leg's straight line (cross-track error;
-    /// `Trajectory::line`).
-    pub cross_sq: L,
-    /// m/s^2, the magnitude of the payload's inertial acceleration.
-    pub accel: L,
-    /// m^2/s^4, the squared magnitude of the payload's specific force |a - g| (g pointing
-    /// down): what an accelerometer on the payload reads (g at rest, 0 in free fall).
-    pub specific_force_sq: L,
-    /// rad, the attachment's angle from the vertical.
-    pub swing: L,
-    /// N, the force the attachment carries.
-    pub tension: L,
-    /// 1 where the attachment is slack (tension <= 0), else 0.
-    pub slack: L,
-    /// 1 where an actuator command was clamped over this step, else 0.
-    pub saturated: L,
-    /// 1 where the tilt exceeds 90 % of the law's limit, else 0.
-    pub near_tilt: L,
-    /// The last metres (`LastMetres` below; all zero for a payload without them).
-    pub last: LastSample<L>,
+/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
+/// the point itself where the direction is zero): the squared cross-track error.
+#[inline(always)]
+fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
+    let (a, u) = line;
+    let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+    let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
+    let q = [
+        d[0] - along * u[0],
+        d[1] - along * u[1],
+        d[2] - along * u[2],
+    ];
+    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
 }
 
 /// The last metres at one step (docs/model.md, "The last metres").
@@ -388,10 +530,19 @@ impl<L: Lane> LastSample<L> {
     }
 }
 
+/// A phase's running sums and event counts (`PerMetric`).
+#[derive(Clone, Copy)]
+struct Running<L> {
+    s: PerMetric<L>,
+    n: PerMetric<L>,
+}
+
 /// Online accumulator for one lane-set over all phases.
 pub struct PhaseAccumulator<L: Lane> {
     phases: Vec<PhaseSteps>,
-    sums: Vec<Sums<L>>,
+    sums: Vec<Running<L>>,
+    /// Each metric's given value (`metrics!`), per lane.
+    given: PerMetric<L>,
     dt: f64,
     decimation: usize,
     /// Samples still to add before the current block is complete (avoids a `%` per step).
@@ -401,12 +552,24 @@ pub struct PhaseAccumulator<L: Lane> {
 }
 
 impl<L: Lane> PhaseAccumulator<L> {
-    /// `decimation`: steps per spectrum sample; `steps`: steps of the flight.
-    pub fn new(phases: &[PhaseSteps], dt: f64, decimation: usize, steps: usize) -> Self {
+    /// `decimation`: steps per spectrum sample; `steps`: steps of the flight; `laws`: each
+    /// lane's laws' limits.
+    pub fn new(
+        phases: &[PhaseSteps],
+        dt: f64,
+        decimation: usize,
+        steps: usize,
+        laws: &[&LawLimits],
+    ) -> Self {
         let zero = L::splat(0.0);
+        let run = Running {
+            s: PerMetric::start(),
+            n: PerMetric::zero(),
+        };
         Self {
             phases: phases.to_vec(),
-            sums: vec![Sums::new(); phases.len()],
+            sums: vec![run; phases.len()],
+            given: PerMetric::given(laws),
             dt,
             decimation: decimation.max(1),
             block_left: decimation.max(1),
@@ -415,48 +578,9 @@ impl<L: Lane> PhaseAccumulator<L> {
         }
     }
 
-    /// Take sample k (time t); k = 0, 1, 2, ... in turn.
+    /// Add e_o's sample to the spectrum's current block.
     #[inline(always)]
-    pub fn sample(&mut self, k: usize, t: f64, x: &Sample<L>) {
-        let e_o = x.e_o;
-        let a = e_o.abs();
-        for (ph, sums) in self.phases.iter().zip(self.sums.iter_mut()) {
-            if ph.contains(k) {
-                let w = if k == ph.first || k == ph.last {
-                    0.5 * self.dt
-                } else {
-                    self.dt
-                };
-                sums.iae += a * w;
-                sums.itae += a * (w * t);
-                sums.sq += e_o * e_o * w;
-                sums.tracking_sq += x.tracking_sq * w;
-                sums.max_abs = sums.max_abs.max(a);
-                sums.accel_sq += x.accel * x.accel * w;
-                sums.max_accel = sums.max_accel.max(x.accel);
-                sums.swing_sq += x.swing * x.swing * w;
-                sums.max_swing = sums.max_swing.max(x.swing);
-                sums.max_tension = sums.max_tension.max(x.tension);
-                sums.min_tension = sums.min_tension.min(x.tension);
-                sums.slack_steps += x.slack;
-                sums.saturated_steps += x.saturated;
-                sums.max_tracking_sq = sums.max_tracking_sq.max(x.tracking_sq);
-                sums.cross_sq += x.cross_sq * w;
-                sums.max_cross_sq = sums.max_cross_sq.max(x.cross_sq);
-                sums.max_specific_force_sq = sums.max_specific_force_sq.max(x.specific_force_sq);
-                sums.near_tilt_steps += x.near_tilt;
-                let e = &x.last;
-                sums.touchdowns += e.touchdown;
-                sums.touchdown_speed += e.touchdown * e.touchdown_speed;
-                sums.touchdown_drift += e.touchdown * e.touchdown_drift;
-                sums.touchdown_miss += e.touchdown * e.touchdown_miss;
-                sums.releases += e.release;
-                sums.release_time += e.release * t;
-                sums.release_seen += e.after_release;
-                sums.max_release_change = sums.max_release_change.max(e.release_change);
-                sums.max_lowering_swing = sums.max_lowering_swing.max(e.lowering_swing);
-            }
-        }
+    fn block(&mut self, e_o: L) {
         self.block_sum += e_o;
         self.block_left -= 1;
         if self.block_left == 0 {
@@ -476,7 +600,7 @@ impl<L: Lane> PhaseAccumulator<L> {
         mut spectra: Option<&mut [Vec<f64>]>,
     ) -> Vec<[f64; N_METRICS]> {
         let mut rows = Vec::with_capacity(self.phases.len());
-        for (p, (ph, s)) in self.phases.iter().zip(&self.sums).enumerate() {
+        for (p, (ph, run)) in self.phases.iter().zip(&self.sums).enumerate() {
             let span = (ph.last - ph.first) as f64 * self.dt;
             let (lo, hi) = block_range(ph, self.decimation, self.blocks.len());
             let signal: Vec<f64> = self.blocks[lo..hi].iter().map(|b| b.lane(lane)).collect();
@@ -497,7 +621,8 @@ impl<L: Lane> PhaseAccumulator<L> {
                 out[p] = amp;
             }
             let totals = Totals {
-                s: s.lane(lane),
+                s: run.s.lane(lane),
+                n: run.n.lane(lane),
                 span,
                 dt: self.dt,
                 peak: (peak_f, peak_a),
@@ -564,6 +689,72 @@ pub fn amplitude_spectrum(signal: &[f64], planner: &mut FftPlanner<f64>) -> Vec<
 mod tests {
     use super::*;
 
+    /// What one test step hands the accumulator (one lane).
+    struct Step {
+        e_o: f64,
+        e: [f64; 3],
+        accel: [f64; 3],
+        g: f64,
+        swing: f64,
+        tension: f64,
+        saturated: f64,
+        /// The body's z axis' vertical component, cos(phi) cos(theta).
+        tilt_cos: f64,
+        last: LastSample<f64>,
+    }
+
+    impl Step {
+        fn quiet() -> Self {
+            Self {
+                e_o: 0.0,
+                e: [0.0; 3],
+                accel: [0.0; 3],
+                g: 0.0,
+                swing: 0.0,
+                tension: 0.0,
+                saturated: 0.0,
+                tilt_cos: 1.0,
+                last: LastSample::none(),
+            }
+        }
+
+        /// Hand this step to `acc` at step `k`, time `t`.
+        fn sample(&self, acc: &mut PhaseAccumulator<f64>, k: usize, t: f64) -> PerMetric<f64> {
+            let rigid = Rigid {
+                pos: [0.0; 3],
+                att: [0.0; 3],
+                vel: [0.0; 3],
+                rate: [0.0; 3],
+            };
+            let out = PayloadOutputs {
+                e_o: self.e_o,
+                accel: self.accel,
+                tension: self.tension,
+                swing: self.swing,
+            };
+            let mut axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+            axes[2][2] = self.tilt_cos;
+            acc.sample(
+                k,
+                &Views {
+                    t,
+                    rigid: &rigid,
+                    axes,
+                    g: self.g,
+                    out: &out,
+                    r: &Reference::default(),
+                    e: &self.e,
+                    line: &([0.0; 3], [1.0, 0.0, 0.0]),
+                    saturated: self.saturated,
+                    last: &self.last,
+                },
+            )
+        }
+    }
+
+    /// A tilt limit of 0.5 rad: 90 % of it, 0.45 rad, has cos 0.9004.
+    const LAWS: LawLimits = LawLimits { tilt_limit: 0.5 };
+
     #[test]
     fn amplitude_spectrum_finds_a_sinusoid() {
         let (n, fs) = (2000, 100.0);
@@ -589,57 +780,61 @@ mod tests {
             first: 0,
             last: 100,
         }];
-        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100);
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 100, &[&LAWS]);
         for k in 0..=100 {
             let t = k as f64 * dt;
             let flag = if k < 30 { 1.0 } else { 0.0 };
-            acc.sample(
-                k,
-                t,
-                &Sample {
-                    e_o: t,
-                    tracking_sq: 0.0,
-                    cross_sq: 0.0,
-                    accel: 2.0 * t,
-                    specific_force_sq: (9.81 - t) * (9.81 - t),
-                    swing: 0.1 * t,
-                    tension: 5.0 - 10.0 * t,
-                    slack: 1.0 - flag,
-                    saturated: flag,
-                    near_tilt: 1.0 - flag,
-                    last: LastSample {
-                        touchdown: if k == 40 { 1.0 } else { 0.0 },
-                        touchdown_speed: 0.7,
-                        touchdown_drift: 0.2,
-                        touchdown_miss: 0.3,
-                        release: if k == 60 { 1.0 } else { 0.0 },
-                        after_release: if k >= 60 { 1.0 } else { 0.0 },
-                        release_change: if k >= 60 { 0.01 * (k - 60) as f64 } else { 0.0 },
-                        lowering_swing: if k < 40 { 0.1 * t } else { 0.0 },
-                    },
+            let step = Step {
+                e_o: t,
+                e: [0.6 * t, 0.0, -0.8 * t],
+                accel: [0.0, 0.0, -2.0 * t],
+                g: 9.81,
+                swing: 0.1 * t,
+                tension: 5.0 - 10.0 * t,
+                saturated: flag,
+                tilt_cos: if k < 30 { 1.0 } else { 0.5 },
+                last: LastSample {
+                    touchdown: if k == 40 { 1.0 } else { 0.0 },
+                    touchdown_speed: 0.7,
+                    touchdown_drift: 0.2,
+                    touchdown_miss: 0.3,
+                    release: if k == 60 { 1.0 } else { 0.0 },
+                    after_release: if k >= 60 { 1.0 } else { 0.0 },
+                    release_change: if k >= 60 { 0.01 * (k - 60) as f64 } else { 0.0 },
+                    lowering_swing: if k < 40 { 0.1 * t } else { 0.0 },
                 },
-            );
+            };
+            let signals = step.sample(&mut acc, k, t);
+            // A signal shared by two metrics is one local: |a| (the trace's) for both.
+            assert_eq!(signals.rms_accel, signals.max_accel * signals.max_accel);
         }
         let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
-        assert!((row[0] - 0.5).abs() < 1e-12);
-        assert!((row[1] - (1.0 / 3.0 + dt * dt / 6.0)).abs() < 1e-12);
-        assert!((row[2] - 1.0).abs() < 1e-12);
-        assert!((row[3] - (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
-        // accel = 2 t: peak 2, RMS 2 sqrt(1/3 + dt^2/6).
-        assert!((row[7] - 2.0).abs() < 1e-12);
-        assert!((row[8] - 2.0 * (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
-        // swing = 0.1 t; tension 5 - 10 t from 5 down to -5; 71 slack and 30 saturated steps.
-        assert!((row[9] - 0.1).abs() < 1e-12);
-        assert!((row[10] - 0.1 * (1.0f64 / 3.0 + dt * dt / 6.0).sqrt()).abs() < 1e-12);
-        assert_eq!((row[11], row[12]), (5.0, -5.0));
-        assert!((row[13] - 71.0 * dt).abs() < 1e-12);
-        assert!((row[14] - 30.0 * dt).abs() < 1e-12);
-        // specific force 9.81 - t: its peak at t = 0.
-        assert_eq!(row[18], 9.81);
-        // 71 steps near the tilt limit; the touchdown's values (0.7, 0.2, 0.3) at k = 40, the
-        // release at t = 0.6 s, the height change 0.4 m at its window's end, the swing while
-        // lowering 0.1 t up to t = 0.39 s.
         let at = |name: &str| row[METRIC_NAMES.iter().position(|n| *n == name).unwrap()];
+        let rms_t = (1.0f64 / 3.0 + dt * dt / 6.0).sqrt();
+        assert!((at("iae") - 0.5).abs() < 1e-12);
+        assert!((at("itae") - (1.0 / 3.0 + dt * dt / 6.0)).abs() < 1e-12);
+        assert!((at("max_abs") - 1.0).abs() < 1e-12);
+        assert!((at("rms") - rms_t).abs() < 1e-12);
+        // |e| = t: the same RMS and peak 1.
+        assert!((at("tracking_rms") - rms_t).abs() < 1e-12);
+        assert!((at("max_tracking") - 1.0).abs() < 1e-12);
+        // accel = 2 t: peak 2, RMS 2 sqrt(1/3 + dt^2/6).
+        assert!((at("max_accel") - 2.0).abs() < 1e-12);
+        assert!((at("rms_accel") - 2.0 * rms_t).abs() < 1e-12);
+        // swing = 0.1 t; tension 5 - 10 t from 5 down to -5, slack (<= 0) over the 51 steps
+        // from t = 0.5 s; 30 saturated steps.
+        assert!((at("max_swing") - 0.1).abs() < 1e-12);
+        assert!((at("rms_swing") - 0.1 * rms_t).abs() < 1e-12);
+        assert_eq!((at("max_tension"), at("min_tension")), (5.0, -5.0));
+        assert!((at("slack_time") - 51.0 * dt).abs() < 1e-12);
+        assert!((at("saturated_time") - 30.0 * dt).abs() < 1e-12);
+        // The position on the leg's line: no cross-track error.
+        assert_eq!((at("rms_cross_track"), at("max_cross_track")), (0.0, 0.0));
+        // specific force 9.81 - 2 t: its peak at t = 0.
+        assert_eq!(at("max_specific_force"), 9.81);
+        // 71 steps near the tilt limit (cos 0.5 below cos 0.45); the touchdown's values
+        // (0.7, 0.2, 0.3) at k = 40, the release at t = 0.6 s, the height change 0.4 m at its
+        // window's end, the swing while lowering 0.1 t up to t = 0.39 s.
         assert!((at("near_tilt_time") - 71.0 * dt).abs() < 1e-12);
         assert_eq!(
             (
@@ -654,25 +849,9 @@ mod tests {
         assert!((at("lowering_swing") - 0.039).abs() < 1e-12);
         // A phase without the events: NaN for them, 0 for the durations and peaks.
         let ph = [PhaseSteps { first: 0, last: 10 }];
-        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 10);
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, dt, 5, 10, &[&LAWS]);
         for k in 0..=10 {
-            acc.sample(
-                k,
-                k as f64 * dt,
-                &Sample {
-                    e_o: 0.0,
-                    tracking_sq: 0.0,
-                    cross_sq: 0.0,
-                    accel: 0.0,
-                    specific_force_sq: 0.0,
-                    swing: 0.0,
-                    tension: 0.0,
-                    slack: 0.0,
-                    saturated: 0.0,
-                    near_tilt: 0.0,
-                    last: LastSample::none(),
-                },
-            );
+            Step::quiet().sample(&mut acc, k, k as f64 * dt);
         }
         let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
         let at = |name: &str| row[METRIC_NAMES.iter().position(|n| *n == name).unwrap()];
@@ -681,11 +860,31 @@ mod tests {
             "touchdown_drift",
             "touchdown_miss",
             "release_time",
+            "release_height_change",
         ] {
             assert!(at(name).is_nan(), "{name}");
         }
-        assert!(at("release_height_change").is_nan());
+        for m in METRICS.iter().filter(|m| m.event) {
+            assert!(at(m.name).is_nan(), "{} is an event", m.name);
+        }
         assert_eq!((at("near_tilt_time"), at("lowering_swing")), (0.0, 0.0));
+    }
+
+    /// The given value is taken per lane from that lane's laws' limits: a lane whose limit is
+    /// wide is never near it where the other is.
+    #[test]
+    fn each_lane_compares_with_its_own_tilt_limit() {
+        let wide = LawLimits { tilt_limit: 1.4 };
+        let acc = PhaseAccumulator::<crate::lane::F64x4>::new(
+            &[PhaseSteps { first: 0, last: 1 }],
+            0.01,
+            1,
+            1,
+            &[&LAWS, &wide, &LAWS, &wide],
+        );
+        assert_eq!(acc.given.near_tilt_time.lane(0), 0.45f64.cos());
+        assert_eq!(acc.given.near_tilt_time.lane(1), (0.9 * 1.4f64).cos());
+        assert_eq!(acc.given.iae.lane(2), 0.0);
     }
 
     /// The peak specific force taken as the square root of the peak square is the peak of the
@@ -696,32 +895,20 @@ mod tests {
             first: 0,
             last: 999,
         }];
-        let mut acc = PhaseAccumulator::<f64>::new(&ph, 0.01, 5, 999);
+        let mut acc = PhaseAccumulator::<f64>::new(&ph, 0.01, 5, 999, &[&LAWS]);
         let mut peak = 0.0f64;
         let mut x = 0.123_456_789f64;
         for k in 0..=999 {
-            // A scrambled sequence of squares of magnitudes around g.
+            // A scrambled sequence of specific forces around g (g = 0 here: a = a - g).
             x = (x * 3.987_654_321 + 0.314_159).fract();
             let [ax, ay, fz] = [x - 0.5, 0.25 - x * x, 9.81 * (1.0 + x)];
             let sq = ax * ax + ay * ay + fz * fz;
             peak = peak.max(sq.sqrt());
-            acc.sample(
-                k,
-                k as f64 * 0.01,
-                &Sample {
-                    e_o: 0.0,
-                    tracking_sq: 0.0,
-                    cross_sq: 0.0,
-                    accel: 0.0,
-                    specific_force_sq: sq,
-                    swing: 0.0,
-                    tension: 0.0,
-                    slack: 0.0,
-                    saturated: 0.0,
-                    near_tilt: 0.0,
-                    last: LastSample::none(),
-                },
-            );
+            let step = Step {
+                accel: [ax, ay, fz],
+                ..Step::quiet()
+            };
+            step.sample(&mut acc, k, k as f64 * 0.01);
         }
         let row = acc.finish(0, &mut FftPlanner::new(), None)[0];
         assert!(peak > 9.81);
@@ -750,5 +937,53 @@ mod tests {
             assert_eq!(METRIC_NAMES[i], m.name);
             assert!(!METRIC_NAMES[..i].contains(&m.name), "{} twice", m.name);
         }
+    }
+
+    /// The column order Python and the results files read: unchanged by how the table is
+    /// written.
+    #[test]
+    fn the_columns_keep_their_order() {
+        assert_eq!(
+            METRIC_NAMES,
+            [
+                "iae",
+                "itae",
+                "max_abs",
+                "rms",
+                "tracking_rms",
+                "peak_frequency",
+                "peak_amplitude",
+                "max_accel",
+                "rms_accel",
+                "max_swing",
+                "rms_swing",
+                "max_tension",
+                "min_tension",
+                "slack_time",
+                "saturated_time",
+                "max_tracking",
+                "rms_cross_track",
+                "max_cross_track",
+                "max_specific_force",
+                "near_tilt_time",
+                "touchdown_speed",
+                "touchdown_drift",
+                "touchdown_miss",
+                "release_time",
+                "release_height_change",
+                "lowering_swing",
+            ]
+        );
+        let events: Vec<&str> = METRICS.iter().filter(|m| m.event).map(|m| m.name).collect();
+        assert_eq!(
+            events,
+            [
+                "touchdown_speed",
+                "touchdown_drift",
+                "touchdown_miss",
+                "release_time",
+                "release_height_change"
+            ]
+        );
     }
 }

@@ -3,8 +3,7 @@
 //! whole list and sums it in the list's order (from zero), so the scenario's gusts enter the
 //! wind as one term.
 
-use super::source::{Moment, WindSource};
-use super::wind::Kinematics;
+use super::source::{Kinematics, Moment, WindSource};
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
 use crate::config::{finite, non_negative, positive, ConfigError};

@@ -17,9 +17,10 @@
 //! filters of all lanes advance in one pass of vector arithmetic.
 
 use super::filter::{dryden_lanes, Coefficients, DrydenLanes, Normals};
+use super::source::Kinematics;
 use super::spectra::low_altitude_scales_lanes;
 use super::steady::SteadyLanes;
-use super::wind::{Kinematics, Source, WindField};
+use super::wind::{Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
 use crate::lane::isa::Isa;

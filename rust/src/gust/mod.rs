@@ -45,7 +45,8 @@ source::wind_sources! {
 pub use filter::{Coefficients, GustFilter};
 pub use lanes::{LaneGust, LaneWind};
 pub use section::{Wind, WindContext};
+pub use source::Kinematics;
 pub use spectra::{low_altitude_scales, von_karman_psd_exact, METRES_PER_FOOT};
 pub use wind::{
-    fill_series, realisation_rng, Kinematics, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,
+    fill_series, realisation_rng, Source, WindField, WindState, VEHICLE_ALTITUDE_RANGE,
 };

@@ -2,8 +2,7 @@
 //! k held over step k, flown instead of the turbulence and added to the scenario's other
 //! sources, last. Not from the scenario: it has no keys.
 
-use super::source::{Moment, WindSource};
-use super::wind::Kinematics;
+use super::source::{Kinematics, Moment, WindSource};
 use crate::config::keys::{Seg, Target};
 use crate::config::params::Key;
 use crate::config::ConfigError;

@@ -11,7 +11,6 @@
 //! airspeed is measured against) are summed first, in registration order; the turbulence is
 //! added to that; then the other sources, each in registration order.
 
-use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::Key;
 use crate::config::ConfigError;
@@ -24,6 +23,23 @@ pub struct Moment {
     pub step: u64,
     /// s.
     pub t: f64,
+}
+
+/// Where the quadrotor is at the start of a step: what the wind sources that follow it read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kinematics {
+    /// m, the quadrotor's altitude z.
+    pub z: f64,
+    /// m/s, its inertial velocity.
+    pub vel: [f64; 3],
+}
+
+impl Kinematics {
+    /// At rest at z = 0.
+    pub const AT_REST: Self = Self {
+        z: 0.0,
+        vel: [0.0; 3],
+    };
 }
 
 /// A deterministic wind source: its wind is a function of the step and of where the

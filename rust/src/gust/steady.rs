@@ -4,9 +4,8 @@
 //! `wind.speed`, `wind.heading` (which also turns the turbulence's axes), `wind.shear`,
 //! `wind.roughness`.
 
-use super::source::{Moment, WindSource};
+use super::source::{Kinematics, Moment, WindSource};
 use crate::lane::{explog, KernelOps};
-use super::wind::Kinematics;
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_number, Field, Key};
 use crate::config::{finite, non_negative, ConfigError};

@@ -3,8 +3,7 @@
 //! source of the mean air. The Python layer reads the rows from the CSV file the scenario
 //! names (`file`), so the engine receives the numbers, not the path.
 
-use super::source::{Moment, WindSource};
-use super::wind::Kinematics;
+use super::source::{Kinematics, Moment, WindSource};
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
 use crate::config::{finite, ConfigError};

@@ -2,7 +2,7 @@
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
 use super::filter::{step_fixed, GustFilter, Normals};
-use super::source::Moment;
+use super::source::{Kinematics, Moment};
 use super::spectra::METRES_PER_FOOT;
 use super::spectra::{low_altitude_scales, low_altitude_scales_lanes};
 use super::{AnySource, Prescribed};
@@ -80,23 +80,6 @@ pub fn fill_series(
 /// Lowest and highest altitude (m) of `gust.altitude = "vehicle"`: MIL-F-8785C's
 /// low-altitude model holds for 10 ft to 1000 ft; the vehicle's altitude is clamped to it.
 pub const VEHICLE_ALTITUDE_RANGE: (f64, f64) = (10.0 * METRES_PER_FOOT, 1000.0 * METRES_PER_FOOT);
-
-/// Where the quadrotor is at the start of a step: what the wind sources that follow it read.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Kinematics {
-    /// m, the quadrotor's altitude z.
-    pub z: f64,
-    /// m/s, its inertial velocity.
-    pub vel: [f64; 3],
-}
-
-impl Kinematics {
-    /// At rest at z = 0.
-    pub const AT_REST: Self = Self {
-        z: 0.0,
-        vel: [0.0; 3],
-    };
-}
 
 /// Turbulence scales that follow the vehicle: sigma and L from its altitude, V from its speed
 /// through the mean air, re-discretised every step.

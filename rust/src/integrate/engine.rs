@@ -1,10 +1,13 @@
 //! The compiled scenario (`Engine`): what may differ between realisations (`Realisation`), a request
-//! to the flight loop (`FlightRequest`), and the engine's public methods.
+//! to the flight loop (`FlightRequest`) and what it gives back (`LaneResult`), and the engine's
+//! public methods.
 
+use super::status::ExitStatus;
 use super::trace::{trace_columns, Trace};
 use crate::control::{ControllerKind, Laws};
 use crate::gust::{Kinematics, WindField};
 use crate::lane::isa::Isa;
+use crate::metrics::{LawLimits, N_METRICS};
 use crate::model::{
     dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, State, StateVar, VehicleVisitor,
 };
@@ -29,9 +32,8 @@ pub struct Realisation {
     pub(super) limits: [f64; 4],
     /// m, the flight ends below this z (`ground.*`; minus infinity when off).
     pub(super) floor: f64,
-    /// cos(0.9 `controller.tilt_limit`): a tilt past 90 % of the law's limit has
-    /// cos(phi) cos(theta) below it (`near_tilt_time`).
-    pub(super) near_tilt_cos: f64,
+    /// The laws' limits the metrics may compare against (`metrics::LawLimits`).
+    pub(super) law_limits: LawLimits,
 }
 
 impl Realisation {
@@ -57,7 +59,7 @@ impl Realisation {
             x0,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
             floor: cfg.ground.floor(),
-            near_tilt_cos: (0.9 * cfg.controller.tilt_limit).cos(),
+            law_limits: LawLimits::of(&cfg.controller),
         })
     }
 }
@@ -149,6 +151,19 @@ impl<'a> FlightRequest<'a> {
             innovations: None,
         }
     }
+}
+
+/// What one realisation of one controller produced.
+#[derive(Clone, Debug)]
+pub struct LaneResult {
+    /// One row per phase, columns as `metrics::METRIC_NAMES`; NaN when diverged.
+    pub metrics: Vec<[f64; N_METRICS]>,
+    /// Time (s) at which the state went non-finite or ran away; NaN if it never did.
+    pub diverged_at: f64,
+    /// Why the flight ended.
+    pub status: ExitStatus,
+    /// Amplitude spectrum of e_o per phase (empty unless asked for).
+    pub spectra: Vec<Vec<f64>>,
 }
 
 /// A validated scenario turned into everything the loop needs, built once and shared read-only.

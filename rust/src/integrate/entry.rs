@@ -1,8 +1,7 @@
 //! The way into the flight loop: one function per lane type, compiled for the instruction set
 //! its operations need (`LoopEntry`), and the engine's `fly`, `fly_set`.
 
-use super::engine::{Engine, FlightRequest, Realisation, MAX_LANES};
-use super::flight::LaneResult;
+use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::trace::Trace;
 use crate::control::Controller;
 use crate::lane::isa::Isa;

@@ -1,15 +1,14 @@
 //! The flight loop: hold, step, check, accumulate, for every lane of a lane-set at once.
 
-use super::engine::{Engine, FlightRequest, Realisation, MAX_LANES};
+use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
 use super::rk4::rk4_advance;
-use super::status::ExitStatus;
-use super::steps::{sample_metrics, Ends, Leg, Release, Runaway, Winds};
+use super::steps::{Ends, Leg, Release, Runaway, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Control, Controller, ControllerVisitor};
 use crate::gust::WindField;
 use crate::lane::KernelOps;
-use crate::metrics::{PhaseAccumulator, N_METRICS};
+use crate::metrics::{LawLimits, PhaseAccumulator, Views};
 use crate::model::payload::Cue;
 use crate::model::{
     dispatch, state_from_fn, Actuator, ActuatorModel, AnyVehicle, BodyKind, Payload, State, Tick,
@@ -18,19 +17,6 @@ use crate::model::{
 use rustfft::FftPlanner;
 use std::marker::PhantomData;
 use std::sync::atomic::Ordering;
-
-/// What one realisation of one controller produced.
-#[derive(Clone, Debug)]
-pub struct LaneResult {
-    /// One row per phase, columns as `metrics::METRIC_NAMES`; NaN when diverged.
-    pub metrics: Vec<[f64; N_METRICS]>,
-    /// Time (s) at which the state went non-finite or ran away; NaN if it never did.
-    pub diverged_at: f64,
-    /// Why the flight ended.
-    pub status: ExitStatus,
-    /// Amplitude spectrum of e_o per phase (empty unless asked for).
-    pub spectra: Vec<Vec<f64>>,
-}
 
 /// How often (in steps) a flight looks at the cancel flag.
 const CANCEL_CHECK_STEPS: usize = 4096;
@@ -165,8 +151,9 @@ impl Engine {
         let mut s = x0;
         let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
         let mut wind = Winds::<L>::new(realisations, req, &fields);
+        let laws: Vec<&LawLimits> = realisations.iter().map(|c| &c.law_limits).collect();
         let mut acc =
-            PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps);
+            PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps, &laws);
         let mut ends = Ends::new(L::LANES);
         let runaway = Runaway::<L, N>::new::<B>(&self.vars, realisations);
         let mut leg = Leg::<L>::new();
@@ -175,8 +162,6 @@ impl Engine {
         // The law's discrete memory (none for a static law), and each lane's at its start.
         let mem0 = ctrl.memory(&V::<L, Pay, Act, B>::rigid(&x0));
         let mut mem = mem0;
-        // The tilt past 90 % of the law's limit (`near_tilt_time`): cos(phi) cos(theta) below.
-        let near_tilt_cos = L::from_fn(|l| realisations[l].near_tilt_cos);
         let mut release = Release::new();
 
         let reads_payload = ctrl.reads_payload();
@@ -206,15 +191,27 @@ impl Engine {
             let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
-            let rigid = V::<L, Pay, Act, B>::rigid(&s);
+            // The position error, from the rigid view the law read (the same state).
             let e = [
-                rigid.pos[0] * -1.0 + r.pos[0],
-                rigid.pos[1] * -1.0 + r.pos[1],
-                rigid.pos[2] * -1.0 + r.pos[2],
+                view.pos[0] * -1.0 + r.pos[0],
+                view.pos[1] * -1.0 + r.pos[1],
+                view.pos[2] * -1.0 + r.pos[2],
             ];
             let last = release.sample(events, &leg, &e, t, out.swing);
-            #[rustfmt::skip]
-            let accel = sample_metrics(&mut acc, k, t, vehicle, &cmd, &trig, &out, &e, &rigid.pos, &leg.line, near_tilt_cos, last);
+            // What the metrics derive their signals from (`metrics!`); |a| for the trace.
+            let views = Views {
+                t,
+                rigid: &view,
+                axes: crate::model::Frame::axes(&trig),
+                g: vehicle.body.g,
+                out: &out,
+                r,
+                e: &e,
+                line: &leg.line,
+                saturated: vehicle.actuator.saturated(&cmd),
+                last: &last,
+            };
+            let accel = acc.sample(k, &views).max_accel;
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && ends.diverged_at[0].is_nan() {
@@ -230,7 +227,7 @@ impl Engine {
                         w: &w,
                         e_o: out.e_o,
                         accel_c: accel,
-                        drag_z: crate::model::Frame::drag(&trig, &vehicle.body, &rigid.vel, &w)[2],
+                        drag_z: crate::model::Frame::drag(&trig, &vehicle.body, &view.vel, &w)[2],
                         swing: out.swing,
                         tension: out.tension,
                         extra,

@@ -5,10 +5,11 @@
 //!
 //! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
 //! and controller kinds, `fly_law` gathers the lanes' parameters, `fly_loop` flies them);
-//! `steps` the loop's named steps (the reference's leg, the wind, the last metres, the metrics'
-//! sample, the runaway checks), inlined into it; `entry` the way in, one function per (lane type, vehicle, law) compiled for the lane type's
+//! `steps` the loop's named steps (the reference's leg, the wind, the last metres, the runaway
+//! checks), inlined into it (the metrics take their signals from the loop's `metrics::Views`);
+//! `entry` the way in, one function per (lane type, vehicle, law) compiled for the lane type's
 //! instruction set (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled
-//! scenario (`Engine`, `Realisation`, `FlightRequest`); `trace` the trace's columns and rows;
+//! scenario (`Engine`, `Realisation`, `FlightRequest`, `LaneResult`); `trace` the trace's columns and rows;
 //! `status` why a flight ended (`ExitStatus`).
 
 mod engine;
@@ -19,9 +20,8 @@ mod status;
 mod steps;
 mod trace;
 
-pub use engine::{initial_state, Engine, FlightRequest, Realisation, MAX_LANES};
+pub use engine::{initial_state, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 pub use entry::LoopEntry;
-pub use flight::LaneResult;
 pub use rk4::{rk4_advance, rk4_step};
 pub use status::ExitStatus;
 pub use trace::{trace_columns, Trace, SIGNAL_COLUMNS};

@@ -1,95 +1,20 @@
 //! The flight loop's steps (`Engine::fly_loop`), each inlined into the loop: the reference
-//! and its leg (`Leg`), the wind (`Winds`), the last metres (`Release`), the metrics' sample
-//! (`sample_metrics`), the runaway bounds (`Runaway`) and how each lane's flight ended
-//! (`Ends`).
+//! and its leg (`Leg`), the wind (`Winds`), the last metres (`Release`), the runaway bounds
+//! (`Runaway`) and how each lane's flight ended (`Ends`).
 
 use super::engine::{FlightRequest, Realisation, MAX_LANES};
 use super::status::{classify, ExitStatus};
 use crate::control::Memory;
 use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::{KernelOps, Lane};
-use crate::metrics::{LastSample, PhaseAccumulator, Sample};
-use crate::model::payload::{LastMetres, PayloadOutputs};
+use crate::metrics::LastSample;
+use crate::model::payload::LastMetres;
 use crate::model::{ix, state_from_fn, ActuatorModel, BodyKind, Bound, State, StateVar, Vehicle};
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
 
 /// s, the window after the hook opens over which the vehicle's height change is taken
 /// (`release_height_change`).
 pub const RELEASE_WINDOW: f64 = 5.0;
-
-/// Squared distance from `p` to the line through `line.0` along the unit vector `line.1` (to
-/// the point itself where the direction is zero): the squared cross-track error.
-#[inline(always)]
-fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
-    let (a, u) = line;
-    let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
-    let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
-    let q = [
-        d[0] - along * u[0],
-        d[1] - along * u[1],
-        d[2] - along * u[2],
-    ];
-    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
-}
-
-/// The step's sample of the metrics (`PhaseAccumulator::sample`): the payload's oscillation,
-/// acceleration and specific force, the tracking and cross-track errors (`e`, the position
-/// error; `pos`, the vehicle's position; `line`, the leg's), the attachment's swing and
-/// tension, saturation, the tilt near the law's limit and the last metres. Returns the
-/// payload's |a|, which the trace records too.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn sample_metrics<L, B, Pay, Act>(
-    acc: &mut PhaseAccumulator<L>,
-    k: usize,
-    t: f64,
-    vehicle: &Vehicle<L, Pay, Act, B>,
-    cmd: &Act::Command,
-    trig: &B::Frame<L>,
-    out: &PayloadOutputs<L>,
-    e: &[L; 3],
-    pos: &[L; 3],
-    line: &([L; 3], [L; 3]),
-    near_tilt_cos: L,
-    last: LastSample<L>,
-) -> L
-where
-    L: KernelOps,
-    B: BodyKind,
-    Pay: crate::model::PayloadModel<L>,
-    Act: ActuatorModel<L>,
-{
-    let (zero, one) = (L::splat(0.0), L::splat(1.0));
-    let [ax, ay, az] = out.accel;
-    // |a| without the square root's rounding where the acceleration is vertical only.
-    let accel = (ax * ax + ay * ay + az * az).sqrt();
-    // The specific force a - g (g = (0, 0, -g)): what an accelerometer on the payload reads.
-    let fz = az + vehicle.body.g;
-    // Its square: the metric is its peak, whose square root is taken at the end.
-    let specific_force_sq = ax * ax + ay * ay + fz * fz;
-    acc.sample(
-        k,
-        t,
-        &Sample {
-            e_o: out.e_o,
-            tracking_sq: e[0] * e[0] + e[1] * e[1] + e[2] * e[2],
-            cross_sq: cross_track_sq(pos, line),
-            accel,
-            specific_force_sq,
-            swing: out.swing,
-            tension: out.tension,
-            slack: L::select(out.tension.cmp_le(zero), one, zero),
-            saturated: vehicle.actuator.saturated(cmd),
-            near_tilt: L::select(
-                crate::model::Frame::axes(trig)[2][2].cmp_le(near_tilt_cos),
-                one,
-                zero,
-            ),
-            last,
-        },
-    );
-    accel
-}
 
 /// The reference and the leg it is on, refreshed only when the trajectory changes
 /// (`Trajectory::next_change`).

@@ -1,5 +1,5 @@
+use super::engine::LaneResult;
 use super::engine::{Engine, FlightRequest, MAX_LANES};
-use super::flight::LaneResult;
 use super::rk4::rk4_step;
 use super::status::{classify, ExitStatus};
 use super::trace::trace_columns;
