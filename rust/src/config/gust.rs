@@ -1,9 +1,9 @@
 //! `[gust]`: the section-4 turbulence (which spectrum, which components, its window, altitude,
 //! intensity and airspeed) and its checks (the wind itself is `crate::gust`).
 
-use super::params::{not_number, not_numbers, params, Field, Seg, Target};
+use super::params::{not_number, not_numbers, params, Field, Params, Seg, Target};
 use super::wind::{self, GustAirspeed, GustAltitude, Intensity};
-use super::{finite, non_negative, positive, ConfigError, OneOf};
+use super::{non_negative, positive, ConfigError, OneOf};
 use serde::{Deserialize, Serialize};
 
 /// Which spectrum the gust's forming filters realise (`gust.model`).
@@ -139,8 +139,8 @@ params! {
         model: GustModel => "-", "Turbulence spectrum";
         components: Vec<GustComponent> => "-", "Turbulence components";
         /// s, the gust window [start, end).
-        start: f64 => "s", "Turbulence start";
-        end: f64 => "s", "Turbulence end";
+        start: f64 => "s", "Turbulence start", non_negative;
+        end: f64 => "s", "Turbulence end", finite;
         /// m above ground (converted to feet for the MIL-F-8785C scale formulas), or `"vehicle"`:
         /// the quadrotor's z at each step, clamped to [10 ft, 1000 ft].
         altitude: GustAltitude => "m", "Altitude of the gust model";
@@ -157,9 +157,9 @@ params! {
         #[serde(default = "wind::default_min_airspeed")]
         min_airspeed: f64 => "m/s", "Least relative airspeed";
         /// kg/m^3.
-        air_density: f64 => "kg/m^3", "Air density";
+        air_density: f64 => "kg/m^3", "Air density", non_negative;
         /// m/s, inertial x, y, z, added to the gust inside the window.
-        mean_wind: [f64; 3] => "m/s", "Mean wind in the gust window (x, y, z)";
+        mean_wind: [f64; 3] => "m/s", "Mean wind in the gust window (x, y, z)", finite;
     }
 }
 
@@ -173,8 +173,7 @@ impl Gust {
     /// Check every value; the first problem found is returned with its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let g = self;
-        non_negative("gust.start", g.start)?;
-        finite("gust.end", g.end)?;
+        g.check_bounds("gust")?;
         if g.end < g.start {
             return Err(ConfigError::new(
                 "gust.end",
@@ -212,10 +211,6 @@ impl Gust {
                     g.min_airspeed
                 ),
             ));
-        }
-        non_negative("gust.air_density", g.air_density)?;
-        for (i, x) in g.mean_wind.iter().enumerate() {
-            finite(format_args!("gust.mean_wind[{i}]"), *x)?;
         }
         for (i, c) in g.components.iter().enumerate() {
             if g.components[..i].contains(c) {

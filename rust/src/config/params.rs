@@ -126,13 +126,28 @@ impl Bounded for f64 {
     }
 }
 
-/// Element `i` is checked as `{key}[{i}]`, in order.
+/// Entry `i` is checked as `{key}[{i}]`, in order: a row's numbers, a list's entries.
+fn check_entries<'a, T: Bounded + 'a>(
+    entries: impl IntoIterator<Item = &'a T>,
+    key: &dyn fmt::Display,
+    check: Check,
+) -> Result<(), ConfigError> {
+    for (i, x) in entries.into_iter().enumerate() {
+        x.check_each(&format_args!("{key}[{i}]"), check)?;
+    }
+    Ok(())
+}
+
 impl<T: Bounded, const N: usize> Bounded for [T; N] {
     fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError> {
-        for (i, x) in self.iter().enumerate() {
-            x.check_each(&format_args!("{key}[{i}]"), check)?;
-        }
-        Ok(())
+        check_entries(self, key, check)
+    }
+}
+
+/// A list (a wind table's rows).
+impl<T: Bounded> Bounded for Vec<T> {
+    fn check_each(&self, key: &dyn fmt::Display, check: Check) -> Result<(), ConfigError> {
+        check_entries(self, key, check)
     }
 }
 

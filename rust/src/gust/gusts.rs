@@ -6,7 +6,7 @@
 use super::source::{Kinematics, Moment, WindSource};
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
-use crate::config::{finite, non_negative, positive, ConfigError};
+use crate::config::ConfigError;
 use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
@@ -26,11 +26,11 @@ params! {
     #[derive(PartialEq)]
     pub struct DiscreteGust {
         /// s, when the gust begins.
-        start: f64 => "s", "Discrete gust start";
+        start: f64 => "s", "Discrete gust start", non_negative;
         /// s, D: the rise time of a ramp, the length of a pulse.
-        duration: f64 => "s", "Discrete gust duration (rise or length)";
+        duration: f64 => "s", "Discrete gust duration (rise or length)", positive;
         /// m/s, A: inertial x, y, z (not turned by `wind.heading`).
-        amplitude: [f64; 3] => "m/s", "Discrete gust amplitude (x, y, z)";
+        amplitude: [f64; 3] => "m/s", "Discrete gust amplitude (x, y, z)", finite;
         #[serde(default)]
         shape: GustShape => "-", "Discrete gust shape (ramp or pulse)";
     }
@@ -75,11 +75,7 @@ impl WindSource for Gusts {
 
     fn validate(wind: &Wind) -> Result<(), ConfigError> {
         for (i, g) in wind.gusts.iter().enumerate() {
-            non_negative(format_args!("wind.gusts[{i}].start"), g.start)?;
-            positive(format_args!("wind.gusts[{i}].duration"), g.duration)?;
-            for (j, a) in g.amplitude.iter().enumerate() {
-                finite(format_args!("wind.gusts[{i}].amplitude[{j}]"), *a)?;
-            }
+            g.check_bounds(&format!("wind.gusts[{i}]"))?;
         }
         Ok(())
     }

@@ -6,7 +6,7 @@
 use super::source::{Kinematics, Moment, WindSource};
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{not_numbers, params, Field, Key, Params};
-use crate::config::{finite, ConfigError};
+use crate::config::ConfigError;
 use crate::gust::{Wind, WindContext};
 use serde::{Deserialize, Serialize};
 
@@ -27,7 +27,7 @@ params! {
         by: TableBy => "-", "Wind table by time or altitude";
         /// Rows of (t s or z m, wind_x, wind_y, wind_z m/s inertial), the first column strictly
         /// increasing.
-        points: Vec<[f64; 4]> => "[s or m, m/s, m/s, m/s]", "Wind table rows (t or z, wind x, y, z)";
+        points: Vec<[f64; 4]> => "[s or m, m/s, m/s, m/s]", "Wind table rows (t or z, wind x, y, z)", finite;
     }
 }
 
@@ -47,10 +47,8 @@ impl WindTable {
                 "wind.table.points needs at least one row (t or z, wind_x, wind_y, wind_z), got none",
             ));
         }
+        self.check_bounds("wind.table")?;
         for (i, row) in self.points.iter().enumerate() {
-            for (j, x) in row.iter().enumerate() {
-                finite(format_args!("wind.table.points[{i}][{j}]"), *x)?;
-            }
             if i > 0 && row[0] <= self.points[i - 1][0] {
                 let key = format!("wind.table.points[{i}][0]");
                 let what = match self.by {

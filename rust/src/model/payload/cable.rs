@@ -30,7 +30,7 @@
 
 use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::{non_negative, params::params, positive, ConfigError};
-use crate::lane::Lane;
+use crate::lane::{gather, Lane};
 use crate::model::body::{Body, Frame};
 use crate::model::{ix, Axis, Bound, Layout, ModelContext, OwnsKeys, Part, State, StateVar};
 
@@ -451,36 +451,13 @@ impl Payload for Cable {
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Cable<L> {
-        let at = |f: fn(&Cable) -> f64| L::from_fn(|l| f(each[l]));
-        Cable {
-            mc: at(|p| p.mc),
-            k: at(|p| p.k),
-            c: at(|p| p.c),
-            rest_length: at(|p| p.rest_length),
-            offset: at(|p| p.offset),
-            drag_payload: at(|p| p.drag_payload),
-            hover_length: at(|p| p.hover_length),
-            inv_mc: at(|p| p.inv_mc),
-            winch_speed: at(|p| p.winch_speed),
-            winch_acceleration: at(|p| p.winch_acceleration),
-            winch_kp: at(|p| p.winch_kp),
-            winch_kw: at(|p| p.winch_kw),
-            length_min: at(|p| p.length_min),
-            length_max: at(|p| p.length_max),
-            target: at(|p| p.target),
-            ground: at(|p| p.ground),
-            ground_k: at(|p| p.ground_k),
-            ground_c: at(|p| p.ground_c),
-            friction: at(|p| p.friction),
-            contact: each.iter().any(|p| p.contact),
-            release_at: at(|p| p.release_at),
-            release_on_touchdown: at(|p| p.release_on_touchdown),
-            release_delay: at(|p| p.release_delay),
-            hooked: at(|p| p.hooked),
-            touched: at(|p| p.touched),
-            resting: at(|p| p.resting),
-            approach: vec3(|i| L::from_fn(|l| each[l].approach[i])),
-        }
+        gather!(|l| each[l] => Cable {
+            mc, k, c, rest_length, offset, drag_payload, hover_length, inv_mc, winch_speed,
+            winch_acceleration, winch_kp, winch_kw, length_min, length_max, target, ground,
+            ground_k, ground_c, friction, release_at, release_on_touchdown, release_delay,
+            hooked, touched, resting, approach;
+            contact: each.iter().any(|p| p.contact)
+        })
     }
 }
 

@@ -4,8 +4,8 @@
 //! (`PayloadConfig`, read by `model::section`).
 
 use super::PayloadKind;
-use crate::config::params::params;
-use crate::config::{non_negative, positive, ConfigError, OneOf};
+use crate::config::params::{params, Params};
+use crate::config::{ConfigError, OneOf};
 use crate::model::ModelContext;
 
 params! {
@@ -14,16 +14,16 @@ params! {
         /// The payload model (default "spring").
         #[serde(default)]
         model: PayloadKind => "-", "Payload model";
-        mass: f64 => "kg", "Payload mass";
+        mass: f64 => "kg", "Payload mass", positive;
         /// Hz, fn with kc = mc (2 pi fn)^2. Exactly one of this and `stiffness`.
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        natural_frequency: Option<f64> => "Hz", "Attachment natural frequency";
+        natural_frequency: Option<f64> => "Hz", "Attachment natural frequency", positive;
         /// N/m.
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        stiffness: Option<f64> => "N/m", "Attachment stiffness";
-        damping: f64 => "N s/m", "Attachment damping";
+        stiffness: Option<f64> => "N/m", "Attachment stiffness", positive;
+        damping: f64 => "N s/m", "Attachment damping", non_negative;
         /// m^2, Cd times projected area for vertical drag (the cable's payload: in every direction).
-        drag_area: f64 => "m^2", "Payload drag area";
+        drag_area: f64 => "m^2", "Payload drag area", non_negative;
     }
 }
 
@@ -37,16 +37,7 @@ pub const ATTACHMENT: OneOf = OneOf {
 impl Shared {
     /// Check every shared value; the first problem found is returned with its key.
     pub fn validate(&self, _cfg: &ModelContext) -> Result<(), ConfigError> {
-        let p = self;
-        positive("payload.mass", p.mass)?;
-        ATTACHMENT.check([p.stiffness.is_some(), p.natural_frequency.is_some()])?;
-        if let Some(k) = p.stiffness {
-            positive("payload.stiffness", k)?;
-        }
-        if let Some(f) = p.natural_frequency {
-            positive("payload.natural_frequency", f)?;
-        }
-        non_negative("payload.damping", p.damping)?;
-        non_negative("payload.drag_area", p.drag_area)
+        self.check_bounds("payload")?;
+        ATTACHMENT.check([self.stiffness.is_some(), self.natural_frequency.is_some()])
     }
 }

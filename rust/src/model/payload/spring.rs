@@ -4,7 +4,7 @@
 
 use super::{Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::params::params;
-use crate::lane::Lane;
+use crate::lane::{gather, Lane};
 use crate::model::body::{drag, Body, Frame};
 use crate::model::layout::{Axis, Bound, Part, StateVar};
 use crate::model::section::OwnsKeys;
@@ -79,16 +79,9 @@ impl Payload for Spring {
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Spring<L> {
-        let at = |f: fn(&Spring) -> f64| L::from_fn(|l| f(each[l]));
-        Spring {
-            mc: at(|p| p.mc),
-            kc: at(|p| p.kc),
-            cc: at(|p| p.cc),
-            drag_payload: at(|p| p.drag_payload),
-            hover_offset: at(|p| p.hover_offset),
-            inv_m_lateral: at(|p| p.inv_m_lateral),
-            inv_mc: at(|p| p.inv_mc),
-        }
+        gather!(|l| each[l] => Spring {
+            mc, kc, cc, drag_payload, hover_offset, inv_m_lateral, inv_mc,
+        })
     }
 }
 

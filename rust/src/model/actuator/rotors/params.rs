@@ -4,7 +4,7 @@
 
 use super::allocation::{self, RotorLayout};
 use crate::config::params::{self, params, Params};
-use crate::config::{finite, non_negative, positive, ConfigError};
+use crate::config::{non_negative, ConfigError};
 use crate::model::ModelContext;
 
 params! {
@@ -16,18 +16,18 @@ params! {
         layout: RotorLayout => "-", "Rotor layout";
         /// N s^2/rad^2, kf in T = kf w^2.
         #[serde(default = "default_thrust_coefficient")]
-        thrust_coefficient: f64 => "N s^2/rad^2", "Rotor thrust coefficient";
+        thrust_coefficient: f64 => "N s^2/rad^2", "Rotor thrust coefficient", positive;
         /// m, cq: a rotor's yaw reaction torque per newton of its thrust.
         #[serde(default = "default_torque_ratio")]
-        torque_ratio: f64 => "m", "Rotor yaw torque per thrust";
+        torque_ratio: f64 => "m", "Rotor yaw torque per thrust", positive;
         /// s, tau_m of the rotor speed lag dw/dt = (w_cmd - w) / tau_m.
         #[serde(default = "default_time_constant")]
-        time_constant: f64 => "s", "Rotor speed time constant";
+        time_constant: f64 => "s", "Rotor speed time constant", positive;
         /// N per rotor, the commanded thrust's lower and upper clamps.
         #[serde(default)]
-        thrust_min: f64 => "N", "Least rotor thrust";
+        thrust_min: f64 => "N", "Least rotor thrust", non_negative;
         #[serde(default = "default_rotor_thrust_max")]
-        thrust_max: f64 => "N", "Largest rotor thrust";
+        thrust_max: f64 => "N", "Largest rotor thrust", finite;
         /// Rotors that give a fraction of their commanded thrust from a time on (rotors only).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         faults: Vec<RotorFault> => "-", "Rotor faults";
@@ -36,13 +36,13 @@ params! {
         battery_sag: f64 => "-", "Fraction of the rotor thrust limit lost by the end (battery sag)";
         /// The rotor's H-force -w diag(k_d, k_d, k_z) v_i (RotorPy's k_d, k_d, k_z; rigid body).
         #[serde(default, skip_serializing_if = "is_zero3")]
-        rotor_drag: [f64; 3] => "N/(rad/s m/s)", "Rotor drag (H-force) coefficients (k_d, k_d, k_z)";
+        rotor_drag: [f64; 3] => "N/(rad/s m/s)", "Rotor drag (H-force) coefficients (k_d, k_d, k_z)", non_negative;
         /// The blade-flapping moment -k_flap w (v_i x e3) (RotorPy's k_flap; rigid body).
         #[serde(default, skip_serializing_if = "is_zero")]
-        flapping: f64 => "N m/(rad/s m/s)", "Rotor blade-flapping moment coefficient";
+        flapping: f64 => "N m/(rad/s m/s)", "Rotor blade-flapping moment coefficient", non_negative;
         /// Translational lift k_h (v_ix^2 + v_iy^2) per rotor (RotorPy's k_h; rigid body).
         #[serde(default, skip_serializing_if = "is_zero")]
-        translational_lift: f64 => "N/(m/s)^2", "Rotor translational lift coefficient";
+        translational_lift: f64 => "N/(m/s)^2", "Rotor translational lift coefficient", non_negative;
     }
 }
 
@@ -119,15 +119,11 @@ pub fn default_rotor_thrust_max() -> f64 {
 }
 
 impl RotorParams {
-    /// The rotor aerodynamic coefficients: each >= 0, and nonzero only on the rigid body (they
-    /// need its body rates and body-axis airspeed: docs/model.md, "Bodies").
+    /// The rotor aerodynamic coefficients (each >= 0: their declared bound) nonzero only on
+    /// the rigid body (they need its body rates and body-axis airspeed: docs/model.md,
+    /// "Bodies").
     fn validate_aero(&self, cfg: &ModelContext) -> Result<(), ConfigError> {
         let a = self;
-        for (i, k) in a.rotor_drag.iter().enumerate() {
-            non_negative(format_args!("actuator.rotor_drag[{i}]"), *k)?;
-        }
-        non_negative("actuator.flapping", a.flapping)?;
-        non_negative("actuator.translational_lift", a.translational_lift)?;
         if cfg.vehicle.body == crate::model::BodyModel::Paper {
             let given = [
                 ("actuator.rotor_drag", a.rotor_drag != [0.0; 3]),
@@ -151,11 +147,7 @@ impl RotorParams {
     /// the lag can be integrated at this step only when they fly (`flown`).
     pub fn validate(&self, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         let a = self;
-        positive("actuator.thrust_coefficient", a.thrust_coefficient)?;
-        positive("actuator.torque_ratio", a.torque_ratio)?;
-        positive("actuator.time_constant", a.time_constant)?;
-        non_negative("actuator.thrust_min", a.thrust_min)?;
-        finite("actuator.thrust_max", a.thrust_max)?;
+        a.check_bounds("actuator")?;
         if a.thrust_max <= a.thrust_min {
             return Err(ConfigError::new(
                 "actuator.thrust_max",
