@@ -1,7 +1,10 @@
 """Shared fixtures: the paper preset and short, coarse variants of it that run in milliseconds;
-the paper pipeline's output, made once per session (per pytest worker: scripts/test.sh runs one
-per core)."""
+the paper pipeline's output, made once per session (shared by the pytest workers:
+scripts/test.sh runs one per core). The slowest test files are collected first, so that the
+workers, which take whole files in collection order, finish together."""
 
+import fcntl
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -93,16 +96,46 @@ def still_hover(paper: quadrs.Scenario) -> quadrs.Scenario:
 
 @pytest.fixture(scope="session")
 def paper_example(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    """``examples/paper.py OUT 2`` run once per session (per pytest worker), as a user runs it
-    (the paper preset at dt = 2 ms, 2 realisations, the sweep at 1 and 4 Hz, the mass figure at
-    0.22 kg): its output directory and what it printed. The pipeline is the slowest thing the
-    suite runs; the example's test and the check of every table and figure share this run."""
-    out = tmp_path_factory.mktemp("paper")
-    script = Path(__file__).resolve().parent.parent / "examples" / "paper.py"
-    proc = subprocess.run([sys.executable, str(script), str(out), "2"], capture_output=True,
-                          text=True, timeout=900, check=False)  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    return out, proc.stdout
+    """``examples/paper.py OUT 2`` run once per session, as a user runs it (the paper preset at
+    dt = 2 ms, 2 realisations, the sweep at 1 and 4 Hz, the mass figure at 0.22 kg): its output
+    directory and what it printed. The pipeline is the slowest thing the suite runs; the
+    example's test and the check of every table and figure share this run, and so do the
+    pytest workers (the first to ask runs it under a lock in the session's own directory, the
+    others read its output: the tests only read it)."""
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # the session's directory, above each worker's own
+    out = base / "paper-example"
+    printed = base / "paper-example.stdout"
+    with open(base / "paper-example.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not printed.exists():
+            script = Path(__file__).resolve().parent.parent / "examples" / "paper.py"
+            proc = subprocess.run([sys.executable, str(script), str(out), "2"],
+                                  capture_output=True, text=True, timeout=900,
+                                  check=False)  # fmt: skip
+            assert proc.returncode == 0, proc.stderr
+            printed.write_text(proc.stdout)  # last: a failed run leaves none
+    return out, printed.read_text()
+
+
+#: The test files that take longest (a minute or more on 2 cores, `--durations`), collected
+#: first: pytest-xdist's `--dist loadfile` hands whole files to the workers in collection
+#: order, so a long file started last would leave the other worker idle at the end.
+SLOWEST_FIRST = (
+    "tests/rare/test_against_brute_force.py",
+    "tests/cli/test_main.py",
+    "tests/guarantees/test_design_loop_and_files.py",
+    "tests/guarantees/test_mission_files_and_inputs.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        path = item.nodeid.split("::")[0]
+        return SLOWEST_FIRST.index(path) if path in SLOWEST_FIRST else len(SLOWEST_FIRST)
+
+    items.sort(key=rank)  # stable: the rest keep their order
 
 
 def pytest_report_header() -> list[str]:
