@@ -1,7 +1,6 @@
 """Shared fixtures: the paper preset and short, coarse variants of it that run in milliseconds;
 the paper pipeline's output, made once per session (shared by the pytest workers:
-scripts/test.sh runs one per core). The slowest test files are collected first, so that the
-workers, which take whole files in collection order, finish together."""
+scripts/test.sh runs one per core)."""
 
 import fcntl
 import os
@@ -117,25 +116,6 @@ def paper_example(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
             assert proc.returncode == 0, proc.stderr
             printed.write_text(proc.stdout)  # last: a failed run leaves none
     return out, printed.read_text()
-
-
-#: The test files that take longest (a minute or more on 2 cores, `--durations`), collected
-#: first: pytest-xdist's `--dist loadfile` hands whole files to the workers in collection
-#: order, so a long file started last would leave the other worker idle at the end.
-SLOWEST_FIRST = (
-    "tests/rare/test_against_brute_force.py",
-    "tests/cli/test_main.py",
-    "tests/guarantees/test_design_loop_and_files.py",
-    "tests/guarantees/test_mission_files_and_inputs.py",
-)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    def rank(item: pytest.Item) -> int:
-        path = item.nodeid.split("::")[0]
-        return SLOWEST_FIRST.index(path) if path in SLOWEST_FIRST else len(SLOWEST_FIRST)
-
-    items.sort(key=rank)  # stable: the rest keep their order
 
 
 def pytest_report_header() -> list[str]:
