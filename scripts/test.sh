@@ -41,15 +41,22 @@ python3 -m venv .venv
 
 # The Rust lints start at once, in the background, in their own target directory (no lock
 # shared with the wheel's build): the engine crate's front end is serial, so while it holds one
-# core clippy takes the other.
+# core clippy takes the other, and then the Rust unit tests' build (run later, beside pytest).
+# Unit tests unoptimised (the `unit` profile, Cargo.toml: the cheapest build; optimisation
+# changes no arithmetic); the doc comments hold no examples, so no doctest build.
 cargo fmt --check
+rust_target="$PWD/target/rust-checks"
 logs+=("$(mktemp)")
 (
     s=$SECONDS
-    CARGO_TARGET_DIR="$PWD/target/clippy" cargo clippy --all-targets -q -- -D warnings
+    CARGO_TARGET_DIR="$rust_target" cargo clippy --all-targets -q -- -D warnings
     echo "== clippy (background) took $((SECONDS - s)) s"
+    s=$SECONDS
+    CARGO_TARGET_DIR="$rust_target" cargo test --profile unit --lib -q --no-run
+    echo "== rust unit tests' build (background) took $((SECONDS - s)) s"
 ) >"${logs[-1]}" 2>&1 &
 background+=($!)
+rust_build=$!
 
 # The Python dependencies install while the engine builds (downloads and unpacking, not CPU).
 requirements=$(mktemp)
@@ -75,9 +82,9 @@ export QUADRS_WHEEL="$wheel"
 logs+=("$(mktemp)")
 (
     s=$SECONDS
-    # Unit tests unoptimised (the `unit` profile, Cargo.toml: the cheapest build; optimisation
-    # changes no arithmetic); the doc comments hold no examples, so no doctest build.
-    cargo test --profile unit --lib -q
+    # Once built (above, after clippy): run them.
+    while kill -0 "$rust_build" 2>/dev/null; do sleep 1; done
+    CARGO_TARGET_DIR="$rust_target" cargo test --profile unit --lib -q
     echo "== rust unit tests (background) took $((SECONDS - s)) s"
 ) >"${logs[-1]}" 2>&1 &
 background+=($!)
