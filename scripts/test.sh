@@ -40,14 +40,16 @@ python3 -m venv .venv
 .venv/bin/python -m pip install -q --upgrade pip
 
 # The Rust lints start at once, in the background, in their own target directory (no lock
-# shared with the wheel's build): the engine crate's front end is serial, so while it holds one
-# core clippy takes the other, and then the Rust unit tests' build (run later, beside pytest).
-# Unit tests unoptimised (the `unit` profile, Cargo.toml: the cheapest build; optimisation
-# changes no arithmetic); the doc comments hold no examples, so no doctest build.
+# shared with the wheel's build), and then the Rust unit tests' build (they run later, beside
+# pytest), both at the lowest priority: the wheel is the critical path, and they take the CPU
+# it leaves (the engine crate's front end is serial). Unit tests unoptimised (the `unit`
+# profile, Cargo.toml: the cheapest build; optimisation changes no arithmetic); the doc
+# comments hold no examples, so no doctest build.
 cargo fmt --check
 rust_target="$PWD/target/rust-checks"
 logs+=("$(mktemp)")
 (
+    renice -n 19 "$BASHPID" >/dev/null 2>&1 || true
     s=$SECONDS
     CARGO_TARGET_DIR="$rust_target" cargo clippy --all-targets -q -- -D warnings
     echo "== clippy (background) took $((SECONDS - s)) s"
@@ -82,7 +84,8 @@ export QUADRS_WHEEL="$wheel"
 logs+=("$(mktemp)")
 (
     s=$SECONDS
-    # Once built (above, after clippy): run them.
+    # Once built (above, after clippy): run them, pytest first.
+    renice -n 10 "$BASHPID" >/dev/null 2>&1 || true
     while kill -0 "$rust_build" 2>/dev/null; do sleep 1; done
     CARGO_TARGET_DIR="$rust_target" cargo test --profile unit --lib -q
     echo "== rust unit tests (background) took $((SECONDS - s)) s"
