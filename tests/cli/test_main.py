@@ -196,12 +196,58 @@ def test_ctrl_c_while_the_parser_is_built_exits_130_in_one_line(monkeypatch, cap
     start): a Ctrl-C then is one line and exit 130, not a traceback."""
     import quadrs.cli.main as cli_main
 
-    def boom():
+    def boom(only=None):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(cli_main, "build_parser", boom)
     assert main(["run", *SHORT]) == 130
     assert capsys.readouterr().err == "quadrs: interrupted\n"
+
+
+def _declared(parser: argparse.ArgumentParser) -> dict[str, list[tuple]]:
+    """Each subcommand's options as declared: strings, dest, default, choices, nargs, help."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+
+    def options(p: argparse.ArgumentParser) -> list[tuple]:
+        return [(tuple(a.option_strings), a.dest, repr(a.default), repr(a.choices), a.nargs,
+                 a.help) for a in p._actions]  # fmt: skip
+
+    return {name: options(p) for name, p in sub.choices.items()}
+
+
+def test_a_command_parser_built_alone_is_the_whole_parsers() -> None:
+    """``main`` builds only the named command's parser (the other commands' modules stay
+    unimported): each, built alone, declares exactly what the whole parser declares for it,
+    and parses a command line to the same namespace."""
+    whole = _declared(build_parser())
+    assert len(whole) == 12
+    for name, options in whole.items():
+        assert _declared(build_parser(name)) == {name: options}, name
+    line = ["mission", "--runs", "7", "--limit", "max_swing=30", "--set", "gust.w20=4"]
+    assert build_parser("mission").parse_args(line) == build_parser().parse_args(line)
+
+
+def test_a_command_imports_only_its_own_module() -> None:
+    """``quadrs run --help`` does not import the design loop nor the mission's tables (nor
+    scipy.optimize with them); ``quadrs --help`` lists every command."""
+    probe = (
+        "import sys, contextlib, io\n"
+        "from quadrs.cli.main import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    assert main(['run', '--help']) == 0\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('quadrs.cli', 'quadrs.design', "
+        "'scipy.optimize'))))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True).stdout  # fmt: skip
+    assert "quadrs.cli.run" in out
+    for other in ["quadrs.cli.design", "quadrs.cli.mission", "quadrs.cli.rare",
+                  "quadrs.design.optimize", "scipy.optimize"]:  # fmt: skip
+        assert f"'{other}'" not in out, (other, out)
+    help_all = subprocess.run([sys.executable, "-m", "quadrs.cli", "--help"],
+                              capture_output=True, text=True, check=True).stdout  # fmt: skip
+    for command in ["run", "mc", "sweep", "tune", "linearize", "rare", "mission", "report"]:
+        assert command in help_all
 
 
 def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:

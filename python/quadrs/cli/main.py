@@ -96,8 +96,10 @@ def _module(command: str) -> Any:
     return importlib.import_module(f"quadrs.cli.{_MODULES[command]}")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``quadrs`` argument parser with every subcommand."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``quadrs`` argument parser with every subcommand, or with subcommand ``only`` alone
+    (what ``main`` builds when the command line names one: the other commands' modules, and
+    the libraries their choices come from, are then not imported; a second on a cold start)."""
     common = scenario_options()
     parser = Parser(
         prog="quadrs",
@@ -120,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"quadrs {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for command in _MODULES:
+    for command in [only] if only in _MODULES else _MODULES:
         add = getattr(_module(command), f"add_{command}")
         if command == "report":  # a saved file: no scenario options
             add(sub)
@@ -184,8 +186,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         # building the parser imports the libraries its choices come from (a second or two
         # on a cold start): a Ctrl-C meanwhile is an interruption, not a traceback
-        parser = build_parser()
-        args = parser.parse_args(argv)
+        args_list = list(sys.argv[1:] if argv is None else argv)
+        parser = build_parser(args_list[0] if args_list else None)
+        args = parser.parse_args(args_list)
     except SystemExit as e:  # --help, --version or a usage error
         return int(e.code) if isinstance(e.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
