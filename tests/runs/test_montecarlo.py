@@ -52,6 +52,40 @@ def test_results_depend_only_on_seed_and_index(short: Scenario) -> None:
     assert not np.array_equal(other_seed["iae"], one["iae"])
 
 
+def test_flown_chunks_are_taken_not_flown_again(short: Scenario, tmp_path) -> None:
+    """A batch given chunks of itself already flown (the command line's calibration: the
+    batch's first realisations) equals the batch flown whole, bit for bit, and stores them
+    in its checkpoint; chunks that are not whole new parts of the batch are refused."""
+    from quadrs.runs.chunk import Design, fly_chunk
+
+    s = short.override({"dispersions": {"payload.mass": {"dist": "uniform", "low": 0.18,
+                                                          "high": 0.26}}})  # fmt: skip
+    whole = quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False).runs
+
+    def chunk(first: int, count: int, controllers=("pd", "smc"), spectra=False):
+        return fly_chunk(s, controllers, 5, first, count, 2, spectra, Design("random", 0, count))
+
+    flown = [chunk(0, 4), chunk(9, 2)]
+    taken = quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False, flown=flown)
+    pd.testing.assert_frame_equal(taken.runs, whole)
+    stored = quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False, flown=flown,
+                                out=tmp_path / "run")  # fmt: skip
+    pd.testing.assert_frame_equal(stored.runs, whole)
+    bad = {
+        "not a whole new part": [chunk(0, 4), chunk(2, 3)],
+        "not a whole new part ": [chunk(10, 4)],
+        "another batch": [chunk(0, 2, controllers=("pd",))],
+    }
+    for match, chunks in bad.items():
+        with pytest.raises(ValueError, match=match.strip()):
+            quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False, flown=chunks)
+    with pytest.raises(ValueError, match="another batch"):
+        quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=True, flown=flown[:1])
+    with pytest.raises(ValueError, match="sampling='random'"):
+        quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False, flown=flown,
+                           sampling="lhs")  # fmt: skip
+
+
 def test_batch_rows_equal_single_flights(short: Scenario) -> None:
     """Realisation i of the batch is `simulate(seed, realisation=i)` (SIMD vs scalar path),
     and both controllers of a realisation fly the very same gust."""

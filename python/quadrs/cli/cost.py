@@ -13,8 +13,11 @@ import math
 import time
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from quadrs.runs.chunk import Chunk
 
 __all__ = [
     "ANNOUNCE_AFTER",
@@ -34,11 +37,15 @@ ANNOUNCE_AFTER = 10.0
 
 @dataclass(frozen=True)
 class Calibration:
-    """``flights`` flown in ``seconds`` of wall clock with ``workers`` threads."""
+    """``flights`` flown in ``seconds`` of wall clock with ``workers`` threads; ``chunk``: what
+    they gave (the batch's first realisations, so a batch of the same scenario, seed,
+    controllers and random sampling without spectra takes them rather than fly them again:
+    :func:`quadrs.monte_carlo`'s ``flown``)."""
 
     flights: int
     seconds: float
     workers: int
+    chunk: Chunk | None = field(default=None, compare=False, repr=False)
 
     @property
     def per_flight(self) -> float:
@@ -85,24 +92,25 @@ def calibrate(
     refuses is refused naming a realisation the batch has. Ctrl-C raises
     KeyboardInterrupt."""
     from quadrs import _core
-    from quadrs.runs.chunk import Design, run_range
+    from quadrs.runs.chunk import Design, fly_chunk
 
     n_workers = _workers(workers)
     count = flights if flights is not None else _core.lanes_per_set() * n_workers
     if at_most is not None:
         count = max(1, min(count, at_most))
-    first = 0
-    values = Design("random", first, count).values(scenario, seed, first, count)
+    # Random sampling: realisation i's values depend on (seed, i) only, so these are the
+    # batch's whatever its size.
+    design = Design("random", 0, count)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        _, interrupted = run_range(scenario, tuple(controllers), seed, first, count, n_workers,
-                                   spectra=False, values=values)  # fmt: skip
-    if interrupted:  # Ctrl-C in the calibration stops the command
+        chunk = fly_chunk(scenario, tuple(controllers), seed, 0, count, n_workers,
+                          spectra=False, design=design)  # fmt: skip
+    if chunk.interrupted:  # Ctrl-C in the calibration stops the command
         raise KeyboardInterrupt
     seconds = time.perf_counter() - start
     # One flight per controller: a paired batch of c controllers is c flights per realisation.
-    return Calibration(count * len(controllers), seconds, n_workers)
+    return Calibration(count * len(controllers), seconds, n_workers, chunk)
 
 
 def duration(seconds: float) -> str:

@@ -219,8 +219,9 @@ def cmd_mission(args: argparse.Namespace) -> int:
     check_int("--seed", args.seed)
     check_outputs(args.out)
     check_directories(args.plots)
-    if args.scheduler is None:  # a cluster's speed is not this machine's
-        _announce(scenario, args)
+    # Calibrated here, not on a cluster (whose speed is not this machine's): the calibration's
+    # flights are the batch's first, taken rather than flown again.
+    flown = [] if args.scheduler is not None else _announce(scenario, args)
     from quadrs.engine.calls import deferred_signals
 
     with contextlib.ExitStack() as keeping:
@@ -234,6 +235,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
                 progress=progress(args),
                 spectra=False,
                 client=client,
+                flown=flown,
             )
             # The batch is over: a Ctrl-C from here (a second one after the one that stopped
             # it) waits until what finished is saved, then ends the command (status 130).
@@ -274,8 +276,9 @@ def cmd_mission(args: argparse.Namespace) -> int:
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
 
 
-def _announce(scenario: Any, args: argparse.Namespace) -> None:
-    """What the command flies and roughly how long, from a short calibration, on stderr."""
+def _announce(scenario: Any, args: argparse.Namespace) -> list[Any]:
+    """What the command flies and roughly how long, from a short calibration, on stderr;
+    returns the calibration's flights (the batch's first realisations)."""
     from quadrs.cli.cost import announce, calibrate, precheck, say
 
     precheck(scenario, args.controller, args.runs, args.workers, args.seed)
@@ -284,6 +287,7 @@ def _announce(scenario: Any, args: argparse.Namespace) -> None:
     duration = float(scenario["integrator.duration"])
     what = f"{args.runs} realisations of a {duration:g} s flight"
     say(announce("mission", what, args.runs, cal), cal.estimate(args.runs))
+    return [cal.chunk] if cal.chunk is not None else []
 
 
 def _say_clashes(scenario: Any, controllers: tuple[str, ...]) -> None:

@@ -82,6 +82,7 @@ def monte_carlo(
     client: Client | None = None,
     sampling: str = "random",
     fused: bool = False,
+    flown: Sequence[Chunk] = (),
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
@@ -110,6 +111,11 @@ def monte_carlo(
     instruction sets. The result says so (``result.arithmetic == "fused"``, also in saved
     metadata, a checkpoint's manifest and the run identity, so a resumed run keeps its mode; on
     Dask each worker fuses on its own instruction set). See docs/performance.md.
+
+    ``flown``: chunks of this very batch already flown (:func:`quadrs.runs.chunk.fly_chunk`
+    with the same scenario, seed, controllers, spectra and ``sampling = "random"``, as the
+    command line's calibration flies the batch's first realisations): taken as they are, not
+    flown again. They must lie inside the batch and not overlap.
     """
     controllers = tuple(check_controller(c) for c in controllers)
     if len(set(controllers)) != len(controllers) or not controllers:
@@ -141,20 +147,53 @@ def monte_carlo(
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
+    flown = _check_flown(flown, first, runs, controllers, spectra, sampling)
     store = RunStore(out) if out is not None else None
     with contextlib.ExitStack() as held:
-        todo = [(first, runs)]
+        taken = {i for c in flown for i in range(c.first, c.first + c.count)}
+        todo = missing_ranges(first, runs, taken) if taken else [(first, runs)]
         if store is not None:
             if store.exists() and resume:
                 held.enter_context(store.writing())  # one writer at a time
                 store.check_matches(scenario, seed, controllers, spectra, design.record(),
                                     arithmetic)  # fmt: skip
-                todo = missing_ranges(first, runs, store.done_realisations())
+                done = store.done_realisations()
+                flown = [c for c in flown if not done & set(range(c.first, c.first + c.count))]
+                taken = {i for c in flown for i in range(c.first, c.first + c.count)}
+                todo = missing_ranges(first, runs, done | taken)
             else:
                 store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
                 held.enter_context(store.writing())
         return _fly(scenario, controllers, seed, runs, workers, progress, spectra, out, store,
-                    chunk, client, sampling, design, fused, arithmetic, todo)  # fmt: skip
+                    chunk, client, sampling, design, fused, arithmetic, todo,
+                    list(flown))  # fmt: skip
+
+
+def _check_flown(
+    flown: Sequence[Chunk],
+    first: int,
+    runs: int,
+    controllers: tuple[str, ...],
+    spectra: bool,
+    sampling: str,
+) -> list[Chunk]:
+    """``monte_carlo``'s ``flown``, checked to be whole chunks of this batch."""
+    flown = list(flown)
+    if not flown:
+        return flown
+    if sampling != "random":
+        raise ValueError(f"flown= needs sampling='random' (a {sampling!r} design depends on runs)")
+    seen: set[int] = set()
+    for c in flown:
+        span = set(range(c.first, c.first + c.count))
+        if c.interrupted or c.first < first or c.first + c.count > first + runs or seen & span:
+            last = c.first + c.count - 1
+            raise ValueError(f"flown: realisations {c.first}..{last} are not a whole new part "
+                             f"of the batch {first}..{first + runs - 1}")  # fmt: skip
+        if (c.spectra is not None) != spectra or set(c.runs["controller"]) != set(controllers):
+            raise ValueError("flown: a chunk of another batch (its spectra or controllers)")
+        seen |= span
+    return flown
 
 
 def _fly(
@@ -174,6 +213,7 @@ def _fly(
     fused: bool,
     arithmetic: str,
     todo: list[tuple[int, int]],
+    flown: list[Chunk],
 ) -> MonteCarloResult:
     """The batch of :func:`monte_carlo`, its arguments checked and its store (if any) ready."""
     from quadrs.present.terminal import shows_progress, tqdm_class
@@ -189,7 +229,7 @@ def _fly(
     size = chunk or default_chunk(runs, threads, store is not None, client is not None)
     ranges = split_ranges(todo, size)
     parts: list[Chunk] = []
-    pending: list[Chunk] = []
+    pending: list[Chunk] = list(flown)
     interrupted = False
 
     def flush() -> None:

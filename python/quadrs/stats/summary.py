@@ -56,7 +56,7 @@ def phase_diverged(runs: pd.DataFrame) -> np.ndarray:
     ones; those rows are the diverged ones of their phase."""
     diverged = runs["diverged"].to_numpy(bool)
     columns = [m for m in _METRICS if m in runs]
-    if not columns:
+    if not columns or not diverged.any():  # (no metric is read where no flight diverged)
         return diverged
     return diverged & runs[columns].isna().all(axis=1).to_numpy()
 
