@@ -190,7 +190,8 @@ def test_ctrl_c_keeps_what_finished_and_exits_130(
     def interrupted(*args: object, **kwargs: object) -> quadrs.MonteCarloResult:
         if kwargs["runs"] != 50:  # the timing calibration before the batch
             return real(*args, **kwargs)  # type: ignore[arg-type]
-        kwargs["runs"] = 5  # what finished before Ctrl-C
+        kwargs["runs"] = 5  # what finished before Ctrl-C (the calibration's flights not taken)
+        kwargs["flown"] = None
         mc = real(*args, **kwargs)  # type: ignore[arg-type]
         mc.interrupted = True
         return mc

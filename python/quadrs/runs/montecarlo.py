@@ -82,7 +82,7 @@ def monte_carlo(
     client: Client | None = None,
     sampling: str = "random",
     fused: bool = False,
-    flown: Sequence[Chunk] = (),
+    flown: Sequence[Chunk] | None = None,
 ) -> MonteCarloResult:
     """Fly realisations ``first .. first + runs`` of the gust under every controller.
 
@@ -147,7 +147,7 @@ def monte_carlo(
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
-    flown = _check_flown(flown, first, runs, controllers, spectra, sampling)
+    flown = _check_flown(flown or (), first, runs, controllers, spectra, sampling)
     store = RunStore(out) if out is not None else None
     with contextlib.ExitStack() as held:
         taken = {i for c in flown for i in range(c.first, c.first + c.count)}
