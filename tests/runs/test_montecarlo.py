@@ -62,8 +62,9 @@ def test_flown_chunks_are_taken_not_flown_again(short: Scenario, tmp_path) -> No
                                                           "high": 0.26}}})  # fmt: skip
     whole = quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False).runs
 
-    def chunk(first: int, count: int, controllers=("pd", "smc"), spectra=False):
-        return fly_chunk(s, controllers, 5, first, count, 2, spectra, Design("random", 0, count))
+    def chunk(first: int, count: int, controllers=("pd", "smc"), spectra=False, seed=5, of=s):
+        return fly_chunk(of, controllers, seed, first, count, 2, spectra,
+                         Design("random", 0, count))  # fmt: skip
 
     flown = [chunk(0, 4), chunk(9, 2)]
     taken = quadrs.monte_carlo(s, runs=13, seed=5, progress=False, spectra=False, flown=flown)
@@ -75,6 +76,8 @@ def test_flown_chunks_are_taken_not_flown_again(short: Scenario, tmp_path) -> No
         "not a whole new part": [chunk(0, 4), chunk(2, 3)],
         "not a whole new part ": [chunk(10, 4)],
         "another batch": [chunk(0, 2, controllers=("pd",))],
+        "another batch ": [chunk(0, 2, seed=6)],
+        "another batch  ": [chunk(0, 2, of=s.override({"payload.damping": 0.5}))],
     }
     for match, chunks in bad.items():
         with pytest.raises(ValueError, match=match.strip()):

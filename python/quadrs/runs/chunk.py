@@ -20,7 +20,7 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.engine.calls import deferred_signals, run_cancellable
-from quadrs.io.integrity import CorruptRunError, RunRecord
+from quadrs.io.integrity import CorruptRunError, RunRecord, run_identity
 from quadrs.io.parquet import frame_bytes, read_frame
 from quadrs.runs.flight import METRIC_COLUMNS
 from quadrs.scenario.scenario import Scenario
@@ -191,13 +191,15 @@ class Design:
 class Chunk:
     """What one chunk of realisations produced, wherever it ran: ``count`` realisations from
     ``first`` were asked for; ``runs`` holds the rows of those that finished (all of them
-    unless ``interrupted``) and ``spectra`` their spectrum sums (None without spectra)."""
+    unless ``interrupted``) and ``spectra`` their spectrum sums (None without spectra);
+    ``run``: the run identity of the batch it is part of (:func:`fly_chunk`'s), "" if unknown."""
 
     first: int
     count: int
     runs: pd.DataFrame
     spectra: SpectrumSums | None
     interrupted: bool = False
+    run: str = ""
 
 
 def run_range(
@@ -283,7 +285,10 @@ def fly_chunk(
     with deferred_signals(deliver=False) as held:
         rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
         sums = spectrum_sums(raw, scenario)
-    return Chunk(first, count, rows, sums, interrupted or bool(held))
+    arithmetic = "fused" if fused else "exact"
+    run = run_identity(scenario, seed, tuple(controllers), spectra, extra=design.record(),
+                       arithmetic=arithmetic)  # fmt: skip
+    return Chunk(first, count, rows, sums, interrupted or bool(held), run)
 
 
 def runs_frame(

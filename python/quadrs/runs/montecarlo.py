@@ -23,6 +23,7 @@ from quadrs.engine.calls import (
     deferred_signals,
 )
 from quadrs.hover.stability import warn_before_running
+from quadrs.io.integrity import run_identity
 from quadrs.runs.chunk import Chunk, Design, SpectrumSums, fly_chunk, run_range
 from quadrs.runs.montecarlo_result import MonteCarloResult, empty_runs
 from quadrs.runs.store import RunStore, missing_ranges
@@ -147,37 +148,36 @@ def monte_carlo(
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
-    flown = _check_flown(flown or (), first, runs, controllers, spectra, sampling)
+    run = run_identity(scenario, seed, controllers, spectra, extra=design.record(),
+                       arithmetic=arithmetic) if flown else ""  # fmt: skip
+    flown = _check_flown(flown or (), first, runs, sampling, run)
     store = RunStore(out) if out is not None else None
     with contextlib.ExitStack() as held:
-        taken = {i for c in flown for i in range(c.first, c.first + c.count)}
-        todo = missing_ranges(first, runs, taken) if taken else [(first, runs)]
+        done: set[int] = set()
         if store is not None:
             if store.exists() and resume:
                 held.enter_context(store.writing())  # one writer at a time
                 store.check_matches(scenario, seed, controllers, spectra, design.record(),
                                     arithmetic)  # fmt: skip
                 done = store.done_realisations()
-                flown = [c for c in flown if not done & set(range(c.first, c.first + c.count))]
-                taken = {i for c in flown for i in range(c.first, c.first + c.count)}
-                todo = missing_ranges(first, runs, done | taken)
             else:
                 store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
                 held.enter_context(store.writing())
+        # A flown chunk the checkpoint holds already is not taken twice.
+        flown = [c for c in flown if done.isdisjoint(range(c.first, c.first + c.count))]
+        done |= {i for c in flown for i in range(c.first, c.first + c.count)}
+        todo = missing_ranges(first, runs, done) if done else [(first, runs)]
         return _fly(scenario, controllers, seed, runs, workers, progress, spectra, out, store,
                     chunk, client, sampling, design, fused, arithmetic, todo,
-                    list(flown))  # fmt: skip
+                    flown)  # fmt: skip
 
 
 def _check_flown(
-    flown: Sequence[Chunk],
-    first: int,
-    runs: int,
-    controllers: tuple[str, ...],
-    spectra: bool,
-    sampling: str,
+    flown: Sequence[Chunk], first: int, runs: int, sampling: str, run: str
 ) -> list[Chunk]:
-    """``monte_carlo``'s ``flown``, checked to be whole chunks of this batch."""
+    """``monte_carlo``'s ``flown``, checked to be whole chunks of this batch (whose run
+    identity is ``run``: the same scenario, seed, controllers, spectra, design and
+    arithmetic)."""
     flown = list(flown)
     if not flown:
         return flown
@@ -190,8 +190,10 @@ def _check_flown(
             last = c.first + c.count - 1
             raise ValueError(f"flown: realisations {c.first}..{last} are not a whole new part "
                              f"of the batch {first}..{first + runs - 1}")  # fmt: skip
-        if (c.spectra is not None) != spectra or set(c.runs["controller"]) != set(controllers):
-            raise ValueError("flown: a chunk of another batch (its spectra or controllers)")
+        if c.run != run:
+            raise ValueError("flown: a chunk of another batch (its scenario, seed, "
+                             "controllers, spectra or arithmetic; or of none: fly it with "
+                             "fly_chunk)")  # fmt: skip
         seen |= span
     return flown
 
