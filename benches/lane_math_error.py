@@ -1,5 +1,6 @@
-"""The lane-valued exp, expm1, ln, pow and atan2's error table (docs/performance.md, "Transcendental
-functions in lane values"), and the check that every lane path gives the same bits.
+"""The lane-valued functions' error table (exp, expm1, ln, pow, atan2 and the near-zero series
+of the turbulence filters; docs/performance.md, "Transcendental functions in lane values"), and
+the check that every lane path gives the same bits.
 
     python benches/lane_math_error.py            # 20,000 points per range (about a minute)
     python benches/lane_math_error.py --points 2000
@@ -31,15 +32,21 @@ PATHS = ("scalar", "sse2", "avx2", "avx512")
 
 #: (function, y for pow, label, low, high, spacing): "lin" uniform, "log" log-uniform.
 RANGES: list[tuple[str, float, str, float, float, str]] = [
-    # The wind's: k = V dt / L, exp(-k) and exp(-2k), expm1(-2k); ln(h / z0) of the shear;
-    # pow(d, 0.4) and pow(d, 1.2), d = 0.177 + 0.000823 h_ft over 10..1000 ft.
-    ("exp", 0.0, "exp(-k), k = V dt / L", -0.1, -1e-7, "lin"),
-    ("exp", 0.0, "exp(-k), long steps", -50.0, -0.1, "lin"),
-    ("expm1", 0.0, "expm1(-2k)", -0.2, -1e-9, "lin"),
-    ("expm1", 0.0, "expm1(-2k), tiny k", -1e-3, -1e-12, "log"),
+    # The wind's: k = V dt / L; for 2k <= 1/32 (every step in flight) exp(-k) and exp(-2k),
+    # expm1(-2k) and the tail of e^2k from its cube are the short series (the *_near0), beyond
+    # it the general functions; ln(h / z0) of the shear; pow(d, -0.4) and pow(d, -1.2),
+    # d = 0.177 + 0.000823 h_ft over 10..1000 ft.
+    ("exp_near0", 0.0, "exp(-k) and exp(-2k)", -0.03125, -1e-7, "lin"),
+    ("exp_near0", 0.0, "exp(-k), tiny k", -1e-3, -1e-12, "log"),
+    ("expm1_near0", 0.0, "expm1(-2k)", -0.03125, -1e-9, "lin"),
+    ("expm1_near0", 0.0, "expm1(-2k), tiny k", -1e-3, -1e-12, "log"),
+    ("tail3_near0", 0.0, "e^2k - 1 - 2k - 2k^2", 1e-6, 0.03125, "lin"),
+    ("tail3_near0", 0.0, "the same, tiny k", 1e-9, 1e-3, "log"),
+    ("exp", 0.0, "exp(-k), long steps", -50.0, -0.015, "lin"),
+    ("expm1", 0.0, "expm1(-2k), long steps", -40.0, -0.03, "lin"),
     ("ln", 0.0, "ln(h / z0), the shear", 1.0, 1e5, "log"),
-    ("pow", 0.4, "pow(d, 0.4), the scales", 0.1852, 1.0, "lin"),
-    ("pow", 1.2, "pow(d, 1.2), the scales", 0.1852, 1.0, "lin"),
+    ("pow", -0.4, "pow(d, -0.4), the scales", 0.1852, 1.0, "lin"),
+    ("pow", -1.2, "pow(d, -1.2), the scales", 0.1852, 1.0, "lin"),
     # Beyond.
     ("exp", 0.0, "exp, whole range", -745.0, 709.7, "lin"),
     ("exp", 0.0, "exp, near 0", -1.0, 1.0, "lin"),
@@ -65,6 +72,9 @@ EXACT: dict[str, Callable[[mpmath.mpf, float], mpmath.mpf]] = {
     "ln": lambda x, y: mpmath.log(x),
     "pow": lambda x, y: mpmath.power(x, mpmath.mpf(y)),
     "atan2": lambda x, y: mpmath.atan2(x, mpmath.mpf(y)),
+    "exp_near0": lambda x, y: mpmath.exp(x),
+    "expm1_near0": lambda x, y: mpmath.expm1(x),
+    "tail3_near0": lambda x, y: mpmath.expm1(x) - x - x * x / 2,
 }
 
 
@@ -98,7 +108,7 @@ def main() -> int:
             runnable.append(path)
         except ValueError as e:
             print(f"(skipped {path}: {e})", file=sys.stderr)
-    print(f"{'function':<8} {'range':<28} {'low':>10} {'high':>10} {'points':>7} "
+    print(f"{'function':<11} {'range':<28} {'low':>10} {'high':>10} {'points':>7} "
           f"{'max ulp':>8}  paths")  # fmt: skip
     worst: dict[str, float] = {}
     same = True
@@ -111,7 +121,7 @@ def main() -> int:
         err = max(ulp_error(float(g), EXACT[name](mpmath.mpf(float(xi)), y))
                   for xi, g in zip(x, ref, strict=True))  # fmt: skip
         worst[name] = max(worst.get(name, 0.0), err)
-        print(f"{name:<8} {label:<28} {low:>10.4g} {high:>10.4g} {len(x):>7} {err:>8.3f}  "
+        print(f"{name:<11} {label:<28} {low:>10.4g} {high:>10.4g} {len(x):>7} {err:>8.3f}  "
               f"{'same bits on ' + '/'.join(runnable) if agree else 'PATHS DIFFER'}")  # fmt: skip
     print("worst: " + ", ".join(f"{k} {v:.3f} ulp" for k, v in worst.items()))
     return 0 if same else 1

@@ -250,6 +250,27 @@ def test_a_command_imports_only_its_own_module() -> None:
         assert command in help_all
 
 
+def test_a_background_import_is_the_module_imported_later() -> None:
+    """``import_in_background`` (the mission's report loads while the batch flies): the module
+    is there once its thread ends, the same object a later import gives; a module that cannot
+    be imported raises nothing on the thread, and its error where the command imports it."""
+    from quadrs.cli.common import import_in_background
+
+    probe = (
+        "import sys, importlib\n"
+        "from quadrs.cli.common import import_in_background\n"
+        "assert 'quadrs.design.mission' not in sys.modules\n"
+        "import_in_background('quadrs.design.mission').join()\n"
+        "m = sys.modules['quadrs.design.mission']\n"
+        "assert importlib.import_module('quadrs.design.mission') is m\n"
+        "assert 'scipy.stats' in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", probe], check=True)
+    import_in_background("quadrs.no_such_module").join()
+    with pytest.raises(ModuleNotFoundError, match="no_such_module"):
+        __import__("quadrs.no_such_module")
+
+
 def test_real_sigint_mid_batch_saves_and_exits_130(tmp_path) -> None:
     """A real Ctrl-C (SIGINT) while the batch runs: exit 130 and the finished runs saved.
     stderr is a pseudo-terminal, so the progress bar is drawn (it is not in a pipe)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -69,6 +70,22 @@ def dask_client(address: str | None) -> Iterator[Any]:
         raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
     with client:
         yield client
+
+
+def import_in_background(module: str) -> threading.Thread:
+    """Start importing ``module`` on a daemon thread: while the engine flies (it releases the
+    GIL), the import's time is off the command's critical path. The command imports it again
+    where it needs it, as usual: the import system then waits for this import and gives the
+    same module, or raises its error there (an error here is left for that import)."""
+    import importlib
+
+    def load() -> None:
+        with contextlib.suppress(Exception):
+            importlib.import_module(module)
+
+    thread = threading.Thread(target=load, name=f"import {module}", daemon=True)
+    thread.start()
+    return thread
 
 
 def one_line(text: str) -> str:

@@ -22,6 +22,7 @@ from quadrs.cli.common import (
     EXIT_INTERRUPT,
     EXIT_OK,
     dask_client,
+    import_in_background,
     no_progress_option,
     parquet_out_option,
     plots_option,
@@ -197,7 +198,6 @@ def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
 def cmd_mission(args: argparse.Namespace) -> int:
     from quadrs.cli.outputs import check_directories, check_outputs, save
     from quadrs.cli.scenario_args import load_scenario
-    from quadrs.design.mission import mission_report
     from quadrs.engine.calls import check_int
     from quadrs.runs.montecarlo import monte_carlo
 
@@ -223,6 +223,9 @@ def cmd_mission(args: argparse.Namespace) -> int:
     # flights are the batch's first, taken rather than flown again.
     flown = [] if args.scheduler is not None else _announce(scenario, args)
     from quadrs.engine.calls import deferred_signals
+
+    # The report's statistics (scipy.stats, ~0.5 s to import) load while the batch flies.
+    import_in_background("quadrs.design.mission")
 
     with contextlib.ExitStack() as keeping:
         with dask_client(args.scheduler) as client:
@@ -254,6 +257,8 @@ def cmd_mission(args: argparse.Namespace) -> int:
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
+    from quadrs.design.mission import mission_report
+
     if len(args.controller) > 1:
         from quadrs.design.mission_compare import compare_laws
 

@@ -20,7 +20,7 @@ use super::filter::{dryden_lanes, Coefficients, DrydenLanes, Normals};
 use super::source::Kinematics;
 use super::spectra::low_altitude_scales_lanes;
 use super::steady::SteadyLanes;
-use super::wind::{Source, WindField};
+use super::wind::{FollowLanes, Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
 use crate::lane::isa::Isa;
@@ -342,6 +342,9 @@ pub struct LaneWind<'f, 'a, L> {
     /// The mean air in lane values, where every lane's is exactly one `[wind]` mean wind of
     /// the same shear kind (else it is summed lane by lane, `WindField::at_vehicle`).
     mean: Option<SteadyLanes<L>>,
+    /// What the turbulence's scales follow, in lane values (with `mean`, the scales' inputs
+    /// are computed for every lane at once).
+    follow_lanes: Option<FollowLanes<L>>,
     others: Others,
     /// How many other sources each lane has (the same kinds in every lane).
     other_count: usize,
@@ -440,6 +443,7 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
             follow,
             steady: first.has_steady(),
             mean,
+            follow_lanes: WindField::follow_lanes(fields).filter(|_| follow),
             others,
             other_count: first.others().len(),
             others_read,
@@ -467,9 +471,11 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
         // Every lane's altitude (at rest where none is asked: then no lane's mean air reads
         // it).
         let mut height = L::splat(Kinematics::AT_REST.z);
+        let mut velocity = [zero; 3];
         if (self.steady || rescale || self.others_read) && self.reads_vehicle {
             let (z, vel) = at();
             height = z;
+            velocity = vel;
             for (l, k) in kin.iter_mut().enumerate().take(L::LANES) {
                 *k = Kinematics {
                     z: z.lane(l),
@@ -487,6 +493,7 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
                 &self.fields,
                 &kin,
                 self.mean.as_ref().map(|m| (m, height)),
+                self.follow_lanes.as_ref().map(|f| (f, velocity)),
                 components.map(|c| (c, &self.rescale, &mut *self.coefficients)),
                 &mut steady,
             );
@@ -551,12 +558,13 @@ fn at_vehicles<L: KernelOps>(
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
     mean: Option<(&SteadyLanes<L>, L)>,
+    follow: Option<(&FollowLanes<L>, [L; 3])>,
     rescale: Option<Rescaling<'_, L>>,
     steady: &mut [L; 3],
 ) {
     L::splat(0.0).within(
         #[inline(always)]
-        |_| at_vehicles_within(step, fields, kin, mean, rescale, steady),
+        |_| at_vehicles_within(step, fields, kin, mean, follow, rescale, steady),
     )
 }
 
@@ -567,6 +575,7 @@ fn at_vehicles_within<L: KernelOps>(
     fields: &[&WindField],
     kin: &[Kinematics; MAX_LANES],
     mean: Option<(&SteadyLanes<L>, L)>,
+    follow: Option<(&FollowLanes<L>, [L; 3])>,
     rescale: Option<Rescaling<'_, L>>,
     steady: &mut [L; 3],
 ) {
@@ -587,9 +596,13 @@ fn at_vehicles_within<L: KernelOps>(
             airspeed[l] = v;
         }
     };
+    // The scales' inputs where they are computed for every lane at once.
+    let mut inputs = None;
     if let Some((m, z)) = mean {
         *steady = m.at(z);
-        if rescale.is_some() {
+        if let (Some(_), Some((f, vel))) = (&rescale, follow) {
+            inputs = Some(f.inputs(z, vel, *steady));
+        } else if rescale.is_some() {
             for (l, f) in fields.iter().enumerate() {
                 let m = [steady[0].lane(l), steady[1].lane(l), steady[2].lane(l)];
                 put(l, f.follow_at(&kin[l], m));
@@ -614,9 +627,12 @@ fn at_vehicles_within<L: KernelOps>(
     let Some((components, plan, coefficients)) = rescale else {
         return;
     };
-    let v = lanes(&airspeed);
+    let (h, w20, v) = match inputs {
+        Some(lanes) => lanes,
+        None => (lanes(&altitude), lanes(&w20), lanes(&airspeed)),
+    };
     // `WindField::follow_scales`' scales, every lane at once.
-    let (sigma, length) = low_altitude_scales_lanes(lanes(&altitude), lanes(&w20));
+    let (sigma, length) = low_altitude_scales_lanes(h, w20);
     for (axis, (c, how)) in components.iter_mut().zip(plan).enumerate() {
         match how {
             Rescale::None => {}
@@ -645,7 +661,7 @@ fn at_vehicles_within<L: KernelOps>(
                     out[axis] = base.rescaled_coefficients(
                         sigma[axis].lane(l),
                         length[axis].lane(l),
-                        airspeed[l],
+                        v.lane(l),
                     );
                 }
                 match c.order {
@@ -1110,6 +1126,65 @@ mod tests {
             wind_matches::<f64>(&[f], sources, one, 260, kin);
             let (sources, one) = seeded(&[f; 4], 4);
             wind_matches::<F64x4>(&[f; 4], sources, one, 260, kin);
+        }
+    }
+
+    /// Lanes whose scales follow the vehicle in different ways, over one sheared mean wind
+    /// kind (the scales' inputs then computed for every lane at once, `FollowLanes`): each
+    /// lane's own wind, bit for bit, on every lane type this CPU runs.
+    #[test]
+    fn lanes_following_in_their_own_ways_fly_each_lanes_wind_bit_for_bit() {
+        let edits: [&dyn Fn(&mut Config); 4] = [
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Relative;
+            },
+            &|c| {
+                c.gust.altitude = GustAltitude::Fixed(40.0);
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.gust.min_airspeed = 2.5;
+            },
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Fixed(7.0);
+                c.gust.w20 = Some(9.0);
+            },
+            &|c| {
+                c.gust.altitude = GustAltitude::Vehicle;
+                c.gust.airspeed = GustAirspeed::Relative;
+                c.gust.min_airspeed = 4.0;
+                c.wind.roughness = 0.3;
+            },
+        ];
+        let fields: Vec<WindField> = edits
+            .iter()
+            .map(|edit| {
+                field(0.01, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    c.gust.start = 0.0;
+                    c.gust.end = 2.0;
+                    c.wind.speed = 4.0;
+                    c.wind.heading = 60.0;
+                    c.wind.shear = Shear::Log;
+                    edit(c);
+                })
+            })
+            .collect();
+        let four: Vec<&WindField> = fields.iter().collect();
+        let (sources, one) = seeded(&four, 5);
+        wind_matches::<F64x4>(&four, sources, one, 200, kin);
+        #[cfg(target_arch = "x86_64")]
+        {
+            use crate::lane::{F64x4Avx, F64x8Avx512};
+            if Isa::Avx2.supported() {
+                let (sources, one) = seeded(&four, 5);
+                wind_matches::<F64x4Avx>(&four, sources, one, 200, kin);
+            }
+            if Isa::Avx512.supported() {
+                let eight: Vec<&WindField> = fields.iter().chain(&fields).collect();
+                let (sources, one) = seeded(&eight, 5);
+                wind_matches::<F64x8Avx512>(&eight, sources, one, 200, kin);
+            }
         }
     }
 

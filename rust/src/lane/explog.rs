@@ -179,6 +179,61 @@ pub fn expm1<L: KernelOps>(x: L) -> L {
     keep_nan(x, y)
 }
 
+/// The largest |x| [`exp_near0`], [`expm1_near0`] and [`tail3_near0`] take: their truncated
+/// Taylor series are within 2^-61 (relative) of the functions there.
+pub const NEAR0: f64 = 0.03125;
+
+/// 1 / n! for n = 0..=12, rounded.
+const INV_FACTORIAL: [f64; 13] = [
+    1.0,
+    1.0,
+    0.5,
+    0.16666666666666666,
+    0.041666666666666664,
+    0.008333333333333333,
+    0.001388888888888889,
+    0.0001984126984126984,
+    2.48015873015873e-05,
+    2.7557319223985893e-06,
+    2.755731922398589e-07,
+    2.505210838544172e-08,
+    2.08767569878681e-09,
+];
+
+/// `sum_{j=0}^{N} x^j / (j + from)!` by Horner's rule (no division, no branch).
+#[inline(always)]
+fn taylor<L: KernelOps, const FROM: usize, const N: usize>(x: L) -> L {
+    let mut p = c::<L>(INV_FACTORIAL[FROM + N]);
+    for j in (0..N).rev() {
+        p = p * x + INV_FACTORIAL[FROM + j];
+    }
+    p
+}
+
+/// e^x for |x| <= [`NEAR0`] (elsewhere: anything; the callers select [`exp`] there), within 1
+/// ulp: the Taylor series to x^8 (the rest below 2^-63), no range reduction and no division,
+/// about half of [`exp`]'s operations. For the re-discretised turbulence filters, whose
+/// `k = V dt / L` is of order 1e-3.
+#[inline(always)]
+pub fn exp_near0<L: KernelOps>(x: L) -> L {
+    taylor::<L, 0, 8>(x)
+}
+
+/// e^x - 1 for |x| <= [`NEAR0`] (elsewhere: anything), within 1 ulp: `x + x^2 sum x^j /
+/// (j + 2)!` to x^9 (the rest below 2^-61 of the result).
+#[inline(always)]
+pub fn expm1_near0<L: KernelOps>(x: L) -> L {
+    x + x * x * taylor::<L, 2, 7>(x)
+}
+
+/// `e^x - 1 - x - x^2/2` (the tail of e^x from x^3) for |x| <= [`NEAR0`] (elsewhere:
+/// anything), within 2.5 ulp (the products' roundings; the loop it replaces was no closer): `x^3 sum x^j / (j + 3)!` to x^10 (the rest below 2^-62 of the
+/// result).
+#[inline(always)]
+pub fn tail3_near0<L: KernelOps>(x: L) -> L {
+    x * x * x * taylor::<L, 3, 7>(x)
+}
+
 /// `a * b` exactly as `(p, e)`, `p = a * b` rounded (Dekker's product on Veltkamp's split: no
 /// fused multiply-add needed, so the same bits on every path). For |a|, |b| < 2^995.
 #[inline(always)]
@@ -278,14 +333,28 @@ pub fn pow<L: KernelOps>(x: L, y: L) -> L {
     let pl = pl + y * ll;
     let pc = ph.max(c(EXP_LO)).min(c(EXP_HI));
     let r = exp_parts(pc, pl);
-    // Beyond x's finite positive range: e^(y * ln x) with ln x = -inf, inf or NaN.
-    let edge = exp(y * special_ln(x, c(0.0)));
-    let r = L::select(finite.and_bits(x.cmp_ne(c(0.0))), r, edge);
+    // Beyond x's finite positive range: e^(y * ln x) with ln x = -inf, inf or NaN, evaluated
+    // only when a lane is there (each lane's value is the same either way).
+    let inside = finite.and_bits(x.cmp_ne(c(0.0)));
+    let r = if inside.le_mask(c(0.0)) == 0 {
+        r
+    } else {
+        L::select(inside, r, exp(y * special_ln(x, c(0.0))))
+    };
     L::select(is_nan(y), y, r)
 }
 
 /// The functions [`evaluate`] knows, by name.
-pub const FUNCTIONS: [&str; 5] = ["exp", "expm1", "ln", "pow", "atan2"];
+pub const FUNCTIONS: [&str; 8] = [
+    "exp",
+    "expm1",
+    "ln",
+    "pow",
+    "atan2",
+    "exp_near0",
+    "expm1_near0",
+    "tail3_near0",
+];
 
 /// `function` (one of [`FUNCTIONS`]; `pow` takes `y` as its exponent, `atan2` as its second
 /// argument: atan2(x, y) is the angle of the point (y, x)) of every `x`, on the
@@ -307,7 +376,10 @@ pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64
                 1 => expm1(v),
                 2 => ln(v),
                 3 => pow(v, L::splat(y)),
-                _ => super::kernels::atan2(v, L::splat(y)),
+                4 => super::kernels::atan2(v, L::splat(y)),
+                5 => exp_near0(v),
+                6 => expm1_near0(v),
+                _ => tail3_near0(v),
             };
             out.extend((0..chunk.len()).map(|l| r.lane(l)));
         }
@@ -405,6 +477,37 @@ mod tests {
         assert_eq!(exp(f64::INFINITY), f64::INFINITY);
         assert!(exp(f64::NAN).is_nan());
         assert_eq!(exp(1e-300), 1.0);
+    }
+
+    #[test]
+    fn the_near_zero_series_are_within_an_ulp_of_libm() {
+        let r = NEAR0;
+        for (lo, hi) in [(-r, r), (-1e-3, 1e-3), (-1e-9, 1e-9), (r - 1e-6, r)] {
+            let xs = || points(lo, hi, 200_000);
+            let w = worst(xs(), exp_near0::<f64>, f64::exp);
+            assert!(w <= 1.0, "exp_near0 on [{lo}, {hi}]: {w} ulp");
+            let w = worst(xs(), expm1_near0::<f64>, f64::exp_m1);
+            assert!(w <= 1.0, "expm1_near0 on [{lo}, {hi}]: {w} ulp");
+        }
+        // The tail from x^3 against its series summed term by term, smallest first (libm has
+        // no such function, and e^x - 1 - x - x^2/2 cancels). That sum is itself within about
+        // 1.5 ulp, so this bounds the error loosely; against mpmath the worst is 2.5 ulp
+        // (`benches/lane_math_error.py`).
+        let reference = |x: f64| {
+            let mut terms = vec![x * x * x / 6.0];
+            for n in 4..30 {
+                terms.push(terms[terms.len() - 1] * x / n as f64);
+            }
+            terms.iter().rev().sum::<f64>()
+        };
+        for (lo, hi) in [(1e-6, r), (-r, -1e-6)] {
+            let w = worst(points(lo, hi, 200_000), tail3_near0::<f64>, reference);
+            assert!(w <= 4.0, "tail3_near0 on [{lo}, {hi}]: {w} ulp");
+        }
+        assert_eq!(exp_near0(0.0), 1.0);
+        assert_eq!(expm1_near0(0.0), 0.0);
+        assert_eq!(tail3_near0(0.0), 0.0);
+        assert!(exp_near0(f64::NAN).is_nan() && expm1_near0(f64::NAN).is_nan());
     }
 
     #[test]

@@ -526,6 +526,13 @@ mod tests {
             let m = v.max(L::splat(0.1)).min(L::splat(2.0));
             let (e, em1, lg) = (explog::exp(v), explog::expm1(v), explog::ln(v));
             let pw = explog::pow(v.abs(), L::splat(0.4));
+            // The near-zero series, at their own scale.
+            let small = v * 0.01;
+            let near = [
+                explog::exp_near0(small),
+                explog::expm1_near0(small),
+                explog::tail3_near0(small),
+            ];
             // atan2 in every quadrant, with both zeros' signs.
             let quadrants = |x: f64| [(x, 0.7), (0.7, x), (-x, -2.0), (x, -0.0), (-0.0, x)];
             let at: Vec<L> = (0..5)
@@ -547,6 +554,15 @@ mod tests {
                     explog::pow(x.abs(), 0.4).to_bits(),
                     "pow {x}"
                 );
+                let x0 = x * 0.01;
+                let want = [
+                    explog::exp_near0(x0),
+                    explog::expm1_near0(x0),
+                    explog::tail3_near0(x0),
+                ];
+                for (got, want) in near.iter().zip(want) {
+                    assert_eq!(got.lane(i).to_bits(), want.to_bits(), "near 0: {x0}");
+                }
                 for (k, &(yy, xx)) in quadrants(x).iter().enumerate() {
                     assert_eq!(
                         at[k].lane(i).to_bits(),

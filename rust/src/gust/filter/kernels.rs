@@ -97,7 +97,24 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
         .and_bits(finite_positive(k));
     // `dryden_matrices`' cap.
     let kc = k.min(L::splat(K_MAX));
-    let e = explog::exp(-kc);
+    // Where `2 k` is near 0 (k of order 1e-3 in flight), every exponential below is a short
+    // Taylor series; the lanes beyond it (rare) take the general functions, evaluated only
+    // when a lane needs them. Each lane's numbers depend on its own k only, so every lane
+    // path gives the same bits.
+    let near = kc.cmp_le(L::splat(0.5 * explog::NEAR0));
+    let far = valid.xor_bits(valid.and_bits(near));
+    let any_far = !none(far);
+    // (A macro, not a closure: see `finite_positive`.)
+    macro_rules! near_or {
+        ($fast:expr, $general:expr) => {
+            if any_far {
+                L::select(near, $fast, $general)
+            } else {
+                $fast
+            }
+        };
+    }
+    let e = near_or!(explog::exp_near0(-kc), explog::exp(-kc));
     let n = match component {
         GustComponent::Longitudinal => 1,
         GustComponent::Lateral | GustComponent::Vertical => 2,
@@ -110,7 +127,8 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
     let mut q = [zero; 3];
     match component {
         GustComponent::Longitudinal => {
-            let m = explog::expm1(L::splat(-2.0) * kc);
+            let m2k = L::splat(-2.0) * kc;
+            let m = near_or!(explog::expm1_near0(m2k), explog::expm1(m2k));
             d.phi[0][0] = e;
             d.g[0][0] = (-m).sqrt();
         }
@@ -120,9 +138,12 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
             d.phi[1][0] = -e * kc;
             d.phi[1][1] = e * (L::splat(1.0) - kc);
             let x = L::splat(2.0) * kc;
-            let ex = explog::exp(-x);
+            let ex = near_or!(explog::exp_near0(-x), explog::exp(-x));
             let series = x.cmp_le(L::splat(2.0));
-            let s3 = exp_tail3_lanes(x, series.and_bits(valid));
+            let s3 = near_or!(
+                explog::tail3_near0(x),
+                exp_tail3_lanes(x, series.and_bits(far))
+            );
             let (mut q11, mut q22) = (ex * s3, ex * (L::splat(2.0) * x + s3));
             if !none(valid.xor_bits(valid.and_bits(series))) {
                 let half_x2 = L::splat(0.5) * x * x;
