@@ -545,13 +545,14 @@ type Rescaling<'r, L> = (
 
 /// Each lane's `WindField::at_vehicle` (the mean air, the `[wind]` mean wind and a table's
 /// wind, into `steady` as lane values; with `mean`, the lane-set's `[wind]` mean wind at the
-/// lanes' altitudes, every lane at once, and the scales' inputs lane by lane from it) and,
-/// with `rescale`, the step's filter numbers of every lane written into the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the
-/// scales and the Dryden axes' numbers by [`dryden_lanes`] for all lanes at once, the others
-/// lane by lane. Kept out of the flight loop's line so that the loop saves its vector
-/// registers once per step around it, not around every per-lane call it makes (the mean air's
-/// sources; every vector register is the caller's to save); compiled for the lane type's
-/// instruction set (`Lane::within`).
+/// lanes' altitudes, every lane at once, and with `follow` the scales' inputs from it, every
+/// lane at once too) and, with `rescale`, the step's filter numbers of every lane written into
+/// the components (`GustFilter::rescaled_coefficients`'s, bit for bit): the scales and the
+/// Dryden axes' numbers by [`dryden_lanes`] for all lanes at once, the others lane by lane.
+/// Kept out of the flight loop's line so that the loop saves its vector registers once per
+/// step around it, not around every per-lane call it makes (the mean air's sources; every
+/// vector register is the caller's to save); compiled for the lane type's instruction set
+/// (`Lane::within`).
 #[inline(never)]
 fn at_vehicles<L: KernelOps>(
     step: u64,
