@@ -21,9 +21,8 @@ pub(super) fn lanes_per_set() -> PyResult<usize> {
 }
 
 /// The engine's lane-valued `function` ("exp", "expm1", "ln", "pow": x^y, "atan2": the angle
-/// of the point (y, x), as `math.atan2(x, y)`; "exp_near0", "expm1_near0" and "tail3_near0",
-/// e^x - 1 - x - x^2/2: the short series for |x| <= 1/16 the turbulence filters use) of every
-/// `x`, on
+/// of the point (y, x), as `math.atan2(x, y)`; "expm1_near0" and "tail3_near0", e^x - 1 - x -
+/// x^2/2: the short series for |x| <= 1/32 the turbulence filters use) of every `x`, on
 /// the lane path `path` ("scalar", "sse2", "avx2", "avx512"): for measuring their error
 /// and checking that every path gives the same bits (`benches/lane_math_error.py`).
 #[pyfunction]

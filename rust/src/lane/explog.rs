@@ -179,8 +179,8 @@ pub fn expm1<L: KernelOps>(x: L) -> L {
     keep_nan(x, y)
 }
 
-/// The largest |x| [`exp_near0`], [`expm1_near0`] and [`tail3_near0`] take: their truncated
-/// Taylor series are within 2^-61 (relative) of the functions there.
+/// The largest |x| [`expm1_near0`] and [`tail3_near0`] take: their truncated Taylor series are
+/// within 2^-61 (relative) of the functions there.
 pub const NEAR0: f64 = 0.03125;
 
 /// 1 / n! for n = 0..=12, rounded.
@@ -210,17 +210,10 @@ fn taylor<L: KernelOps, const FROM: usize, const N: usize>(x: L) -> L {
     p
 }
 
-/// e^x for |x| <= [`NEAR0`] (elsewhere: anything; the callers select [`exp`] there), within 1
-/// ulp: the Taylor series to x^8 (the rest below 2^-63), no range reduction and no division,
-/// about half of [`exp`]'s operations. For the re-discretised turbulence filters, whose
-/// `k = V dt / L` is of order 1e-3.
-#[inline(always)]
-pub fn exp_near0<L: KernelOps>(x: L) -> L {
-    taylor::<L, 0, 8>(x)
-}
-
-/// e^x - 1 for |x| <= [`NEAR0`] (elsewhere: anything), within 1 ulp: `x + x^2 sum x^j /
-/// (j + 2)!` to x^9 (the rest below 2^-61 of the result).
+/// e^x - 1 for |x| <= [`NEAR0`] (elsewhere: anything; the callers select [`expm1`] there),
+/// within 1 ulp: `x + x^2 sum x^j / (j + 2)!` to x^9 (the rest below 2^-61 of the result), no
+/// range reduction and no division. For the re-discretised turbulence filters, whose
+/// `k = V dt / L` is of order 1e-3 (and which take e^-k as `1 + expm1(-k)`).
 #[inline(always)]
 pub fn expm1_near0<L: KernelOps>(x: L) -> L {
     x + x * x * taylor::<L, 2, 7>(x)
@@ -345,13 +338,12 @@ pub fn pow<L: KernelOps>(x: L, y: L) -> L {
 }
 
 /// The functions [`evaluate`] knows, by name.
-pub const FUNCTIONS: [&str; 8] = [
+pub const FUNCTIONS: [&str; 7] = [
     "exp",
     "expm1",
     "ln",
     "pow",
     "atan2",
-    "exp_near0",
     "expm1_near0",
     "tail3_near0",
 ];
@@ -377,8 +369,7 @@ pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64
                 2 => ln(v),
                 3 => pow(v, L::splat(y)),
                 4 => super::kernels::atan2(v, L::splat(y)),
-                5 => exp_near0(v),
-                6 => expm1_near0(v),
+                5 => expm1_near0(v),
                 _ => tail3_near0(v),
             };
             out.extend((0..chunk.len()).map(|l| r.lane(l)));
@@ -484,8 +475,6 @@ mod tests {
         let r = NEAR0;
         for (lo, hi) in [(-r, r), (-1e-3, 1e-3), (-1e-9, 1e-9), (r - 1e-6, r)] {
             let xs = || points(lo, hi, 200_000);
-            let w = worst(xs(), exp_near0::<f64>, f64::exp);
-            assert!(w <= 1.0, "exp_near0 on [{lo}, {hi}]: {w} ulp");
             let w = worst(xs(), expm1_near0::<f64>, f64::exp_m1);
             assert!(w <= 1.0, "expm1_near0 on [{lo}, {hi}]: {w} ulp");
         }
@@ -504,10 +493,9 @@ mod tests {
             let w = worst(points(lo, hi, 200_000), tail3_near0::<f64>, reference);
             assert!(w <= 4.0, "tail3_near0 on [{lo}, {hi}]: {w} ulp");
         }
-        assert_eq!(exp_near0(0.0), 1.0);
         assert_eq!(expm1_near0(0.0), 0.0);
         assert_eq!(tail3_near0(0.0), 0.0);
-        assert!(exp_near0(f64::NAN).is_nan() && expm1_near0(f64::NAN).is_nan());
+        assert!(expm1_near0(f64::NAN).is_nan() && tail3_near0(f64::NAN).is_nan());
     }
 
     #[test]

@@ -16,11 +16,13 @@ fn none<L: KernelOps>(mask: L) -> bool {
     mask.le_mask(L::splat(0.0)) == L::ALL
 }
 
-/// Mask (all bits set where true) of `x > 0`, false for NaN.
+/// The least positive double (a subnormal): `x > 0` is `x >= TINY`.
+const TINY: f64 = f64::from_bits(1);
+
+/// Mask (all bits set where true) of `x > 0`, false for NaN: one comparison.
 #[inline(always)]
 fn positive<L: KernelOps>(x: L) -> L {
-    let zero = L::splat(0.0);
-    x.cmp_ge(zero).and_bits(x.cmp_ne(zero))
+    x.cmp_ge(L::splat(TINY))
 }
 
 /// Mask of `x > 0` and finite. (A function, not a closure: a closure the optimiser leaves out
@@ -28,7 +30,7 @@ fn positive<L: KernelOps>(x: L) -> L {
 /// call.)
 #[inline(always)]
 fn finite_positive<L: KernelOps>(x: L) -> L {
-    finite(x).and_bits(positive(x))
+    positive(x).and_bits(x.cmp_le(L::splat(f64::MAX)))
 }
 
 /// Mask of `x.is_finite()`.
@@ -114,7 +116,10 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
             }
         };
     }
-    let e = near_or!(explog::exp_near0(-kc), explog::exp(-kc));
+    // Near 0 one series serves every axis: e^-k = 1 + expm1(-k) (exact to rounding: the sum
+    // is near 1), e^-2k = (e^-k)^2 and expm1(-2k) = expm1(-k) (2 + expm1(-k)), within 1.5 ulp.
+    let em1 = explog::expm1_near0(-kc);
+    let e = near_or!(L::splat(1.0) + em1, explog::exp(-kc));
     let n = match component {
         GustComponent::Longitudinal => 1,
         GustComponent::Lateral | GustComponent::Vertical => 2,
@@ -128,7 +133,7 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
     match component {
         GustComponent::Longitudinal => {
             let m2k = L::splat(-2.0) * kc;
-            let m = near_or!(explog::expm1_near0(m2k), explog::expm1(m2k));
+            let m = near_or!(em1 * (L::splat(2.0) + em1), explog::expm1(m2k));
             d.phi[0][0] = e;
             d.g[0][0] = (-m).sqrt();
         }
@@ -138,7 +143,7 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
             d.phi[1][0] = -e * kc;
             d.phi[1][1] = e * (L::splat(1.0) - kc);
             let x = L::splat(2.0) * kc;
-            let ex = near_or!(explog::exp_near0(-x), explog::exp(-x));
+            let ex = near_or!(e * e, explog::exp(-x));
             let series = x.cmp_le(L::splat(2.0));
             let s3 = near_or!(
                 explog::tail3_near0(x),
