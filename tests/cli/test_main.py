@@ -251,9 +251,11 @@ def test_a_command_imports_only_its_own_module() -> None:
 
 
 def test_a_background_import_is_the_module_imported_later() -> None:
-    """``import_in_background`` (the mission's report loads while the batch flies): the module
-    is there once its thread ends, the same object a later import gives; a module that cannot
-    be imported raises nothing on the thread, and its error where the command imports it."""
+    """``import_in_background`` (the mission's statistics load while the batch flies): the
+    module is there once its thread ends, the same object a later import gives; a module that
+    cannot be imported raises nothing on the thread, and its error where the command imports
+    it. The batch imports no scipy.stats (so the mission's two threads never wait on each
+    other's imports)."""
     from quadrs.cli.common import import_in_background
 
     probe = (
@@ -266,6 +268,15 @@ def test_a_background_import_is_the_module_imported_later() -> None:
         "assert 'scipy.stats' in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", probe], check=True)
+    batch = (
+        "import sys, warnings\n"
+        "warnings.simplefilter('ignore')\n"
+        "import quadrs\n"
+        "quadrs.monte_carlo(quadrs.Scenario.preset('delivery'), runs=1, workers=1,"
+        " progress=False, spectra=False)\n"
+        "assert 'scipy.stats' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", batch], check=True)
     import_in_background("quadrs.no_such_module").join()
     with pytest.raises(ModuleNotFoundError, match="no_such_module"):
         __import__("quadrs.no_such_module")
