@@ -285,10 +285,27 @@ def fly_chunk(
     with deferred_signals(deliver=False) as held:
         rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
         sums = spectrum_sums(raw, scenario)
-    arithmetic = "fused" if fused else "exact"
-    run = run_identity(scenario, seed, tuple(controllers), spectra, extra=design.record(),
-                       arithmetic=arithmetic)  # fmt: skip
+    run = batch_identity(scenario, seed, tuple(controllers), spectra, design, fused)
     return Chunk(first, count, rows, sums, interrupted or bool(held), run)
+
+
+def arithmetic_of(fused: bool) -> str:
+    """The name a run records for its arithmetic: "fused" or "exact" (the default)."""
+    return "fused" if fused else "exact"
+
+
+def batch_identity(
+    scenario: Scenario,
+    seed: int,
+    controllers: tuple[str, ...],
+    spectra: bool,
+    design: Design,
+    fused: bool,
+) -> str:
+    """The run identity (:func:`quadrs.io.integrity.run_identity`) of the batch a chunk of
+    ``design`` belongs to: what ``fly_chunk`` stamps and ``monte_carlo(flown=)`` checks."""
+    return run_identity(scenario, seed, controllers, spectra, extra=design.record(),
+                        arithmetic=arithmetic_of(fused))  # fmt: skip
 
 
 def runs_frame(

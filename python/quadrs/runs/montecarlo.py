@@ -23,8 +23,15 @@ from quadrs.engine.calls import (
     deferred_signals,
 )
 from quadrs.hover.stability import warn_before_running
-from quadrs.io.integrity import run_identity
-from quadrs.runs.chunk import Chunk, Design, SpectrumSums, fly_chunk, run_range
+from quadrs.runs.chunk import (
+    Chunk,
+    Design,
+    SpectrumSums,
+    arithmetic_of,
+    batch_identity,
+    fly_chunk,
+    run_range,
+)
 from quadrs.runs.montecarlo_result import MonteCarloResult, empty_runs
 from quadrs.runs.store import RunStore, missing_ranges
 from quadrs.scenario.scenario import Scenario
@@ -142,14 +149,13 @@ def monte_carlo(
     design = Design(sampling, first, runs)
     if not isinstance(fused, bool):
         raise ValueError(f"fused must be True or False, got {fused!r}")
-    arithmetic = "fused" if fused else "exact"
+    arithmetic = arithmetic_of(fused)
 
     # Say so before a long batch starts on gains that cannot hold hover (docs/model.md section 8)
     # or on a step too coarse for the fastest mode.
     warn_before_running(scenario, controllers, gains=True, stacklevel=2)
 
-    run = run_identity(scenario, seed, controllers, spectra, extra=design.record(),
-                       arithmetic=arithmetic) if flown else ""  # fmt: skip
+    run = batch_identity(scenario, seed, controllers, spectra, design, fused) if flown else ""
     flown = _check_flown(flown or (), first, runs, sampling, run)
     store = RunStore(out) if out is not None else None
     with contextlib.ExitStack() as held:
