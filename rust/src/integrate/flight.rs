@@ -3,7 +3,7 @@
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
 use super::rk4::rk4_advance;
-use super::steps::{Ends, Leg, Release, Runaway, Winds};
+use super::steps::{Attitude, Ends, Leg, Release, Runaway, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Control, Controller, ControllerVisitor};
 use crate::gust::WindField;
@@ -165,13 +165,20 @@ impl Engine {
         let mut release = Release::new();
 
         let reads_payload = ctrl.reads_payload();
+        // The attitude the last runaway check derived for this state, if it did.
+        let mut checked: Option<Attitude<L, B>> = None;
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
             leg.follow(&self.trajectory, t, realisations);
             let r = &leg.r;
-            let trig = B::frame(&s);
+            // A match, not `Option::unwrap_or_else`: nothing here may be left out of line.
+            let attitude = match checked.take() {
+                Some(a) => a,
+                None => Attitude::of(&s),
+            };
+            let trig = attitude.frame;
             let tick = Tick { step: k, t };
-            let view = V::<L, Pay, Act, B>::rigid_at(&s, &trig);
+            let view = V::<L, Pay, Act, B>::rigid_with(&s, attitude.euler);
             // What the law sees of the payload: only computed for a law that reads it.
             let seen = if C::SEES_PAYLOAD && reads_payload {
                 vehicle.payload.view(&s, &trig)
@@ -180,7 +187,7 @@ impl Engine {
             };
             let u = ctrl.step_seeing(&view, &B::trig(&trig, &view.att), &seen, r, tick, &mut mem);
             let cmd = vehicle.actuator.command(&u, tick);
-            let w = wind.sample::<Pay, Act, B, N>(k, k == self.steps && k > 0, &s, realisations);
+            let w = wind.sample(k, k == self.steps && k > 0, &view, realisations);
             // The route's cue to the payload and its events, before the step (a hook that opens
             // now is open over the step).
             let cue = Cue {
@@ -239,8 +246,12 @@ impl Engine {
             }
             rk4_advance(vehicle, &mut s, &trig, &k1, &cmd, &w, self.dt);
 
-            let (ok, tilt) = runaway.check::<B>(&s);
-            if ok != L::ALL {
+            let (ok, attitude) = runaway.check::<B>(&s);
+            if ok == L::ALL {
+                checked = attitude;
+            } else {
+                // Retired lanes are parked on their initial state: the next step derives its own.
+                let tilt = attitude.map(|a| a.euler);
                 #[rustfmt::skip]
                 ends.retire(ok, t, self.dt, tilt, &mut s, &mut mem, &mem0, realisations, &self.vars);
                 if ends.alive == 0 {

@@ -9,7 +9,7 @@ use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::{KernelOps, Lane};
 use crate::metrics::LastSample;
 use crate::model::payload::LastMetres;
-use crate::model::{ix, state_from_fn, ActuatorModel, BodyKind, Bound, State, StateVar, Vehicle};
+use crate::model::{ix, state_from_fn, BodyKind, Bound, Rigid, State, StateVar};
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
 
 /// s, the window after the hook opens over which the vehicle's height change is taken
@@ -131,24 +131,18 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
         }
     }
 
-    /// The wind of step `k` in state `s`. The row at t_k holds the wind of step k. The `last`
+    /// The wind of step `k` with the quadrotor at `rigid` (its altitude and velocity). The row at t_k holds the wind of step k. The `last`
     /// row (t = duration) has no step after it: it holds the last step's wind (the hold runs
     /// to its end), so no metric sees a wind that no step flies, and no innovation is drawn for
     /// it.
     #[inline(always)]
-    pub(super) fn sample<Pay, Act, B, const N: usize>(
+    pub(super) fn sample(
         &mut self,
         k: usize,
         last: bool,
-        s: &State<L, N>,
+        rigid: &Rigid<L>,
         realisations: &[&Realisation],
-    ) -> [L; 3]
-    where
-        Pay: crate::model::PayloadModel<L>,
-        Act: ActuatorModel<L>,
-        B: BodyKind,
-    {
-        type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
+    ) -> [L; 3] {
         // Outside the gust window `sample_at` returns zeros without touching the state
         // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
         // window is open and nothing else blows (most of a paper flight).
@@ -161,10 +155,7 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
                 wind_set = Some(g.sample(
                     k as u64,
                     #[inline(always)]
-                    || {
-                        let rigid = V::<L, Pay, Act, B>::rigid(s);
-                        (rigid.pos[2], rigid.vel)
-                    },
+                    || (rigid.pos[2], rigid.vel),
                 ));
             } else if self.blows || (self.gust_from..self.gust_to).contains(&(k as u64)) {
                 for (lane, ((ws, v), c)) in self
@@ -176,7 +167,6 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
                 {
                     // Read here, where the lane type's instruction set is enabled: in a
                     // closure `sample_at` calls, each lane operation would be a call.
-                    let rigid = V::<L, Pay, Act, B>::rigid(s);
                     let kin = Kinematics {
                         z: rigid.pos[2].lane(lane),
                         vel: [
@@ -307,11 +297,12 @@ impl<L: Lane, const N: usize> Runaway<L, N> {
         }
     }
 
-    /// The mask of the lanes within every bound in state `s`, and the rigid body's roll and
-    /// pitch (None for a body with them as states).
+    /// The mask of the lanes within every bound in state `s`, and for a body whose roll and
+    /// pitch are no states (the rigid body's) the attitude it derived them from: `s`'s frame
+    /// and Euler angles, which the next step reads unchanged (`Attitude`).
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
-    pub(super) fn check<B: BodyKind>(&self, s: &State<L, N>) -> (u32, Option<[L; 2]>) {
+    pub(super) fn check<B: BodyKind>(&self, s: &State<L, N>) -> (u32, Option<Attitude<L, B>>) {
         let mut ok = L::ALL;
         for i in 0..N {
             ok &= s[i].abs().le_mask(self.limit[i]);
@@ -319,14 +310,33 @@ impl<L: Lane, const N: usize> Runaway<L, N> {
         if self.grounded {
             ok &= self.floor.le_mask(s[ix::Z]);
         }
-        let tilt = if self.derives_tilt {
-            let att = B::euler(s, &B::frame(s));
+        let attitude = if self.derives_tilt {
+            let at = Attitude::<L, B>::of(s);
+            let att = &at.euler;
             ok &= att[0].abs().le_mask(self.max_tilt) & att[1].abs().le_mask(self.max_tilt);
-            Some([att[0], att[1]])
+            Some(at)
         } else {
             None
         };
-        (ok, tilt)
+        (ok, attitude)
+    }
+}
+
+/// A state's attitude as the step reads it: its frame (`BodyKind::frame`) and Euler angles
+/// (`BodyKind::euler`), derived once: the runaway check after a step derives them for the
+/// rigid body's tilt, and the next step starts from the same state.
+pub(super) struct Attitude<L: Lane, B: BodyKind> {
+    pub(super) frame: B::Frame<L>,
+    pub(super) euler: [L; 3],
+}
+
+impl<L: Lane, B: BodyKind> Attitude<L, B> {
+    /// The attitude at `s`.
+    #[inline(always)]
+    pub(super) fn of<const N: usize>(s: &State<L, N>) -> Self {
+        let frame = B::frame(s);
+        let euler = B::euler(s, &frame);
+        Self { frame, euler }
     }
 }
 
@@ -350,8 +360,8 @@ impl Ends {
     }
 
     /// End the flight of each lane still flying outside `ok` (a lane mask) after the step at
-    /// `t` (of `dt`), and say why (`tilt`: the rigid body's roll and pitch, where they are no
-    /// states); park the lane on its initial state and memory.
+    /// `t` (of `dt`), and say why (`tilt`: the rigid body's Euler angles, where roll and pitch
+    /// are no states); park the lane on its initial state and memory.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub(super) fn retire<L: Lane, const N: usize>(
@@ -359,7 +369,7 @@ impl Ends {
         ok: u32,
         t: f64,
         dt: f64,
-        tilt: Option<[L; 2]>,
+        tilt: Option<[L; 3]>,
         s: &mut State<L, N>,
         mem: &mut Memory<L>,
         mem0: &Memory<L>,

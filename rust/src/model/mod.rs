@@ -233,10 +233,17 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
     /// The quadrotor's rigid-body state within `s`, whose attitude is `f`.
     #[inline(always)]
     pub fn rigid_at<const N: usize>(s: &State<L, N>, f: &B::Frame<L>) -> Rigid<L> {
+        Self::rigid_with(s, B::euler(s, f))
+    }
+
+    /// The quadrotor's rigid-body state within `s`, whose Euler angles are `att`
+    /// (`BodyKind::euler`, derived already).
+    #[inline(always)]
+    pub fn rigid_with<const N: usize>(s: &State<L, N>, att: [L; 3]) -> Rigid<L> {
         let v = Self::LAYOUT.vel();
         Rigid {
             pos: [s[ix::X], s[ix::Y], s[ix::Z]],
-            att: B::euler(s, f),
+            att,
             vel: [s[v], s[v + 1], s[v + 2]],
             rate: [s[v + 3], s[v + 4], s[v + 5]],
         }

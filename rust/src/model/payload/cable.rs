@@ -555,8 +555,16 @@ impl<L: Lane> Cable<L> {
         (hook, va)
     }
 
+    /// Some lane's parcel below the ground's height at `s` (or not finite): else the ground's
+    /// force is zero in every lane and is not computed (adding it would add zeros).
+    #[inline(always)]
+    fn touches<F: Frame<L>, const N: usize>(&self, s: &State<L, N>) -> bool {
+        let xc = Ix::of::<L, F>().xc;
+        self.contact && (self.ground - s[xc + 2]).le_mask(L::splat(0.0)) != L::ALL
+    }
+
     /// N, the ground's force on the parcel at `s` (zero where it does not touch; only called
-    /// when a lane has contact).
+    /// when a lane touches, `touches`).
     #[inline(always)]
     fn ground_force<F: Frame<L>, const N: usize>(&self, s: &State<L, N>) -> [L; 3] {
         let Ix { xc, vxc, .. } = Ix::of::<L, F>();
@@ -605,7 +613,7 @@ impl<L: Lane> Cable<L> {
             #[inline(always)]
             |i| rel[i].mul_add(k, -(line.tension * line.u[i])) * self.inv_mc,
         );
-        if self.contact {
+        if self.touches::<F, N>(s) {
             let f = self.ground_force::<F, N>(s);
             for i in 0..3 {
                 a[i] = f[i].mul_add(self.inv_mc, a[i]);
@@ -737,10 +745,15 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
             let contact = on(self.ground - s[xc + 2]) * on(self.ground_k);
             touchdown = contact * (one - self.touched);
             self.touched = self.touched.max(contact);
-            let speed = dot(&vel, &vel).sqrt();
-            let slack = one - on(self.line(s, frame).tension);
-            let rests = contact * on(L::splat(REST_SPEED) - speed) * slack;
-            self.resting = (self.resting + cue.dt) * rests;
+            // Only a lane in contact rests: the line's tension is read only if one is.
+            self.resting = if contact.le_mask(zero) == L::ALL {
+                zero
+            } else {
+                let speed = dot(&vel, &vel).sqrt();
+                let slack = one - on(self.line(s, frame).tension);
+                let rests = contact * on(L::splat(REST_SPEED) - speed) * slack;
+                (self.resting + cue.dt) * rests
+            };
         }
         let half = cue.dt * 0.5;
         let due = on(L::splat(cue.t + half) - self.release_at).max(

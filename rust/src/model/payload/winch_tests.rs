@@ -215,3 +215,72 @@ fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
     let t = opened.expect("the hook opens");
     assert!((t - 0.5).abs() < 1.5e-3, "{t}");
 }
+
+/// The ground's force and the resting clock are computed only when some lane's parcel
+/// touches: in a lane-set where one lane's parcel rests on the ground and the others' hang in
+/// the air (or all hang), each lane's derivative and events are its own vehicle's, bit for
+/// bit, step after step.
+#[test]
+fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
+    use crate::lane::F64x4;
+    let mut cfg = winch_config(12.0, 1.0);
+    cfg.payload.cable.release = Some(Release::Touchdown);
+    cfg.payload.cable.release_delay = Some(0.005);
+    cfg.validate().unwrap();
+    let one = vehicle(&cfg);
+    let base: State<f64, NX> = one.rest_state([0.0, 0.0, 10.0], [0.0; 3]);
+    let (mc, g, kg) = (one.payload.mc, one.body.g, one.payload.ground_k);
+    // Lane 0 rests on the ground with the line slack; the others hang, lane 3 just above it.
+    let mut states = [base; 4];
+    states[0][ZC] = -mc * g / kg;
+    states[0][LINE] = 11.0;
+    states[1][VXC] = -0.3;
+    states[2][VXC + 1] = 0.2;
+    states[3][ZC] = 1e-3;
+    states[3][VXC] = -0.1;
+    for touching in [true, false] {
+        let lanes = if touching { [0, 1, 2, 3] } else { [1, 2, 3, 3] };
+        let part = AnyVehicle::new(&cfg.model_context());
+        let mut set = AnyVehicle::gather::<F64x4, Cable, Ideal>(&[&part; 4]);
+        let mut each = [(); 4].map(|_| vehicle(&cfg));
+        let s: State<F64x4, NX> = state_from_fn(|i| F64x4::from_fn(|l| states[lanes[l]][i]));
+        let u = Inputs {
+            u1: F64x4::splat(hover_thrust(&one).u1),
+            tau: [F64x4::splat(0.0); 3],
+        };
+        let w = [F64x4::splat(0.0); 3];
+        let got = set.derivative(&s, &Trig::of(&s), &u, &w);
+        for k in 0..20 {
+            let cue = Cue {
+                t: k as f64 * 1e-3,
+                dt: 1e-3,
+                payout: None,
+            };
+            let ev = set.payload.last_metres(&s, &Trig::of(&s), &cue).unwrap();
+            for (l, v) in each.iter_mut().enumerate() {
+                let sl = &states[lanes[l]];
+                let e = v.payload.last_metres(sl, &Trig::of(sl), &cue).unwrap();
+                for (a, b) in [(ev.touchdown, e.touchdown), (ev.release, e.release)] {
+                    assert_eq!(a.lane(l).to_bits(), b.to_bits(), "lane {l} step {k}");
+                }
+            }
+        }
+        for (l, v) in each.iter().enumerate() {
+            let want = derivative(v, &states[lanes[l]]);
+            for i in 0..NX {
+                assert_eq!(
+                    got[i].lane(l).to_bits(),
+                    want[i].to_bits(),
+                    "lane {l} state {i}"
+                );
+            }
+        }
+        // The ground holds the resting lane's parcel; the resting lane's hook opens after the
+        // delay.
+        if touching {
+            assert!(got[VXC + 2].lane(0).abs() < 1e-9, "{:?}", got[VXC + 2]);
+        }
+        let rested = set.payload.hooked.lane(0);
+        assert_eq!(rested, if touching { 0.0 } else { 1.0 });
+    }
+}

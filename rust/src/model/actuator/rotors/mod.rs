@@ -61,8 +61,10 @@ pub struct Rotors<L = f64> {
     rotor_drag: [L; 3],
     flapping: L,
     lift: L,
-    /// Whether any lane has a rotor aerodynamic term (else `aero` is None: no arithmetic).
+    /// Whether any lane has a rotor aerodynamic term (else `aero` is None: no arithmetic),
+    /// and whether any lane's blades flap (else the flapping moment, zero, is not added).
     aerodynamic: bool,
+    flaps: bool,
 }
 
 /// What the rotors are told at the start of a step and hold over its four RK4 stages.
@@ -138,6 +140,7 @@ impl Actuator for Rotors {
             aerodynamic: a.rotor_drag != [0.0; 3]
                 || a.flapping != 0.0
                 || a.translational_lift != 0.0,
+            flaps: a.flapping != 0.0,
         }
     }
 
@@ -148,6 +151,7 @@ impl Actuator for Rotors {
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
             aerodynamic: each.iter().any(|r| r.aerodynamic),
+            flaps: each.iter().any(|r| r.flaps),
         })
     }
 }
@@ -245,9 +249,14 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
             f[1] += hy;
             f[2] += hz;
             // r_i x (hx, hy, hz), and the flapping moment -k_flap w (vy, -vx, 0)
-            let flap = self.flapping * w;
-            m[0] += ry * hz - flap * vy;
-            m[1] += flap * vx - rx * hz;
+            if self.flaps {
+                let flap = self.flapping * w;
+                m[0] += ry * hz - flap * vy;
+                m[1] += flap * vx - rx * hz;
+            } else {
+                m[0] += ry * hz;
+                m[1] += -(rx * hz);
+            }
             m[2] += rx * hy - ry * hx;
         }
         Some((f, m))
