@@ -294,6 +294,20 @@ def test_delivery_overrides_with_extreme_values_run_or_name_their_key(
     check_flight(s, data.draw(st.sampled_from(["pd", "smc"]), label="controller"))
 
 
+@pytest.mark.parametrize(("key", "value"), [("environment.gravity", 3751.0),
+                                          ("payload.attachment_offset", 1.0),
+                                          ("payload.length_min", 1.99),
+                                          ("payload.natural_frequency", 0.3)])  # fmt: skip
+def test_a_parcel_hanging_into_the_ground_names_every_key_of_its_hang(
+    short_delivery: Scenario, key: str, value: float
+) -> None:
+    """A key that lowers the parcel's starting height into the ground (its weight stretching
+    the line, a longer line) is named in the refusal, beside initial.position[2]."""
+    with pytest.raises(ScenarioError, match=r"initial\.position\[2\]") as e:
+        short_delivery.override({key: value})
+    assert key in str(e.value), str(e.value)
+
+
 @settings(max_examples=100, deadline=None)
 @given(
     table=st.sampled_from(TABLES),

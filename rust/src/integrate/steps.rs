@@ -205,6 +205,8 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
 pub(super) struct Release {
     err: [f64; MAX_LANES],
     t: [f64; MAX_LANES],
+    /// The latest lane's release time (NaN before any): past its window, no lane has one open.
+    latest: f64,
 }
 
 impl Release {
@@ -213,6 +215,7 @@ impl Release {
         Self {
             err: [f64::NAN; MAX_LANES],
             t: [f64::NAN; MAX_LANES],
+            latest: f64::NAN,
         }
     }
 
@@ -237,14 +240,20 @@ impl Release {
                 let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
                 let mut after = [0.0; MAX_LANES];
                 let mut change = [0.0; MAX_LANES];
-                for l in 0..L::LANES {
-                    if ev.release.lane(l) > 0.0 {
-                        self.t[l] = t;
-                        self.err[l] = e[2].lane(l);
-                    }
-                    if t - self.t[l] <= RELEASE_WINDOW + TIME_SLACK {
-                        after[l] = 1.0;
-                        change[l] = (e[2].lane(l) - self.err[l]).abs();
+                // Lane by lane only in a step that releases a hook or inside a release's window
+                // (a few seconds of a flight): else every lane's is 0.
+                let releases = ev.release.le_mask(zero) != L::ALL;
+                if releases || t - self.latest <= RELEASE_WINDOW + TIME_SLACK {
+                    for l in 0..L::LANES {
+                        if ev.release.lane(l) > 0.0 {
+                            self.t[l] = t;
+                            self.err[l] = e[2].lane(l);
+                            self.latest = t;
+                        }
+                        if t - self.t[l] <= RELEASE_WINDOW + TIME_SLACK {
+                            after[l] = 1.0;
+                            change[l] = (e[2].lane(l) - self.err[l]).abs();
+                        }
                     }
                 }
                 LastSample {

@@ -370,8 +370,10 @@ impl Cable {
                     format!(
                         "initial.position[2] must hang the parcel above the ground \
                          (ground.altitude = {:?} m; the parcel hangs {hang:?} m below the \
-                         vehicle: payload.attachment_offset, the line's starting length and \
-                         its stretch under the parcel's weight), got {:?}",
+                         vehicle: payload.attachment_offset, the line's starting length \
+                         payload.length_min and its stretch under the parcel's weight, \
+                         payload.mass x environment.gravity over the line's stiffness, \
+                         payload.stiffness or from payload.natural_frequency), got {:?}",
                         cfg.ground.altitude, cfg.initial.position[2]
                     ),
                 ));

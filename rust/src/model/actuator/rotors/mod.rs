@@ -13,6 +13,7 @@
 //! rotor i gives f_i of its clamped command from its fault's start on (its speed command is
 //! sqrt(f_i T_i / kf)), the command held over the step as always.
 
+mod aero;
 mod allocation;
 mod params;
 
@@ -24,6 +25,7 @@ use crate::model::section::OwnsKeys;
 use crate::model::ModelContext;
 use crate::model::{state_from_fn, Inputs, State, Tick};
 
+use aero::{Coefficients, HubSums};
 pub use allocation::{allocation, allocation_inverse, arm_directions, RotorLayout, SPIN};
 pub use params::{RotorFault, RotorParams};
 
@@ -53,8 +55,10 @@ pub struct Rotors<L = f64> {
     /// computed exactly as without them).
     sags: bool,
     faulty: bool,
-    /// m, rotor i's hub (x, y) in body axes: l (cos a_i, sin a_i).
+    /// m, rotor i's hub (x, y) in body axes: l (cos a_i, sin a_i); and the hubs' sums the
+    /// aerodynamic wrench reads (`aero::HubSums`).
     hubs: [[L; 2]; 4],
+    hub_sums: HubSums<L>,
     /// Rotor aerodynamics (RotorPy's `Multirotor.compute_body_wrench`): the H-force
     /// coefficients (k_d, k_d, k_z), N per (rad/s m/s); the flapping moment's k_flap, N m per
     /// (rad/s m/s); translational lift k_h, N per (m/s)^2.
@@ -110,6 +114,8 @@ impl Actuator for Rotors {
         // flight would end non-finite at once rather than panic.
         let inverse = allocation_inverse(&m).unwrap_or([[f64::NAN; 4]; 4]);
         let weight = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
+        let arm = cfg.vehicle.arm_length;
+        let hubs = arm_directions(a.layout).map(|[c, s]| [arm * c, arm * s]);
         let mut fault_start = [f64::INFINITY; 4];
         let mut fault_fraction = [1.0; 4];
         for f in &a.faults {
@@ -132,8 +138,8 @@ impl Actuator for Rotors {
             fault_fraction,
             sags: a.battery_sag != 0.0,
             faulty: !a.faults.is_empty(),
-            hubs: arm_directions(a.layout)
-                .map(|[c, s]| [cfg.vehicle.arm_length * c, cfg.vehicle.arm_length * s]),
+            hubs,
+            hub_sums: HubSums::of(&hubs),
             rotor_drag: a.rotor_drag,
             flapping: a.flapping,
             lift: a.translational_lift,
@@ -147,7 +153,7 @@ impl Actuator for Rotors {
     fn gather<L: Lane>(each: &[&Self]) -> Rotors<L> {
         gather!(|l| each[l] => Rotors {
             allocation, inverse, kf, thrust_min, thrust_max, hover_speed, inv_kf, inv_tau,
-            sag_rate, fault_start, fault_fraction, hubs, rotor_drag, flapping, lift;
+            sag_rate, fault_start, fault_fraction, hubs, hub_sums, rotor_drag, flapping, lift;
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
             aerodynamic: each.iter().any(|r| r.aerodynamic),
@@ -213,10 +219,8 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
     const SIGNALS: &'static [&'static str] =
         &["thrust_1", "thrust_2", "thrust_3", "thrust_4", "saturated"];
 
-    /// RotorPy's rotor aerodynamics, per rotor i at hub r_i with speed w_i and local airspeed
-    /// v_i = R^T (v - wind) + W x r_i (body axes): the H-force -w_i diag(k_d, k_d, k_z) v_i,
-    /// translational lift k_h (v_ix^2 + v_iy^2) along body z, both at the hub (moment
-    /// r_i x f), and the flapping moment -k_flap w_i (v_i x e3).
+    /// RotorPy's rotor aerodynamics (`aero::wrench`: the H-force, translational lift and
+    /// blade flapping of each rotor in its local air, summed in closed form).
     #[inline(always)]
     fn aero<const N: usize>(
         &self,
@@ -229,37 +233,18 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
         if !self.aerodynamic {
             return None;
         }
-        let dot = |a: &[L; 3]| a[0] * air[0] + a[1] * air[1] + a[2] * air[2];
+        // v_b = R^T air as the body's drag forms it (`Rotation::to_body`): the same operations
+        // on the same values, computed once for both.
+        let dot = |a: &[L; 3]| a[0].mul_add(air[0], a[1].mul_add(air[1], a[2] * air[2]));
         let vb = [dot(&axes[0]), dot(&axes[1]), dot(&axes[2])];
-        let [wx, wy, wz] = *rates;
-        let [kd, kd_y, kz] = self.rotor_drag;
-        let zero = L::splat(0.0);
-        let (mut f, mut m) = ([zero; 3], [zero; 3]);
-        for i in 0..4 {
-            let w = s[at + i];
-            let [rx, ry] = self.hubs[i];
-            // v_i = v_b + W x (rx, ry, 0)
-            let vx = vb[0] - wz * ry;
-            let vy = vb[1] + wz * rx;
-            let vz = vb[2] + wx * ry - wy * rx;
-            let hx = -(w * kd * vx);
-            let hy = -(w * kd_y * vy);
-            let hz = -(w * kz * vz) + self.lift * (vx * vx + vy * vy);
-            f[0] += hx;
-            f[1] += hy;
-            f[2] += hz;
-            // r_i x (hx, hy, hz), and the flapping moment -k_flap w (vy, -vx, 0)
-            if self.flaps {
-                let flap = self.flapping * w;
-                m[0] += ry * hz - flap * vy;
-                m[1] += flap * vx - rx * hz;
-            } else {
-                m[0] += ry * hz;
-                m[1] += -(rx * hz);
-            }
-            m[2] += rx * hy - ry * hx;
-        }
-        Some((f, m))
+        let c = Coefficients {
+            drag: self.rotor_drag,
+            flapping: self.flapping,
+            flaps: self.flaps,
+            lift: self.lift,
+        };
+        let w = [s[at], s[at + 1], s[at + 2], s[at + 3]];
+        Some(aero::wrench(&c, &w, &self.hubs, &self.hub_sums, &vb, rates))
     }
 
     #[inline(always)]
