@@ -131,10 +131,10 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
         }
     }
 
-    /// The wind of step `k` with the quadrotor at `rigid` (its altitude and velocity). The row at t_k holds the wind of step k. The `last`
-    /// row (t = duration) has no step after it: it holds the last step's wind (the hold runs
-    /// to its end), so no metric sees a wind that no step flies, and no innovation is drawn for
-    /// it.
+    /// The wind of step `k` with the quadrotor at `rigid` (its altitude and velocity). The row
+    /// at t_k holds the wind of step k. The `last` row (t = duration) has no step after it: it
+    /// holds the last step's wind (the hold runs to its end), so no metric sees a wind that no
+    /// step flies, and no innovation is drawn for it.
     #[inline(always)]
     pub(super) fn sample(
         &mut self,
