@@ -362,7 +362,7 @@ def mission_report(
         if phase != ALL_PHASES:
             sel = wide[phase]
             x = sel[metric].to_numpy(float).copy()
-            x[phase_diverged(sel.reset_index())] = sign * np.inf
+            x[phase_diverged(sel)] = sign * np.inf
             return x
         cols = pd.DataFrame({p: pd.Series(values(metric, p, worst), index=wide[p].index)
                              for p in own})  # fmt: skip

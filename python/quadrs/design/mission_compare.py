@@ -200,7 +200,7 @@ def _per_realisation(
     runs = mc.runs[mc.runs["controller"] == law]
     if phase in set(runs["phase"]):
         sel = runs[runs["phase"] == phase].set_index("realisation").sort_index()
-        diverged = phase_diverged(sel.reset_index())
+        diverged = phase_diverged(sel)
         value = sel[metric].to_numpy(float)
         track = sel[TRACKING].to_numpy(float) if TRACKING in sel else np.full(len(sel), np.nan)
         index = sel.index

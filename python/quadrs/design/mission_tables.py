@@ -148,7 +148,7 @@ def _route_table(
             row.update(_mean_columns("saturated_time", phase, wide, confidence))
             if phase != ALL_PHASES:
                 sel = wide[phase]
-                x = sel["saturated_time"].to_numpy(float)[~phase_diverged(sel.reset_index())]
+                x = sel["saturated_time"].to_numpy(float)[~phase_diverged(sel)]
                 row["saturated_time_worst"] = _worst(x, "max")
                 row["saturated_time_flights"] = int((x > 0).sum())
                 row["saturated_time_n"] = int(x.size)
@@ -204,7 +204,7 @@ def _mean_columns(
                 f"{metric}_ci_high": math.nan}  # fmt: skip
     sel = wide[phase]
     x = sel[metric].to_numpy(float)
-    x = x[~phase_diverged(sel.reset_index())]
+    x = x[~phase_diverged(sel)]
     _, mean, lo, hi = mean_ci(x, confidence)
     out = {f"{metric}_mean": mean, f"{metric}_ci_low": lo, f"{metric}_ci_high": hi}
     if metric in DURATIONS:  # how many flights spent any time there (0: "0 of N flights")
