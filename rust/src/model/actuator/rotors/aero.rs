@@ -89,14 +89,43 @@ impl<L: Lane> Gathered for HubSums<L> {
     }
 }
 
-/// The rotors' aerodynamic coefficients: the H-force's (k_d, k_d, k_z) (N per rad/s m/s),
-/// the flapping moment's k_flap (N m per rad/s m/s, used only if `flaps`), the translational
-/// lift's k_h (N per (m/s)^2).
-pub struct Coefficients<L> {
+/// The rotors' aerodynamic coefficients (RotorPy's `Multirotor.compute_body_wrench`): the
+/// H-force's (k_d, k_d, k_z) (N per rad/s m/s), the flapping moment's k_flap (N m per rad/s
+/// m/s; `flaps`: whether any lane's is nonzero, else the moment is not added), the
+/// translational lift's k_h (N per (m/s)^2).
+#[derive(Clone, Copy, Debug)]
+pub struct Coefficients<L = f64> {
     pub drag: [L; 3],
     pub flapping: L,
     pub flaps: bool,
     pub lift: L,
+}
+
+impl Coefficients {
+    /// `actuator.rotor_drag`, `actuator.flapping` and `actuator.translational_lift`.
+    pub fn new(drag: [f64; 3], flapping: f64, lift: f64) -> Self {
+        Self {
+            drag,
+            flapping,
+            flaps: flapping != 0.0,
+            lift,
+        }
+    }
+
+    /// Whether any term is nonzero (else the wrench is zero and not computed).
+    pub fn any(&self) -> bool {
+        self.drag != [0.0; 3] || self.flapping != 0.0 || self.lift != 0.0
+    }
+}
+
+impl<L: Lane> Gathered for Coefficients<L> {
+    type From = Coefficients;
+    fn gather_from<'a>(lane: impl Fn(usize) -> &'a Coefficients + Copy) -> Self {
+        gather!(|l| lane(l) => Coefficients {
+            drag, flapping, lift;
+            flaps: (0..L::LANES).any(|l| lane(l).flaps)
+        })
+    }
 }
 
 /// The force and moment (body axes, N and N m) of rotors spinning at `w` (rad/s) on hubs

@@ -59,16 +59,10 @@ pub struct Rotors<L = f64> {
     /// aerodynamic wrench reads (`aero::HubSums`).
     hubs: [[L; 2]; 4],
     hub_sums: HubSums<L>,
-    /// Rotor aerodynamics (RotorPy's `Multirotor.compute_body_wrench`): the H-force
-    /// coefficients (k_d, k_d, k_z), N per (rad/s m/s); the flapping moment's k_flap, N m per
-    /// (rad/s m/s); translational lift k_h, N per (m/s)^2.
-    rotor_drag: [L; 3],
-    flapping: L,
-    lift: L,
-    /// Whether any lane has a rotor aerodynamic term (else `aero` is None: no arithmetic),
-    /// and whether any lane's blades flap (else the flapping moment, zero, is not added).
+    /// Rotor aerodynamics (`aero::Coefficients`), and whether any lane has a term of them
+    /// (else `aero` is None: no arithmetic).
+    aero: Coefficients<L>,
     aerodynamic: bool,
-    flaps: bool,
 }
 
 /// What the rotors are told at the start of a step and hold over its four RK4 stages.
@@ -116,6 +110,7 @@ impl Actuator for Rotors {
         let weight = (cfg.vehicle.mass + cfg.payload.mass) * cfg.environment.gravity;
         let arm = cfg.vehicle.arm_length;
         let hubs = arm_directions(a.layout).map(|[c, s]| [arm * c, arm * s]);
+        let aero = Coefficients::new(a.rotor_drag, a.flapping, a.translational_lift);
         let mut fault_start = [f64::INFINITY; 4];
         let mut fault_fraction = [1.0; 4];
         for f in &a.faults {
@@ -140,24 +135,18 @@ impl Actuator for Rotors {
             faulty: !a.faults.is_empty(),
             hubs,
             hub_sums: HubSums::of(&hubs),
-            rotor_drag: a.rotor_drag,
-            flapping: a.flapping,
-            lift: a.translational_lift,
-            aerodynamic: a.rotor_drag != [0.0; 3]
-                || a.flapping != 0.0
-                || a.translational_lift != 0.0,
-            flaps: a.flapping != 0.0,
+            aero,
+            aerodynamic: aero.any(),
         }
     }
 
     fn gather<L: Lane>(each: &[&Self]) -> Rotors<L> {
         gather!(|l| each[l] => Rotors {
             allocation, inverse, kf, thrust_min, thrust_max, hover_speed, inv_kf, inv_tau,
-            sag_rate, fault_start, fault_fraction, hubs, hub_sums, rotor_drag, flapping, lift;
+            sag_rate, fault_start, fault_fraction, hubs, hub_sums, aero;
             sags: each.iter().any(|r| r.sags),
             faulty: each.iter().any(|r| r.faulty),
             aerodynamic: each.iter().any(|r| r.aerodynamic),
-            flaps: each.iter().any(|r| r.flaps),
         })
     }
 }
@@ -234,17 +223,18 @@ impl<L: Lane> ActuatorModel<L> for Rotors<L> {
             return None;
         }
         // v_b = R^T air as the body's drag forms it (`Rotation::to_body`): the same operations
-        // on the same values, computed once for both.
+        // on the same values, which the compiler may then compute once for both.
         let dot = |a: &[L; 3]| a[0].mul_add(air[0], a[1].mul_add(air[1], a[2] * air[2]));
         let vb = [dot(&axes[0]), dot(&axes[1]), dot(&axes[2])];
-        let c = Coefficients {
-            drag: self.rotor_drag,
-            flapping: self.flapping,
-            flaps: self.flaps,
-            lift: self.lift,
-        };
         let w = [s[at], s[at + 1], s[at + 2], s[at + 3]];
-        Some(aero::wrench(&c, &w, &self.hubs, &self.hub_sums, &vb, rates))
+        Some(aero::wrench(
+            &self.aero,
+            &w,
+            &self.hubs,
+            &self.hub_sums,
+            &vb,
+            rates,
+        ))
     }
 
     #[inline(always)]
