@@ -243,6 +243,33 @@ def test_mission_track_limit_option(
     assert code == 2 and "--track-limit" in err
 
 
+def test_mission_fits_the_terminal_it_prints_to(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    route: quadrs.Scenario,
+) -> None:
+    """The tables and text at the terminal's width (COLUMNS, as the shell sets it), between 60
+    and 100 columns; 100 when the output is not a terminal."""
+    from quadrs.cli.common import report_width
+
+    args = ("mission", "--scenario", route_file(tmp_path, route), "--runs", "3",
+            "--controller", "pd,smc")  # fmt: skip
+    widths = {}
+    for columns in ("72", None):
+        if columns is None:
+            monkeypatch.delenv("COLUMNS", raising=False)
+        else:
+            monkeypatch.setenv("COLUMNS", columns)
+        code, out, _ = cli(capsys, *args)
+        assert code == 0
+        widths[columns] = max(len(line) for line in out.splitlines())
+    assert widths["72"] <= 72 < widths[None] <= 100
+    for columns, width in (("30", 60), ("80", 80), ("500", 100)):
+        monkeypatch.setenv("COLUMNS", columns)
+        assert report_width() == width
+
+
 # -- 3. mission flies a route by default ---------------------------------------------------------
 def test_mission_defaults_to_the_delivery_preset(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]

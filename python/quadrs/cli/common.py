@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import shutil
 import sys
 import threading
 from collections.abc import Iterator
@@ -86,6 +87,18 @@ def import_in_background(module: str) -> threading.Thread:
     thread = threading.Thread(target=load, name=f"import {module}", daemon=True)
     thread.start()
     return thread
+
+
+#: The narrowest and widest the reports are laid out for (columns).
+REPORT_WIDTH = (60, 100)
+
+
+def report_width() -> int:
+    """Columns for a report's tables and text: the terminal's (``COLUMNS`` first, as
+    ``shutil.get_terminal_size`` reads it) within ``REPORT_WIDTH``; the widest when the
+    output is not a terminal (a file keeps the full tables)."""
+    narrowest, widest = REPORT_WIDTH
+    return max(narrowest, min(widest, shutil.get_terminal_size((widest, 24)).columns))
 
 
 def one_line(text: str) -> str:

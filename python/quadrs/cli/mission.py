@@ -27,6 +27,7 @@ from quadrs.cli.common import (
     parquet_out_option,
     plots_option,
     progress,
+    report_width,
     scheduler_option,
     seed_and_workers,
 )
@@ -268,13 +269,13 @@ def cmd_mission(args: argparse.Namespace) -> int:
                                 track_limit=args.track_limit,
                                 cross_track_limit=args.cross_track_limit)  # fmt: skip
         reports = list(compared.reports.values())
-        text = compared.to_text(width=100)
+        text = compared.to_text(width=report_width())
     else:
         reports = [mission_report(mc, limit, args.controller[0], args.quantile, metric=metric,
                                   track_limit=args.track_limit,
                                   cross_track_limit=args.cross_track_limit,
                                   touchdown_limit=args.touchdown_limit)]  # fmt: skip
-        text = reports[0].to_text(width=100)
+        text = reports[0].to_text(width=report_width())
     if mc.interrupted:
         print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
     print(text)

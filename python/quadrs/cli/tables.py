@@ -8,6 +8,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING, Any, TextIO
 
+from quadrs.cli.common import report_width
 from quadrs.present.terminal import terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -115,7 +116,7 @@ def print_mission(mc: Any, args: argparse.Namespace) -> None:
         print(f"(the question this mission was saved with: P({metric} > "
               f"{shown_limit(metric, limit)}))")  # fmt: skip
     for ctrl in mc.controllers:
-        print(mission_report(mc, limit, ctrl, metric=metric, **extra).to_text(width=100))
+        print(mission_report(mc, limit, ctrl, metric=metric, **extra).to_text(width=report_width()))
 
 
 def shown_limit(metric: str, limit: float) -> str:

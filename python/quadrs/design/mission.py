@@ -276,8 +276,10 @@ class MissionReport:
         parts += [
             fill(head),
             "",
-            f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) in % "
-            f"and its {qp}",
+            fill(
+                f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) "
+                f"in % and its {qp}"
+            ),
             _fit(_acceleration_text(self.acceleration, qp, self.metric), width),
             fill(
                 _joint_line(
