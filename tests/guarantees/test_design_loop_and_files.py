@@ -366,6 +366,67 @@ def test_a_ctrl_c_while_the_batch_is_saved_keeps_it(
     assert len(kept.realisations) == 4 and kept.question is not None
 
 
+#: Each batch command that saves a result: (its result's class, its arguments after
+#: TINY_CLI, how to tell that what it saved holds the result).
+SAVING_COMMANDS = {
+    "sweep": ("SweepResult",
+              ["--param", "payload.mass", "--values", "0.2,0.3", "--runs", "2"],
+              lambda r: len(r.runs) > 0),
+    "sensitivity": ("SensitivityResult",
+                    ["--disperse", "payload.mass=uniform(0.15,0.3)", "--runs", "2"],
+                    lambda r: len(r.indices) > 0),
+    "rare": ("RareEventResult",
+             ["--metric", "max_accel", "--phase", "P2", "--threshold", "1e3", "--per-level",
+              "100", "--max-levels", "2"],
+             lambda r: r.flights > 0),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("command", sorted(SAVING_COMMANDS))
+def test_a_ctrl_c_after_any_batch_waits_for_its_file(
+    command: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """As `mc` and `mission` (above): a Ctrl-C after the batch is over but before its file is
+    written waits for the file, written whole, then status 130."""
+    name, args, holds = SAVING_COMMANDS[command]
+    cls = getattr(quadrs, name)
+    write = cls.to_parquet
+
+    def interrupted_while_saving(self, path: Path) -> None:
+        signal.raise_signal(signal.SIGINT)
+        write(self, path)
+
+    monkeypatch.setattr(cls, "to_parquet", interrupted_while_saving)
+    out = tmp_path / f"{command}.parquet"
+    code, _, err = run_cli(command, *TINY_CLI, *args, "--workers", "1", "--no-progress",
+                           "--out", str(out), capsys=capsys)  # fmt: skip
+    assert code == 130, err
+    assert holds(cls.read_parquet(out))
+
+
+def test_a_ctrl_c_after_the_search_waits_for_the_tuned_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """tune alike: a Ctrl-C as its history is written waits for it and for the tuned file."""
+    import quadrs.io.files as files
+
+    write = files.atomic_write_frame
+
+    def interrupted_while_saving(*a, **k) -> None:
+        signal.raise_signal(signal.SIGINT)
+        write(*a, **k)
+
+    monkeypatch.setattr(files, "atomic_write_frame", interrupted_while_saving)
+    out, history = tmp_path / "tuned.toml", tmp_path / "history.csv"
+    code, _, err = run_cli("tune", *TINY_CLI, "--param", "controller.pd.kp[2]=1:2", "--runs",
+                           "2", "--maxiter", "1", "--popsize", "2", "--workers", "1",
+                           "--out", str(out), "--history", str(history),
+                           capsys=capsys)  # fmt: skip
+    assert code == 130, err
+    assert 1.0 <= Scenario.from_toml(out)["controller.pd.kp"][2] <= 2.0
+    assert len(pd.read_csv(history)) > 0
+
+
 # -- no traceback, one line -------------------------------------------------------------------
 def test_design_loop_bad_input_is_one_line(tiny: Scenario, tmp_path: Path, capsys) -> None:
     disperse = ["--disperse", "payload.mass=uniform(0.15,0.3)", "--runs", "2", "--no-progress"]

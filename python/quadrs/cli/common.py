@@ -23,11 +23,13 @@ __all__ = [
     "EXIT_USAGE",
     "BadInput",
     "batch_options",
+    "batch_scope",
     "check_positive",
     "controller_names",
     "controller_option",
     "controllers_option",
     "dask_client",
+    "import_in_background",
     "limit_option",
     "limit_options",
     "no_progress_option",
@@ -36,6 +38,7 @@ __all__ = [
     "parquet_out_option",
     "plots_option",
     "progress",
+    "report_width",
     "scenario_options",
     "scheduler_option",
     "seed_and_workers",
@@ -71,6 +74,31 @@ def dask_client(address: str | None) -> Iterator[Any]:
         raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
     with client:
         yield client
+
+
+class BatchScope:
+    """What a command that flies a batch and saves it holds while it does: the Dask client
+    of ``--scheduler`` (None without it), and from :meth:`flown` on, Ctrl-C and SIGTERM."""
+
+    def __init__(self, client: Any, keeping: contextlib.ExitStack) -> None:
+        self.client = client
+        self._keeping = keeping
+
+    def flown(self) -> None:
+        """The batch is over: from here a Ctrl-C or SIGTERM (a second one, after the one that
+        stopped the batch) waits until the scope ends, what finished saved, then ends the
+        command (status 130 or 143)."""
+        from quadrs.engine.calls import deferred_signals
+
+        self._keeping.enter_context(deferred_signals())
+
+
+@contextlib.contextmanager
+def batch_scope(address: str | None) -> Iterator[BatchScope]:
+    """The scope of a batch command: fly (``client=scope.client``), call ``scope.flown()``,
+    save; the client closes, then a signal held meanwhile ends the command."""
+    with contextlib.ExitStack() as keeping, dask_client(address) as client:
+        yield BatchScope(client, keeping)
 
 
 def import_in_background(module: str) -> threading.Thread:

@@ -18,8 +18,8 @@ from quadrs.cli.common import (
     EXIT_FAIL,
     EXIT_INTERRUPT,
     EXIT_OK,
+    batch_scope,
     controller_option,
-    dask_client,
     scheduler_option,
     seed_option,
     workers_option,
@@ -211,12 +211,41 @@ def _tuned_toml(args: argparse.Namespace, out: Path, keys: list[str], tuned: Any
             "its base).\n" + tuned.to_toml())  # fmt: skip
 
 
+def _save_tuning(args: argparse.Namespace, result: Any, flown: int, history: Path) -> int:
+    """The search's history (at ``history`` when interrupted without ``--history``) and, for
+    an admissible and feasible best, the tuned scenario at ``--out``; EXIT_FAIL if a file the
+    command was asked for could not be written, else EXIT_OK."""
+    from quadrs.design.optimize import expand
+    from quadrs.io.files import atomic_write_bytes, atomic_write_frame
+    from quadrs.scenario.scenario import Scenario
+
+    h = result.history
+    status = EXIT_OK
+    if result.interrupted and args.history is None:
+        # Ctrl-C keeps the candidates flown: beside --out when --history was not given.
+        if _save_text(lambda p: atomic_write_frame(h, p, index=False), history):
+            print(f"quadrs tune: the {flown} candidates evaluated are in {history}",
+                  file=sys.stderr)  # fmt: skip
+    if args.history is not None and not _save_text(
+        lambda p: atomic_write_frame(h, p, index=False), args.history
+    ):
+        status = EXIT_FAIL
+    admissible = not bool(h[h["role"] == "best"].iloc[0]["penalised"])
+    if admissible and (not result.constraints or result.feasible):
+        text = _tuned_toml(args, args.out, list(expand(result.best)), result.scenario)
+        # The file must give back exactly the tuned scenario.
+        if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
+            raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
+        if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
+            status = EXIT_FAIL
+    return status
+
+
 def cmd_tune(args: argparse.Namespace) -> int:
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.design.optimize import InfeasibleWarning, check_tuning, expand, optimize
     from quadrs.engine.calls import check_int
-    from quadrs.io.files import atomic_write_bytes, atomic_write_frame, check_writable
-    from quadrs.scenario.scenario import Scenario
+    from quadrs.io.files import check_writable
 
     if args.out.suffix != ".toml":
         raise ValueError(f"--out {str(args.out)!r}: expected a .toml file")
@@ -244,7 +273,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         _announce_tune(args, scenario, len(params))
     history = args.history if args.history is not None else _default_history(args.out)
     flown: list[dict[str, Any]] = []
-    with warnings.catch_warnings(), dask_client(args.scheduler) as client:
+    with warnings.catch_warnings(), batch_scope(args.scheduler) as batch:
         warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
         try:
             result = optimize(
@@ -263,35 +292,18 @@ def cmd_tune(args: argparse.Namespace) -> int:
                 popsize=args.popsize,
                 constraints=args.constraint,
                 callback=flown.append,
-                client=client,
+                client=batch.client,
             )
         except KeyboardInterrupt:
             print("quadrs tune: interrupted during the first candidate: no candidate finished, "
                   "nothing to keep", file=sys.stderr)  # fmt: skip
             return EXIT_INTERRUPT
-    h = result.history
-    best_row = h[h["role"] == "best"].iloc[0]
-    # Everything is saved before anything is printed: a Ctrl-C while the tables print (or a
-    # closed pipe) loses nothing.
-    status = EXIT_OK
-    if result.interrupted and args.history is None:
-        # Ctrl-C keeps the candidates flown: beside --out when --history was not given.
-        if _save_text(lambda p: atomic_write_frame(h, p, index=False), history):
-            print(f"quadrs tune: the {len(flown)} candidates evaluated are in {history}",
-                  file=sys.stderr)  # fmt: skip
-    if args.history is not None and not _save_text(
-        lambda p: atomic_write_frame(h, p, index=False), args.history
-    ):
-        status = EXIT_FAIL
+        batch.flown()
+        # Everything is saved before anything is printed: a Ctrl-C while the tables print (or
+        # a closed pipe) loses nothing.
+        status = _save_tuning(args, result, len(flown), history)
+    best_row = result.history[result.history["role"] == "best"].iloc[0]
     admissible = not bool(best_row["penalised"])
-    feasible = not result.constraints or result.feasible
-    if admissible and feasible:
-        text = _tuned_toml(args, args.out, list(expand(result.best)), result.scenario)
-        # The file must give back exactly the tuned scenario.
-        if Scenario.from_toml_string(text, source=str(args.out)) != result.scenario:
-            raise RuntimeError(f"{args.out} would not reproduce the tuned scenario")  # a bug
-        if not _save_text(lambda p: atomic_write_bytes(p, text.encode()), args.out):
-            status = EXIT_FAIL
     searched = result.evaluations
     rejected = searched["unstable_modes"].astype(bool) & ~searched["flown"]
     modes = ", ".join(

@@ -5,7 +5,6 @@ figures and exceedance tables on request."""
 from __future__ import annotations
 
 import argparse
-import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -15,8 +14,8 @@ from quadrs.cli.common import (
     EXIT_OK,
     BadInput,
     batch_options,
+    batch_scope,
     check_positive,
-    dask_client,
     limit_options,
     plots_option,
     progress,
@@ -97,27 +96,22 @@ def cmd_mc(args: argparse.Namespace) -> int:
         from quadrs.cli.cost import announce_batch
 
         announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
-    from quadrs.engine.calls import deferred_signals
-
-    with contextlib.ExitStack() as keeping:
-        with dask_client(args.scheduler) as client:
-            mc = monte_carlo(
-                scenario,
-                runs=args.runs,
-                seed=args.seed,
-                controllers=args.controllers,
-                workers=args.workers,
-                progress=progress(args),
-                out=args.checkpoint,
-                resume=args.resume,
-                chunk=args.chunk,
-                client=client,
-                sampling=args.sampling,
-                fused=args.fused,
-            )
-            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
-            # it) waits until what finished is saved, then ends the command (status 130).
-            keeping.enter_context(deferred_signals())
+    with batch_scope(args.scheduler) as batch:
+        mc = monte_carlo(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controllers,
+            workers=args.workers,
+            progress=progress(args),
+            out=args.checkpoint,
+            resume=args.resume,
+            chunk=args.chunk,
+            client=batch.client,
+            sampling=args.sampling,
+            fused=args.fused,
+        )
+        batch.flown()
         saved = True
         if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
             saved = save(mc.to_parquet, args.out)

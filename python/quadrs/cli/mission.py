@@ -9,7 +9,6 @@ Kept apart from :mod:`quadrs.cli.main`, which registers the subcommand.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import copy
 import math
 import sys
@@ -21,7 +20,7 @@ from quadrs.cli.common import (
     EXIT_FAIL,
     EXIT_INTERRUPT,
     EXIT_OK,
-    dask_client,
+    batch_scope,
     import_in_background,
     no_progress_option,
     parquet_out_option,
@@ -223,29 +222,24 @@ def cmd_mission(args: argparse.Namespace) -> int:
     # Calibrated here, not on a cluster (whose speed is not this machine's): the calibration's
     # flights are the batch's first, taken rather than flown again.
     flown = [] if args.scheduler is not None else _announce(scenario, args)
-    from quadrs.engine.calls import deferred_signals
-
     # The report's statistics (scipy.stats, ~0.5 s to import) load while the batch flies: a
     # third-party package the batch itself never imports, so the two threads' imports do not
     # wait on each other.
     import_in_background("scipy.stats")
 
-    with contextlib.ExitStack() as keeping:
-        with dask_client(args.scheduler) as client:
-            mc = monte_carlo(
-                scenario,
-                runs=args.runs,
-                seed=args.seed,
-                controllers=args.controller,
-                workers=args.workers,
-                progress=progress(args),
-                spectra=False,
-                client=client,
-                flown=flown,
-            )
-            # The batch is over: a Ctrl-C from here (a second one after the one that stopped
-            # it) waits until what finished is saved, then ends the command (status 130).
-            keeping.enter_context(deferred_signals())
+    with batch_scope(args.scheduler) as batch:
+        mc = monte_carlo(
+            scenario,
+            runs=args.runs,
+            seed=args.seed,
+            controllers=args.controller,
+            workers=args.workers,
+            progress=progress(args),
+            spectra=False,
+            client=batch.client,
+            flown=flown,
+        )
+        batch.flown()
         metric, limit = args.limit
         mc.question = {  # saved with the runs: quadrs report asks it again
             "metric": metric,

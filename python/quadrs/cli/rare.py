@@ -150,7 +150,7 @@ def cmd_rare(args: argparse.Namespace) -> int:
     """Subset simulation of one controller, or of several paired on the same gusts (each
     one's table, then the ratios to the first): optional Parquet; 130 if interrupted (the
     finished levels are reported and saved)."""
-    from quadrs.cli.common import dask_client
+    from quadrs.cli.common import batch_scope
     from quadrs.cli.outputs import check_outputs, save
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.present.labels import shown_unit, shown_value
@@ -203,7 +203,7 @@ def cmd_rare(args: argparse.Namespace) -> int:
                   f"{per_level}",
                   file=sys.stderr, flush=True)  # fmt: skip
 
-    with dask_client(args.scheduler) as client:
+    with batch_scope(args.scheduler) as batch:
         out = rare_event(
             scenario,
             controller=controllers[0],
@@ -217,18 +217,19 @@ def cmd_rare(args: argparse.Namespace) -> int:
             workers=args.workers,
             on_level=on_level,
             controllers=controllers if len(controllers) > 1 else None,
-            client=client,
+            client=batch.client,
         )
-    results: dict[str, RareEventResult]
-    if isinstance(out, RareEventComparison):
-        results = dict(out.results)
-    else:
-        assert isinstance(out, RareEventResult)
-        results = {controllers[0]: out}
-    saved = True
-    for name, result in results.items():  # saved first: a second Ctrl-C keeps them
-        if name in paths:
-            saved = save(result.to_parquet, paths[name]) and saved
+        batch.flown()
+        results: dict[str, RareEventResult]
+        if isinstance(out, RareEventComparison):
+            results = dict(out.results)
+        else:
+            assert isinstance(out, RareEventResult)
+            results = {controllers[0]: out}
+        saved = True
+        for name, result in results.items():  # saved first: a second Ctrl-C keeps them
+            if name in paths:
+                saved = save(result.to_parquet, paths[name]) and saved
     interrupted = [name for name, r in results.items() if r.interrupted]
     # The controllers that finished before a Ctrl-C keep their estimates: printed first.
     for name, result in results.items():

@@ -12,9 +12,9 @@ from quadrs.cli.common import (
     EXIT_FAIL,
     EXIT_OK,
     BadInput,
+    batch_scope,
     check_positive,
     controllers_option,
-    dask_client,
     no_progress_option,
     parquet_out_option,
     plots_option,
@@ -85,7 +85,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
     if args.phase is not None and args.phase not in scenario.phase_names:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
     check_outputs(args.out)
-    with dask_client(args.scheduler) as client:
+    with batch_scope(args.scheduler) as batch:
         sa = sensitivity(
             scenario,
             runs=args.runs,
@@ -94,11 +94,12 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
             workers=args.workers,
             progress=progress(args),
             gust=not args.no_gust_factor,
-            client=client,
+            client=batch.client,
         )
-    status = EXIT_OK
-    if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
-        status = EXIT_FAIL
+        batch.flown()
+        status = EXIT_OK
+        if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
+            status = EXIT_FAIL
     print(
         f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "
         f"flights per controller; ± half-width of the 95% interval)"

@@ -13,8 +13,8 @@ from quadrs.cli.common import (
     BadInput,
     _values,
     batch_options,
+    batch_scope,
     check_positive,
-    dask_client,
     limit_options,
     plots_option,
     progress,
@@ -72,7 +72,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     check_positive("--runs", args.runs)
     check_positive("--workers", args.workers)
     check_outputs(args.out)
-    with dask_client(args.scheduler) as client:
+    with batch_scope(args.scheduler) as batch:
         result = sweep(
             scenario,
             grid,
@@ -81,11 +81,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             controllers=args.controllers,
             workers=args.workers,
             progress=progress(args),
-            client=client,
+            client=batch.client,
         )
-    saved = True
-    if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
-        saved = save(result.to_parquet, args.out)
+        batch.flown()
+        saved = True
+        if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
+            saved = save(result.to_parquet, args.out)
     if not result.runs.empty:
         print_frame(result.compact())
         print_limits(result, args)
