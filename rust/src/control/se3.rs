@@ -11,7 +11,7 @@ use super::{position_errors, Control, Controller, Shared, MIN_TILT_COS};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
 use crate::lane::{gather, Lane, Param};
-use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::model::{Frame, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
 
 params! {
@@ -90,33 +90,6 @@ fn cross<L: Lane>(a: &[L; 3], b: &[L; 3]) -> [L; 3] {
     ]
 }
 
-/// The columns of R = Rz(psi) Ry(theta) Rx(phi) (body to inertial): the body axes in inertial
-/// coordinates.
-#[inline(always)]
-pub(crate) fn body_axes<L: Lane>(t: &Trig<L>) -> [[L; 3]; 3] {
-    let Trig {
-        sphi,
-        cphi,
-        sth,
-        cth,
-        spsi,
-        cpsi,
-    } = *t;
-    [
-        [cpsi * cth, spsi * cth, -sth],
-        [
-            cpsi * sth * sphi - spsi * cphi,
-            spsi * sth * sphi + cpsi * cphi,
-            cth * sphi,
-        ],
-        [
-            cpsi * sth * cphi + spsi * sphi,
-            spsi * sth * cphi - cpsi * sphi,
-            cth * cphi,
-        ],
-    ]
-}
-
 impl<P: Copy> Se3<P> {
     /// The desired body axes `[b1_d, b2_d, b3_d]` for the thrust vector `f` (N) and the yaw
     /// reference's sine and cosine: `b3_d` along `f`, tilted back to `controller.tilt_limit`
@@ -169,7 +142,7 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
             (e[1] * kx1.get() + ed[1] * kv1.get() + r.acc[1]) * mt,
             (e[2] * kx2.get() + ed[2] * kv2.get() + r.acc[2] + g) * mt,
         ];
-        let [r1, r2, r3] = body_axes(trig);
+        let [r1, r2, r3] = trig.axes();
         let u1 = sh.limit_thrust(dot(&f, &r3));
 
         let (spsi_d, cpsi_d) = <f64 as Lane>::sin_cos(r.psi);
@@ -258,10 +231,12 @@ mod tests {
         mul(rz, mul(ry, rx))
     }
 
+    /// The law reads the body axes as the paper body's frame gives them (`Frame::axes`): the
+    /// columns of R = Rz Ry Rx.
     #[test]
-    fn body_axes_are_the_columns_of_the_rotation() {
+    fn the_body_axes_the_law_reads_are_the_columns_of_the_rotation() {
         let att = [0.3, -0.7, 2.1];
-        let axes = body_axes(&Trig::of_angles(att[0], att[1], att[2]));
+        let axes = Trig::of_angles(att[0], att[1], att[2]).axes();
         let r = rotation(att);
         for j in 0..3 {
             for i in 0..3 {
