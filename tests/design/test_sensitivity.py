@@ -30,6 +30,27 @@ def test_constant_or_non_finite_outputs_give_nan_not_numbers():
     assert sobol_indices(["a", "b"], y, 0)[["S1", "ST"]].isna().all().all()
 
 
+def test_an_output_that_varies_only_off_the_a_and_b_rows_gives_nan_without_a_warning():
+    """The estimators divide by the variance over the design's A and B rows: an output equal
+    on all of them (a metric that only the mixed rows move) has no index, not SALib's 0, and
+    no SALib warning reaches the user, also from bootstrap resamples of a mostly-constant
+    output."""
+    import warnings
+
+    names = ["a", "b"]
+    u = sobol_design(names, 16, seed=0)
+    step = len(names) + 2
+    y = np.zeros(len(u))
+    y[1::step] = u[1::step, 0]  # only the rows of A with column a from B vary
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert sobol_indices(names, y, 0)[["S1", "ST"]].isna().all().all()
+        mostly = np.zeros(len(u))
+        mostly[:3] = 1.0  # one A, one mixed and one other row: most resamples see only zeros
+        got = sobol_indices(names, mostly, 0)
+    assert np.isfinite(got[["S1", "ST"]].to_numpy()).all()
+
+
 @pytest.fixture(scope="module")
 def analysis(short):
     """Payload mass, a gust intensity and a lateral gain of a vertical flight. The gust blows

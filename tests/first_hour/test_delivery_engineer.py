@@ -270,6 +270,22 @@ def test_mission_fits_the_terminal_it_prints_to(
         assert report_width() == width
 
 
+def test_run_prints_its_metrics_at_the_terminals_width(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A single flight's 26 metrics by phase, in blocks of columns that fit the terminal
+    (the table was one line of nearly 400 characters a phase), every metric still shown."""
+    from quadrs.runs.flight import METRIC_COLUMNS
+
+    monkeypatch.setenv("COLUMNS", "72")
+    code, out, _ = cli(capsys, "run", "--preset", "delivery")
+    assert code == 0
+    assert max(len(line) for line in out.splitlines()) <= 72
+    shown = set(out.split())
+    assert set(METRIC_COLUMNS) <= shown
+    assert {"lift", "climb", "flight"} <= shown
+
+
 # -- 3. mission flies a route by default ---------------------------------------------------------
 def test_mission_defaults_to_the_delivery_preset(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]

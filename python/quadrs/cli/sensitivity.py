@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from typing import TYPE_CHECKING, Any
 
 from quadrs.cli.common import (
@@ -19,6 +20,7 @@ from quadrs.cli.common import (
     parquet_out_option,
     plots_option,
     progress,
+    report_width,
     scheduler_option,
     seed_option,
     workers_option,
@@ -100,10 +102,11 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         status = EXIT_OK
         if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it
             status = EXIT_FAIL
-    print(
+    heading = (
         f"Sobol' indices of {args.metric} (N = {sa.runs}, {len(sa.samples['row'].unique())} "
         f"flights per controller; ± half-width of the 95% interval)"
     )
+    print(textwrap.fill(heading, report_width()))
     print_frame(sensitivity_table(sa, args.metric, args.phase), digits=2)
     if args.plots is not None:
         from quadrs import plots

@@ -9,7 +9,7 @@ import sys
 from typing import TYPE_CHECKING, Any, TextIO
 
 from quadrs.cli.common import report_width
-from quadrs.present.terminal import terminal_text
+from quadrs.present.terminal import fit_columns, terminal_text
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -27,20 +27,14 @@ __all__ = [
 
 
 def print_frame(frame: pd.DataFrame, out: TextIO | None = None, digits: int = 4) -> None:
-    """``frame`` as text on ``out`` (stdout), wide, numbers to ``digits`` significant digits."""
+    """``frame`` as text on ``out`` (stdout), numbers to ``digits`` significant digits, in
+    blocks of columns as wide as the terminal (``report_width``)."""
     import pandas as pd
 
     with pd.option_context(
-        "display.width",
-        250,
-        "display.max_columns",
-        None,
-        "display.max_rows",
-        500,
-        "display.float_format",
-        lambda v: f"{v:.{digits}g}",
+        "display.max_rows", 500, "display.float_format", lambda v: f"{v:.{digits}g}"
     ):
-        print(terminal_text(frame.to_string()), file=out or sys.stdout)
+        print(fit_columns(frame, report_width()), file=out or sys.stdout)
 
 
 def print_table3(mc: Any, args: argparse.Namespace) -> None:
@@ -57,13 +51,16 @@ def print_limits(result: Any, args: argparse.Namespace) -> None:
 
     if not args.limit:
         return
-    print(
-        "\nP(metric > threshold), exact 95% Clopper-Pearson intervals; a diverged run counts as "
-        "exceeding from the phase it diverged in:"
-    )
+    import textwrap
+
+    def heading(text: str) -> None:
+        print("\n" + textwrap.fill(text, report_width()))
+
+    heading("P(metric > threshold), exact 95% Clopper-Pearson intervals; a diverged run counts "
+            "as exceeding from the phase it diverged in:")  # fmt: skip
     print_frame(thresholds_shown(limits_table(result, args.limit, args.half_width / 100)))
     if {"pd", "smc"} <= set(result.controllers):
-        print("\nSMC - PD, paired on the same gusts (Newcombe interval, exact McNemar p):")
+        heading("SMC - PD, paired on the same gusts (Newcombe interval, exact McNemar p):")
         print_frame(thresholds_shown(limits_difference_table(result, args.limit)))
 
 

@@ -64,7 +64,6 @@ from quadrs.design.mission_tables import (
 )
 from quadrs.design.mission_text import (
     _acceleration_text,
-    _fit,
     _g,
     _interval,
     _joint_line,
@@ -78,7 +77,7 @@ from quadrs.design.mission_text import (
     _tracking_text,
 )
 from quadrs.design.route_limits import LimitClash, route_clashes
-from quadrs.present.terminal import terminal_text
+from quadrs.present.terminal import fit_columns, terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceedance_stats, quantile_interval
 from quadrs.stats.summary import phase_diverged
@@ -261,7 +260,7 @@ class MissionReport:
                 fill("Touchdown speed (m/s) and its " + qp + ", drift (m/s), miss from the "
                      "drop point (m), flights released, the vehicle's height change after "
                      "the release (m) and the line's swing while lowering (deg), per phase"),
-                _fit(_last_metres_text(self.last_metres, qp), width),
+                fit_columns(_last_metres_text(self.last_metres, qp), width),
                 "",
                 *parts,
             ]  # fmt: skip
@@ -269,7 +268,7 @@ class MissionReport:
             parts += [
                 fill(f"Route: off route = tracking or cross-track error past {limits}, or "
                      "diverged; P in %; time at the thrust limit and near the tilt limit in s"),
-                _fit(_route_text(self.route), width),
+                fit_columns(_route_text(self.route), width),
                 fill(_joint_line(self.joint, "route", "left the route")),
                 "",
             ]  # fmt: skip
@@ -280,7 +279,7 @@ class MissionReport:
                 f"Parcel {_shown_name(self.metric)}: P({self.metric} > {_shown_limit(self)}) "
                 f"in % and its {qp}"
             ),
-            _fit(_acceleration_text(self.acceleration, qp, self.metric), width),
+            fit_columns(_acceleration_text(self.acceleration, qp, self.metric), width),
             fill(
                 _joint_line(
                     self.joint,
@@ -290,11 +289,11 @@ class MissionReport:
             ),
         ]
         if not self.payload.empty and len(self.payload.columns):
-            parts += ["", "Swing (deg) and tension (N); slack time in s", _fit(
+            parts += ["", "Swing (deg) and tension (N); slack time in s", fit_columns(
                 _payload_text(self.payload, qp), width)]  # fmt: skip
         if not self.tracking.empty and len(self.tracking.columns):
             parts += ["", "Tracking errors (m): mean [interval] and worst",
-                      _fit(_tracking_text(self.tracking), width)]  # fmt: skip
+                      fit_columns(_tracking_text(self.tracking), width)]  # fmt: skip
         parts += [
             "",
             fill(

@@ -19,8 +19,8 @@ import numpy as np
 import pandas as pd
 
 from quadrs.design.mission import MissionReport, mission_report, none_seen_bound
-from quadrs.design.mission_text import _fit, _shown_limit, _shown_name
-from quadrs.present.terminal import terminal_text
+from quadrs.design.mission_text import _shown_limit, _shown_name
+from quadrs.present.terminal import fit_columns, terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.stats.risk import exceeds, paired_exceedance
 from quadrs.stats.summary import phase_diverged, ratio_ci
@@ -74,11 +74,11 @@ class LawComparison:
             "",
             fill(f"P({self.metric} > {limit}) in % with its exact {level} interval; a diverged "
                  "flight exceeds"),
-            _fit(self._by_law(lambda r, p: _risk(r, p)), width),
+            fit_columns(self._by_law(lambda r, p: _risk(r, p)), width),
             "",
             fill(f"Mean {_shown_name(self.metric)} and mean worst tracking error (m) by law, over "
                  "the flights that did not diverge"),
-            _fit(self._means_text(), width),
+            fit_columns(self._means_text(), width),
         ]  # fmt: skip
         if len(self.controllers) > 1:
             parts += [
@@ -86,7 +86,7 @@ class LawComparison:
                 fill(f"Paired against {self.reference.upper()} (the same gusts): 100 x mean / "
                      f"{self.reference.upper()}'s for {self.metric} and for the tracking, and the "
                      f"difference of P(exceed) in points, each with its {level} interval"),
-                _fit(self._paired_text(), width),
+                fit_columns(self._paired_text(), width),
             ]  # fmt: skip
         parts += [
             "",

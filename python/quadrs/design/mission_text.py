@@ -10,7 +10,6 @@ from typing import Protocol
 import pandas as pd
 
 from quadrs.design.mission_tables import ANY_PHASE, DEGREES, LOWS, PEAKS, none_seen_bound
-from quadrs.present.terminal import terminal_text
 
 
 def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
@@ -215,24 +214,3 @@ def _tracking_text(t: pd.DataFrame) -> pd.DataFrame:
         ]
         out[f"{m} worst"] = [_g(v) for v in t[f"{m}_worst"]]
     return out
-
-
-def _fit(frame: pd.DataFrame, width: int) -> str:
-    """``frame`` as text in blocks of columns, each at most ``width`` wide (the index repeated
-    in each; a single column wider than ``width`` gets a block of its own)."""
-
-    def render(cols: list[str]) -> str:
-        return terminal_text(frame[cols].to_string())
-
-    blocks: list[str] = []
-    current: list[str] = []
-    for col in frame.columns:
-        trial = [*current, col]
-        if current and max(len(line) for line in render(trial).splitlines()) > width:
-            blocks.append(render(current))
-            current = [col]
-        else:
-            current = trial
-    if current or not blocks:
-        blocks.append(render(current) if current else terminal_text(frame.to_string()))
-    return "\n\n".join(blocks)

@@ -59,18 +59,25 @@ def sobol_indices(
     names: Sequence[str], outputs: np.ndarray, seed: int, confidence: float = 0.95
 ) -> pd.DataFrame:
     """S1, ST and their bootstrap half-widths (SALib) of one output vector over the rows of
-    :func:`sobol_design`; NaN where the output is non-finite or does not vary."""
+    :func:`sobol_design`; NaN where the output is non-finite, or does not vary over the
+    design's A and B rows (the estimators' variance: SALib would give 0 and a warning)."""
     from SALib.analyze import sobol
 
     y = np.asarray(outputs, dtype=np.float64)
     out = pd.DataFrame({"parameter": list(names)})
-    if not np.all(np.isfinite(y)) or np.ptp(y) == 0.0:
+    step = len(names) + 2  # each row of A, then A with column j from B (j = 1..k), then B
+    a_and_b = np.r_[y[0::step], y[step - 1 :: step]]
+    if not np.all(np.isfinite(y)) or np.ptp(a_and_b) <= np.finfo(np.float64).eps:
         for col in ("S1", "S1_conf", "ST", "ST_conf"):
             out[col] = np.nan
         return out
-    si = sobol.analyze(
-        _problem(names), y, calc_second_order=False, conf_level=confidence, seed=seed
-    )
+    with warnings.catch_warnings():
+        # A bootstrap resample whose A and B rows happen to be equal (a metric that is mostly
+        # one value, at small N): SALib counts that resample's index as 0 and warns for each.
+        warnings.filterwarnings("ignore", message="Constant values encountered")
+        si = sobol.analyze(
+            _problem(names), y, calc_second_order=False, conf_level=confidence, seed=seed
+        )
     for col in ("S1", "S1_conf", "ST", "ST_conf"):
         out[col] = np.asarray(si[col], dtype=np.float64)
     return out

@@ -4,8 +4,12 @@ the progress bar every long call draws."""
 from __future__ import annotations
 
 import unicodedata
+from typing import TYPE_CHECKING
 
-__all__ = ["shows_progress", "terminal_text", "tqdm_class"]
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["fit_columns", "shows_progress", "terminal_text", "tqdm_class"]
 
 
 def terminal_text(text: str) -> str:
@@ -19,6 +23,28 @@ def terminal_text(text: str) -> str:
         return repr(c)[1:-1] if ord(c) < 0x10000 else f"\\U{ord(c):08x}"
 
     return "".join(safe(c) for c in text) if not text.isprintable() else text
+
+
+def fit_columns(frame: pd.DataFrame, width: int) -> str:
+    """``frame`` as terminal text in blocks of columns, each at most ``width`` wide, the index
+    repeated in each (a single column wider than ``width`` gets a block of its own). Formats
+    as ``frame.to_string()`` does under the caller's pandas options."""
+
+    def render(columns: list[int]) -> str:
+        return terminal_text(frame.iloc[:, columns].to_string())
+
+    blocks: list[str] = []
+    current: list[int] = []
+    for column in range(frame.shape[1]):
+        trial = [*current, column]
+        if current and max(len(line) for line in render(trial).splitlines()) > width:
+            blocks.append(render(current))
+            current = [column]
+        else:
+            current = trial
+    if current or not blocks:
+        blocks.append(render(current) if current else terminal_text(frame.to_string()))
+    return "\n\n".join(blocks)
 
 
 def tqdm_class() -> type:
