@@ -223,6 +223,25 @@ def test_the_mission_figure_is_labelled_by_its_metric(route_mc: quadrs.MonteCarl
     assert limit_line.get_ydata()[0] == pytest.approx(8.0)
 
 
+def test_the_mission_figures_labels_stay_apart_and_inside(
+    route_mc: quadrs.MonteCarloResult,
+) -> None:
+    """The longest labels (the specific force's, a limit in m/s²) fit their panels: each axis
+    label inside the figure and clear of the other panel's."""
+    from quadrs.design.mission import mission_report
+    from quadrs.plots.mission import mission_risk
+
+    fig = mission_risk(mission_report(route_mc, 19.6133, metric="max_specific_force"))
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    top, bottom = (a.yaxis.label.get_window_extent(renderer) for a in fig.axes)
+    whole = fig.bbox
+    for box in (top, bottom):
+        assert whole.x0 <= box.x0 and box.x1 <= whole.x1
+        assert whole.y0 <= box.y0 and box.y1 <= whole.y1
+    assert top.y0 > bottom.y1  # the top panel's label above the bottom one's
+
+
 def test_the_paired_difference_table_gives_a_swing_threshold_in_degrees(
     saved_mc: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -291,3 +291,27 @@ def test_exceedance_curve_plot_draws_the_empirical_survival() -> None:
         direct = (np.nansum(runs["max_accel"] > xi) + 2) / n
         assert yi == pytest.approx(direct)
     assert y.min() == pytest.approx(2 / n)  # the diverged floor
+
+
+def test_a_phase_where_every_flight_gives_one_value_says_so_instead_of_a_curve() -> None:
+    """A released parcel's swing is 0 in every flight: no step 1e-12 wide, the panel says it;
+    the phase beside it still has its curve."""
+    from quadrs import plots
+
+    n = 20
+    swing = np.random.default_rng(3).uniform(0.1, 0.5, n)
+    runs = pd.DataFrame(
+        {
+            "realisation": np.tile(np.arange(n), 2),
+            "controller": "pd",
+            "phase": np.repeat(["transit", "away"], n),
+            "max_swing": np.r_[swing, np.zeros(n)],
+            "diverged": False,
+        }
+    )
+    fig = plots.exceedance_curves(runs, "max_swing", phases=["transit", "away"])
+    transit, away = fig.axes
+    assert transit.lines and transit.get_legend() is not None
+    assert not away.lines and away.get_legend() is None
+    said = [t.get_text() for t in away.texts]
+    assert said == ["PD: 0 deg in every one of its 20 flights"]

@@ -6,6 +6,8 @@ Re-exported by :mod:`quadrs.plots` (which therefore is not imported here); save 
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -27,8 +29,8 @@ def mission_risk(report: MissionReport) -> Figure:
     metric = report.metric
     scale = shown_value(metric, 1.0)
     unit = shown_unit(metric)
-    limit = f"{shown_value(metric, report.limit):g} {unit}".rstrip()
-    fig = Figure(figsize=(7.0, 5.2), layout="constrained")
+    limit = f"{shown_value(metric, report.limit):.4g} {unit}".rstrip()
+    fig = Figure(figsize=(7.0, 6.4), layout="constrained")
     FigureCanvasAgg(fig)
     top, bottom = fig.subplots(2, 1)
     x = np.arange(len(acc))
@@ -37,7 +39,8 @@ def mission_risk(report: MissionReport) -> Figure:
     lo, hi = 100 * acc["ci_low"].to_numpy(float), 100 * acc["ci_high"].to_numpy(float)
     top.errorbar(x, p, yerr=[p - lo, hi - p], fmt="o", color="tab:red", capsize=4,
                  label=f"exact {report.confidence:.0%} interval")  # fmt: skip
-    top.set_ylabel(f"P({metric} > {limit}) (%)")
+    # Two lines each: a panel is about 2.5 in tall, the one-line labels ran into each other.
+    top.set_ylabel(f"P({metric} > {limit})\nin %")
     top.set_ylim(bottom=0)
     top.set_title(f"{report.controller.upper()}, {report.runs} realisations")
     top.legend(loc="best", fontsize="small")
@@ -53,7 +56,7 @@ def mission_risk(report: MissionReport) -> Figure:
     ok = np.isfinite(worst)
     bottom.plot(x[ok], worst[ok], "k^", label="worst")
     bottom.axhline(scale * report.limit, color="gray", linestyle="--", label="limit")
-    bottom.set_ylabel(PLAIN_LABELS.get(metric, f"{metric} ({unit})"))
+    bottom.set_ylabel(textwrap.fill(PLAIN_LABELS.get(metric, f"{metric} ({unit})"), 32))
     bottom.legend(loc="best", fontsize="small")
     for a in (top, bottom):
         a.set_xticks(x, names)

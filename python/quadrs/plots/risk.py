@@ -15,12 +15,13 @@ from quadrs.plots.base import (
     AxesArg,
     add_legend,
     all_phases,
+    controller_label,
     finish_figure,
     label_with_unit,
     line_style,
     panel_axes,
 )
-from quadrs.present.labels import display_scale
+from quadrs.present.labels import display_scale, shown_unit
 from quadrs.present.table3 import phase_diverged
 
 
@@ -50,9 +51,18 @@ def exceedance_curves(
     fig, axes = panel_axes(ax, len(phases))
     floor = 1.0
     for a, phase in zip(axes, phases, strict=True):
+        # A metric every flight gives the same value in this phase (a released parcel's swing:
+        # 0) has no curve to draw: the panel says so, rather than a step 1e-12 wide.
+        same: list[str] = []
         for i, ctrl in enumerate(ctrls):
             sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
             div = phase_diverged(sel)
+            values = sel[metric].to_numpy(float)[~div]
+            values = values[np.isfinite(values)]
+            if len(values) > 1 and not div.any() and values.min() == values.max():
+                same.append(f"{controller_label(ctrl)}: {scale * values[0]:g} {shown_unit(metric)} "
+                            f"in every one of its {len(values)} flights")  # fmt: skip
+                continue
             curve = survival_curve(sel[metric].to_numpy(float), div, confidence)
             if curve.empty:
                 continue
@@ -88,5 +98,10 @@ def exceedance_curves(
             ylabel="Chance of exceeding",
             title=f"Exceedance, {phase} (bands: pointwise {confidence:.0%} exact intervals)",
         )
+        if same:
+            a.text(0.5, 0.5, "\n".join(same), transform=a.transAxes, ha="center", va="center",
+                   color="0.3", fontsize="small")  # fmt: skip
+            if not a.get_legend_handles_labels()[0]:
+                continue
         add_legend(a)
     return finish_figure(fig, path)
