@@ -333,3 +333,27 @@ def test_a_figure_without_data_says_what_the_data_lacks(tmp_path: Path, capsys) 
     assert code == 0, err
     assert "log-scaled" not in err and "No artists" not in err, err
     assert "figure psd not drawn (nothing to draw on log axes" in err, err
+
+
+def test_run_draws_a_released_parcels_flight(tmp_path: Path, capsys) -> None:
+    """`run --plot` on the delivery preset (phases = "legs", the parcel released on the
+    ground: its relative displacement is 0 from the drop on) crashed with a TypeError reading
+    the phases. Now every figure is written, the released phases' spectral panels say there
+    is nothing on log axes, and the others are drawn; exit 0, no warning."""
+    from PIL import Image
+
+    code, _, err = run_cli("run", "--preset", "delivery", "--plot", str(tmp_path),
+                           capsys=capsys)  # fmt: skip
+    assert code == 0 and "warning" not in err and "Traceback" not in err, err
+    names = ["altitude", "oscillation", "spectra", "psd", "gust_force"]
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == sorted(f"{n}.png" for n in names)
+    assert all(Image.open(tmp_path / f"{n}.png").size[1] > 100 for n in names)
+    flight = quadrs.simulate(Scenario.preset("delivery"), "smc")
+    fig = quadrs.plots.psd(flight)
+    panels = {a.get_title().rsplit(", ", 1)[-1]: a for a in fig.axes}
+    drawn = {phase: a.get_xscale() == "log" for phase, a in panels.items()}
+    assert drawn["transit"] and drawn["lower"] and not drawn["away"], drawn
+    assert any("nothing to draw on log axes" in t.get_text() for t in panels["away"].texts)
+    # Only phases with nothing to draw: no figure, and a message saying why.
+    with pytest.raises(ValueError, match=r"nothing to draw on log axes \(power spectral density"):
+        quadrs.plots.psd(flight, ["drop", "away"])

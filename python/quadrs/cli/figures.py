@@ -1,18 +1,19 @@
 """The figures ``mc``, ``sweep`` and ``report`` write with ``--plots``: a batch's distributions,
-spectra, exceedance curves and dispersion scatter, and a sweep's metrics against its keys.
-One figure that cannot be drawn is named on stderr and costs none of the others."""
+spectra, exceedance curves and dispersion scatter, and a sweep's metrics against its keys;
+and how every command writes its figures (``write_figures``): one figure that cannot be drawn
+is named on stderr and costs none of the others."""
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from quadrs.cli.common import one_line
 from quadrs.present.terminal import terminal_text
 
-__all__ = ["mc_plots", "sweep_plots"]
+__all__ = ["mc_plots", "sweep_plots", "write_figures"]
 
 
 def mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
@@ -29,10 +30,17 @@ def mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ())
         figures.append((f"exceedance_{metric}", curves))
     if mc.dispersed_keys:
         figures.append(("dispersion_iae", lambda: plots.dispersion_scatter(mc, "iae")))
+    write_figures(figures, directory)
+
+
+def write_figures(figures: Sequence[tuple[str, Callable[[], Any]]], directory: Path) -> None:
+    """Each ``(name, make)``'s figure into ``directory`` as ``name`` (PNG and SVG), then how many
+    files were written, on stderr. A figure without data to draw (every flight diverged, every
+    value zero: nothing on a log scale) is named in a warning line and costs none of the others."""
+    from quadrs import plots
+
     files: list[Path] = []
     for name, make in figures:
-        # One figure without data to draw (every flight diverged: nothing on a log scale)
-        # must not cost the others.
         try:
             files += plots.save(make(), directory / name)
         except ValueError as e:
@@ -46,8 +54,12 @@ def sweep_plots(result: Any, directory: Path) -> None:
     from quadrs import plots
 
     summ = result.summary()
-    files = plots.save(plots.sweep_metric(summ, "max_abs"), directory / "sweep_max_abs")
-    files += plots.save(plots.sweep_metric(summ, "iae"), directory / "sweep_iae")
-    fig = plots.distributions(result.runs, by=result.keys)  # one box per grid point
-    files += plots.save(fig, directory / "distributions")
-    print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
+    write_figures(
+        [
+            ("sweep_max_abs", lambda: plots.sweep_metric(summ, "max_abs")),
+            ("sweep_iae", lambda: plots.sweep_metric(summ, "iae")),
+            # one box per grid point
+            ("distributions", lambda: plots.distributions(result.runs, by=result.keys)),
+        ],
+        directory,
+    )

@@ -313,9 +313,8 @@ def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
 def _plots(mc: Any, reports: list[Any], directory: Path) -> None:
     """Per-phase risk with intervals (one figure per law), and the exceedance curves of the
     payload's peaks (every law on each)."""
-    from quadrs import plots
+    from quadrs.cli.figures import write_figures
     from quadrs.plots.mission import mission_risk
-    from quadrs.present.terminal import terminal_text
 
     def risk(r: Any) -> Callable[[], Any]:
         return lambda: mission_risk(r)
@@ -330,11 +329,4 @@ def _plots(mc: Any, reports: list[Any], directory: Path) -> None:
     for metric, marks in shown:
         if metric in mc.runs:
             figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
-    files: list[Path] = []
-    for name, make in figures:
-        try:
-            files += plots.save(make(), directory / name)
-        except ValueError as e:  # nothing to draw (every flight diverged): the others still are
-            print(terminal_text(f"quadrs: warning: figure {name} not drawn ({e})"),
-                  file=sys.stderr)  # fmt: skip
-    print(f"wrote {len(files)} figure files to {directory}", file=sys.stderr)
+    write_figures(figures, directory)

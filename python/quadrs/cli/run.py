@@ -71,11 +71,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.trace is not None and not save(write_trace, args.trace):
         status = EXIT_FAIL
     if args.plot is not None:
-        d = args.plot
-        files = plots.save(plots.altitude(flight), d / "altitude")
-        files += plots.save(plots.oscillation(flight), d / "oscillation")
-        files += plots.save(plots.spectra(flight), d / "spectra")
-        files += plots.save(plots.psd(flight), d / "psd")
-        files += plots.save(plots.gust_force(flight), d / "gust_force")
-        print(f"wrote {len(files)} figure files to {d}", file=sys.stderr)
+        from quadrs.cli.figures import write_figures
+
+        write_figures(
+            [
+                ("altitude", lambda: plots.altitude(flight)),
+                ("oscillation", lambda: plots.oscillation(flight)),
+                ("spectra", lambda: plots.spectra(flight)),
+                ("psd", lambda: plots.psd(flight)),
+                ("gust_force", lambda: plots.gust_force(flight)),
+            ],
+            args.plot,
+        )
     return status

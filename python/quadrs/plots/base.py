@@ -193,25 +193,43 @@ def shade_gust(ax: Axes, flight: Flight) -> None:
         ax.axvspan(*window, color="0.9", zorder=0, label="gust window")
 
 
-def loglog_axes(a: Axes, fmax: float) -> None:
-    """Log-log axes up to ``fmax``; a ValueError saying what the data lacks if no line has a
-    point with both coordinates positive and finite (nothing a log scale can show)."""
+#: What a log-log panel without a point to show says instead (and what a figure of such panels
+#: raises): a log scale shows no zero or negative value.
+NO_LOG_DATA = (
+    "nothing to draw on log axes: no positive, finite value (no flight finished without "
+    "diverging, or every value is zero)"
+)
+
+
+def loglog_axes(a: Axes, fmax: float) -> bool:
+    """Log-log axes up to ``fmax``, if some line has a point with both coordinates positive
+    and finite; else (every value zero: a released parcel's) the panel says it has nothing to
+    draw. Returns whether it drew; a figure none of whose panels drew raises
+    (:func:`require_drawn`)."""
     drawable = False
     for line in a.get_lines():
         x = np.asarray(line.get_xdata(), dtype=float)
         y = np.asarray(line.get_ydata(), dtype=float)
         drawable = drawable or bool((np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)).any())
     if not drawable:
-        title = a.get_title()
-        where = f" ({title})" if title else ""
-        raise ValueError(
-            f"nothing to draw on log axes{where}: no positive, finite value (no flight finished "
-            f"without diverging, or every value is zero)"
-        )
+        for line in list(a.get_lines()):
+            line.remove()
+        a.text(0.5, 0.5, NO_LOG_DATA.replace(": ", ":\n", 1), transform=a.transAxes,
+               ha="center", va="center", color="0.4", fontsize="small")  # fmt: skip
+        a.set_yticks([])  # no scale to read
+        return False
     a.set_xscale("log")
     a.set_yscale("log")
     a.set_xlim(right=fmax)
     a.grid(True, which="both", alpha=0.3)
+    return True
+
+
+def require_drawn(drawn: Sequence[bool], what: str) -> None:
+    """A ValueError saying what the data lacks if no panel of the figure ``what`` could be
+    drawn on log axes (:func:`loglog_axes`): a figure of empty panels is not written."""
+    if not any(drawn):
+        raise ValueError(NO_LOG_DATA.replace(": ", f" ({what}): ", 1))
 
 
 def all_phases(df: pd.DataFrame) -> list[str]:

@@ -31,6 +31,7 @@ from quadrs.plots.base import (
     loglog_axes,
     own_phases,
     panel_axes,
+    require_drawn,
     short_label,
 )
 from quadrs.present.labels import display_scale
@@ -105,6 +106,7 @@ def ensemble_psd(
     df = ensemble_psd_frame(spectra_frame)
     df = df[(df["frequency"] > 0) & (df["frequency"] <= fmax)]
     fig, panels = _ensemble_panels(df, phases, ax)
+    drawn = []
     for a, phase, curves in panels:
         for part, style, n in curves:
             style["label"] = f"{style['label']}, mean periodogram (n = {n})"
@@ -112,10 +114,12 @@ def ensemble_psd(
         a.set(
             xlabel="frequency (Hz)",
             ylabel="PSD (m²/Hz)",
-            title=f"ensemble power spectral density of the {DISPLACEMENT}, {phase}",
+            title=f"ensemble spectral density of the {DISPLACEMENT}, {phase}",
         )
-        loglog_axes(a, fmax)
-        add_legend(a)
+        drawn.append(loglog_axes(a, fmax))
+        if drawn[-1]:
+            add_legend(a)
+    require_drawn(drawn, f"ensemble power spectral density of the {DISPLACEMENT}")
     return finish_figure(fig, path)
 
 

@@ -26,6 +26,7 @@ from quadrs.plots.base import (
     line_style,
     loglog_axes,
     panel_axes,
+    require_drawn,
     shade_gust,
 )
 from quadrs.runs.flight import Flight
@@ -134,19 +135,22 @@ def psd(
     named = flights_by_label(flights)
     phases = _phases(next(iter(named.values())), phases)
     fig, axes = panel_axes(ax, len(phases))
+    how = "Welch" if method == "welch" else "periodogram"
+    drawn = []
     for a, phase in zip(axes, phases, strict=True):
         for i, (label, flight) in enumerate(named.items()):
             f, p = phase_psd(flight, phase, method, resolution)
             keep = (f > 0) & (f <= fmax)
             a.plot(f[keep], p[keep], lw=1.0, **line_style(label, i))
-        how = "Welch" if method == "welch" else "periodogram"
         a.set(
             xlabel="frequency (Hz)",
             ylabel="PSD (m²/Hz)",
-            title=f"power spectral density of the {DISPLACEMENT} ({how}), {phase}",
+            title=f"spectral density of the {DISPLACEMENT} ({how}), {phase}",
         )
-        loglog_axes(a, fmax)
-        add_legend(a)
+        drawn.append(loglog_axes(a, fmax))
+        if drawn[-1]:
+            add_legend(a)
+    require_drawn(drawn, f"power spectral density of the {DISPLACEMENT} ({how})")
     return finish_figure(fig, path)
 
 

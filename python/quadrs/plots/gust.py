@@ -13,7 +13,15 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from quadrs.plots.base import STYLE, AxesArg, add_legend, finish_figure, loglog_axes, panel_axes
+from quadrs.plots.base import (
+    STYLE,
+    AxesArg,
+    add_legend,
+    finish_figure,
+    loglog_axes,
+    panel_axes,
+    require_drawn,
+)
 from quadrs.runs.psd import gust_spectrum_frame
 
 #: Display names of the gust models.
@@ -67,6 +75,7 @@ def gust_spectrum(
     models = [str(m) for m in pd.unique(frame["model"])]
     fig, axes = panel_axes(ax, len(models))
     top = 0.1 / p["dt"]
+    drawn = []
     for a, model in zip(axes, models, strict=True):
         sel = frame[(frame["model"] == model) & (frame["frequency"] > 0)]
         sel = sel[sel["frequency"] <= top]
@@ -90,6 +99,8 @@ def gust_spectrum(
                 f"L = {p['length_scale']:g} m, V = {p['airspeed']:g} m/s"
             ),
         )
-        loglog_axes(a, top)
-        add_legend(a)
+        drawn.append(loglog_axes(a, top))
+        if drawn[-1]:
+            add_legend(a)
+    require_drawn(drawn, "gust spectra")
     return finish_figure(fig, path)

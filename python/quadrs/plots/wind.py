@@ -13,7 +13,14 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from quadrs import _core
-from quadrs.plots.base import AxesArg, add_legend, finish_figure, loglog_axes, panel_axes
+from quadrs.plots.base import (
+    AxesArg,
+    add_legend,
+    finish_figure,
+    loglog_axes,
+    panel_axes,
+    require_drawn,
+)
 from quadrs.runs.flight import Flight
 from quadrs.runs.gust import COMPONENTS, gust_scales
 from quadrs.runs.psd import gust_spectrum_frame
@@ -106,6 +113,7 @@ def gust_spectra(
     p = frame.attrs
     fig, axes = panel_axes(ax, len(COMPONENTS))
     top = 0.1 / p["dt"]
+    drawn = []
     for a, c in zip(axes, COMPONENTS, strict=True):
         sel = frame[(frame["component"] == c) & (frame["frequency"] > 0)]
         sel = sel[sel["frequency"] <= top]
@@ -121,9 +129,11 @@ def gust_spectra(
             ylabel="PSD ((m/s)²/Hz)",
             title=f"{c}: sigma = {sigma:.3g} m/s, L = {length:.3g} m",
         )
-        loglog_axes(a, top)
-        add_legend(a)
+        drawn.append(loglog_axes(a, top))
+        if drawn[-1]:
+            add_legend(a)
     axes[0].figure.suptitle(
         f"{p['model']} turbulence at h = {p['altitude']:g} m, V = {p['airspeed']:g} m/s"
     )
+    require_drawn(drawn, "turbulence spectra")
     return finish_figure(fig, path)

@@ -69,11 +69,12 @@ def amplitude_to_psd(
 
 
 def phase_window(flight: Flight, phase: str) -> tuple[float, float]:
-    """(start, end) in s of the phase named ``phase`` of ``flight``'s scenario."""
-    for p in flight.scenario["phases"]:
-        if p["name"] == phase:
-            return float(p["start"]), float(p["end"])
-    raise ValueError(f"phase must be one of {flight.scenario.phase_names}, got {phase!r}")
+    """(start, end) in s of the phase named ``phase`` of ``flight``'s scenario (its own
+    phases, or a route's legs and holds under ``phases = "legs"``)."""
+    windows = flight.scenario.phase_windows
+    if phase not in windows:
+        raise ValueError(f"phase must be one of {list(windows)}, got {phase!r}")
+    return windows[phase]
 
 
 def phase_psd(
