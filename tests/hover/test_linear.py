@@ -54,6 +54,30 @@ def test_eigenvalues_of_a_are_the_stability_poles(preset: str, controller: str) 
     assert match_poles(poles, lin.poles()) < 1e-9
 
 
+@pytest.mark.parametrize("controller", ["pd", "smc", "px4", "se3"])
+def test_the_rigid_body_linearises_without_its_dependent_quaternion_part(controller: str) -> None:
+    """The delivery preset (rigid body, rotors, cable with winch): `linearize` raised a bare
+    AssertionError on it (it expected every state of `scenario.state_names` among the
+    outputs; the linearisation has no `qw`, which the unit quaternion fixes). Its A's poles
+    are the stability analysis's, and every output can be asked for by name or as "all"."""
+    s = quadrs.Scenario.preset("delivery")
+    lin = linearize(s, controller, inputs=("wind_x", "wind_y", "wind_z"), outputs="all")
+    states = tuple(n for n in s.state_names if n != "qw")
+    assert lin.state_names == states and lin.A.shape == (len(states), len(states))
+    assert lin.output_names == (*states, *OUTPUT_NAMES[14:])
+    rep = quadrs.stability(s, controller)
+    poles = rep.poles["real"].to_numpy() + 1j * rep.poles["imag"].to_numpy()
+    # The x and y modes are equal pairs (a double root moves by ~sqrt(eps) of A's scale
+    # between two eigen-solvers: the stability analysis solves block by block).
+    assert match_poles(lin.poles(), poles) < 1e-5 and match_poles(poles, lin.poles()) < 1e-5
+    swing = linearize(s, controller, outputs=("e_o", "xc", "omega_1"))
+    assert swing.output_names == ("e_o", "xc", "omega_1")
+    np.testing.assert_array_equal(swing.C, lin.C[[lin.output_names.index(n) for n in
+                                                  ("e_o", "xc", "omega_1")]])  # fmt: skip
+    with pytest.raises(ValueError, match="outputs must be among"):
+        linearize(s, controller, outputs=("qw",))
+
+
 def test_still_air_has_no_first_order_wind_input_and_outputs_are_named() -> None:
     lin = linearize(
         quadrs.Scenario.paper(), "pd", inputs=("wind_x", "wind_y", "wind_z"), outputs=OUTPUT_NAMES

@@ -430,7 +430,7 @@ def cmd_linearize(args: argparse.Namespace) -> int:
     import numpy as np
 
     from quadrs.cli.scenario_args import load_scenario
-    from quadrs.hover.linear import OUTPUT_NAMES, equivalent_wind, linearize
+    from quadrs.hover.linear import INPUT_NAMES, equivalent_wind, linearize
     from quadrs.io.files import atomic_write, check_writable
 
     scenario = load_scenario(args)
@@ -452,8 +452,7 @@ def cmd_linearize(args: argparse.Namespace) -> int:
         print("|e_o / wind_z| (m per m/s): " + ", ".join(
             f"{f:g} Hz: {m:.3g}" for f, m in zip(freqs, mag, strict=True)))  # fmt: skip
     if args.out is not None:
-        full = {c: linearize(scenario, c, inputs=("wind_x", "wind_y", "wind_z"),
-                             outputs=OUTPUT_NAMES,
+        full = {c: linearize(scenario, c, inputs=INPUT_NAMES, outputs="all",
                              wind=(0.0, 0.0, wind)) for c in controllers}  # fmt: skip
         arrays = {f"{c}_{m}": getattr(lin, m) for c, lin in full.items() for m in "ABCD"}
         # np.savez appends .npz to a name without it: write the name it would load from.

@@ -48,7 +48,8 @@ OUTPUT_NAMES: tuple[str, ...] = (
 class LinearModel:
     """ds/dt = A ds + B du, dy = C ds + D du: deviations from the hover equilibrium.
 
-    ``state_names`` label A's rows and columns (the 14 states), ``input_names`` B's and D's
+    ``state_names`` label A's rows and columns (the scenario's states; a rigid body's without
+    its dependent ``qw``), ``input_names`` B's and D's
     columns, ``output_names`` C's and D's rows. ``equilibrium`` is the state linearised at and
     ``wind`` the steady wind (m/s) about which the inputs deviate. Time in seconds.
     """
@@ -131,21 +132,26 @@ def linearize(
 ) -> LinearModel:
     """The closed loop of ``controller`` linearised at hover: A, B, C, D.
 
-    ``inputs`` from :data:`INPUT_NAMES`, ``outputs`` from :data:`OUTPUT_NAMES`; all states are
-    kept. ``wind`` (m/s, [x, y, z]) is the steady wind linearised about: in still air B = 0
-    (quadratic drag has no slope there), see :func:`equivalent_wind`.
+    ``inputs`` from :data:`INPUT_NAMES`; ``outputs`` from the linearised states and
+    :data:`OUTPUT_NAMES`' e_o, U1, tau_*, azc, or ``"all"`` for every one of them. The states
+    are the scenario's (``scenario.state_names``) but for the rigid body's ``qw``, which its
+    unit quaternion fixes (``LinearModel.state_names``); all of them are kept. ``wind`` (m/s,
+    [x, y, z]) is the steady wind linearised about: in still air B = 0 (quadratic drag has no
+    slope there), see :func:`equivalent_wind`.
     """
     check_controller(controller)
     w = tuple(float(x) for x in wind)
     if len(w) != 3:
         raise ValueError(f"wind must have 3 components (x, y, z), got {wind!r}")
-    names = (*scenario.state_names, *OUTPUT_NAMES[len(_core.STATE_NAMES) :])
-    rows = _select(outputs, names, "outputs")
     cols = _select(inputs, INPUT_NAMES, "inputs")
     if not all(math.isfinite(x) for x in w):
         raise ValueError(f"wind must be finite, got {wind!r}")
     raw = scenario.engine.linearize(controller, list(w))
-    assert tuple(raw["output_names"]) == names
+    # The engine's outputs: the linearised states (a rigid body's dependent qw left out),
+    # then e_o, U1, tau_*, azc.
+    names = tuple(raw["output_names"])
+    assert names[len(raw["state_names"]) :] == OUTPUT_NAMES[len(_core.STATE_NAMES) :], names
+    rows = list(range(len(names))) if outputs == "all" else _select(outputs, names, "outputs")
     bad = [m for m in ("A", "B", "C", "D") if not np.all(np.isfinite(raw[m]))]
     if bad or not np.all(np.isfinite(raw["equilibrium"])):
         # No trim exists (the thrust cannot balance such a wind) or its slopes overflow:
