@@ -322,6 +322,15 @@ def test_messages_say_what_is_wrong(delivery: Scenario, tiny: Scenario, tmp_path
     code, _, err = run_cli("report", str(path), capsys=capsys)
     assert code == 2
     assert "is a rare-event result" in one_line(err) and "lacks" not in err
+    # and on a sensitivity file (its metadata under a key of its own): it said "not written
+    # by quadrs".
+    sa = quadrs.sensitivity(tiny.override({"dispersions": {"payload.mass": {
+        "dist": "uniform", "low": 0.15, "high": 0.3}}}), runs=2, workers=1)  # fmt: skip
+    path = tmp_path / "sens.parquet"
+    sa.to_parquet(path)
+    code, _, err = run_cli("report", str(path), capsys=capsys)
+    assert code == 2
+    assert "is a sensitivity result" in one_line(err) and "not written by" not in err, err
 
 
 def test_a_figure_without_data_says_what_the_data_lacks(tmp_path: Path, capsys) -> None:

@@ -17,6 +17,8 @@ _NOT_REPORTED = {
     "and sweep files; read it with RareEventResult.read_parquet",
     "flight": "one flight's trace (quadrs run --trace): report reads Monte Carlo, mission and "
     "sweep files; read it with quadrs.Flight.read_parquet",
+    "sensitivity": "a sensitivity result (quadrs sensitivity --out): report reads Monte Carlo, "
+    "mission and sweep files; read it with quadrs.SensitivityResult.read_parquet",
 }
 
 
@@ -41,11 +43,14 @@ def add_report(sub: Any) -> None:
 
 
 def _file_kind(path: Path) -> str | None:
-    """The ``kind`` a quadrs Parquet file's metadata names (None if it names none)."""
+    """The ``kind`` a quadrs Parquet file's metadata names (None if it names none); a
+    sensitivity result's, which keeps its metadata under a key of its own, is "sensitivity"."""
     from quadrs.io.parquet import read_meta
 
     meta = read_meta(path, b"quadrs")
     kind = meta.get("kind") if isinstance(meta, dict) else None
+    if kind is None and read_meta(path, b"quadrs_sensitivity") is not None:
+        return "sensitivity"
     return kind if isinstance(kind, str) else None
 
 
