@@ -162,6 +162,22 @@ def test_bad_input_names_the_key() -> None:
         optimize(s, params={KEY: (0.5, 1.5)}, phases=("G",), method="bfgs")
 
 
+def test_a_gain_of_a_law_not_flown_is_refused_before_flying() -> None:
+    """Tuning controller.pd.* while the SMC (the default) flies would search a flat objective
+    and write a 'tuned' file that changes nothing: refused, naming the key and the law."""
+    s = short(duration=2.0)
+    with pytest.raises(ValueError, match=r"controller\.pd\.kp\[0\] is a gain of the pd law.*smc"):
+        optimize(s, params={"controller.pd.kp[0]": (0.5, 1.5)}, phases=("G",))
+    with pytest.raises(ValueError, match=r"controller\.px4\.\S+ is a gain of the px4 law"):
+        optimize(s, "pd", params={"controller.pd.kp[0]": (0.5, 1.5),
+                                  "controller.px4.MC_PITCH_P": (4.0, 8.0)},
+                 phases=("G",))  # fmt: skip
+    # Keys every law reads (not under one law's name) are tuned with any of them.
+    from quadrs.design.optimize import check_tuning
+
+    check_tuning(s, "smc", {"controller.tilt_limit": (0.3, 0.6)}, "iae", ("G",))
+
+
 def test_tied_keys_share_one_value() -> None:
     tied = "controller.smc.lambda[0],controller.smc.lambda[1]"
     res = optimize(short(duration=2.0), "smc", {tied: (0.8, 1.6)}, "rms", ("G",), runs=2,

@@ -418,7 +418,8 @@ def test_a_ctrl_c_after_the_search_waits_for_the_tuned_files(
 
     monkeypatch.setattr(files, "atomic_write_frame", interrupted_while_saving)
     out, history = tmp_path / "tuned.toml", tmp_path / "history.csv"
-    code, _, err = run_cli("tune", *TINY_CLI, "--param", "controller.pd.kp[2]=1:2", "--runs",
+    code, _, err = run_cli("tune", *TINY_CLI, "--controller", "pd", "--param",
+                           "controller.pd.kp[2]=1:2", "--runs",
                            "2", "--maxiter", "1", "--popsize", "2", "--workers", "1",
                            "--out", str(out), "--history", str(history),
                            capsys=capsys)  # fmt: skip

@@ -361,15 +361,20 @@ def test_tune_accepts_law_keys_and_checks_phases_before_calibrating(capsys, monk
         raise KeyboardInterrupt
 
     monkeypatch.setattr(cost, "calibrate", stop)
-    common = ["tune", "--preset", "delivery", "--controller", "px4", "--runs", "2",
+    common = ["tune", "--preset", "delivery", "--runs", "2",
               "--out", "/tmp/never-written.toml"]  # fmt: skip
-    line = refused(capsys, *common, "--param", "controller.px4.MPC_XY_P=0.5:1.5",
-                   "--phase", "nophase")  # fmt: skip
+    line = refused(capsys, *common, "--controller", "px4", "--param",
+                   "controller.px4.MPC_XY_P=0.5:1.5", "--phase", "nophase")  # fmt: skip
     assert "nophase" in line and not calibrated
-    for key in ("controller.px4.MPC_XY_P=0.5:1.5", "controller.se3.kx[0]=2:6"):
-        code, _, err = cli(capsys, *common, "--param", key)
+    for law, key in (("px4", "controller.px4.MPC_XY_P=0.5:1.5"),
+                     ("se3", "controller.se3.kx[0]=2:6")):  # fmt: skip
+        code, _, err = cli(capsys, *common, "--controller", law, "--param", key)
         assert code == 130 and calibrated, err  # got as far as the calibration
         assert "unknown" not in err
+    # One law's gain while another flies changes nothing: refused before calibrating.
+    calibrated.clear()
+    line = refused(capsys, *common, "--controller", "px4", "--param", "controller.se3.kx[0]=2:6")
+    assert "gain of the se3 law" in line and not calibrated
 
 
 def test_a_route_longer_than_the_probe_is_flown(tmp_path: Path, capsys) -> None:

@@ -27,7 +27,7 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.design.constraints import Constraint, check_phases, constraints_from
-from quadrs.engine.calls import U64_MAX, check_controller, check_int
+from quadrs.engine.calls import CONTROLLERS, U64_MAX, check_controller, check_int
 from quadrs.runs.montecarlo import monte_carlo
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_error
@@ -188,6 +188,22 @@ def _canonical_params(
     return dict(zip(names, params.values(), strict=True))
 
 
+def _check_laws_read(params: Mapping[str, Sequence[float]], controllers: Sequence[str]) -> None:
+    """A key of one law's gains (``controller.<law>.*``) tuned while only other laws fly
+    changes nothing the objective sees: refused by name rather than searched in vain."""
+    for key in params:
+        for one in key.split(","):
+            parts = one.strip().split(".")
+            law = parts[1] if len(parts) > 2 and parts[0] == "controller" else None
+            if law in CONTROLLERS and law not in controllers:
+                flown = ", ".join(controllers)
+                raise ValueError(
+                    f"params: {one.strip()} is a gain of the {law} law, which this tuning does "
+                    f"not fly (controller: {flown}), so it would change nothing; tune "
+                    f"controller.{controllers[0]}.* keys, or fly {law}"
+                )
+
+
 def _check_params(scenario: Scenario, params: Mapping[str, Sequence[float]]) -> None:
     if not params:
         raise ValueError("params must name at least one scenario key with (low, high) bounds")
@@ -234,6 +250,7 @@ def check_tuning(
         check_controller(c)
     params = _canonical_params(scenario, dict(params or {}))
     _check_params(scenario, params)
+    _check_laws_read(params, controllers)
     phases = (phases,) if isinstance(phases, str) else tuple(phases)
     if isinstance(objective, str):
         if objective not in _core.METRIC_NAMES:
