@@ -162,6 +162,24 @@ def test_rust_panic_becomes_an_exception(in_pool: bool) -> None:
     ).metrics["iae"].notna().all()  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("key", "value", "says"),
+    [
+        ("payload.release", "sometimes", 'must be "touchdown" or a time in s'),
+        ("actuator.layout", "h", "expected `x` or `plus`"),
+        ("vehicle.body", "quaternion", "expected `paper` or `rigid`"),
+    ],
+)
+def test_a_word_a_key_does_not_take_is_named_once(key: str, value: str, says: str) -> None:
+    """The message names the key once ("payload.release: payload.release must be ..." did
+    twice) and says what the key takes."""
+    with pytest.raises(ScenarioError) as caught:
+        Scenario.preset("delivery").override({key: value})
+    message = str(caught.value)
+    assert message.startswith(f"{key}: ") and message.count(key) == 1, message
+    assert says in message and repr(value).strip("'") in message
+
+
 def test_nan_cannot_enter_a_scenario(paper: Scenario) -> None:
     for key in ("vehicle.mass", "gust.w20", "integrator.dt"):
         with pytest.raises(ScenarioError, match=key.replace(".", r"\.")):

@@ -97,7 +97,7 @@ impl<'de> serde::Deserialize<'de> for Release {
                     Ok(Release::Touchdown)
                 } else {
                     Err(E::custom(format_args!(
-                        "payload.release must be \"{TOUCHDOWN}\" or a time in s, got {v:?}"
+                        "must be \"{TOUCHDOWN}\" or a time in s, got {v:?}"
                     )))
                 }
             }
