@@ -408,6 +408,13 @@ def test_report_on_a_mission_file_prints_the_mission(
     assert code == 0
     assert "Route: flown in all 12 flights" in text and "Swing (deg) and tension (N)" in text
     assert "Table 3" not in text and "IAE" not in text
+    # Its figures are the mission's (they were a batch's: distributions and max_accel only).
+    figs = tmp_path / "figs"
+    code, _, _ = cli(capsys, "report", str(out), "--plots", str(figs))
+    assert code == 0
+    names = {p.stem for p in figs.glob("*.png")}
+    assert {"exceedance_max_specific_force", "exceedance_max_swing"} <= names
+    assert {n for n in names if n.startswith("mission_risk")} and "distributions" not in names
 
 
 # -- 6. exceedance figures: the whole flight's panel, curves to the worst value ----------------

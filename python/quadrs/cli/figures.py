@@ -1,5 +1,6 @@
-"""The figures ``mc``, ``sweep`` and ``report`` write with ``--plots``: a batch's distributions,
-spectra, exceedance curves and dispersion scatter, and a sweep's metrics against its keys;
+"""The figures ``mc``, ``mission``, ``sweep`` and ``report`` write with ``--plots``: a batch's
+distributions, spectra, exceedance curves and dispersion scatter, a mission's risk per phase,
+and a sweep's metrics against its keys;
 and how every command writes its figures (``write_figures``): one figure that cannot be drawn
 is named on stderr and costs none of the others."""
 
@@ -13,7 +14,7 @@ from typing import Any
 from quadrs.cli.common import one_line
 from quadrs.present.terminal import terminal_text
 
-__all__ = ["mc_plots", "sweep_plots", "write_figures"]
+__all__ = ["mc_plots", "mission_plots", "sweep_plots", "write_figures"]
 
 
 def mc_plots(mc: Any, directory: Path, limits: Sequence[tuple[str, float]] = ()) -> None:
@@ -63,3 +64,31 @@ def sweep_plots(result: Any, directory: Path) -> None:
         ],
         directory,
     )
+
+
+def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
+    from quadrs import plots
+
+    return lambda: plots.exceedance_curves(runs, metric, marks)
+
+
+def mission_plots(mc: Any, reports: Sequence[Any], directory: Path) -> None:
+    """A mission's figures into ``directory``: per-phase risk with intervals (one figure per
+    law's report, ``MissionReport``), and the exceedance curves of the payload's peaks (every
+    law on each)."""
+    from quadrs.plots.mission import mission_risk
+
+    def risk(r: Any) -> Callable[[], Any]:
+        return lambda: mission_risk(r)
+
+    one = len(reports) == 1
+    figures: list[tuple[str, Callable[[], Any]]] = [
+        ("mission_risk" if one else f"mission_risk_{r.controller}", risk(r)) for r in reports
+    ]
+    report = reports[0]
+    shown = [(m, [report.limit] if m == report.metric else []) for m in
+             dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
+    for metric, marks in shown:
+        if metric in mc.runs:
+            figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
+    write_figures(figures, directory)

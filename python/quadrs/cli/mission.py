@@ -274,7 +274,9 @@ def cmd_mission(args: argparse.Namespace) -> int:
         print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
     print(text)
     if args.plots is not None:
-        _plots(mc, reports, args.plots)
+        from quadrs.cli.figures import mission_plots
+
+        mission_plots(mc, reports, args.plots)
     return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
 
 
@@ -302,31 +304,3 @@ def _say_clashes(scenario: Any, controllers: tuple[str, ...]) -> None:
         for clash in route_clashes(scenario, law):
             print(terminal_text(f"quadrs mission: {law}: {clash} (the reference will be flown "
                                 "slower, off its schedule)"), file=sys.stderr)  # fmt: skip
-
-
-def _curves(runs: Any, metric: str, marks: list[float]) -> Callable[[], Any]:
-    from quadrs import plots
-
-    return lambda: plots.exceedance_curves(runs, metric, marks)
-
-
-def _plots(mc: Any, reports: list[Any], directory: Path) -> None:
-    """Per-phase risk with intervals (one figure per law), and the exceedance curves of the
-    payload's peaks (every law on each)."""
-    from quadrs.cli.figures import write_figures
-    from quadrs.plots.mission import mission_risk
-
-    def risk(r: Any) -> Callable[[], Any]:
-        return lambda: mission_risk(r)
-
-    one = len(reports) == 1
-    figures: list[tuple[str, Callable[[], Any]]] = [
-        ("mission_risk" if one else f"mission_risk_{r.controller}", risk(r)) for r in reports
-    ]
-    report = reports[0]
-    shown = [(m, [report.limit] if m == report.metric else []) for m in
-             dict.fromkeys([report.metric, "max_accel", "max_swing", "max_tension"])]  # fmt: skip
-    for metric, marks in shown:
-        if metric in mc.runs:
-            figures.append((f"exceedance_{metric}", _curves(mc.runs, metric, marks)))
-    write_figures(figures, directory)

@@ -56,7 +56,7 @@ def _file_kind(path: Path) -> str | None:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """Reprint a saved batch's (or sweep's) summary; figures from it."""
-    from quadrs.cli.figures import mc_plots, sweep_plots
+    from quadrs.cli.figures import mc_plots, mission_plots, sweep_plots
     from quadrs.cli.tables import (
         is_mission,
         print_frame,
@@ -89,11 +89,12 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
         if mc.runs.empty:  # a run stopped before its first realisation finished
             return EXIT_OK
-        if is_mission(mc):
-            print_mission(mc, args)
-        else:
+        reports = print_mission(mc, args) if is_mission(mc) else None
+        if reports is None:
             print_table3(mc, args)
         print_limits(mc, args)
-        if args.plots is not None:
+        if args.plots is not None and reports:  # the mission's own figures
+            mission_plots(mc, reports, args.plots)
+        elif args.plots is not None:
             mc_plots(mc, args.plots, args.limit)
     return EXIT_OK

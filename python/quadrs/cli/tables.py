@@ -95,10 +95,10 @@ def is_mission(mc: Any) -> bool:
     return str(mc.scenario["trajectory.interpolation"]) == "route"
 
 
-def print_mission(mc: Any, args: argparse.Namespace) -> None:
+def print_mission(mc: Any, args: argparse.Namespace) -> list[Any]:
     """The mission's tables of each controller, at the first --limit; without one, the question
     the mission was asked when it was saved (``MonteCarloResult.question``), else the
-    mission's default (max_specific_force at 2 g)."""
+    mission's default (max_specific_force at 2 g). Returns the reports printed."""
     from quadrs.cli.mission import DEFAULT_LIMIT, DEFAULT_METRIC
     from quadrs.design.mission import mission_report
 
@@ -112,8 +112,10 @@ def print_mission(mc: Any, args: argparse.Namespace) -> None:
     if asked and not args.limit:
         print(f"(the question this mission was saved with: P({metric} > "
               f"{shown_limit(metric, limit)}))")  # fmt: skip
-    for ctrl in mc.controllers:
-        print(mission_report(mc, limit, ctrl, metric=metric, **extra).to_text(width=report_width()))
+    reports = [mission_report(mc, limit, ctrl, metric=metric, **extra) for ctrl in mc.controllers]
+    for report in reports:
+        print(report.to_text(width=report_width()))
+    return reports
 
 
 def shown_limit(metric: str, limit: float) -> str:
