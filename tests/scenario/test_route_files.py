@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -108,6 +109,21 @@ def test_the_scenario_flies_exactly_the_route(tmp_path: Path) -> None:
     assert s["gust.end"] == s["integrator.duration"]  # the preset's wind blows throughout
     with pytest.raises(ValueError, match="must cover the route"):
         s.override({"integrator.duration": s["integrator.duration"] - 2 * dt})
+
+
+def test_a_route_longer_than_the_flight_says_how_long_to_fly() -> None:
+    """The delivery route flown slower than its preset needs a longer flight: the message
+    gives a duration that does cover it (rounded up to 0.1 s), not only the shortfall."""
+    slow = {"trajectory.speed": 6.0}
+    with pytest.raises(ValueError, match="must cover the route") as caught:
+        quadrs.Scenario.preset("delivery").override(slow)
+    found = re.search(r"set it to at least ([0-9.]+) s", str(caught.value))
+    assert found, str(caught.value)
+    enough = float(found.group(1))
+    s = quadrs.Scenario.preset("delivery").override({**slow, "integrator.duration": enough})
+    assert s["integrator.duration"] == enough
+    with pytest.raises(ValueError, match="must cover the route"):
+        quadrs.Scenario.preset("delivery").override({**slow, "integrator.duration": enough - 0.1})
 
 
 def test_return_to_launch_comes_home(tmp_path: Path) -> None:

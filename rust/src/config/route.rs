@@ -256,8 +256,10 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
         return Err(ConfigError::new(
             "integrator.duration",
             format!(
-                "integrator.duration must cover the route's legs and holds ({t:?} s at \
-                 trajectory.speed = {speed:?}, trajectory.acceleration = {accel:?}), got {duration:?}"
+                "integrator.duration must cover the route's legs and holds ({t:.3} s at \
+                 trajectory.speed = {speed:?}, trajectory.acceleration = {accel:?}), got \
+                 {duration:?}: set it to at least {need} s",
+                need = (t * 10.0).ceil() / 10.0
             ),
         ));
     }
