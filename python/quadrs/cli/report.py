@@ -89,11 +89,12 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(f"{args.file}: {len(mc.realisations)} realisations, seed {mc.seed}{note}")
         if mc.runs.empty:  # a run stopped before its first realisation finished
             return EXIT_OK
-        reports = print_mission(mc, args) if is_mission(mc) else None
-        if reports is None:
+        mission = is_mission(mc)
+        reports = print_mission(mc, args) if mission else []
+        if not mission:
             print_table3(mc, args)
         print_limits(mc, args)
-        if args.plots is not None and reports:  # the mission's own figures
+        if args.plots is not None and mission:  # the mission's own figures
             mission_plots(mc, reports, args.plots)
         elif args.plots is not None:
             mc_plots(mc, args.plots, args.limit)

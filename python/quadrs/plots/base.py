@@ -193,11 +193,11 @@ def shade_gust(ax: Axes, flight: Flight) -> None:
         ax.axvspan(*window, color="0.9", zorder=0, label="gust window")
 
 
-#: What a log-log panel without a point to show says instead (and what a figure of such panels
-#: raises): a log scale shows no zero or negative value.
-NO_LOG_DATA = (
-    "nothing to draw on log axes: no positive, finite value (no flight finished without "
-    "diverging, or every value is zero)"
+#: What a log-log panel without a point to show says instead, and why (a figure of such panels
+#: raises with both): a log scale shows no zero or negative value.
+NO_LOG_DATA = "nothing to draw on log axes"
+NO_LOG_DATA_WHY = (
+    "no positive, finite value (no flight finished without diverging, or every value is zero)"
 )
 
 
@@ -214,7 +214,7 @@ def loglog_axes(a: Axes, fmax: float) -> bool:
     if not drawable:
         for line in list(a.get_lines()):
             line.remove()
-        a.text(0.5, 0.5, NO_LOG_DATA.replace(": ", ":\n", 1), transform=a.transAxes,
+        a.text(0.5, 0.5, f"{NO_LOG_DATA}:\n{NO_LOG_DATA_WHY}", transform=a.transAxes,
                ha="center", va="center", color="0.4", fontsize="small")  # fmt: skip
         a.set_yticks([])  # no scale to read
         return False
@@ -229,7 +229,7 @@ def require_drawn(drawn: Sequence[bool], what: str) -> None:
     """A ValueError saying what the data lacks if no panel of the figure ``what`` could be
     drawn on log axes (:func:`loglog_axes`): a figure of empty panels is not written."""
     if not any(drawn):
-        raise ValueError(NO_LOG_DATA.replace(": ", f" ({what}): ", 1))
+        raise ValueError(f"{NO_LOG_DATA} ({what}): {NO_LOG_DATA_WHY}")
 
 
 def all_phases(df: pd.DataFrame) -> list[str]:
