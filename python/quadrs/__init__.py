@@ -20,7 +20,7 @@ if TYPE_CHECKING:  # what mypy and editors see: the same names, imported eagerly
     from quadrs.design.constraints import Constraint
     from quadrs.design.optimize import InfeasibleWarning, OptimizeResult, optimize
     from quadrs.design.sensitivity import SensitivityResult, sensitivity
-    from quadrs.hover.linear import LinearModel, linearize
+    from quadrs.hover.linear import LinearModel, SampledLawNote, linearize
     from quadrs.hover.stability import (
         StabilityNote,
         StabilityReport,
@@ -46,6 +46,7 @@ _WHERE = {
     "sensitivity": "quadrs.design.sensitivity",
     "LinearModel": "quadrs.hover.linear",
     "linearize": "quadrs.hover.linear",
+    "SampledLawNote": "quadrs.hover.linear",
     "StabilityNote": "quadrs.hover.stability",
     "StabilityReport": "quadrs.hover.stability",
     "StabilityWarning": "quadrs.hover.stability",
@@ -83,6 +84,7 @@ __all__ = [
     "PlausibilityWarning",
     "RareEventComparison",
     "RareEventResult",
+    "SampledLawNote",
     "Scenario",
     "ScenarioError",
     "SensitivityResult",

@@ -26,6 +26,11 @@ STATE_NAMES: list[str]
 EXIT_STATUSES: list[str]
 EXIT_MESSAGES: list[str]
 CONTROLLER_NAMES: list[str]
+#: Hz, each law's own loop rates (position, attitude, inner; 0: every step) where the
+#: scenario sets none.
+CONTROLLER_RATES: dict[str, list[float]]
+#: Each law's name as a person reads it ("PD", "SE(3)"), in the order of CONTROLLER_NAMES.
+CONTROLLER_LABELS: list[str]
 #: The payload and actuator models a scenario may name (`payload.model`, `actuator.model`).
 PAYLOAD_MODELS: list[str]
 ACTUATOR_MODELS: list[str]
@@ -70,6 +75,7 @@ class StabilityResult(TypedDict):
     residual: float
     jacobian: _Floats
     tolerance: float
+    period: float | None
 
 class LinearizeResult(TypedDict):
     """:func:`linearize`: the closed loop at hover as a state-space model."""

@@ -22,8 +22,11 @@
 //! decomposed on its own: the eigenvalues of identical x and y loops then never mix their
 //! eigenvectors, and each pole keeps an unambiguous mode label.
 
-use crate::control::{AnyController, Control, Controller, ControllerKind, ControllerVisitor};
-use crate::lane::{dual::Dual, Lane};
+use crate::control::{
+    AnyController, Control, Controller, ControllerKind, ControllerVisitor, Due, Sight,
+};
+use crate::integrate::rk4_step;
+use crate::lane::{dual::Dual, Lane, Masks};
 use crate::model::{
     dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, PayloadModel,
     State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
@@ -109,6 +112,9 @@ pub struct Analysis {
     pub verdict: Verdict,
     /// Why lateral modes are excited; empty if x and y stay exactly zero in this scenario.
     pub lateral_sources: Vec<&'static str>,
+    /// s, where the law's loops run at rates: the period of the discrete-time model the poles
+    /// are of (`ClosedLoop::sampled`); None: the continuous model's.
+    pub period: Option<f64>,
 }
 
 /// Inputs of the linear model: the wind components (m/s, inertial, z up).
@@ -136,6 +142,15 @@ pub trait ClosedLoop {
     fn eval_dual(&self, s: &[Dual], w: &[Dual; 3]) -> (Vec<Dual>, Vec<Dual>);
     /// At rest at the reference position (zero angles), payload and actuators at hover.
     fn rest(&self) -> Vec<f64>;
+    /// Where the law's loops run at rates (MODEL.md section 18): the period of the slowest
+    /// schedule (steps, every loop updating at its first) and the step, s. None where every
+    /// loop runs every step (the continuous model is the law's).
+    fn sampled(&self) -> Option<(usize, f64)>;
+    /// The sampled closed loop flown for one such period from `s` in still air, the law's
+    /// memory at rest at `s` (as the continuous model's law is), every loop updating on its
+    /// schedule and holding between, the plant integrated as the flight loop integrates it:
+    /// the state it ends in.
+    fn fly_period(&self, s: &[f64]) -> Vec<f64>;
 }
 
 /// The closed loop of one vehicle and law. The states are the vehicle's less the body's
@@ -147,6 +162,9 @@ struct Loop<B: BodyKind, Pay: Payload, Act: Actuator, C, const N: usize> {
     dual: Vehicle<Dual, Pay::At<Dual>, Act::At<Dual>, B>,
     ctrl: C,
     r: Reference,
+    /// Steps between the updates of the position, attitude and inner loops, and the step (s).
+    steps: [usize; 3],
+    dt: f64,
 }
 
 impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<B, Pay, Act, C, N> {
@@ -173,7 +191,7 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<
         v
     }
 
-    fn signals<L: Lane>(
+    fn signals<L: Masks>(
         v: &Vehicle<L, Pay::At<L>, Act::At<L>, B>,
         ctrl: &C,
         r: &Reference,
@@ -187,13 +205,17 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<
         // Hover is time-invariant: the law and the actuators are asked at the flight's start.
         let frame = B::frame(&s);
         let view = Vehicle::<L, Pay::At<L>, Act::At<L>, B>::rigid_at(&s, &frame);
-        // A law that sees the payload sees it here too (`Control::SEES_PAYLOAD`).
-        let u = if C::SEES_PAYLOAD {
-            let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
-            ctrl.control_seeing(&view, &trig, &v.payload.view(&s, &frame), r, Tick::START)
-        } else {
-            ctrl.control(&view, r, Tick::START)
+        // A law that sees the payload sees it here too (`Control::SEES_PAYLOAD`); the law at
+        // rest, every loop updating: the linear model is the continuous law's (a sampled law's
+        // holds are the discrete model's business: `sampled`).
+        let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
+        let payload = C::SEES_PAYLOAD.then(|| v.payload.view(&s, &frame));
+        let seen = Sight {
+            rigid: &view,
+            trig: &trig,
+            payload: payload.as_ref(),
         };
+        let u = ctrl.at_rest(&seen, r, Tick::START);
         let cmd = v.actuator.command(&u, Tick::START);
         let f = v.derivative(&s, &frame, &cmd, w);
         let out = v.payload_outputs(&s, &frame, u.u1, w);
@@ -219,6 +241,58 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Close
         let s: State<f64, N> = self.plain.rest_state(self.r.pos, [0.0; 3]);
         Self::reduce(&s)
     }
+    fn sampled(&self) -> Option<(usize, f64)> {
+        let period = self.steps.iter().fold(1, |p, &n| lcm(p, n));
+        (period > 1).then_some((period, self.dt))
+    }
+    fn fly_period(&self, s: &[f64]) -> Vec<f64> {
+        let v = &self.plain;
+        let mut s = Self::full(s);
+        let (period, _) = self.sampled().unwrap_or((1, self.dt));
+        let mut mem = None;
+        let mut cmd = None;
+        for step in 0..period {
+            let frame = B::frame(&s);
+            let view = Vehicle::<f64, Pay::At<f64>, Act::At<f64>, B>::rigid_at(&s, &frame);
+            let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
+            let payload = C::SEES_PAYLOAD.then(|| v.payload.view(&s, &frame));
+            let seen = Sight {
+                rigid: &view,
+                trig: &trig,
+                payload: payload.as_ref(),
+            };
+            let due = Due {
+                position: step % self.steps[0] == 0,
+                attitude: step % self.steps[1] == 0,
+                rate: step % self.steps[2] == 0,
+            };
+            let m = mem.get_or_insert_with(|| self.ctrl.memory(&seen));
+            let tick = Tick {
+                step,
+                t: step as f64 * self.dt,
+            };
+            let u = self.ctrl.step(&seen, &self.r, tick, due, m);
+            let c = match cmd {
+                Some(c) if !due.rate => c,
+                _ => v.actuator.command(&u, tick),
+            };
+            cmd = Some(c);
+            s = rk4_step(v, &s, &frame, &c, &[0.0; 3], self.dt);
+        }
+        Self::reduce(&s)
+    }
+}
+
+/// The least common multiple of two step counts.
+fn lcm(a: usize, b: usize) -> usize {
+    fn gcd(a: usize, b: usize) -> usize {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+    a / gcd(a, b) * b
 }
 
 /// The closed loop of `kind` for the scenario `cfg`, about the reference `r`.
@@ -256,6 +330,11 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
                             .get::<C>()
                             .clone(),
                         r: self.r,
+                        steps: self
+                            .cfg
+                            .controller
+                            .loop_steps(self.kind, self.cfg.integrator.dt),
+                        dt: self.cfg.integrator.dt,
                     })
                 }
             }
@@ -299,18 +378,31 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
     } = linearise_loop(&*cl, [0.0; 3]);
     let sources = lateral_sources(cfg);
     let vars = cl.vars();
+    // A sampled law: the poles of the discrete-time model over one period T of its schedule
+    // (the monodromy matrix's eigenvalues z, as s = ln(z) / T); else the continuous model's.
+    let sampled = cl.sampled();
+    let (matrix, period) = match sampled {
+        Some((steps, dt)) => (period_map(&*cl, &equilibrium), Some(steps as f64 * dt)),
+        None => (jacobian.clone(), None),
+    };
     let mut poles = Vec::with_capacity(vars.len());
-    for block in blocks(&jacobian) {
+    for block in blocks(&matrix) {
         let has_actuator = block.iter().any(|&i| vars[i].part == Part::Actuator);
-        for (lambda, v) in eigen(&jacobian, &block) {
+        for (lambda, v) in eigen(&matrix, &block) {
             let actuator = if has_actuator {
-                actuator_participation(vars, &jacobian, &block, lambda, &v)
+                actuator_participation(vars, &matrix, &block, lambda, &v)
             } else {
                 0.0
             };
+            let pole = match period {
+                // A multiplier of zero (a state the period's holds wipe out) is no mode.
+                Some(_) if lambda.norm() < 1e-12 => continue,
+                Some(t) => lambda.ln() / t,
+                None => lambda,
+            };
             poles.push(describe(
                 vars,
-                lambda,
+                pole,
                 &block,
                 &v,
                 actuator,
@@ -329,7 +421,27 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
         poles,
         verdict,
         lateral_sources: sources,
+        period,
     }
+}
+
+/// The sampled closed loop's map over one period (`ClosedLoop::fly_period`) linearised at `s`
+/// by central differences (the flight loop's own steps on plain numbers: the holds and the
+/// schedule have no derivative to carry).
+fn period_map(cl: &dyn ClosedLoop, s: &[f64]) -> Jacobian {
+    let n = s.len();
+    let mut phi = Jacobian::zeros(n, n);
+    for j in 0..n {
+        let h = 1e-6 * s[j].abs().max(1.0);
+        let (mut up, mut down) = (s.to_vec(), s.to_vec());
+        up[j] += h;
+        down[j] -= h;
+        let (fu, fd) = (cl.fly_period(&up), cl.fly_period(&down));
+        for i in 0..n {
+            phi[(i, j)] = (fu[i] - fd[i]) / (2.0 * h);
+        }
+    }
+    phi
 }
 
 /// The closed loop linearised at hover in a steady wind: deviations from the equilibrium obey

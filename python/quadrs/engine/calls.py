@@ -88,6 +88,25 @@ def check_controller(name: str) -> str:
     return name
 
 
+RATE_KEYS = ("controller.position_rate", "controller.attitude_rate", "controller.inner_rate")
+
+
+def loop_rates(scenario: Any, controller: str) -> tuple[float, float, float]:
+    """Hz, the position, attitude and inner loops' rates ``controller`` flies in
+    ``scenario`` (0: every step): the ``controller.*_rate`` keys where set, else the law's own
+    (``_core.CONTROLLER_RATES``; PX4's 50, 250 and 1000 Hz for ``px4``)."""
+    own = _core.CONTROLLER_RATES[controller]
+    got = [scenario.get(key) for key in RATE_KEYS]
+    a, b, c = (float(own[i] if got[i] is None else got[i]) for i in range(3))
+    return a, b, c
+
+
+def is_sampled(scenario: Any, controller: str) -> bool:
+    """Whether some loop of ``controller`` runs slower than every step (MODEL.md section 18)."""
+    dt = float(scenario["integrator.dt"])
+    return any(r > 0.0 and 1.0 / r > dt * (1.0 + 1e-9) for r in loop_rates(scenario, controller))
+
+
 def check_int(name: str, value: Any, low: int = 0, high: int = U64_MAX) -> int:
     """``value`` as an int in [low, high], else ValueError naming ``name`` and the value."""
     if isinstance(value, bool) or not isinstance(value, int):

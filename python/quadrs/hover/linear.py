@@ -17,6 +17,7 @@ wind whose slope equals the statistical-linearisation gain of a zero-mean Gaussi
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,8 +26,13 @@ import numpy as np
 import numpy.typing as npt
 
 from quadrs import _core
-from quadrs.engine.calls import check_controller
+from quadrs.engine.calls import check_controller, is_sampled, loop_rates
 from quadrs.scenario.scenario import Scenario
+
+
+class SampledLawNote(UserWarning):
+    """The linear model of a law whose loops run at rates is the continuous law's."""
+
 
 #: Every input :func:`linearize` accepts (m/s, inertial, z up).
 INPUT_NAMES: tuple[str, ...] = ("wind_x", "wind_y", "wind_z")
@@ -138,8 +144,21 @@ def linearize(
     unit quaternion fixes (``LinearModel.state_names``); all of them are kept. ``wind`` (m/s,
     [x, y, z]) is the steady wind linearised about: in still air B = 0 (quadratic drag has no
     slope there), see :func:`equivalent_wind`.
+
+    The model is the continuous law's: where the law's loops run at rates
+    (``controller.*_rate``) it leaves their sampling and holds out (a
+    :class:`~quadrs.SampledLawNote` says so); :func:`quadrs.stability` models them.
     """
     check_controller(controller)
+    if is_sampled(scenario, controller):
+        rates = ", ".join(f"{r:g}" for r in loop_rates(scenario, controller))
+        warnings.warn(
+            f"{controller}: the linear model is the continuous law's; its loops run at "
+            f"{rates} Hz (position, attitude, inner), whose sampling and holds it leaves out "
+            "(quadrs.stability models them)",
+            SampledLawNote,
+            stacklevel=2,
+        )
     w = tuple(float(x) for x in wind)
     if len(w) != 3:
         raise ValueError(f"wind must have 3 components (x, y, z), got {wind!r}")

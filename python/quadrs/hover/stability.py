@@ -129,7 +129,9 @@ class StabilityReport:
     zero). ``jacobian``: the closed-loop matrix (one row and column per state of the
     scenario's layout), states in ``quadrs._core.STATE_NAMES`` order for the paper's 14.
     ``residual``: |ds/dt| at the linearisation point (0 unless the closed loop has no hover
-    equilibrium).
+    equilibrium). ``period`` (s): where the law's loops run at rates (``controller.*_rate``),
+    the poles are the discrete-time model's over one period of its schedule (each multiplier
+    z as s = ln(z) / period), the holds and the sampling in them; None: the continuous law's.
     """
 
     controller: str
@@ -140,6 +142,7 @@ class StabilityReport:
     tolerance: float
     jacobian: np.ndarray = field(repr=False)
     residual: float = field(default=0.0, repr=False)
+    period: float | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         """One line: the verdict and the least stable pole (``print`` gives the modes)."""
@@ -172,6 +175,8 @@ class StabilityReport:
         name = self.controller.upper()
         if self.residual > 1e-6:
             name += " (no hover equilibrium: linearised at the reference point)"
+        if self.period is not None:
+            name += f" (sampled: the discrete-time model over {self.period * 1e3:g} ms)"
         if self.stable:
             slow = self.poles.iloc[0]
             mode = f"{slow['mode']} {_pole(slow['real'], slow['imag'])}"
@@ -266,4 +271,5 @@ def stability(scenario: Scenario, controller: str = "smc") -> StabilityReport:
         tolerance=float(raw["tolerance"]),
         jacobian=np.asarray(raw["jacobian"]),
         residual=float(raw["residual"]),
+        period=None if raw["period"] is None else float(raw["period"]),
     )

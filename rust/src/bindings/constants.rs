@@ -49,6 +49,20 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
         }
     }
     m.add("CONTROLLER_DEFAULTS", defaults)?;
+    // Hz, each law's own loop rates (position, attitude, inner; 0: every step) where the
+    // scenario sets none (`Controller::RATES`).
+    let rates = PyDict::new(m.py());
+    for kind in ControllerKind::ALL {
+        rates.set_item(kind.name(), kind.rates().to_vec())?;
+    }
+    m.add("CONTROLLER_RATES", rates)?;
+    m.add(
+        "CONTROLLER_LABELS",
+        ControllerKind::ALL
+            .iter()
+            .map(|k| k.label())
+            .collect::<Vec<_>>(),
+    )?;
     m.add(
         "CONTROLLER_NAMES",
         ControllerKind::ALL

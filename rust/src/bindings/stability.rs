@@ -39,6 +39,8 @@ pub(super) fn stability<'py>(
     d.set_item("residual", a.residual)?;
     d.set_item("jacobian", jac.into_pyarray(py))?;
     d.set_item("tolerance", TOLERANCE)?;
+    // s: the period of the discrete-time model of a law at rates; None: continuous.
+    d.set_item("period", a.period)?;
     Ok(d)
 }
 

@@ -160,7 +160,16 @@ params! {
         air_density: f64 => "kg/m^3", "Air density", non_negative;
         /// m/s, inertial x, y, z, added to the gust inside the window.
         mean_wind: [f64; 3] => "m/s", "Mean wind in the gust window (x, y, z)", finite;
+        /// Hz, the rate the wind is evaluated at (MODEL.md section 18): the turbulence filters
+        /// discretised at its period, the wind linearly interpolated between its updates; 0
+        /// (the default): every step.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        rate: f64 => "Hz", "Wind update rate (0: every step)", non_negative;
     }
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// The turbulence's level, as W20 or as the standard's named level: exactly one of the two.

@@ -29,6 +29,15 @@ pub fn parse_key(key: &str) -> Option<Vec<Seg>> {
     Some(out)
 }
 
+/// The loops' rates (MODEL.md section 18): every lane of a set updates its law and its wind at
+/// the same steps, so no realisation of a batch may change them.
+pub const SCHEDULE_KEYS: [&str; 4] = [
+    "gust.rate",
+    "controller.position_rate",
+    "controller.attitude_rate",
+    "controller.inner_rate",
+];
+
 /// Key prefixes that cannot carry a per-realisation value: they change the step grid, the
 /// phases, the reference every lane shares or the spectrum grid, or they are the table itself.
 pub const FIXED_PREFIXES: [&str; 5] = [

@@ -117,10 +117,34 @@ impl Context<'_> {
         (self.integrator.duration / self.integrator.dt).round() as usize
     }
 
+    /// Integration steps per update of the wind (`gust.rate`; 1: every step). `validate` has
+    /// checked that the period is whole.
+    pub fn gust_every(&self) -> usize {
+        steps_per_update(self.gust.rate, self.integrator.dt).unwrap_or(1)
+    }
+
     /// Integration steps per spectrum sample (`metrics.spectrum_rate`).
     pub fn decimation(&self) -> usize {
         ((1.0 / (self.metrics.spectrum_rate * self.integrator.dt)).round() as usize).max(1)
     }
+}
+
+/// Steps between a loop's updates at `rate` Hz with the step `dt` (0 Hz: 1, every step), or
+/// why not: the period must be a whole number of steps.
+pub fn steps_per_update(rate: f64, dt: f64) -> Result<usize, String> {
+    if rate == 0.0 {
+        return Ok(1);
+    }
+    let n = 1.0 / (rate * dt);
+    let whole = n.round();
+    if whole < 1.0 || (n - whole).abs() > 1e-9 * n.max(1.0) {
+        return Err(format!(
+            "{rate:?} Hz ({:.6} s) is not a whole number of integrator.dt = {dt:?} s steps \
+             (0: every step)",
+            1.0 / rate
+        ));
+    }
+    Ok(whole as usize)
 }
 
 pub(crate) fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {

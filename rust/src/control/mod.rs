@@ -21,8 +21,8 @@ pub use smc::Smc;
 
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{params, Key, Params, Table};
-use crate::config::ConfigError;
-use crate::lane::{gather, Gathered, KernelOps, Lane, Param};
+use crate::config::{steps_per_update, ConfigError};
+use crate::lane::{gather, Gathered, KernelOps, Lane, Masks, Param};
 use crate::model::section::{part, KnownKey};
 use crate::model::{Inputs, ModelContext, PayloadView, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -45,30 +45,81 @@ impl<'a> std::ops::Deref for ControlContext<'a> {
     }
 }
 
-/// Slots of a law's discrete memory (`Control::step_with`): enough for every registered law.
-pub const MEMORY_SLOTS: usize = 22;
+/// What a law sees at a step: the rigid body (`Rigid`), the sines and cosines of its angles
+/// (`Trig`: the flight loop computes them once and shares them with the plant's first RK4
+/// stage) and the payload as the law may see it (`PayloadView`; `None` for a law that does not
+/// read it, whose view is then never computed).
+#[derive(Clone, Copy)]
+pub struct Sight<'a, L> {
+    pub rigid: &'a Rigid<L>,
+    pub trig: &'a Trig<L>,
+    pub payload: Option<&'a PayloadView<L>>,
+}
 
-/// A law's discrete memory between control steps (integrators, last measurements, filtered
-/// derivatives), one value per lane; unused by a static law.
-pub type Memory<L> = [L; MEMORY_SLOTS];
+impl<'a, L: Lane> Sight<'a, L> {
+    /// The rigid body alone (no payload in view).
+    #[inline(always)]
+    pub fn blind(rigid: &'a Rigid<L>, trig: &'a Trig<L>) -> Self {
+        Self {
+            rigid,
+            trig,
+            payload: None,
+        }
+    }
+}
 
-/// A control law: inputs for the state `s` and reference `r` at the step `at`, computed once
-/// per step. Its gains are of type `P`: `f64` (one vehicle) or a lane type (one vehicle per
-/// lane).
+/// Which of a law's loops update at a step (MODEL.md section 18): the position loop, the
+/// attitude loop and the body-rate loop with the mixer. A loop samples what it reads when it
+/// updates and holds its output until its next update; at `Due::ALL` every loop updates (a law
+/// without rates, the linearisation, the flight's first step).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Due {
+    pub position: bool,
+    pub attitude: bool,
+    pub rate: bool,
+}
+
+impl Due {
+    pub const ALL: Self = Self {
+        position: true,
+        attitude: true,
+        rate: true,
+    };
+}
+
+/// What a law keeps from one step to the next, one value per lane: the outputs its loops hold
+/// between their updates and its own discrete state (integrators, filtered derivatives). A
+/// law's `Memory` is a fixed array of named slots.
+pub trait Kept<L: Lane>: Copy {
+    /// Lane `lane` set to `from`'s (a retired lane parked on the memory it started with).
+    fn park(&mut self, lane: usize, from: &Self);
+}
+
+impl<L: Lane, const K: usize> Kept<L> for [L; K] {
+    #[inline(always)]
+    fn park(&mut self, lane: usize, from: &Self) {
+        for (m, m0) in self.iter_mut().zip(from.iter()) {
+            m.set_lane(lane, m0.lane(lane));
+        }
+    }
+}
+
+/// A control law: the inputs for what it sees (`Sight`) and the reference `r` at the step
+/// `at`, one `step` per control step. Its gains are of type `P`: `f64` (one vehicle) or a lane
+/// type (one vehicle per lane).
 ///
-/// A static law (PD, SMC) is `control_with` alone. A discrete law with its own state (PX4's
-/// integrators) also gives `memory` (its state at the flight's start) and `step_with` (one
-/// control step: the inputs held over the step, the memory advanced to the next); the flight
-/// loop calls `step_with` once per step, and its default is `control_with`, so a static law is
-/// untouched. `control_with` is then the law with its memory at rest at `s`: what the
-/// linearisation differentiates (docs/architecture.md, "A law with memory").
+/// `Memory` is what the law keeps between steps (`Kept`); `memory` its value for a vehicle that
+/// has been at the seen state for ever (no integral, no derivative, every held output about to
+/// be refreshed), `step` one control step: the loops that are `due` update from what they see
+/// and the held outputs of the loop above, the others hold, and the memory advances. The law
+/// at rest (`control`: `step` from `memory`, every loop due) is what the linearisation
+/// differentiates (docs/architecture.md, "A law with memory").
 ///
 /// A law sees the rigid body only, unless it sets `SEES_PAYLOAD`: then the flight loop and the
-/// linearisation also give it what it may see of the payload (`PayloadView`, from the payload
-/// model at the same state) through `control_seeing` and `step_seeing`, whose defaults ignore
-/// it. A law that does not set it costs nothing: the view is never computed.
+/// linearisation also give it what it may see of the payload (`Sight::payload`). A law that
+/// does not set it costs nothing: the view is never computed.
 pub trait Control<P = f64>: Sync {
-    /// The law reads the payload's view (`control_seeing`, `step_seeing`).
+    /// The law reads the payload's view (`Sight::payload`).
     const SEES_PAYLOAD: bool = false;
 
     /// Whether this law, as built, reads the view: `SEES_PAYLOAD` by default; a law whose
@@ -78,86 +129,46 @@ pub trait Control<P = f64>: Sync {
         Self::SEES_PAYLOAD
     }
 
-    /// `control` with the sines and cosines of `s`'s angles (`Trig::of(s)`) at hand: the
-    /// flight loop computes them once and shares them with the plant's first RK4 stage.
-    fn control_with<L: Lane>(
+    /// What the law keeps between steps.
+    type Memory<L: Lane>: Kept<L>;
+
+    /// The memory of a vehicle that has been where `seen` shows it for ever.
+    fn memory<L: Masks>(&self, seen: &Sight<L>) -> Self::Memory<L>
+    where
+        P: Param<L>;
+
+    /// One control step: the inputs held over step `at`, the loops that are `due` updated and
+    /// `mem` advanced to the next step.
+    fn step<L: Masks>(
         &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
+        seen: &Sight<L>,
         r: &Reference,
         at: Tick,
+        due: Due,
+        mem: &mut Self::Memory<L>,
     ) -> Inputs<L>
     where
         P: Param<L>;
 
+    /// The law at rest at `seen`: `step` from `memory`, every loop due.
     #[inline(always)]
-    fn control<L: Lane>(&self, s: &Rigid<L>, r: &Reference, at: Tick) -> Inputs<L>
+    fn at_rest<L: Masks>(&self, seen: &Sight<L>, r: &Reference, at: Tick) -> Inputs<L>
     where
         P: Param<L>,
     {
-        self.control_with(s, &Trig::of_angles(s.att[0], s.att[1], s.att[2]), r, at)
+        let mut mem = self.memory(seen);
+        self.step(seen, r, at, Due::ALL, &mut mem)
     }
 
-    /// The memory at the flight's start, at the state `s` (a static law: none).
+    /// The law at rest for the rigid state `s` alone (its angles' sines and cosines worked
+    /// out here, no payload in view).
     #[inline(always)]
-    fn memory<L: Lane>(&self, _s: &Rigid<L>) -> Memory<L>
+    fn control<L: Masks>(&self, s: &Rigid<L>, r: &Reference, at: Tick) -> Inputs<L>
     where
         P: Param<L>,
     {
-        [L::splat(0.0); MEMORY_SLOTS]
-    }
-
-    /// One control step of the flight loop: the inputs held over step `at`, with `mem`
-    /// advanced to the next step (a static law: `control_with`, `mem` untouched).
-    #[inline(always)]
-    fn step_with<L: KernelOps>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        r: &Reference,
-        at: Tick,
-        _mem: &mut Memory<L>,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.control_with(s, trig, r, at)
-    }
-
-    /// `control_with` for a law that also sees the payload (`seen`: `PayloadView`); by
-    /// default it ignores it.
-    #[inline(always)]
-    fn control_seeing<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        _seen: &PayloadView<L>,
-        r: &Reference,
-        at: Tick,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.control_with(s, trig, r, at)
-    }
-
-    /// `step_with` for a law that also sees the payload (`seen`); by default it ignores it.
-    /// The flight loop calls this one, with the view computed only if `SEES_PAYLOAD` and
-    /// `reads_payload()`.
-    #[inline(always)]
-    fn step_seeing<L: KernelOps>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        _seen: &PayloadView<L>,
-        r: &Reference,
-        at: Tick,
-        mem: &mut Memory<L>,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.step_with(s, trig, r, at, mem)
+        let trig = Trig::of_angles(s.att[0], s.att[1], s.att[2]);
+        self.at_rest(&Sight::blind(s, &trig), r, at)
     }
 }
 
@@ -170,6 +181,13 @@ pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static
     type Params: Params + Clone + std::fmt::Debug + Serialize + DeserializeOwned;
     /// The law with gains of lane type `L`, one vehicle per lane.
     type At<L: Lane>: Control<L>;
+
+    /// The law's name as a person reads it (tables, legends): "PD", "SE(3)".
+    const LABEL: &'static str;
+
+    /// Hz, the rates of the law's position, attitude and inner loops where the scenario sets
+    /// none (`[controller]` `position_rate`, `attitude_rate`, `inner_rate`); 0: every step.
+    const RATES: [f64; 3] = [0.0; 3];
 
     /// The parameters a scenario that gives no table for this kind flies (None: it must give
     /// one).
@@ -213,6 +231,20 @@ macro_rules! controllers {
             pub fn name(self) -> &'static str {
                 match self {
                     $(Self::$Ty => stringify!($name)),+
+                }
+            }
+
+            /// The kind's label (`Controller::LABEL`).
+            pub fn label(self) -> &'static str {
+                match self {
+                    $(Self::$Ty => <$Ty as Controller>::LABEL),+
+                }
+            }
+
+            /// Hz, the kind's own loop rates (`Controller::RATES`).
+            pub fn rates(self) -> [f64; 3] {
+                match self {
+                    $(Self::$Ty => <$Ty as Controller>::RATES),+
                 }
             }
 
@@ -377,6 +409,52 @@ macro_rules! controllers {
             }
         }
 
+        /// The law a lane-set flies, its kind chosen at run time: a `match` per step, whose
+        /// branch every step of a flight takes alike (every lane of a set flies the same law),
+        /// each arm its law inlined. So the flight loop is compiled once per lane type and
+        /// vehicle, not once per law as well.
+        #[allow(clippy::large_enum_variant)]
+        pub enum Flying<L: KernelOps> {
+            $($Ty(InFlight<<$Ty as Controller>::At<L>, L>)),+
+        }
+
+        impl<L: KernelOps> Flying<L> {
+            /// Law `kind` of each lane's realisation (`each[l]`), gathered one vehicle per lane,
+            /// its memory at rest at `seen`.
+            pub fn new(kind: ControllerKind, each: &[&Laws], seen: &Sight<L>) -> Self {
+                match kind {
+                    $(ControllerKind::$Ty => {
+                        let laws: Vec<&$Ty> = each.iter().map(|l| l.get(kind).get::<$Ty>()).collect();
+                        Self::$Ty(InFlight::new(<$Ty as Controller>::gather::<L>(&laws), seen))
+                    })+
+                }
+            }
+
+            /// Whether the law reads the payload's view (`Control::reads_payload`).
+            #[inline(always)]
+            pub fn reads_payload(&self) -> bool {
+                match self {
+                    $(Self::$Ty(f) => f.law.reads_payload()),+
+                }
+            }
+
+            /// One control step (`Control::step`) with the law's own memory.
+            #[inline(always)]
+            pub fn step(&mut self, seen: &Sight<L>, r: &Reference, at: Tick, due: Due) -> Inputs<L> {
+                match self {
+                    $(Self::$Ty(f) => f.law.step(seen, r, at, due, &mut f.mem)),+
+                }
+            }
+
+            /// Lane `lane`'s memory set back to the flight's start (a retired lane).
+            #[inline(always)]
+            pub fn park(&mut self, lane: usize) {
+                match self {
+                    $(Self::$Ty(f) => f.mem.park(lane, &f.start)),+
+                }
+            }
+        }
+
         /// The one dispatch point from a controller's name to the code compiled for it (for the
         /// flight loop, through `integrate::LoopEntry::enter`, like `model::dispatch`).
         pub fn dispatch<V: ControllerVisitor>(kind: ControllerKind, v: V) -> V::Output {
@@ -408,8 +486,23 @@ params! {
         thrust_min: Option<f64> => "N", "Least total thrust", non_negative;
         #[serde(default, skip_serializing_if = "Option::is_none")]
         thrust_max: Option<f64> => "N", "Largest total thrust", positive;
+        /// Hz, the loops' rates (MODEL.md section 18; 0: every step; unset: the law's own,
+        /// `Controller::RATES`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        position_rate: Option<f64> => "Hz", "Position loop rate (0: every step)", non_negative;
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        attitude_rate: Option<f64> => "Hz", "Attitude loop rate (0: every step)", non_negative;
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        inner_rate: Option<f64> => "Hz", "Body-rate loop and mixer rate (0: every step)", non_negative;
     }
 }
+
+/// The keys of the loops' rates, in the order of `ControllerConfig::rates`.
+pub const RATE_KEYS: [&str; 3] = [
+    "controller.position_rate",
+    "controller.attitude_rate",
+    "controller.inner_rate",
+];
 
 impl std::ops::Deref for ControllerConfig {
     type Target = SharedParams;
@@ -450,10 +543,51 @@ impl ControllerConfig {
         self.kind_target(field(0), field(1), path.get(2..).unwrap_or(&[]))
     }
 
+    /// Hz, the position, attitude and inner loops' rates law `kind` flies (0: every step): the
+    /// keys where set, else the law's own (`Controller::RATES`).
+    pub fn rates(&self, kind: ControllerKind) -> [f64; 3] {
+        let own = kind.rates();
+        let set = [self.position_rate, self.attitude_rate, self.inner_rate];
+        [0, 1, 2].map(|i| set[i].unwrap_or(own[i]))
+    }
+
+    /// Steps between the updates of law `kind`'s position, attitude and inner loops at the
+    /// step `dt` (`validate` has checked that they are whole).
+    pub fn loop_steps(&self, kind: ControllerKind, dt: f64) -> [usize; 3] {
+        let rates = self.rates(kind);
+        [0, 1, 2].map(|i| steps_per_update(rates[i], dt).unwrap_or(1))
+    }
+
+    /// s, law `kind`'s loops' periods at the step `dt` (`loop_steps` steps each).
+    pub fn loop_periods(&self, kind: ControllerKind, dt: f64) -> [f64; 3] {
+        self.loop_steps(kind, dt).map(|n| n as f64 * dt)
+    }
+
+    /// Every law's rates are whole numbers of steps (a law's own rates as much as the keys).
+    fn validate_rates(&self, dt: f64) -> Result<(), ConfigError> {
+        for &kind in ControllerKind::ALL {
+            let rates = self.rates(kind);
+            let set = [self.position_rate, self.attitude_rate, self.inner_rate];
+            for i in 0..3 {
+                if let Err(why) = steps_per_update(rates[i], dt) {
+                    let key = RATE_KEYS[i];
+                    let whose = if set[i].is_some() {
+                        String::new()
+                    } else {
+                        format!(" (the {} law's own rate: set {key})", kind.name())
+                    };
+                    return Err(ConfigError::new(key, format!("{key}: {why}{whose}")));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Check every value: the shared keys (their bounds, then the rules across them), then
     /// each kind's table.
     pub fn validate(&self, cfg: &ControlContext) -> Result<(), ConfigError> {
         self.shared.check_bounds("controller")?;
+        self.validate_rates(cfg.integrator.dt)?;
         let tl = self.tilt_limit;
         if tl > std::f64::consts::FRAC_PI_2 {
             return Err(ConfigError::new(
@@ -511,6 +645,25 @@ impl Laws {
     /// The law of kind `kind`.
     pub fn get(&self, kind: ControllerKind) -> &AnyController {
         &self.0[kind as usize]
+    }
+}
+
+/// A law in flight (`Flying`): its gains one vehicle per lane, its memory, and the memory it
+/// started with.
+pub struct InFlight<C: Control<L>, L: KernelOps> {
+    law: C,
+    mem: C::Memory<L>,
+    start: C::Memory<L>,
+}
+
+impl<C: Control<L>, L: KernelOps> InFlight<C, L> {
+    fn new(law: C, seen: &Sight<L>) -> Self {
+        let mem = law.memory(seen);
+        Self {
+            law,
+            mem,
+            start: mem,
+        }
     }
 }
 
@@ -600,6 +753,106 @@ impl<P: Copy> Shared<P> {
             .max(L::splat(MIN_TILT_COS));
         let sth = ((cpsi * ux + spsi * uy) / cphi).clamp(-lim, lim);
         (sphi.asin(), sth.asin())
+    }
+}
+
+/// What an Euler-angle cascade (PD, SMC) holds between its loops' updates: the position loop's
+/// thrust and commanded roll and pitch, the attitude loop's torques.
+pub type EulerHeld<L> = [L; 6];
+const HELD_U1: usize = 0;
+const HELD_PHI: usize = 1;
+const HELD_THETA: usize = 2;
+const HELD_TAU: usize = 3;
+
+/// The held outputs of an Euler-angle cascade at the flight's start (every loop updates at its
+/// first step, so none is read before it is written).
+#[inline(always)]
+fn euler_held<L: Lane>() -> EulerHeld<L> {
+    [L::splat(0.0); 6]
+}
+
+/// An Euler-angle cascade (PD, SMC): a position loop giving the thrust and the commanded roll
+/// and pitch, and an attitude loop giving the torques toward them.
+trait EulerCascade<P> {
+    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
+    where
+        P: Param<L>;
+    fn attitude<L: Lane>(&self, s: &Rigid<L>, phi_d: L, theta_d: L, r: &Reference) -> [L; 3]
+    where
+        P: Param<L>;
+}
+
+/// `Control` for an Euler-angle cascade (`EulerCascade`): its memory the held outputs
+/// (`EulerHeld`), its step `euler_step`. `sees: |law| reads` for a law that sees the payload,
+/// `reads` whether it reads the view as built.
+macro_rules! euler_control {
+    ($Ty:ident $(, sees: |$law:ident| $reads:expr)?) => {
+        impl<P: Copy + Sync> Control<P> for $Ty<P> {
+            $(
+                const SEES_PAYLOAD: bool = true;
+
+                #[inline(always)]
+                fn reads_payload(&self) -> bool {
+                    let $law = self;
+                    $reads
+                }
+            )?
+
+            type Memory<L: Lane> = EulerHeld<L>;
+
+            #[inline(always)]
+            fn memory<L: Masks>(&self, _seen: &Sight<L>) -> EulerHeld<L>
+            where
+                P: Param<L>,
+            {
+                euler_held()
+            }
+
+            #[inline(always)]
+            fn step<L: Masks>(
+                &self,
+                seen: &Sight<L>,
+                r: &Reference,
+                _at: Tick,
+                due: Due,
+                mem: &mut EulerHeld<L>,
+            ) -> Inputs<L>
+            where
+                P: Param<L>,
+            {
+                euler_step(self, seen, r, due, mem)
+            }
+        }
+    };
+}
+use euler_control;
+
+/// An Euler-angle cascade's step: each loop that is due updates its held outputs in `mem` (the
+/// attitude loop from the position loop's held setpoint), and the inputs are the held ones.
+#[inline(always)]
+fn euler_step<P, C: EulerCascade<P>, L: Lane>(
+    law: &C,
+    seen: &Sight<L>,
+    r: &Reference,
+    due: Due,
+    mem: &mut EulerHeld<L>,
+) -> Inputs<L>
+where
+    P: Param<L>,
+{
+    if due.position {
+        let (u1, phi_d, theta_d) = law.position(seen, r);
+        mem[HELD_U1] = u1;
+        mem[HELD_PHI] = phi_d;
+        mem[HELD_THETA] = theta_d;
+    }
+    if due.attitude {
+        let tau = law.attitude(seen.rigid, mem[HELD_PHI], mem[HELD_THETA], r);
+        mem[HELD_TAU..HELD_TAU + 3].copy_from_slice(&tau);
+    }
+    Inputs {
+        u1: mem[HELD_U1],
+        tau: [mem[HELD_TAU], mem[HELD_TAU + 1], mem[HELD_TAU + 2]],
     }
 }
 

@@ -2,11 +2,14 @@
 //! "The swing-damping PD").
 
 use super::ControlContext;
-use super::{position_errors, Control, Controller, Memory, Shared};
+use super::{
+    euler_control, euler_held, euler_step, position_errors, Control, Controller, Due, EulerCascade,
+    EulerHeld, Shared, Sight,
+};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather, KernelOps, Lane, Param};
-use crate::model::{Inputs, PayloadView, Rigid, Tick, Trig};
+use crate::lane::{gather, Lane, Masks, Param};
+use crate::model::{Inputs, PayloadView, Rigid, Tick};
 use crate::trajectory::Reference;
 
 params! {
@@ -51,6 +54,7 @@ pub struct Pd<P = f64> {
 }
 
 impl Controller for Pd {
+    const LABEL: &'static str = "PD";
     type Params = PdGains;
     type At<L: Lane> = Pd<L>;
 
@@ -79,73 +83,17 @@ impl Controller for Pd {
     }
 }
 
-impl<P: Copy + Sync> Control<P> for Pd<P> {
-    const SEES_PAYLOAD: bool = true;
+euler_control!(Pd, sees: |law| law.swing);
 
+impl<P: Copy> EulerCascade<P> for Pd<P> {
+    /// The position loop: the thrust and the commanded roll and pitch, with the swing feedback
+    /// where it is on and the payload is seen.
     #[inline(always)]
-    fn reads_payload(&self) -> bool {
-        self.swing
-    }
-
-    #[inline(always)]
-    fn control_with<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        r: &Reference,
-        _at: Tick,
-    ) -> Inputs<L>
+    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
     where
         P: Param<L>,
     {
-        self.law(s, trig, None, r)
-    }
-
-    #[inline(always)]
-    fn control_seeing<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        seen: &PayloadView<L>,
-        r: &Reference,
-        _at: Tick,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.law(s, trig, Some(seen), r)
-    }
-
-    #[inline(always)]
-    fn step_seeing<L: KernelOps>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        seen: &PayloadView<L>,
-        r: &Reference,
-        at: Tick,
-        _mem: &mut Memory<L>,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.control_seeing(s, trig, seen, r, at)
-    }
-}
-
-impl<P: Copy> Pd<P> {
-    /// The law at `s`, with the swing feedback where it is on and the payload is `seen`.
-    #[inline(always)]
-    fn law<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        seen: Option<&PayloadView<L>>,
-        r: &Reference,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
+        let (s, trig) = (seen.rigid, seen.trig);
         let sh = &self.shared;
         let (cphi, cth, spsi, cpsi) = (trig.cphi, trig.cth, trig.spsi, trig.cpsi);
         let (e, ed) = position_errors(s, r);
@@ -159,27 +107,37 @@ impl<P: Copy> Pd<P> {
         // The commanded horizontal accelerations, and the swing's where it is fed back.
         let mut ax = e[0] * kpx.get() + ed[0] * kdx.get();
         let mut ay = e[1] * kpy.get() + ed[1] * kdy.get();
-        if let (true, Some(seen)) = (self.swing, seen) {
-            let [sx, sy] = self.swing_acceleration(seen);
+        if let (true, Some(payload)) = (self.swing, seen.payload) {
+            let [sx, sy] = self.swing_acceleration(payload);
             ax += sx;
             ay += sy;
         }
         let ux = ax * m_u1;
         let uy = ay * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
+        (u1, phi_d, theta_d)
+    }
 
+    /// The attitude loop: the torques toward the commanded roll and pitch and the reference's
+    /// yaw.
+    #[inline(always)]
+    fn attitude<L: Lane>(&self, s: &Rigid<L>, phi_d: L, theta_d: L, r: &Reference) -> [L; 3]
+    where
+        P: Param<L>,
+    {
         let [kp0, kp1, kp2] = self.kp_attitude;
         let [kd0, kd1, kd2] = self.kd_attitude;
         let (kp0, kp1, kp2): (L, L, L) = (kp0.get(), kp1.get(), kp2.get());
         let (kd0, kd1, kd2): (L, L, L) = (kd0.get(), kd1.get(), kd2.get());
-        let tau = [
+        [
             (phi_d - s.att[0]) * kp0 - s.rate[0] * kd0,
             (theta_d - s.att[1]) * kp1 - s.rate[1] * kd1,
             (L::splat(r.psi) - s.att[2]) * kp2 + (L::splat(r.psi_dot) - s.rate[2]) * kd2,
-        ];
-        Inputs { u1, tau }
+        ]
     }
+}
 
+impl<P: Copy> Pd<P> {
     /// m/s^2, the horizontal acceleration the swing feedback adds: with u the line's unit
     /// vector from the attachment to the parcel and u' its rate, `swing_gain` u_h +
     /// `swing_damping` u'_h (x, y): the vehicle moves under the parcel, and with it as it
@@ -208,6 +166,7 @@ impl<P: Copy> Pd<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::Trig;
     use crate::scenario::tests::paper;
 
     #[test]
@@ -241,7 +200,12 @@ mod tests {
             ..Reference::default()
         };
         let trig = Trig::of_angles(0.0, 0.0, 0.0);
-        pd.control_seeing(&s, &trig, seen, &r, Tick::START)
+        let seen = Sight {
+            rigid: &s,
+            trig: &trig,
+            payload: Some(seen),
+        };
+        pd.at_rest(&seen, &r, Tick::START)
     }
 
     #[test]

@@ -3,15 +3,17 @@
 //! yaw priority (Brescianini, Hehn & D'Andrea 2013) -> body-rate PID -> PX4's control
 //! allocator (`px4_allocator`), as PX4's `PositionControl`, `AttitudeControl`, `RateControl`
 //! and `ControlAllocator` compute it, in PX4's normalised units mapped to this model's SI. A
-//! discrete law with memory (`Control::step_with`): the velocity and rate integrators, the
-//! filtered derivatives and the allocator's saturation status advance once per control step.
+//! discrete law with memory (`Control::step`) in three loops at their own rates (PX4's own by
+//! default, `Px4::RATES`): the position and velocity loop with its integrator and filtered
+//! derivative, the attitude loop, the body-rate loop with its integrator and filtered
+//! derivative and the allocator, each updating its memory when it runs.
 
 use super::px4_allocator::{allocate, Mixer};
 use super::ControlContext;
-use super::{Control, Controller, Memory, Shared};
+use super::{Control, Controller, ControllerKind, Due, Shared, Sight};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{each3, gather, KernelOps, Lane, Param};
+use crate::lane::{each3, gather, Lane, Masks, Param};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
 use crate::model::{ActuatorKind, Inputs, Rigid, Tick, Trig};
 use crate::trajectory::Reference;
@@ -111,11 +113,14 @@ impl Default for Px4Params {
     }
 }
 
-/// Memory slots (`Memory`): velocity integrator (m/s^2), last velocity, filtered velocity
-/// derivative, rate integrator (normalised torque), last rate, filtered rate derivative; x, y,
-/// z or roll, pitch, yaw each. Then the allocator's last published saturation per torque axis
-/// (+1: a positive torque was not achieved, -1: a negative one, 0: none) and the control
-/// steps since that publication.
+/// Memory slots (`Control::Memory`): velocity integrator (m/s^2), last velocity, filtered
+/// velocity derivative, rate integrator (normalised torque), last rate, filtered rate
+/// derivative; x, y, z or roll, pitch, yaw each. Then the allocator's last published saturation
+/// per torque axis (+1: a positive torque was not achieved, -1: a negative one, 0: none) and
+/// the rate loop's updates since that publication. Then what the loops hold between their
+/// updates: the position loop's normalised collective thrust, desired body z axis and desired
+/// attitude (a quaternion), the attitude loop's rate setpoint, the rate loop's thrust and
+/// torques (N, N m).
 const VEL_INT: usize = 0;
 const VEL_PREV: usize = 3;
 const VEL_DOT: usize = 6;
@@ -124,9 +129,22 @@ const RATE_PREV: usize = 12;
 const RATE_DOT: usize = 15;
 const SATURATION: usize = 18;
 const STATUS_AGE: usize = 21;
+const HELD_THRUST: usize = 22;
+const HELD_B3: usize = 23;
+const HELD_QD: usize = 26;
+const HELD_RATE_SP: usize = 30;
+const HELD_U1: usize = 33;
+const HELD_TAU: usize = 34;
 /// Slots the law uses.
-const PX4_MEMORY: usize = 22;
-const _: () = assert!(PX4_MEMORY <= super::MEMORY_SLOTS);
+const PX4_MEMORY: usize = 37;
+
+/// The law's memory.
+type Memory<L> = [L; PX4_MEMORY];
+
+/// Hz, PX4's loop rates (the multicopter control architecture: mc_pos_control's position and
+/// velocity loops at 50 Hz, mc_att_control at 250 Hz, mc_rate_control and the control
+/// allocator at the gyro's 1 kHz; docs/model.md, "Loop rates").
+const PX4_RATES: [f64; 3] = [50.0, 250.0, 1000.0];
 
 /// Norms are never divided by less than this (a zero vector keeps its direction undefined
 /// and its scale factor 1).
@@ -182,11 +200,13 @@ pub struct Px4<P = f64> {
     /// (the rotors' own on rotors, so that they are told exactly PX4's outputs) times a
     /// motor's full thrust T_full / 4.
     out: [[P; 4]; 4],
-    /// Control steps between two publications of the allocator's status.
+    /// Rate-loop updates between two publications of the allocator's status.
     status_every: P,
-    /// s, the control step.
-    dt: P,
-    /// First-order low-pass weights dt / (dt + 1 / (2 pi fc)) of the derivatives.
+    /// s, the position loop's and the rate loop's periods.
+    dt_vel: P,
+    dt_rate: P,
+    /// First-order low-pass weights dt / (dt + 1 / (2 pi fc)) of the derivatives, each at its
+    /// loop's period.
     alpha_vel: P,
     alpha_rate: P,
 }
@@ -200,8 +220,10 @@ fn lowpass_weight(dt: f64, fc: f64) -> f64 {
 }
 
 impl Controller for Px4 {
+    const LABEL: &'static str = "PX4";
     type Params = Px4Params;
     type At<L: Lane> = Px4<L>;
+    const RATES: [f64; 3] = PX4_RATES;
 
     fn defaults() -> Option<Px4Params> {
         Some(Px4Params::default())
@@ -272,7 +294,9 @@ impl Controller for Px4 {
     fn new(k: &Px4Params, cfg: &ControlContext) -> Self {
         let shared = Shared::new(cfg);
         let g = cfg.environment.gravity;
-        let dt = cfg.integrator.dt;
+        let [dt_vel, _, dt_rate] = cfg
+            .controller
+            .loop_periods(ControllerKind::Px4, cfg.integrator.dt);
         let thrust_full = shared.mt * g / k.MPC_THR_HOVER;
         let arm = cfg.vehicle.arm_length;
         let (layout, torque_ratio) = px4_geometry(k, cfg);
@@ -310,10 +334,11 @@ impl Controller for Px4 {
             mix_inv: mixer.inv,
             effect: mixer.effect,
             out,
-            status_every: (STATUS_PERIOD / dt - 1e-9).ceil().max(1.0),
-            dt,
-            alpha_vel: lowpass_weight(dt, k.MPC_VELD_LP),
-            alpha_rate: lowpass_weight(dt, k.IMU_DGYRO_CUTOFF),
+            status_every: (STATUS_PERIOD / dt_rate - 1e-9).ceil().max(1.0),
+            dt_vel,
+            dt_rate,
+            alpha_vel: lowpass_weight(dt_vel, k.MPC_VELD_LP),
+            alpha_rate: lowpass_weight(dt_rate, k.IMU_DGYRO_CUTOFF),
         }
     }
 
@@ -321,8 +346,8 @@ impl Controller for Px4 {
         gather!(|l| each[l] => Px4 {
             shared, pos_p, vel_p, vel_i, vel_d, vel_max_xy, vel_max_up, vel_max_dn, acc_max_xy,
             thr_hover, thr_min, thr_max, thr_xy_marg, att_p, yaw_w, rate_max, rate_p, rate_i,
-            rate_d, rate_int_lim, thrust_full, mix, mix_inv, effect, out, status_every, dt,
-            alpha_vel, alpha_rate,
+            rate_d, rate_int_lim, thrust_full, mix, mix_inv, effect, out, status_every, dt_vel,
+            dt_rate, alpha_vel, alpha_rate,
         })
     }
 }
@@ -398,8 +423,8 @@ fn shrink<L: Lane>(n: L, limit: L) -> L {
     (limit / n.max(L::splat(TINY))).min(L::splat(1.0))
 }
 
-/// What one step of the cascade computed that the integrator update needs.
-struct Cascade<L> {
+/// What the position loop computed that its integrator update needs.
+struct VelocityLoop<L> {
     vel_err: [L; 3],
     /// The acceleration setpoint with its feed-forward, before the tilt limit (m/s^2).
     acc_sp: [L; 3],
@@ -407,27 +432,71 @@ struct Cascade<L> {
     thr_z_acc: L,
     /// Horizontal normalised thrust after saturation.
     thr_xy: [L; 2],
-    rate_err: [L; 3],
-    /// What of them the allocator could not give (`unallocated_torque`).
-    unallocated: [L; 3],
 }
 
 impl<P: Copy + Sync> Px4<P> {
-    /// The cascade at state `s` with the memory `mem` as held (integrators and filtered
-    /// derivatives): the inputs and what the integrator update needs.
+    /// The position and velocity loop (PX4's `PositionControl`): its filtered derivative takes
+    /// the new measurement, the setpoints follow with the integrator as held, then the
+    /// integrator advances by the loop's period with its anti-windup
+    /// (`PositionControl::_velocityControl`). Holds the collective thrust, the desired body z
+    /// axis and the desired attitude.
     #[inline(always)]
-    fn cascade<L: Lane>(
+    #[allow(clippy::manual_memcpy)] // each slot read before it is written, as PX4 does
+    fn position_loop<L: Masks>(&self, s: &Rigid<L>, r: &Reference, mem: &mut Memory<L>)
+    where
+        P: Param<L>,
+    {
+        let dt: L = self.dt_vel.get();
+        let av: L = self.alpha_vel.get();
+        for i in 0..3 {
+            let raw = (s.vel[i] - mem[VEL_PREV + i]) / dt;
+            mem[VEL_DOT + i] += (raw - mem[VEL_DOT + i]) * av;
+            mem[VEL_PREV + i] = s.vel[i];
+        }
+        let (thrust, b3, qd, p) = self.setpoints(s, r, mem);
+        mem[HELD_THRUST] = thrust;
+        mem[HELD_B3..HELD_B3 + 3].copy_from_slice(&b3);
+        mem[HELD_QD..HELD_QD + 4].copy_from_slice(&qd);
+        let zero = L::splat(0.0);
+        let g: L = self.shared.g.get();
+
+        // Velocity integrator. Vertical: no further winding into a saturated thrust.
+        let mut e = p.vel_err;
+        let low = p.thr_z_acc.cmp_le(self.thr_min.get());
+        let high = p.thr_z_acc.cmp_ge(self.thr_max.get());
+        e[2] = L::select(low, e[2].max(zero), e[2]);
+        e[2] = L::select(high, e[2].min(zero), e[2]);
+        // Horizontal: tracking anti-windup towards the acceleration the thrust produces.
+        let to_acc = g / self.thr_hover.get();
+        let prod = [p.thr_xy[0] * to_acc, p.thr_xy[1] * to_acc];
+        let a = [p.acc_sp[0], p.acc_sp[1]];
+        let fits = (a[0] * a[0] + a[1] * a[1]).cmp_le(prod[0] * prod[0] + prod[1] * prod[1]);
+        let arw: L = L::splat(2.0) / self.vel_p[0].get();
+        for i in 0..2 {
+            let limited = L::select(fits, a[i], prod[i]);
+            e[i] = e[i] - (a[i] - limited) * arw;
+        }
+        for (i, e) in e.iter().enumerate() {
+            mem[VEL_INT + i] += *e * self.vel_i[i].get() * dt;
+        }
+        mem[VEL_INT + 2] = mem[VEL_INT + 2].clamp(-g, g);
+    }
+
+    /// The position loop's setpoints at state `s` with the integrator and filtered derivative
+    /// in `mem`: the collective thrust (normalised), the desired body z axis, the desired
+    /// attitude, and what the integrator update needs.
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    fn setpoints<L: Masks>(
         &self,
         s: &Rigid<L>,
-        trig: &Trig<L>,
         r: &Reference,
         mem: &Memory<L>,
-    ) -> (Inputs<L>, Cascade<L>)
+    ) -> (L, [L; 3], Quat<L>, VelocityLoop<L>)
     where
         P: Param<L>,
     {
         let g: L = self.shared.g.get();
-        let one = L::splat(1.0);
         // Position P, plus the reference velocity as feed-forward, then the velocity limits.
         let mut v_sp = each3(
             #[inline(always)]
@@ -507,6 +576,40 @@ impl<P: Copy + Sync> Px4<P> {
             &qmul(&[L::splat(cy2), z, z, L::splat(sy2)], &[ct2, z, st2, z]),
             &[cp2, sp2, z, z],
         );
+        (
+            thrust,
+            b3,
+            qd,
+            VelocityLoop {
+                vel_err,
+                acc_sp,
+                thr_z_acc,
+                thr_xy: [tx, ty],
+            },
+        )
+    }
+
+    /// The attitude loop (PX4's `AttitudeControl`): the rate setpoint toward the held desired
+    /// attitude, from the attitude the vehicle has now.
+    #[inline(always)]
+    fn attitude_loop<L: Masks>(
+        &self,
+        s: &Rigid<L>,
+        trig: &Trig<L>,
+        r: &Reference,
+        mem: &mut Memory<L>,
+    ) where
+        P: Param<L>,
+    {
+        let one = L::splat(1.0);
+        let z = L::splat(0.0);
+        let b3 = [mem[HELD_B3], mem[HELD_B3 + 1], mem[HELD_B3 + 2]];
+        let qd = [
+            mem[HELD_QD],
+            mem[HELD_QD + 1],
+            mem[HELD_QD + 2],
+            mem[HELD_QD + 3],
+        ];
         // The vehicle's attitude.
         let (sh_phi, ch_phi) = (s.att[0] * 0.5).sin_cos();
         let (sh_th, ch_th) = (s.att[1] * 0.5).sin_cos();
@@ -551,6 +654,34 @@ impl<P: Copy + Sync> Px4<P> {
                 (qe[i + 1] * sgn * self.att_p[i].get() + world_z[i] * r.psi_dot).clamp(-max, max)
             },
         );
+        mem[HELD_RATE_SP..HELD_RATE_SP + 3].copy_from_slice(&rate_sp);
+    }
+
+    /// The body-rate loop and the allocator (PX4's `RateControl`, `ControlAllocator`): the
+    /// filtered rate derivative takes the new measurement, the torques follow from the held
+    /// rate setpoint with the integrator as held, the allocator gives the motors the held
+    /// thrust and those torques, then the integrator advances by the loop's period
+    /// (`RateControl::updateIntegral`) and the allocator's status is published on its period.
+    /// Holds the thrust and torques the motors give.
+    #[inline(always)]
+    #[allow(clippy::manual_memcpy)] // each slot read before it is written, as PX4 does
+    fn rate_loop<L: Masks>(&self, s: &Rigid<L>, mem: &mut Memory<L>)
+    where
+        P: Param<L>,
+    {
+        let dt: L = self.dt_rate.get();
+        let ar: L = self.alpha_rate.get();
+        for i in 0..3 {
+            let raw = (s.rate[i] - mem[RATE_PREV + i]) / dt;
+            mem[RATE_DOT + i] += (raw - mem[RATE_DOT + i]) * ar;
+            mem[RATE_PREV + i] = s.rate[i];
+        }
+        let rate_sp = [
+            mem[HELD_RATE_SP],
+            mem[HELD_RATE_SP + 1],
+            mem[HELD_RATE_SP + 2],
+        ];
+        let thrust = mem[HELD_THRUST];
         // Rate PID (derivative on the measurement), normalised torque, then N m.
         let rate_err = each3(
             #[inline(always)]
@@ -579,114 +710,16 @@ impl<P: Copy + Sync> Px4<P> {
             motor_sum(&self.out[2], m),
             motor_sum(&self.out[3], m),
         ];
-        (
-            Inputs { u1, tau },
-            Cascade {
-                vel_err,
-                acc_sp,
-                thr_z_acc,
-                thr_xy: [tx, ty],
-                rate_err,
-                unallocated: a.unallocated,
-            },
-        )
-    }
-
-    /// The memory of a vehicle that has been at `s` for ever: no integral, no derivative.
-    #[inline(always)]
-    #[allow(clippy::manual_memcpy)] // the slots are named one by one, as the loop below reads them
-    fn at_rest<L: Lane>(s: &Rigid<L>) -> Memory<L> {
-        let mut m = [L::splat(0.0); super::MEMORY_SLOTS];
-        for i in 0..3 {
-            m[VEL_PREV + i] = s.vel[i];
-            m[RATE_PREV + i] = s.rate[i];
-        }
-        m[STATUS_AGE] = L::splat(NEVER);
-        m
-    }
-}
-
-impl<P: Copy + Sync> Control<P> for Px4<P> {
-    /// The law with its memory at rest at `s` (integrators zero, their hover value; derivative
-    /// terms zero): what the linearisation differentiates (docs/model.md, "The PX4 cascade").
-    #[inline(always)]
-    fn control_with<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        r: &Reference,
-        _at: Tick,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        self.cascade(s, trig, r, &Self::at_rest(s)).0
-    }
-
-    #[inline(always)]
-    fn memory<L: Lane>(&self, s: &Rigid<L>) -> Memory<L>
-    where
-        P: Param<L>,
-    {
-        Self::at_rest(s)
-    }
-
-    /// One step of PX4's loop: the filtered derivatives take the new measurement, the cascade
-    /// runs with the integrators as held, then the integrators advance by dt with their
-    /// anti-windup (PositionControl::_velocityControl, RateControl::updateIntegral).
-    #[inline(always)]
-    #[allow(clippy::manual_memcpy)]
-    fn step_with<L: KernelOps>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        r: &Reference,
-        _at: Tick,
-        mem: &mut Memory<L>,
-    ) -> Inputs<L>
-    where
-        P: Param<L>,
-    {
-        let dt: L = self.dt.get();
-        let (av, ar): (L, L) = (self.alpha_vel.get(), self.alpha_rate.get());
-        for i in 0..3 {
-            let raw = (s.vel[i] - mem[VEL_PREV + i]) / dt;
-            mem[VEL_DOT + i] += (raw - mem[VEL_DOT + i]) * av;
-            mem[VEL_PREV + i] = s.vel[i];
-            let raw = (s.rate[i] - mem[RATE_PREV + i]) / dt;
-            mem[RATE_DOT + i] += (raw - mem[RATE_DOT + i]) * ar;
-            mem[RATE_PREV + i] = s.rate[i];
-        }
-        let (u, c) = self.cascade(s, trig, r, mem);
+        mem[HELD_U1] = u1;
+        mem[HELD_TAU..HELD_TAU + 3].copy_from_slice(&tau);
+        let unallocated = a.unallocated;
         let zero = L::splat(0.0);
-        let g: L = self.shared.g.get();
-
-        // Velocity integrator. Vertical: no further winding into a saturated thrust.
-        let mut e = c.vel_err;
-        let low = c.thr_z_acc.cmp_le(self.thr_min.get());
-        let high = c.thr_z_acc.cmp_ge(self.thr_max.get());
-        e[2] = L::select(low, e[2].max(zero), e[2]);
-        e[2] = L::select(high, e[2].min(zero), e[2]);
-        // Horizontal: tracking anti-windup towards the acceleration the thrust produces.
-        let to_acc = g / self.thr_hover.get();
-        let prod = [c.thr_xy[0] * to_acc, c.thr_xy[1] * to_acc];
-        let a = [c.acc_sp[0], c.acc_sp[1]];
-        let fits = (a[0] * a[0] + a[1] * a[1]).cmp_le(prod[0] * prod[0] + prod[1] * prod[1]);
-        let arw: L = L::splat(2.0) / self.vel_p[0].get();
-        for i in 0..2 {
-            let limited = L::select(fits, a[i], prod[i]);
-            e[i] = e[i] - (a[i] - limited) * arw;
-        }
-        for (i, e) in e.iter().enumerate() {
-            mem[VEL_INT + i] += *e * self.vel_i[i].get() * dt;
-        }
-        mem[VEL_INT + 2] = mem[VEL_INT + 2].clamp(-g, g);
 
         // Rate integrator (RateControl::updateIntegral): not further into a torque the
         // allocator last reported unachieved, attenuated at large errors, limited.
         let one = L::splat(1.0);
         for i in 0..3 {
-            let mut e = c.rate_err[i];
+            let mut e = rate_err[i];
             let sat = mem[SATURATION + i];
             e = L::select(sat.cmp_ge(one), e.min(zero), e);
             e = L::select(sat.cmp_le(-one), e.max(zero), e);
@@ -700,7 +733,7 @@ impl<P: Copy + Sync> Control<P> for Px4<P> {
         // The allocator's status, published every `status_every` steps, read by the rate
         // controller from the next step on (MulticopterRateControl: a direction is saturated
         // where the torque was not achieved and its unallocated part exceeds FLT_EPSILON).
-        let un = &c.unallocated;
+        let un = &unallocated;
         let norm2 = un[0] * un[0] + un[1] * un[1] + un[2] * un[2];
         let missed = norm2.cmp_ge(L::splat(ACHIEVED));
         let due = mem[STATUS_AGE].cmp_ge(self.status_every.get());
@@ -711,7 +744,63 @@ impl<P: Copy + Sync> Control<P> for Px4<P> {
             mem[SATURATION + i] = L::select(due, flag, mem[SATURATION + i]);
         }
         mem[STATUS_AGE] = L::select(due, zero, mem[STATUS_AGE]) + one;
-        u
+    }
+
+    /// The memory of a vehicle that has been at `s` for ever: no integral, no derivative.
+    #[inline(always)]
+    #[allow(clippy::manual_memcpy)] // the slots are named one by one, as the loop below reads them
+    fn at_rest<L: Lane>(s: &Rigid<L>) -> Memory<L> {
+        let mut m = [L::splat(0.0); PX4_MEMORY];
+        for i in 0..3 {
+            m[VEL_PREV + i] = s.vel[i];
+            m[RATE_PREV + i] = s.rate[i];
+        }
+        m[STATUS_AGE] = L::splat(NEVER);
+        m
+    }
+}
+
+impl<P: Copy + Sync> Control<P> for Px4<P> {
+    type Memory<L: Lane> = Memory<L>;
+
+    /// Integrators zero (their hover value), derivative terms zero: at rest, the law is what
+    /// the linearisation differentiates (docs/model.md, "The PX4 cascade").
+    #[inline(always)]
+    fn memory<L: Masks>(&self, seen: &Sight<L>) -> Memory<L>
+    where
+        P: Param<L>,
+    {
+        Self::at_rest(seen.rigid)
+    }
+
+    /// One step of PX4's loops: each that is due runs (position, attitude, rate and allocator,
+    /// in that order, each reading what the one above holds).
+    #[inline(always)]
+    fn step<L: Masks>(
+        &self,
+        seen: &Sight<L>,
+        r: &Reference,
+        _at: Tick,
+        due: Due,
+        mem: &mut Memory<L>,
+    ) -> Inputs<L>
+    where
+        P: Param<L>,
+    {
+        let s = seen.rigid;
+        if due.position {
+            self.position_loop(s, r, mem);
+        }
+        if due.attitude {
+            self.attitude_loop(s, seen.trig, r, mem);
+        }
+        if due.rate {
+            self.rate_loop(s, mem);
+        }
+        Inputs {
+            u1: mem[HELD_U1],
+            tau: [mem[HELD_TAU], mem[HELD_TAU + 1], mem[HELD_TAU + 2]],
+        }
     }
 }
 
@@ -782,12 +871,7 @@ mod tests {
             acc: [30.0, 0.0, 0.0],
             ..Reference::default()
         };
-        let (_, k) = c.cascade(
-            &s,
-            &Trig::of_angles(0.0, 0.0, 0.0),
-            &r,
-            &Px4::<f64>::at_rest(&s),
-        );
+        let (_, _, _, k) = c.setpoints(&s, &r, &Px4::<f64>::at_rest(&s));
         let txy = (k.thr_xy[0].powi(2) + k.thr_xy[1].powi(2)).sqrt();
         // thr_z_acc is before the vertical saturation, which only lowers it when MPC_THR_MAX
         // binds; here it does not.
@@ -797,9 +881,10 @@ mod tests {
     }
 
     /// The integrators: a held velocity error winds the vertical integrator by
-    /// MPC_Z_VEL_I_ACC e dt per step; a held rate error the rate integrator likewise.
+    /// MPC_Z_VEL_I_ACC e dt per update of its loop (dt its period); a held rate error the rate
+    /// integrator likewise.
     #[test]
-    fn integrators_advance_once_per_step() {
+    fn integrators_advance_once_per_update() {
         let cfg = paper();
         let k = Px4Params::default();
         let c = px4(&cfg);
@@ -811,12 +896,16 @@ mod tests {
             ..Reference::default()
         };
         let trig = Trig::of_angles(0.0, 0.0, 0.0);
-        let mut mem = c.memory(&s);
-        let dt = cfg.integrator.dt;
+        let seen = Sight::blind(&s, &trig);
+        let mut mem = c.memory(&seen);
+        // Each update advances an integrator by its own loop's period.
+        let [dt_vel, _, dt_rate] = cfg
+            .controller
+            .loop_periods(ControllerKind::Px4, cfg.integrator.dt);
         for step in 0..3 {
-            c.step_with(&s, &trig, &r, Tick { step, t: 0.0 }, &mut mem);
+            c.step(&seen, &r, Tick { step, t: 0.0 }, Due::ALL, &mut mem);
         }
-        let want = 3.0 * k.MPC_Z_VEL_I_ACC * 0.2 * dt;
+        let want = 3.0 * k.MPC_Z_VEL_I_ACC * 0.2 * dt_vel;
         assert!(
             (mem[VEL_INT + 2] - want).abs() < 1e-15,
             "{}",
@@ -824,7 +913,7 @@ mod tests {
         );
         let e = -0.05;
         let f = 1.0 - (e / I_FACTOR_RATE).powi(2);
-        let want = 3.0 * f * k.MC_ROLLRATE_I * e * dt;
+        let want = 3.0 * f * k.MC_ROLLRATE_I * e * dt_rate;
         assert!((mem[RATE_INT] - want).abs() < 1e-15, "{}", mem[RATE_INT]);
         // A held state: the derivative filters stay at zero.
         assert_eq!(mem[VEL_DOT + 2], 0.0);

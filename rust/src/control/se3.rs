@@ -7,11 +7,11 @@
 //! Lee's gain matrices are `m diag(kx)`, `m diag(kv)`, `J diag(kR)`, `J diag(kW)`.
 
 use super::ControlContext;
-use super::{position_errors, Control, Controller, Shared, MIN_TILT_COS};
+use super::{position_errors, Control, Controller, Due, Shared, Sight, MIN_TILT_COS};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather, Lane, Param};
-use crate::model::{Frame, Inputs, Rigid, Tick, Trig};
+use crate::lane::{gather, Lane, Masks, Param};
+use crate::model::{Frame, Inputs, Tick};
 use crate::trajectory::Reference;
 
 params! {
@@ -50,6 +50,7 @@ pub struct Se3<P = f64> {
 }
 
 impl Controller for Se3 {
+    const LABEL: &'static str = "SE(3)";
     type Params = Se3Gains;
     type At<L: Lane> = Se3<L>;
 
@@ -119,20 +120,65 @@ impl<P: Copy> Se3<P> {
     }
 }
 
+/// What the law holds between its loops' updates: the position loop's thrust and desired body
+/// axes (b1_d, b2_d, b3_d), the attitude loop's torques.
+const HELD_U1: usize = 0;
+const HELD_AXES: usize = 1;
+const HELD_TAU: usize = 10;
+const HELD: usize = 13;
+
 impl<P: Copy + Sync> Control<P> for Se3<P> {
+    type Memory<L: Lane> = [L; HELD];
+
     #[inline(always)]
-    fn control_with<L: Lane>(
+    fn memory<L: Masks>(&self, _seen: &Sight<L>) -> [L; HELD]
+    where
+        P: Param<L>,
+    {
+        [L::splat(0.0); HELD]
+    }
+
+    #[inline(always)]
+    fn step<L: Masks>(
         &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
+        seen: &Sight<L>,
         r: &Reference,
         _at: Tick,
+        due: Due,
+        mem: &mut [L; HELD],
     ) -> Inputs<L>
     where
         P: Param<L>,
     {
+        if due.position {
+            let (u1, axes) = self.position(seen, r);
+            mem[HELD_U1] = u1;
+            for (j, b) in axes.iter().enumerate() {
+                mem[HELD_AXES + 3 * j..HELD_AXES + 3 * j + 3].copy_from_slice(b);
+            }
+        }
+        if due.attitude {
+            let b = &mem[HELD_AXES..HELD_AXES + 9];
+            let desired = [[b[0], b[1], b[2]], [b[3], b[4], b[5]], [b[6], b[7], b[8]]];
+            let tau = self.attitude(seen, &desired, r);
+            mem[HELD_TAU..HELD_TAU + 3].copy_from_slice(&tau);
+        }
+        Inputs {
+            u1: mem[HELD_U1],
+            tau: [mem[HELD_TAU], mem[HELD_TAU + 1], mem[HELD_TAU + 2]],
+        }
+    }
+}
+
+impl<P: Copy> Se3<P> {
+    /// The position loop: the thrust along the body's z axis and the desired body axes.
+    #[inline(always)]
+    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, [[L; 3]; 3])
+    where
+        P: Param<L>,
+    {
         let sh = &self.shared;
-        let (e, ed) = position_errors(s, r);
+        let (e, ed) = position_errors(seen.rigid, r);
         let (g, mt): (L, L) = (sh.g.get(), sh.mt.get());
         let [kx0, kx1, kx2] = self.kx;
         let [kv0, kv1, kv2] = self.kv;
@@ -142,21 +188,34 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
             (e[1] * kx1.get() + ed[1] * kv1.get() + r.acc[1]) * mt,
             (e[2] * kx2.get() + ed[2] * kv2.get() + r.acc[2] + g) * mt,
         ];
-        let [r1, r2, r3] = trig.axes();
+        let [_, _, r3] = seen.trig.axes();
         let u1 = sh.limit_thrust(dot(&f, &r3));
-
         let (spsi_d, cpsi_d) = <f64 as Lane>::sin_cos(r.psi);
-        let [b1, b2, b3] = self.desired_axes(&f, L::splat(spsi_d), L::splat(cpsi_d));
+        (
+            u1,
+            self.desired_axes(&f, L::splat(spsi_d), L::splat(cpsi_d)),
+        )
+    }
+
+    /// The attitude loop: the torques toward the desired body axes `[b1, b2, b3]`.
+    #[inline(always)]
+    fn attitude<L: Lane>(&self, seen: &Sight<L>, desired: &[[L; 3]; 3], r: &Reference) -> [L; 3]
+    where
+        P: Param<L>,
+    {
+        let sh = &self.shared;
+        let [r1, r2, r3] = seen.trig.axes();
+        let [b1, b2, b3] = desired;
         // e_R = 1/2 vee(R_d^T R - R^T R_d); (R_d^T R)_ij = b_i . r_j
         let half = L::splat(0.5);
         let e_r = [
-            (dot(&b3, &r2) - dot(&b2, &r3)) * half,
-            (dot(&b1, &r3) - dot(&b3, &r1)) * half,
-            (dot(&b2, &r1) - dot(&b1, &r2)) * half,
+            (dot(b3, &r2) - dot(b2, &r3)) * half,
+            (dot(b1, &r3) - dot(b3, &r1)) * half,
+            (dot(b2, &r1) - dot(b1, &r2)) * half,
         ];
         // e_W = W - W_d with RotorPy's W_d = (0, 0, psi_dot_ref) in body axes (its "this is
         // oversimplified": Lee's R^T R_d W_d would need the reference's jerk).
-        let w = s.rate;
+        let w = seen.rigid.rate;
         let r_err = w[2] - r.psi_dot;
         let [ixx, iyy, izz] = sh.inertia;
         let (ixx, iyy, izz): (L, L, L) = (ixx.get(), iyy.get(), izz.get());
@@ -164,18 +223,18 @@ impl<P: Copy + Sync> Control<P> for Se3<P> {
         let [kw0, kw1, kw2] = self.k_w;
         let (p, q, rr) = (w[0], w[1], w[2]);
         // M = J (-kR e_R - kW e_W) + W x J W
-        let tau = [
+        [
             -(e_r[0] * kr0.get() + p * kw0.get()) * ixx + q * rr * (izz - iyy),
             -(e_r[1] * kr1.get() + q * kw1.get()) * iyy + rr * p * (ixx - izz),
             -(e_r[2] * kr2.get() + r_err * kw2.get()) * izz + p * q * (iyy - ixx),
-        ];
-        Inputs { u1, tau }
+        ]
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{Rigid, Trig};
     use crate::scenario::tests::paper;
     use crate::scenario::Config;
 

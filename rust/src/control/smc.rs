@@ -1,11 +1,14 @@
 //! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
 
 use super::ControlContext;
-use super::{position_errors, Control, Controller, Shared};
+use super::{
+    euler_control, euler_held, euler_step, position_errors, Control, Controller, Due, EulerCascade,
+    EulerHeld, Shared, Sight,
+};
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
-use crate::lane::{gather, Lane, Param};
-use crate::model::{Inputs, Rigid, Tick, Trig};
+use crate::lane::{gather, Lane, Masks, Param};
+use crate::model::{Inputs, Rigid, Tick};
 use crate::trajectory::Reference;
 
 params! {
@@ -39,6 +42,7 @@ pub struct Smc<P = f64> {
 }
 
 impl Controller for Smc {
+    const LABEL: &'static str = "SMC";
     type Params = SmcGains;
     type At<L: Lane> = Smc<L>;
 
@@ -80,18 +84,16 @@ impl<P: Copy> Smc<P> {
     }
 }
 
-impl<P: Copy + Sync> Control<P> for Smc<P> {
+euler_control!(Smc);
+
+impl<P: Copy> EulerCascade<P> for Smc<P> {
+    /// The position loop: the thrust and the commanded roll and pitch.
     #[inline(always)]
-    fn control_with<L: Lane>(
-        &self,
-        s: &Rigid<L>,
-        trig: &Trig<L>,
-        r: &Reference,
-        _at: Tick,
-    ) -> Inputs<L>
+    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
     where
         P: Param<L>,
     {
+        let (s, trig) = (seen.rigid, seen.trig);
         let sh = &self.shared;
         let (cphi, cth, spsi, cpsi) = (trig.cphi, trig.cth, trig.spsi, trig.cpsi);
         let (e, ed) = position_errors(s, r);
@@ -105,7 +107,17 @@ impl<P: Copy + Sync> Control<P> for Smc<P> {
         let ux = (self.reach(lx, hx, ex, e[0], ed[0]) + r.acc[0]) * m_u1;
         let uy = (self.reach(ly, hy, ey, e[1], ed[1]) + r.acc[1]) * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
+        (u1, phi_d, theta_d)
+    }
 
+    /// The attitude loop: the torques toward the commanded roll and pitch and the reference's
+    /// yaw.
+    #[inline(always)]
+    fn attitude<L: Lane>(&self, s: &Rigid<L>, phi_d: L, theta_d: L, r: &Reference) -> [L; 3]
+    where
+        P: Param<L>,
+    {
+        let sh = &self.shared;
         let [la0, la1, la2] = self.lambda_attitude;
         let [et0, et1, et2] = self.eta_attitude;
         let [ep0, ep1, ep2] = self.epsilon_attitude;
@@ -122,12 +134,11 @@ impl<P: Copy + Sync> Control<P> for Smc<P> {
             L::splat(r.psi) - s.att[2],
             L::splat(r.psi_dot) - rr,
         ) + r.psi_ddot;
-        let tau = [
+        [
             v_phi * ixx - q * rr * (iyy - izz),
             v_theta * iyy - p * rr * (izz - ixx),
             v_psi * izz - p * q * (ixx - iyy),
-        ];
-        Inputs { u1, tau }
+        ]
     }
 }
 

@@ -142,7 +142,11 @@ pub struct WindField {
     mean: [f64; 3],
     start_step: u64,
     end_step: u64,
+    /// s, the field's own step: the wind is evaluated every `every` integration steps of
+    /// `step_dt` (`gust.rate`), and its steps (the window's, the filters') are of `dt`.
     dt: f64,
+    step_dt: f64,
+    every: u64,
     /// Scales that follow the vehicle, if any (else the filters above are the step's).
     follow: Option<Follow>,
     /// (cos chi, sin chi) of the turbulence axes; None when chi = 0 (no rotation at all).
@@ -258,9 +262,10 @@ impl WindField {
             return Ok(());
         }
         let (sigma, length, airspeed) = Self::scales(cfg);
+        let dt = cfg.integrator.dt * cfg.gust_every() as f64;
         for &c in &g.components {
             let i = c.index();
-            GustFilter::check(g.model, sigma[i], length[i], airspeed, cfg.integrator.dt)
+            GustFilter::check(g.model, sigma[i], length[i], airspeed, dt)
                 .map_err(|e| component_error(c, e))?;
         }
         Ok(())
@@ -280,7 +285,9 @@ impl WindField {
     /// `gust.min_airspeed` (or the fixed values): they fix the orders, the draws and the
     /// innovations; each step uses its own.
     pub fn new(cfg: &WindContext) -> Result<Self, ConfigError> {
-        let (g, dt, wind) = (&cfg.gust, cfg.integrator.dt, &cfg.wind);
+        let (g, step_dt, wind) = (&cfg.gust, cfg.integrator.dt, &cfg.wind);
+        let every = cfg.gust_every() as u64;
+        let dt = step_dt * every as f64;
         let chi = wind.heading.to_radians();
         let sources = AnySource::of(cfg);
         let mean_len = sources.iter().take_while(|s| s.is_mean_air()).count();
@@ -291,6 +298,8 @@ impl WindField {
             start_step: 0,
             end_step: 0,
             dt,
+            step_dt,
+            every,
             follow: None,
             axes: None,
             sources,
@@ -504,6 +513,9 @@ impl WindField {
     pub fn prescribed(mut self, rows: Vec<[f64; 3]>) -> Self {
         self.enabled = false;
         self.follow = None;
+        // A row per integration step: the field is evaluated at every step.
+        self.dt = self.step_dt;
+        self.every = 1;
         self.sources
             .push(AnySource::Prescribed(Prescribed(rows.into())));
         self
@@ -804,9 +816,25 @@ impl WindField {
         self.mean
     }
 
-    /// The integration step the field was discretised for, s.
+    /// s, the field's step: the period its filters were discretised for (`gust.rate`'s, or
+    /// the integration step).
     pub fn dt(&self) -> f64 {
         self.dt
+    }
+
+    /// Integration steps per field step (`gust.rate`; 1: every step).
+    pub fn every(&self) -> u64 {
+        self.every
+    }
+
+    /// The field steps a flight of `steps` integration steps samples: every one at every
+    /// step; at a rate, each update's and, for the linear interpolation, the next (the
+    /// update after the last step flown).
+    pub fn field_steps(&self, steps: usize) -> usize {
+        match self.every {
+            1 => steps,
+            n => (steps.max(1) - 1) / n as usize + 2,
+        }
     }
 }
 

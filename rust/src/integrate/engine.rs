@@ -224,14 +224,14 @@ impl Engine {
 
     /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
     pub fn innovations(&self) -> usize {
-        self.realisation.wind().innovations(self.steps)
+        let wind = self.realisation.wind();
+        wind.innovations(wind.field_steps(self.steps))
     }
 
     /// The innovations realisation `index` of `seed` draws.
     pub fn innovations_of(&self, seed: u64, index: u64) -> Vec<f64> {
-        self.realisation
-            .wind()
-            .innovations_of(seed, index, self.steps)
+        let wind = self.realisation.wind();
+        wind.innovations_of(seed, index, wind.field_steps(self.steps))
     }
 
     /// Trace columns after `t`.

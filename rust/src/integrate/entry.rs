@@ -3,7 +3,6 @@
 
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::trace::Trace;
-use crate::control::Controller;
 use crate::lane::isa::Isa;
 use crate::lane::{F64x4, KernelOps};
 #[cfg(target_arch = "x86_64")]
@@ -11,8 +10,8 @@ use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::model::{Actuator, BodyKind, Payload};
 use rustfft::FftPlanner;
 
-/// `fly_law` compiled with target features: one generic `unsafe fn $name` per (name, features),
-/// instantiated per (lane type, vehicle, law).
+/// `fly_vehicle` compiled with target features: one generic `unsafe fn $name` per (name,
+/// features), instantiated per (lane type, vehicle).
 /// Safety of each: the CPU must support the features.
 macro_rules! flight_loop_for {
     ($($(#[$doc:meta])* $name:ident, $features:literal;)+) => {$(
@@ -22,7 +21,7 @@ macro_rules! flight_loop_for {
         #[doc = concat!("The CPU must support ", $features, ".")]
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        unsafe fn $name<L, B, Pay, Act, C, const N: usize>(
+        unsafe fn $name<L, B, Pay, Act, const N: usize>(
             &self,
             realisations: &[&Realisation],
             req: &FlightRequest,
@@ -34,23 +33,23 @@ macro_rules! flight_loop_for {
             B: BodyKind,
             Pay: Payload,
             Act: Actuator,
-            C: Controller,
         {
-            self.fly_law::<L, B, Pay, Act, C, N>(realisations, req, trace, planner)
+            self.fly_vehicle::<L, B, Pay, Act, N>(realisations, req, trace, planner)
         }
     )+};
 }
 
-/// A lane type's way into the flight loop: the loop of one vehicle and law compiled for the
-/// instruction set its operations need, and no other. Each (lane type, instruction set) pair
-/// the loop is compiled for costs a copy of the whole inlined model, controller and integrator
-/// per vehicle and law, so only the pairs that can run are built: the intrinsic lane types in
+/// A lane type's way into the flight loop: the loop of one vehicle compiled for the instruction
+/// set its operations need, and no other. Each (lane type, instruction set) pair the loop is
+/// compiled for costs a copy of the whole inlined model, laws and integrator per vehicle, so
+/// only the pairs that can run are built: the intrinsic lane types in
 /// their own instruction set, the portable ones (`f64` for single flights, `F64x4`) in the
 /// baseline one. The arithmetic never contracts or reorders, so the same lanes give the same
 /// bits in any of them.
 pub trait LoopEntry: KernelOps {
-    /// Fly law `C` on the vehicle of kinds `B`, `Pay`, `Act` (`N` states), one realisation per lane.
-    fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+    /// Fly the request's law on the vehicle of kinds `B`, `Pay`, `Act` (`N` states), one
+    /// realisation per lane.
+    fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
         engine: &Engine,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -62,14 +61,14 @@ pub trait LoopEntry: KernelOps {
 macro_rules! portable_entry {
     ($($ty:ty),+) => {$(
         impl LoopEntry for $ty {
-            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 engine: &Engine,
                 realisations: &[&Realisation],
                 req: &FlightRequest,
                 trace: Option<&mut Trace>,
                 planner: &mut FftPlanner<f64>,
             ) -> Option<Vec<LaneResult>> {
-                engine.fly_law::<Self, B, Pay, Act, C, N>(realisations, req, trace, planner)
+                engine.fly_vehicle::<Self, B, Pay, Act, N>(realisations, req, trace, planner)
             }
         }
     )+};
@@ -82,7 +81,7 @@ macro_rules! intrinsic_entry {
     ($($ty:ty => $isa:expr, $fused:expr, $name:ident;)+) => {$(
         #[cfg(target_arch = "x86_64")]
         impl LoopEntry for $ty {
-            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, C: Controller, const N: usize>(
+            fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 engine: &Engine,
                 realisations: &[&Realisation],
                 req: &FlightRequest,
@@ -98,7 +97,7 @@ macro_rules! intrinsic_entry {
                 );
                 // SAFETY: the CPU supports the instruction set (asserted just above).
                 unsafe {
-                    engine.$name::<Self, B, Pay, Act, C, N>(realisations, req, trace, planner)
+                    engine.$name::<Self, B, Pay, Act, N>(realisations, req, trace, planner)
                 }
             }
         }
@@ -170,12 +169,12 @@ impl Engine {
     }
 
     flight_loop_for! {
-        /// `fly_law` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
+        /// `fly_vehicle` compiled with AVX2 enabled. No FMA: see `lane/isa.rs`.
         fly_avx2, "avx2";
-        /// `fly_law` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
+        /// `fly_vehicle` compiled with AVX2 and FMA enabled: the fused mode's AVX2 loop (only
         /// `Lane::mul_add` of `F64x4Fma` fuses; Rust never contracts the other operations).
         fly_avx2_fma, "avx2,fma";
-        /// `fly_law` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
+        /// `fly_vehicle` compiled with AVX-512F and DQ enabled (this enables AVX2 too). No FMA in
         /// the default mode: the lane operations never fuse, whatever the enabled features.
         fly_avx512, "avx512f,avx512dq";
     }

@@ -3,9 +3,9 @@
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
 use super::rk4::rk4_advance;
-use super::steps::{Attitude, Ends, Leg, Release, Runaway, Winds};
+use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
-use crate::control::{Control, Controller, ControllerVisitor};
+use crate::control::{Flying, Laws, Sight};
 use crate::gust::WindField;
 use crate::lane::KernelOps;
 use crate::metrics::{LawLimits, PhaseAccumulator, Views};
@@ -22,11 +22,11 @@ use std::sync::atomic::Ordering;
 const CANCEL_CHECK_STEPS: usize = 4096;
 
 impl Engine {
-    /// Fly on the vehicle kinds (`model::dispatch`) and law (`control::dispatch`) of the
-    /// request: dispatch to the loop compiled for them and lane type `L` (`LoopEntry::enter`).
-    /// Each (lane type, vehicle, law) is its own function, so the compiler builds them apart
-    /// (in parallel, each the size of one loop, not one function holding all sixteen). Only
-    /// `f64` values pass here: lane values exist only inside `enter`.
+    /// Fly on the vehicle kinds of the request (`model::dispatch`): dispatch to the loop
+    /// compiled for them and lane type `L` (`LoopEntry::enter`). Each (lane type, vehicle) is
+    /// its own function, so the compiler builds them apart (in parallel, each the size of one
+    /// loop); the law is chosen inside it, once per step (`control::Flying`). Only `f64` values
+    /// pass here: lane values exist only inside `enter`.
     pub(super) fn fly_kinds<L: LoopEntry>(
         &self,
         req: &FlightRequest,
@@ -41,7 +41,7 @@ impl Engine {
             }
             None => &own[..L::LANES],
         };
-        /// The request, carried through both dispatches to `LoopEntry::enter`.
+        /// The request, carried through the dispatch to `LoopEntry::enter`.
         struct Fly<'e, 'r, 't, L> {
             engine: &'e Engine,
             realisations: &'r [&'r Realisation],
@@ -55,25 +55,13 @@ impl Engine {
             fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 self,
             ) -> Self::Output {
-                let kind = self.req.kind;
-                let law = Law::<L, B, Pay, Act, N> {
-                    fly: self,
-                    kinds: PhantomData,
-                };
-                crate::control::dispatch(kind, law)
-            }
-        }
-        struct Law<'e, 'r, 't, L, B, Pay, Act, const N: usize> {
-            fly: Fly<'e, 'r, 't, L>,
-            kinds: PhantomData<(B, Pay, Act)>,
-        }
-        impl<L: LoopEntry, B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>
-            ControllerVisitor for Law<'_, '_, '_, L, B, Pay, Act, N>
-        {
-            type Output = Option<Vec<LaneResult>>;
-            fn visit<C: Controller>(self) -> Self::Output {
-                let f = self.fly;
-                L::enter::<B, Pay, Act, C, N>(f.engine, f.realisations, f.req, f.trace, f.planner)
+                L::enter::<B, Pay, Act, N>(
+                    self.engine,
+                    self.realisations,
+                    self.req,
+                    self.trace,
+                    self.planner,
+                )
             }
         }
         let fly = Fly {
@@ -88,10 +76,10 @@ impl Engine {
         dispatch(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model, fly)
     }
 
-    /// Gather the lanes' realisations into lane-valued parameters and fly law `C`: the body of
+    /// Gather the lanes' realisations into lane-valued parameters and fly them: the body of
     /// every compiled loop (`LoopEntry::enter`), inlined there with everything it calls.
     #[inline(always)]
-    pub(super) fn fly_law<L, B, Pay, Act, C, const N: usize>(
+    pub(super) fn fly_vehicle<L, B, Pay, Act, const N: usize>(
         &self,
         realisations: &[&Realisation],
         req: &FlightRequest,
@@ -103,20 +91,12 @@ impl Engine {
         B: BodyKind,
         Pay: Payload,
         Act: Actuator,
-        C: Controller,
     {
         let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
         // Mutable: a payload's winch target and hook change along the flight (`last_metres`).
         let mut vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
-        let kind = req.kind;
-        let laws: Vec<&C> = realisations
-            .iter()
-            .map(|c| c.laws.get(kind).get::<C>())
-            .collect();
-        let ctrl = C::gather::<L>(&laws);
-        self.fly_loop::<L, B, Pay::At<L>, Act::At<L>, C::At<L>, N>(
+        self.fly_loop::<L, B, Pay::At<L>, Act::At<L>, N>(
             &mut vehicle,
-            &ctrl,
             realisations,
             req,
             trace,
@@ -129,10 +109,9 @@ impl Engine {
     /// each lane's result.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn fly_loop<L, B, Pay, Act, C, const N: usize>(
+    fn fly_loop<L, B, Pay, Act, const N: usize>(
         &self,
         vehicle: &mut Vehicle<L, Pay, Act, B>,
-        ctrl: &C,
         realisations: &[&Realisation],
         req: &FlightRequest,
         mut trace: Option<&mut Trace>,
@@ -143,7 +122,6 @@ impl Engine {
         B: BodyKind,
         Pay: crate::model::PayloadModel<L>,
         Act: ActuatorModel<L>,
-        C: Control<L>,
     {
         type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
@@ -159,12 +137,19 @@ impl Engine {
         let mut leg = Leg::<L>::new();
         let mut extra = [L::splat(0.0); MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
-        // The law's discrete memory (none for a static law), and each lane's at its start.
-        let mem0 = ctrl.memory(&V::<L, Pay, Act, B>::rigid(&x0));
-        let mut mem = mem0;
+        // The law of the request, gathered one vehicle per lane, its memory at rest at the
+        // start; its loops' schedule (`Rates`).
+        let start = Attitude::<L, B>::of(&x0);
+        let view0 = V::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
+        let trig0 = B::trig(&start.frame, &view0.att);
+        let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
+        let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0));
+        let mut rates = Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt));
         let mut release = Release::new();
 
-        let reads_payload = ctrl.reads_payload();
+        let reads_payload = law.reads_payload();
+        // The actuators' command, held between the inner loop's updates.
+        let mut held = None;
         // The attitude the last runaway check derived for this state, if it did.
         let mut checked: Option<Attitude<L, B>> = None;
         for k in 0..=self.steps {
@@ -180,13 +165,25 @@ impl Engine {
             let tick = Tick { step: k, t };
             let view = V::<L, Pay, Act, B>::rigid_with(&s, attitude.euler);
             // What the law sees of the payload: only computed for a law that reads it.
-            let seen = if C::SEES_PAYLOAD && reads_payload {
-                vehicle.payload.view(&s, &trig)
+            let payload = if reads_payload {
+                Some(vehicle.payload.view(&s, &trig))
             } else {
-                crate::model::PayloadView::none()
+                None
             };
-            let u = ctrl.step_seeing(&view, &B::trig(&trig, &view.att), &seen, r, tick, &mut mem);
-            let cmd = vehicle.actuator.command(&u, tick);
+            let law_trig = B::trig(&trig, &view.att);
+            let seen = Sight {
+                rigid: &view,
+                trig: &law_trig,
+                payload: payload.as_ref(),
+            };
+            let due = rates.due(k);
+            let u = law.step(&seen, r, tick, due);
+            // The mixer runs with the inner loop (every loop is due at the first step).
+            let cmd = match held {
+                Some(c) if !due.rate => c,
+                _ => vehicle.actuator.command(&u, tick),
+            };
+            held = Some(cmd);
             let w = wind.sample(k, k == self.steps && k > 0, &view, realisations);
             // The route's cue to the payload and its events, before the step (a hook that opens
             // now is open over the step).
@@ -253,7 +250,7 @@ impl Engine {
                 // Retired lanes are parked on their initial state: the next step derives its own.
                 let tilt = attitude.map(|a| a.euler);
                 #[rustfmt::skip]
-                ends.retire(ok, t, self.dt, tilt, &mut s, &mut mem, &mem0, realisations, &self.vars);
+                ends.retire(ok, t, self.dt, tilt, &mut s, &mut law, realisations, &self.vars);
                 if ends.alive == 0 {
                     break;
                 }

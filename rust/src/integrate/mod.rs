@@ -1,15 +1,19 @@
 //! The flight loop: classical RK4 with controls and wind sampled at the start of each step and
-//! held over its four stages (a digital controller at 1/dt Hz), metrics taken online. The loop
+//! held over its four stages, metrics taken online. A law's loops update at their own rates
+//! (MODEL.md section 18: every step by default, a digital controller at 1/dt Hz), each holding
+//! its output between its updates, and the wind at `gust.rate`, interpolated between. The loop
 //! knows no model's details: the vehicle (`model::Vehicle`) gives the derivative and the
-//! payload's outputs, the layout gives the state names and runaway bounds.
+//! payload's outputs, the layout gives the state names and runaway bounds, the law
+//! (`control::Flying`) its inputs.
 //!
 //! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
-//! and controller kinds, `fly_law` gathers the lanes' parameters, `fly_loop` flies them);
-//! `steps` the loop's named steps (the reference's leg, the wind, the last metres, the runaway
-//! checks), inlined into it (the metrics take their signals from the loop's `metrics::Views`);
-//! `entry` the way in, one function per (lane type, vehicle, law) compiled for the lane type's
-//! instruction set (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled
-//! scenario (`Engine`, `Realisation`, `FlightRequest`, `LaneResult`); `trace` the trace's columns and rows;
+//! kinds, `fly_vehicle` gathers the lanes' parameters, `fly_loop` flies them, choosing the
+//! request's law once per step); `steps` the loop's named steps (the reference's leg, the
+//! wind, the loops' schedule, the last metres, the runaway checks), inlined into it (the
+//! metrics take their signals from the loop's `metrics::Views`); `entry` the way in, one
+//! function per (lane type, vehicle) compiled for the lane type's instruction set
+//! (`LoopEntry`, `Engine::fly`, `Engine::fly_set`); `engine` the compiled scenario (`Engine`,
+//! `Realisation`, `FlightRequest`, `LaneResult`); `trace` the trace's columns and rows;
 //! `status` why a flight ended (`ExitStatus`).
 
 mod engine;

@@ -4,7 +4,7 @@
 
 use super::engine::{FlightRequest, Realisation, MAX_LANES};
 use super::status::{classify, ExitStatus};
-use crate::control::Memory;
+use crate::control::{Due, Flying};
 use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::{KernelOps, Lane};
 use crate::metrics::LastSample;
@@ -91,6 +91,11 @@ pub(super) struct Winds<'f, 'a, L> {
     /// prescribed wind): the wind is sampled at every step.
     blows: bool,
     held: [L; 3],
+    /// Integration steps per field step (`gust.rate`), and at a rate the field's winds the
+    /// step interpolates between: the last update's and the next's.
+    every: usize,
+    from: [L; 3],
+    to: [L; 3],
 }
 
 impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
@@ -120,6 +125,11 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
         let gust_from = windy().map(|c| c.wind.start_step()).min();
         let gust_to = windy().map(|c| c.wind.end_step()).max();
         let (gust_from, gust_to) = (gust_from.unwrap_or(u64::MAX), gust_to.unwrap_or(0));
+        let every = realisations[0].wind.every();
+        assert!(
+            realisations.iter().all(|c| c.wind.every() == every),
+            "the lanes of a set share gust.rate (it cannot be dispersed)"
+        );
         Self {
             states,
             set,
@@ -128,6 +138,9 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
             gust_to,
             blows: realisations.iter().any(|c| c.wind.blows()),
             held: [L::splat(0.0); 3],
+            every: every as usize,
+            from: [L::splat(0.0); 3],
+            to: [L::splat(0.0); 3],
         }
     }
 
@@ -135,6 +148,12 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
     /// at t_k holds the wind of step k. The `last` row (t = duration) has no step after it: it
     /// holds the last step's wind (the hold runs to its end), so no metric sees a wind that no
     /// step flies, and no innovation is drawn for it.
+    ///
+    /// At a `gust.rate` (MODEL.md section 18) the field is evaluated at its own steps, every
+    /// `every` integration steps, and the wind between two of them is interpolated linearly
+    /// (a first-order hold): at an update the field's next value is drawn, with the vehicle
+    /// where it is then, and the steps until the next update run from the current value to
+    /// it.
     #[inline(always)]
     pub(super) fn sample(
         &mut self,
@@ -143,12 +162,42 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
         rigid: &Rigid<L>,
         realisations: &[&Realisation],
     ) -> [L; 3] {
+        let w = if last {
+            self.held
+        } else if self.every == 1 {
+            self.field_at(k, rigid, realisations)
+        } else {
+            let (update, since) = (k / self.every, k % self.every);
+            if since == 0 {
+                self.from = if k == 0 {
+                    self.field_at(0, rigid, realisations)
+                } else {
+                    self.to
+                };
+                self.to = self.field_at(update + 1, rigid, realisations);
+                self.from
+            } else {
+                let f = L::splat(since as f64 / self.every as f64);
+                let (a, b) = (self.from, self.to);
+                [
+                    a[0] + (b[0] - a[0]) * f,
+                    a[1] + (b[1] - a[1]) * f,
+                    a[2] + (b[2] - a[2]) * f,
+                ]
+            }
+        };
+        self.held = w;
+        w
+    }
+
+    /// The field's wind at its step `k` (an integration step at every step, else a
+    /// `gust.rate` step) with the quadrotor at `rigid`.
+    #[inline(always)]
+    fn field_at(&mut self, k: usize, rigid: &Rigid<L>, realisations: &[&Realisation]) -> [L; 3] {
         // Outside the gust window `sample_at` returns zeros without touching the state
         // unless a `[wind]` source blows, so the per-lane calls are skipped where no lane's
         // window is open and nothing else blows (most of a paper flight).
-        let w: [L; 3] = if last {
-            self.held
-        } else {
+        {
             // The lane-set's wind when `set` flies it (else the per-lane values).
             let mut wind_set: Option<[L; 3]> = None;
             if let Some(g) = self.set.as_mut() {
@@ -195,9 +244,7 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
                     wind_of(&self.lanes, 2),
                 ],
             }
-        };
-        self.held = w;
-        w
+        }
     }
 }
 
@@ -370,18 +417,17 @@ impl Ends {
 
     /// End the flight of each lane still flying outside `ok` (a lane mask) after the step at
     /// `t` (of `dt`), and say why (`tilt`: the rigid body's Euler angles, where roll and pitch
-    /// are no states); park the lane on its initial state and memory.
+    /// are no states); park the lane on its initial state and its law's memory.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn retire<L: Lane, const N: usize>(
+    pub(super) fn retire<L: KernelOps, const N: usize>(
         &mut self,
         ok: u32,
         t: f64,
         dt: f64,
         tilt: Option<[L; 3]>,
         s: &mut State<L, N>,
-        mem: &mut Memory<L>,
-        mem0: &Memory<L>,
+        law: &mut Flying<L>,
         realisations: &[&Realisation],
         vars: &[StateVar],
     ) {
@@ -400,10 +446,42 @@ impl Ends {
                 for (x, x0) in s.iter_mut().zip(realisations[lane].x0.iter()) {
                     x.set_lane(lane, *x0);
                 }
-                for (m, m0) in mem.iter_mut().zip(mem0.iter()) {
-                    m.set_lane(lane, m0.lane(lane));
-                }
+                law.park(lane);
             }
+        }
+    }
+}
+
+/// When each of a law's loops updates (MODEL.md section 18): every `steps[i]` steps from the
+/// first, for the position, attitude and inner loops in turn (1: every step).
+pub(super) struct Rates {
+    steps: [usize; 3],
+    next: [usize; 3],
+}
+
+impl Rates {
+    #[inline(always)]
+    pub(super) fn new(steps: [usize; 3]) -> Self {
+        Self {
+            steps,
+            next: [0; 3],
+        }
+    }
+
+    /// The loops due at step `k` (called once per step, in order).
+    #[inline(always)]
+    pub(super) fn due(&mut self, k: usize) -> Due {
+        let mut due = [false; 3];
+        for ((due, next), steps) in due.iter_mut().zip(&mut self.next).zip(self.steps) {
+            if k == *next {
+                *due = true;
+                *next += steps;
+            }
+        }
+        Due {
+            position: due[0],
+            attitude: due[1],
+            rate: due[2],
         }
     }
 }

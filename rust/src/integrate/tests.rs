@@ -548,3 +548,165 @@ fn the_wind_blows_outside_the_window_and_the_prescribed_wind_adds_to_it() {
         .unwrap();
     assert_eq!(tr.data, tr2.data);
 }
+
+/// The paper's vehicle moving sideways and up (every loop of every law has work to do), its
+/// laws at 50, 250 and 500 Hz on the 1 ms step.
+fn sampled_cfg() -> Config {
+    let mut cfg = hover_cfg();
+    cfg.trajectory.waypoints = vec![[0.0, 0.5, -0.3, 2.4, 0.0], [5.0, 0.5, -0.3, 2.4, 0.0]];
+    cfg.integrator.duration = 0.3;
+    cfg.phases[0].end = 0.3;
+    cfg.controller.position_rate = Some(50.0);
+    cfg.controller.attitude_rate = Some(250.0);
+    cfg.controller.inner_rate = Some(500.0);
+    cfg
+}
+
+/// A law at its rates is the law evaluated by hand at its update instants and held between
+/// them (MODEL.md section 18), for every law: the trace's inputs at each step are what the
+/// law gives with its loops updated on the steps k with k % (steps per update) == 0 from the
+/// state recorded then, each loop's output unchanged between its updates, and where every
+/// loop updates (each 20 ms), a static law's inputs are the law at rest at that state.
+#[test]
+fn a_law_at_its_rates_is_the_law_sampled_and_held() {
+    use crate::control::Pd;
+    use crate::control::{AnyController, Control, Controller, Due, Px4, Se3, Sight, Smc};
+    use crate::model::{Rigid, Tick};
+    let cfg = sampled_cfg();
+    let engine = Engine::new(cfg.clone()).unwrap();
+    let dt = cfg.integrator.dt;
+    let columns = trace_columns(Default::default(), Default::default(), Default::default());
+    let at = |name: &str| 1 + columns.iter().position(|c| *c == name).unwrap();
+    fn by_hand<C: Control>(
+        law: &C,
+        rows: &[&[f64]],
+        at: &dyn Fn(&str) -> usize,
+        steps: [usize; 3],
+        dt: f64,
+        is_static: bool,
+    ) {
+        let rigid = |row: &[f64]| Rigid {
+            pos: [row[at("x")], row[at("y")], row[at("z")]],
+            att: [row[at("phi")], row[at("theta")], row[at("psi")]],
+            vel: [row[at("vx")], row[at("vy")], row[at("vz")]],
+            rate: [row[at("p")], row[at("q")], row[at("r")]],
+        };
+        let reference = |row: &[f64]| crate::trajectory::Reference {
+            pos: [row[at("x_ref")], row[at("y_ref")], row[at("z_ref")]],
+            psi: row[at("psi_ref")],
+            ..Default::default()
+        };
+        let s0 = rigid(rows[0]);
+        let trig0 = Trig::of_angles(s0.att[0], s0.att[1], s0.att[2]);
+        let mut mem = law.memory(&Sight::blind(&s0, &trig0));
+        let mut changes = [0usize; 2];
+        for (k, row) in rows.iter().enumerate() {
+            let s = rigid(row);
+            let trig = Trig::of_angles(s.att[0], s.att[1], s.att[2]);
+            let due = Due {
+                position: k % steps[0] == 0,
+                attitude: k % steps[1] == 0,
+                rate: k % steps[2] == 0,
+            };
+            let r = reference(row);
+            let tick = Tick {
+                step: k,
+                t: k as f64 * dt,
+            };
+            let u = law.step(&Sight::blind(&s, &trig), &r, tick, due, &mut mem);
+            let got = [
+                row[at("U1")],
+                row[at("tau_phi")],
+                row[at("tau_theta")],
+                row[at("tau_psi")],
+            ];
+            let want = [u.u1, u.tau[0], u.tau[1], u.tau[2]];
+            assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "step {k}");
+            if k > 0 {
+                let prev = rows[k - 1];
+                let moved = |name: &str| row[at(name)] != prev[at(name)];
+                // The torques move only where the loop that gives them updates.
+                let torque_loop = if is_static { due.attitude } else { due.rate };
+                if moved("tau_phi") || moved("tau_theta") {
+                    assert!(
+                        torque_loop,
+                        "the torques moved at step {k}, between updates"
+                    );
+                    changes[1] += 1;
+                }
+                if is_static && moved("U1") {
+                    assert!(
+                        due.position,
+                        "the thrust moved at step {k}, between updates"
+                    );
+                    changes[0] += 1;
+                }
+            }
+            if is_static && due.position {
+                let rest = law.at_rest(&Sight::blind(&s, &trig), &r, tick);
+                assert_eq!(rest.u1.to_bits(), u.u1.to_bits(), "step {k}");
+                assert_eq!(
+                    rest.tau.map(f64::to_bits),
+                    u.tau.map(f64::to_bits),
+                    "step {k}"
+                );
+            }
+        }
+        // The holds held something that moves: the law was exercised.
+        assert!(changes[1] > 10, "{changes:?}");
+        if is_static {
+            assert!(
+                changes[0] > 5 && changes[0] <= rows.len() / steps[0],
+                "{changes:?}"
+            );
+        }
+    }
+    for kind in ControllerKind::ALL.iter().copied() {
+        let mut tr = engine.trace(1);
+        let req = FlightRequest::new(kind, 0, &[0]);
+        engine
+            .fly::<f64>(&req, Some(&mut tr), &mut FftPlanner::new())
+            .unwrap();
+        let rows: Vec<&[f64]> = tr.data.chunks(tr.width).collect();
+        // The closing row holds the last step's inputs: no step follows it.
+        let rows = &rows[..rows.len() - 1];
+        let steps = cfg.controller.loop_steps(kind, dt);
+        assert_eq!(steps, [20, 4, 2]);
+        let law = AnyController::new(kind, &cfg.control_context());
+        match kind {
+            ControllerKind::Pd => by_hand(law.get::<Pd>(), rows, &at, steps, dt, true),
+            ControllerKind::Smc => by_hand(law.get::<Smc>(), rows, &at, steps, dt, true),
+            ControllerKind::Se3 => by_hand(law.get::<Se3>(), rows, &at, steps, dt, true),
+            ControllerKind::Px4 => by_hand(law.get::<Px4>(), rows, &at, steps, dt, false),
+        }
+        let _ = <Pd as Controller>::RATES;
+    }
+}
+
+/// A position loop slow enough to destabilise the hover: the sampled model's poles say so, and
+/// the flight diverges; at PX4's own 50 Hz both are stable.
+#[test]
+fn a_slow_position_loop_is_unstable_in_the_model_and_in_flight() {
+    use crate::stability::{analyse, Verdict};
+    let mut cfg = hover_cfg();
+    cfg.integrator.duration = 30.0;
+    cfg.phases[0].end = 30.0;
+    // Released 0.3 m below the hover point: the vertical loop has work to do.
+    cfg.initial.position = [0.0, 0.0, 1.7];
+    for (rate, verdict) in [(50.0, Verdict::Stable), (0.5, Verdict::Unstable)] {
+        cfg.controller.position_rate = Some(rate);
+        let a = analyse(&cfg, ControllerKind::Pd);
+        assert_eq!(a.period, Some(1.0 / rate), "{rate} Hz");
+        assert_eq!(a.verdict, verdict, "{rate} Hz: {:?}", a.poles.first());
+        let engine = Engine::new(cfg.clone()).unwrap();
+        let out = engine
+            .fly::<f64>(
+                &FlightRequest::new(ControllerKind::Pd, 0, &[0]),
+                None,
+                &mut FftPlanner::new(),
+            )
+            .unwrap();
+        let diverged = !out[0].diverged_at.is_nan();
+        assert_eq!(diverged, verdict == Verdict::Unstable, "{rate} Hz");
+    }
+}

@@ -1,7 +1,7 @@
 //! Dual numbers: forward-mode automatic differentiation through the same generic model code
 //! the flight loop runs (`crate::stability` linearises with them).
 
-use super::Lane;
+use super::{Lane, Masks};
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 /// A number with a derivative along one direction (forward-mode automatic differentiation).
@@ -179,6 +179,27 @@ impl Lane for Dual {
     }
     fn if_negative(self, a: Self, b: Self) -> Self {
         if self.v < 0.0 {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+/// A mask is a constant whose value has every bit set (true) or none; `select` picks by the
+/// value's mask and carries the chosen operand's derivative, as a branch would.
+impl Masks for Dual {
+    fn cmp_le(self, other: Self) -> Self {
+        Self::constant(Masks::cmp_le(self.v, other.v))
+    }
+    fn cmp_ge(self, other: Self) -> Self {
+        Self::constant(Masks::cmp_ge(self.v, other.v))
+    }
+    fn cmp_ne(self, other: Self) -> Self {
+        Self::constant(Masks::cmp_ne(self.v, other.v))
+    }
+    fn select(mask: Self, a: Self, b: Self) -> Self {
+        if mask.v.to_bits() == u64::MAX {
             a
         } else {
             b

@@ -158,10 +158,11 @@ impl<L: Lane> Param<L> for f64 {
     }
 }
 
-/// What the branch-free kernels (`kernels::sin_cos`, `kernels::asin`) are built from. A mask is
-/// a value whose lanes have all bits set (true) or clear (false); the `_bits` operations act on
-/// the lanes' IEEE-754 bit patterns.
-pub trait KernelOps: Lane + Param<Self> {
+/// Comparisons as masks and a lane-wise choice: what a control law's branches are written in
+/// (a law never branches on a lane's value), so that one law flies lane types, plain numbers
+/// and dual numbers alike. A mask is a value whose lanes have all bits set (true) or clear
+/// (false); only `select` reads one.
+pub trait Masks: Lane {
     /// Mask of `self <= other` (false for NaN).
     fn cmp_le(self, other: Self) -> Self;
     /// Mask of `self >= other` (false for NaN).
@@ -170,6 +171,12 @@ pub trait KernelOps: Lane + Param<Self> {
     fn cmp_ne(self, other: Self) -> Self;
     /// Lane-wise `if mask { a } else { b }`.
     fn select(mask: Self, a: Self, b: Self) -> Self;
+}
+
+/// What the branch-free kernels (`kernels::sin_cos`, `kernels::asin`) are built from. A mask is
+/// a value whose lanes have all bits set (true) or clear (false); the `_bits` operations act on
+/// the lanes' IEEE-754 bit patterns.
+pub trait KernelOps: Masks + Param<Self> {
     fn and_bits(self, other: Self) -> Self;
     fn xor_bits(self, other: Self) -> Self;
     /// 64-bit integer sum of the bit patterns.
@@ -247,7 +254,7 @@ impl Lane for f64 {
     }
 }
 
-impl KernelOps for f64 {
+impl Masks for f64 {
     #[inline(always)]
     fn cmp_le(self, other: Self) -> Self {
         mask_f64(self <= other)
@@ -265,6 +272,9 @@ impl KernelOps for f64 {
         let m = mask.to_bits();
         f64::from_bits((m & a.to_bits()) | (!m & b.to_bits()))
     }
+}
+
+impl KernelOps for f64 {
     #[inline(always)]
     fn and_bits(self, other: Self) -> Self {
         f64::from_bits(self.to_bits() & other.to_bits())

@@ -1,7 +1,7 @@
 //! Four lanes as a plain array, operation by operation (LLVM vectorises what it can): the lane
 //! type off x86-64. Also compiled, and tested, on x86-64 test builds.
 
-use super::{kernels, KernelOps, Lane, Param};
+use super::{kernels, KernelOps, Lane, Masks, Param};
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 #[derive(Clone, Copy, Debug)]
@@ -106,23 +106,23 @@ impl Lane for F64x4 {
     }
 }
 
-impl KernelOps for F64x4 {
+impl Masks for F64x4 {
     #[inline(always)]
     fn cmp_le(self, o: Self) -> Self {
-        each!(|x, y| KernelOps::cmp_le(x, y), self, o)
+        each!(|x, y| Masks::cmp_le(x, y), self, o)
     }
     #[inline(always)]
     fn cmp_ge(self, o: Self) -> Self {
-        each!(|x, y| KernelOps::cmp_ge(x, y), self, o)
+        each!(|x, y| Masks::cmp_ge(x, y), self, o)
     }
     #[inline(always)]
     fn cmp_ne(self, o: Self) -> Self {
-        each!(|x, y| KernelOps::cmp_ne(x, y), self, o)
+        each!(|x, y| Masks::cmp_ne(x, y), self, o)
     }
     #[inline(always)]
     fn select(m: Self, a: Self, b: Self) -> Self {
         let (m, a, b) = (m.0, a.0, b.0);
-        let f = <f64 as KernelOps>::select;
+        let f = <f64 as Masks>::select;
         Self([
             f(m[0], a[0], b[0]),
             f(m[1], a[1], b[1]),
@@ -130,6 +130,9 @@ impl KernelOps for F64x4 {
             f(m[3], a[3], b[3]),
         ])
     }
+}
+
+impl KernelOps for F64x4 {
     #[inline(always)]
     fn and_bits(self, o: Self) -> Self {
         each!(|x, y| x.and_bits(y), self, o)

@@ -18,7 +18,7 @@
 //! lands in the target-feature-compiled flight loop; an operation left out of line there would
 //! still be correct, only slow.
 
-use super::{kernels, KernelOps, Lane, Param};
+use super::{kernels, KernelOps, Lane, Masks, Param};
 use std::arch::x86_64::*;
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
@@ -223,7 +223,7 @@ macro_rules! x86_lane {
             )?
         }
 
-        impl KernelOps for $ty {
+        impl Masks for $ty {
             #[inline(always)]
             fn cmp_le(self, o: Self) -> Self {
                 x86_lane!(@op $regs $le; self.0, o.0)
@@ -240,6 +240,9 @@ macro_rules! x86_lane {
             fn select(m: Self, a: Self, b: Self) -> Self {
                 x86_lane!(@op $regs $select; m.0, a.0, b.0)
             }
+        }
+
+        impl KernelOps for $ty {
             #[inline(always)]
             fn and_bits(self, o: Self) -> Self {
                 x86_lane!(@op $regs $and; self.0, o.0)

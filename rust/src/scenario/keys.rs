@@ -3,7 +3,7 @@
 //! keys' parsing is `config::keys`; each section and kind finds its own fields).
 
 use super::Config;
-use crate::config::keys::{parse_key, Seg, Target, FIXED_PREFIXES};
+use crate::config::keys::{parse_key, Seg, Target, FIXED_PREFIXES, SCHEDULE_KEYS};
 use crate::config::params::{self, Params};
 use crate::config::{ConfigError, Interpolation};
 
@@ -51,6 +51,12 @@ impl Config {
                      spectrum grid that every realisation of a batch shares"
                 )));
             }
+        }
+        if SCHEDULE_KEYS.contains(&key) {
+            return Err(err(
+                "cannot be dispersed: the loops' rates fix the steps at which every realisation \
+                 of a batch updates its laws and its wind",
+            ));
         }
         // A min-jerk reference starts from the initial state, and a batch's lanes share one
         // reference: a drawn start would fly the nominal start's reference.

@@ -282,6 +282,9 @@ impl Config {
         self.wind.validate()?;
         self.validate_shear()?;
         self.integrator.validate()?;
+        if let Err(why) = crate::config::steps_per_update(self.gust.rate, self.integrator.dt) {
+            return Err(ConfigError::new("gust.rate", format!("gust.rate: {why}")));
+        }
         if fixed {
             route::schedule(&self.context())?;
             trajectory::validate_phases(&self.phases, &self.integrator)?;

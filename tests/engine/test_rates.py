@@ -1,0 +1,167 @@
+"""Each loop at its own rate (MODEL.md section 18, docs/model.md "Loop rates"): the wind at
+`gust.rate`, the laws' loops at `controller.*_rate`, what is refused, and what the stability
+analysis and the linear model say of a sampled law."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import quadrs
+from quadrs import Scenario, ScenarioError
+from quadrs.engine.calls import is_sampled, loop_rates
+
+SEED, REALISATION = 7, 3
+
+
+def gusty_hover(rate: float) -> Scenario:
+    """The paper flight through its vertical gust (25 to 40 s) at dt = 1 ms, the
+    wind evaluated at ``rate`` Hz."""
+    return Scenario.paper().override({"integrator.dt": 1e-3, "gust.rate": rate})
+
+
+def wind_z(s: Scenario) -> np.ndarray:
+    flight = quadrs.simulate(s, "smc", SEED, realisation=REALISATION, record_every=1)
+    return flight.trace["wind_z"].to_numpy()
+
+
+def test_the_wind_at_its_rate_is_the_exact_series_at_that_period_interpolated_between() -> None:
+    """At the updates, the flight's turbulence is the exactly discretised Dryden filter at the
+    update period (`gust_series` at that dt: its variance and autocorrelation are the
+    spectrum's at every lag, tests/engine/test_gust*.py); between them it runs linearly to the
+    next update's value; 0 Hz is every step, as before."""
+    rate, dt = 100.0, 1e-3
+    every = round(1.0 / (rate * dt))
+    s = gusty_hover(rate)
+    w = wind_z(s)
+    start, end = round(25.0 / dt), round(40.0 / dt)
+    updates = w[start:end:every]
+    scales = quadrs.gust_scales(2.0, 10.0)["vertical"]
+    series = quadrs.gust_series(
+        "vertical", *scales, airspeed=10.0, dt=1.0 / rate, steps=len(updates) - 1,
+        seed=SEED, first=REALISATION,
+    )[0]  # fmt: skip
+    # The last row of the trace is the closing one (it holds the last step's wind).
+    np.testing.assert_allclose(updates[: len(series)], series, rtol=1e-13, atol=1e-15)
+    # Between updates: a first-order hold (linear interpolation) to the next update.
+    body = w[start : start + every * (len(series) - 1)].reshape(-1, every)
+    frac = np.arange(every) / every
+    want = series[:-1, None] + (series[1:, None] - series[:-1, None]) * frac
+    np.testing.assert_allclose(body, want, rtol=1e-12, atol=1e-14)
+    # Before the window, no turbulence; the step before it already ramps toward the onset's.
+    assert np.all(w[: start - every] == 0.0)
+    # Every step (0 Hz): the series at the step itself, not held.
+    every_step = wind_z(gusty_hover(0.0))[start : start + 50]
+    np.testing.assert_allclose(
+        every_step,
+        quadrs.gust_series(
+            "vertical", *scales, airspeed=10.0, dt=dt, steps=50, seed=SEED, first=REALISATION
+        )[0],
+        rtol=1e-13,
+        atol=1e-15,
+    )
+
+
+def test_the_wind_at_its_rate_draws_a_tenth_of_the_innovations() -> None:
+    every_step = gusty_hover(0.0).engine.innovations_dimension()
+    at_rate = gusty_hover(100.0).engine.innovations_dimension()
+    # 15 s of the vertical Dryden filter (second order): 2 x 15,000 draws every step,
+    # 2 x 1,500 at 100 Hz (one per update of the window).
+    assert every_step == 30_000
+    assert at_rate == 3_000
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("gust.rate", 300.0),
+        ("controller.position_rate", 3000.0),
+        ("controller.attitude_rate", 333.0),
+        ("controller.inner_rate", 1500.0),
+    ],
+)
+def test_a_rate_whose_period_is_not_whole_steps_is_refused_naming_its_key(
+    key: str, value: float
+) -> None:
+    with pytest.raises(ScenarioError, match=key.replace(".", r"\.")) as e:
+        gusty_hover(0.0).override({key: value}).engine  # noqa: B018
+    assert "integrator.dt" in str(e.value)
+
+
+def test_px4s_own_rates_are_refused_on_a_step_that_does_not_divide_them() -> None:
+    with pytest.raises(ScenarioError, match=r"px4 law's own rate: set controller\.position_rate"):
+        Scenario.paper().override({"integrator.dt": 3e-3})
+    # Set, it flies.
+    Scenario.paper().override(
+        {
+            "integrator.dt": 3e-3,
+            "controller.position_rate": 0.0,
+            "controller.attitude_rate": 0.0,
+            "controller.inner_rate": 0.0,
+        }
+    ).engine  # noqa: B018
+
+
+@pytest.mark.parametrize("key", ["gust.rate", "controller.position_rate"])
+def test_rates_cannot_be_dispersed(key: str) -> None:
+    spread = {"dispersions": {key: {"dist": "uniform", "low": 10.0, "high": 20.0}}}
+    with pytest.raises(ScenarioError, match=r"cannot be dispersed: the loops' rates"):
+        gusty_hover(0.0).override(spread)
+
+
+def test_each_law_flies_its_own_rates_unless_set() -> None:
+    paper = Scenario.paper()
+    assert loop_rates(paper, "px4") == (50.0, 250.0, 1000.0)
+    assert loop_rates(paper, "pd") == (0.0, 0.0, 0.0)
+    assert is_sampled(paper, "px4") and not is_sampled(paper, "smc")
+    flat = paper.override({"controller.position_rate": 0.0, "controller.attitude_rate": 0.0,
+                           "controller.inner_rate": 0.0})  # fmt: skip
+    assert loop_rates(flat, "px4") == (0.0, 0.0, 0.0)
+    assert not is_sampled(flat, "px4")
+    set_all = paper.override({"controller.position_rate": 100.0})
+    assert loop_rates(set_all, "smc") == (100.0, 0.0, 0.0)
+    assert loop_rates(set_all, "px4") == (100.0, 250.0, 1000.0)
+
+
+def hover_offset(position_rate: float) -> Scenario:
+    """The paper's flight from 0.2 m up at dt = 1 ms, its PD position loop at ``position_rate``
+    Hz, in still air; a flight that leaves a 20 m ball around its start has run away."""
+    return Scenario.paper().override(
+        {
+            "integrator.dt": 1e-3,
+            "gust.enabled": False,
+            "controller.position_rate": position_rate,
+            "initial.position": [0.0, 0.0, 0.2],
+            "divergence.max_distance": 20.0,
+        }
+    )
+
+
+def test_a_position_loop_too_slow_for_the_hover_is_unstable_in_the_model_and_in_flight() -> None:
+    """The sampled law's discrete-time model (its poles over one period of its schedule)
+    against the flight: stable at 50 Hz, unstable at 0.5 Hz (a vertical pair at +0.81 +/-
+    1.57j: the multiplier is negative, the error flips sign every period and grows), where the
+    flight runs away."""
+    for rate, stable in [(50.0, True), (0.5, False)]:
+        s = hover_offset(rate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            report = quadrs.stability(s, "pd")
+            flight = quadrs.simulate(s, "pd", 0)
+        assert report.period == pytest.approx(1.0 / rate)
+        assert report.stable is stable, str(report)
+        assert "sampled: the discrete-time model over" in str(report)
+        assert flight.diverged is (not stable), (rate, flight)
+    # Every step: the continuous model, as before.
+    assert quadrs.stability(hover_offset(0.0), "pd").period is None
+
+
+def test_the_linear_model_says_it_is_the_continuous_laws() -> None:
+    s = hover_offset(50.0)
+    with pytest.warns(quadrs.SampledLawNote, match=r"continuous law's; its loops run at 50, 0, 0"):
+        quadrs.linearize(s, "pd")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", quadrs.SampledLawNote)
+        quadrs.linearize(hover_offset(0.0), "pd")
