@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from quadrs.present.labels import DEGREE_METRICS
 from quadrs.stats.risk import exceedance_stats, quantile_interval
 from quadrs.stats.summary import mean_ci, phase_diverged
 
@@ -29,8 +30,8 @@ PEAKS = ("max_swing", "max_tension")
 LOWS = ("min_tension",)
 #: Time spent in a bad state (s): the mean with its interval and the worst.
 DURATIONS = ("slack_time", "saturated_time")
-#: Shown in degrees: angles in the results are radians.
-DEGREES = ("max_swing", "rms_swing", "lowering_swing")
+#: Shown in degrees: angles in the results are radians (the one list, from the engine's units).
+DEGREES = DEGREE_METRICS
 #: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
 TOUCHDOWN_LIMIT = 1.0
 

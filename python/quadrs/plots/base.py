@@ -16,6 +16,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from quadrs import _core
 from quadrs.io.files import atomic_write
 from quadrs.present.labels import PLAIN_LABELS, UNITS
 from quadrs.runs.flight import Flight
@@ -24,11 +25,21 @@ from quadrs.scenario.route import FLIGHT_PHASE
 #: Default frequency range of spectra (Hz): the payload modes of interest sit well below.
 FMAX = 10.0
 FORMATS = ("png", "svg")
+#: Each law's line, by its place among the engine's laws (``_core.CONTROLLER_NAMES``: the
+#: paper's PD and SMC first, in the paper's style), its legend its label
+#: (``_core.CONTROLLER_LABELS``): a law the engine registers has a style without an edit here.
+_LAW_LINES = (
+    {"color": "tab:blue", "linestyle": "--", "marker": "*"},
+    {"color": "tab:red", "linestyle": "-", "marker": "+"},
+    {"color": "tab:green", "linestyle": ":", "marker": "o"},
+    {"color": "tab:purple", "linestyle": "-.", "marker": "x"},
+    {"color": "tab:brown", "linestyle": (0, (5, 1)), "marker": "s"},
+    {"color": "tab:olive", "linestyle": (0, (3, 1, 1, 1)), "marker": "^"},
+)
+_LAWS = zip(_core.CONTROLLER_NAMES, _core.CONTROLLER_LABELS, strict=True)
 STYLE: dict[str, dict[str, Any]] = {
-    "pd": {"color": "tab:blue", "linestyle": "--", "marker": "*", "label": "PD"},
-    "smc": {"color": "tab:red", "linestyle": "-", "marker": "+", "label": "SMC"},
-    "px4": {"color": "tab:green", "linestyle": ":", "marker": "o", "label": "PX4"},
-    "se3": {"color": "tab:purple", "linestyle": "-.", "marker": "x", "label": "SE(3)"},
+    name: {**_LAW_LINES[i % len(_LAW_LINES)], "label": label}
+    for i, (name, label) in enumerate(_LAWS)
 }
 #: Short names for titles (the label without its unit, where that is long).
 SHORT_NAMES = {

@@ -14,10 +14,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from quadrs.plots.base import (
-    STYLE,
     AxesArg,
     add_legend,
     finish_figure,
+    line_style,
     loglog_axes,
     panel_axes,
     require_drawn,
@@ -45,10 +45,10 @@ def gust_transmissibility(
     w0 = equivalent_wind(scenario) if wind is None else float(wind)
     f = np.logspace(-2, 1.5, 600) if freqs_hz is None else np.asarray(freqs_hz, dtype=float)
     fig, (a,) = panel_axes(ax, 1, height=3.6)
-    for c in controllers:
+    for i, c in enumerate(controllers):
         lin = linearize(scenario, c, inputs=("wind_z",), outputs=("e_o",), wind=(0.0, 0.0, w0))
         mag = np.abs(lin.frequency_response(f)[:, 0, 0])
-        style = {k: v for k, v in STYLE[c].items() if k != "marker"}
+        style = line_style(c, i)
         a.loglog(f, mag, **style)
     a.set_xlabel("Gust frequency (Hz)")
     a.set_ylabel("Payload relative displacement\nper unit vertical gust (m per m/s)")

@@ -24,9 +24,10 @@ __all__ = [
     "shown_value",
 ]
 
-#: Metrics the results hold in radians and every figure and table shows in degrees (one unit
-#: per quantity in everything a person reads: the mission tables, the figures, --limit).
-DEGREE_METRICS = ("max_swing", "rms_swing", "lowering_swing")
+#: Metrics the results hold in radians (the engine's unit "rad", `_core.METRIC_UNITS`) and every
+#: figure and table shows in degrees (one unit per quantity in everything a person reads: the
+#: mission tables, the figures, --limit): a new angle metric is one of them by its unit alone.
+DEGREE_METRICS = tuple(m for m, unit in _core.METRIC_UNITS.items() if unit == "rad")
 
 
 def _shown(unit: str) -> str:
