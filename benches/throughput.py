@@ -343,13 +343,23 @@ def compare_turbulence(scenario: quadrs.Scenario, args: argparse.Namespace) -> N
 
 def mission_cases() -> dict[str, quadrs.Scenario]:
     """The delivery preset's wind taken apart (issue 36's table): as shipped (turbulence at the
-    vehicle's altitude and relative airspeed, a sheared mean wind), its turbulence at a fixed
+    vehicle's altitude and relative airspeed, a sheared mean wind); with its loops at PX4's
+    rates (position 50 Hz, attitude 250 Hz, rate 1 kHz) and its wind at 100 Hz; with only
+    the wind at 100 Hz; its turbulence at a fixed
     altitude and airspeed (30 m, 10 m/s: the transit's) with no mean wind, the mean wind only,
     no wind; and the paper preset with the gust off."""
     delivery = quadrs.Scenario.preset("delivery")
     calm = {"wind.speed": 0.0}
+    rates = {
+        "controller.position_rate": 50.0,
+        "controller.attitude_rate": 250.0,
+        "controller.inner_rate": 1000.0,
+        "gust.rate": 100.0,
+    }
     return {
         "delivery as shipped": delivery,
+        "delivery, loops at rates": delivery.override(rates),
+        "delivery, wind at 100 Hz": delivery.override({"gust.rate": 100.0}),
         "turbulence at fixed h, V": delivery.override(
             {"gust.altitude": 30.0, "gust.airspeed": 10.0, **calm}
         ),
