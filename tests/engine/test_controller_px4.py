@@ -154,6 +154,15 @@ def motor_wrench(sc: quadrs.Scenario, cq: float) -> np.ndarray:
     return w
 
 
+#: Every loop every step: the law checked against PX4's code step by step (its loops at
+#: PX4's own rates are checked by tests/engine/test_rates.py and the engine's trace test).
+EVERY_STEP = {
+    "controller.position_rate": 0.0,
+    "controller.attitude_rate": 0.0,
+    "controller.inner_rate": 0.0,
+}
+
+
 class Px4Law:
     """PX4's cascade with its memory and its allocator, one call per control step."""
 
@@ -350,6 +359,7 @@ def manoeuvre() -> quadrs.Scenario:
             "integrator.duration": 2.0,
             "integrator.dt": 0.0005,
             "phases": [{"name": "all", "start": 0.0, "end": 2.0}],
+            **EVERY_STEP,
         }
     )
 
@@ -452,6 +462,7 @@ def on_the_slung_vehicle(extra: dict) -> quadrs.Scenario:
             "initial.attitude": [0.0, 0.0, 0.0],
             "gust.enabled": False,
             "integrator.dt": 0.001,
+            **EVERY_STEP,
             **extra,
         }
     )

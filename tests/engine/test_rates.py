@@ -90,18 +90,15 @@ def test_a_rate_whose_period_is_not_whole_steps_is_refused_naming_its_key(
     assert "integrator.dt" in str(e.value)
 
 
-def test_px4s_own_rates_are_refused_on_a_step_that_does_not_divide_them() -> None:
-    with pytest.raises(ScenarioError, match=r"px4 law's own rate: set controller\.position_rate"):
-        Scenario.paper().override({"integrator.dt": 3e-3})
-    # Set, it flies.
-    Scenario.paper().override(
-        {
-            "integrator.dt": 3e-3,
-            "controller.position_rate": 0.0,
-            "controller.attitude_rate": 0.0,
-            "controller.inner_rate": 0.0,
-        }
-    ).engine  # noqa: B018
+def test_a_laws_own_rates_round_to_whole_steps_where_the_keys_are_refused() -> None:
+    """PX4's own 50, 250 and 1000 Hz on a 3 ms step: 7 steps (21 ms), 1 and 1 (no loop runs
+    faster than the step); the same rates set as keys are refused."""
+    s = Scenario.paper().override({"integrator.dt": 3e-3})
+    assert s.engine.loop_steps("px4") == [7, 1, 1]
+    assert s.engine.loop_steps("pd") == [1, 1, 1]
+    assert is_sampled(s, "px4")
+    with pytest.raises(ScenarioError, match=r"controller\.position_rate: 50\.0 Hz"):
+        s.override({"controller.position_rate": 50.0})
 
 
 @pytest.mark.parametrize("key", ["gust.rate", "controller.position_rate"])

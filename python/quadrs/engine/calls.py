@@ -102,9 +102,10 @@ def loop_rates(scenario: Any, controller: str) -> tuple[float, float, float]:
 
 
 def is_sampled(scenario: Any, controller: str) -> bool:
-    """Whether some loop of ``controller`` runs slower than every step (MODEL.md section 18)."""
-    dt = float(scenario["integrator.dt"])
-    return any(r > 0.0 and 1.0 / r > dt * (1.0 + 1e-9) for r in loop_rates(scenario, controller))
+    """Whether some loop of ``controller`` runs slower than every step (MODEL.md section 18):
+    the engine's own schedule (``Engine.loop_steps``: a law's own rate rounded to whole
+    steps)."""
+    return any(n > 1 for n in scenario.engine.loop_steps(controller))
 
 
 def check_int(name: str, value: Any, low: int = 0, high: int = U64_MAX) -> int:

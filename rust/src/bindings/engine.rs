@@ -7,7 +7,8 @@ use super::progress::Progress;
 use crate::integrate::Engine;
 use crate::memory;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyMemoryError;
+use crate::control::ControllerKind;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::borrow::Cow;
@@ -36,8 +37,19 @@ impl CompiledEngine {
         self.engine.steps
     }
 
+    /// Integration steps between the updates of `controller`'s position, attitude and inner
+    /// loops (1: every step; MODEL.md section 18).
+    fn loop_steps(&self, controller: &str) -> PyResult<[usize; 3]> {
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        Ok(self
+            .engine
+            .cfg
+            .controller
+            .loop_steps(kind, self.engine.dt))
+    }
+
     /// Standard normals one flight's turbulence draws: its onset's stationary state and every
-    /// later step of the gust window, per active component (docs/rare-events.md).
+    /// later update of the gust window, per active component (docs/rare-events.md).
     fn innovations_dimension(&self) -> usize {
         self.engine.innovations()
     }

@@ -543,19 +543,18 @@ impl ControllerConfig {
         self.kind_target(field(0), field(1), path.get(2..).unwrap_or(&[]))
     }
 
-    /// Hz, the position, attitude and inner loops' rates law `kind` flies (0: every step): the
-    /// keys where set, else the law's own (`Controller::RATES`).
-    pub fn rates(&self, kind: ControllerKind) -> [f64; 3] {
+    /// Steps between the updates of law `kind`'s position, attitude and inner loops at the
+    /// step `dt`: a key's rate exactly (`validate` has checked that its period is whole steps),
+    /// a law's own rate (`Controller::RATES`, where the key is unset) to the nearest whole
+    /// number of steps, at least one (PX4's 1 kHz rate loop on a 2 ms step runs every step).
+    pub fn loop_steps(&self, kind: ControllerKind, dt: f64) -> [usize; 3] {
         let own = kind.rates();
         let set = [self.position_rate, self.attitude_rate, self.inner_rate];
-        [0, 1, 2].map(|i| set[i].unwrap_or(own[i]))
-    }
-
-    /// Steps between the updates of law `kind`'s position, attitude and inner loops at the
-    /// step `dt` (`validate` has checked that they are whole).
-    pub fn loop_steps(&self, kind: ControllerKind, dt: f64) -> [usize; 3] {
-        let rates = self.rates(kind);
-        [0, 1, 2].map(|i| steps_per_update(rates[i], dt).unwrap_or(1))
+        [0, 1, 2].map(|i| match set[i] {
+            Some(rate) => steps_per_update(rate, dt).unwrap_or(1),
+            None if own[i] == 0.0 => 1,
+            None => ((1.0 / (own[i] * dt)).round() as usize).max(1),
+        })
     }
 
     /// s, law `kind`'s loops' periods at the step `dt` (`loop_steps` steps each).
@@ -563,21 +562,12 @@ impl ControllerConfig {
         self.loop_steps(kind, dt).map(|n| n as f64 * dt)
     }
 
-    /// Every law's rates are whole numbers of steps (a law's own rates as much as the keys).
+    /// The rates the keys set are whole numbers of steps.
     fn validate_rates(&self, dt: f64) -> Result<(), ConfigError> {
-        for &kind in ControllerKind::ALL {
-            let rates = self.rates(kind);
-            let set = [self.position_rate, self.attitude_rate, self.inner_rate];
-            for i in 0..3 {
-                if let Err(why) = steps_per_update(rates[i], dt) {
-                    let key = RATE_KEYS[i];
-                    let whose = if set[i].is_some() {
-                        String::new()
-                    } else {
-                        format!(" (the {} law's own rate: set {key})", kind.name())
-                    };
-                    return Err(ConfigError::new(key, format!("{key}: {why}{whose}")));
-                }
+        let set = [self.position_rate, self.attitude_rate, self.inner_rate];
+        for (key, rate) in RATE_KEYS.iter().zip(set) {
+            if let Some(Err(why)) = rate.map(|r| steps_per_update(r, dt)) {
+                return Err(ConfigError::new(*key, format!("{key}: {why}")));
             }
         }
         Ok(())
