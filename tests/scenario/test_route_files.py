@@ -112,18 +112,20 @@ def test_the_scenario_flies_exactly_the_route(tmp_path: Path) -> None:
 
 
 def test_a_route_longer_than_the_flight_says_how_long_to_fly() -> None:
-    """The delivery route flown slower than its preset needs a longer flight: the message
-    gives a duration that does cover it (rounded up to 0.1 s), not only the shortfall."""
+    """The delivery route flown slower than a duration that is set (not the preset's, which
+    follows its route) needs a longer flight: the message gives a duration that does cover
+    it (rounded up to 0.1 s), not only the shortfall."""
     slow = {"trajectory.speed": 6.0}
+    fixed = quadrs.Scenario.preset("delivery").override({"integrator.duration": 211.0})
     with pytest.raises(ValueError, match="must cover the route") as caught:
-        quadrs.Scenario.preset("delivery").override(slow)
+        fixed.override(slow)
     found = re.search(r"set it to at least ([0-9.]+) s", str(caught.value))
     assert found, str(caught.value)
     enough = float(found.group(1))
-    s = quadrs.Scenario.preset("delivery").override({**slow, "integrator.duration": enough})
+    s = fixed.override({**slow, "integrator.duration": enough})
     assert s["integrator.duration"] == enough
     with pytest.raises(ValueError, match="must cover the route"):
-        quadrs.Scenario.preset("delivery").override({**slow, "integrator.duration": enough - 0.1})
+        fixed.override({**slow, "integrator.duration": enough - 0.1})
 
 
 def test_return_to_launch_comes_home(tmp_path: Path) -> None:
