@@ -194,6 +194,8 @@ class MissionReport:
     def parcel_line(self) -> str:
         """The parcel's answer with its touchdown apart (empty when no parcel touched down):
         in flight, and at the ground contact, whose peak is the contact law's."""
+        from quadrs.present.labels import STANDARD_GRAVITY, in_g
+
         t = self.acceleration
         if TOUCHDOWN not in t.index:
             return ""
@@ -201,11 +203,8 @@ class MissionReport:
         def said(row: str) -> str:
             r = t.loc[row]
             k, n = int(r["exceedances"]), int(r["n"])
-            return f"{k} of {n} flights" + (
-                f" (worst {_g(float(r['worst']) / 9.80665)} g)"
-                if self.metric.endswith(("accel", "force"))
-                else ""
-            )
+            worst = float(r["worst"]) / STANDARD_GRAVITY
+            return f"{k} of {n} flights" + (f" (worst {_g(worst)} g)" if in_g(self.metric) else "")
 
         return (f"Parcel {self.metric} past {_shown_limit(self)}: in flight {said(IN_FLIGHT)}; "
                 f"at touchdown {said(TOUCHDOWN)}, the ground contact's peak (the contact "
