@@ -17,6 +17,10 @@ import quadrs
 from quadrs.cli.main import main
 from quadrs.scenario.route_files import RouteFileError, read_plan, read_route_csv, read_route_file
 
+#: The plan most tests read has a camera item, which is not flown and warns so (checked by
+#: its own test with pytest.warns).
+pytestmark = pytest.mark.filterwarnings("ignore:.*not flown \\(they do not move the vehicle\\)")
+
 HOME = (47.3977419, 8.5455938, 488.0)
 A, E2 = 6378137.0, 6.69437999014e-3  # WGS-84
 
@@ -70,6 +74,13 @@ def hundred_metres_north() -> dict[str, Any]:
         item(203, frame=2),  # DO_DIGICAM_CONTROL: does not move (not flown, named in a warning)
         item(21, lat + north(100.0), lon),
     ])  # fmt: skip
+
+
+def test_an_item_that_does_not_move_the_vehicle_is_named_in_a_warning(tmp_path: Path) -> None:
+    from quadrs.scenario.route_files import RouteFileWarning
+
+    with pytest.warns(RouteFileWarning, match=r"not flown .*mission.items\[3\] DO_DIGICAM_CONTROL"):
+        read_plan(write(tmp_path, hundred_metres_north()), start_height=2.0)
 
 
 def test_two_waypoints_100_m_apart_north_become_a_100_m_leg(tmp_path: Path) -> None:

@@ -176,8 +176,8 @@ def _wind_table_short(data: dict[str, Any]) -> str:
     points = _value(data, "wind.table.points")
     duration, dt = _value(data, "integrator.duration"), _value(data, "integrator.dt")
     numbers = isinstance(duration, int | float) and isinstance(dt, int | float)
-    if _value(data, "wind.table.by") != "time" or not isinstance(points, list) or not points:
-        return ""
+    if _value(data, "wind.table.by") != "time" or not isinstance(points, list) or len(points) < 2:
+        return ""  # one row is a constant wind, not a series that ends
     if not numbers:
         return ""
     first, last = float(points[0][0]), float(points[-1][0])
