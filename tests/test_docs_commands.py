@@ -45,6 +45,9 @@ LOWERED_FOR = {
 EXPECTED_EXIT = {
     # "exit 1 if unstable": the paper's SMC lateral gains are (README, "Presets").
     ("README.md", "quadrs stability --preset paper"): 1,
+    # "finds no candidate that meets the second constraint, says so and exits 1": the whole
+    # flight's max_accel is the touchdown contact's (delivery.md, section 6).
+    ("delivery.md", "quadrs tune --preset delivery"): 1,
 }
 #: (page, the command's start) -> why it is not run here.
 NOT_RUN = {
