@@ -254,6 +254,7 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
 
 
 # -- the mission's answer on the touchdown speed, confirmed by brute force ----------------------
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # dt = 2 ms: a count, not a metric
 def test_the_missions_touchdown_answer_covers_a_brute_force_count() -> None:
     """A short lowering from 3 m with the winch's speed dispersed about 0.5 m/s: P(touchdown
     faster than 0.5 m/s) from 100 flights, its interval against the count over 300 others."""

@@ -63,6 +63,7 @@ def test_an_altitude_table_is_interpolated_at_the_vehicles_height(tmp_path) -> N
         np.testing.assert_allclose(tr[column].to_numpy(), want, rtol=0, atol=1e-12)
 
 
+@pytest.mark.filterwarnings("ignore:wind.table covers")  # the end rows' hold is checked here
 def test_a_time_table_adds_to_the_sheared_mean_wind(tmp_path) -> None:
     """By time, on top of the delivery's sheared 5 m/s crosswind (no turbulence): the trace's
     wind at every step is numpy.interp of the table at t plus the log profile at the vehicle's

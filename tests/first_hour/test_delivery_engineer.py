@@ -21,6 +21,9 @@ from quadrs.design.mission import FLIGHT_PHASE, mission_report
 from quadrs.scenario.scenario import presets
 
 ROOT = Path(__file__).resolve().parents[2]
+#: The short routes fly at dt = 2 ms, coarse for the payload's fastest mode (a StepSizeWarning
+#: each batch): fine for what these tests check, which is the answer's form.
+pytestmark = pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")
 opt_module = importlib.import_module("quadrs.design.optimize")
 #: The mission's joint row (quadrs.design.mission.ANY_PHASE).
 ANY_PHASE = "any phase"

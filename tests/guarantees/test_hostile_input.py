@@ -19,6 +19,9 @@ METRICS = ["iae", "itae", "max_abs", "rms", "tracking_rms", "peak_frequency", "p
            "max_accel", "rms_accel", "max_swing", "rms_swing", "max_tension", "min_tension",
            "slack_time", "saturated_time", "max_tracking", "rms_cross_track",
            "max_cross_track"]  # fmt: skip
+#: Hostile values are implausible on purpose: the warnings they draw are docs/plausibility.md's
+#: to check (tests/scenario), not this file's.
+pytestmark = pytest.mark.filterwarnings("ignore::quadrs.PlausibilityWarning")
 #: Flights longer than this many steps are validated but not flown (keeps the property fast).
 MAX_FLOWN_STEPS = 20_000
 

@@ -29,7 +29,9 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 pytestmark = pytest.mark.filterwarnings(
-    "ignore::quadrs.StabilityWarning", "ignore::quadrs.StepSizeWarning"
+    "ignore::quadrs.StabilityWarning",
+    "ignore::quadrs.StepSizeWarning",
+    "ignore:wind.table covers",  # the short tables these files give (said: tests/first_hour)
 )
 
 

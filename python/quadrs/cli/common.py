@@ -129,6 +129,22 @@ def report_width() -> int:
     return max(narrowest, min(widest, shutil.get_terminal_size((widest, 24)).columns))
 
 
+def note(text: str) -> None:
+    """A note or warning on stderr; on a terminal wrapped to the report's width (continuation
+    lines indented two spaces, so each note still starts its own line; a word longer than
+    the width, a path, is kept whole), into a file or a pipe one line a note, as a log is
+    searched. Errors stay one line (``quadrs: error: ...``)."""
+    import textwrap
+
+    from quadrs.present.terminal import terminal_text
+
+    text = terminal_text(text)
+    if sys.stderr.isatty():
+        text = textwrap.fill(text, report_width(), subsequent_indent="  ",
+                             break_long_words=False, break_on_hyphens=False)  # fmt: skip
+    print(text, file=sys.stderr, flush=True)
+
+
 def one_line(text: str) -> str:
     """A message's lines joined into one (``quadrs: warning: ...`` and errors alike)."""
     return "; ".join(line.strip() for line in text.strip().splitlines() if line.strip())

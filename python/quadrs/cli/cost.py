@@ -144,12 +144,10 @@ def announce(command: str, what: str, flights: int, calibration: Calibration) ->
 
 def say(line: str, seconds: float) -> None:
     """Print ``line`` to stderr (now: before the work) if the job it announces is long."""
-    import sys
-
-    from quadrs.present.terminal import terminal_text
+    from quadrs.cli.common import note
 
     if seconds >= ANNOUNCE_AFTER:
-        print(terminal_text(line), file=sys.stderr, flush=True)
+        note(line)
 
 
 class Eta:

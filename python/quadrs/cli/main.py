@@ -27,6 +27,7 @@ from quadrs.cli.common import (
     EXIT_OK,
     EXIT_TERMINATED,
     EXIT_USAGE,
+    note,
     one_line,
     scenario_options,
 )
@@ -160,7 +161,7 @@ def _terse_warnings() -> Iterator[None]:
         if text not in seen:
             seen.add(text)
             kind = "note" if category.__name__ == "StabilityNote" else "warning"  # calm: harmless
-            print(terminal_text(f"quadrs: {kind}: {text}"), file=sys.stderr)
+            note(f"quadrs: {kind}: {text}")
 
     with warnings.catch_warnings():
         warnings.showwarning = show

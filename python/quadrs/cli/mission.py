@@ -23,6 +23,7 @@ from quadrs.cli.common import (
     batch_scope,
     import_in_background,
     no_progress_option,
+    note,
     parquet_out_option,
     plots_option,
     progress,
@@ -58,10 +59,15 @@ def _positive(text: str) -> float:
 
 
 def mission_limit(text: str) -> tuple[str, float]:
-    """``--limit 5`` (max_accel, m/s^2) or ``--limit METRIC=X``, as in ``quadrs report``: any
-    metric the engine names, X in the unit every table shows (degrees for swing)."""
+    """``--limit 5`` (max_accel, m/s^2), ``--limit 2g`` (in g: max_specific_force, the
+    default's metric) or ``--limit METRIC=X``, as in ``quadrs report``: any metric the engine
+    names, X in the unit every table shows (degrees for swing)."""
     from quadrs.cli.common import limit_option
 
+    if "=" not in text and text.strip().lower().endswith("g"):
+        # In g, the parcel's fragility is the specific force (what the default 2 g reads);
+        # a bare number in m/s^2 stays max_accel, as in the other commands.
+        text = f"{DEFAULT_METRIC}={text}"
     metric, value = limit_option(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
@@ -114,7 +120,8 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         metavar="METRIC=X",
         help="the parcel's question, P(METRIC > X): any metric, X in the unit the tables show "
         "(degrees for swing; an acceleration in m/s^2 or g: max_specific_force=2g); a bare X "
-        "is max_accel=X, the kinematic acceleration (0 at rest) "
+        "in m/s^2 is max_accel=X, the kinematic acceleration (0 at rest), a bare Xg the "
+        "specific force, as the default "
         f"(default: {DEFAULT_METRIC}=2g, the specific force an accelerometer in the box "
         "reads, 1 g at rest)",
     )
@@ -209,7 +216,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
 
         read = read_px4_parameters(args.px4_params)
         scenario = scenario.override({f"controller.px4.{k}": v for k, v in read.known.items()})
-        print(f"quadrs mission: --px4-params {read.note()}", file=sys.stderr)
+        note(f"quadrs mission: --px4-params {read.note()}")
     if args.out is not None and args.out.suffix.lower() != ".parquet":
         raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
     for name in ("runs", "workers"):
@@ -298,9 +305,8 @@ def _say_clashes(scenario: Any, controllers: tuple[str, ...]) -> None:
     """Before flying, on stderr: each leg whose reference asks as much as or more than a limit
     of the law (quadrs.design.route_limits): the flights will fall behind it there."""
     from quadrs.design.route_limits import route_clashes
-    from quadrs.present.terminal import terminal_text
 
     for law in controllers:
         for clash in route_clashes(scenario, law):
-            print(terminal_text(f"quadrs mission: {law}: {clash} (the reference will be flown "
-                                "slower, off its schedule)"), file=sys.stderr)  # fmt: skip
+            note(f"quadrs mission: {law}: {clash} (the reference will be flown slower, off its "
+                 "schedule)")  # fmt: skip

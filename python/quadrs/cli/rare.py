@@ -175,7 +175,7 @@ def cmd_rare(args: argparse.Namespace) -> int:
     shown_threshold = shown.rstrip()
     scenario = load_scenario(args)
     if args.phase not in scenario.phase_names:
-        raise ValueError(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
+        raise ValueError(_phase_error(args, scenario))
     controllers: tuple[str, ...] = args.controller
     paths = paired_paths(args.out, controllers) if args.out is not None else {}
     check_outputs(*paths.values())
@@ -256,6 +256,24 @@ def cmd_rare(args: argparse.Namespace) -> int:
         for name in controllers[1:]:
             print(ratio_line(out, name, base))
     return EXIT_OK if saved else EXIT_FAIL
+
+
+def _phase_error(args: argparse.Namespace, scenario: Any) -> str:
+    """--phase names no phase of the scenario: which scenario that is (rare starts from the
+    paper preset, where mission starts from delivery), its phases, and the presets that have
+    the phase asked for."""
+    from quadrs.cli.scenario_args import base_preset
+    from quadrs.scenario.scenario import Scenario, presets
+
+    base = base_preset(args)
+    which = (f"the scenario file {str(args.scenario)!r}" if args.scenario is not None
+             else f"the preset {base!r}" + ("" if args.preset else " (rare's default; "
+                                             "quadrs mission's is 'delivery')"))  # fmt: skip
+    text = f"--phase {args.phase!r}: {which} has the phases {', '.join(scenario.phase_names)}"
+    having = [p for p in presets() if p != base and args.phase in Scenario.preset(p).phase_names]
+    if having:
+        text += f"; {' or '.join(f'--preset {p}' for p in having)} has {args.phase!r}"
+    return text
 
 
 def rare_budget(per_level: int, p0: float, max_levels: int, controllers: int = 1) -> int:

@@ -55,17 +55,52 @@ def cmd_scenario(args: argparse.Namespace) -> int:
             line = f"# {key} not set" if new is None else f"{key} = {toml_value(new)}"
             print(f"{line:<37} # {was}")
     else:
-        from quadrs.scenario.units import unit
-
-        lines = [(f"{key} = {toml_value(scenario[key])}", key) for key in scenario.keys()]
-        width = min(max(len(line) for line, _ in lines), 60)
-        for line, key in lines:
-            try:
-                print(f"{line:<{width}}  # {unit(key)}")
-            except KeyError:  # a key the units table does not know (the engine refuses those)
-                print(line)
-        _print_unset_keys(scenario)
+        _print_keys(scenario, base_preset(args), args.scenario is not None)
     return EXIT_OK
+
+
+def _print_keys(scenario: Any, preset: str, from_file: bool) -> None:
+    """Every key the scenario sets with its value and unit (``wind.speed`` with where it
+    blows at that speed and what it becomes at the route's height); then which preset that
+    is and the others; then the keys it leaves unset."""
+    from quadrs.present.table3 import toml_value
+    from quadrs.scenario.scenario import presets
+    from quadrs.scenario.units import unit
+
+    lines = [(f"{key} = {toml_value(scenario[key])}", key) for key in scenario.keys()]
+    width = min(max(len(line) for line, _ in lines), 60)
+    for line, key in lines:
+        try:
+            said = unit(key) + (_wind_heights(scenario) if key == "wind.speed" else "")
+            print(f"{line:<{width}}  # {said}")
+        except KeyError:  # a key the units table does not know (the engine refuses those)
+            print(line)
+    others = ", ".join(f"--preset {p}" for p in presets() if p != preset)
+    what = f"a scenario file based on the preset {preset!r}" if from_file else (
+        f"the preset {preset!r}")  # fmt: skip
+    print(f"\n# These are the keys of {what}; another's: {others} (delivery flies a route with "
+          "a winch, a sheared wind and the ground)")  # fmt: skip
+    _print_unset_keys(scenario)
+
+
+def _wind_heights(scenario: Any) -> str:
+    """Where ``wind.speed`` blows at that speed (20 ft) and, through ``wind.shear``, the mean
+    wind at the route's highest point."""
+    import numpy as np
+
+    from quadrs import _core
+
+    said = " at 20 ft (6.1 m)"
+    route = scenario.get("trajectory.route")
+    if scenario.get("trajectory.interpolation") != "route" or not route:
+        return said
+    height = max(float(p[2]) for p in route)
+    w = _core.mean_wind(scenario.to_json(), np.array([height]))[0]
+    shear = scenario.get("wind.shear")
+    return (
+        f"{said}; {float(np.hypot(w[0], w[1])):.3g} m/s at the route's {height:g} m "
+        f'(wind.shear = "{shear}")'
+    )
 
 
 def _print_unset_keys(scenario: Any) -> None:
@@ -82,8 +117,27 @@ def _print_unset_keys(scenario: Any) -> None:
              and not any(k.startswith(f"{p}.") for p in present)]  # fmt: skip
     if not unset:
         return
-    print("\n# Not set here (optional tables and other kinds' keys; --set or a file may give "
+    print("# Not set here (optional tables and other kinds' keys; --set or a file may give "
           "them):")  # fmt: skip
     width = min(max(len(k) for k in unset), 48)
+    elsewhere = _set_by_presets()
     for key in unset:
-        print(f"# {key:<{width}}  {UNITS[key]:<8} {LABELS.get(key, '')}".rstrip())
+        where = elsewhere.get(key, "")
+        print(f"# {key:<{width}}  {UNITS[key]:<8} {LABELS.get(key, '')}{where}".rstrip())
+
+
+def _set_by_presets() -> dict[str, str]:
+    """Per key (indices dropped) a preset sets: `` (delivery: 1.0)``, the presets' values."""
+    import re
+
+    from quadrs.present.table3 import toml_value
+    from quadrs.scenario.scenario import Scenario, presets
+
+    index = re.compile(r"\[\d+\]")
+    found: dict[str, list[str]] = {}
+    for name in presets():
+        s = Scenario.preset(name)
+        for key in s.keys():
+            if not index.search(key):
+                found.setdefault(key, []).append(f"{name}: {toml_value(s[key])[:24]}")
+    return {k: f" ({'; '.join(v)})" for k, v in found.items()}

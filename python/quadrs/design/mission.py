@@ -49,8 +49,10 @@ from quadrs.design.mission_tables import (
     DEGREES,
     DURATIONS,
     FLIGHT_PHASE,
+    IN_FLIGHT,
     LOWS,
     PEAKS,
+    TOUCHDOWN,
     TOUCHDOWN_LIMIT,
     TRACK_LIMIT,
     _joint,
@@ -59,6 +61,7 @@ from quadrs.design.mission_tables import (
     _route_table,
     _tracking_metrics,
     _worst,
+    contact_split,
     none_seen_bound,
     one_sided_upper,
 )
@@ -160,20 +163,52 @@ class MissionReport:
         if t is None:
             return ""
         r = t.loc[self.whole]
-        n, k, touched = int(r["n"]), int(r["exceedances"]), int(r["judged"])
+        n, k, judged = int(r["n"]), int(r["exceedances"]), int(r["judged"])
+        touched, diverged = int(r["touchdowns"]), int(r["diverged"])
         level = f"{self.confidence:.0%}"
-        if touched == 0:
+        off = self._off_route()
+        if off == n:  # no flight reached its drop point on its route: nothing to judge there
+            return (f"Last metres: not judged: the route was NOT FLOWN ({off} of {n} flights "
+                    f"off it), so no parcel was lowered at its drop point ({touched} "
+                    "touched the ground elsewhere)")  # fmt: skip
+        if judged == 0:
             return (f"Last metres: no parcel touched down in {n} flights "
                     f"(touchdown_limit {self.touchdown_limit:g} m/s not judged)")  # fmt: skip
         if k == 0:
-            said = f"0 of {touched}, p <= {_g(none_seen_bound(touched, self.confidence))}"
+            said = f"0 of {judged}, p <= {_g(none_seen_bound(judged, self.confidence))}"
         else:
             said = (f"p = {_g(r['probability'])} [{_g(r['ci_low'])}, {_g(r['ci_high'])}] "
-                    f"({level} interval), {k} of {touched}")  # fmt: skip
-        missed = n - touched
+                    f"({level} interval), {k} of {judged}")  # fmt: skip
+        what = f"{touched} touchdowns" + (f" and {diverged} diverged flights (too fast)"
+                                          if diverged else "")  # fmt: skip
+        missed = n - touched - diverged
         rest = f"; {missed} of {n} flights never touched down" if missed else ""
+        strayed = f"; {off} of {n} flights were off their route" if off else ""
         return (f"Last metres: touchdown faster than {self.touchdown_limit:g} m/s: {said} "
-                f"touchdowns{rest}")  # fmt: skip
+                f"({what}){rest}{strayed}")  # fmt: skip
+
+    def _off_route(self) -> int:
+        """Flights off their route (or diverged) somewhere; 0 without tracking metrics."""
+        return 0 if self.route is None else int(self.route.loc[self.whole, "off_route"])
+
+    def parcel_line(self) -> str:
+        """The parcel's answer with its touchdown apart (empty when no parcel touched down):
+        in flight, and at the ground contact, whose peak is the contact law's."""
+        from quadrs.present.labels import STANDARD_GRAVITY, in_g
+
+        t = self.acceleration
+        if TOUCHDOWN not in t.index:
+            return ""
+
+        def said(row: str) -> str:
+            r = t.loc[row]
+            k, n = int(r["exceedances"]), int(r["n"])
+            worst = float(r["worst"]) / STANDARD_GRAVITY
+            return f"{k} of {n} flights" + (f" (worst {_g(worst)} g)" if in_g(self.metric) else "")
+
+        return (f"Parcel {self.metric} past {_shown_limit(self)}: in flight {said(IN_FLIGHT)}; "
+                f"at touchdown {said(TOUCHDOWN)}, the ground contact's peak (the contact "
+                "law's: ground.stiffness, ground.damping), not the flight's")  # fmt: skip
 
     @property
     def route_flown(self) -> bool:
@@ -254,6 +289,8 @@ class MissionReport:
 
         limits = _limits_text(self.track_limit, self.cross_track_limit)
         parts = [fill(self.verdict()), ""]
+        if self.parcel_line():
+            parts = [fill(self.parcel_line()), "", *parts]
         if self.last_metres is not None:
             parts = [
                 fill(self.last_metres_line()),
@@ -281,10 +318,17 @@ class MissionReport:
             ),
             fit_columns(_acceleration_text(self.acceleration, qp, self.metric), width),
             fill(
+                f"'{IN_FLIGHT}': each flight's phases but the one its parcel touched down in; "
+                f"'{TOUCHDOWN}': that phase, its peak the ground contact's"
+                if TOUCHDOWN in self.acceleration.index
+                else ""
+            ),
+            fill(
                 _joint_line(
                     self.joint,
                     "acceleration",
-                    f"exceeded {_shown_limit(self)}",
+                    f"exceeded {_shown_limit(self)}"
+                    + (" (touchdowns included)" if TOUCHDOWN in self.acceleration.index else ""),
                 )
             ),
         ]
@@ -308,6 +352,27 @@ class MissionReport:
                     "whole-flight phase); blank where that is not defined")  # fmt: skip
             parts += ["", fill(note)]
         return "\n".join(parts)
+
+
+def _parcel_row(name: str, x: np.ndarray, limit: float, quantile: float,
+                confidence: float) -> dict[str, object]:  # fmt: skip
+    """A row of the parcel's table: P(x > limit) with its interval, the worst and the
+    ``quantile`` with its interval; a diverged flight (+inf) exceeds."""
+    e = exceedance_stats(np.where(np.isinf(x), np.nan, x), limit, np.isinf(x), confidence)
+    _, qv, qlo, qhi = quantile_interval(x, quantile, confidence)
+    return {
+        "phase": name,
+        "n": e.n,
+        "exceedances": e.k,
+        "diverged": e.diverged,
+        "probability": e.probability,
+        "ci_low": e.ci_low,
+        "ci_high": e.ci_high,
+        "worst": _worst(x, "max"),
+        "quantile": qv,
+        "q_low": qlo,
+        "q_high": qhi,
+    }
 
 
 def mission_report(
@@ -372,13 +437,7 @@ def mission_report(
     present = set(runs.columns)
     acc_rows, pay_rows, trk_rows = [], [], []
     for phase in rows:
-        x = values(metric, phase)
-        e = exceedance_stats(np.where(np.isinf(x), np.nan, x), limit, np.isinf(x), confidence)
-        _, qv, qlo, qhi = quantile_interval(x, quantile, confidence)
-        acc_rows.append({"phase": phase, "n": e.n, "exceedances": e.k, "diverged": e.diverged,
-                         "probability": e.probability, "ci_low": e.ci_low,
-                         "ci_high": e.ci_high, "worst": _worst(x, "max"), "quantile": qv,
-                         "q_low": qlo, "q_high": qhi})  # fmt: skip
+        acc_rows.append(_parcel_row(phase, values(metric, phase), limit, quantile, confidence))
         pay: dict[str, object] = {"phase": phase}
         for m in [m for m in PEAKS if m in present]:
             x = values(m, phase)
@@ -396,6 +455,9 @@ def mission_report(
             trk[f"{m}_worst"] = _worst(values(m, phase), "max") if phase != ALL_PHASES or (
                 m.startswith("max_")) else math.nan  # fmt: skip
         trk_rows.append(trk)
+    split = contact_split(own, values, present, metric)
+    for name, x in (split or {}).items():  # the flights' touchdowns apart from their flight
+        acc_rows.append(_parcel_row(name, x[~np.isnan(x)], limit, quantile, confidence))
     route = _route_table(rows, values, wide, runs, present, confidence, track_limit,
                          cross_track_limit)  # fmt: skip
     joint = _joint(own, values, present, limit, confidence, track_limit, cross_track_limit,

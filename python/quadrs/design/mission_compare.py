@@ -71,6 +71,8 @@ class LawComparison:
                  f"parcel's {self.metric} and the tracking, per phase."),
             "",
             *[fill(f"{c.upper()}: {self.reports[c].verdict()}") for c in self.controllers],
+            *[fill(f"{c.upper()}: {self.reports[c].parcel_line()}") for c in self.controllers
+              if self.reports[c].parcel_line()],
             "",
             fill(f"P({self.metric} > {limit}) in % with its exact {level} interval; a diverged "
                  "flight exceeds"),
@@ -223,6 +225,8 @@ def _per_realisation(
 
 
 def _risk(r: MissionReport, phase: str) -> str:
+    if phase not in r.acceleration.index:  # "touchdown" for a law none of whose parcels landed
+        return ""
     a = r.acceleration.loc[phase]
     n, k = int(a["n"]), int(a["exceedances"])
     if k == 0:

@@ -34,6 +34,10 @@ DURATIONS = ("slack_time", "saturated_time")
 DEGREES = DEGREE_METRICS
 #: m/s, the default touchdown speed a parcel is rated for (the lead line's limit).
 TOUCHDOWN_LIMIT = 1.0
+#: The parcel table's rows that part a flight with a touchdown: its phases but the one its
+#: parcel touched down in, and that phase, whose peak is the ground contact's.
+IN_FLIGHT = "in flight"
+TOUCHDOWN = "touchdown"
 
 
 def _tracking_metrics(columns: Sequence[str]) -> list[str]:
@@ -83,6 +87,31 @@ def _last_metres_table(
     if int(table["touchdowns"].sum()) == 0 and len(table) == 1:
         return None
     return table
+
+
+def contact_split(
+    own: list[str], values: Any, present: set[str], metric: str
+) -> dict[str, np.ndarray] | None:  # fmt: skip
+    """Per flight, the parcel ``metric``'s worst in flight (over its phases but the one its
+    parcel touched down in: the contact's peak is the ground's, not the flight's) and in the
+    phase of its touchdown (NaN for a flight that never touched down; +inf for a diverged
+    one, as everywhere). None when no flight touched down (or the results lack the column)."""
+    if "touchdown_speed" not in present or not own:
+        return None
+    touched = {p: np.isfinite(values("touchdown_speed", p)) for p in own}
+    if not any(t.any() for t in touched.values()):
+        return None
+    per_phase = {p: values(metric, p) for p in own}
+    n = len(next(iter(per_phase.values())))
+    flight = np.full(n, np.nan)
+    contact = np.full(n, np.nan)
+    for p in own:
+        x = per_phase[p]
+        contact = np.where(touched[p], x, contact)
+        flight = np.fmax(flight, np.where(touched[p], np.nan, x))
+    diverged = np.isinf(flight) | np.array([np.isinf(per_phase[p]) for p in own]).any(axis=0)
+    contact = np.where(diverged & np.isnan(contact), np.inf, contact)
+    return {IN_FLIGHT: np.where(diverged, np.inf, flight), TOUCHDOWN: contact}
 
 
 def none_seen_bound(n: int, confidence: float = 0.95) -> float:
@@ -207,6 +236,8 @@ def _mean_columns(
     x = sel[metric].to_numpy(float)
     x = x[~phase_diverged(sel)]
     _, mean, lo, hi = mean_ci(x, confidence)
+    if metric.endswith("_time"):  # a time spent is never negative: nor is its lower bound
+        lo = max(lo, 0.0)
     out = {f"{metric}_mean": mean, f"{metric}_ci_low": lo, f"{metric}_ci_high": hi}
     if metric in DURATIONS:  # how many flights spent any time there (0: "0 of N flights")
         out |= {f"{metric}_flights": float((x > 0).sum()), f"{metric}_n": float(x.size)}

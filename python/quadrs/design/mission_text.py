@@ -40,6 +40,12 @@ def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
     )
 
 
+def _none_spent(n: int) -> str:
+    """A time column's cell when no flight spent any time there: seconds, not a probability
+    (the probability of any time spent is the count's, "0 of N flights" elsewhere)."""
+    return f"0 in all {n}"
+
+
 def _g(v: float, digits: int = 3) -> str:
     if isinstance(v, float) and math.isnan(v):
         return ""
@@ -140,7 +146,7 @@ def _route_text(t: pd.DataFrame) -> pd.DataFrame:
             flights = getattr(r, "saturated_time_flights", math.nan)
             n = getattr(r, "saturated_time_n", math.nan)
             if isinstance(flights, (int, float)) and flights == 0 and n and n == n:
-                cells.append(f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}")
+                cells.append(_none_spent(int(n)))
             else:
                 cells.append(_interval(r.saturated_time_mean, r.saturated_time_ci_low,
                                        r.saturated_time_ci_high))  # fmt: skip
@@ -194,8 +200,7 @@ def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
     for m in ("slack_time",):  # the time at the thrust limit is in the route's table
         if f"{m}_mean" in t:
             out[f"{m} mean"] = [
-                f"0 of {int(n)} flights, P <= {_pct(none_seen_bound(int(n)))}"
-                if n == n and n > 0 and k == 0 else _interval(a, b, c)
+                _none_spent(int(n)) if n == n and n > 0 and k == 0 else _interval(a, b, c)
                 for a, b, c, k, n in zip(t[f"{m}_mean"], t[f"{m}_ci_low"], t[f"{m}_ci_high"],
                                          t.get(f"{m}_flights", pd.Series(math.nan, t.index)),
                                          t.get(f"{m}_n", pd.Series(math.nan, t.index)),

@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import re
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 if sys.version_info >= (3, 11):
@@ -103,3 +103,15 @@ def toml_value(value: Any) -> str:
     if isinstance(value, list | tuple):
         return "[" + ", ".join(toml_value(v) for v in value) + "]"
     return json.dumps(str(value))
+
+
+def dotted_value(data: Mapping[str, Any], key: str, default: Any = None) -> Any:
+    """The value of a plain dotted ``key`` (no indices) in a scenario's nested mapping, or
+    ``default`` where a table on the way or the key is missing (read before the scenario is
+    checked)."""
+    node: Any = data
+    for part in key.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            return default
+        node = node[part]
+    return node

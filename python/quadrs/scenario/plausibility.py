@@ -22,6 +22,7 @@ import warnings
 from typing import Any
 
 from quadrs._core import ScenarioError
+from quadrs.scenario.keys import dotted_value
 from quadrs.scenario.units import unit
 
 
@@ -45,12 +46,7 @@ MAX_GUST_ALTITUDE = 304.8
 
 
 def _value(data: dict[str, Any], key: str) -> Any:
-    node: Any = data
-    for part in key.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
+    return dotted_value(data, key)
 
 
 def _fmt(key: str, value: float) -> str:
@@ -72,6 +68,65 @@ def refusals(data: dict[str, Any]) -> list[tuple[str, str]]:
                 f"(vehicle.mass + payload.mass) * environment.gravity = ({m:g} + {mc:g}) kg * "
                 f"{g:g} m/s^2 = {weight:.4g} N: the vehicle cannot hover",
             ))  # fmt: skip
+    out.extend(_route_below_ground(data))
+    return out
+
+
+def _ground(data: dict[str, Any]) -> float | None:
+    """The ground's altitude (m) when the scenario has one, else None."""
+    if _value(data, "ground.enabled") is not True:
+        return None
+    altitude = _value(data, "ground.altitude")
+    return float(altitude) if isinstance(altitude, int | float) else 0.0
+
+
+def _route_points(data: dict[str, Any]) -> list[tuple[float, float, float]]:
+    """The route's points when the scenario flies one (the engine has checked their form)."""
+    route = _value(data, "trajectory.route")
+    if _value(data, "trajectory.interpolation") != "route" or not isinstance(route, list):
+        return []
+    return [(float(p[0]), float(p[1]), float(p[2])) for p in route
+            if isinstance(p, list) and len(p) == 3]  # fmt: skip
+
+
+def _route_below_ground(data: dict[str, Any]) -> list[tuple[str, str]]:
+    """A route point below the ground: every flight would end in it (status "ground")."""
+    ground = _ground(data)
+    if ground is None:
+        return []
+    return [(f"trajectory.route[{i}]",
+             f"trajectory.route[{i}] = [{x:g}, {y:g}, {z:g}] m is below the ground "
+             f"(ground.altitude = {ground:g} m): every flight would end in it; raise the "
+             "point (a drop point is where the vehicle hovers, the winch lowers the parcel "
+             "from there: trajectory.lower)")
+            for i, (x, y, z) in enumerate(_route_points(data)) if z < ground]  # fmt: skip
+
+
+def _lowering_short_of_ground(data: dict[str, Any]) -> list[str]:
+    """A lowering that stops with the parcel hanging above the ground: it never touches down
+    (and a hook that opens at touchdown never opens)."""
+    ground = _ground(data)
+    lower = _value(data, "trajectory.lower")
+    if ground is None or not isinstance(lower, list) or _value(data, "payload.model") != "cable":
+        return []
+    reeled = _value(data, "payload.length_min")
+    if reeled is None:
+        reeled = _value(data, "payload.cable_length")
+    offset = _value(data, "payload.attachment_offset") or 0.0
+    if not isinstance(reeled, int | float):
+        return []
+    out = []
+    for i, ((_, _, z), paid) in enumerate(zip(_route_points(data), lower, strict=False)):
+        if not isinstance(paid, int | float) or paid <= 0:
+            continue
+        above = z - offset - reeled - paid - ground  # the parcel's bottom at rest on the line
+        if above > 0:
+            out.append(
+                f"trajectory.lower[{i}] = {paid:g} m leaves the parcel {above:.3g} m above the "
+                f"ground (trajectory.route[{i}] at {z:g} m - payload.attachment_offset "
+                f"{offset:g} m - the reeled-in line {reeled:g} m - {paid:g} m): it never "
+                f"touches down; lower at least {paid + above:.3g} m or hover lower"
+            )
     return out
 
 
@@ -108,7 +163,30 @@ def findings(data: dict[str, Any]) -> list[str]:
     below = _parcel_below_ground(data)
     if below:
         out.append(below)
+    out.extend(_lowering_short_of_ground(data))
+    short = _wind_table_short(data)
+    if short:
+        out.append(short)
     return out
+
+
+def _wind_table_short(data: dict[str, Any]) -> str:
+    """A wind table by time that covers only part of the flight (a log of a shorter flight):
+    outside its rows the end rows' wind holds, which the user should know."""
+    points = _value(data, "wind.table.points")
+    duration, dt = _value(data, "integrator.duration"), _value(data, "integrator.dt")
+    numbers = isinstance(duration, int | float) and isinstance(dt, int | float)
+    if _value(data, "wind.table.by") != "time" or not isinstance(points, list) or len(points) < 2:
+        return ""  # one row is a constant wind, not a series that ends
+    if not numbers:
+        return ""
+    first, last = float(points[0][0]), float(points[-1][0])
+    if first <= dt and last >= duration - dt:
+        return ""
+    return (
+        f"wind.table covers t = {first:g} to {last:g} s of a {duration:g} s flight "
+        "(integrator.duration): outside its rows the wind of its first or last row holds"
+    )
 
 
 def _parcel_below_ground(data: dict[str, Any]) -> str:

@@ -40,6 +40,14 @@ from quadrs.scenario.keys import (
     scenario_error,
     toml_value,
 )
+from quadrs.scenario.overrides import (
+    OPTIONAL_TABLES,
+    _following,
+    _leaf_keys,
+    _route_drops_its_points,
+    _set_key,
+    _with_changes,
+)
 from quadrs.scenario.preset_files import (
     _BASE_KEY,
     MAX_FILE_BYTES,
@@ -51,6 +59,7 @@ from quadrs.scenario.preset_files import (
     presets,
 )
 from quadrs.scenario.route import FLIGHT_PHASE, Route
+from quadrs.scenario.route_timing import Timing
 from quadrs.scenario.tables import (
     MAX_DEPTH,
     _complete_controller_tables,
@@ -85,22 +94,11 @@ __all__ = [
     "toml_value",
 ]
 
-#: Top-level tables the engine fills with defaults when a scenario omits them (so that
-#: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
-OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
-
 
 #: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
 _BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
     "_BASE_CHAIN", default=()
 )
-# Pairs of keys that give one thing two ways (the attachment's stiffness or natural frequency,
-# the turbulence's W20 or level: each declared once, beside its owner in the engine; the wind
-# table's file, which Python reads, or its rows): setting one replaces the other.
-_ONE_OF = [*_core.ONE_OF_KEYS, ("wind.table.file", "wind.table.points")]
-_EXCLUSIVE = {a: b for pair in _ONE_OF for a, b in (pair, pair[::-1])}
-#: Optional tables below the top level that setting one of their keys creates.
-_CREATED_TABLES = frozenset({"wind.table"})
 
 
 def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]:
@@ -271,6 +269,10 @@ class Scenario:
     """A complete, validated scenario. Build one from a preset, a TOML file or a mapping;
     derive variants with :meth:`override`. Instances are immutable and compare by value."""
 
+    #: How the duration follows the route (a preset's, and what derives from it without
+    #: setting ``integrator.duration``); None: the duration is as set.
+    _timing: Timing | None = None
+
     def __init__(self, data: Mapping[str, Any]) -> None:
         data = _plain(data)
         if not isinstance(data, dict):
@@ -294,20 +296,33 @@ class Scenario:
 
     @classmethod
     def preset(cls, name: str) -> Scenario:
-        """A shipped preset by name (see :func:`quadrs.scenario.scenario.presets`)."""
-        return cls.from_toml_string(_preset_text(name))
+        """A shipped preset by name (see :func:`quadrs.scenario.scenario.presets`). A preset
+        that flies a route keeps its duration's margin past the route's end when a change
+        moves the route (:mod:`quadrs.scenario.route_timing`) unless the duration is set."""
+        scenario = cls.from_toml_string(_preset_text(name))
+        scenario._timing = Timing.of(scenario._data)
+        return scenario
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> Scenario:
+    def from_toml(cls, path: str | Path, changes: Mapping[str, Any] | None = None) -> Scenario:
         """Read a scenario file. A file may start from a preset with ``base = "paper"`` and
-        give only what differs; otherwise it must be complete. Unknown keys are rejected."""
+        give only what differs; otherwise it must be complete. Unknown keys are rejected.
+        ``changes`` (dotted keys, as ``--set`` gives them) are laid on the file's own tables
+        before it is checked, so that they may fix a file the checks refuse (a duration too
+        short for its route); a key the file's tables cannot take is set afterwards, as
+        :meth:`override` sets it."""
         text = _read_text(Path(path))
-        return cls.from_toml_string(text, source=str(path))
+        return cls.from_toml_string(text, source=str(path), changes=changes)
 
     @classmethod
-    def from_toml_string(cls, text: str, source: str = "<string>") -> Scenario:
+    def from_toml_string(cls, text: str, source: str = "<string>",
+                         changes: Mapping[str, Any] | None = None) -> Scenario:  # fmt: skip
         """Parse TOML text. ``base`` may name a preset or, unlike in :meth:`from_dict`, another
-        scenario file (``base = "tuned.toml"``, relative to ``source``'s directory)."""
+        scenario file (``base = "tuned.toml"``, relative to ``source``'s directory).
+        ``changes``: as :meth:`from_toml`'s."""
+        if changes:
+            return cls.from_toml_string(_with_changes(text, source, changes), source
+                                        ).override(changes)  # fmt: skip
         if len(text) > MAX_TEXT_CHARS:
             raise ScenarioError(f"{source} is larger than {MAX_TEXT_CHARS} characters")
         if len(text) > MAX_FILE_BYTES:  # parsing takes several times the text's size
@@ -341,7 +356,8 @@ class Scenario:
             finally:
                 _BASE_CHAIN.reset(token)
             del data[_BASE_KEY]
-            return cls(_merge(parent._data, _plain(data)))
+            merged = _merge(parent._data, _plain(data))
+            return _following(cls, merged, parent._timing, _leaf_keys(data))
         return cls.from_dict(data)
 
     @classmethod
@@ -352,7 +368,11 @@ class Scenario:
             raise ScenarioError(f"a scenario is a table of tables, got {type(data).__name__}")
         if _route_file_of(data) is not None:
             return _with_route_file(cls, data, Path.cwd(), cls.from_dict)
-        return cls(_resolve_base(data))
+        base = data.get(_BASE_KEY)
+        timing = None
+        if isinstance(base, str) and base in presets():
+            timing = Scenario.preset(base)._timing
+        return _following(cls, _resolve_base(data), timing, _leaf_keys(data))
 
     @classmethod
     def from_plan(
@@ -421,9 +441,13 @@ class Scenario:
         drops ``payload.natural_frequency`` and vice versa (likewise ``gust.w20`` and
         ``gust.intensity``); a value of None removes an
         optional key (``controller.thrust_max``). Setting ``trajectory.interpolation`` to
-        "route" drops the base's ``trajectory.waypoints`` unless they are given too; setting
-        ``trajectory.route`` or ``trajectory.interpolation`` drops the base's
-        ``trajectory.lower`` (its lowerings at the base route's points) unless given too."""
+        "route" drops the base's ``trajectory.waypoints`` unless they are given too; a
+        ``trajectory.route`` of another number of points (or another interpolation) drops the
+        base's ``trajectory.lower`` and ``trajectory.names`` (given per point and segment of
+        the base's route) unless given too; one of as many points keeps them. A change that
+        moves a preset's route (its points, holds, speed, the winch) without setting
+        ``integrator.duration`` keeps the preset's margin past the route's end, and its
+        whole-flight turbulence unless ``gust.end`` is set (:mod:`quadrs.scenario.route_timing`)."""
         keys = canonical_keys(changes, "override")
         changes = dict(zip(keys, changes.values(), strict=True))
         if "trajectory.route_file" in changes:
@@ -449,46 +473,10 @@ class Scenario:
             given = {k.removeprefix("trajectory."): v for k, v in changes.items()
                      if k.startswith("trajectory.")}  # fmt: skip
             _route_drops_waypoints(data.get("trajectory", {}), given)
-        if ({"trajectory.route", "trajectory.interpolation"} & changes.keys()
-                and "trajectory.lower" not in changes):  # fmt: skip
-            # A lowering is the line paid out at one point of the base's route: another route
-            # (or none) has no such point, so the base's lowerings go unless given again.
-            data.get("trajectory", {}).pop("lower", None)
+        _route_drops_its_points(data.get("trajectory", {}), changes)
         for key, value in changes.items():
-            parts = _split_key(key)
-            other = _EXCLUSIVE.get(key)
-            if other is not None and other not in changes:
-                *tables, name = other.split(".")
-                node: Any = data
-                for table in tables:
-                    node = node.get(table, {}) if isinstance(node, dict) else {}
-                if isinstance(node, dict):
-                    node.pop(name, None)
-            parent: Any = data
-            for i, part in enumerate(parts[:-1]):
-                if i == 0 and part in OPTIONAL_TABLES and part not in parent:
-                    parent[part] = {}  # a table the scenario leaves at its defaults
-                if ".".join(map(str, parts[: i + 1])) in _CREATED_TABLES and isinstance(
-                        parent, dict) and part not in parent:  # fmt: skip
-                    parent[part] = {}  # a table a key of it starts (wind.table.file)
-                if i == 1 and parts[0] == "controller" and isinstance(parent, dict):
-                    _seed_controller_table(parent, part)
-                try:
-                    parent = parent[part]
-                except (KeyError, IndexError, TypeError):
-                    where = key if i == len(parts) - 2 else ".".join(map(str, parts[: i + 1]))
-                    raise scenario_error(f"{key}: unknown scenario key ({where})", key) from None
-            last = parts[-1]
-            if isinstance(parent, dict) and isinstance(last, str):
-                if value is None:
-                    parent.pop(last, None)
-                else:
-                    parent[last] = _plain(value, key)
-            elif isinstance(parent, list) and isinstance(last, int) and last < len(parent):
-                parent[last] = _plain(value, key)
-            else:
-                raise scenario_error(f"{key}: unknown scenario key", key)
-        return Scenario(data)
+            _set_key(data, key, value, changes)
+        return _following(Scenario, data, self._timing, changes)
 
     # -- uncertain parameters -----------------------------------------------------------
     @property
