@@ -142,7 +142,7 @@ pub trait ClosedLoop {
     fn eval_dual(&self, s: &[Dual], w: &[Dual; 3]) -> (Vec<Dual>, Vec<Dual>);
     /// At rest at the reference position (zero angles), payload and actuators at hover.
     fn rest(&self) -> Vec<f64>;
-    /// Where the law's loops run at rates (MODEL.md section 18): the period of the slowest
+    /// Where the law's loops run at rates (docs/model.md, "Loop rates"): the period of the slowest
     /// schedule (steps, every loop updating at its first) and the step, s. None where every
     /// loop runs every step (the continuous model is the law's).
     fn sampled(&self) -> Option<(usize, f64)>;

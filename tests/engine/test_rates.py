@@ -1,4 +1,4 @@
-"""Each loop at its own rate (MODEL.md section 18, docs/model.md "Loop rates"): the wind at
+"""Each loop at its own rate (docs/model.md, "Loop rates", docs/model.md "Loop rates"): the wind at
 `gust.rate`, the laws' loops at `controller.*_rate`, what is refused, and what the stability
 analysis and the linear model say of a sampled law."""
 

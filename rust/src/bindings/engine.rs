@@ -38,7 +38,7 @@ impl CompiledEngine {
     }
 
     /// Integration steps between the updates of `controller`'s position, attitude and inner
-    /// loops (1: every step; MODEL.md section 18).
+    /// loops (1: every step; docs/model.md, "Loop rates").
     fn loop_steps(&self, controller: &str) -> PyResult<[usize; 3]> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
         Ok(self

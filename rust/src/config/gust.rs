@@ -160,7 +160,7 @@ params! {
         air_density: f64 => "kg/m^3", "Air density", non_negative;
         /// m/s, inertial x, y, z, added to the gust inside the window.
         mean_wind: [f64; 3] => "m/s", "Mean wind in the gust window (x, y, z)", finite;
-        /// Hz, the rate the wind is evaluated at (MODEL.md section 18): the turbulence filters
+        /// Hz, the rate the wind is evaluated at (docs/model.md, "Loop rates"): the turbulence filters
         /// discretised at its period, the wind linearly interpolated between its updates; 0
         /// (the default): every step.
         #[serde(default, skip_serializing_if = "is_zero")]

@@ -29,7 +29,7 @@ pub fn parse_key(key: &str) -> Option<Vec<Seg>> {
     Some(out)
 }
 
-/// The loops' rates (MODEL.md section 18): every lane of a set updates its law and its wind at
+/// The loops' rates (docs/model.md, "Loop rates"): every lane of a set updates its law and its wind at
 /// the same steps, so no realisation of a batch may change them.
 pub const SCHEDULE_KEYS: [&str; 4] = [
     "gust.rate",

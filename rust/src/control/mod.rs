@@ -68,7 +68,7 @@ impl<'a, L: Lane> Sight<'a, L> {
     }
 }
 
-/// Which of a law's loops update at a step (MODEL.md section 18): the position loop, the
+/// Which of a law's loops update at a step (docs/model.md, "Loop rates"): the position loop, the
 /// attitude loop and the body-rate loop with the mixer. A loop samples what it reads when it
 /// updates and holds its output until its next update; at `Due::ALL` every loop updates (a law
 /// without rates, the linearisation, the flight's first step).
@@ -486,7 +486,7 @@ params! {
         thrust_min: Option<f64> => "N", "Least total thrust", non_negative;
         #[serde(default, skip_serializing_if = "Option::is_none")]
         thrust_max: Option<f64> => "N", "Largest total thrust", positive;
-        /// Hz, the loops' rates (MODEL.md section 18; 0: every step; unset: the law's own,
+        /// Hz, the loops' rates (docs/model.md, "Loop rates"; 0: every step; unset: the law's own,
         /// `Controller::RATES`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         position_rate: Option<f64> => "Hz", "Position loop rate (0: every step)", non_negative;

@@ -1,6 +1,6 @@
 //! The flight loop: classical RK4 with controls and wind sampled at the start of each step and
 //! held over its four stages, metrics taken online. A law's loops update at their own rates
-//! (MODEL.md section 18: every step by default, a digital controller at 1/dt Hz), each holding
+//! (docs/model.md, "Loop rates": every step by default, a digital controller at 1/dt Hz), each holding
 //! its output between its updates, and the wind at `gust.rate`, interpolated between. The loop
 //! knows no model's details: the vehicle (`model::Vehicle`) gives the derivative and the
 //! payload's outputs, the layout gives the state names and runaway bounds, the law

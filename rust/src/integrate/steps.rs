@@ -149,7 +149,7 @@ impl<'f, 'a, L: KernelOps> Winds<'f, 'a, L> {
     /// holds the last step's wind (the hold runs to its end), so no metric sees a wind that no
     /// step flies, and no innovation is drawn for it.
     ///
-    /// At a `gust.rate` (MODEL.md section 18) the field is evaluated at its own steps, every
+    /// At a `gust.rate` (docs/model.md, "Loop rates") the field is evaluated at its own steps, every
     /// `every` integration steps, and the wind between two of them is interpolated linearly
     /// (a first-order hold): at an update the field's next value is drawn, with the vehicle
     /// where it is then, and the steps until the next update run from the current value to
@@ -452,7 +452,7 @@ impl Ends {
     }
 }
 
-/// When each of a law's loops updates (MODEL.md section 18): every `steps[i]` steps from the
+/// When each of a law's loops updates (docs/model.md, "Loop rates"): every `steps[i]` steps from the
 /// first, for the position, attitude and inner loops in turn (1: every step).
 pub(super) struct Rates {
     steps: [usize; 3],

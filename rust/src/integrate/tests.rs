@@ -563,7 +563,7 @@ fn sampled_cfg() -> Config {
 }
 
 /// A law at its rates is the law evaluated by hand at its update instants and held between
-/// them (MODEL.md section 18), for every law: the trace's inputs at each step are what the
+/// them (docs/model.md, "Loop rates"), for every law: the trace's inputs at each step are what the
 /// law gives with its loops updated on the steps k with k % (steps per update) == 0 from the
 /// state recorded then, each loop's output unchanged between its updates, and where every
 /// loop updates (each 20 ms), a static law's inputs are the law at rest at that state.
