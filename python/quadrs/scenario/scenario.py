@@ -407,13 +407,15 @@ class Scenario:
     def with_px4_params(self, path: str | Path) -> Scenario:
         """A new Scenario whose ``[controller.px4]`` takes the airframe's parameters from a
         QGroundControl ``.params`` file or a PX4 ``.ulg`` log: the parameters the table knows
-        (PX4's names and units), the rest of the file ignored
-        (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them). ScenarioError
-        naming the file for one that is neither."""
-        from quadrs.scenario.px4_files import read_px4_parameters
+        (PX4's names and units; each axis's ``MC_*RATE_K`` multiplies its rate P, I and D, as
+        PX4 does; ``MPC_THR_HOVER`` is not applied, with a warning saying why), the rest of
+        the file ignored (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them).
+        ScenarioError naming the file for one that is neither."""
+        from quadrs.scenario.px4_files import px4_changes, read_px4_parameters
 
         read = read_px4_parameters(path)
-        return self.override({f"controller.px4.{k}": v for k, v in read.known.items()})
+        table = self.to_dict().get("controller", {}).get("px4", {})
+        return self.override(px4_changes(read, table))
 
     def override(self, changes: Mapping[str, Any]) -> Scenario:
         """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
