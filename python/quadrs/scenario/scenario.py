@@ -244,6 +244,17 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
     table["points"] = points
 
 
+def _refuse_unread(data: dict[str, Any], given: Mapping[str, Any]) -> None:
+    """ScenarioError naming the first key of ``given`` (values set, or dispersed) that the
+    scenario ``data`` does not read (quadrs.scenario.unread_keys)."""
+    from quadrs.scenario.unread_keys import unread_reason
+
+    for key in given:
+        why = unread_reason(data, key)
+        if why is not None:
+            raise scenario_error(why, key)
+
+
 def key_value(scenario: Scenario, key: str) -> Any:
     """``scenario[key]``, or for a key of a law's table the scenario leaves out, the engine's
     default that setting the key starts from (``controller.px4.MPC_XY_P`` on a scenario with
@@ -283,6 +294,7 @@ class Scenario:
         _complete_controller_tables(data)
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
+        _refuse_unread(data, data.get("dispersions") or {})  # a draw that changes nothing
         plausibility.check(data)  # and one that can fly; implausible values warn
 
     # -- construction -------------------------------------------------------------------
@@ -490,7 +502,9 @@ class Scenario:
                 parent[last] = _plain(value, key)
             else:
                 raise scenario_error(f"{key}: unknown scenario key", key)
-        return Scenario(data)
+        new = Scenario(data)
+        _refuse_unread(new._data, {k: v for k, v in changes.items() if v is not None})
+        return new
 
     # -- uncertain parameters -----------------------------------------------------------
     @property
