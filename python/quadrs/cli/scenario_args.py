@@ -75,7 +75,7 @@ def _with_px4_file(base: Any, args: argparse.Namespace) -> Any:
                           f"{','.join(laws)} would fly without them: add px4 to --controller")
         )  # fmt: skip
     table = base.to_dict().get("controller", {}).get("px4", {})
-    print(f"quadrs {args.command}: --px4-params {read.note()}", file=sys.stderr)
+    print(terminal_text(f"quadrs {args.command}: --px4-params {read.note()}"), file=sys.stderr)
     return base.override(px4_changes(read, table))
 
 

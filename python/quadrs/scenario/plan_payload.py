@@ -12,9 +12,15 @@ rate remembers its item, so a value the engine refuses is named by the plan's it
 
 from __future__ import annotations
 
+import math
 from typing import Any, Protocol
 
-__all__ = ["PlanPayload"]
+__all__ = ["PlanPayload", "RouteFileError"]
+
+
+class RouteFileError(ValueError):
+    """A route file the engine cannot fly, in one line naming the file and the item."""
+
 
 # MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER and the actions read.
 WINCH, GRIPPER = 42600, 211
@@ -47,8 +53,6 @@ class PlanPayload:
     def item(self, route: _Route, command: int, params: list[Any], where: str) -> None:
         """A ``DO_WINCH`` or ``DO_GRIPPER`` item: a lowering at the current point, the hook's
         release after one, or refused naming the item."""
-        from quadrs.scenario.route_files import RouteFileError, _number
-
         self.seen = True
         action = params[1]
         label = where.rsplit(": ", 1)[-1]
@@ -88,8 +92,6 @@ class PlanPayload:
     def winch_speed(self, source: str) -> float | None:
         """The one rate of the plan's lowerings (None: the base scenario's winch speed);
         RouteFileError naming the items when they ask for different rates."""
-        from quadrs.scenario.route_files import RouteFileError
-
         if len(self.rates) > 1:
             shown = "; ".join(f"{_rate(r)} at {', '.join(at)}" for r, at in self.rates.items())
             raise RouteFileError(
@@ -112,8 +114,6 @@ def _rate(rate: float | None) -> str:
 def _on_the_pad(route: _Route, where: str, what: str) -> None:
     """Refuses a payload action while the vehicle stands on the pad: flown there, the parcel
     would leave before lift-off (or after the landing, where the route no longer is)."""
-    from quadrs.scenario.route_files import RouteFileError
-
     if route.airborne:
         return
     when = "after landing" if route.landed else "before take-off"
@@ -129,3 +129,15 @@ def origin_of(origins: tuple[tuple[str, str], ...], key: str | None) -> str | No
         return None
     found = [items for k, items in origins if k == key]
     return found[0] if found else None
+
+
+def _number(value: Any, where: str, minimum: float = -math.inf, maximum: float = math.inf) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
+        shown = repr(value) if len(repr(value)) <= 40 else f"{repr(value)[:40]}..."
+        raise RouteFileError(f"{where}: not a number within range: {shown}") from None
+    if isinstance(value, bool) or not (math.isfinite(v) and minimum <= v <= maximum):
+        span = f" in [{minimum:g}, {maximum:g}]" if math.isfinite(minimum) else ""
+        raise RouteFileError(f"{where}: must be finite{span}, got {value!r}")
+    return v

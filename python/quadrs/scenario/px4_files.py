@@ -77,14 +77,18 @@ class Px4Parameters:
     not_applied: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def note(self) -> str:
-        """One line: what was read and what was not (names as terminal-safe text)."""
-        from quadrs.present.terminal import terminal_text
-
-        shown = ", ".join(self.ignored[:6]) + (", ..." if len(self.ignored) > 6 else "")
-        rest = f"; {len(self.ignored)} others ignored ({shown})" if self.ignored else ""
+        """One line: what was read and what was not (a name holding control characters
+        shown escaped, so that a file cannot drive the terminal)."""
+        ignored = [_shown(n) for n in self.ignored]
+        shown = ", ".join(ignored[:6]) + (", ..." if len(ignored) > 6 else "")
+        rest = f"; {len(ignored)} others ignored ({shown})" if ignored else ""
         k = f", {', '.join(self.rate_k)} folded into the rate gains" if self.rate_k else ""
-        return terminal_text(f"{self.path}: {len(self.known)} parameters read into "
-                             f"[controller.px4]{k}{rest}")  # fmt: skip
+        return f"{self.path}: {len(self.known)} parameters read into [controller.px4]{k}{rest}"
+
+
+def _shown(name: str) -> str:
+    """A parameter's name as text to show: escaped (``\\x1b``) unless printable."""
+    return name if name.isprintable() else repr(name)[1:-1]
 
 
 def px4_changes(read: Px4Parameters, table: Mapping[str, Any]) -> dict[str, float]:

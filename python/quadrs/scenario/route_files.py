@@ -66,7 +66,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
-from quadrs.scenario.plan_payload import PlanPayload
+from quadrs.scenario.plan_payload import PlanPayload, RouteFileError, _number
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -142,10 +142,6 @@ EARTH_RADIUS = 6371008.8
 MAX_FLOWN_ITEMS = 100_000
 #: Largest route file read (bytes).
 MAX_BYTES = 16 << 20
-
-
-class RouteFileError(ValueError):
-    """A route file the engine cannot fly, in one line naming the file and the item."""
 
 
 @dataclass(frozen=True)
@@ -667,16 +663,4 @@ def _speed(value: Any, where: str) -> float | None:
     v = _number(value, where)
     if not v > 0:
         raise RouteFileError(f"{where}: a speed must be > 0 m/s, got {value!r}")
-    return v
-
-
-def _number(value: Any, where: str, minimum: float = -math.inf, maximum: float = math.inf) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
-        shown = repr(value) if len(repr(value)) <= 40 else f"{repr(value)[:40]}..."
-        raise RouteFileError(f"{where}: not a number within range: {shown}") from None
-    if isinstance(value, bool) or not (math.isfinite(v) and minimum <= v <= maximum):
-        span = f" in [{minimum:g}, {maximum:g}]" if math.isfinite(minimum) else ""
-        raise RouteFileError(f"{where}: must be finite{span}, got {value!r}")
     return v
