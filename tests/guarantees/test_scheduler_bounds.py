@@ -103,3 +103,31 @@ def test_a_scheduler_address_that_speaks_http_says_so(http: str, capsys) -> None
     assert code == 2, err
     line = one_line(err)
     assert "not a Dask scheduler" in line and "EiB" not in line
+
+
+def test_a_ctrl_c_as_the_process_exits_after_a_cluster_run_is_130(tmp_path: Path) -> None:
+    """Before: a Ctrl-C just after the save, while Dask closed at the process's exit, printed
+    a KeyboardInterrupt traceback and the process exited 0. The console command (main() with
+    the process's own arguments) against an in-process cluster; an exit handler registered
+    after the command's raises SIGINT as Dask's close would meet it."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "runs.parquet"
+    code = f"""
+import atexit, signal, sys
+from dask.distributed import LocalCluster
+cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                       dashboard_address=None)
+sys.argv = ["quadrs", "mc", *{TINY_CLI!r}, "--runs", "2", "--workers", "1", "--no-progress",
+            "--scheduler", cluster.scheduler_address, "--out", {str(out)!r}]
+from quadrs.cli.main import main
+status = main()
+atexit.register(lambda: signal.raise_signal(signal.SIGINT))  # a Ctrl-C at exit
+sys.exit(status)
+"""
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)  # fmt: skip
+    assert out.is_file(), run.stderr
+    assert "Traceback" not in run.stderr, run.stderr
+    assert run.returncode == 130, run.stderr

@@ -70,6 +70,47 @@ def dask_client(address: str | None) -> Iterator[Any]:
         yield client
 
 
+class ExitAfterDask:
+    """A Ctrl-C or SIGTERM while the process exits after a command that used ``--scheduler``:
+    Dask's exit handlers (its client's loop and threads) ran under Python's default handler,
+    so the signal raised a KeyboardInterrupt traceback inside them and the status stayed 0.
+    :meth:`register` (before Dask is imported, so that this handler runs after Dask's) and
+    :meth:`hold` (when the command is done) note such a signal instead and end the process
+    with 130 (143 for SIGTERM) once Dask's handlers are done. Only for the console command:
+    a caller of :func:`quadrs.cli.main.main` keeps its own signal handling."""
+
+    def __init__(self) -> None:
+        self.caught: list[int] = []
+        self.registered = False
+
+    def register(self) -> None:
+        import atexit
+
+        if not self.registered:
+            self.registered = True
+            atexit.register(self._exit)
+
+    def hold(self) -> None:
+        import signal
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda signum, frame: self.caught.append(signum))
+
+    def _exit(self) -> None:
+        import os
+        import signal
+
+        if self.caught:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(EXIT_TERMINATED if self.caught[0] == signal.SIGTERM else EXIT_INTERRUPT)
+
+
+#: The console command's hold on signals at its exit (``quadrs.cli.main.main``).
+exit_after_dask = ExitAfterDask()
+
+
 #: s, the longest the connection to ``--scheduler`` (the handshake included) may take.
 CONNECT_TIMEOUT = 10.0
 
