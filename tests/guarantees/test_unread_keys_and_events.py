@@ -132,3 +132,25 @@ def test_a_ground_too_stiff_for_the_step_is_warned() -> None:
         warn_before_running(concrete, ("pd",), gains=False, stacklevel=1)
     slippery = delivery.override({"ground.friction": 5.0, "integrator.dt": 0.01})
     assert "ground.friction = 5" in contact_step_warning(slippery)
+
+
+def test_a_winch_acceleration_the_step_cannot_resolve_is_refused_naming_it() -> None:
+    """Before: the line's length went negative and the flight ended "ok"."""
+    delivery = quadrs.Scenario.preset("delivery")  # winch 1 m/s, dt 1 ms: at most 250 m/s^2
+    assert delivery.override({"payload.winch_acceleration": 250.0})
+    with pytest.raises(
+        quadrs.ScenarioError,
+        match=r"payload\.winch_acceleration is more than "
+        r"integrator\.dt \(0\.001 s\) can resolve",
+    ):
+        delivery.override({"payload.winch_acceleration": 1000.0})
+
+
+def test_a_touchdown_release_on_a_spring_is_named_as_given() -> None:
+    """Before: "got NaN"."""
+    with pytest.raises(
+        quadrs.ScenarioError,
+        match=r"payload\.release applies to payload\.model "
+        r'= "cable" only, got "touchdown"',
+    ):
+        quadrs.Scenario.preset("paper").override({"payload.release": "touchdown"})

@@ -132,6 +132,8 @@ pub const FRICTION_SPEED: f64 = 0.01;
 pub const REST_SPEED: f64 = 0.1;
 /// s, the release delay without `payload.release_delay`.
 pub const RELEASE_DELAY: f64 = 1.0;
+/// The winch's speed loop gain over its position loop's, a / v: kw = 4 a / v (1/s).
+const WINCH_SPEED_GAIN: f64 = 4.0;
 
 /// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -217,29 +219,31 @@ impl OwnsKeys for Cable {
     /// neither may be given when another payload flies.
     fn validate(c: &CableParams, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         if !flown {
+            // Each value as the scenario gives it: a release at touchdown is a word.
+            let shown = |x: Option<f64>| x.map(|x| format!("{x:?}"));
             let release = c.release.map(|r| match r {
-                Release::At(t) => t,
-                Release::Touchdown => f64::NAN,
+                Release::At(t) => format!("{t:?}"),
+                Release::Touchdown => format!("\"{TOUCHDOWN}\""),
             });
             for (key, value) in [
-                ("payload.cable_length", c.cable_length),
-                ("payload.attachment_offset", c.attachment_offset),
-                ("payload.winch_speed", c.winch_speed),
-                ("payload.winch_acceleration", c.winch_acceleration),
-                ("payload.length_min", c.length_min),
+                ("payload.cable_length", shown(c.cable_length)),
+                ("payload.attachment_offset", shown(c.attachment_offset)),
+                ("payload.winch_speed", shown(c.winch_speed)),
+                ("payload.winch_acceleration", shown(c.winch_acceleration)),
+                ("payload.length_min", shown(c.length_min)),
                 ("payload.release", release),
-                ("payload.release_delay", c.release_delay),
-                ("ground.stiffness", cfg.ground.stiffness),
+                ("payload.release_delay", shown(c.release_delay)),
+                ("ground.stiffness", shown(cfg.ground.stiffness)),
                 (
                     "trajectory.lower",
-                    cfg.trajectory.lower.iter().copied().find(|x| *x != 0.0),
+                    shown(cfg.trajectory.lower.iter().copied().find(|x| *x != 0.0)),
                 ),
             ] {
                 if let Some(x) = value {
                     return Err(ConfigError::new(
                         key,
                         format!(
-                            "{key} applies to payload.model = \"cable\" only, got {x:?} with \
+                            "{key} applies to payload.model = \"cable\" only, got {x} with \
                              payload.model = \"{}\"",
                             cfg.payload.model.name()
                         ),
@@ -263,6 +267,32 @@ impl OwnsKeys for Cable {
 }
 
 impl Cable {
+    /// The winch's speed servo (`winch`: L'' = kw (rate - L'), kw = 4 a / v, a pole at -kw)
+    /// must be resolved by the step, as the rotors' lag is (`actuator.time_constant`): past
+    /// kw dt = 1 RK4 with the servo's clamps overshoots, and beyond ~2.8 the line's speed
+    /// grows without bound (its length goes negative) while the flight ends "ok".
+    fn validate_winch_step(c: &CableParams, cfg: &ModelContext) -> Result<(), ConfigError> {
+        let (Some(v), Some(a)) = (c.winch_speed, c.winch_acceleration) else {
+            return Ok(());
+        };
+        let dt = cfg.integrator.dt;
+        let gain = WINCH_SPEED_GAIN * a / v;
+        if gain * dt > 1.0 {
+            return Err(ConfigError::new(
+                "payload.winch_acceleration",
+                format!(
+                    "payload.winch_acceleration is more than integrator.dt ({dt:?} s) can \
+                     resolve: the winch's speed servo (gain {WINCH_SPEED_GAIN} \
+                     payload.winch_acceleration / payload.winch_speed = {gain:?} 1/s, \
+                     payload.winch_speed = {v:?} m/s) needs gain x dt <= 1; use \
+                     payload.winch_acceleration <= {:?} m/s^2 or a smaller integrator.dt, got {a:?}",
+                    v / (WINCH_SPEED_GAIN * dt)
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// The winch, the hook and the lowerings of the route (`flown`, `cable_length` = `l0`).
     fn validate_last_metres(
         c: &CableParams,
@@ -288,6 +318,7 @@ impl Cable {
                     }
                 }
             }
+            Self::validate_winch_step(c, cfg)?;
         }
         let min = c.length_min.unwrap_or(l0);
         positive("payload.length_min", min)?;
@@ -428,7 +459,7 @@ impl Payload for Cable {
             winch_speed: v,
             winch_acceleration: a,
             winch_kp: a / v,
-            winch_kw: 4.0 * a / v,
+            winch_kw: WINCH_SPEED_GAIN * a / v,
             length_min: rest_length,
             length_max,
             target: rest_length,
