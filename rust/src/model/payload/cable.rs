@@ -267,32 +267,6 @@ impl OwnsKeys for Cable {
 }
 
 impl Cable {
-    /// The winch's speed servo (`winch`: L'' = kw (rate - L'), kw = 4 a / v, a pole at -kw)
-    /// must be resolved by the step, as the rotors' lag is (`actuator.time_constant`): past
-    /// kw dt = 1 RK4 with the servo's clamps overshoots, and beyond ~2.8 the line's speed
-    /// grows without bound (its length goes negative) while the flight ends "ok".
-    fn validate_winch_step(c: &CableParams, cfg: &ModelContext) -> Result<(), ConfigError> {
-        let (Some(v), Some(a)) = (c.winch_speed, c.winch_acceleration) else {
-            return Ok(());
-        };
-        let dt = cfg.integrator.dt;
-        let gain = WINCH_SPEED_GAIN * a / v;
-        if gain * dt > 1.0 {
-            return Err(ConfigError::new(
-                "payload.winch_acceleration",
-                format!(
-                    "payload.winch_acceleration is more than integrator.dt ({dt:?} s) can \
-                     resolve: the winch's speed servo (gain {WINCH_SPEED_GAIN} \
-                     payload.winch_acceleration / payload.winch_speed = {gain:?} 1/s, \
-                     payload.winch_speed = {v:?} m/s) needs gain x dt <= 1; use \
-                     payload.winch_acceleration <= {:?} m/s^2 or a smaller integrator.dt, got {a:?}",
-                    v / (WINCH_SPEED_GAIN * dt)
-                ),
-            ));
-        }
-        Ok(())
-    }
-
     /// The winch, the hook and the lowerings of the route (`flown`, `cable_length` = `l0`).
     fn validate_last_metres(
         c: &CableParams,
@@ -870,6 +844,10 @@ impl<L: Lane> Cable<L> {
 #[cfg(test)]
 #[path = "cable_tests.rs"]
 mod tests;
+
+// The winch's servo against the step (`Cable::validate_winch_step`).
+#[path = "winch_step.rs"]
+mod winch_step;
 
 #[cfg(test)]
 #[path = "winch_tests.rs"]
