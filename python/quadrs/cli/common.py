@@ -63,16 +63,95 @@ def dask_client(address: str | None) -> Iterator[Any]:
         yield None
         return
     try:
-        from dask.distributed import Client
+        import dask.distributed  # noqa: F401
     except ImportError:
         raise BadInput("--scheduler needs Dask: pip install 'quadrs[dask]'") from None
-    try:
-        client = Client(address, timeout="10s")
-    except Exception as e:
+    with connect(address) as client:
+        yield client
+
+
+class ExitAfterDask:
+    """A Ctrl-C or SIGTERM while the process exits after a command that used ``--scheduler``:
+    Dask's exit handlers (its client's loop and threads) ran under Python's default handler,
+    so the signal raised a KeyboardInterrupt traceback inside them and the status stayed 0.
+    :meth:`register` (before Dask is imported, so that this handler runs after Dask's) and
+    :meth:`hold` (when the command is done) note such a signal instead and end the process
+    with 130 (143 for SIGTERM) once Dask's handlers are done. Only for the console command:
+    a caller of :func:`quadrs.cli.main.main` keeps its own signal handling."""
+
+    def __init__(self) -> None:
+        self.caught: list[int] = []
+        self.registered = False
+
+    def register(self) -> None:
+        import atexit
+
+        if not self.registered:
+            self.registered = True
+            atexit.register(self._exit)
+
+    def hold(self) -> None:
+        import signal
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda signum, frame: self.caught.append(signum))
+
+    def _exit(self) -> None:
+        import os
+        import signal
+
+        if self.caught:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(EXIT_TERMINATED if self.caught[0] == signal.SIGTERM else EXIT_INTERRUPT)
+
+
+#: The console command's hold on signals at its exit (``quadrs.cli.main.main``).
+exit_after_dask = ExitAfterDask()
+
+
+#: s, the longest the connection to ``--scheduler`` (the handshake included) may take.
+CONNECT_TIMEOUT = 10.0
+
+
+@contextlib.contextmanager
+def connect(address: str, timeout: float | None = None) -> Iterator[Any]:
+    """A Dask client of the scheduler at ``address``, connected within ``timeout`` s or
+    BadInput: Dask's own timeout covers the TCP connect only, so a server that accepts and
+    never answers (or answers in another protocol) would hang it; the client is made on a
+    daemon thread that is left behind when it does not finish in time."""
+    from dask.distributed import Client
+
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
+    made: dict[str, Any] = {}
+
+    def make() -> None:
+        try:
+            made["client"] = Client(address, timeout=f"{timeout:g}s")
+        except BaseException as e:  # handed to the caller's thread
+            made["error"] = e
+
+    thread = threading.Thread(target=make, name="quadrs --scheduler connect", daemon=True)
+    thread.start()
+    thread.join(timeout + 1.0)
+    if thread.is_alive():
+        raise BadInput(f"--scheduler {address}: no answer within {timeout:g} s (the address "
+                       "accepts connections but no Dask scheduler answers there)")  # fmt: skip
+    error = made.get("error")
+    if isinstance(error, (MemoryError, OverflowError, UnicodeDecodeError)):
+        # Dask read another protocol's answer (an HTTP server's) as a frame's length.
+        raise BadInput(f"--scheduler {address}: something answers there, but not a Dask "
+                       "scheduler (an HTTP server? give the scheduler's tcp:// address, port "
+                       "8786 by default)") from None  # fmt: skip
+    if error is not None:
         # (a bad port, an unknown protocol, TLS without a context, inproc:// from outside)
-        why = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        if not isinstance(error, Exception):
+            raise error  # KeyboardInterrupt, SystemExit
+        text = str(error).strip()
+        why = text.splitlines()[0] if text else type(error).__name__
         raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
-    with client:
+    with made["client"] as client:
         yield client
 
 

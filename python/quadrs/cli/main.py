@@ -27,6 +27,7 @@ from quadrs.cli.common import (
     EXIT_OK,
     EXIT_TERMINATED,
     EXIT_USAGE,
+    exit_after_dask,
     note,
     one_line,
     scenario_options,
@@ -197,6 +198,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPT
     prog = f"quadrs {args.command}"
     terminated: list[int] = []
+    # The console command with a cluster: a signal while Dask closes at exit ends it as an
+    # interruption, not a traceback (ExitAfterDask); registered before Dask is imported.
+    at_exit = argv is None and getattr(args, "scheduler", None) is not None
+    if at_exit:
+        exit_after_dask.register()
+    try:
+        return _run(args, prog, terminated)
+    finally:
+        if at_exit:
+            exit_after_dask.hold()
+
+
+def _run(args: argparse.Namespace, prog: str, terminated: list[int]) -> int:
+    """The command of ``args``, its exit status; bad input one line (status 2), Ctrl-C 130."""
     try:
         with _terse_warnings(), _sigterm_as_interrupt(terminated):
             status = COMMANDS[args.command](args)

@@ -175,8 +175,9 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         type=Path,
         metavar="FILE",
         help="the airframe's PX4 parameters for the px4 law, from a QGroundControl .params file "
-        "or a PX4 .ulg log: those [controller.px4] knows are read (PX4's names and units), "
-        'the others listed and ignored (docs/delivery.md, "PX4 files")',
+        "or a PX4 .ulg log: those [controller.px4] knows are read (PX4's names and units; "
+        "--set controller.px4.* wins over the file), the others listed and ignored; needs the "
+        'px4 law in --controller (docs/delivery.md, "PX4 files")',
     )
     seed_and_workers(p)
     scheduler_option(p)
@@ -210,13 +211,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
 
     if args.preset is None and args.scenario is None:
         args.preset = DEFAULT_PRESET  # a mission is a route: the delivery preset's
-    scenario = load_scenario(args)
-    if args.px4_params is not None:
-        from quadrs.scenario.px4_files import read_px4_parameters
-
-        read = read_px4_parameters(args.px4_params)
-        scenario = scenario.override({f"controller.px4.{k}": v for k, v in read.known.items()})
-        note(f"quadrs mission: --px4-params {read.note()}")
+    scenario = load_scenario(args)  # --px4-params read there, before --set (which wins)
     if args.out is not None and args.out.suffix.lower() != ".parquet":
         raise ValueError(f"--out {str(args.out)!r}: expected a file ending in .parquet")
     for name in ("runs", "workers"):

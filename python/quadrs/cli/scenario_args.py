@@ -45,6 +45,8 @@ def load_scenario(args: argparse.Namespace) -> Any:
             base = Scenario.from_toml(args.scenario, changes=changes)
     else:
         base = Scenario.preset(args.preset or "paper")
+    if getattr(args, "px4_params", None) is not None:
+        base = _with_px4_file(base, args)  # before --set: a key set explicitly wins
     if args.dispersions:
         table = dict(base.dispersions)
         if isinstance(changes.get("dispersions"), dict):
@@ -61,6 +63,27 @@ def load_scenario(args: argparse.Namespace) -> Any:
     if "trajectory.route_file" in changes:
         raise BadInput("--plan and --set trajectory.route_file: give one route file")
     return Scenario.from_plan(plan, base, changes)
+
+
+def _with_px4_file(base: Any, args: argparse.Namespace) -> Any:
+    """``base`` with the parameters of ``--px4-params`` in ``[controller.px4]``, what was read
+    said on stderr; refused (exit 2) when no law flown reads them."""
+    import sys
+
+    from quadrs.present.terminal import terminal_text
+    from quadrs.scenario.px4_files import px4_changes, read_px4_parameters
+
+    read = read_px4_parameters(args.px4_params)  # a file that is not PX4's: said first
+    laws = tuple(getattr(args, "controller", ()) or ())
+    if "px4" not in laws:
+        raise BadInput(
+            terminal_text(f"--px4-params {str(args.px4_params)!r}: its parameters go into "
+                          f"[controller.px4], which only the px4 law reads; --controller "
+                          f"{','.join(laws)} would fly without them: add px4 to --controller")
+        )  # fmt: skip
+    table = base.to_dict().get("controller", {}).get("px4", {})
+    print(terminal_text(f"quadrs {args.command}: --px4-params {read.note()}"), file=sys.stderr)
+    return base.override(px4_changes(read, table))
 
 
 def parse_distribution(text: str) -> dict[str, Any]:

@@ -195,28 +195,34 @@ def _joint(
     own: list[str], values: Any, present: set[str], limit: float, confidence: float,
     track_limit: float, cross_limit: float, metric: str = "max_accel",
 ) -> pd.DataFrame:  # fmt: skip
-    """Flights that exceeded the acceleration limit (or left the route) in any of ``own``."""
+    """Flights that exceeded the acceleration limit (or left the route) in any of ``own``.
+    A flight whose metric has no value in any phase (an event metric such as
+    ``touchdown_speed`` where the event never happened) is not judged: it is not among the
+    ``n`` flights but counted in ``flights``."""
     from quadrs.stats.risk import exceedance_interval
 
     rows = []
     acc = np.zeros(0, bool)
+    valued = np.zeros(0, bool)
     off = np.zeros(0, bool)
     for i, phase in enumerate(own):
         x = values(metric, phase)
         hit = np.isinf(x) | np.where(np.isnan(x), False, x > limit)
         acc = hit if i == 0 else acc | hit
+        valued = ~np.isnan(x) if i == 0 else valued | ~np.isnan(x)
         if {"max_tracking", "max_cross_track"} & present:
             o, _ = _off_route(values, phase, present, track_limit, cross_limit)
             off = o if i == 0 else off | o
-    for name, hit in (("acceleration", acc), ("route", off)):
+    for name, hit, judged in (("acceleration", acc, valued), ("route", off, None)):
         if not hit.size:
             continue
-        n, k = len(hit), int(hit.sum())
-        p, lo, hi = exceedance_interval(k, n, confidence)
+        n = len(hit) if judged is None else int(judged.sum())
+        k = int(hit.sum())
+        p, lo, hi = exceedance_interval(k, n, confidence) if n else (math.nan,) * 3
         rows.append({"table": name, "n": n, "count": k, "probability": p, "ci_low": lo,
-                     "ci_high": hi, "p_max": hi})  # fmt: skip
-    return pd.DataFrame(rows, columns=["table", "n", "count", "probability", "ci_low",
-                                       "ci_high", "p_max"]).set_index("table")  # fmt: skip
+                     "ci_high": hi, "p_max": hi, "flights": len(hit)})  # fmt: skip
+    columns = ["table", "n", "count", "probability", "ci_low", "ci_high", "p_max", "flights"]
+    return pd.DataFrame(rows, columns=columns).set_index("table")
 
 
 def _worst(x: np.ndarray, worst: str) -> float:

@@ -116,12 +116,18 @@ def _joint_line(joint: pd.DataFrame | None, table: str, what: str) -> str:
         return ""
     r = joint.loc[table]
     n, k = int(r["n"]), int(r["count"])
+    flights = int(r.get("flights", n))
+    if n == 0:
+        return (f"{ANY_PHASE}: not judged: none of the {flights} flights has a value of the "
+                "metric in any phase (an event metric: the event, a touchdown, never "
+                "happened), so none can have exceeded it")  # fmt: skip
+    unjudged = f" ({flights - n} without a value in any phase left out)" if flights > n else ""
     if k == 0:
         said = f"0 of {n} flights, P <= {_pct(r['p_max'])} % (two-sided 95 % interval)"
     else:
         said = (f"{k} of {n} flights, P = "
                 f"{_interval(r['probability'], r['ci_low'], r['ci_high'], 100.0)} %")  # fmt: skip
-    return f"{ANY_PHASE}: {said} {what} in at least one phase (a joint statement)"
+    return f"{ANY_PHASE}: {said} {what} in at least one phase (a joint statement){unjudged}"
 
 
 def _route_text(t: pd.DataFrame) -> pd.DataFrame:

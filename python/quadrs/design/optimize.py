@@ -263,6 +263,14 @@ def check_tuning(
         unknown = [p for p in phases if p not in scenario.phase_names]
         if not phases or unknown:
             raise ValueError(f"phases must be among {scenario.phase_names}, got {list(phases)}")
+        if objective in _core.EVENT_METRICS and len(phases) > 1:
+            # An event's value is in the one phase the event falls in, NaN in the others: a
+            # sum over several has no value, and every candidate would be rejected.
+            raise ValueError(
+                f"objective {objective} is an event's metric (a value only in the phase the "
+                f"event falls in): summed over {len(phases)} phases ({', '.join(phases)}) it "
+                "has none; give the one phase of the event (--phase, e.g. the lowering's)"
+            )
     elif not callable(objective):
         raise TypeError(f"objective must be a metric name or a callable, got {objective!r}")
     cons = constraints_from(constraints)

@@ -102,9 +102,9 @@ def loop_rates(scenario: Any, controller: str) -> tuple[float, float, float]:
 
 
 def is_sampled(scenario: Any, controller: str) -> bool:
-    """Whether some loop of ``controller`` runs slower than every step (docs/model.md, "Loop rates"):
-    the engine's own schedule (``Engine.loop_steps``: a law's own rate rounded to whole
-    steps)."""
+    """Whether some loop of ``controller`` runs slower than every step (docs/model.md, "Loop
+    rates"): the engine's own schedule (``Engine.loop_steps``: a law's own rate rounded to
+    whole steps)."""
     return any(n > 1 for n in scenario.engine.loop_steps(controller))
 
 

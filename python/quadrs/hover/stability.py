@@ -101,9 +101,46 @@ def warn_before_running(
         if not report.stable and (gains or report.excited_unstable):
             category = StabilityWarning if report.excited_unstable else StabilityNote
             warnings.warn(report.warning(), category, stacklevel=stacklevel + 1)
-    message = step_size_warning(scenario, reports)
-    if message:
-        warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
+    for message in (step_size_warning(scenario, reports), contact_step_warning(scenario)):
+        if message:
+            warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
+
+
+#: m/s, the engine's friction regularisation speed (rust/src/model/payload/cable.rs
+#: FRICTION_SPEED): below it the Coulomb force grows linearly with the sliding speed.
+FRICTION_SPEED = 0.01
+
+
+def contact_step_warning(scenario: Scenario) -> str:
+    """Why ``integrator.dt`` is too large for the parcel's contact with the ground ("" if it
+    is fine, or the parcel never meets one): the contact is a spring and damper on the
+    parcel's mass, m s^2 + c s + k = 0 (``ground.stiffness``, ``ground.damping``), and the
+    friction, regularised below FRICTION_SPEED, a pole at -mu g / FRICTION_SPEED. The hover's
+    poles (:func:`step_size_warning`) do not hold them: the parcel hangs clear. Past RK4's
+    margin (|pole| dt > STEP_LIMIT) a contact rings or blows up (a flight ends "tilt",
+    blaming the vehicle; an undamped one doubles its peak force)."""
+    data = scenario.to_dict()
+    ground, payload = data.get("ground", {}), data.get("payload", {})
+    k = ground.get("stiffness")
+    if k is None or payload.get("model") != "cable" or not payload.get("mass"):
+        return ""
+    dt, m = float(scenario["integrator.dt"]), float(payload["mass"])
+    c = float(ground.get("damping", 0.0))
+    contact = max((abs(r) for r in np.roots([m, c, float(k)])), default=0.0)
+    sliding = float(ground.get("friction", 0.0)) * float(scenario["environment.gravity"])
+    sliding /= FRICTION_SPEED
+    speed, what = max((contact, f"ground.stiffness = {k:g} N/m with ground.damping = {c:g} "
+                                f"N s/m on the parcel's {m:g} kg"),
+                      (sliding, f"ground.friction = {ground.get('friction', 0.0):g} (its "
+                                f"regularisation below {FRICTION_SPEED:g} m/s)"))  # fmt: skip
+    if speed * dt <= STEP_LIMIT:
+        return ""
+    return (
+        f"integrator.dt = {dt:g} s is too large for the parcel's contact with the ground "
+        f"({what}: |pole| = {speed:.4g} 1/s, |pole| dt = {speed * dt:.3g} > {STEP_LIMIT:g}): "
+        f'the touchdown rings or blows up (a flight may end "tilt" or overstate its peak '
+        f"force); use integrator.dt <= {STEP_LIMIT / speed:.3g} s or a softer ground"
+    )
 
 
 def _pole(real: float, imag: float) -> str:

@@ -50,15 +50,18 @@ def exceedance_curves(
     ctrls = [str(c) for c in pd.unique(runs["controller"])]
     fig, axes = panel_axes(ax, len(phases))
     floor = 1.0
+    drawn = []
     for a, phase in zip(axes, phases, strict=True):
         # A metric every flight gives the same value in this phase (a released parcel's swing:
         # 0) has no curve to draw: the panel says so, rather than a step 1e-12 wide.
         same: list[str] = []
+        valued = False  # some flight has a value here, or diverged (which exceeds)
         for i, ctrl in enumerate(ctrls):
             sel = runs[(runs["phase"] == phase) & (runs["controller"] == ctrl)]
             div = phase_diverged(sel)
             values = sel[metric].to_numpy(float)[~div]
             values = values[np.isfinite(values)]
+            valued = valued or bool(div.any()) or bool(values.size)
             if len(values) > 1 and not div.any() and values.min() == values.max():
                 same.append(f"{controller_label(ctrl)}: {scale * values[0]:g} {shown_unit(metric)} "
                             f"in every one of its {len(values)} flights")  # fmt: skip
@@ -88,6 +91,14 @@ def exceedance_curves(
                 label=f"{style['label'].split(' (')[0]}, {confidence:.0%} interval",
             )
             floor = min(floor, 0.5 / max(n, 1))
+        drawn.append(valued)
+        if not drawn[-1]:
+            # No flight has a value here (an event's metric where the event never happened):
+            # the panel says so, without a limit line to legend.
+            a.text(0.5, 0.5, _no_values(metric), transform=a.transAxes, ha="center",
+                   va="center", color="0.4", fontsize="small", wrap=True)  # fmt: skip
+            a.set(title=f"Exceedance, {phase}", xticks=[], yticks=[])
+            continue
         for k, t in enumerate(thresholds):
             a.axvline(scale * float(t), color="black", lw=0.8, ls=":",
                       label="limit" if k == 0 else "_")  # fmt: skip
@@ -104,4 +115,16 @@ def exceedance_curves(
             if not a.get_legend_handles_labels()[0]:
                 continue
         add_legend(a)
+    if not any(drawn):
+        raise ValueError(f"exceedance of {metric}: {_no_values(metric)} in any phase")
     return finish_figure(fig, path)
+
+
+def _no_values(metric: str) -> str:
+    """What a panel (or a figure) without a value of ``metric`` says."""
+    from quadrs import _core
+
+    event = ""
+    if metric in _core.EVENT_METRICS:
+        event = " (an event's metric: the event never happened)"
+    return f"no flight has a value of {metric}{event}"

@@ -154,6 +154,16 @@ def _cut(values: np.ndarray, seeds: int, threshold: float) -> tuple[float, int]:
     ordered = np.sort(values)[::-1]
     w = ordered[seeds - 1]
     lower = ordered[ordered < w]
+    if len(lower) == 0 and w == -np.inf:
+        # -inf is an event's metric without its event (rare.scenario_model): no flight of
+        # the level had one, so there is nothing to climb towards the threshold.
+        raise ValueError(
+            f"the event too rarely happened: {int((values == -np.inf).sum())} of {len(values)} "
+            "flights of a level have no value of the metric in the phase (an event's metric, "
+            "such as touchdown_speed, where no parcel touched down); give the phase the event "
+            "falls in (--phase), or "
+            "a scenario where it happens"
+        )
     if len(lower) == 0:
         tied = int((values == w).sum())
         raise ValueError(

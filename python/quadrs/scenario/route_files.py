@@ -28,11 +28,15 @@ flown in mission order, ``DO_JUMP`` included; what each command becomes:
   cannot fly apart from the cruise speed.
 - ``DO_WINCH`` (42600) action 1 (relative length): the line ``param3`` m is paid out at the
   current point (``trajectory.lower``; ``param4``, a rate in m/s, sets
-  ``payload.winch_speed``); action 6 (retract) is what the winch does after the release
-  anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
-  parcel rests (``payload.release = "touchdown"``); action 1 (grab) before any release is
-  the parcel hooked from the start. Any other winch or gripper action is refused naming
-  its item. At a point with a lowering the point's hold follows the lowering.
+  ``payload.winch_speed``: one rate per plan, different ones refused); action 6 (retract)
+  is what the winch does after the release anyway. ``DO_GRIPPER`` (211) action 0 (release)
+  after a lowering opens the hook once the parcel rests (``payload.release =
+  "touchdown"``); action 1 (grab) before any release is the parcel hooked from the start.
+  A plan decides the hook: without a ``DO_GRIPPER`` release it never opens (the base
+  scenario's ``payload.release`` is dropped). A lowering or release before take-off or after
+  landing is refused (it would be flown at the pad), as is any other winch or gripper
+  action, naming its item (quadrs.scenario.plan_payload). At a point with a lowering the
+  point's hold follows the lowering.
 - Commands that neither move the vehicle nor act on its payload (camera, gimbal, region of
   interest, video, ``CONDITION_DELAY``/``DISTANCE``/``YAW``, ``DO_LAND_START``): not flown,
   named in a warning.
@@ -52,6 +56,7 @@ regular file of at most MAX_BYTES, UTF-8 (a byte-order mark is dropped).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import math
@@ -60,6 +65,8 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
+
+from quadrs.scenario.plan_payload import PlanPayload, RouteFileError, _number
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -91,10 +98,8 @@ Point = tuple[float, float, float]
 # MAVLink MAV_CMD values (mavlink common.xml).
 WAYPOINT, LOITER_UNLIM, LOITER_TURNS, LOITER_TIME, RTL, LAND, TAKEOFF = 16, 17, 18, 19, 20, 21, 22
 DELAY, JUMP, CHANGE_SPEED, SET_HOME, REPOSITION = 93, 177, 178, 179, 192
-# The winch and the gripper (MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER) and the actions read.
+# The winch and the gripper (MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER): quadrs.scenario.plan_payload.
 WINCH, GRIPPER = 42600, 211
-WINCH_RELATIVE_LENGTH, WINCH_RETRACT = 1, 6
-GRIPPER_RELEASE, GRIPPER_GRAB = 0, 1
 #: Commands below this navigate; from here on they are conditions and DO_ commands.
 FIRST_NON_NAV = 100
 #: Commands that neither move the vehicle nor act on its payload: not flown, named in a
@@ -139,10 +144,6 @@ MAX_FLOWN_ITEMS = 100_000
 MAX_BYTES = 16 << 20
 
 
-class RouteFileError(ValueError):
-    """A route file the engine cannot fly, in one line naming the file and the item."""
-
-
 @dataclass(frozen=True)
 class RouteFile:
     """A route read from a file: points in the engine's frame (m; x east, y north, z up from
@@ -157,6 +158,10 @@ class RouteFile:
     lower: tuple[float, ...] = ()
     release: str | None = None
     winch_speed: float | None = None
+    #: Whether the file decides the hook (a ``.plan``: ``release`` None then means never).
+    decides_release: bool = False
+    #: Scenario key -> the file's items that set it (a refused value names them).
+    origins: tuple[tuple[str, str], ...] = ()
 
     @property
     def length(self) -> float:
@@ -183,8 +188,8 @@ class RouteFile:
             route["trajectory.speed"] = self.speed
         # The base's own lowerings went with its route.
         route["trajectory.lower"] = list(self.lower) if any(x > 0 for x in self.lower) else None
-        if self.release is not None:
-            route["payload.release"] = self.release
+        if self.release is not None or self.decides_release:
+            route["payload.release"] = self.release  # None: the hook never opens
         if self.winch_speed is not None:
             route["payload.winch_speed"] = self.winch_speed
         route.update(extra)
@@ -210,7 +215,37 @@ class RouteFile:
                 route.setdefault("gust.end", route["integrator.duration"])
             return base.override(route)
         except ValueError as e:
-            raise RouteFileError(f"{self.source}: {e}") from None
+            raise RouteFileError(f"{self.source}: {self._blame(base, route, e)}") from None
+
+    def _blame(self, base: RoutableScenario, route: Mapping[str, Any], e: ValueError) -> str:
+        """The engine's refusal ``e`` of the route, led by what in the file caused it: the
+        items that set the refused key, or the lowerings whose time made the flight too long
+        for its step (a winch far too slow, or so fast that it cannot stop in time)."""
+        from quadrs.scenario.plan_payload import origin_of
+
+        key = getattr(e, "key", None)
+        items = origin_of(self.origins, key)
+        if items is None and key in ("integrator.dt", "integrator.duration"):
+            items = self._lowering_time(base, route)
+        return f"{items}: {e}" if items else str(e)
+
+    def _lowering_time(self, base: RoutableScenario, route: Mapping[str, Any]) -> str | None:
+        """What the lowerings take, when they take most of the route's time (or None)."""
+        from quadrs.scenario.plan_payload import origin_of
+
+        lower = [float(x) for x in route.get("trajectory.lower") or () if float(x) > 0]
+        if not lower:
+            return None
+        v = float(route.get("payload.winch_speed", base["payload.winch_speed"]))
+        a = float(route.get("payload.winch_acceleration", base["payload.winch_acceleration"]))
+        t = sum(p / v + 2 * v / a for p in lower)
+        if not t > 0.5 * self._time_bound(base, route):
+            return None
+        rate = origin_of(self.origins, "payload.winch_speed")
+        return (f"{rate + ': ' if rate else ''}the lowerings ({sum(lower):g} m of line) at "
+                f"payload.winch_speed = {v:g} m/s and payload.winch_acceleration = {a:g} "
+                f"m/s^2 take {t:.4g} s (each P / v + 2 v / a): not a winch that can fly this "
+                "route")  # fmt: skip
 
     def _time_bound(self, base: RoutableScenario, route: Mapping[str, Any]) -> float:
         """Seconds the route surely takes less than: a leg of length L at cruise speed V and
@@ -287,10 +322,11 @@ def read_plan(path: str | Path, start_height: float = 0.0) -> RouteFile:
     for i in _flown_order(items, commands, f"{p}: mission.items"):
         plan.item(commands[i], items[i]["params"], items[i], f"{p}: mission.items[{i}]")
     plan.end()
+    route = plan.route(plan.cruise_speed())
     if plan.not_flown:
         warnings.warn(f"{p}: not flown (they do not move the vehicle): "
                       + ", ".join(plan.not_flown), RouteFileWarning, stacklevel=2)  # fmt: skip
-    return plan.route(plan.cruise_speed())
+    return route
 
 
 def read_route_csv(path: str | Path) -> RouteFile:
@@ -408,8 +444,6 @@ class _Builder:
         self.points: list[Point] = []
         self.hold: list[float] = []
         self.lower: list[float] = []
-        self.release: str | None = None
-        self.winch_speed: float | None = None
 
     def to(self, point: Point, hold: float = 0.0) -> None:
         if self.points and math.dist(point, self.points[-1]) < SAME_POINT:
@@ -423,8 +457,7 @@ class _Builder:
         if len(self.points) < 2:
             raise RouteFileError(f"{self.source}: the route goes nowhere (one point)")
         lower = tuple(self.lower) if any(x > 0 for x in self.lower) else ()
-        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower,
-                         self.release, self.winch_speed)  # fmt: skip
+        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower)
 
 
 #: What flying one mission item does to the route: (route, params, item, where).
@@ -443,7 +476,19 @@ class _PlanRoute(_Builder):
         #: The cruise speeds DO_CHANGE_SPEED sets (None: the default).
         self.speeds: dict[float | None, str] = {}
         self.not_flown: list[str] = []
+        self.payload = PlanPayload()
+        #: Off the pad (after a take-off or a waypoint, until a landing); landed since.
+        self.airborne = self.landed = False
         self.to((0.0, 0.0, start_height))
+
+    def route(self, speed: float | None) -> RouteFile:
+        """The route with the payload's items: the plan decides the hook (module docstring)."""
+        route = super().route(speed)
+        p = self.payload
+        rate = p.winch_speed(self.source)
+        origins = tuple((k, ", ".join(v)) for k, v in p.origins.items())
+        return dataclasses.replace(route, release=p.release, winch_speed=rate,
+                                   decides_release=True, origins=origins)  # fmt: skip
 
     @property
     def here(self) -> Point:
@@ -476,36 +521,6 @@ class _PlanRoute(_Builder):
                 "(trajectory.speed); keep one"
             )
         return next(iter(speeds)) if speeds else self.default_speed
-
-    def winch_or_gripper(self, command: int, params: list[Any], where: str) -> None:
-        """A ``DO_WINCH`` or ``DO_GRIPPER`` item (module docstring): a lowering at the current
-        point, or the hook's release after one; any other action refused naming the item."""
-        action = params[1]
-        if command == WINCH:
-            if action == WINCH_RETRACT:
-                return
-            if action != WINCH_RELATIVE_LENGTH:
-                raise RouteFileError(
-                    f"{where}: DO_WINCH action {action!r} is not supported (1, relative length: "
-                    "pay out params[2] m; 6, retract)"
-                )
-            length = _number(params[2], f"{where}: DO_WINCH params[2] (length, m)", 0.0)
-            if length <= 0:
-                raise RouteFileError(
-                    f"{where}: DO_WINCH params[2] must pay out line (> 0 m), got {length!r}"
-                )
-            self.lower[-1] += length
-            if params[3] not in (None, 0):
-                self.winch_speed = _number(params[3], f"{where}: DO_WINCH params[3] (rate, m/s)")
-            return
-        if action == GRIPPER_GRAB and self.release is None:
-            return
-        if action != GRIPPER_RELEASE or not any(x > 0 for x in self.lower):
-            raise RouteFileError(
-                f"{where}: DO_GRIPPER action {action!r} is not supported here (0, release, "
-                "after a DO_WINCH lowering; 1, grab, before any release)"
-            )
-        self.release = "touchdown"
 
     def horizontal(self, params: list[Any], where: str, optional: bool) -> tuple[float, float]:
         lat, lon = params[4], params[5]
@@ -544,6 +559,7 @@ def _waypoint(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str
     x, y = r.horizontal(params, where, optional=False)
     z = r.altitude(item.get("frame"), params[6], where)
     r.to((x, y, z), _number(params[0], f"{where}: params[0] (hold, s)", 0.0))
+    r.airborne = True
 
 
 def _takeoff(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
@@ -551,17 +567,20 @@ def _takeoff(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str)
     z = r.altitude(item.get("frame"), params[6], where)
     r.to((r.here[0], r.here[1], z))
     r.to((x, y, z))
+    r.airborne = True
 
 
 def _land(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
     x, y = r.horizontal(params, where, optional=True)
     r.to((x, y, r.here[2]))
     r.to((x, y, r.start_height))
+    r.airborne, r.landed = False, True
 
 
 def _return(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
     r.to((0.0, 0.0, r.here[2]))
     r.to((0.0, 0.0, r.start_height))
+    r.airborne, r.landed = False, True
 
 
 def _delay(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
@@ -604,8 +623,8 @@ HANDLERS: dict[int, ItemHandler] = {
     RTL: _return,
     DELAY: _delay,
     CHANGE_SPEED: _change_speed,
-    WINCH: lambda r, params, item, where: r.winch_or_gripper(WINCH, params, where),
-    GRIPPER: lambda r, params, item, where: r.winch_or_gripper(GRIPPER, params, where),
+    WINCH: lambda r, params, item, where: r.payload.item(r, WINCH, params, where),
+    GRIPPER: lambda r, params, item, where: r.payload.item(r, GRIPPER, params, where),
 }
 
 
@@ -644,16 +663,4 @@ def _speed(value: Any, where: str) -> float | None:
     v = _number(value, where)
     if not v > 0:
         raise RouteFileError(f"{where}: a speed must be > 0 m/s, got {value!r}")
-    return v
-
-
-def _number(value: Any, where: str, minimum: float = -math.inf, maximum: float = math.inf) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
-        shown = repr(value) if len(repr(value)) <= 40 else f"{repr(value)[:40]}..."
-        raise RouteFileError(f"{where}: not a number within range: {shown}") from None
-    if isinstance(value, bool) or not (math.isfinite(v) and minimum <= v <= maximum):
-        span = f" in [{minimum:g}, {maximum:g}]" if math.isfinite(minimum) else ""
-        raise RouteFileError(f"{where}: must be finite{span}, got {value!r}")
     return v

@@ -242,6 +242,17 @@ def _read_wind_table(data: dict[str, Any], folder: Path) -> None:
     table["points"] = points
 
 
+def _refuse_unread(data: dict[str, Any], given: Mapping[str, Any]) -> None:
+    """ScenarioError naming the first key of ``given`` (values set, or dispersed) that the
+    scenario ``data`` does not read (quadrs.scenario.unread_keys)."""
+    from quadrs.scenario.unread_keys import unread_reason
+
+    for key in given:
+        why = unread_reason(data, key)
+        if why is not None:
+            raise scenario_error(why, key)
+
+
 def key_value(scenario: Scenario, key: str) -> Any:
     """``scenario[key]``, or for a key of a law's table the scenario leaves out, the engine's
     default that setting the key starts from (``controller.px4.MPC_XY_P`` on a scenario with
@@ -285,6 +296,7 @@ class Scenario:
         _complete_controller_tables(data)
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
+        _refuse_unread(data, data.get("dispersions") or {})  # a draw that changes nothing
         plausibility.check(data)  # and one that can fly; implausible values warn
 
     # -- construction -------------------------------------------------------------------
@@ -427,13 +439,15 @@ class Scenario:
     def with_px4_params(self, path: str | Path) -> Scenario:
         """A new Scenario whose ``[controller.px4]`` takes the airframe's parameters from a
         QGroundControl ``.params`` file or a PX4 ``.ulg`` log: the parameters the table knows
-        (PX4's names and units), the rest of the file ignored
-        (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them). ScenarioError
-        naming the file for one that is neither."""
-        from quadrs.scenario.px4_files import read_px4_parameters
+        (PX4's names and units; each axis's ``MC_*RATE_K`` multiplies its rate P, I and D, as
+        PX4 does; ``MPC_THR_HOVER`` is not applied, with a warning saying why), the rest of
+        the file ignored (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them).
+        ScenarioError naming the file for one that is neither."""
+        from quadrs.scenario.px4_files import px4_changes, read_px4_parameters
 
         read = read_px4_parameters(path)
-        return self.override({f"controller.px4.{k}": v for k, v in read.known.items()})
+        table = self.to_dict().get("controller", {}).get("px4", {})
+        return self.override(px4_changes(read, table))
 
     def override(self, changes: Mapping[str, Any]) -> Scenario:
         """A new Scenario with dotted keys replaced, e.g. ``{"gust.w20": 15.0,
@@ -476,7 +490,9 @@ class Scenario:
         _route_drops_its_points(data.get("trajectory", {}), changes)
         for key, value in changes.items():
             _set_key(data, key, value, changes)
-        return _following(Scenario, data, self._timing, changes)
+        new = _following(Scenario, data, self._timing, changes)
+        _refuse_unread(new._data, {k: v for k, v in changes.items() if v is not None})
+        return new
 
     # -- uncertain parameters -----------------------------------------------------------
     @property

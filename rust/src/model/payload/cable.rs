@@ -132,6 +132,8 @@ pub const FRICTION_SPEED: f64 = 0.01;
 pub const REST_SPEED: f64 = 0.1;
 /// s, the release delay without `payload.release_delay`.
 pub const RELEASE_DELAY: f64 = 1.0;
+/// The winch's speed loop gain over its position loop's, a / v: kw = 4 a / v (1/s).
+const WINCH_SPEED_GAIN: f64 = 4.0;
 
 /// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -217,29 +219,31 @@ impl OwnsKeys for Cable {
     /// neither may be given when another payload flies.
     fn validate(c: &CableParams, flown: bool, cfg: &ModelContext) -> Result<(), ConfigError> {
         if !flown {
+            // Each value as the scenario gives it: a release at touchdown is a word.
+            let shown = |x: Option<f64>| x.map(|x| format!("{x:?}"));
             let release = c.release.map(|r| match r {
-                Release::At(t) => t,
-                Release::Touchdown => f64::NAN,
+                Release::At(t) => format!("{t:?}"),
+                Release::Touchdown => format!("\"{TOUCHDOWN}\""),
             });
             for (key, value) in [
-                ("payload.cable_length", c.cable_length),
-                ("payload.attachment_offset", c.attachment_offset),
-                ("payload.winch_speed", c.winch_speed),
-                ("payload.winch_acceleration", c.winch_acceleration),
-                ("payload.length_min", c.length_min),
+                ("payload.cable_length", shown(c.cable_length)),
+                ("payload.attachment_offset", shown(c.attachment_offset)),
+                ("payload.winch_speed", shown(c.winch_speed)),
+                ("payload.winch_acceleration", shown(c.winch_acceleration)),
+                ("payload.length_min", shown(c.length_min)),
                 ("payload.release", release),
-                ("payload.release_delay", c.release_delay),
-                ("ground.stiffness", cfg.ground.stiffness),
+                ("payload.release_delay", shown(c.release_delay)),
+                ("ground.stiffness", shown(cfg.ground.stiffness)),
                 (
                     "trajectory.lower",
-                    cfg.trajectory.lower.iter().copied().find(|x| *x != 0.0),
+                    shown(cfg.trajectory.lower.iter().copied().find(|x| *x != 0.0)),
                 ),
             ] {
                 if let Some(x) = value {
                     return Err(ConfigError::new(
                         key,
                         format!(
-                            "{key} applies to payload.model = \"cable\" only, got {x:?} with \
+                            "{key} applies to payload.model = \"cable\" only, got {x} with \
                              payload.model = \"{}\"",
                             cfg.payload.model.name()
                         ),
@@ -288,6 +292,7 @@ impl Cable {
                     }
                 }
             }
+            Self::validate_winch_step(c, cfg)?;
         }
         let min = c.length_min.unwrap_or(l0);
         positive("payload.length_min", min)?;
@@ -428,7 +433,7 @@ impl Payload for Cable {
             winch_speed: v,
             winch_acceleration: a,
             winch_kp: a / v,
-            winch_kw: 4.0 * a / v,
+            winch_kw: WINCH_SPEED_GAIN * a / v,
             length_min: rest_length,
             length_max,
             target: rest_length,
@@ -839,6 +844,10 @@ impl<L: Lane> Cable<L> {
 #[cfg(test)]
 #[path = "cable_tests.rs"]
 mod tests;
+
+// The winch's servo against the step (`Cable::validate_winch_step`).
+#[path = "winch_step.rs"]
+mod winch_step;
 
 #[cfg(test)]
 #[path = "winch_tests.rs"]

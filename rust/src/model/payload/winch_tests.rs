@@ -284,3 +284,29 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
         assert_eq!(rested, if touching { 0.0 } else { 1.0 });
     }
 }
+
+/// A winch acceleration whose servo gain (4 a / v) the step cannot resolve is refused naming
+/// the key and the step; at the bound it is accepted.
+#[test]
+fn a_winch_acceleration_the_step_cannot_resolve_is_refused() {
+    let mut cfg = winch_config(8.0, 1.0);
+    let dt = cfg.integrator.dt;
+    let v = cfg.payload.cable.winch_speed.unwrap();
+    cfg.payload.cable.winch_acceleration = Some(v / (4.0 * dt));
+    cfg.validate().expect("gain x dt = 1 is resolved");
+    cfg.payload.cable.winch_acceleration = Some(1.01 * v / (4.0 * dt));
+    let e = cfg.validate().unwrap_err();
+    assert_eq!(e.key, "payload.winch_acceleration");
+    assert!(e.message.contains("integrator.dt"), "{e}");
+}
+
+/// A release at touchdown given with another payload is named as the word it is, not NaN.
+#[test]
+fn a_touchdown_release_on_another_payload_is_shown_as_given() {
+    let mut cfg = paper();
+    cfg.payload.cable.release = Some(Release::Touchdown);
+    let e = cfg.validate().unwrap_err();
+    assert_eq!(e.key, "payload.release");
+    assert!(e.message.contains("got \"touchdown\""), "{e}");
+    assert!(!e.message.contains("NaN"), "{e}");
+}
