@@ -30,6 +30,7 @@ else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
 
 from quadrs import _core
 from quadrs.scenario import plausibility
+from quadrs.scenario.climate import climate_of, strip_climate
 from quadrs.scenario.keys import (
     ScenarioError,
     _dotted,
@@ -87,7 +88,7 @@ __all__ = [
 
 #: Top-level tables the engine fills with defaults when a scenario omits them (so that
 #: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
-OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "wind"})
+OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "volume", "wind"})
 
 
 #: Files being read through ``base = "file.toml"`` chains (to refuse a cycle).
@@ -100,7 +101,7 @@ _BASE_CHAIN: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
 _ONE_OF = [*_core.ONE_OF_KEYS, ("wind.table.file", "wind.table.points")]
 _EXCLUSIVE = {a: b for pair in _ONE_OF for a, b in (pair, pair[::-1])}
 #: Optional tables below the top level that setting one of their keys creates.
-_CREATED_TABLES = frozenset({"wind.table"})
+_CREATED_TABLES = frozenset({"wind.table", "wind.climate"})
 
 
 def design_keys(scenario: Scenario, keys: Iterable[str], what: str) -> list[str]:
@@ -281,6 +282,7 @@ class Scenario:
             data["dispersions"] = dict(zip(keys, table.values(), strict=True))
         _read_wind_table(data, Path.cwd())
         _complete_controller_tables(data)
+        climate_of(data)  # a bad [wind.climate] names its key (Python alone reads it)
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
         plausibility.check(data)  # and one that can fly; implausible values warn
@@ -400,8 +402,12 @@ class Scenario:
         return copy.deepcopy(self._data)
 
     def to_json(self) -> str:
-        """The engine's form (what is handed to Rust)."""
-        return json.dumps(self._data, allow_nan=False)
+        """The engine's form (what is handed to Rust): without ``[wind.climate]``, which
+        Python draws (the engine sees each realisation's wind.heading and wind.speed)."""
+        data = self._data
+        if "climate" in (data.get("wind") or {}):
+            data = strip_climate(copy.deepcopy(data))
+        return json.dumps(data, allow_nan=False)
 
     # -- variants -----------------------------------------------------------------------
     def with_px4_params(self, path: str | Path) -> Scenario:
@@ -498,13 +504,13 @@ class Scenario:
 
     @property
     def dispersed(self) -> bool:
-        """True if some key carries a distribution."""
-        return bool(self._data.get("dispersions"))
+        """True if some key carries a distribution (or a wind climate draws the wind)."""
+        return bool(self._data.get("dispersions")) or "climate" in (self._data.get("wind") or {})
 
     def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
         """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
         realisation drew) set: the scenario one realisation of a dispersed batch flies."""
-        data = copy.deepcopy(self._data)
+        data = strip_climate(copy.deepcopy(self._data))
         data.pop("dispersions", None)
         fixed = Scenario(data)
         return fixed.override(dict(values)) if values else fixed
