@@ -84,3 +84,20 @@ def test_the_flights_to_show_are_the_fewest_that_bring_the_bound_down() -> None:
         return float(stats.gamma.ppf(0.95, r.rate * hours + 1)) / hours
 
     assert bound(2_000 + more) <= target < bound(2_000 + more - 1)
+
+
+def test_quadrs_rare_prints_its_estimate_per_flight_hour() -> None:
+    """Subset simulation's probability per flight over the flight's hours (36 s: 0.01 h)."""
+    from types import SimpleNamespace
+
+    from quadrs.cli.rare import per_hour_rows
+
+    model = SimpleNamespace(scenario={"integrator.duration": 36.0})
+    found = SimpleNamespace(model=model, probability=1e-3, interval=(5e-4, 2e-3))
+    rows = dict(per_hour_rows(found))
+    assert rows["per flight hour (36 s flights)"] == "0.1 [0.05, 0.2]"
+    assert rows["upper bound per flight hour"].startswith("0.2 ")
+    assert rows["per 10,000 deliveries"] == "10 [5, 20]"
+    none = SimpleNamespace(model=model, probability=None, upper_bound=3e-4)
+    assert dict(per_hour_rows(none))["95 % upper bound per flight hour"] == "0.03"
+    assert per_hour_rows(SimpleNamespace(model=None, probability=1e-3)) == []
