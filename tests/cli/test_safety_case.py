@@ -58,13 +58,20 @@ def _page_rows(page: str) -> dict[str, list[str]]:
 
 
 def _printed_rows(out: str) -> dict[str, list[str]]:
-    """The per-flight-hour block quadrs mission printed: mode -> the numbers of its row."""
+    """The per-flight-hour block quadrs mission printed: mode -> the numbers of its lines
+    (each ``label: value``; the numbers of the values)."""
     block = out.split("Per flight hour (", 1)[1].split("\n\n", 1)[0]
-    found = {}
+    found: dict[str, list[str]] = {}
+    mode = ""
     for line in block.splitlines():
-        words = line.split()
-        if words and words[0] in ("containment", "control", "parcel", "touchdown"):
-            found.setdefault(words[0], re.findall(r"-?\d[\d.e+-]*", line))  # not a verdict
+        name, sep, value = line.strip().partition(": ")
+        if not line.startswith(" ") and name in ("containment", "control", "parcel", "touchdown"):
+            mode = name
+            found[mode] = []
+        elif not line.startswith(" "):
+            mode = ""  # the head, a verdict
+        if mode and sep:
+            found[mode] += re.findall(r"-?\d[\d.e+-]*", value)
     return found
 
 

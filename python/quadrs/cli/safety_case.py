@@ -57,6 +57,7 @@ def safety_outputs(mc: Any, reports: list[Any], args: argparse.Namespace,
     """Print each law's per-flight-hour block; write ``--safety-case`` (atomically, every
     law's page in turn). ``targets``: those given, else the ones saved with the runs.
     Returns False if the file could not be written."""
+    from quadrs.cli.common import report_width
     from quadrs.cli.outputs import save
     from quadrs.design.safety import safety_case
     from quadrs.io.files import atomic_write_bytes
@@ -65,7 +66,7 @@ def safety_outputs(mc: Any, reports: list[Any], args: argparse.Namespace,
     cases = [safety_case(mc, report, given) for report in reports]
     for case in cases:
         print()
-        print(case.to_text())
+        print(case.to_text(report_width()))
     if args.safety_case is None:
         return True
     page = "\n".join(case.to_markdown() for case in cases)

@@ -89,11 +89,11 @@ class SafetyCase:
                         "per_10k_upper": r.per_10k_upper if r else math.nan})  # fmt: skip
         return pd.DataFrame(out).set_index("mode")
 
-    def to_text(self) -> str:
-        """The per-flight-hour block of ``quadrs mission``'s answer."""
+    def to_text(self, width: int = 100) -> str:
+        """The per-flight-hour block of ``quadrs mission``'s answer, ``width`` columns wide."""
         from quadrs.design.safety_text import rates_text
 
-        return rates_text(self)
+        return rates_text(self, width)
 
     def to_markdown(self) -> str:
         """The one-page safety-case summary (markdown)."""

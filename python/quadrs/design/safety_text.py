@@ -34,17 +34,24 @@ HEADER = ["failure mode", "events", "per flight [95 % CI]", "per flight hour [95
           "upper 95 % per flight hour", "per 10,000 deliveries"]  # fmt: skip
 
 
-def rates_text(case: SafetyCase) -> str:
-    """The failure modes per flight hour (and the targets' verdicts) for a terminal."""
-    import pandas as pd
+def rates_text(case: SafetyCase, width: int = 100) -> str:
+    """The failure modes per flight hour (and the targets' verdicts) for a terminal, at most
+    ``width`` columns: per mode, one ``label: value`` line per number of the page's row."""
+    import textwrap
 
-    frame = pd.DataFrame([_cells(m)[1:] for m in case.modes.values()], columns=HEADER[1:],
-                         index=pd.Index(list(case.modes), name="mode"))  # fmt: skip
-    lines = [f"Per flight hour ({case.controller.upper()}, {case.method}; exact Poisson "
-             "intervals, one-sided 95 % upper bounds; per 10,000 deliveries with its "
-             "Clopper-Pearson bound):",
-             frame.to_string()]  # fmt: skip
-    lines += [v.text(case.modes[v.mode].rate) for v in case.verdicts]  # type: ignore[arg-type]
+    head = (
+        f"Per flight hour ({case.controller.upper()}, {case.method}; 95 % intervals: per "
+        "flight Clopper-Pearson, per flight hour Garwood (Poisson), the bound one-sided):"
+    )
+    lines = textwrap.wrap(head, width)
+    for mode, m in case.modes.items():
+        cells = _cells(m)
+        lines.append(f"{mode}: {cells[1]}" + (f" ({cells[2]})" if m.rate is None else ""))
+        if m.rate is not None:
+            lines += [f"  {name}: {value}" for name, value in zip(HEADER[2:], cells[2:],
+                                                                  strict=True)]  # fmt: skip
+    for v in case.verdicts:
+        lines += textwrap.wrap(v.text(case.modes[v.mode].rate), width)  # type: ignore[arg-type]
     return "\n".join(lines)
 
 
