@@ -46,7 +46,8 @@ def rates_text(case: SafetyCase, width: int = 100) -> str:
     lines = textwrap.wrap(head, width)
     for mode, m in case.modes.items():
         cells = _cells(m)
-        lines.append(f"{mode}: {cells[1]}" + (f" ({cells[2]})" if m.rate is None else ""))
+        said = f"{mode}: {cells[1]}" + (f" ({cells[2]})" if m.rate is None else "")
+        lines += textwrap.wrap(said, width, subsequent_indent="    ")
         if m.rate is not None:
             lines += [f"  {name}: {value}" for name, value in zip(HEADER[2:], cells[2:],
                                                                   strict=True)]  # fmt: skip
