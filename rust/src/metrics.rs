@@ -466,6 +466,74 @@ metrics! {
         fold: max,
         value: |_, x| x,
     }
+    // Containment (docs/risk.md): the margins to the operational volume the reference carries
+    // (`Reference::corridor`, `[volume]`), about the current leg's line; NaN without a volume.
+    /// m, the smallest margin to the flight geography: its half-width less the horizontal
+    /// offset from the leg's line, or its half-height less the vertical offset.
+    geography_margin {
+        unit: "m",
+        label: "Smallest margin to the flight geography",
+        signal: |v| {
+            let (across, up) = leg_offsets(&v.rigid.pos, v.line);
+            let [w, h, _] = v.r.corridor.map(L::splat);
+            (w - across).min(h - up)
+        },
+        fold: min(f64::INFINITY),
+        value: |_, x| finite_or_nan(x),
+    }
+    /// m, the same margin to the operational volume (the geography and its contingency
+    /// buffer): the geography's margin plus the buffer, step by step.
+    volume_margin {
+        unit: "m",
+        label: "Smallest margin to the operational volume",
+        signal: |v| geography_margin + L::splat(v.r.corridor[2]),
+        fold: min(f64::INFINITY),
+        value: |_, x| finite_or_nan(x),
+    }
+    /// 1 if the flight was outside the flight geography at any step of the phase, else 0.
+    left_geography {
+        unit: "-",
+        label: "Left the flight geography",
+        signal: |_| geography_margin,
+        fold: min(f64::INFINITY),
+        value: |_, x| outside(x),
+    }
+    /// 1 if the flight was outside the operational volume at any step of the phase (a
+    /// containment loss), else 0.
+    left_volume {
+        unit: "-",
+        label: "Left the operational volume",
+        signal: |_| volume_margin,
+        fold: min(f64::INFINITY),
+        value: |_, x| outside(x),
+    }
+}
+
+/// A margin's value: NaN where no volume bounds it (the corridor is infinite).
+fn finite_or_nan(margin: f64) -> f64 {
+    if margin.is_finite() {
+        margin
+    } else {
+        f64::NAN
+    }
+}
+
+/// 1 where the smallest margin is negative (outside), 0 inside, NaN without a volume.
+fn outside(margin: f64) -> f64 {
+    match finite_or_nan(margin) {
+        m if m < 0.0 => 1.0,
+        m if m >= 0.0 => 0.0,
+        _ => f64::NAN,
+    }
+}
+
+/// m, the offset of `p` from the line through `line.0` along the unit vector `line.1` (from
+/// the point itself where the direction is zero), split into its horizontal length (across
+/// the leg) and its vertical one (above or below it).
+#[inline(always)]
+fn leg_offsets<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> (L, L) {
+    let q = line_offset(p, line);
+    ((q[0] * q[0] + q[1] * q[1]).sqrt(), q[2].abs())
 }
 
 /// Column order of every metrics array the engine returns (`METRICS`' names).
@@ -483,15 +551,22 @@ pub const METRIC_NAMES: [&str; N_METRICS] = {
 /// the point itself where the direction is zero): the squared cross-track error.
 #[inline(always)]
 fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
+    let q = line_offset(p, line);
+    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+}
+
+/// The offset of `p` from the line through `line.0` along the unit vector `line.1`: the
+/// component of `p - line.0` across the direction.
+#[inline(always)]
+fn line_offset<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> [L; 3] {
     let (a, u) = line;
     let d = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
     let along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2];
-    let q = [
+    [
         d[0] - along * u[0],
         d[1] - along * u[1],
         d[2] - along * u[2],
-    ];
-    q[0] * q[0] + q[1] * q[1] + q[2] * q[2]
+    ]
 }
 
 /// The last metres at one step (docs/model.md, "The last metres").
@@ -972,6 +1047,10 @@ mod tests {
                 "release_time",
                 "release_height_change",
                 "lowering_swing",
+                "geography_margin",
+                "volume_margin",
+                "left_geography",
+                "left_volume",
             ]
         );
         let events: Vec<&str> = METRICS.iter().filter(|m| m.event).map(|m| m.name).collect();

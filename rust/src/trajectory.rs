@@ -4,8 +4,9 @@ use crate::config::route::FLIGHT_PHASE;
 use crate::config::{Context, Interpolation};
 use crate::legs::{Segment, SegmentKind};
 
-/// Desired position (x, y, z), yaw and their first two derivatives at one instant.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// Desired position (x, y, z), yaw and their first two derivatives at one instant, and the
+/// corridor the flight is to stay in about the current leg.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Reference {
     pub pos: [f64; 3],
     pub vel: [f64; 3],
@@ -13,6 +14,25 @@ pub struct Reference {
     pub psi: f64,
     pub psi_dot: f64,
     pub psi_ddot: f64,
+    /// m, the operational volume about the leg (`[volume]`, `Volume::sizes`): the flight
+    /// geography's half-width and half-height, the contingency buffer; infinite without one.
+    /// Read by the containment metrics only (`metrics::geography_margin`), never by a law.
+    pub corridor: [f64; 3],
+}
+
+impl Default for Reference {
+    /// At the origin, at rest, in no volume (an infinite corridor).
+    fn default() -> Self {
+        Self {
+            pos: [0.0; 3],
+            vel: [0.0; 3],
+            acc: [0.0; 3],
+            psi: 0.0,
+            psi_dot: 0.0,
+            psi_ddot: 0.0,
+            corridor: [f64::INFINITY; 3],
+        }
+    }
 }
 
 pub(crate) use crate::legs::TIME_SLACK;
@@ -28,6 +48,8 @@ pub struct Trajectory {
     /// Route only: the points and the schedule of holds and legs over them.
     route: Vec<[f64; 3]>,
     segments: Vec<Segment>,
+    /// m, the operational volume every reference carries (`Reference::corridor`).
+    corridor: [f64; 3],
 }
 
 impl Trajectory {
@@ -48,6 +70,7 @@ impl Trajectory {
             route: cfg.trajectory.route.clone(),
             // A validated scenario's schedule cannot fail (`Config::validate` built it).
             segments: crate::config::route::schedule(cfg).unwrap_or_default(),
+            corridor: cfg.volume.sizes(),
         }
     }
 
@@ -76,6 +99,15 @@ impl Trajectory {
     /// both modes, and min-jerk tends to step as the transition tends to zero.
     #[inline]
     pub fn at(&self, t: f64, segment: &mut usize) -> Reference {
+        Reference {
+            corridor: self.corridor,
+            ..self.motion_at(t, segment)
+        }
+    }
+
+    /// `at` without the corridor (the default's).
+    #[inline]
+    fn motion_at(&self, t: f64, segment: &mut usize) -> Reference {
         if self.interpolation == Interpolation::Route {
             return self.route_at(t, segment);
         }

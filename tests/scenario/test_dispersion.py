@@ -222,7 +222,7 @@ def test_every_named_distribution_is_what_the_engine_and_the_sampler_take() -> N
     from quadrs.scenario.dispersion import DISTRIBUTIONS, distribution
 
     value = {"low": 0.1, "high": 0.4, "mean": 0.2, "std": 0.02, "mu": -1.6, "sigma": 0.1}
-    value["mode"] = 0.25
+    value |= {"mode": 0.25, "shape": 2.0, "scale": 0.25, "values": [0.2, 0.3], "weights": [1, 3]}
     paper = quadrs.Scenario.paper()
     for name, params in DISTRIBUTIONS.items():
         spec = {"dist": name, **{p: value[p] for p in params}}

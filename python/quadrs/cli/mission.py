@@ -31,6 +31,7 @@ from quadrs.cli.common import (
     scheduler_option,
     seed_and_workers,
 )
+from quadrs.cli.safety_case import check_safety_case, safety_case_options, safety_outputs
 from quadrs.engine.calls import CONTROLLERS
 
 #: The parcel's default question: its peak specific force (what an accelerometer in the box
@@ -185,6 +186,7 @@ def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
         p, "write the runs with their run record (as quadrs mc --out; quadrs report reads it)"
     )
     plots_option(p, "write the figures here")
+    safety_case_options(p)
     no_progress_option(p)
 
 
@@ -220,6 +222,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
             raise ValueError(f"--{name} must be >= 1, got {value}")
     check_int("--seed", args.seed)
     check_outputs(args.out)
+    check_safety_case(args)
     check_directories(args.plots)
     # Calibrated here, not on a cluster (whose speed is not this machine's): the calibration's
     # flights are the batch's first, taken rather than flown again.
@@ -249,6 +252,8 @@ def cmd_mission(args: argparse.Namespace) -> int:
             "track_limit": args.track_limit,
             "cross_track_limit": args.cross_track_limit,
             "quantile": args.quantile,
+            "touchdown_limit": args.touchdown_limit,
+            "targets": dict(args.target),
         }
         saved = True
         if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
@@ -275,6 +280,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
     if mc.interrupted:
         print(f"(interrupted: {reports[0].runs} of {args.runs} realisations finished)")
     print(text)
+    saved = safety_outputs(mc, reports, args) and saved
     if args.plots is not None:
         from quadrs.cli.figures import mission_plots
 

@@ -348,6 +348,27 @@ def ratio_line(comparison: Any, a: str, b: str) -> str:
             f"{note}")  # fmt: skip
 
 
+def per_hour_rows(result: Any) -> list[tuple[str, str]]:
+    """The estimate per flight hour (over the flight's scheduled duration: subset simulation
+    gives a probability per flight, not a count of flights ended early) and per 10,000
+    deliveries; none for a limit-state function (no flight)."""
+    scenario = getattr(result.model, "scenario", None)
+    if scenario is None:
+        return []
+    hours = float(scenario["integrator.duration"]) / 3600.0
+    if result.probability is None:
+        bound = result.upper_bound
+        return [("95 % upper bound per flight hour", f"{bound / hours:.3g}"),
+                ("per 10,000 deliveries, upper bound", f"{1e4 * bound:.3g}")]  # fmt: skip
+    lo, hi = result.interval
+    return [(f"per flight hour ({3600 * hours:g} s flights)",
+             f"{result.probability / hours:.3g} [{lo / hours:.3g}, {hi / hours:.3g}]"),
+            ("upper bound per flight hour", f"{hi / hours:.3g} (the 95 % interval's end: "
+                                            "one-sided 97.5 %)"),
+            ("per 10,000 deliveries", f"{1e4 * result.probability:.3g} [{1e4 * lo:.3g}, "
+                                      f"{1e4 * hi:.3g}]")]  # fmt: skip
+
+
 def summary_rows(result: Any) -> list[tuple[str, str]]:
     """(label, value) rows of the printed table of a :class:`RareEventResult`."""
     rows: list[tuple[str, str]] = []
@@ -360,6 +381,7 @@ def summary_rows(result: Any) -> list[tuple[str, str]]:
         rows.append(("estimate", f"{result.probability:.3g}"))
         rows.append(("coefficient of variation", f"{result.cov:.3f}"))
         rows.append(("95 % interval", f"[{lo:.3g}, {hi:.3g}]"))
+    rows += per_hour_rows(result)
     rows.append(("levels", str(len(result.levels))))
     rows.append(("flights", str(result.flights)))
     if result.run.pilot_flights:

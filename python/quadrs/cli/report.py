@@ -7,7 +7,15 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_OK, BadInput, limit_options, plots_option, table_options
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    BadInput,
+    limit_options,
+    plots_option,
+    table_options,
+)
+from quadrs.cli.safety_case import check_safety_case, safety_case_options, safety_outputs
 
 __all__ = ["add_report", "cmd_report"]
 
@@ -40,6 +48,13 @@ def add_report(sub: Any) -> None:
     plots_option(p, "write figures from the file here")
     limit_options(p)
     table_options(p)
+    safety_case_options(p)
+
+
+def saved_targets(mc: Any) -> dict[str, float]:
+    """The targets the mission was saved with (``MonteCarloResult.question``)."""
+    asked = getattr(mc, "question", None) or {}
+    return {str(k): float(v) for k, v in (asked.get("targets") or {}).items()}
 
 
 def _file_kind(path: Path) -> str | None:
@@ -74,6 +89,7 @@ def cmd_report(args: argparse.Namespace) -> int:
             raise BadInput(f"{str(args.file)!r}: not a quadrs run directory")
     elif not args.file.exists():
         raise BadInput(f"{str(args.file)!r}: no such file")
+    check_safety_case(args)
     kind = None if args.file.is_dir() else _file_kind(args.file)
     if kind in _NOT_REPORTED:
         raise BadInput(f"{str(args.file)!r} is {_NOT_REPORTED[kind]}")
@@ -94,6 +110,13 @@ def cmd_report(args: argparse.Namespace) -> int:
         if not mission:
             print_table3(mc, args)
         print_limits(mc, args)
+        if mission and not safety_outputs(mc, reports, args, saved_targets(mc)):
+            return EXIT_FAIL
+        if not mission and (args.safety_case is not None or args.target):
+            raise BadInput(
+                "--safety-case and --target read the flights of a mission "
+                "(quadrs mission --out): this file holds none"
+            )
         if args.plots is not None and mission:  # the mission's own figures
             mission_plots(mc, reports, args.plots)
         elif args.plots is not None:

@@ -86,6 +86,17 @@ def _with_px4_file(base: Any, args: argparse.Namespace) -> Any:
     return base.override(px4_changes(read, table))
 
 
+def _top_level_split(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets (``choice``'s lists stay whole)."""
+    parts, depth, start = [], 0, 0
+    for i, c in enumerate(text):
+        depth += (c == "[") - (c == "]")
+        if c == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    return [*parts, text[start:]]
+
+
 def parse_distribution(text: str) -> dict[str, Any]:
     """``"uniform(0.1, 0.4)"`` or ``"normal(mean=2, std=0.2)"`` -> a dispersion entry."""
     from quadrs.scenario.dispersion import DISTRIBUTIONS
@@ -99,7 +110,7 @@ def parse_distribution(text: str) -> dict[str, Any]:
         )
     order = DISTRIBUTIONS[name]
     spec: dict[str, Any] = {"dist": name}
-    args = [a.strip() for a in rest[:-1].split(",") if a.strip()]
+    args = [a.strip() for a in _top_level_split(rest[:-1]) if a.strip()]
     for i, arg in enumerate(args):
         pname, eq, value = arg.partition("=")
         if not eq:

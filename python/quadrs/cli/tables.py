@@ -107,8 +107,8 @@ def print_mission(mc: Any, args: argparse.Namespace) -> list[Any]:
         asked["metric"], asked["limit"] = args.limit[0]
     metric = asked.get("metric", DEFAULT_METRIC)
     limit = asked.get("limit", DEFAULT_LIMIT)
-    extra = {k: asked[k] for k in ("track_limit", "cross_track_limit", "quantile")
-             if asked.get(k) is not None}  # fmt: skip
+    extra = {k: asked[k] for k in ("track_limit", "cross_track_limit", "quantile",
+                                   "touchdown_limit") if asked.get(k) is not None}  # fmt: skip
     if asked and not args.limit:
         print(f"(the question this mission was saved with: P({metric} > "
               f"{shown_limit(metric, limit)}))")  # fmt: skip

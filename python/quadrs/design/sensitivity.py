@@ -193,7 +193,7 @@ def sensitivity(
     from quadrs.engine.calls import MAX_WORKERS, check_controller, check_int, default_workers
     from quadrs.runs.chunk import run_range, runs_frame
     from quadrs.runs.flight import METRIC_COLUMNS
-    from quadrs.scenario.dispersion import dispersed_keys, distribution
+    from quadrs.scenario.dispersion import dispersed_keys, values_of_uniforms
 
     seed = check_int("seed", seed)
     runs = check_int("runs", runs, 2, 2**40)
@@ -211,10 +211,7 @@ def sensitivity(
     gusty = gust and bool(scenario["gust.enabled"])
     names = [*keys, GUST_FACTOR] if gusty else keys
     u = sobol_design(names, runs, seed)
-    table = scenario.dispersions
-    values = pd.DataFrame(
-        {k: distribution(table[k]).ppf(u[:, j]) for j, k in enumerate(keys)}, columns=keys
-    )
+    values = pd.DataFrame(values_of_uniforms(scenario, keys, u), columns=keys)
     # The gust factor picks one of 2**32 gust streams; without it every row flies stream 0.
     streams = (
         np.floor(u[:, -1] * 2.0**32).astype(np.uint64)

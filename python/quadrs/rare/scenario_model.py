@@ -31,7 +31,7 @@ import numpy as np
 from quadrs import _core
 from quadrs.engine.calls import MAX_WORKERS, check_controller, check_int, run_cancellable
 from quadrs.rare.engine import engine_function, run_rows
-from quadrs.scenario.dispersion import dispersed_keys, distribution
+from quadrs.scenario.dispersion import dispersed_keys, key_ranges, values_of_uniforms
 from quadrs.scenario.scenario import Scenario, ScenarioError, scenario_error
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -58,11 +58,10 @@ def parameters_of_normals(scenario: Scenario, z: np.ndarray) -> np.ndarray:
     keys = dispersed_keys(scenario)
     if z.shape[-1] != len(keys):
         raise ValueError(f"z must have {len(keys)} columns (one per dispersed key), got {z.shape}")
-    table = scenario.dispersions
+    u = np.clip(norm.cdf(z), _EDGE, 1.0 - _EDGE)
     theta = np.empty_like(z)
-    for j, key in enumerate(keys):
-        u = np.clip(norm.cdf(z[..., j]), _EDGE, 1.0 - _EDGE)
-        theta[..., j] = distribution(table[key]).ppf(u)
+    for j, column in enumerate(values_of_uniforms(scenario, keys, u).values()):
+        theta[..., j] = column
     return theta
 
 
@@ -80,9 +79,7 @@ def check_range(scenario: Scenario, what: str) -> None:
     keys = dispersed_keys(scenario)
     if not keys:
         return
-    table = scenario.dispersions
-    ends = {k: [float(x) for x in distribution(table[k]).ppf([_EDGE, 1.0 - _EDGE])]
-            for k in keys}  # fmt: skip
+    ends = key_ranges(scenario, _EDGE)
     if len(keys) <= _CORNER_KEYS:
         trials = [dict(zip(keys, c, strict=True)) for c in itertools.product(*ends.values())]
     else:

@@ -235,9 +235,15 @@ def _question(asked: Any, path: str | Path) -> dict[str, Any]:
     from quadrs import _core
     from quadrs.io.integrity import CorruptRunError
 
+    def number(v: Any) -> bool:
+        return isinstance(v, int | float) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+    def targets(v: Any) -> bool:  # mode -> rate per flight hour (quadrs mission --target)
+        return isinstance(v, dict) and all(isinstance(k, str) and number(r) for k, r in v.items())
+
     ok = (isinstance(asked, dict) and asked.get("metric") in _core.METRIC_NAMES
-          and all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)
-                                and np.isfinite(v)) for k, v in asked.items() if k != "metric")
+          and all(v is None or number(v) or (k == "targets" and targets(v))
+                  for k, v in asked.items() if k != "metric")
           and isinstance(asked.get("limit"), int | float))  # fmt: skip
     if not ok:
         raise CorruptRunError(f"{path}: its metadata 'question' must be a table with a metric "

@@ -3,8 +3,10 @@
 A scenario's ``[dispersions]`` table gives dotted numeric keys a distribution (validated by the
 engine, like every other field). This module draws the values: a design of uniforms in
 (0, 1)^d (``random``, ``lhs`` or ``sobol``) mapped through each distribution's inverse CDF
-(scipy.stats semantics). The keys are taken in sorted order, so equal scenarios give equal
-designs.
+(scipy.stats semantics; ``choice``'s a discrete one). The keys are taken in sorted order, so
+equal scenarios give equal designs. A ``[wind.climate]`` disperses ``wind.heading`` and
+``wind.speed`` with one joint law (:mod:`quadrs.scenario.climate`): two design columns like
+any others, mapped together.
 
 - ``random``: realisation i's value of a key depends only on (seed, key, i): a counter-based
   stream (Philox) per key, separate from the gust's, so adding or removing a dispersion never
@@ -21,6 +23,8 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+
+from quadrs.scenario.climate import CLIMATE_KEYS, Climate, climate_of
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -41,7 +45,9 @@ __all__ = [
     "dispersed_keys",
     "distribution",
     "draw",
+    "key_ranges",
     "unit_design",
+    "values_of_uniforms",
 ]
 
 #: Sampling schemes of `monte_carlo(..., sampling=...)`.
@@ -55,6 +61,8 @@ DISTRIBUTIONS: dict[str, tuple[str, ...]] = {
     "truncnorm": ("mean", "std", "low", "high"),
     "lognormal": ("mu", "sigma"),
     "triangular": ("low", "mode", "high"),
+    "weibull": ("shape", "scale"),
+    "choice": ("values", "weights"),
 }
 #: Tags the dispersion streams apart from every other use of the seed.
 _STREAM_TAG = 0x51D15
@@ -64,8 +72,67 @@ _EDGE = 1e-16
 
 
 def dispersed_keys(scenario: ScenarioLike) -> list[str]:
-    """The scenario's dispersed keys, sorted (the design's dimensions, the result columns)."""
-    return sorted(scenario.get("dispersions", {}) or {})
+    """The scenario's dispersed keys, sorted (the design's dimensions, the result columns):
+    those of ``[dispersions]`` and, with a ``[wind.climate]``, ``wind.heading`` and
+    ``wind.speed`` (:mod:`quadrs.scenario.climate`)."""
+    keys = set(scenario.get("dispersions", {}) or {})
+    if scenario.get("wind.climate") is not None:
+        keys |= set(CLIMATE_KEYS)
+    return sorted(keys)
+
+
+def _climate(scenario: ScenarioLike) -> Climate | None:
+    wind = scenario.get("wind")
+    return climate_of({"wind": wind}) if isinstance(wind, dict) else None
+
+
+def values_of_uniforms(
+    scenario: ScenarioLike, keys: Sequence[str], u: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Each dispersed key's values of uniforms ``u`` (rows, len(keys)) in (0, 1): a key of
+    ``[dispersions]`` by its distribution's inverse CDF, the climate's two keys jointly
+    (:meth:`quadrs.scenario.climate.Climate.values` of their two columns)."""
+    table = scenario.get("dispersions", {}) or {}
+    column = {k: u[..., j] for j, k in enumerate(keys)}
+    out = {k: distribution(table[k]).ppf(column[k]) for k in keys if k in table}
+    climate = _climate(scenario)
+    if climate is not None:
+        out |= climate.values(*(column[k] for k in CLIMATE_KEYS))
+    return {k: np.asarray(out[k], dtype=float) for k in keys}
+
+
+def key_ranges(scenario: ScenarioLike, edge: float) -> dict[str, list[float]]:
+    """Each dispersed key's smallest and largest value over uniforms in [edge, 1 - edge]."""
+    table = scenario.get("dispersions", {}) or {}
+    ranges = {k: [float(x) for x in distribution(table[k]).ppf([edge, 1.0 - edge])]
+              for k in dispersed_keys(scenario) if k in table}  # fmt: skip
+    climate = _climate(scenario)
+    return ranges | (climate.ranges(edge) if climate is not None else {})
+
+
+class Choice:
+    """A discrete law over ``values`` with probabilities ``weights`` / their sum, with the
+    frozen scipy.stats interface the draws use (``ppf``, ``cdf``, ``mean``)."""
+
+    def __init__(self, values: Sequence[float], weights: Sequence[float]) -> None:
+        self.values = np.asarray(values, dtype=float)
+        w = np.asarray(weights, dtype=float)
+        self.probabilities = w / w.sum()
+        self._cum = np.cumsum(self.probabilities)
+
+    def ppf(self, u: Any) -> np.ndarray:
+        """The value whose cumulative probability first reaches u (a value of weight 0 is
+        never drawn): the inverse CDF, so a uniform u gives each value its probability."""
+        idx = np.searchsorted(self._cum, np.asarray(u, dtype=float), side="left")
+        return self.values[np.minimum(idx, len(self.values) - 1)]
+
+    def cdf(self, x: Any) -> np.ndarray:
+        """P(X <= x)."""
+        x = np.asarray(x, dtype=float)
+        return np.asarray((self.probabilities * (self.values <= x[..., None])).sum(axis=-1))
+
+    def mean(self) -> float:
+        return float(self.probabilities @ self.values)
 
 
 def distribution(spec: Mapping[str, Any]) -> Any:
@@ -86,19 +153,35 @@ def distribution(spec: Mapping[str, Any]) -> Any:
     if d == "triangular":
         lo, hi = spec["low"], spec["high"]
         return stats.triang(c=(spec["mode"] - lo) / (hi - lo), loc=lo, scale=hi - lo)
+    if d == "weibull":
+        return stats.weibull_min(c=spec["shape"], scale=spec["scale"])
+    if d == "choice":
+        return Choice(spec["values"], spec["weights"])
     raise ValueError(f"unknown distribution {d!r}")  # the engine refuses it first
 
 
 def describe(scenario: ScenarioLike) -> list[str]:
-    """One line per dispersed key: ``payload.mass ~ uniform(low=0.1, high=0.4)``."""
+    """One line per dispersed key: ``payload.mass ~ uniform(low=0.1, high=0.4)``; the
+    climate's keys ``wind.heading ~ wind climate: ...``."""
     table = scenario.get("dispersions", {}) or {}
+    climate = _climate(scenario)
     lines = []
     for key in dispersed_keys(scenario):
+        if key not in table and climate is not None:
+            lines.append(f"{key} ~ {climate.describe()}")
+            continue
         spec = dict(table[key])
         name = spec.pop("dist")
-        args = ", ".join(f"{k}={v:g}" for k, v in spec.items())
+        args = ", ".join(f"{k}={_shown(v)}" for k, v in spec.items())
         lines.append(f"{key} ~ {name}({args})")
     return lines
+
+
+def _shown(value: Any) -> str:
+    """A parameter: a number as %g, a list (choice's) as [a, b, ...]."""
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}"
 
 
 def _key_stream(seed: int, key: str) -> np.random.Philox:
@@ -166,12 +249,11 @@ def draw(
     import pandas as pd
 
     keys = dispersed_keys(scenario)
-    table = scenario.get("dispersions", {}) or {}
     if sampling == "random":
         u = unit_design(keys, seed, first, count, count, sampling)
     else:
         total = count if runs is None else runs
         u = unit_design(keys, seed, first - offset, count, total, sampling)
-    columns = {k: distribution(table[k]).ppf(u[:, j]) for j, k in enumerate(keys)}
+    columns = values_of_uniforms(scenario, keys, u)
     index = pd.RangeIndex(first, first + count, name="realisation")
     return pd.DataFrame(columns, index=index, columns=keys)

@@ -30,6 +30,7 @@ else:  # pragma: no cover  (Python 3.10: the same parser, as a package)
 
 from quadrs import _core
 from quadrs.scenario import plausibility
+from quadrs.scenario.climate import climate_of, strip_climate
 from quadrs.scenario.keys import (
     ScenarioError,
     _dotted,
@@ -294,6 +295,7 @@ class Scenario:
             data["dispersions"] = dict(zip(keys, table.values(), strict=True))
         _read_wind_table(data, Path.cwd())
         _complete_controller_tables(data)
+        climate_of(data)  # a bad [wind.climate] names its key (Python alone reads it)
         self._data: dict[str, Any] = data
         _ = self._derived  # validate now: a Scenario that exists is one the engine accepts
         _refuse_unread(data, data.get("dispersions") or {})  # a draw that changes nothing
@@ -432,8 +434,12 @@ class Scenario:
         return copy.deepcopy(self._data)
 
     def to_json(self) -> str:
-        """The engine's form (what is handed to Rust)."""
-        return json.dumps(self._data, allow_nan=False)
+        """The engine's form (what is handed to Rust): without ``[wind.climate]``, which
+        Python draws (the engine sees each realisation's wind.heading and wind.speed)."""
+        data = self._data
+        if "climate" in (data.get("wind") or {}):
+            data = strip_climate(copy.deepcopy(data))
+        return json.dumps(data, allow_nan=False)
 
     # -- variants -----------------------------------------------------------------------
     def with_px4_params(self, path: str | Path) -> Scenario:
@@ -502,13 +508,13 @@ class Scenario:
 
     @property
     def dispersed(self) -> bool:
-        """True if some key carries a distribution."""
-        return bool(self._data.get("dispersions"))
+        """True if some key carries a distribution (or a wind climate draws the wind)."""
+        return bool(self._data.get("dispersions")) or "climate" in (self._data.get("wind") or {})
 
     def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
         """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
         realisation drew) set: the scenario one realisation of a dispersed batch flies."""
-        data = copy.deepcopy(self._data)
+        data = strip_climate(copy.deepcopy(self._data))
         data.pop("dispersions", None)
         fixed = Scenario(data)
         return fixed.override(dict(values)) if values else fixed

@@ -13,11 +13,13 @@ from __future__ import annotations
 import re
 
 from quadrs import _core
+from quadrs.scenario.climate import SECTOR_KEYS
 
 #: The keys only Python reads (a file the scenario names, read into numbers before the engine
 #: sees them): dotted key -> (unit, plain-English label).
 _PYTHON_KEYS: dict[str, tuple[str, str]] = {
     "wind.table.file": ("-", "Wind table file (CSV, or a PX4 .ulg log by time)"),
+    **{f"wind.climate.sectors.{k}": v for k, v in SECTOR_KEYS.items()},
 }
 
 #: Dotted key (array indices dropped) -> unit; "-" for dimensionless values and names. The
@@ -36,7 +38,7 @@ LABELS: dict[str, str] = {
 
 #: Units of a dispersion's parameters: those of the dispersed key, except lognormal's, which
 #: are of its logarithm, and the distribution's name.
-_DISPERSION_SAME_UNIT = frozenset({"low", "high", "mean", "std", "mode"})
+_DISPERSION_SAME_UNIT = frozenset({"low", "high", "mean", "std", "mode", "scale", "values"})
 _INDEX = re.compile(r"\[\d+\]")
 
 

@@ -25,6 +25,44 @@ pub enum Distribution {
     Lognormal { mu: f64, sigma: f64 },
     /// Triangular on [low, high] with its peak at mode.
     Triangular { low: f64, mode: f64, high: f64 },
+    /// Weibull: P(X > x) = exp(-(x / scale)^shape), x >= 0 (a site's wind speed).
+    Weibull { shape: f64, scale: f64 },
+    /// One of `values`, value i with probability weights[i] / sum(weights).
+    Choice { values: Vec<f64>, weights: Vec<f64> },
+}
+
+/// A discrete law's values and weights: as many of each (at least one), every value finite,
+/// every weight finite and >= 0, their sum > 0. The message names the entry (`values[i]`).
+fn check_choice(values: &[f64], weights: &[f64]) -> Result<(), String> {
+    if values.is_empty() {
+        return Err("values must list at least one number, got none".into());
+    }
+    if weights.len() != values.len() {
+        return Err(format!(
+            "weights must have one entry per value ({}), got {}",
+            values.len(),
+            weights.len()
+        ));
+    }
+    if let Some((i, x)) = values.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+        return Err(format!("values[{i}] must be a finite number, got {x:?}"));
+    }
+    if let Some((i, w)) = weights
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(format!(
+            "weights[{i}] must be a finite number >= 0, got {w:?}"
+        ));
+    }
+    let total: f64 = weights.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Err(format!(
+            "weights must sum to a finite number > 0, got {total:?}"
+        ));
+    }
+    Ok(())
 }
 
 /// The `[dispersions]` table: dotted key -> distribution (sorted by key: the order of the
@@ -84,6 +122,14 @@ pub fn check_distribution(key: &str, d: &Distribution) -> Result<(), ConfigError
             finite("mu", mu)?;
             positive("sigma", sigma)
         }
+        Distribution::Weibull { shape, scale } => {
+            positive("shape", shape)?;
+            positive("scale", scale)
+        }
+        Distribution::Choice {
+            ref values,
+            ref weights,
+        } => check_choice(values, weights).map_err(err),
         Distribution::Triangular { low, mode, high } => {
             ordered(low, high)?;
             finite("mode", mode)?;

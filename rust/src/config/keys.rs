@@ -39,11 +39,13 @@ pub const SCHEDULE_KEYS: [&str; 4] = [
 ];
 
 /// Key prefixes that cannot carry a per-realisation value: they change the step grid, the
-/// phases, the reference every lane shares or the spectrum grid, or they are the table itself.
-pub const FIXED_PREFIXES: [&str; 5] = [
+/// phases, the reference every lane shares (and the volume it carries) or the spectrum grid,
+/// or they are the table itself.
+pub const FIXED_PREFIXES: [&str; 6] = [
     "integrator",
     "phases",
     "trajectory",
+    "volume",
     "metrics",
     "dispersions",
 ];

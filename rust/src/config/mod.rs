@@ -1,7 +1,7 @@
 //! The scenario's sections that sit below the kinds: each its own file (its struct, defaults
 //! and checks): `vehicle`, `trajectory` (with `phases` and the route's `route`), `gust`, `wind`
 //! (the values of `[gust]` that may follow the vehicle), `flight` (`[environment]`,
-//! `[initial]`, `[integrator]`, `[metrics]`, `[divergence]`, `[ground]`), `dispersions`; the
+//! `[initial]`, `[integrator]`, `[metrics]`, `[divergence]`, `[ground]`), `volume`, `dispersions`; the
 //! `params!` declarations and the dotted keys (`params`, `keys`); `ConfigError`. The kinds are
 //! built from a narrow view of these sections (`Context`), never from the assembled scenario:
 //! that one (`crate::scenario::Config`, with the kinds' own tables) sits above the kinds.
@@ -14,6 +14,7 @@ pub mod params;
 pub mod route;
 pub mod trajectory;
 pub mod vehicle;
+pub mod volume;
 pub mod wind;
 
 pub use dispersions::{Dispersions, Distribution};
@@ -22,6 +23,7 @@ pub use gust::{Gust, GustComponent, GustModel};
 use std::fmt;
 pub use trajectory::{Interpolation, Phase, Trajectory, LEGS};
 pub use vehicle::{BodyModel, Vehicle, BODY_MODELS};
+pub use volume::Volume;
 pub use wind::{GustAirspeed, GustAltitude, Intensity};
 
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
@@ -99,6 +101,8 @@ pub struct Context<'a> {
     pub metrics: &'a Metrics,
     pub divergence: &'a Divergence,
     pub ground: &'a Ground,
+    /// The route's operational volume (`[volume]`).
+    pub volume: &'a Volume,
     pub winch: Winch,
 }
 

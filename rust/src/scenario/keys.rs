@@ -32,6 +32,7 @@ impl Config {
             ("metrics", f) => self.metrics.target(f, rest),
             ("divergence", f) => self.divergence.target(f, rest),
             ("ground", f) => self.ground.target(f, rest),
+            ("volume", f) => self.volume.target(f, rest),
             _ => Target::Missing,
         }
     }

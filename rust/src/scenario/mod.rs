@@ -18,7 +18,7 @@ use crate::config::{dispersions, params, route, trajectory};
 pub use crate::config::{
     BodyModel, ConfigError, Context, Dispersions, Distribution, Divergence, Environment, Ground,
     Gust, GustAirspeed, GustAltitude, GustComponent, GustModel, Initial, Integrator, Intensity,
-    Interpolation, Metrics, Phase, Trajectory, Trim, Vehicle, Winch, LEGS, MAX_STEPS,
+    Interpolation, Metrics, Phase, Trajectory, Trim, Vehicle, Volume, Winch, LEGS, MAX_STEPS,
 };
 pub use crate::control::{ControlContext, ControllerConfig};
 pub use crate::gust::gusts::{DiscreteGust, GustShape};
@@ -52,6 +52,9 @@ pub struct Config {
     /// The ground plane a flight ends at (docs/model.md section 11); off by default.
     #[serde(default)]
     pub ground: Ground,
+    /// The route's operational volume (docs/risk.md, "Containment"); none by default.
+    #[serde(default, skip_serializing_if = "Volume::is_default")]
+    pub volume: Volume,
     /// Uncertain parameters: dotted key -> distribution (`crate::dispersion`).
     #[serde(default, skip_serializing_if = "Dispersions::is_empty")]
     pub dispersions: Dispersions,
@@ -161,6 +164,7 @@ impl Config {
         keys.extend(Metrics::keys_under("metrics"));
         keys.extend(Divergence::keys_under("divergence"));
         keys.extend(Ground::keys_under("ground"));
+        keys.extend(Volume::keys_under("volume"));
         keys
     }
 
@@ -188,6 +192,7 @@ impl Config {
             metrics: &self.metrics,
             divergence: &self.divergence,
             ground: &self.ground,
+            volume: &self.volume,
             winch: Winch {
                 speed: self.payload.cable.winch_speed,
                 acceleration: self.payload.cable.winch_acceleration,
@@ -293,6 +298,7 @@ impl Config {
         self.metrics.validate()?;
         self.divergence.validate()?;
         self.ground.validate(&self.initial)?;
+        self.volume.validate()?;
         self.validate_dispersions()
     }
 
@@ -343,7 +349,7 @@ fn at_path<'v>(value: &'v serde_json::Value, key: &str) -> Option<&'v serde_json
 
 /// The scenario's tables, by dotted key (`phases[i]`, `wind.gusts[i]` and each
 /// `dispersions` entry are tables too).
-const TABLES: [&str; 16] = [
+const TABLES: [&str; 17] = [
     "vehicle",
     "payload",
     "environment",
@@ -359,6 +365,7 @@ const TABLES: [&str; 16] = [
     "metrics",
     "divergence",
     "ground",
+    "volume",
     "dispersions",
 ];
 

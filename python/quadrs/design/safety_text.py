@@ -1,0 +1,120 @@
+"""How a :class:`quadrs.design.safety.SafetyCase` reads: the per-flight-hour block of
+``quadrs mission`` and the one-page markdown of ``--safety-case FILE``. Both print the same
+numbers, formatted by the same functions (a test reads both)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from quadrs.design.safety import FailureMode, SafetyCase
+
+__all__ = ["rates_text", "safety_markdown", "shown"]
+
+
+def shown(x: float) -> str:
+    """A rate or probability as every table here prints it (3 significant digits; "-" for
+    none, a band without flights)."""
+    return "-" if x != x else f"{x:.3g}"
+
+
+def _cells(m: FailureMode) -> list[str]:
+    """A mode's row: events of flights, per flight [interval], per flight hour [interval],
+    its one-sided upper bound, per 10,000 deliveries and its bound."""
+    if m.rate is None:
+        return [m.label, "not judged", m.why, "", "", ""]
+    r = m.rate
+    return [m.label, f"{m.events} of {m.flights}",
+            f"{shown(m.probability)} [{shown(m.ci_low)}, {shown(m.ci_high)}]",
+            f"{shown(r.rate)} [{shown(r.ci_low)}, {shown(r.ci_high)}]", shown(r.upper),
+            f"{shown(r.per_10k)} (<= {shown(r.per_10k_upper)})"]  # fmt: skip
+
+
+HEADER = ["failure mode", "events", "per flight [95 % CI]", "per flight hour [95 % CI]",
+          "upper 95 % per flight hour", "per 10,000 deliveries"]  # fmt: skip
+
+
+def rates_text(case: SafetyCase, width: int = 100) -> str:
+    """The failure modes per flight hour (and the targets' verdicts) for a terminal, at most
+    ``width`` columns: per mode, one ``label: value`` line per number of the page's row."""
+    import textwrap
+
+    head = (
+        f"Per flight hour ({case.controller.upper()}, {case.method}; 95 % intervals: per "
+        "flight Clopper-Pearson, per flight hour Garwood (Poisson), the bound one-sided):"
+    )
+    lines = textwrap.wrap(head, width)
+    for mode, m in case.modes.items():
+        cells = _cells(m)
+        said = f"{mode}: {cells[1]}" + (f" ({cells[2]})" if m.rate is None else "")
+        lines += textwrap.wrap(said, width, subsequent_indent="    ")
+        if m.rate is not None:
+            lines += [f"  {name}: {value}" for name, value in zip(HEADER[2:], cells[2:],
+                                                                  strict=True)]  # fmt: skip
+    for v in case.verdicts:
+        lines += textwrap.wrap(v.text(case.modes[v.mode].rate), width)  # type: ignore[arg-type]
+    return "\n".join(lines)
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def safety_markdown(case: SafetyCase) -> str:
+    """The one-page summary: failure modes, method, targets, winds, assumptions."""
+    parts = [
+        f"# Safety case summary: {case.controller.upper()}",
+        "",
+        f"Method: {case.method}. Each flight is one delivery; a flight's hours run until it "
+        "ended (a diverged flight until it diverged). Intervals are 95 %: per flight exact "
+        "(Clopper-Pearson), per flight hour exact (Garwood, Poisson), the upper bound "
+        "one-sided.",
+        "",
+        "## Failure modes",
+        "",
+        _table(HEADER, [_cells(m) for m in case.modes.values()]),
+        "",
+        "## Targets",
+        "",
+    ]
+    if case.verdicts:
+        rows = [[v.mode, shown(v.target), v.status,
+                 shown(case.modes[v.mode].rate.upper),  # type: ignore[union-attr]
+                 f"{v.more:,}" if v.more else ""] for v in case.verdicts]  # fmt: skip
+        header = [
+            "mode",
+            "target per flight hour",
+            "verdict",
+            "upper 95 % per flight hour",
+            "more flights to show it",
+        ]
+        parts.append(_table(header, rows))
+    else:
+        parts.append("No target given (`--target MODE=RATE`).")
+    if case.bands is not None:
+        parts += ["", "## Which winds make the risk", "",
+                  "Per band of the drawn mean wind (W20, m/s): the flights in it, and per "
+                  "failure mode its events there, the probability per flight in the band and "
+                  "the band's share of the mode's events.", "",
+                  _bands_table(case)]  # fmt: skip
+    parts += ["", "## Assumptions", "",
+              _table(["what", "value"], [[a, b] for a, b in case.assumptions])]  # fmt: skip
+    return "\n".join(parts) + "\n"
+
+
+def _bands_table(case: SafetyCase) -> str:
+    bands = case.bands
+    assert bands is not None
+    modes = [c.removesuffix("_events") for c in bands.columns if c.endswith("_events")]
+    header = ["wind (m/s)", "flights", "share"]
+    for m in modes:
+        header += [f"{m} events", f"{m} per flight", f"{m} share"]
+    rows = []
+    for band, r in bands.iterrows():
+        row = [str(band), str(int(r["flights"])), shown(r["share"])]
+        for m in modes:
+            row += [str(int(r[f"{m}_events"])), shown(r[f"{m}_p"]), shown(r[f"{m}_share"])]
+        rows.append(row)
+    return _table(header, rows)
