@@ -4,10 +4,10 @@
 use super::checks::engine;
 use super::flight::{simulate_on, Flight};
 use super::progress::Progress;
+use crate::control::ControllerKind;
 use crate::integrate::Engine;
 use crate::memory;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2};
-use crate::control::ControllerKind;
 use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -41,11 +41,7 @@ impl CompiledEngine {
     /// loops (1: every step; docs/model.md, "Loop rates").
     fn loop_steps(&self, controller: &str) -> PyResult<[usize; 3]> {
         let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-        Ok(self
-            .engine
-            .cfg
-            .controller
-            .loop_steps(kind, self.engine.dt))
+        Ok(self.engine.cfg.controller.loop_steps(kind, self.engine.dt))
     }
 
     /// Standard normals one flight's turbulence draws: its onset's stationary state and every
