@@ -204,8 +204,17 @@ class Px4Law:
 
     def outputs(self, s: np.ndarray, ref: dict) -> tuple[float, np.ndarray, dict]:
         """U1, tau and the values the integrators need, the memory as held."""
+        att, rate = s[3:6], s[12:15]
+        p = self.position_loop(s, ref)
+        rate_sp = self.attitude_loop(att, p["z_d"], p["q_d"], ref)
+        u1, tau, r = self.rate_loop(rate, rate_sp, p["thrust_norm"])
+        return u1, tau, p | r
+
+    def position_loop(self, s: np.ndarray, ref: dict) -> dict:
+        """PositionControl: the thrust vector and the attitude setpoint (body z along it, the
+        reference's yaw), with what the velocity integrator needs."""
+        pos, vel = s[0:3], s[9:12]
         k, g = self.k, self.g
-        pos, att, vel, rate = s[0:3], s[3:6], s[9:12], s[12:15]
         v_sp = np.array([k["MPC_XY_P"], k["MPC_XY_P"], k["MPC_Z_P"]]) * (ref["pos"] - pos)
         v_sp = v_sp + ref["vel"]
         n = math.hypot(v_sp[0], v_sp[1])
@@ -244,6 +253,12 @@ class Px4Law:
         x_d /= np.linalg.norm(x_d)
         y_d = np.cross(z_d, x_d)
         q_d = quat_of(np.column_stack([x_d, y_d, z_d]))
+        return {"e_v": e_v, "acc": acc, "t_z_acc": t_z_acc, "t_xy": t[:2], "v_sp": v_sp,
+                "thrust": t, "thrust_norm": thrust, "z_d": z_d, "q_d": q_d}  # fmt: skip
+
+    def attitude_loop(self, att: np.ndarray, z_d: np.ndarray, q_d: np.ndarray, ref: dict):
+        """AttitudeControl: the rate setpoint toward the setpoint from the attitude now."""
+        k = self.k
         q = euler_quat(*att)
         r_now = quat_matrix(q)
         e_z = r_now[:, 2]
@@ -262,56 +277,84 @@ class Px4Law:
         att_p = np.array([k["MC_ROLL_P"], k["MC_PITCH_P"], k["MC_YAW_P"] / w])
         rate_sp = att_p * e_q + r_now[2, :] * ref["psi_dot"]
         rate_sp = np.clip(rate_sp, -self.rate_max, self.rate_max)
+        return rate_sp
+
+    def rate_loop(self, rate: np.ndarray, rate_sp: np.ndarray, thrust: float):
+        """RateControl and the allocator: the torques, the motors and what they gave up."""
         e_w = rate_sp - rate
         torque = self.rate_p * e_w + self.rate_int - self.rate_d * self.rate_dot
         # vehicle_torque_setpoint and vehicle_thrust_setpoint (0, 0, -|t|) in FRD, allocated
         c = np.array([*(FLU_FRD * torque), 0.0, 0.0, -thrust])
         motors, unallocated = self.alloc.allocate(c)
         u1, *tau = self.wrench @ motors
-        extra = {"e_v": e_v, "acc": acc, "t_z_acc": t_z_acc, "t_xy": t[:2], "e_w": e_w,
-                 "torque": torque, "v_sp": v_sp, "thrust": t, "motors": motors,
+        extra = {"e_w": e_w, "torque": torque, "motors": motors,
                  "unallocated": FLU_FRD * unallocated[:3]}  # fmt: skip
         return u1, np.array(tau), extra
 
     def step(self, s: np.ndarray, ref: dict) -> tuple[float, np.ndarray]:
-        vel, rate = s[9:12], s[12:15]
+        """Every loop at every step."""
+        return self.step_at_rates(s, ref, (True, True, True), (self.dt, self.dt))
+
+    def step_at_rates(
+        self, s: np.ndarray, ref: dict, due: tuple[bool, bool, bool], dt: tuple[float, float]
+    ) -> tuple[float, np.ndarray]:
+        """One step of the loops that are ``due`` (position, attitude, rate and allocator),
+        each from the state now and the held outputs of the loop above, the others holding;
+        the position loop's filter and integrator advance by its period ``dt[0]``, the rate
+        loop's by ``dt[1]``, the allocator's status published every 5 ms of rate updates."""
+        k, g = self.k, self.g
+        att, vel, rate = s[3:6], s[9:12], s[12:15]
         if self.vel_prev is None:
             self.vel_prev, self.rate_prev = vel.copy(), rate.copy()
-        self.vel_dot += self.a_vel * ((vel - self.vel_prev) / self.dt - self.vel_dot)
-        self.rate_dot += self.a_rate * ((rate - self.rate_prev) / self.dt - self.rate_dot)
-        self.vel_prev, self.rate_prev = vel.copy(), rate.copy()
-        u1, tau, x = self.outputs(s, ref)
-        k, g = self.k, self.g
-        e = x["e_v"].copy()
-        if x["t_z_acc"] <= k["MPC_THR_MIN"]:
-            e[2] = max(e[2], 0.0)
-        if x["t_z_acc"] >= k["MPC_THR_MAX"]:
-            e[2] = min(e[2], 0.0)
-        produced = x["t_xy"] * g / k["MPC_THR_HOVER"]
-        a_xy = x["acc"][:2]
-        limited = produced if a_xy @ a_xy > produced @ produced else a_xy
-        e[:2] -= 2 / k["MPC_XY_VEL_P_ACC"] * (a_xy - limited)
-        self.vel_int += e * self.vel_i * self.dt
-        self.vel_int[2] = min(max(self.vel_int[2], -g), g)
-        e_w = x["e_w"].copy()
-        for i in range(3):
-            if self.sat[i] > 0:
-                e_w[i] = min(e_w[i], 0.0)
-            if self.sat[i] < 0:
-                e_w[i] = max(e_w[i], 0.0)
-            f = max(0.0, 1 - (e_w[i] / math.radians(400)) ** 2)
-            ri = self.rate_int[i] + f * self.rate_i[i] * e_w[i] * self.dt
-            self.rate_int[i] = min(max(ri, -self.int_lim[i]), self.int_lim[i])
-        # the allocator's status (MulticopterRateControl reads it at its next step)
-        if self.status_age >= self.status_every:
-            un = x["unallocated"]
-            self.sat = np.zeros(3)
-            if not un @ un < 1e-6:
-                self.sat = np.where(un > FLT_EPSILON, 1.0, np.where(un < -FLT_EPSILON, -1.0, 0.0))
-            self.status_age = 0
-        self.status_age += 1
-        self.last = x
-        return u1, tau
+
+        def weight(step: float, fc: float) -> float:
+            return step / (step + 1 / (2 * math.pi * fc))
+
+        if due[0]:
+            a_vel = weight(dt[0], k["MPC_VELD_LP"])
+            self.vel_dot += a_vel * ((vel - self.vel_prev) / dt[0] - self.vel_dot)
+            self.vel_prev = vel.copy()
+            x = self.held_p = self.position_loop(s, ref)
+            e = x["e_v"].copy()
+            if x["t_z_acc"] <= k["MPC_THR_MIN"]:
+                e[2] = max(e[2], 0.0)
+            if x["t_z_acc"] >= k["MPC_THR_MAX"]:
+                e[2] = min(e[2], 0.0)
+            produced = x["t_xy"] * g / k["MPC_THR_HOVER"]
+            a_xy = x["acc"][:2]
+            limited = produced if a_xy @ a_xy > produced @ produced else a_xy
+            e[:2] -= 2 / k["MPC_XY_VEL_P_ACC"] * (a_xy - limited)
+            self.vel_int += e * self.vel_i * dt[0]
+            self.vel_int[2] = min(max(self.vel_int[2], -g), g)
+        if due[1]:
+            self.held_rate_sp = self.attitude_loop(att, self.held_p["z_d"], self.held_p["q_d"],
+                                                   ref)  # fmt: skip
+        if due[2]:
+            a_rate = weight(dt[1], k["IMU_DGYRO_CUTOFF"])
+            self.rate_dot += a_rate * ((rate - self.rate_prev) / dt[1] - self.rate_dot)
+            self.rate_prev = rate.copy()
+            u1, tau, r = self.rate_loop(rate, self.held_rate_sp, self.held_p["thrust_norm"])
+            e_w = r["e_w"].copy()
+            for i in range(3):
+                if self.sat[i] > 0:
+                    e_w[i] = min(e_w[i], 0.0)
+                if self.sat[i] < 0:
+                    e_w[i] = max(e_w[i], 0.0)
+                f = max(0.0, 1 - (e_w[i] / math.radians(400)) ** 2)
+                ri = self.rate_int[i] + f * self.rate_i[i] * e_w[i] * dt[1]
+                self.rate_int[i] = min(max(ri, -self.int_lim[i]), self.int_lim[i])
+            # the allocator's status (MulticopterRateControl reads it at its next update)
+            if self.status_age >= max(1, math.ceil(0.005 / dt[1] - 1e-9)):
+                un = r["unallocated"]
+                self.sat = np.zeros(3)
+                if not un @ un < 1e-6:
+                    self.sat = np.where(un > FLT_EPSILON, 1.0,
+                                        np.where(un < -FLT_EPSILON, -1.0, 0.0))  # fmt: skip
+                self.status_age = 0
+            self.status_age += 1
+            self.held_u = (u1, tau)
+            self.last = self.held_p | r
+        return self.held_u
 
 
 def quat_matrix(q: np.ndarray) -> np.ndarray:
@@ -547,6 +590,32 @@ def test_the_law_is_px4s_code_to_1e_9(make) -> None:
         tilt = np.degrees(np.arctan2(np.hypot(t[:, 0], t[:, 1]), t[:, 2]))
         assert tilt.max() == pytest.approx(DEFAULTS["MPC_TILTMAX_AIR"], abs=1e-6)
         assert np.linalg.norm(t, axis=1).max() == pytest.approx(DEFAULTS["MPC_THR_MAX"], abs=1e-9)
+
+
+def test_the_law_at_px4s_own_rates_is_px4s_code_at_them() -> None:
+    """PX4's loops at its own 50, 250 and 1000 Hz (the law's default) on a 1 ms step: the
+    engine's inputs at every step are PX4's code run by hand, each loop at its own updates
+    (every 20, 4 and 1 steps) from the state then, its integrator and filter advanced by its
+    own period, holding between."""
+    sc, reference = step_flight()
+    own = sc.override({key: None for key in EVERY_STEP})
+    assert own.engine.loop_steps("px4") == [20, 4, 1]
+    flight = quadrs.simulate(own, "px4", record_every=1)
+    tr = flight.trace
+    states = tr[[*STATE_ORDER[:6], "x", "x", "x", *RATE_ORDER[:6]]].to_numpy()
+    controls = tr[["U1", "tau_phi", "tau_theta", "tau_psi"]].to_numpy()
+    t = tr.index.to_numpy(float)
+    law = Px4Law(own, dict(DEFAULTS, **own.get("controller.px4", {})))
+    dt = own["integrator.dt"]
+    worst = 0.0
+    for k in range(own.steps):
+        due = (k % 20 == 0, k % 4 == 0, True)
+        u1, tau = law.step_at_rates(states[k], reference(t[k]), due, (20 * dt, dt))
+        worst = max(worst, float(np.max(np.abs(np.array([u1, *tau]) - controls[k]))))
+    assert worst < 1e-9, worst
+    # The holds matter: the same flight with every loop every step flies other inputs.
+    every = quadrs.simulate(sc, "px4", record_every=1).trace["tau_theta"].to_numpy()
+    assert np.max(np.abs(every - tr["tau_theta"].to_numpy())) > 1e-3
 
 
 @pytest.fixture(scope="module")

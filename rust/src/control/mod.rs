@@ -919,7 +919,9 @@ mod tests {
             let path = parse_key(key).unwrap();
             let found = !matches!(c.target(&path), Target::Missing);
             // An unset optional number is no key of this scenario.
-            let optional = key == "controller.thrust_min" || key == "controller.thrust_max";
+            let optional = key == "controller.thrust_min"
+                || key == "controller.thrust_max"
+                || RATE_KEYS.contains(&key.as_str());
             assert!(found || optional, "{key} is no key of the paper scenario");
         }
         let json = serde_json::to_value(&cfg.controller).unwrap();
