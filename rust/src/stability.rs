@@ -29,7 +29,7 @@ use crate::integrate::rk4_step;
 use crate::lane::{dual::Dual, Lane, Masks};
 use crate::model::{
     dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, PayloadModel,
-    State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
+    PayloadView, Rigid, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::scenario::{Config, GustComponent};
 use crate::trajectory::Reference;
@@ -182,6 +182,20 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<
         full
     }
 
+    /// What the law sees at `s` (frame `frame`): the rigid body, its angles' sines and cosines
+    /// and, for a law that sees it (`Control::SEES_PAYLOAD`), the payload.
+    #[allow(clippy::type_complexity)]
+    fn seen<L: Lane>(
+        v: &Vehicle<L, Pay::At<L>, Act::At<L>, B>,
+        s: &State<L, N>,
+        frame: &B::Frame<L>,
+    ) -> (Rigid<L>, Trig<L>, Option<PayloadView<L>>) {
+        let view = Vehicle::<L, Pay::At<L>, Act::At<L>, B>::rigid_at(s, frame);
+        let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
+        let payload = C::SEES_PAYLOAD.then(|| v.payload.view(s, frame));
+        (view, trig, payload)
+    }
+
     /// The loop's states of a full vector (the dependent one left out).
     fn reduce<L: Copy>(full: &[L]) -> Vec<L> {
         let mut v = full.to_vec();
@@ -202,20 +216,12 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<
         f64: crate::lane::Param<L>,
     {
         let s = Self::full(s);
-        // Hover is time-invariant: the law and the actuators are asked at the flight's start.
+        // Hover is time-invariant: the law and the actuators are asked at the flight's start;
+        // the law at rest, every loop updating: the linear model is the continuous law's (a
+        // sampled law's holds are the discrete model's business: `sampled`).
         let frame = B::frame(&s);
-        let view = Vehicle::<L, Pay::At<L>, Act::At<L>, B>::rigid_at(&s, &frame);
-        // A law that sees the payload sees it here too (`Control::SEES_PAYLOAD`); the law at
-        // rest, every loop updating: the linear model is the continuous law's (a sampled law's
-        // holds are the discrete model's business: `sampled`).
-        let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
-        let payload = C::SEES_PAYLOAD.then(|| v.payload.view(&s, &frame));
-        let seen = Sight {
-            rigid: &view,
-            trig: &trig,
-            payload: payload.as_ref(),
-        };
-        let u = ctrl.at_rest(&seen, r, Tick::START);
+        let (view, trig, payload) = Self::seen(v, &s, &frame);
+        let u = ctrl.at_rest(&Sight::of(&view, &trig, &payload), r, Tick::START);
         let cmd = v.actuator.command(&u, Tick::START);
         let f = v.derivative(&s, &frame, &cmd, w);
         let out = v.payload_outputs(&s, &frame, u.u1, w);
@@ -253,14 +259,8 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Close
         let mut cmd = None;
         for step in 0..period {
             let frame = B::frame(&s);
-            let view = Vehicle::<f64, Pay::At<f64>, Act::At<f64>, B>::rigid_at(&s, &frame);
-            let trig = Trig::of_angles(view.att[0], view.att[1], view.att[2]);
-            let payload = C::SEES_PAYLOAD.then(|| v.payload.view(&s, &frame));
-            let seen = Sight {
-                rigid: &view,
-                trig: &trig,
-                payload: payload.as_ref(),
-            };
+            let (view, trig, payload) = Self::seen(v, &s, &frame);
+            let seen = Sight::of(&view, &trig, &payload);
             let due = Due {
                 position: step % self.steps[0] == 0,
                 attitude: step % self.steps[1] == 0,

@@ -57,6 +57,16 @@ pub struct Sight<'a, L> {
 }
 
 impl<'a, L: Lane> Sight<'a, L> {
+    /// The rigid body, its angles' sines and cosines, and the payload if in view.
+    #[inline(always)]
+    pub fn of(rigid: &'a Rigid<L>, trig: &'a Trig<L>, payload: &'a Option<PayloadView<L>>) -> Self {
+        Self {
+            rigid,
+            trig,
+            payload: payload.as_ref(),
+        }
+    }
+
     /// The rigid body alone (no payload in view).
     #[inline(always)]
     pub fn blind(rigid: &'a Rigid<L>, trig: &'a Trig<L>) -> Self {
