@@ -250,5 +250,7 @@ def test_the_tests_mirror_the_package():
         "test_public_api.py",
         "test_module_sizes.py",
         "test_engine_file_sizes.py",
+        "test_flight_loops.py",
         "test_examples.py",
+        "test_docs_commands.py",
     }, top

@@ -473,6 +473,7 @@ metrics! {
     geography_margin {
         unit: "m",
         label: "Smallest margin to the flight geography",
+        event: |v| in_volume(v),
         signal: |v| {
             let (across, up) = leg_offsets(&v.rigid.pos, v.line);
             let [w, h, _] = v.r.corridor.map(L::splat);
@@ -486,6 +487,7 @@ metrics! {
     volume_margin {
         unit: "m",
         label: "Smallest margin to the operational volume",
+        event: |v| in_volume(v),
         signal: |v| geography_margin + L::splat(v.r.corridor[2]),
         fold: min(f64::INFINITY),
         value: |_, x| finite_or_nan(x),
@@ -494,6 +496,7 @@ metrics! {
     left_geography {
         unit: "-",
         label: "Left the flight geography",
+        event: |v| in_volume(v),
         signal: |_| geography_margin,
         fold: min(f64::INFINITY),
         value: |_, x| outside(x),
@@ -503,6 +506,7 @@ metrics! {
     left_volume {
         unit: "-",
         label: "Left the operational volume",
+        event: |v| in_volume(v),
         signal: |_| volume_margin,
         fold: min(f64::INFINITY),
         value: |_, x| outside(x),
@@ -510,6 +514,17 @@ metrics! {
 }
 
 /// A margin's value: NaN where no volume bounds it (the corridor is infinite).
+/// 1 where the flight has an operational volume (`[volume]`), else 0: the volume's metrics are
+/// NaN without one, as an event's are in a phase without the event.
+#[inline(always)]
+fn in_volume<L: Lane>(v: &Views<L>) -> L {
+    L::splat(if v.r.corridor[0].is_finite() {
+        1.0
+    } else {
+        0.0
+    })
+}
+
 fn finite_or_nan(margin: f64) -> f64 {
     if margin.is_finite() {
         margin
@@ -1061,7 +1076,11 @@ mod tests {
                 "touchdown_drift",
                 "touchdown_miss",
                 "release_time",
-                "release_height_change"
+                "release_height_change",
+                "geography_margin",
+                "volume_margin",
+                "left_geography",
+                "left_volume",
             ]
         );
     }

@@ -148,13 +148,13 @@ def _parcel_events(mc: MonteCarloResult, report: MissionReport) -> dict[str, pd.
 
 
 def _labels(report: MissionReport) -> dict[str, str]:
-    from quadrs.cli.tables import shown_limit
+    from quadrs.present.labels import shown_unit, shown_value
 
+    limit = f"{shown_value(report.metric, report.limit):g} {shown_unit(report.metric)}".rstrip()
     return {
         "containment": "Containment loss (left the operational volume, or diverged)",
         "control": "Loss of control (the flight diverged)",
-        "parcel": f"Parcel over its limit ({report.metric} > "
-        f"{shown_limit(report.metric, report.limit)})",
+        "parcel": f"Parcel over its limit ({report.metric} > {limit})",
         "touchdown": f"Hard touchdown (faster than {report.touchdown_limit:g} m/s)",
     }
 
@@ -166,6 +166,8 @@ def _mode(mode: str, label: str, events: Any, flights: int, hours: float,
     if isinstance(events, str):
         return FailureMode(mode, label, None, flights, why=events)
     k, n = (int(events.sum()), len(events)) if isinstance(events, pd.Series) else events
+    if n == 0:  # e.g. a hard touchdown where no parcel touched down: nothing to count
+        return FailureMode(mode, label, None, flights, why="no flight has the event's metric")
     ci = stats.binomtest(k, n).proportion_ci(confidence_level=confidence, method="exact")
     rate = flight_rate(k, n, hours, confidence)
     return FailureMode(mode, label, k, n, k / n, float(ci.low), float(ci.high), rate)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Iterable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import tomli_w
 
@@ -21,8 +21,9 @@ from quadrs.scenario.keys import ScenarioError, _split_key, canonical_keys, scen
 from quadrs.scenario.route_timing import Timing, changes_timing
 from quadrs.scenario.tables import _plain, _seed_controller_table
 
-if TYPE_CHECKING:  # pragma: no cover
-    from quadrs.scenario.scenario import Scenario
+#: The scenario class (``quadrs.scenario.scenario.Scenario``, which imports this module: it is
+#: handed in, not imported back).
+Scenario = Any
 
 #: Top-level tables the engine fills with defaults when a scenario omits them (so that
 #: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
