@@ -126,7 +126,13 @@ def contact_step_warning(scenario: Scenario) -> str:
         return ""
     dt, m = float(scenario["integrator.dt"]), float(payload["mass"])
     c = float(ground.get("damping", 0.0))
-    contact = max((abs(r) for r in np.roots([m, c, float(k)])), default=0.0)
+    # |pole| of m s^2 + c s + k: sqrt(k / m) for a complex pair, the larger real root's size
+    # otherwise (in closed form: a mass near zero overflows to inf, which np.roots refuses).
+    disc = c * c - 4.0 * m * float(k)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        contact = float(np.sqrt(float(k) / m) if disc < 0 else (c + np.sqrt(disc)) / (2.0 * m))
+    if not math.isfinite(contact):
+        return ""  # an absurd parcel mass: the plausibility check names it
     sliding = float(ground.get("friction", 0.0)) * float(scenario["environment.gravity"])
     sliding /= FRICTION_SPEED
     speed, what = max((contact, f"ground.stiffness = {k:g} N/m with ground.damping = {c:g} "
