@@ -345,7 +345,7 @@ def mission_cases() -> dict[str, quadrs.Scenario]:
     """The delivery preset's wind taken apart (issue 36's table): as shipped (turbulence at the
     vehicle's altitude and relative airspeed, a sheared mean wind); with its loops at PX4's
     rates (position 50 Hz, attitude 250 Hz, rate 1 kHz) and its wind at 100 Hz; with only
-    the wind at 100 Hz; its turbulence at a fixed
+    the wind at 100 Hz; flown on its senses (`navigation.mode = "ekf"`); its turbulence at a fixed
     altitude and airspeed (30 m, 10 m/s: the transit's) with no mean wind, the mean wind only,
     no wind; and the paper preset with the gust off."""
     delivery = quadrs.Scenario.preset("delivery")
@@ -360,6 +360,7 @@ def mission_cases() -> dict[str, quadrs.Scenario]:
         "delivery as shipped": delivery,
         "delivery, loops at rates": delivery.override(rates),
         "delivery, wind at 100 Hz": delivery.override({"gust.rate": 100.0}),
+        "delivery, on its senses": delivery.override({"navigation.mode": "ekf"}),
         "turbulence at fixed h, V": delivery.override(
             {"gust.altitude": 30.0, "gust.airspeed": 10.0, **calm}
         ),

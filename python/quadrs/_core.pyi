@@ -100,6 +100,9 @@ class SimulateResult(TypedDict):
     status: str
     trace_columns: list[str]
     spectra: list[_Floats]
+    # With navigation.mode = "ekf": the samples the filter read and its final state
+    # (imu, gnss, baro, heading, initial, state, covariance, truth); else None.
+    navigation: dict[str, _Floats] | None
 
 class _BatchSpectra(TypedDict, total=False):
     # present only when spectra were asked for: per phase (controllers, bins) sums

@@ -17,6 +17,7 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod montecarlo;
+pub mod navigation;
 pub mod scenario;
 pub mod stability;
 pub mod trajectory;

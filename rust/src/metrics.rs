@@ -55,6 +55,10 @@ pub struct Views<'a, L> {
     pub saturated: L,
     /// The last metres (`LastSample::none()` for a payload without them).
     pub last: &'a LastSample<L>,
+    /// m, the navigation's position error (estimate less truth; 0 where the laws read the
+    /// state), and 1 where the laws fly the estimate, else 0.
+    pub nav_error: [L; 3],
+    pub navigating: L,
 }
 
 /// The laws' limits a metric may compare against (`given` in `metrics!`), one realisation's,
@@ -511,6 +515,38 @@ metrics! {
         fold: min(f64::INFINITY),
         value: |_, x| outside(x),
     }
+    // Navigation (docs/model.md, "Navigation"): the estimate the laws fly against the truth,
+    // NaN where the laws read the state.
+    /// m, the largest horizontal distance between the estimated and the true position.
+    nav_error_max {
+        unit: "m",
+        label: "Peak horizontal navigation error",
+        event: |v| v.navigating,
+        signal: |v| {
+            let [dx, dy, _] = v.nav_error;
+            (dx * dx + dy * dy).sqrt()
+        },
+        fold: max,
+        value: |_, x| x,
+    }
+    /// m, the RMS of that distance over the phase.
+    nav_error_rms {
+        unit: "m",
+        label: "RMS horizontal navigation error",
+        event: |v| v.navigating,
+        signal: |_| nav_error_max * nav_error_max,
+        fold: integral,
+        value: |t, x| t.rms(x),
+    }
+    /// m, the largest vertical distance between the estimated and the true position.
+    nav_error_vertical_max {
+        unit: "m",
+        label: "Peak vertical navigation error",
+        event: |v| v.navigating,
+        signal: |v| v.nav_error[2].abs(),
+        fold: max,
+        value: |_, x| x,
+    }
 }
 
 /// A margin's value: NaN where no volume bounds it (the corridor is infinite).
@@ -837,6 +873,8 @@ mod tests {
                     line: &([0.0; 3], [1.0, 0.0, 0.0]),
                     saturated: self.saturated,
                     last: &self.last,
+                    nav_error: [0.0; 3],
+                    navigating: 0.0,
                 },
             )
         }
@@ -1066,6 +1104,9 @@ mod tests {
                 "volume_margin",
                 "left_geography",
                 "left_volume",
+                "nav_error_max",
+                "nav_error_rms",
+                "nav_error_vertical_max",
             ]
         );
         let events: Vec<&str> = METRICS.iter().filter(|m| m.event).map(|m| m.name).collect();
@@ -1081,6 +1122,9 @@ mod tests {
                 "volume_margin",
                 "left_geography",
                 "left_volume",
+                "nav_error_max",
+                "nav_error_rms",
+                "nav_error_vertical_max",
             ]
         );
     }

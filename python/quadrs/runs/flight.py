@@ -93,6 +93,14 @@ class Flight:
     #: What this flight is, when not realisation ``realisation`` of ``seed`` (a re-flown
     #: rare-event failure sample: ``"failure sample 3 of a rare-event run"``).
     label: str = ""
+    #: With ``navigation.mode = "ekf"``: what the sensors gave the filter and the filter's
+    #: state at the end (docs/model.md, "Navigation"): ``imu`` rows (t, gyro x3, accel x3),
+    #: ``gnss`` rows (t fused, position x3, velocity x3, received), ``baro`` and ``heading``
+    #: rows (t, value), ``initial`` (position, velocity, quaternion w x y z), ``state`` (the
+    #: nominal state: p, v, q, gyro bias, accel bias, GNSS drift, baro bias), ``covariance``
+    #: (19 x 19, row-major), ``truth`` (the sensors' biases and drifts at the start). None
+    #: when the laws read the state.
+    navigation: Mapping[str, np.ndarray] | None = field(default=None, repr=False)
 
     def phases_only(self) -> pd.DataFrame:
         """``metrics`` without the whole flight's ``flight`` row: the scenario's phases alone."""
@@ -267,6 +275,7 @@ def simulate(
         diverged_at=float(out["diverged_at"]),
         record_every=record_every,
         status=out["status"],
+        navigation=out["navigation"],
     )
 
 

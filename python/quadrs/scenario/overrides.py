@@ -27,7 +27,9 @@ Scenario = Any
 
 #: Top-level tables the engine fills with defaults when a scenario omits them (so that
 #: ``override({"ground.enabled": True})`` works on a preset without a ``[ground]`` table).
-OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "volume", "wind"})
+OPTIONAL_TABLES: frozenset[str] = frozenset(
+    {"actuator", "ground", "volume", "wind", "navigation", "sensors"}
+)
 
 # Pairs of keys that give one thing two ways (the attachment's stiffness or natural frequency,
 # the turbulence's W20 or level: each declared once, beside its owner in the engine; the wind
@@ -35,7 +37,9 @@ OPTIONAL_TABLES: frozenset[str] = frozenset({"actuator", "ground", "volume", "wi
 _ONE_OF = [*_core.ONE_OF_KEYS, ("wind.table.file", "wind.table.points")]
 _EXCLUSIVE = {a: b for pair in _ONE_OF for a, b in (pair, pair[::-1])}
 #: Optional tables below the top level that setting one of their keys creates.
-_CREATED_TABLES = frozenset({"wind.table", "wind.climate"})
+_CREATED_TABLES = frozenset(
+    {"wind.table", "wind.climate", "sensors.imu", "sensors.gnss", "sensors.baro", "sensors.heading"}
+)
 
 
 def _set_key(data: dict[str, Any], key: str, value: Any, changes: Mapping[str, Any],

@@ -37,6 +37,20 @@ def _not_on_the_paper_body(data: Mapping[str, Any]) -> str | None:
             "its drag from vehicle.drag_coefficients: it would change nothing")  # fmt: skip
 
 
+def _not_navigating(data: Mapping[str, Any]) -> str | None:
+    mode = _table(data, "navigation").get("mode", "truth")
+    if mode == "ekf":
+        return None
+    return (f'is read with navigation.mode = "ekf" only (the laws fly the estimate), and this '
+            f"scenario flies navigation.mode = {mode!r}: it would change nothing")  # fmt: skip
+
+
+#: Key prefix -> why no key under it is read in a scenario (None: they are).
+PREFIX_RULES: dict[str, Callable[[Mapping[str, Any]], str | None]] = {
+    "sensors.": _not_navigating,
+    "navigation.": _not_navigating,
+}
+
 #: Key -> why it is not read in a scenario (None: it is).
 RULES: dict[str, Callable[[Mapping[str, Any]], str | None]] = {
     "actuator.rotor_drag": _not_on_rotors,
@@ -51,6 +65,8 @@ def unread_reason(data: Mapping[str, Any], key: str) -> str | None:
     """The message refusing a value given to ``key`` (a canonical dotted key, an element
     ``[i]`` included) in the scenario ``data``, or None when the scenario reads it."""
     rule = RULES.get(re.sub(r"\[\d+\]$", "", key))
+    if rule is None and key != "navigation.mode":
+        rule = next((r for p, r in PREFIX_RULES.items() if key.startswith(p)), None)
     if rule is None:
         return None
     why = rule(data)

@@ -10,7 +10,7 @@ use crate::integrate::{Engine, FlightRequest, Realisation};
 use crate::memory;
 use crate::metrics::N_METRICS;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -116,6 +116,10 @@ pub(super) fn simulate_on<'py>(
         return Err(PyKeyboardInterrupt::new_err("simulate was cancelled"));
     };
     let rows = trace.data.len() / width;
+    let navigation = trace
+        .navigation
+        .map(|r| navigation_record(py, r))
+        .transpose()?;
     let trace = Array2::from_shape_vec((rows, width), trace.data).expect("trace shape");
     let n_phase = res.metrics.len();
     let metrics =
@@ -132,6 +136,30 @@ pub(super) fn simulate_on<'py>(
         .map(|s| s.into_pyarray(py))
         .collect();
     d.set_item("spectra", spectra)?;
+    d.set_item("navigation", navigation)?;
+    Ok(d)
+}
+
+/// The navigation's record as arrays (`NavigationRecord`): what a test's own filter reads.
+fn navigation_record<'py>(
+    py: Python<'py>,
+    r: crate::navigation::NavigationRecord,
+) -> PyResult<Bound<'py, PyDict>> {
+    fn rows<const W: usize>(py: Python<'_>, x: Vec<[f64; W]>) -> Bound<'_, PyArray2<f64>> {
+        let n = x.len();
+        Array2::from_shape_vec((n, W), x.concat())
+            .expect("rows of W")
+            .into_pyarray(py)
+    }
+    let d = PyDict::new(py);
+    d.set_item("imu", rows(py, r.imu))?;
+    d.set_item("gnss", rows(py, r.gnss))?;
+    d.set_item("baro", rows(py, r.baro))?;
+    d.set_item("heading", rows(py, r.heading))?;
+    d.set_item("initial", r.initial.into_pyarray(py))?;
+    d.set_item("state", r.state.into_pyarray(py))?;
+    d.set_item("covariance", r.covariance.into_pyarray(py))?;
+    d.set_item("truth", r.truth.into_pyarray(py))?;
     Ok(d)
 }
 

@@ -29,13 +29,21 @@ pub fn parse_key(key: &str) -> Option<Vec<Seg>> {
     Some(out)
 }
 
-/// The loops' rates (docs/model.md, "Loop rates"): every lane of a set updates its law and its wind at
-/// the same steps, so no realisation of a batch may change them.
-pub const SCHEDULE_KEYS: [&str; 4] = [
+/// The loops' rates (docs/model.md, "Loop rates"), the sensors' and the navigation filter's:
+/// every lane of a set updates its law, its wind, its senses and its estimate at the same steps,
+/// so no realisation of a batch may change them.
+pub const SCHEDULE_KEYS: [&str; 11] = [
     "gust.rate",
     "controller.position_rate",
     "controller.attitude_rate",
     "controller.inner_rate",
+    "navigation.mode",
+    "navigation.rate",
+    "sensors.imu.rate",
+    "sensors.gnss.rate",
+    "sensors.gnss.delay",
+    "sensors.baro.rate",
+    "sensors.heading.rate",
 ];
 
 /// Key prefixes that cannot carry a per-realisation value: they change the step grid, the

@@ -10,6 +10,7 @@ pub mod dispersions;
 pub mod flight;
 pub mod gust;
 pub mod keys;
+pub mod navigation;
 pub mod params;
 pub mod route;
 pub mod trajectory;

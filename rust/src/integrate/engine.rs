@@ -11,6 +11,7 @@ use crate::metrics::{LawLimits, N_METRICS};
 use crate::model::{
     dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, State, StateVar, VehicleVisitor,
 };
+use crate::navigation::{NavigationParams, NAVIGATION_COLUMNS};
 use crate::scenario::{Config, ConfigError, Trim};
 use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
 use std::sync::atomic::AtomicBool;
@@ -34,6 +35,8 @@ pub struct Realisation {
     pub(super) floor: f64,
     /// The laws' limits the metrics may compare against (`metrics::LawLimits`).
     pub(super) law_limits: LawLimits,
+    /// The sensors and the filter the laws read (`None`: the laws read the state).
+    pub(super) navigation: Option<NavigationParams>,
 }
 
 impl Realisation {
@@ -60,6 +63,7 @@ impl Realisation {
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
             floor: cfg.ground.floor(),
             law_limits: LawLimits::of(&cfg.controller),
+            navigation: NavigationParams::of(&cfg.navigation, &cfg.sensors, cfg.integrator.dt)?,
         })
     }
 }
@@ -236,11 +240,15 @@ impl Engine {
 
     /// Trace columns after `t`.
     pub fn trace_columns(&self) -> Vec<&'static str> {
-        trace_columns(
+        let mut columns = trace_columns(
             self.cfg.vehicle.body,
             self.cfg.payload.model,
             self.cfg.actuator.model,
-        )
+        );
+        if self.realisation.navigation.is_some() {
+            columns.extend(NAVIGATION_COLUMNS);
+        }
+        columns
     }
 
     /// An empty trace for one flight, a row every `every` steps.

@@ -4,10 +4,11 @@
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::trace::Trace;
 use crate::lane::isa::Isa;
-use crate::lane::{F64x4, KernelOps};
+use crate::lane::F64x4;
 #[cfg(target_arch = "x86_64")]
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::model::{Actuator, BodyKind, Payload};
+use crate::navigation::Navigate;
 use rustfft::FftPlanner;
 
 /// `fly_vehicle` compiled with target features: one generic `unsafe fn $name` per (name,
@@ -29,7 +30,7 @@ macro_rules! flight_loop_for {
             planner: &mut FftPlanner<f64>,
         ) -> Option<Vec<LaneResult>>
         where
-            L: KernelOps,
+            L: Navigate,
             B: BodyKind,
             Pay: Payload,
             Act: Actuator,
@@ -46,7 +47,7 @@ macro_rules! flight_loop_for {
 /// their own instruction set, the portable ones (`f64` for single flights, `F64x4`) in the
 /// baseline one. The arithmetic never contracts or reorders, so the same lanes give the same
 /// bits in any of them.
-pub trait LoopEntry: KernelOps {
+pub trait LoopEntry: Navigate {
     /// Fly the request's law on the vehicle of kinds `B`, `Pay`, `Act` (`N` states), one
     /// realisation per lane.
     fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(

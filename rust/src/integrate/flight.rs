@@ -11,9 +11,10 @@ use crate::lane::KernelOps;
 use crate::metrics::{LawLimits, PhaseAccumulator, Views};
 use crate::model::payload::Cue;
 use crate::model::{
-    dispatch, state_from_fn, Actuator, ActuatorModel, AnyVehicle, BodyKind, Payload, State, Tick,
-    Vehicle, VehicleVisitor,
+    dispatch, state_from_fn, Actuator, ActuatorModel, AnyVehicle, BodyKind, Payload, Rigid, State,
+    Tick, Vehicle, VehicleVisitor,
 };
+use crate::navigation::{Navigate, Navigation, NavigationParams};
 use rustfft::FftPlanner;
 use std::marker::PhantomData;
 use std::sync::atomic::Ordering;
@@ -87,7 +88,7 @@ impl Engine {
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>>
     where
-        L: KernelOps,
+        L: Navigate,
         B: BodyKind,
         Pay: Payload,
         Act: Actuator,
@@ -118,7 +119,7 @@ impl Engine {
         planner: &mut FftPlanner<f64>,
     ) -> Option<Vec<LaneResult>>
     where
-        L: KernelOps,
+        L: Navigate,
         B: BodyKind,
         Pay: crate::model::PayloadModel<L>,
         Act: ActuatorModel<L>,
@@ -146,6 +147,24 @@ impl Engine {
         let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0));
         let mut rates = Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt));
         let mut release = Release::new();
+        // The sensors and the filter, where the laws fly the estimate (every lane or none).
+        let navs: Vec<&NavigationParams> = realisations
+            .iter()
+            .filter_map(|c| c.navigation.as_ref())
+            .collect();
+        let mut nav = (!navs.is_empty()).then(|| {
+            assert_eq!(navs.len(), L::LANES, "every lane of a set navigates alike");
+            let truths: Vec<Rigid<f64>> = (0..L::LANES)
+                .map(|l| Rigid {
+                    pos: view0.pos.map(|x| x.lane(l)),
+                    att: view0.att.map(|x| x.lane(l)),
+                    vel: view0.vel.map(|x| x.lane(l)),
+                    rate: view0.rate.map(|x| x.lane(l)),
+                })
+                .collect();
+            let g = vehicle.body.g;
+            Navigation::<L>::new(&navs, req.seed, req.indices, &truths, g, trace.is_some())
+        });
 
         let reads_payload = law.reads_payload();
         // The actuators' command, held between the inner loop's updates.
@@ -171,10 +190,21 @@ impl Engine {
                 None
             };
             let law_trig = B::trig(&trig, &view.att);
-            let seen = Sight {
-                rigid: &view,
-                trig: &law_trig,
-                payload: payload.as_ref(),
+            // What the laws read: the state, or the navigation's estimate of it.
+            let seen = match nav.as_mut() {
+                Some(n) => {
+                    L::sense(n, k, &view);
+                    Sight {
+                        rigid: &n.estimate,
+                        trig: &n.trig,
+                        payload: payload.as_ref(),
+                    }
+                }
+                None => Sight {
+                    rigid: &view,
+                    trig: &law_trig,
+                    payload: payload.as_ref(),
+                },
             };
             let due = rates.due(k);
             let u = law.step(&seen, r, tick, due);
@@ -195,6 +225,18 @@ impl Engine {
             let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
+            let axes = crate::model::Frame::axes(&trig);
+            let zero = L::splat(0.0);
+            let (nav_error, navigating) = match nav.as_mut() {
+                Some(n) => {
+                    let v = V::<L, Pay, Act, B>::LAYOUT.vel();
+                    L::accelerometer(n, k, &[k1[v], k1[v + 1], k1[v + 2]], &axes);
+                    let est = &n.estimate.pos;
+                    let err = [0, 1, 2].map(|i| est[i] - view.pos[i]);
+                    (err, L::splat(1.0))
+                }
+                None => ([zero; 3], zero),
+            };
             // The position error, from the rigid view the law read (the same state).
             let e = [
                 view.pos[0] * -1.0 + r.pos[0],
@@ -206,7 +248,7 @@ impl Engine {
             let views = Views {
                 t,
                 rigid: &view,
-                axes: crate::model::Frame::axes(&trig),
+                axes,
                 g: vehicle.body.g,
                 out: &out,
                 r,
@@ -214,6 +256,8 @@ impl Engine {
                 line: &leg.line,
                 saturated: vehicle.actuator.saturated(&cmd),
                 last: &last,
+                nav_error,
+                navigating,
             };
             let accel = acc.sample(k, &views).max_accel;
             if let Some(tr) = trace.as_deref_mut() {
@@ -222,6 +266,11 @@ impl Engine {
                     let lay = V::<L, Pay, Act, B>::LAYOUT;
                     vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
                     let derived = &view.att[..B::DERIVED.len()];
+                    let nav_columns = nav.as_ref().map(|n| n.columns());
+                    let nav_row: &[f64] = match &nav_columns {
+                        Some(c) => c,
+                        None => &[],
+                    };
                     tr.push(&TraceRow {
                         t,
                         s: &s,
@@ -235,6 +284,7 @@ impl Engine {
                         swing: out.swing,
                         tension: out.tension,
                         extra,
+                        nav: nav_row,
                     });
                 }
             }
@@ -259,6 +309,9 @@ impl Engine {
             {
                 return None;
             }
+        }
+        if let (Some(tr), Some(n)) = (trace, nav) {
+            tr.navigation = n.finish();
         }
         Some(self.lane_results(&acc, &ends, planner, req.want_spectra))
     }

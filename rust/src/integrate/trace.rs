@@ -63,6 +63,8 @@ pub struct Trace {
     /// Values per row (t included).
     pub width: usize,
     pub data: Vec<f64>,
+    /// The navigation's record of the flight (with `navigation.mode = "ekf"`).
+    pub navigation: Option<crate::navigation::NavigationRecord>,
 }
 
 impl Trace {
@@ -74,13 +76,14 @@ impl Trace {
             every,
             width,
             data: Vec::with_capacity((steps / every + 1) * width),
+            navigation: None,
         }
     }
 
     pub(super) fn push<L: Lane, const N: usize>(&mut self, row: &TraceRow<L, N>) {
         debug_assert_eq!(
             self.width,
-            1 + N + row.derived.len() + SIGNAL_COLUMNS.len() + row.extra.len()
+            1 + N + row.derived.len() + SIGNAL_COLUMNS.len() + row.extra.len() + row.nav.len()
         );
         self.data.push(row.t);
         self.data.extend(row.s.iter().map(|x| x.lane(0)));
@@ -94,6 +97,7 @@ impl Trace {
             self.data.push(x.lane(0));
         }
         self.data.extend(row.extra.iter().map(|x| x.lane(0)));
+        self.data.extend_from_slice(row.nav);
     }
 }
 
@@ -117,4 +121,6 @@ pub(super) struct TraceRow<'a, L, const N: usize> {
     pub(super) tension: L,
     /// The actuator's own columns.
     pub(super) extra: &'a [L],
+    /// The navigation's columns (`NAVIGATION_COLUMNS`; empty when the laws read the state).
+    pub(super) nav: &'a [f64],
 }

@@ -33,6 +33,8 @@ impl Config {
             ("divergence", f) => self.divergence.target(f, rest),
             ("ground", f) => self.ground.target(f, rest),
             ("volume", f) => self.volume.target(f, rest),
+            ("navigation", f) => self.navigation.target(f, rest),
+            ("sensors", f) => self.sensors.target(f, rest),
             _ => Target::Missing,
         }
     }

@@ -14,6 +14,7 @@
 pub mod keys;
 
 use crate::config::keys::Seg;
+pub use crate::config::navigation::{Navigation, NavigationMode, Sensors};
 use crate::config::{dispersions, params, route, trajectory};
 pub use crate::config::{
     BodyModel, ConfigError, Context, Dispersions, Distribution, Divergence, Environment, Ground,
@@ -55,6 +56,13 @@ pub struct Config {
     /// The route's operational volume (docs/risk.md, "Containment"); none by default.
     #[serde(default, skip_serializing_if = "Volume::is_default")]
     pub volume: Volume,
+    /// What the laws read: the state, or the estimate of the navigation filter
+    /// (docs/model.md, "Navigation"); the state by default.
+    #[serde(default, skip_serializing_if = "Navigation::is_default")]
+    pub navigation: Navigation,
+    /// The vehicle's sensors (read with `navigation.mode = "ekf"`).
+    #[serde(default, skip_serializing_if = "Sensors::is_default")]
+    pub sensors: Sensors,
     /// Uncertain parameters: dotted key -> distribution (`crate::dispersion`).
     #[serde(default, skip_serializing_if = "Dispersions::is_empty")]
     pub dispersions: Dispersions,
@@ -165,6 +173,8 @@ impl Config {
         keys.extend(Divergence::keys_under("divergence"));
         keys.extend(Ground::keys_under("ground"));
         keys.extend(Volume::keys_under("volume"));
+        keys.extend(Navigation::keys_under("navigation"));
+        keys.extend(Sensors::keys());
         keys
     }
 
@@ -299,6 +309,8 @@ impl Config {
         self.divergence.validate()?;
         self.ground.validate(&self.initial)?;
         self.volume.validate()?;
+        self.navigation
+            .validate(&self.sensors, self.integrator.dt)?;
         self.validate_dispersions()
     }
 
@@ -349,7 +361,7 @@ fn at_path<'v>(value: &'v serde_json::Value, key: &str) -> Option<&'v serde_json
 
 /// The scenario's tables, by dotted key (`phases[i]`, `wind.gusts[i]` and each
 /// `dispersions` entry are tables too).
-const TABLES: [&str; 17] = [
+const TABLES: [&str; 23] = [
     "vehicle",
     "payload",
     "environment",
@@ -366,6 +378,12 @@ const TABLES: [&str; 17] = [
     "divergence",
     "ground",
     "volume",
+    "navigation",
+    "sensors",
+    "sensors.imu",
+    "sensors.gnss",
+    "sensors.baro",
+    "sensors.heading",
     "dispersions",
 ];
 
