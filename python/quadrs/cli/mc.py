@@ -9,16 +9,15 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.cli.common import (
-    EXIT_FAIL,
-    EXIT_INTERRUPT,
-    EXIT_OK,
     BadInput,
     batch_options,
     batch_scope,
+    batch_status,
     check_positive,
+    command_parser,
     limit_options,
+    passed,
     plots_option,
-    progress,
     table_options,
 )
 
@@ -26,14 +25,12 @@ __all__ = ["add_mc", "cmd_mc"]
 
 
 def add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "mc",
-        parents=[common],
-        help="Monte Carlo batch; prints the Table-3 summary",
-        description="Fly many gust realisations with every controller (paired: the same gust "
-        "for each) and print the paper's Table 3 with 95% confidence intervals (IAE in m s, "
-        "ITAE in m s^2; P = 100 SMC/PD in percent).",
-    )
+    """Monte Carlo batch; prints the Table-3 summary
+
+    Fly many gust realisations with every controller (paired: the same gust for each) and print the
+    paper's Table 3 with 95% confidence intervals (IAE in m s, ITAE in m s^2; P = 100 SMC/PD in
+    percent)."""
+    p = command_parser(sub, add_mc, common)
     batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
     table_options(p)
     plots_option(p, "write the batch's figures here")
@@ -69,7 +66,7 @@ def add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
 
 def cmd_mc(args: argparse.Namespace) -> int:
     """A Monte Carlo batch: Table 3, optional Parquet and figures; 130 if interrupted."""
-    from quadrs.cli.outputs import check_directories, check_outputs, check_suffix, save
+    from quadrs.cli.outputs import check_directories, check_outputs, check_suffix
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.cli.tables import (
         is_mission,
@@ -99,22 +96,13 @@ def cmd_mc(args: argparse.Namespace) -> int:
     with batch_scope(args.scheduler) as batch:
         mc = monte_carlo(
             scenario,
-            runs=args.runs,
-            seed=args.seed,
             controllers=args.controllers,
-            workers=args.workers,
-            progress=progress(args),
             out=args.checkpoint,
-            resume=args.resume,
-            chunk=args.chunk,
-            client=batch.client,
-            sampling=args.sampling,
-            fused=args.fused,
+            **batch.keywords(args),
+            **passed(args, "resume", "chunk", "sampling", "fused"),
         )
         batch.flown()
-        saved = True
-        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-            saved = save(mc.to_parquet, args.out)
+        saved = batch.save(mc, args.out)
     if not mc.runs.empty:
         print_dispersions(mc)
         if is_mission(mc):
@@ -126,4 +114,4 @@ def cmd_mc(args: argparse.Namespace) -> int:
         from quadrs.cli.figures import mc_plots
 
         mc_plots(mc, args.plots, args.limit)
-    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+    return batch_status(mc, saved)

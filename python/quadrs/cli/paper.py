@@ -13,6 +13,7 @@ from quadrs.cli.common import (
     EXIT_OK,
     _values,
     check_positive,
+    command_parser,
     no_progress_option,
     progress,
     seed_option,
@@ -24,16 +25,14 @@ __all__ = ["add_paper", "cmd_paper"]
 
 
 def add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
+    """every table and figure of the paper, and report.md
+
+    Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo versions) into DIR, with
+    report.md setting our Table 3 beside the paper's. The numbers are not the paper's (see
+    docs/paper-calibration.md)."""
     from quadrs.paper.grid import FREQUENCIES, MASSES
 
-    p = sub.add_parser(
-        "paper",
-        parents=[common],
-        help="every table and figure of the paper, and report.md",
-        description="Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo "
-        "versions) into DIR, with report.md setting our Table 3 beside the paper's. The numbers "
-        "are not the paper's (see docs/paper-calibration.md).",
-    )
+    p = command_parser(sub, add_paper, common)
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument(
         "--runs",

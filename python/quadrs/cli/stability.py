@@ -6,19 +6,23 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_OK, controller_option, paper_controllers
+from quadrs.cli.common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    command_parser,
+    controller_option,
+    paper_controllers,
+)
 
 __all__ = ["add_stability", "cmd_stability"]
 
 
 def add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "stability",
-        parents=[common],
-        help="closed-loop poles at hover and a verdict",
-        description="Linearise the closed loop at hover and print its poles (1/s) and a "
-        "stability verdict for each controller.",
-    )
+    """closed-loop poles at hover and a verdict
+
+    Linearise the closed loop at hover and print its poles (1/s) and a stability verdict for each
+    controller."""
+    p = command_parser(sub, add_stability, common)
     controller_option(p, both=True)
     p.add_argument(
         "--poles",

@@ -7,32 +7,27 @@ import argparse
 from typing import Any
 
 from quadrs.cli.common import (
-    EXIT_FAIL,
-    EXIT_INTERRUPT,
-    EXIT_OK,
     BadInput,
     _values,
     batch_options,
     batch_scope,
+    batch_status,
     check_positive,
+    command_parser,
     limit_options,
     plots_option,
-    progress,
 )
 
 __all__ = ["add_sweep", "cmd_sweep"]
 
 
 def add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "sweep",
-        parents=[common],
-        help="Monte Carlo at every point of a one- or two-key grid",
-        description="Run a Monte Carlo batch at every grid point of one or two scenario keys, "
-        "with the same seed at every point (common random numbers: differences between "
-        "points are not gust noise). Prints mean IAE (m s) and ITAE (m s^2) per controller "
-        "and P = 100 SMC/PD (%) per point and phase.",
-    )
+    """Monte Carlo at every point of a one- or two-key grid
+
+    Run a Monte Carlo batch at every grid point of one or two scenario keys, with the same seed at
+    every point (common random numbers: differences between points are not gust noise). Prints mean
+    IAE (m s) and ITAE (m s^2) per controller and P = 100 SMC/PD (%) per point and phase."""
+    p = command_parser(sub, add_sweep, common)
     p.add_argument(
         "--param",
         required=True,
@@ -55,7 +50,7 @@ def add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A one- or two-key sweep: compact summary, optional Parquet and figures."""
-    from quadrs.cli.outputs import check_outputs, check_suffix, save
+    from quadrs.cli.outputs import check_outputs, check_suffix
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.cli.tables import print_frame, print_limits
     from quadrs.runs.sweep import sweep
@@ -73,20 +68,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     check_positive("--workers", args.workers)
     check_outputs(args.out)
     with batch_scope(args.scheduler) as batch:
-        result = sweep(
-            scenario,
-            grid,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controllers,
-            workers=args.workers,
-            progress=progress(args),
-            client=batch.client,
-        )
+        result = sweep(scenario, grid, controllers=args.controllers, **batch.keywords(args))
         batch.flown()
-        saved = True
-        if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
-            saved = save(result.to_parquet, args.out)
+        saved = batch.save(result, args.out)
     if not result.runs.empty:
         print_frame(result.compact())
         print_limits(result, args)
@@ -94,4 +78,4 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from quadrs.cli.figures import sweep_plots
 
         sweep_plots(result, args.plots)
-    return EXIT_INTERRUPT if result.interrupted else EXIT_OK if saved else EXIT_FAIL
+    return batch_status(result, saved)
