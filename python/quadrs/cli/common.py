@@ -180,16 +180,6 @@ class BatchScope:
         return {**passed(args, "runs", "seed", "workers"), "progress": progress(args),
                 "client": self.client}  # fmt: skip
 
-    def save(self, result: Any, out: Path | None) -> bool:
-        """``result``'s runs written to ``out`` (``--out``; nothing without it or without a
-        finished flight), before anything is printed so that a Ctrl-C keeps them; whether all
-        that was asked is saved (else the results went to a recovery file)."""
-        if out is None or result.runs.empty:
-            return True
-        from quadrs.cli.outputs import save
-
-        return save(result.to_parquet, out)
-
 
 @contextlib.contextmanager
 def batch_scope(address: str | None) -> Iterator[BatchScope]:

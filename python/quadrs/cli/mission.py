@@ -202,7 +202,7 @@ def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
 
 
 def cmd_mission(args: argparse.Namespace) -> int:
-    from quadrs.cli.outputs import check_directories, check_outputs
+    from quadrs.cli.outputs import check_directories, check_outputs, save_runs
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.engine.calls import check_int
     from quadrs.runs.montecarlo import monte_carlo
@@ -242,7 +242,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
             "touchdown_limit": args.touchdown_limit,
             "targets": dict(args.target),
         }
-        saved = batch.save(mc, args.out)
+        saved = save_runs(mc, args.out)
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
