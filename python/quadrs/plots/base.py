@@ -222,6 +222,13 @@ def psd_panel(a: Axes, fmax: float, title: str, ylabel: str = "PSD (m²/Hz)") ->
     return drawn
 
 
+def panel_rows(frame: pd.DataFrame, column: str, value: Any, top: float) -> pd.DataFrame:
+    """One panel's rows of a spectra frame: those whose ``column`` is ``value``, at the
+    frequencies a log-log axis shows up to ``top`` (0 < f <= top Hz)."""
+    sel = frame[(frame[column] == value) & (frame["frequency"] > 0)]
+    return sel[sel["frequency"] <= top]
+
+
 def welch_band(a: Axes, sel: pd.DataFrame, label: str) -> np.ndarray:
     """The ensemble-mean Welch PSD of ``sel`` (columns ``frequency``, ``welch``,
     ``welch_se``) with its band of +-2 standard errors; returns the frequencies."""

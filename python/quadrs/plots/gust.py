@@ -18,6 +18,7 @@ from quadrs.plots.base import (
     finish_figure,
     line_style,
     panel_axes,
+    panel_rows,
     psd_panel,
     require_drawn,
     welch_band,
@@ -77,8 +78,7 @@ def gust_spectrum(
     top = 0.1 / p["dt"]
     drawn = []
     for a, model in zip(axes, models, strict=True):
-        sel = frame[(frame["model"] == model) & (frame["frequency"] > 0)]
-        sel = sel[sel["frequency"] <= top]
+        sel = panel_rows(frame, "model", model, top)
         name = _MODEL_NAMES.get(model, model)
         f = welch_band(a, sel, f"generated, Welch mean of {p['realisations']}")
         a.plot(f, sel["formula"], color="black", ls="--", lw=1.2, label=f"{name} formula")

@@ -18,6 +18,7 @@ from quadrs.plots.base import (
     add_legend,
     finish_figure,
     panel_axes,
+    panel_rows,
     psd_panel,
     require_drawn,
     welch_band,
@@ -116,8 +117,7 @@ def gust_spectra(
     top = 0.1 / p["dt"]
     drawn = []
     for a, c in zip(axes, COMPONENTS, strict=True):
-        sel = frame[(frame["component"] == c) & (frame["frequency"] > 0)]
-        sel = sel[sel["frequency"] <= top]
+        sel = panel_rows(frame, "component", c, top)
         f = welch_band(a, sel, f"Welch mean of {p['realisations']}")
         a.plot(f, sel["formula"], color="black", ls="--", lw=1.2, label="MIL-F-8785C formula")
         sigma, length = float(sel["sigma"].iloc[0]), float(sel["length_scale"].iloc[0])
