@@ -5,6 +5,7 @@ were), not trimmed of its blank lines or comments, which are not counted."""
 
 from __future__ import annotations
 
+import ast
 import io
 import tokenize
 from pathlib import Path
@@ -13,6 +14,9 @@ ROOT = Path(__file__).resolve().parent.parent / "python" / "quadrs"
 
 #: The most lines of code a module may hold.
 MAX_CODE_LINES = 600
+
+#: The most lines a function (or method) may span, its docstring and comments included.
+MAX_FUNCTION_LINES = 120
 
 #: Tokens that are not code: comments and the layout around them.
 NOT_CODE = {
@@ -65,4 +69,27 @@ def test_no_module_is_over_the_limit():
     found = oversized()
     assert not found, f"modules over {MAX_CODE_LINES} code lines (split them by concern): " + (
         ", ".join(f"{path} ({count})" for path, count in found.items())
+    )
+
+
+def long_functions(limit: int = MAX_FUNCTION_LINES) -> dict[str, int]:
+    """Each function or method of the package longer than ``limit`` lines (first to last
+    line), by ``path:line name``, with its length."""
+    found = {}
+    for path in sorted(ROOT.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                span = (node.end_lineno or node.lineno) - node.lineno + 1
+                if span > limit:
+                    where = path.relative_to(ROOT.parent.parent)
+                    found[f"{where}:{node.lineno} {node.name}"] = span
+    return found
+
+
+def test_no_function_is_over_the_limit():
+    """A function past :data:`MAX_FUNCTION_LINES` is split into named pieces (issue 70)."""
+    assert long_functions(limit=60), "the counter found no function longer than 60 lines"
+    found = long_functions()
+    assert not found, f"functions over {MAX_FUNCTION_LINES} lines (split them): " + ", ".join(
+        f"{name} ({span})" for name, span in found.items()
     )

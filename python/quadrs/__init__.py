@@ -18,7 +18,12 @@ from quadrs._core import EngineError, ScenarioError, __version__
 
 if TYPE_CHECKING:  # what mypy and editors see: the same names, imported eagerly
     from quadrs.design.constraints import Constraint
-    from quadrs.design.optimize import InfeasibleWarning, OptimizeResult, optimize
+    from quadrs.design.optimize import (
+        InfeasibleWarning,
+        OptimizeOptions,
+        OptimizeResult,
+        optimize,
+    )
     from quadrs.design.sensitivity import SensitivityResult, sensitivity
     from quadrs.hover.linear import LinearModel, SampledLawNote, linearize
     from quadrs.hover.stability import (
@@ -40,6 +45,7 @@ if TYPE_CHECKING:  # what mypy and editors see: the same names, imported eagerly
 _WHERE = {
     "Constraint": "quadrs.design.constraints",
     "InfeasibleWarning": "quadrs.design.optimize",
+    "OptimizeOptions": "quadrs.design.optimize",
     "OptimizeResult": "quadrs.design.optimize",
     "optimize": "quadrs.design.optimize",
     "SensitivityResult": "quadrs.design.sensitivity",
@@ -80,6 +86,7 @@ __all__ = [
     "InfeasibleWarning",
     "LinearModel",
     "MonteCarloResult",
+    "OptimizeOptions",
     "OptimizeResult",
     "PlausibilityWarning",
     "RareEventComparison",

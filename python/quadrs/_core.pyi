@@ -4,7 +4,8 @@ The engine's results are plain dicts; their keys and types are spelled out below
 TypedDicts (they exist only for the type checker), read off rust/src/bindings/.
 """
 
-from typing import Any, TypedDict, final
+from collections.abc import Callable
+from typing import Any, Concatenate, ParamSpec, TypedDict, TypeVar, final
 
 import numpy as np
 import numpy.typing as npt
@@ -40,6 +41,8 @@ CONTROLLER_DEFAULTS: dict[str, str]
 ONE_OF_KEYS: list[tuple[str, str]]
 
 _Floats = npt.NDArray[np.float64]
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 class Description(TypedDict):
     """:func:`describe`: quantities derived from a validated scenario."""
@@ -201,56 +204,25 @@ def _panic_for_tests(message: str, in_pool: bool) -> None: ...
 def describe(config_json: str) -> Description: ...
 def simd_path() -> str: ...
 def lanes_per_set() -> int: ...
-def simulate(
-    config_json: str,
-    controller: str,
-    seed: int,
-    realisation: int = 0,
-    record_every: int = 1,
-    wind: npt.NDArray[np.float64] | None = None,
-    progress: Progress | None = None,
-    xi: npt.NDArray[np.float64] | None = None,
-    dispersion_keys: list[str] = ...,
-    dispersion_values: npt.NDArray[np.float64] | None = None,
-) -> SimulateResult: ...
-def innovations_dimension(config_json: str) -> int: ...
-def innovations(config_json: str, seed: int, realisation: int) -> _Floats: ...
-def run_innovations(
-    config_json: str,
-    controller: str,
-    xi: npt.NDArray[np.float64],
-    progress: Progress | None = None,
-    workers: int | None = None,
-    dispersion_keys: list[str] = ...,
-    dispersion_values: npt.NDArray[np.float64] | None = None,
-) -> _Floats: ...
-def simulate_innovations(
-    config_json: str,
-    controller: str,
-    xi_row: npt.NDArray[np.float64],
-    record_every: int = 1,
-    progress: Progress | None = None,
-    dispersion_keys: list[str] = ...,
-    dispersion_values: npt.NDArray[np.float64] | None = None,
-) -> SimulateResult: ...
-def stability(config_json: str, controller: str) -> StabilityResult: ...
-def linearize(
-    config_json: str, controller: str, wind: tuple[float, float, float] | list[float]
-) -> LinearizeResult: ...
-def run_batch(
-    config_json: str,
-    controllers: list[str],
-    seed: int,
-    first: int,
-    count: int,
-    workers: int,
-    spectra: bool = True,
-    progress: Progress | None = None,
-    dispersion_keys: list[str] = ...,
-    dispersion_values: npt.NDArray[np.float64] | None = None,
-    streams: npt.NDArray[np.uint64] | None = None,
-    fused: bool = False,
-) -> BatchResult: ...
+
+# Not in the module: the stub's way of saying "the method, with config_json first".
+def _engine_function(
+    method: Callable[Concatenate[Engine, _P], _R], /
+) -> Callable[Concatenate[str, _P], _R]: ...
+
+# The module's engine functions, each ``Engine(config_json).<name>(...)``: the Rust side builds
+# them from the methods (rust/src/bindings/engine_functions.rs) and so does this stub, so each
+# signature is written once, on the method (``config_json`` typed positional; it may also be
+# given by keyword).
+simulate = _engine_function(Engine.simulate)
+simulate_innovations = _engine_function(Engine.simulate_innovations)
+run_batch = _engine_function(Engine.run_batch)
+run_innovations = _engine_function(Engine.run_innovations)
+innovations = _engine_function(Engine.innovations)
+innovations_dimension = _engine_function(Engine.innovations_dimension)
+stability = _engine_function(Engine.stability)
+linearize = _engine_function(Engine.linearize)
+
 def low_altitude_scales(altitude: float, w20: float) -> tuple[list[float], list[float]]: ...
 def lane_math(
     function: str, x: npt.NDArray[np.float64], path: str = "scalar", y: float = 0.0

@@ -254,3 +254,32 @@ def test_an_acceleration_limit_is_taken_and_shown_in_standard_g() -> None:
     assert calm.split()[-1] == f"{worst[0] / STANDARD_GRAVITY:.3g}"
     swing = mission_report(mc, 0.1, metric="max_swing").to_text(width=200)
     assert "worst g" not in swing
+
+
+def test_a_new_angle_metric_is_in_degrees_in_the_table_and_in_limit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A metric the engine's registry adds with the unit "rad" (here a scratch registry: the
+    engine's lists with one metric more) is typed in degrees in ``--limit`` and shown in
+    degrees in the mission's table, with no Python list edited (issue 70): its unit travels
+    with its one entry."""
+    from quadrs import _core
+    from quadrs.cli.common import limit_option
+
+    mc = batch(12)
+    name = "max_lean"
+    assert name not in _core.METRIC_NAMES
+    monkeypatch.setattr(_core, "METRIC_NAMES", [*_core.METRIC_NAMES, name])
+    monkeypatch.setitem(_core.METRIC_UNITS, name, "rad")
+    monkeypatch.setitem(_core.METRIC_LABELS, name, "largest lean")
+    rng = np.random.default_rng(3)
+    mc.runs[name] = rng.uniform(0.1, 0.8, len(mc.runs))  # in radians, as the results hold it
+    metric, limit = limit_option(f"{name}=30")
+    assert (metric, limit) == (name, pytest.approx(math.radians(30.0), rel=1e-15))
+    assert limit_option(f"{name}=0.5rad")[1] == 0.5
+    text = mission_report(mc, limit, metric=name).to_text(width=200)
+    assert f"{name} (deg)" in text and "30 deg" in text
+    report = mission_report(mc, limit, metric=name)
+    parcel = text[text.index(f"Parcel {name}") :].splitlines()
+    calm = next(ln for ln in parcel if ln.startswith("calm"))
+    assert calm.split()[-1] == f"{math.degrees(report.acceleration['worst'].iloc[0]):.3g}"

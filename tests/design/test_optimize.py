@@ -187,3 +187,49 @@ def test_tied_keys_share_one_value() -> None:
     assert lam[0] == lam[1] == res.best[tied]
     with pytest.raises(quadrs.ScenarioError, match=r"nope\.key"):
         optimize(short(duration=2.0), params={"controller.smc.lambda[0],nope.key": (1, 2)})
+
+
+def test_one_options_object_is_the_keyword_and_positional_calls() -> None:
+    """``optimize(s, OptimizeOptions(...))`` flies the very search the keyword and the first
+    release's positional calls fly; keywords after an options object replace its fields."""
+    s = short(duration=2.0)
+    options = quadrs.OptimizeOptions(controller="smc", params={KEY: (0.05, 3.0)},
+                                     objective="rms", phases=("G",), runs=2, seed=5, maxiter=1,
+                                     popsize=2)  # fmt: skip
+    a = optimize(s, options)
+    b = optimize(s, controller="smc", params={KEY: (0.05, 3.0)}, objective="rms", phases=("G",),
+                 runs=2, seed=5, maxiter=1, popsize=2)  # fmt: skip
+    c = optimize(s, "smc", {KEY: (0.05, 3.0)}, "rms", ("G",), 2, 5, maxiter=1, popsize=2)
+    for other in (b, c):
+        pd.testing.assert_frame_equal(a.history, other.history)
+        assert (a.best, a.holdout) == (other.best, other.holdout)
+    d = optimize(s, options, seed=6)
+    assert d.seed == 6 and options.seed == 5
+    assert not d.history[KEY].equals(a.history[KEY])
+
+
+def test_the_options_are_checked_when_made_naming_the_field() -> None:
+    from dataclasses import FrozenInstanceError
+
+    from quadrs.design.optimize import OptimizeOptions
+
+    for field, value in (("runs", 0), ("popsize", 0), ("maxiter", 0), ("holdout_runs", 0)):
+        with pytest.raises(ValueError, match=rf"^{field} must be >= 1, got 0"):
+            OptimizeOptions(**{field: value})
+    with pytest.raises(ValueError, match="method must be one of"):
+        OptimizeOptions(method="bfgs")
+    with pytest.raises(ValueError, match="penalty must be finite and > 0, got nan"):
+        OptimizeOptions(penalty=math.nan)
+    with pytest.raises(ValueError, match="seed"):
+        OptimizeOptions(seed=-1)
+    with pytest.raises(FrozenInstanceError):
+        OptimizeOptions().runs = 3  # type: ignore[misc]
+    s = short(duration=2.0)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'run'"):
+        optimize(s, run=3)
+    with pytest.raises(TypeError, match="multiple values for argument 'controller'"):
+        optimize(s, "smc", controller="pd")
+    with pytest.raises(TypeError, match="at most 11 positional options"):
+        optimize(s, "smc", {}, "iae", ("G",), 2, 0, True, "nelder-mead", 1, None, False, 8)
+    with pytest.raises(TypeError, match="one options object"):
+        optimize(s, OptimizeOptions(), 3)

@@ -109,17 +109,25 @@ def test_rates_cannot_be_dispersed(key: str) -> None:
 
 
 def test_each_law_flies_its_own_rates_unless_set() -> None:
+    """The rates are the engine's schedule's (a loop run every step at the 0.2 ms step's 5 kHz)."""
     paper = Scenario.paper()
     assert loop_rates(paper, "px4") == (50.0, 250.0, 1000.0)
-    assert loop_rates(paper, "pd") == (0.0, 0.0, 0.0)
+    assert loop_rates(paper, "pd") == (5000.0, 5000.0, 5000.0)
     assert is_sampled(paper, "px4") and not is_sampled(paper, "smc")
     flat = paper.override({"controller.position_rate": 0.0, "controller.attitude_rate": 0.0,
                            "controller.inner_rate": 0.0})  # fmt: skip
-    assert loop_rates(flat, "px4") == (0.0, 0.0, 0.0)
+    assert loop_rates(flat, "px4") == (5000.0, 5000.0, 5000.0)
     assert not is_sampled(flat, "px4")
     set_all = paper.override({"controller.position_rate": 100.0})
-    assert loop_rates(set_all, "smc") == (100.0, 0.0, 0.0)
+    assert loop_rates(set_all, "smc") == (100.0, 5000.0, 5000.0)
     assert loop_rates(set_all, "px4") == (100.0, 250.0, 1000.0)
+
+
+def test_the_rates_said_are_the_rates_flown() -> None:
+    """On a 3 ms step PX4's own 50 Hz rounds to 7 steps: the loop flies at 1 / 21 ms, and
+    its 250 and 1000 Hz loops at the step's 333 Hz (the rule is the engine's, read once)."""
+    s = Scenario.paper().override({"integrator.dt": 3e-3})
+    assert loop_rates(s, "px4") == pytest.approx((1 / 0.021, 1 / 0.003, 1 / 0.003), rel=1e-12)
 
 
 def hover_offset(position_rate: float) -> Scenario:
@@ -157,7 +165,8 @@ def test_a_position_loop_too_slow_for_the_hover_is_unstable_in_the_model_and_in_
 
 def test_the_linear_model_says_it_is_the_continuous_laws() -> None:
     s = hover_offset(50.0)
-    with pytest.warns(quadrs.SampledLawNote, match=r"continuous law's; its loops run at 50, 0, 0"):
+    said = r"continuous law's; its loops run at 50, 1000, 1000 Hz"  # the 1 ms step's rate
+    with pytest.warns(quadrs.SampledLawNote, match=said):
         quadrs.linearize(s, "pd")
     with warnings.catch_warnings():
         warnings.simplefilter("error", quadrs.SampledLawNote)

@@ -31,7 +31,7 @@ import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError
 from quadrs.io.integrity import CorruptRunError
 from quadrs.runs.flight import METRIC_COLUMNS
-from quadrs.runs.store import RunStore
+from quadrs.runs.store import RunStore, checkpoint_record
 from tests.guarantees.test_guarantees import TINY, run_cli
 
 pytestmark = pytest.mark.filterwarnings(
@@ -462,7 +462,7 @@ def test_report_on_odd_saved_files_is_one_line_or_a_summary(
     assert code == 2 and "nested" in one_line(err)
     # a checkpoint killed before its first chunk: a manifest, no part
     empty = tmp_path / "empty"
-    RunStore(empty).create(tiny, 1, ("pd", "smc"))
+    RunStore(empty).create(checkpoint_record(tiny, 1, ("pd", "smc")))
     code, out, err = run_cli("report", str(empty), capsys=capsys)
     assert code == 0 and "0 realisations" in out and "Traceback" not in err
     # a (sealed) file with zero rows, and one lacking a metric column

@@ -19,7 +19,7 @@ import quadrs
 from quadrs import MonteCarloResult, Scenario, ScenarioError, _core
 from quadrs.cli.main import main
 from quadrs.runs.montecarlo import run_range
-from quadrs.runs.store import RunStore
+from quadrs.runs.store import RunStore, checkpoint_record
 
 TINY = {
     "integrator.duration": 2.0,
@@ -65,11 +65,11 @@ def test_two_runs_cannot_both_create_one_checkpoint(
 ) -> None:
     """The check-then-create window: even if both runs saw an empty directory, only one
     manifest can be created."""
-    RunStore(tmp_path).create(tiny, 1, ("pd",))
+    RunStore(tmp_path).create(checkpoint_record(tiny, 1, ("pd",)))
     monkeypatch.setattr(RunStore, "exists", lambda self: False)
     monkeypatch.setattr(RunStore, "parts", lambda self: [])
     with pytest.raises(FileExistsError, match="already holds a run"):
-        RunStore(tmp_path).create(tiny, 2, ("pd",))
+        RunStore(tmp_path).create(checkpoint_record(tiny, 2, ("pd",)))
     assert RunStore(tmp_path).manifest()["seed"] == 1
 
 

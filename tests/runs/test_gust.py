@@ -161,3 +161,21 @@ def test_gust_psd_refuses_bad_frequency() -> None:
         gust_psd([1.0, -2.0])
     with pytest.raises(ValueError, match="frequency"):
         gust_psd([1.0, float("nan")])
+
+
+def test_the_figures_docs_model_gives_for_the_wind_at_its_rate() -> None:
+    """docs/model.md, "The wind at its rate": the first-order hold at 100 Hz passes 0.98 of
+    the power at 5 Hz (sinc^4), and the Dryden vertical spectrum at 50 Hz is 4e-4 of its 1 Hz
+    power at 30 m and 8 m/s (the delivery's), 9e-4 at 2 m and 10 m/s (the paper's); its
+    command prints them."""
+    from quadrs.runs.gust import gust_psd
+
+    def ratio(height: float, airspeed: float) -> float:
+        psd, _ = gust_psd([1.0, 50.0], "vertical", 1.0, height, airspeed)
+        return float(psd[1] / psd[0])
+
+    assert round(float(np.sinc(5 / 100) ** 4), 2) == 0.98
+    assert ratio(30.0, 8.0) == pytest.approx(4.01e-4, rel=1e-3)
+    assert ratio(2.0, 10.0) == pytest.approx(8.81e-4, rel=1e-3)
+    # The vertical length scale is the height (MIL-F-8785C low altitude).
+    assert quadrs._core.low_altitude_scales(30.0, 5.0)[1][2] == 30.0

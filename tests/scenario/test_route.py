@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 import quadrs
 from quadrs import Scenario, ScenarioError, plots
 from quadrs.scenario.route import Route
+from quadrs.scenario.route_timing import lowering_time
 
 POINTS = [[0.0, 0.0, 0.0], [0.0, 0.0, 3.0], [24.0, 7.0, 3.0], [24.0, 7.0, 1.0]]
 SPEED, ACCEL = 3.0, 1.0
@@ -290,3 +291,18 @@ def test_a_min_jerk_reference_refuses_a_dispersed_start() -> None:
                 },
             }
         )
+
+
+@pytest.mark.parametrize(("payout", "speed", "accel"), [(6.0, 0.5, 1.0), (4.5, 1.5, 0.4)])
+def test_pythons_lowering_time_is_the_engines(payout: float, speed: float, accel: float) -> None:
+    """The route files' and the route timing's bound read one lowering rule, the engine's
+    schedule's: a lowering's span in the engine's route equals ``lowering_time``."""
+    delivery = Scenario.preset("delivery").override(
+        {"payload.winch_speed": speed, "payload.winch_acceleration": accel,
+         "trajectory.route": [[0.0, 0.0, 5.0], [0.0, 0.0, 6.0]], "trajectory.hold": [6.0, 0.0],
+         "trajectory.lower": [payout, 0.0], "initial.position": [0.0, 0.0, 5.0]}
+    )  # fmt: skip
+    assert delivery.route is not None
+    (lowering,) = delivery.route.lowerings
+    assert lowering.end - lowering.start == pytest.approx(lowering_time(payout, speed, accel))
+    assert lowering_time(payout, speed, accel) == payout / speed + 2 * speed / accel

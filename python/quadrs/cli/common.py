@@ -11,7 +11,7 @@ import contextlib
 import shutil
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,9 @@ __all__ = [
     "BadInput",
     "batch_options",
     "batch_scope",
+    "batch_status",
     "check_positive",
+    "command_parser",
     "controller_names",
     "controller_option",
     "controllers_option",
@@ -36,6 +38,7 @@ __all__ = [
     "one_line",
     "paper_controllers",
     "parquet_out_option",
+    "passed",
     "plots_option",
     "progress",
     "report_width",
@@ -171,6 +174,12 @@ class BatchScope:
 
         self._keeping.enter_context(deferred_signals())
 
+    def keywords(self, args: argparse.Namespace) -> dict[str, Any]:
+        """The batch's options as the library's keywords: ``runs``, ``seed``, ``workers``,
+        ``progress`` (bars on a terminal only) and the ``client`` of ``--scheduler``."""
+        return {**passed(args, "runs", "seed", "workers"), "progress": progress(args),
+                "client": self.client}  # fmt: skip
+
 
 @contextlib.contextmanager
 def batch_scope(address: str | None) -> Iterator[BatchScope]:
@@ -229,6 +238,18 @@ def one_line(text: str) -> str:
     return "; ".join(line.strip() for line in text.strip().splitlines() if line.strip())
 
 
+def batch_status(result: Any, saved: bool) -> int:
+    """A batch command's exit status: 130 if interrupted, else 0 if its outputs were saved
+    and 1 if not."""
+    return EXIT_INTERRUPT if result.interrupted else EXIT_OK if saved else EXIT_FAIL
+
+
+def passed(args: argparse.Namespace, *names: str) -> dict[str, Any]:
+    """The options ``names`` as keywords of the same names: options the library takes as
+    they are given."""
+    return {name: getattr(args, name) for name in names}
+
+
 def check_positive(name: str, value: int | None, minimum: int = 1) -> None:
     """BadInput unless an integer option's ``value`` (None: not given) is at least
     ``minimum``."""
@@ -239,6 +260,23 @@ def check_positive(name: str, value: int | None, minimum: int = 1) -> None:
 def progress(args: argparse.Namespace) -> bool:
     """Progress bars on a terminal only: none in logs, pipes or CI output."""
     return not args.no_progress and sys.stderr.isatty()
+
+
+def command_parser(
+    sub: Any, add: Callable[..., None], *parents: argparse.ArgumentParser
+) -> argparse.ArgumentParser:
+    """The parser of ``quadrs NAME``, as its ``add_NAME`` function declares it: the name after
+    ``add_``, the one line ``quadrs --help`` lists its first paragraph, the description of
+    ``quadrs NAME --help`` the rest (the docstring is the command's help); ``parents``: the
+    options it shares (the scenario's)."""
+    doc = (add.__doc__ or "").split("\n\n", 1)
+    summary, description = (" ".join(part.split()) for part in (*doc, "")[:2])
+    return sub.add_parser(
+        add.__name__.removeprefix("add_"),
+        parents=list(parents),
+        help=summary,
+        description=description or None,
+    )
 
 
 # -- the scenario's options -------------------------------------------------------------------

@@ -19,7 +19,9 @@ from quadrs.cli.common import (
     EXIT_INTERRUPT,
     EXIT_OK,
     batch_scope,
+    command_parser,
     controller_option,
+    passed,
     scheduler_option,
     seed_option,
     workers_option,
@@ -57,19 +59,16 @@ def _constraint(text: str) -> Any:
 
 
 def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
+    """tune gains or calibrate parameters against a Monte Carlo objective
+
+    Minimise the mean over --runs gust realisations (the same ones for every candidate) of
+    --objective summed over --phase, over the --param keys within their bounds. Candidates unstable
+    at hover in a mode the flight excites are rejected before flying (the mode is named). Writes a
+    scenario file that bases on the input and holds the tuned values (see docs/design-loop.md)."""
     from quadrs import _core
     from quadrs.present.labels import INPUT_UNITS
 
-    p = sub.add_parser(
-        "tune",
-        parents=[common],
-        help="tune gains or calibrate parameters against a Monte Carlo objective",
-        description="Minimise the mean over --runs gust realisations (the same ones for every "
-        "candidate) of --objective summed over --phase, over the --param keys within their "
-        "bounds. Candidates unstable at hover in a mode the flight excites are rejected before "
-        "flying (the mode is named). Writes a scenario "
-        "file that bases on the input and holds the tuned values (see docs/design-loop.md).",
-    )
+    p = command_parser(sub, add_tune, common)
     controller_option(p)
     p.add_argument(
         "--param",
@@ -143,14 +142,12 @@ def add_tune(sub: Any, common: argparse.ArgumentParser) -> None:
 
 
 def add_linearize(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "linearize",
-        parents=[common],
-        help="the closed loop at hover as A, B, C, D and the gust-to-e_o frequency response",
-        description="Linearise the closed loop at hover about a steady vertical wind (default: "
-        "the gust's statistically equivalent wind sigma_z sqrt(2/pi)), print its poles and the "
-        "gust-to-e_o transmissibility of each controller, optionally plot it.",
-    )
+    """the closed loop at hover as A, B, C, D and the gust-to-e_o frequency response
+
+    Linearise the closed loop at hover about a steady vertical wind (default: the gust's
+    statistically equivalent wind sigma_z sqrt(2/pi)), print its poles and the gust-to-e_o
+    transmissibility of each controller, optionally plot it."""
+    p = command_parser(sub, add_linearize, common)
     controller_option(p, both=True)
     p.add_argument(
         "--wind",
@@ -243,7 +240,13 @@ def _save_tuning(args: argparse.Namespace, result: Any, flown: int, history: Pat
 
 def cmd_tune(args: argparse.Namespace) -> int:
     from quadrs.cli.scenario_args import load_scenario
-    from quadrs.design.optimize import InfeasibleWarning, check_tuning, expand, optimize
+    from quadrs.design.optimize import (
+        InfeasibleWarning,
+        OptimizeOptions,
+        check_tuning,
+        expand,
+        optimize,
+    )
     from quadrs.engine.calls import check_int
     from quadrs.io.files import check_writable
 
@@ -276,24 +279,19 @@ def cmd_tune(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(), batch_scope(args.scheduler) as batch:
         warnings.simplefilter("ignore", InfeasibleWarning)  # said below, as the outcome
         try:
-            result = optimize(
-                scenario,
+            options = OptimizeOptions(
                 args.controller,
                 params,
                 args.objective,
                 phases,
-                runs=args.runs,
-                seed=args.seed,
                 require_stable=not args.allow_unstable,
-                method=args.method,
-                maxiter=args.maxiter,
-                workers=args.workers,
                 progress=progress,
-                popsize=args.popsize,
                 constraints=args.constraint,
                 callback=flown.append,
                 client=batch.client,
+                **passed(args, "runs", "seed", "method", "maxiter", "workers", "popsize"),
             )
+            result = optimize(scenario, options)
         except KeyboardInterrupt:
             print("quadrs tune: interrupted during the first candidate: no candidate finished, "
                   "nothing to keep", file=sys.stderr)  # fmt: skip

@@ -8,35 +8,21 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import (
-    EXIT_FAIL,
-    EXIT_INTERRUPT,
-    EXIT_OK,
-    BadInput,
-    batch_options,
-    batch_scope,
-    check_positive,
-    limit_options,
-    plots_option,
-    progress,
-    table_options,
-)
+from quadrs.cli import common
 
 __all__ = ["add_mc", "cmd_mc"]
 
 
-def add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "mc",
-        parents=[common],
-        help="Monte Carlo batch; prints the Table-3 summary",
-        description="Fly many gust realisations with every controller (paired: the same gust "
-        "for each) and print the paper's Table 3 with 95% confidence intervals (IAE in m s, "
-        "ITAE in m s^2; P = 100 SMC/PD in percent).",
-    )
-    batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
-    table_options(p)
-    plots_option(p, "write the batch's figures here")
+def add_mc(sub: Any, options: argparse.ArgumentParser) -> None:
+    """Monte Carlo batch; prints the Table-3 summary
+
+    Fly many gust realisations with every controller (paired: the same gust for each) and print the
+    paper's Table 3 with 95% confidence intervals (IAE in m s, ITAE in m s^2; P = 100 SMC/PD in
+    percent)."""
+    p = common.command_parser(sub, add_mc, options)
+    common.batch_options(p, 1000, "write the runs (one row per realisation, controller, phase)")
+    common.table_options(p)
+    common.plots_option(p, "write the batch's figures here")
     p.add_argument(
         "--checkpoint",
         type=Path,
@@ -64,12 +50,12 @@ def add_mc(sub: Any, common: argparse.ArgumentParser) -> None:
         "bit, and not across instruction sets (docs/performance.md); recorded in --out and "
         "--checkpoint",
     )
-    limit_options(p)
+    common.limit_options(p)
 
 
 def cmd_mc(args: argparse.Namespace) -> int:
     """A Monte Carlo batch: Table 3, optional Parquet and figures; 130 if interrupted."""
-    from quadrs.cli.outputs import check_directories, check_outputs, check_suffix, save
+    from quadrs.cli.outputs import check_directories, check_outputs, check_suffix, save_runs
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.cli.tables import (
         is_mission,
@@ -82,39 +68,31 @@ def cmd_mc(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args)
     check_suffix(args.out, (".parquet",), "--out")
-    check_positive("--runs", args.runs)
-    check_positive("--workers", args.workers)
-    check_positive("--chunk", args.chunk)
+    common.check_positive("--runs", args.runs)
+    common.check_positive("--workers", args.workers)
+    common.check_positive("--chunk", args.chunk)
     if args.resume and args.checkpoint is None:
-        raise BadInput("--resume needs --checkpoint DIR (the run to continue)")
+        raise common.BadInput("--resume needs --checkpoint DIR (the run to continue)")
     if args.checkpoint is not None and not args.resume and args.checkpoint.exists():
         if any(args.checkpoint.iterdir()):
-            raise BadInput(f"--checkpoint {args.checkpoint} already holds a run: add --resume")
+            held = f"--checkpoint {args.checkpoint} already holds a run: add --resume"
+            raise common.BadInput(held)
     check_outputs(args.out)
     check_directories(args.plots)
     if args.scheduler is None:  # a cluster's speed is not this machine's
         from quadrs.cli.cost import announce_batch
 
         announce_batch("mc", scenario, args.controllers, args.runs, args.workers, args.seed)
-    with batch_scope(args.scheduler) as batch:
+    with common.batch_scope(args.scheduler) as batch:
         mc = monte_carlo(
             scenario,
-            runs=args.runs,
-            seed=args.seed,
             controllers=args.controllers,
-            workers=args.workers,
-            progress=progress(args),
             out=args.checkpoint,
-            resume=args.resume,
-            chunk=args.chunk,
-            client=batch.client,
-            sampling=args.sampling,
-            fused=args.fused,
+            **batch.keywords(args),
+            **common.passed(args, "resume", "chunk", "sampling", "fused"),
         )
         batch.flown()
-        saved = True
-        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-            saved = save(mc.to_parquet, args.out)
+        saved = save_runs(mc, args.out)
     if not mc.runs.empty:
         print_dispersions(mc)
         if is_mission(mc):
@@ -126,4 +104,4 @@ def cmd_mc(args: argparse.Namespace) -> int:
         from quadrs.cli.figures import mc_plots
 
         mc_plots(mc, args.plots, args.limit)
-    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+    return common.batch_status(mc, saved)

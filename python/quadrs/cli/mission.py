@@ -17,16 +17,15 @@ from pathlib import Path
 from typing import Any
 
 from quadrs.cli.common import (
-    EXIT_FAIL,
     EXIT_INTERRUPT,
-    EXIT_OK,
     batch_scope,
+    batch_status,
+    command_parser,
     import_in_background,
     no_progress_option,
     note,
     parquet_out_option,
     plots_option,
-    progress,
     report_width,
     scheduler_option,
     seed_and_workers,
@@ -93,19 +92,16 @@ def _fraction(text: str) -> float:
 
 
 def add_mission(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "mission",
-        parents=[common],
-        help="will the parcel survive this route? per-leg risk of a Monte Carlo batch",
-        description="Fly --runs gust realisations of the scenario (default: --preset "
-        "delivery) with one controller and print, first, whether the route was flown (tracking "
-        "and cross-track error against --track-limit, divergence, time at the thrust limit), "
-        'then per phase (a route\'s legs and holds under phases = "legs") and for the '
-        "whole flight: the probability that the payload's peak acceleration exceeds --limit "
-        "(exact 95% interval), the worst and the --quantile of the swing and the cable "
-        "tension, slack and saturated time, and the tracking errors, with intervals "
-        "(see docs/delivery.md). Diverged flights count as exceeding.",
-    )
+    """will the parcel survive this route? per-leg risk of a Monte Carlo batch
+
+    Fly --runs gust realisations of the scenario (default: --preset delivery) with one controller
+    and print, first, whether the route was flown (tracking and cross-track error against
+    --track-limit, divergence, time at the thrust limit), then per phase (a route's legs and holds
+    under phases = "legs") and for the whole flight: the probability that the payload's peak
+    acceleration exceeds --limit (exact 95% interval), the worst and the --quantile of the swing and
+    the cable tension, slack and saturated time, and the tracking errors, with intervals (see
+    docs/delivery.md). Diverged flights count as exceeding."""
+    p = command_parser(sub, add_mission, common)
     _preset_help(p, f"start from a shipped preset (default: {DEFAULT_PRESET})")
     p.add_argument(
         "--runs",
@@ -206,7 +202,7 @@ def _preset_help(p: argparse.ArgumentParser, text: str) -> None:
 
 
 def cmd_mission(args: argparse.Namespace) -> int:
-    from quadrs.cli.outputs import check_directories, check_outputs, save
+    from quadrs.cli.outputs import check_directories, check_outputs, save_runs
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.engine.calls import check_int
     from quadrs.runs.montecarlo import monte_carlo
@@ -233,17 +229,8 @@ def cmd_mission(args: argparse.Namespace) -> int:
     import_in_background("scipy.stats")
 
     with batch_scope(args.scheduler) as batch:
-        mc = monte_carlo(
-            scenario,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controller,
-            workers=args.workers,
-            progress=progress(args),
-            spectra=False,
-            client=batch.client,
-            flown=flown,
-        )
+        mc = monte_carlo(scenario, controllers=args.controller, spectra=False, flown=flown,
+                         **batch.keywords(args))  # fmt: skip
         batch.flown()
         metric, limit = args.limit
         mc.question = {  # saved with the runs: quadrs report asks it again
@@ -255,9 +242,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
             "touchdown_limit": args.touchdown_limit,
             "targets": dict(args.target),
         }
-        saved = True
-        if args.out is not None and not mc.runs.empty:  # saved first: Ctrl-C keeps it
-            saved = save(mc.to_parquet, args.out)
+        saved = save_runs(mc, args.out)
     if mc.runs.empty:
         print("quadrs mission: interrupted before any flight finished", file=sys.stderr)
         return EXIT_INTERRUPT
@@ -285,7 +270,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
         from quadrs.cli.figures import mission_plots
 
         mission_plots(mc, reports, args.plots)
-    return EXIT_INTERRUPT if mc.interrupted else EXIT_OK if saved else EXIT_FAIL
+    return batch_status(mc, saved)
 
 
 def _announce(scenario: Any, args: argparse.Namespace) -> list[Any]:

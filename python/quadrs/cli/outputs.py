@@ -8,6 +8,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from quadrs.cli.common import BadInput
 from quadrs.io.files import check_writable
@@ -37,6 +38,15 @@ def check_directories(*paths: Path | None, option: str = "--plots") -> None:
             raise NotADirectoryError(20, f"{option}: exists and is not a directory", str(path))
         path.mkdir(parents=True, exist_ok=True)
         check_writable(path / "figure")
+
+
+def save_runs(result: Any, out: Path | None) -> bool:
+    """A batch's runs written to ``out`` (``--out``; nothing without it or without a finished
+    flight), before anything is printed so that a Ctrl-C keeps them; whether all that was
+    asked is saved (else the runs went to a recovery file, :func:`save`)."""
+    if out is None or result.runs.empty:
+        return True
+    return save(result.to_parquet, out)
 
 
 def save(write: Callable[[Path], object], path: Path) -> bool:

@@ -8,32 +8,20 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import (
-    EXIT_INTERRUPT,
-    EXIT_OK,
-    _values,
-    check_positive,
-    no_progress_option,
-    progress,
-    seed_option,
-    table_options,
-    workers_option,
-)
+from quadrs.cli import common
 
 __all__ = ["add_paper", "cmd_paper"]
 
 
-def add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
+def add_paper(sub: Any, options: argparse.ArgumentParser) -> None:
+    """every table and figure of the paper, and report.md
+
+    Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo versions) into DIR, with
+    report.md setting our Table 3 beside the paper's. The numbers are not the paper's (see
+    docs/paper-calibration.md)."""
     from quadrs.paper.grid import FREQUENCIES, MASSES
 
-    p = sub.add_parser(
-        "paper",
-        parents=[common],
-        help="every table and figure of the paper, and report.md",
-        description="Remake the paper's Figs. 4-16 and Table 3 with quadrs (with Monte Carlo "
-        "versions) into DIR, with report.md setting our Table 3 beside the paper's. The numbers "
-        "are not the paper's (see docs/paper-calibration.md).",
-    )
+    p = common.command_parser(sub, add_paper, options)
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     p.add_argument(
         "--runs",
@@ -52,7 +40,7 @@ def add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--frequencies",
-        type=_values,
+        type=common._values,
         default=list(FREQUENCIES),
         metavar="F1,F2,...",
         help=f"payload natural frequencies in Hz for Figs. 13/14 (default: "
@@ -60,15 +48,15 @@ def add_paper(sub: Any, common: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--masses",
-        type=_values,
+        type=common._values,
         default=list(MASSES),
         metavar="M1,M2,...",
         help=f"payload masses in kg for Fig. 16 (default: {','.join(map(str, MASSES))})",
     )
-    seed_option(p)
-    workers_option(p, help="worker threads (default: all)")
-    table_options(p)
-    no_progress_option(p)
+    common.seed_option(p)
+    common.workers_option(p, help="worker threads (default: all)")
+    common.table_options(p)
+    common.no_progress_option(p)
 
 
 def cmd_paper(args: argparse.Namespace) -> int:
@@ -80,9 +68,9 @@ def cmd_paper(args: argparse.Namespace) -> int:
     from quadrs.paper.pipeline import paper
 
     scenario = load_scenario(args)
-    check_positive("--runs", args.runs, 2)
-    check_positive("--sweep-runs", args.sweep_runs, 2)
-    check_positive("--workers", args.workers)
+    common.check_positive("--runs", args.runs, 2)
+    common.check_positive("--sweep-runs", args.sweep_runs, 2)
+    common.check_positive("--workers", args.workers)
     sweep_runs = max(2, args.runs // 10) if args.sweep_runs is None else args.sweep_runs
     from quadrs.paper.pipeline import _check as check_paper
 
@@ -99,7 +87,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
         args.runs,
         args.seed,
         args.workers,
-        progress(args),
+        common.progress(args),
         sweep_runs=args.sweep_runs,
         frequencies=args.frequencies,
         masses=args.masses,
@@ -107,4 +95,4 @@ def cmd_paper(args: argparse.Namespace) -> int:
     if result.mc is not None and not result.mc.runs.empty:
         print_table3(result.mc, args)
     print(f"wrote {len(result.files)} files to {result.out}", file=sys.stderr)
-    return EXIT_INTERRUPT if result.interrupted else EXIT_OK
+    return common.EXIT_INTERRUPT if result.interrupted else common.EXIT_OK

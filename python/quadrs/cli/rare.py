@@ -16,8 +16,10 @@ from quadrs.cli.common import (
     EXIT_FAIL,
     EXIT_INTERRUPT,
     EXIT_OK,
+    command_parser,
     no_progress_option,
     parquet_out_option,
+    passed,
     scheduler_option,
     seed_option,
     workers_option,
@@ -66,19 +68,17 @@ def paired_paths(out: Path, controllers: tuple[str, ...]) -> dict[str, Path]:
 
 
 def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
+    """a small probability P(metric > threshold) by subset simulation
+
+    Estimate P(METRIC in PHASE > THRESHOLD) over the gust's randomness by subset simulation: far
+    fewer flights than plain Monte Carlo for small probabilities. Prints the estimate, its
+    coefficient of variation and 95% interval, the levels and the flights, and the flights plain
+    Monte Carlo would need for the same precision. A diverged flight counts as an exceedance (see
+    docs/rare-events.md)."""
     from quadrs import _core
     from quadrs.present.labels import INPUT_UNITS
 
-    p = sub.add_parser(
-        "rare",
-        parents=[common],
-        help="a small probability P(metric > threshold) by subset simulation",
-        description="Estimate P(METRIC in PHASE > THRESHOLD) over the gust's randomness by "
-        "subset simulation: far fewer flights than plain Monte Carlo for small probabilities. "
-        "Prints the estimate, its coefficient of variation and 95% interval, the levels and "
-        "the flights, and the flights plain Monte Carlo would need for the same precision. "
-        "A diverged flight counts as an exceedance (see docs/rare-events.md).",
-    )
+    p = command_parser(sub, add_rare, common)
     p.add_argument(
         "--metric",
         required=True,
@@ -207,17 +207,11 @@ def cmd_rare(args: argparse.Namespace) -> int:
         out = rare_event(
             scenario,
             controller=controllers[0],
-            metric=args.metric,
-            phase=args.phase,
-            threshold=args.threshold,
-            per_level=args.per_level,
-            p0=args.p0,
-            seed=args.seed,
-            max_levels=args.max_levels,
-            workers=args.workers,
             on_level=on_level,
             controllers=controllers if len(controllers) > 1 else None,
             client=batch.client,
+            **passed(args, "metric", "phase", "threshold", "per_level", "p0", "seed"),
+            **passed(args, "max_levels", "workers"),
         )
         batch.flown()
         results: dict[str, RareEventResult]

@@ -11,6 +11,7 @@ from quadrs.cli.common import (
     EXIT_FAIL,
     EXIT_OK,
     BadInput,
+    command_parser,
     limit_options,
     plots_option,
     table_options,
@@ -31,14 +32,12 @@ _NOT_REPORTED = {
 
 
 def add_report(sub: Any) -> None:
-    p = sub.add_parser(
-        "report",
-        help="reprint the summary of a saved Monte Carlo, mission or sweep file",
-        description="Reprint the Table-3 summary (or a sweep's summary) from a Parquet file "
-        "written by `quadrs mc --out` or `quadrs sweep --out`; for the flights of a route "
-        "(`quadrs mission --out`), the mission's tables at the first --limit (default "
-        "max_accel=9.81).",
-    )
+    """reprint the summary of a saved Monte Carlo, mission or sweep file
+
+    Reprint the Table-3 summary (or a sweep's summary) from a Parquet file written by `quadrs mc
+    --out` or `quadrs sweep --out`; for the flights of a route (`quadrs mission --out`), the
+    mission's tables at the first --limit (default max_accel=9.81)."""
+    p = command_parser(sub, add_report)
     p.add_argument(
         "file",
         type=Path,

@@ -8,19 +8,18 @@ import argparse
 import sys
 from typing import Any
 
-from quadrs.cli.common import EXIT_OK
+from quadrs.cli.common import EXIT_OK, command_parser
 
 __all__ = ["add_scenario", "cmd_scenario"]
 
 
 def add_scenario(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "scenario",
-        help="show a scenario, list its keys or the presets",
-        description="Inspect scenarios: `show` prints the full TOML (SI units) laid out like "
-        "its preset, with the preset's comments and units, `keys` every dotted key with its "
-        "value and unit, `presets` the shipped presets.",
-    )
+    """show a scenario, list its keys or the presets
+
+    Inspect scenarios: `show` prints the full TOML (SI units) laid out like its preset, with the
+    preset's comments and units, `keys` every dotted key with its value and unit, `presets` the
+    shipped presets."""
+    p = command_parser(sub, add_scenario)
     ssub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
     show = ssub.add_parser("show", parents=[common], help="print the scenario as TOML")
     show.add_argument(

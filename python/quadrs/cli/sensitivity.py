@@ -15,11 +15,11 @@ from quadrs.cli.common import (
     BadInput,
     batch_scope,
     check_positive,
+    command_parser,
     controllers_option,
     no_progress_option,
     parquet_out_option,
     plots_option,
-    progress,
     report_width,
     scheduler_option,
     seed_option,
@@ -33,14 +33,12 @@ __all__ = ["add_sensitivity", "cmd_sensitivity", "sensitivity_table"]
 
 
 def add_sensitivity(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "sensitivity",
-        parents=[common],
-        help="which uncertain parameter matters most: Sobol' indices",
-        description="Fly a Saltelli design over the scenario's dispersed keys (--disperse or "
-        "a [dispersions] table) and the gust realisation, and print each key's first-order "
-        "(S1) and total (ST) Sobol' index of one metric with 95% intervals, largest first.",
-    )
+    """which uncertain parameter matters most: Sobol' indices
+
+    Fly a Saltelli design over the scenario's dispersed keys (--disperse or a [dispersions] table)
+    and the gust realisation, and print each key's first-order (S1) and total (ST) Sobol' index of
+    one metric with 95% intervals, largest first."""
+    p = command_parser(sub, add_sensitivity, common)
     p.add_argument(
         "--runs",
         type=int,
@@ -88,16 +86,8 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         raise BadInput(f"--phase {args.phase!r}: one of {', '.join(scenario.phase_names)}")
     check_outputs(args.out)
     with batch_scope(args.scheduler) as batch:
-        sa = sensitivity(
-            scenario,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controllers,
-            workers=args.workers,
-            progress=progress(args),
-            gust=not args.no_gust_factor,
-            client=batch.client,
-        )
+        sa = sensitivity(scenario, controllers=args.controllers, gust=not args.no_gust_factor,
+                         **batch.keywords(args))  # fmt: skip
         batch.flown()
         status = EXIT_OK
         if args.out is not None and not save(sa.to_parquet, args.out):  # first: Ctrl-C keeps it

@@ -6,20 +6,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_OK, controller_option, paper_controllers
+from quadrs.cli import common
 
 __all__ = ["add_stability", "cmd_stability"]
 
 
-def add_stability(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "stability",
-        parents=[common],
-        help="closed-loop poles at hover and a verdict",
-        description="Linearise the closed loop at hover and print its poles (1/s) and a "
-        "stability verdict for each controller.",
-    )
-    controller_option(p, both=True)
+def add_stability(sub: Any, options: argparse.ArgumentParser) -> None:
+    """closed-loop poles at hover and a verdict
+
+    Linearise the closed loop at hover and print its poles (1/s) and a stability verdict for each
+    controller."""
+    p = common.command_parser(sub, add_stability, options)
+    common.controller_option(p, both=True)
     p.add_argument(
         "--poles",
         action="store_true",
@@ -34,7 +32,7 @@ def cmd_stability(args: argparse.Namespace) -> int:
     from quadrs.hover.stability import stability as check
 
     scenario = load_scenario(args)
-    controllers = paper_controllers() if args.controller == "both" else (args.controller,)
+    controllers = common.paper_controllers() if args.controller == "both" else (args.controller,)
     unstable = False
     for controller in controllers:
         report = check(scenario, controller=controller)
@@ -43,4 +41,4 @@ def cmd_stability(args: argparse.Namespace) -> int:
         if args.poles:
             print_frame(report.poles)
         unstable |= report.verdict == "unstable"
-    return EXIT_FAIL if unstable else EXIT_OK
+    return common.EXIT_FAIL if unstable else common.EXIT_OK

@@ -6,33 +6,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from quadrs.cli.common import (
-    EXIT_FAIL,
-    EXIT_INTERRUPT,
-    EXIT_OK,
-    BadInput,
-    _values,
-    batch_options,
-    batch_scope,
-    check_positive,
-    limit_options,
-    plots_option,
-    progress,
-)
+from quadrs.cli import common
 
 __all__ = ["add_sweep", "cmd_sweep"]
 
 
-def add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
-    p = sub.add_parser(
-        "sweep",
-        parents=[common],
-        help="Monte Carlo at every point of a one- or two-key grid",
-        description="Run a Monte Carlo batch at every grid point of one or two scenario keys, "
-        "with the same seed at every point (common random numbers: differences between "
-        "points are not gust noise). Prints mean IAE (m s) and ITAE (m s^2) per controller "
-        "and P = 100 SMC/PD (%) per point and phase.",
-    )
+def add_sweep(sub: Any, options: argparse.ArgumentParser) -> None:
+    """Monte Carlo at every point of a one- or two-key grid
+
+    Run a Monte Carlo batch at every grid point of one or two scenario keys, with the same seed at
+    every point (common random numbers: differences between points are not gust noise). Prints mean
+    IAE (m s) and ITAE (m s^2) per controller and P = 100 SMC/PD (%) per point and phase."""
+    p = common.command_parser(sub, add_sweep, options)
     p.add_argument(
         "--param",
         required=True,
@@ -42,20 +27,20 @@ def add_sweep(sub: Any, common: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--values",
         required=True,
-        type=_values,
+        type=common._values,
         metavar="V1,V2,...",
         help="its values in the key's unit, comma-separated (or a TOML array)",
     )
     p.add_argument("--param2", metavar="KEY", help="optional second key (full grid)")
-    p.add_argument("--values2", type=_values, metavar="V1,V2,...", help="values of --param2")
-    batch_options(p, 100, "write the tidy runs table of every point (swept keys as columns)")
-    plots_option(p, "write the sweep's figures here")
-    limit_options(p)
+    p.add_argument("--values2", type=common._values, metavar="V1,V2,...", help="values of --param2")
+    common.batch_options(p, 100, "write the tidy runs table of every point (swept keys as columns)")
+    common.plots_option(p, "write the sweep's figures here")
+    common.limit_options(p)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """A one- or two-key sweep: compact summary, optional Parquet and figures."""
-    from quadrs.cli.outputs import check_outputs, check_suffix, save
+    from quadrs.cli.outputs import check_outputs, check_suffix, save_runs
     from quadrs.cli.scenario_args import load_scenario
     from quadrs.cli.tables import print_frame, print_limits
     from quadrs.runs.sweep import sweep
@@ -63,30 +48,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     scenario = load_scenario(args)
     grid = {args.param: args.values}
     if (args.param2 is None) != (args.values2 is None):
-        raise BadInput("--param2 and --values2 go together")
+        raise common.BadInput("--param2 and --values2 go together")
     if args.param2 is not None:
         if args.param2 == args.param:
-            raise BadInput(f"--param2 {args.param2}: the same key as --param")
+            raise common.BadInput(f"--param2 {args.param2}: the same key as --param")
         grid[args.param2] = args.values2
     check_suffix(args.out, (".parquet",), "--out")
-    check_positive("--runs", args.runs)
-    check_positive("--workers", args.workers)
+    common.check_positive("--runs", args.runs)
+    common.check_positive("--workers", args.workers)
     check_outputs(args.out)
-    with batch_scope(args.scheduler) as batch:
-        result = sweep(
-            scenario,
-            grid,
-            runs=args.runs,
-            seed=args.seed,
-            controllers=args.controllers,
-            workers=args.workers,
-            progress=progress(args),
-            client=batch.client,
-        )
+    with common.batch_scope(args.scheduler) as batch:
+        result = sweep(scenario, grid, controllers=args.controllers, **batch.keywords(args))
         batch.flown()
-        saved = True
-        if args.out is not None and not result.runs.empty:  # saved first: Ctrl-C keeps it
-            saved = save(result.to_parquet, args.out)
+        saved = save_runs(result, args.out)
     if not result.runs.empty:
         print_frame(result.compact())
         print_limits(result, args)
@@ -94,4 +68,4 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         from quadrs.cli.figures import sweep_plots
 
         sweep_plots(result, args.plots)
-    return EXIT_INTERRUPT if result.interrupted else EXIT_OK if saved else EXIT_FAIL
+    return common.batch_status(result, saved)

@@ -126,10 +126,10 @@ class Constraint:
 
     def _shown(self, value: float) -> str:
         """A value of the metric as the text form gives it, with its unit if it is an angle."""
-        from quadrs.present.labels import DEGREE_METRICS, shown_value
+        from quadrs.present.labels import is_angle, shown_value
 
         text = _fmt(shown_value(self.metric, value))
-        return f"{text}deg" if self.metric in DEGREE_METRICS else text
+        return f"{text}deg" if is_angle(self.metric) else text
 
     def satisfied(self, value: float) -> bool:
         """Does ``value`` meet the bound? NaN never does."""

@@ -236,10 +236,10 @@ def _risk(r: MissionReport, phase: str) -> str:
 
 def _short(metric: str) -> str:
     """``accel`` for max_accel, ``swing (deg)`` for max_swing: a column header."""
-    from quadrs.present.labels import DEGREE_METRICS
+    from quadrs.present.labels import is_angle
 
     name = metric.removeprefix("max_")
-    return f"{name} (deg)" if metric in DEGREE_METRICS else name
+    return f"{name} (deg)" if is_angle(metric) else name
 
 
 def _ci(v: float, lo: float, hi: float) -> str:

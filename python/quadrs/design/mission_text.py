@@ -9,7 +9,7 @@ from typing import Protocol
 
 import pandas as pd
 
-from quadrs.design.mission_tables import ANY_PHASE, DEGREES, LOWS, PEAKS, none_seen_bound
+from quadrs.design.mission_tables import ANY_PHASE, LOWS, PEAKS, none_seen_bound
 
 
 def _last_metres_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
@@ -62,18 +62,16 @@ def _interval(v: float, lo: float, hi: float, scale: float = 1.0, digits: int = 
 
 def _shown_name(metric: str) -> str:
     """``acceleration (m/s^2)`` for max_accel; ``max_swing (deg)``; ``max_tension (N)``."""
-    from quadrs.present.labels import UNITS
-
     if metric == "max_accel":
         return "acceleration (m/s^2)"
-    unit = UNITS.get(metric, "").replace("²", "^2")
+    unit = _unit(metric)
     return f"{metric} ({unit})" if unit else metric
 
 
 def _unit(metric: str) -> str:
-    from quadrs.present.labels import UNITS
+    from quadrs.present.labels import shown_unit
 
-    return UNITS.get(metric, "").replace("²", "^2")
+    return shown_unit(metric).replace("²", "^2")
 
 
 class _Asked(Protocol):
@@ -189,11 +187,13 @@ def _acceleration_text(t: pd.DataFrame, qp: str, metric: str) -> pd.DataFrame:
 
 
 def _payload_text(t: pd.DataFrame, qp: str) -> pd.DataFrame:
+    from quadrs.present.labels import display_scale
+
     out = pd.DataFrame(index=t.index)
     for m in PEAKS:
         if f"{m}_worst" not in t:
             continue
-        scale = 180 / math.pi if m in DEGREES else 1.0
+        scale = display_scale(m)
         name = m.removeprefix("max_")
         out[f"{name} {qp}"] = [
             _interval(a, b, c, scale)

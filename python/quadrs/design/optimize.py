@@ -16,10 +16,11 @@ seeds (``holdout``), the check against having tuned to the particular gusts of `
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -27,7 +28,19 @@ import pandas as pd
 
 from quadrs import _core
 from quadrs.design.constraints import Constraint, check_phases, constraints_from
-from quadrs.engine.calls import CONTROLLERS, U64_MAX, check_controller, check_int
+from quadrs.design.optimize_result import (
+    HOLDOUT_BATCHES,
+    HOLDOUT_SEED_OFFSET,
+    Holdout,
+    InfeasibleWarning,
+    Objective,
+    OptimizeResult,
+    choose_best,
+    holdout_of,
+    holdout_seed,
+    phase_effects,
+)
+from quadrs.engine.calls import CONTROLLERS, check_controller, check_int
 from quadrs.runs.montecarlo import monte_carlo
 from quadrs.runs.montecarlo_result import MonteCarloResult
 from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_error
@@ -35,141 +48,29 @@ from quadrs.scenario.scenario import Scenario, design_keys, key_value, scenario_
 if TYPE_CHECKING:  # pragma: no cover
     from dask.distributed import Client
 
+__all__ = [
+    "HOLDOUT_BATCHES",
+    "HOLDOUT_SEED_OFFSET",
+    "METHODS",
+    "Holdout",
+    "InfeasibleWarning",
+    "Objective",
+    "OptimizeOptions",
+    "OptimizeResult",
+    "check_tuning",
+    "expand",
+    "holdout_seed",
+    "optimize",
+    "phase_effects",
+]
+
 METHODS = ("differential_evolution", "nelder-mead")
-#: Offset of the held-out seed from the tuning seed.
-HOLDOUT_SEED_OFFSET = 1_000_003
-#: Groups the held-out realisations are split into for a callable objective's interval.
-HOLDOUT_BATCHES = 8
-
-Objective = str | Callable[[MonteCarloResult], float]
-
-
-def holdout_seed(seed: int) -> int:
-    """The seed the best candidate is re-evaluated on: ``seed + HOLDOUT_SEED_OFFSET``,
-    wrapping within the 64-bit seeds (a seed near 2**64 still has one)."""
-    return (seed + HOLDOUT_SEED_OFFSET) % (U64_MAX + 1)
-
-
-class InfeasibleWarning(UserWarning):
-    """No candidate met every constraint: the result holds the least-violating one."""
+#: Generations (differential evolution) or evaluations (Nelder-Mead) when ``maxiter`` is None.
+DEFAULT_MAXITER = {"differential_evolution": 20, "nelder-mead": 100}
 
 
 class _Stop(Exception):
     """Ctrl-C inside an evaluation: unwinds scipy's loop to the caller."""
-
-
-@dataclass(frozen=True)
-class Holdout:
-    """The best candidate re-evaluated on fresh seeds: ``objective`` with a 95 % interval.
-
-    For a metric objective the interval is Student's t over the per-realisation values; for a
-    callable one, over the callable's values on ``HOLDOUT_BATCHES`` disjoint groups of
-    realisations (batch means). ``diverged``: realisations that diverged.
-    """
-
-    seed: int
-    runs: int
-    objective: float
-    low: float
-    high: float
-    diverged: int
-
-
-@dataclass(frozen=True)
-class OptimizeResult:
-    """What :func:`optimize` found.
-
-    ``best``: {key: value} of the best candidate; ``objective``: its value on the tuning seed;
-    ``scenario``: the input scenario with ``best`` applied; ``history``: one row per evaluation
-    (``evaluation``, every parameter key, ``objective``, ``stable`` (in every mode),
-    ``max_real`` (largest pole real part among the modes the scenario excites, 1/s), ``flown``,
-    ``diverged`` (realisations), ``penalised``, ``unstable_modes`` (the excited modes that are
-    not stable, e.g. "SMC lateral x/pitch +1.31 ± 3.90j"; "" if none)); ``holdout``: see
-    :class:`Holdout` (None if interrupted); ``interrupted``: stopped by Ctrl-C, the best so
-    far is kept. ``baseline``: the objective of the untuned input scenario on the tuning seed
-    (NaN if its flights diverged or the run was interrupted); ``phase_effects`` (metric
-    objectives): per phase, the metric's mean untuned and tuned on the tuning seed, the paired
-    change with its 95 % interval and ``worse`` (the interval lies above 0), so a phase
-    outside the objective that the tuning made worse shows.
-
-    With ``constraints``: ``history`` has, per constraint, a column named by its statistic
-    (e.g. ``P(max_accel>8)``: the value on the tuning seed) and one named by the constraint
-    (e.g. ``P(max_accel>8)<=0.01``: met or not), and ``feasible`` (every one met; False for a
-    candidate not flown); ``score`` is what the optimiser minimised (the objective, or a
-    penalty); ``role`` is "best" on the chosen row, "baseline" on the last row (the untuned
-    scenario on the same seed, flown whatever its stability, never a candidate), else "".
-    ``feasible`` (the result's): the best met every constraint; when no candidate did, it is
-    the least violating one, ``feasible`` is False and an :class:`InfeasibleWarning` is given.
-    ``holdout_constraints``: every constraint re-checked on the held-out flights, per
-    controller and phase, with its 95 % interval (:meth:`Constraint.check`).
-    """
-
-    best: dict[str, float]
-    objective: float
-    scenario: Scenario
-    history: pd.DataFrame = field(repr=False)
-    holdout: Holdout | None
-    interrupted: bool
-    method: str
-    seed: int
-    runs: int
-    baseline: float = math.nan
-    phase_effects: pd.DataFrame | None = field(default=None, repr=False)
-    constraints: tuple[Constraint, ...] = ()
-    feasible: bool = True
-    holdout_constraints: pd.DataFrame | None = field(default=None, repr=False)
-
-    def __repr__(self) -> str:
-        """The best values and objective, not the history."""
-        best = ", ".join(f"{k}={v:.4g}" for k, v in self.best.items())
-        note = ", interrupted" if self.interrupted else ""
-        if not self.feasible:
-            note += ", NO FEASIBLE CANDIDATE (this is the least violating)"
-        searched = len(self.evaluations)
-        return (
-            f"<OptimizeResult {best}: objective {self.objective:.4g} after "
-            f"{searched} evaluations{note}>"
-        )
-
-    @property
-    def evaluations(self) -> pd.DataFrame:
-        """The search's own rows of ``history`` (the baseline row left out)."""
-        h = self.history
-        return h[h["role"] != "baseline"] if "role" in h else h
-
-    @property
-    def comparison(self) -> pd.DataFrame:
-        """The untuned baseline (the scenario's own values) beside the best candidate: their
-        rows of ``history`` indexed by ``role`` (parameters, objective, every constraint's
-        value and whether it is met, ``feasible``). No baseline row if interrupted."""
-        h = self.history
-        if "role" not in h:  # a history written before the baseline row existed
-            return h.iloc[:0]
-        return h[h["role"].isin(["baseline", "best"])].set_index("role").sort_index()
-
-    def _repr_html_(self) -> str:
-        """In a notebook: best values, objective beside the untuned one and the holdout, and
-        the per-phase effects, as HTML."""
-        from quadrs.present.html import render
-
-        values = pd.DataFrame({"value": self.best}).rename_axis("key")
-        ho = self.holdout
-        scores = pd.DataFrame(
-            {
-                "objective": [self.objective, self.baseline, ho.objective if ho else math.nan],
-                "ci_low": [math.nan, math.nan, ho.low if ho else math.nan],
-                "ci_high": [math.nan, math.nan, ho.high if ho else math.nan],
-            },
-            index=["best (tuning seed)", "untuned (tuning seed)", "best (held-out seed)"],
-        )
-        tables = [("best values", values), ("objective", scores)]
-        if self.phase_effects is not None:
-            tables.append(("per phase, untuned -> tuned (same gusts)", self.phase_effects))
-        if self.constraints and not self.comparison.empty:
-            tables.append(("untuned and best on the tuning seed", self.comparison.T))
-        if self.holdout_constraints is not None:
-            tables.append(("constraints on the held-out seed", self.holdout_constraints))
-        return render(repr(self), tables)
 
 
 def expand(values: Mapping[str, float]) -> dict[str, float]:
@@ -295,38 +196,99 @@ def _metric_values(
     return per.to_numpy(dtype=float), diverged
 
 
-def optimize(
-    scenario: Scenario,
-    controller: str | Sequence[str] = "smc",
-    params: Mapping[str, Sequence[float]] | None = None,
-    objective: Objective = "iae",
-    phases: Sequence[str] = ("P2",),
-    runs: int = 64,
-    seed: int = 0,
-    require_stable: bool = True,
-    method: str = "differential_evolution",
-    maxiter: int | None = None,
-    workers: int | None = None,
-    progress: bool = False,
-    *,
-    popsize: int = 8,
-    penalty: float = 1e6,
-    holdout_runs: int | None = None,
-    callback: Callable[[dict[str, Any]], None] | None = None,
-    constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None,
-    client: Client | None = None,
-) -> OptimizeResult:
-    """Minimise a Monte Carlo objective over bounded scenario keys.
+@dataclass(frozen=True)
+class OptimizeOptions:
+    """What :func:`optimize` searches and how (docs/design-loop.md). Each value is checked
+    when the options are made (ValueError naming the field); those that need the scenario
+    (the keys, the objective's phases, the constraints) when the search starts."""
 
-    ``params``: {dotted key: (low, high)}, any numeric key including vector elements
-    (``"controller.smc.lambda[0]"``); a key naming several keys separated by commas ties them
-    to one value (``"controller.smc.lambda[0],controller.smc.lambda[1]"``: x and y alike).
-    ``objective``: a metric name (``_core.METRIC_NAMES``):
-    the mean over the ``runs`` realisations of that metric summed over ``phases``, for one
-    ``controller``; or a callable ``f(mc) -> float`` of the :class:`MonteCarloResult` of
-    every ``controller`` given. Every evaluation flies realisations ``0..runs`` of ``seed``;
-    with ``client`` (a ``dask.distributed.Client``) as tasks on its workers, with the same
-    numbers, so the same search and result, as on this machine.
+    controller: str | Sequence[str] = "smc"
+    """The law flown, or several (a callable objective sees them all)."""
+    params: Mapping[str, Sequence[float]] | None = None
+    """{dotted key: (low, high)}: any numeric key, vector elements included
+    (``"controller.smc.lambda[0]"``); keys joined by commas are tied to one value."""
+    objective: Objective = "iae"
+    """A metric name (``_core.METRIC_NAMES``; the mean over the realisations of that metric
+    summed over ``phases``, for one controller) or a callable ``f(mc) -> float``."""
+    phases: Sequence[str] = ("P2",)
+    """The phases a metric objective sums, and the constraints read (unless their own)."""
+    runs: int = 64
+    """Realisations each candidate flies (``0..runs`` of ``seed``: common random numbers)."""
+    seed: int = 0
+    """The tuning's seed: the gusts every candidate flies, and the search's own draws."""
+    require_stable: bool = True
+    """Reject, without flying, a candidate unstable at hover in a mode the flight excites."""
+    method: str = "differential_evolution"
+    """``"differential_evolution"`` or ``"nelder-mead"`` (:data:`METHODS`)."""
+    maxiter: int | None = None
+    """Generations of differential evolution (default 20) or Nelder-Mead evaluations (100)."""
+    workers: int | None = None
+    """Threads each batch flies on (None: every core)."""
+    progress: bool = False
+    """Show a progress bar of the evaluations (on a terminal)."""
+    popsize: int = 8
+    """Differential evolution's candidates per generation, per parameter."""
+    penalty: float = 1e6
+    """The score of a candidate rejected (unstable, diverged); constraints score below it."""
+    holdout_runs: int | None = None
+    """Realisations the best flies on the held-out seed (default ``runs``)."""
+    callback: Callable[[dict[str, Any]], None] | None = None
+    """Receives each history row as it is recorded (e.g. for a progress display)."""
+    constraints: Mapping[Any, Any] | Sequence[Constraint | str] | None = None
+    """Bounds on Monte Carlo statistics (:mod:`quadrs.design.constraints`)."""
+    client: Client | None = None
+    """A ``dask.distributed.Client`` whose workers fly the batches (the same numbers)."""
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        for name in ("runs", "popsize", "maxiter", "holdout_runs"):
+            value = getattr(self, name)
+            if value is not None and not value >= 1:
+                raise ValueError(f"{name} must be >= 1, got {value}")
+        if not (math.isfinite(self.penalty) and self.penalty > 0):
+            raise ValueError(f"penalty must be finite and > 0, got {self.penalty}")
+        object.__setattr__(self, "seed", check_int("seed", self.seed))
+
+    @classmethod
+    def of_call(cls, args: Sequence[Any], keywords: Mapping[str, Any]) -> OptimizeOptions:
+        """The options of a call in the keyword form (``optimize(s, runs=8)``), the positional
+        one of the first release (``optimize(s, "smc", params, "iae", phases, runs, seed,
+        require_stable, method, maxiter, workers, progress)``: the fields in their order), or
+        an options object with fields replaced by keyword."""
+        names = [f.name for f in fields(cls)]
+        if args and isinstance(args[0], OptimizeOptions):
+            if len(args) > 1:
+                raise TypeError("optimize() takes the scenario and one options object")
+            base: OptimizeOptions | None = args[0]
+            args = ()
+        else:
+            base = None
+        if len(args) > _POSITIONAL:
+            raise TypeError(f"optimize() takes at most {_POSITIONAL} positional options "
+                            f"({', '.join(names[:_POSITIONAL])}), got {len(args)}")  # fmt: skip
+        given = dict(zip(names, args, strict=False))
+        for name in keywords:
+            if name not in names:
+                raise TypeError(f"optimize() got an unexpected keyword argument {name!r}")
+            if name in given:
+                raise TypeError(f"optimize() got multiple values for argument {name!r}")
+        given.update(keywords)
+        return dataclasses.replace(base, **given) if base is not None else cls(**given)
+
+
+#: The options the first release took by position (``controller`` to ``progress``).
+_POSITIONAL = 11
+
+
+def optimize(scenario: Scenario, *args: Any, **keywords: Any) -> OptimizeResult:
+    """Minimise a Monte Carlo objective over bounded scenario keys:
+    ``optimize(scenario, OptimizeOptions(...))``, or with the options as keywords
+    (``optimize(scenario, controller="smc", params={...}, runs=64)``; see
+    :class:`OptimizeOptions` for each, and :meth:`OptimizeOptions.of_call`).
+
+    Every evaluation flies realisations ``0..runs`` of ``seed``; with ``client`` as tasks on
+    its workers, with the same numbers, so the same search and result, as on this machine.
 
     Penalties (recorded, never NaN): a candidate not stable at hover under every controller
     scores ``penalty * (1 + max(0, largest real part))`` without flying when
@@ -338,8 +300,7 @@ def optimize(
     (from the scenario's values clipped to the bounds; ``maxiter`` evaluations, default 100).
     Same seed and budget give the same history. ``holdout_runs`` (default ``runs``):
     realisations flown at ``seed + HOLDOUT_SEED_OFFSET`` to re-evaluate the best. Ctrl-C
-    stops and returns the best so far with ``interrupted=True``. ``callback`` receives each
-    history row as it is recorded (e.g. for a progress display).
+    stops and returns the best so far with ``interrupted=True``.
 
     ``constraints`` (see :mod:`quadrs.design.constraints` and docs/design-loop.md): e.g.
     ``{"tracking_rms": ("<=", 0.5), ("max_accel", "exceedance", 8.0): ("<=", 0.01)}`` or
@@ -353,325 +314,269 @@ def optimize(
     violating flown candidate is returned with ``feasible=False`` and an
     :class:`InfeasibleWarning`.
     """
-    from quadrs.present.terminal import shows_progress, tqdm_class
-
-    tqdm = tqdm_class()
-
-    from quadrs.hover.stability import stability
-
-    controllers, params, phases, cons = check_tuning(
-        scenario, controller, params, objective, phases, constraints
-    )
-    keys = list(params)
-    bounds = [(float(params[k][0]), float(params[k][1])) for k in keys]
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if runs < 1:
-        raise ValueError(f"runs must be >= 1, got {runs}")
-    seed = check_int("seed", seed)
-    if maxiter is not None and maxiter < 1:
-        raise ValueError(f"maxiter must be >= 1, got {maxiter}")
-    if popsize < 1:
-        raise ValueError(f"popsize must be >= 1, got {popsize}")
-    if not (math.isfinite(penalty) and penalty > 0):
-        raise ValueError(f"penalty must be finite and > 0, got {penalty}")
-
-    rows: list[dict[str, Any]] = []
-    if method == "differential_evolution":
-        generations = 20 if maxiter is None else maxiter
-        total = popsize * len(keys) * (generations + 1)
-    else:
-        generations = 100 if maxiter is None else maxiter
-        total = generations
-    bar = tqdm(
-        total=total, disable=not shows_progress(progress), unit="eval", desc="tune", leave=False
-    )
-
-    def fly(candidate: Scenario, seed_: int, count: int) -> MonteCarloResult:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # stability is judged here, not warned about
-            mc = monte_carlo(
-                candidate,
-                runs=count,
-                seed=seed_,
-                controllers=controllers,
-                workers=workers,
-                progress=False,
-                spectra=False,
-                client=client,
-            )
-        if mc.interrupted:
-            raise _Stop
-        return mc
-
-    def score(mc: MonteCarloResult) -> tuple[float, int, np.ndarray | None]:
-        if isinstance(objective, str):
-            values, diverged = _metric_values(mc, objective, phases)
-            value = float(np.mean(values)) if diverged == 0 else math.nan
-            return value, diverged, values
-        diverged = int(mc.runs.groupby("realisation")["diverged"].any().sum())
-        return float(objective(mc)), diverged, None
-
-    def judge(row: dict[str, Any], mc: MonteCarloResult | None) -> float:
-        """Each constraint's value and verdict into ``row``; the summed relative violation."""
-        total = 0.0
-        for c in cons:
-            value = c.value(mc.runs, phases) if mc is not None else math.nan
-            row[c.label] = value
-            row[str(c)] = c.satisfied(value)
-            total += c.violation(value)
-        row["feasible"] = total == 0.0
-        return total
-
-    def measure(
-        values: dict[str, float], candidate: Scenario, require: bool
-    ) -> tuple[dict[str, Any], MonteCarloResult | None]:
-        """One candidate's history row (before its score) and its flights (None if not
-        flown)."""
-        row: dict[str, Any] = {"evaluation": len(rows), **values}
-        reports = [stability(candidate, c) for c in controllers]
-        # Judged on the modes the scenario excites: the others stay exactly at rest in flight.
-        max_real = max(float(r.excited_poles["real"].max()) for r in reports)
-        stable = all(r.stable for r in reports)
-        unstable = "; ".join(
-            f"{r.controller.upper()} {mode}" for r in reports for mode in r.excited_unstable_modes()
-        )
-        row.update(stable=stable, max_real=max_real, flown=False, diverged=0, penalised=False,
-                   unstable_modes=unstable)  # fmt: skip
-        mc = None
-        if require and unstable:
-            value = penalty * (1.0 + max(0.0, max_real))
-            row.update(penalised=True)
-        else:
-            try:
-                mc = fly(candidate, seed, runs)
-            except KeyboardInterrupt:
-                raise _Stop from None
-            value, diverged, _ = score(mc)
-            row.update(flown=True, diverged=diverged)
-            if diverged > 0 or not math.isfinite(value):
-                value = penalty * (1.0 + diverged / runs)
-                row.update(penalised=True)
-        row["objective"] = value
-        violation = judge(row, mc)
-        row["score"] = value
-        if violation > 0 and not row["penalised"]:
-            # Feasible < infeasible (ordered by violation) < unstable or diverged.
-            frac = 1.0 if math.isinf(violation) else violation / (1.0 + violation)
-            row["score"] = penalty * (0.5 + 0.5 * frac)
-        row["violation"] = violation
-        row["role"] = ""
-        return row, mc
-
-    def evaluate(x: np.ndarray) -> float:
-        values = {k: float(v) for k, v in zip(keys, x, strict=True)}
-        candidate = scenario.override(expand(values))
-        row, _ = measure(values, candidate, require_stable)
-        value = float(row["score"])
-        rows.append(row)
-        bar.update(1)
-        if callback is not None:
-            callback(dict(row))
-        return value
-
-    from scipy import optimize as sopt  # lazily: `quadrs --version` stays fast
-
-    interrupted = False
-    try:
-        if method == "differential_evolution":
-            sopt.differential_evolution(
-                evaluate,
-                bounds,
-                maxiter=generations,
-                popsize=popsize,
-                seed=seed,
-                polish=False,
-                tol=0.0,  # no early stop: the budget is maxiter generations
-                updating="deferred",
-                workers=1,
-                init="latinhypercube",
-            )
-        else:
-            x0 = [
-                min(max(float(key_value(scenario, k.split(",")[0].strip())), lo), hi)
-                for k, (lo, hi) in zip(keys, bounds, strict=True)
-            ]
-            sopt.minimize(
-                evaluate,
-                x0,
-                method="Nelder-Mead",
-                bounds=bounds,
-                options={"maxfev": generations, "xatol": 1e-4, "fatol": 1e-9},
-            )
-    except (_Stop, KeyboardInterrupt):
-        interrupted = True
-    finally:
-        bar.close()
-
-    columns = [
-        "evaluation",
-        *keys,
-        "objective",
-        "stable",
-        "max_real",
-        "flown",
-        "diverged",
-        "penalised",
-        "unstable_modes",
-    ]
-    for con in cons:
-        columns += [col for col in (con.label, str(con)) if col not in columns]
-    columns += ["feasible", "violation", "score", "role"]
-    if not rows:
-        raise KeyboardInterrupt("interrupted before the first evaluation finished")
-    history = pd.DataFrame(rows, columns=columns)
-    pick, feasible = _choose(history)
+    options = OptimizeOptions.of_call(args, keywords)
+    search = _Search(scenario, options)
+    interrupted = search.run()
+    history = search.history()
+    pick, feasible = choose_best(history)
     if not feasible:
         warnings.warn(
             "no candidate met every constraint ("
-            + "; ".join(str(c) for c in cons)
+            + "; ".join(str(c) for c in search.constraints)
             + "): the result is the least violating one, not a feasible design",
             InfeasibleWarning,
             stacklevel=2,
         )
     history.loc[pick, "role"] = "best"
     best_row = history.loc[pick]
-    best = {k: float(best_row[k]) for k in keys}
+    best = {k: float(best_row[k]) for k in search.keys}
     tuned = scenario.override(expand(best))
-
-    holdout, baseline, effects, held = None, math.nan, None, None
+    after = _After(history)
     if not interrupted:
         try:
-            # The untuned scenario on the same gusts, beside the best in the history.
-            own = {k: float(key_value(scenario, k.split(",")[0].strip())) for k in keys}
-            row, before = measure(own, scenario, require=False)
-            row["role"] = "baseline"
-            history = pd.concat([history, pd.DataFrame([row], columns=columns)],
-                                ignore_index=True)  # fmt: skip
-            if before is not None:
-                baseline = score(before)[0]
-            if not bool(best_row["penalised"]):
-                count = runs if holdout_runs is None else int(holdout_runs)
-                hseed = holdout_seed(seed)
-                mc = fly(tuned, hseed, count)
-                holdout = _holdout(mc, objective, phases, hseed, count, score)
-                if cons:
-                    held = pd.concat([c.check(mc.runs, phases) for c in cons], ignore_index=True)
-                if isinstance(objective, str) and before is not None:
-                    effects = phase_effects(before, fly(tuned, seed, runs), objective)
+            after = search.after(history, tuned, penalised=bool(best_row["penalised"]))
         except (_Stop, KeyboardInterrupt):
             interrupted = True
     return OptimizeResult(
         best=best,
         objective=float(best_row["objective"]),
         scenario=tuned,
-        history=history,
-        holdout=holdout,
+        history=after.history,
+        holdout=after.holdout,
         interrupted=interrupted,
-        method=method,
-        seed=seed,
-        runs=runs,
-        baseline=baseline,
-        phase_effects=effects,
-        constraints=cons,
+        method=options.method,
+        seed=options.seed,
+        runs=options.runs,
+        baseline=after.baseline,
+        phase_effects=after.effects,
+        constraints=search.constraints,
         feasible=feasible,
-        holdout_constraints=held,
+        holdout_constraints=after.held,
     )
 
 
-def _choose(history: pd.DataFrame) -> tuple[Any, bool]:
-    """The best row's label and whether it is feasible: the least objective among the feasible
-    candidates flown without penalty; if there is none, the least violation (then objective)
-    among those flown without penalty; if none was, the least score (as without
-    constraints)."""
-    admissible = history[~history["penalised"].astype(bool)]
-    ok = admissible[admissible["feasible"].astype(bool)]
-    if not ok.empty:
-        return ok["objective"].idxmin(), True
-    if admissible.empty:
-        return history["score"].idxmin(), bool(history["feasible"].all())
-    order = admissible.sort_values(["violation", "objective"], kind="stable")
-    return order.index[0], False
+@dataclass(frozen=True)
+class _After:
+    """What is measured after the search: the history with the untuned baseline's row, its
+    objective, the best's held-out interval and constraints, and the per-phase effects."""
+
+    history: pd.DataFrame
+    baseline: float = math.nan
+    holdout: Holdout | None = None
+    effects: pd.DataFrame | None = None
+    held: pd.DataFrame | None = None
 
 
-def phase_effects(
-    before: MonteCarloResult, after: MonteCarloResult, metric: str, confidence: float = 0.95
-) -> pd.DataFrame:
-    """Per phase (rows) of one controller's batches flown on the same gusts: the mean of
-    ``metric`` ``untuned`` and ``tuned``, ``change`` (paired mean difference) with its
-    Student-t interval ``ci_low``/``ci_high``, ``change_pct`` and ``worse`` (the interval
-    lies above 0). Realisations that diverged in a phase in either batch are left out of it."""
-    from scipy import stats
+class _Search:
+    """One tuning's evaluations: each candidate judged at hover, flown on the tuning seed,
+    scored, checked against the constraints and recorded as a history row."""
 
-    def wide(mc: MonteCarloResult) -> pd.DataFrame:
-        return mc.runs.pivot(index="realisation", columns="phase", values=metric)
-
-    a, b = wide(before), wide(after)
-    rows = []
-    for phase in before.scenario.phase_names:
-        x, y = a[phase].to_numpy(float), b[phase].to_numpy(float)
-        ok = np.isfinite(x) & np.isfinite(y)
-        d = y[ok] - x[ok]
-        mean = float(d.mean()) if d.size else math.nan
-        half = (
-            float(stats.t.ppf(0.5 + confidence / 2, d.size - 1) * d.std(ddof=1) / np.sqrt(d.size))
-            if d.size >= 2
-            else math.nan
+    def __init__(self, scenario: Scenario, options: OptimizeOptions) -> None:
+        controllers, params, phases, cons = check_tuning(
+            scenario,
+            options.controller,
+            options.params,
+            options.objective,
+            options.phases,
+            options.constraints,
         )
-        untuned = float(x[ok].mean()) if d.size else math.nan
-        rows.append({
-            "phase": phase,
-            "untuned": untuned,
-            "tuned": float(y[ok].mean()) if d.size else math.nan,
-            "change": mean,
-            "ci_low": mean - half,
-            "ci_high": mean + half,
-            "change_pct": 100 * mean / untuned if untuned else math.nan,
-            "worse": bool(mean - half > 0),
-        })  # fmt: skip
-    return pd.DataFrame(rows).set_index("phase")
+        self.scenario, self.options = scenario, options
+        self.controllers, self.phases, self.constraints = controllers, phases, cons
+        self.keys = list(params)
+        self.bounds = [(float(params[k][0]), float(params[k][1])) for k in self.keys]
+        self.rows: list[dict[str, Any]] = []
+        self.bar: Any = None  # the progress bar, while the search runs
 
+    @property
+    def budget(self) -> tuple[int, int]:
+        """The method's ``maxiter`` (generations or evaluations) and the evaluations it
+        makes."""
+        o = self.options
+        steps = DEFAULT_MAXITER[o.method] if o.maxiter is None else o.maxiter
+        if o.method == "differential_evolution":
+            return steps, o.popsize * len(self.keys) * (steps + 1)
+        return steps, steps
 
-def _holdout(
-    mc: MonteCarloResult,
-    objective: Objective,
-    phases: Sequence[str],
-    seed: int,
-    count: int,
-    score: Callable[[MonteCarloResult], tuple[float, int, np.ndarray | None]],
-) -> Holdout:
-    from scipy import stats
+    def fly(self, candidate: Scenario, seed: int, count: int) -> MonteCarloResult:
+        """``count`` realisations of ``seed`` under every controller; _Stop on Ctrl-C."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # stability is judged here, not warned about
+            mc = monte_carlo(candidate, runs=count, seed=seed, controllers=self.controllers,
+                             workers=self.options.workers, progress=False, spectra=False,
+                             client=self.options.client)  # fmt: skip
+        if mc.interrupted:
+            raise _Stop
+        return mc
 
-    value, diverged, values = score(mc)
-    if values is not None:
-        ok = values[np.isfinite(values)]
-        value = float(np.mean(ok)) if ok.size else math.nan
-        samples = ok
-    else:
-        real = mc.realisations
-        groups = np.array_split(real, min(HOLDOUT_BATCHES, real.size))
-        samples = np.array(
-            [float(objective(_subset(mc, g))) for g in groups if g.size]  # type: ignore[operator]
+    def score(self, mc: MonteCarloResult) -> tuple[float, int, np.ndarray | None]:
+        """The objective of a batch, its diverged realisations, and (a metric objective) the
+        per-realisation values."""
+        objective = self.options.objective
+        if isinstance(objective, str):
+            values, diverged = _metric_values(mc, objective, self.phases)
+            value = float(np.mean(values)) if diverged == 0 else math.nan
+            return value, diverged, values
+        diverged = int(mc.runs.groupby("realisation")["diverged"].any().sum())
+        return float(objective(mc)), diverged, None
+
+    def judge(self, row: dict[str, Any], mc: MonteCarloResult | None) -> float:
+        """Each constraint's value and verdict into ``row``; the summed relative violation."""
+        total = 0.0
+        for c in self.constraints:
+            value = c.value(mc.runs, self.phases) if mc is not None else math.nan
+            row[c.label] = value
+            row[str(c)] = c.satisfied(value)
+            total += c.violation(value)
+        row["feasible"] = total == 0.0
+        return total
+
+    def at_hover(self, candidate: Scenario) -> dict[str, Any]:
+        """A candidate's stability columns: judged on the modes the scenario excites (the
+        others stay exactly at rest in flight)."""
+        from quadrs.hover.stability import stability
+
+        reports = [stability(candidate, c) for c in self.controllers]
+        unstable = "; ".join(
+            f"{r.controller.upper()} {mode}" for r in reports for mode in r.excited_unstable_modes()
         )
-    if samples.size >= 2 and np.all(np.isfinite(samples)):
-        sem = float(stats.sem(samples))
-        low, high = (
-            stats.t.interval(0.95, samples.size - 1, loc=float(np.mean(samples)), scale=sem)
-            if sem > 0
-            else (value, value)
+        return {
+            "stable": all(r.stable for r in reports),
+            "max_real": max(float(r.excited_poles["real"].max()) for r in reports),
+            "unstable_modes": unstable,
+        }
+
+    def measure(
+        self, values: dict[str, float], candidate: Scenario, require: bool
+    ) -> tuple[dict[str, Any], MonteCarloResult | None]:
+        """One candidate's history row and its flights (None if not flown)."""
+        penalty, runs = self.options.penalty, self.options.runs
+        hover = self.at_hover(candidate)
+        row: dict[str, Any] = {"evaluation": len(self.rows), **values, **hover, "flown": False,
+                               "diverged": 0, "penalised": False}  # fmt: skip
+        mc = None
+        if require and hover["unstable_modes"]:
+            value = penalty * (1.0 + max(0.0, hover["max_real"]))
+            row.update(penalised=True)
+        else:
+            try:
+                mc = self.fly(candidate, self.options.seed, runs)
+            except KeyboardInterrupt:
+                raise _Stop from None
+            value, diverged, _ = self.score(mc)
+            row.update(flown=True, diverged=diverged)
+            if diverged > 0 or not math.isfinite(value):
+                value = penalty * (1.0 + diverged / runs)
+                row.update(penalised=True)
+        row["objective"] = value
+        violation = self.judge(row, mc)
+        row["score"] = _constrained(value, violation, bool(row["penalised"]), penalty)
+        row["violation"] = violation
+        row["role"] = ""
+        return row, mc
+
+    def evaluate(self, x: np.ndarray) -> float:
+        """The score the optimiser minimises, of the candidate ``x`` (one value per key)."""
+        values = {k: float(v) for k, v in zip(self.keys, x, strict=True)}
+        candidate = self.scenario.override(expand(values))
+        row, _ = self.measure(values, candidate, self.options.require_stable)
+        self.rows.append(row)
+        self.bar.update(1)
+        if self.options.callback is not None:
+            self.options.callback(dict(row))
+        return float(row["score"])
+
+    def run(self) -> bool:
+        """Search until the budget is spent; whether Ctrl-C stopped it first."""
+        from quadrs.present.terminal import shows_progress, tqdm_class
+
+        steps, total = self.budget
+        self.bar = tqdm_class()(total=total, disable=not shows_progress(self.options.progress),
+                                unit="eval", desc="tune", leave=False)  # fmt: skip
+        try:
+            self._minimise(steps)
+        except (_Stop, KeyboardInterrupt):
+            return True
+        finally:
+            self.bar.close()
+        return False
+
+    def _minimise(self, steps: int) -> None:
+        from scipy import optimize as sopt  # lazily: `quadrs --version` stays fast
+
+        if self.options.method == "differential_evolution":
+            sopt.differential_evolution(
+                self.evaluate,
+                self.bounds,
+                maxiter=steps,
+                popsize=self.options.popsize,
+                seed=self.options.seed,
+                polish=False,
+                tol=0.0,  # no early stop: the budget is maxiter generations
+                updating="deferred",
+                workers=1,
+                init="latinhypercube",
+            )
+            return
+        own = self.own_values().values()
+        x0 = [min(max(v, lo), hi) for v, (lo, hi) in zip(own, self.bounds, strict=True)]
+        sopt.minimize(
+            self.evaluate,
+            x0,
+            method="Nelder-Mead",
+            bounds=self.bounds,
+            options={"maxfev": steps, "xatol": 1e-4, "fatol": 1e-9},
         )
-        if values is None:  # centre the batch-means interval on the full-sample value
-            half = (high - low) / 2
-            low, high = value - half, value + half
-    else:
-        low = high = math.nan
-    return Holdout(
-        seed=seed, runs=count, objective=value, low=float(low), high=float(high), diverged=diverged
-    )
+
+    def own_values(self) -> dict[str, float]:
+        """The scenario's own value of each key (a tied group's first)."""
+        return {k: float(key_value(self.scenario, k.split(",")[0].strip())) for k in self.keys}
+
+    @property
+    def columns(self) -> list[str]:
+        """The history's columns, in order."""
+        columns = ["evaluation", *self.keys, "objective", "stable", "max_real", "flown",
+                   "diverged", "penalised", "unstable_modes"]  # fmt: skip
+        for con in self.constraints:
+            columns += [col for col in (con.label, str(con)) if col not in columns]
+        return [*columns, "feasible", "violation", "score", "role"]
+
+    def history(self) -> pd.DataFrame:
+        """The evaluations so far, one row each; KeyboardInterrupt if there is none."""
+        if not self.rows:
+            raise KeyboardInterrupt("interrupted before the first evaluation finished")
+        return pd.DataFrame(self.rows, columns=self.columns)
+
+    def after(self, history: pd.DataFrame, tuned: Scenario, penalised: bool) -> _After:
+        """The untuned scenario on the same gusts (a row beside the best in the history);
+        unless the best was penalised, the best on the held-out seed and, for a metric
+        objective, the per-phase effects of the tuning."""
+        o = self.options
+        row, before = self.measure(self.own_values(), self.scenario, require=False)
+        row["role"] = "baseline"
+        history = pd.concat([history, pd.DataFrame([row], columns=self.columns)],
+                            ignore_index=True)  # fmt: skip
+        after = _After(history, self.score(before)[0] if before is not None else math.nan)
+        if penalised:
+            return after
+        count = o.runs if o.holdout_runs is None else int(o.holdout_runs)
+        hseed = holdout_seed(o.seed)
+        mc = self.fly(tuned, hseed, count)
+        holdout = holdout_of(mc, o.objective, self.phases, hseed, count, self.score)
+        held = None
+        if self.constraints:
+            held = pd.concat([c.check(mc.runs, self.phases) for c in self.constraints],
+                             ignore_index=True)  # fmt: skip
+        effects = None
+        if isinstance(o.objective, str) and before is not None:
+            effects = phase_effects(before, self.fly(tuned, o.seed, o.runs), o.objective)
+        return dataclasses.replace(after, holdout=holdout, effects=effects, held=held)
 
 
-def _subset(mc: MonteCarloResult, realisations: np.ndarray) -> MonteCarloResult:
-    runs = mc.runs[mc.runs["realisation"].isin(realisations)].reset_index(drop=True)
-    return MonteCarloResult(
-        scenario=mc.scenario, seed=mc.seed, controllers=mc.controllers, runs=runs
-    )
+def _constrained(value: float, violation: float, penalised: bool, penalty: float) -> float:
+    """The score of a candidate of objective ``value``: a constraint's violation puts it
+    above every feasible one, ordered by the violation, and below every unstable or diverged
+    one (already penalised)."""
+    if violation > 0 and not penalised:
+        frac = 1.0 if math.isinf(violation) else violation / (1.0 + violation)
+        return penalty * (0.5 + 0.5 * frac)
+    return value

@@ -88,16 +88,13 @@ def check_controller(name: str) -> str:
     return name
 
 
-RATE_KEYS = ("controller.position_rate", "controller.attitude_rate", "controller.inner_rate")
-
-
 def loop_rates(scenario: Any, controller: str) -> tuple[float, float, float]:
     """Hz, the position, attitude and inner loops' rates ``controller`` flies in
-    ``scenario`` (0: every step): the ``controller.*_rate`` keys where set, else the law's own
-    (``_core.CONTROLLER_RATES``; PX4's 50, 250 and 1000 Hz for ``px4``)."""
-    own = _core.CONTROLLER_RATES[controller]
-    got = [scenario.get(key) for key in RATE_KEYS]
-    a, b, c = (float(own[i] if got[i] is None else got[i]) for i in range(3))
+    ``scenario``: the engine's schedule (``Engine.loop_steps``: the ``controller.*_rate``
+    keys where set, else the law's own rate rounded to whole steps), one update every
+    ``n`` steps being ``1 / (n dt)`` Hz; a loop run every step flies at the step's rate."""
+    dt = float(scenario.get("integrator.dt"))
+    a, b, c = (1.0 / (n * dt) for n in scenario.engine.loop_steps(controller))
     return a, b, c
 
 

@@ -212,6 +212,34 @@ NO_LOG_DATA_WHY = (
 )
 
 
+def psd_panel(a: Axes, fmax: float, title: str, ylabel: str = "PSD (m²/Hz)") -> bool:
+    """A spectral-density panel finished: its labels and ``title``, log-log axes up to
+    ``fmax`` (:func:`loglog_axes`) and, where it drew, the legend; whether it drew."""
+    a.set(xlabel="frequency (Hz)", ylabel=ylabel, title=title)
+    drawn = loglog_axes(a, fmax)
+    if drawn:
+        add_legend(a)
+    return drawn
+
+
+def panel_rows(frame: pd.DataFrame, column: str, value: Any, top: float) -> pd.DataFrame:
+    """One panel's rows of a spectra frame: those whose ``column`` is ``value``, at the
+    frequencies a log-log axis shows up to ``top`` (0 < f <= top Hz)."""
+    sel = frame[(frame[column] == value) & (frame["frequency"] > 0)]
+    return sel[sel["frequency"] <= top]
+
+
+def welch_band(a: Axes, sel: pd.DataFrame, label: str) -> np.ndarray:
+    """The ensemble-mean Welch PSD of ``sel`` (columns ``frequency``, ``welch``,
+    ``welch_se``) with its band of +-2 standard errors; returns the frequencies."""
+    f = sel["frequency"].to_numpy(float)
+    mean, se = sel["welch"].to_numpy(float), sel["welch_se"].to_numpy(float)
+    a.plot(f, mean, color="tab:blue", lw=1.2, label=label)
+    a.fill_between(f, np.maximum(mean - 2 * se, 0), mean + 2 * se, color="tab:blue", alpha=0.2,
+                   label="±2 standard errors")  # fmt: skip
+    return f
+
+
 def loglog_axes(a: Axes, fmax: float) -> bool:
     """Log-log axes up to ``fmax``, if some line has a point with both coordinates positive
     and finite; else (every value zero: a released parcel's) the panel says it has nothing to

@@ -28,9 +28,9 @@ from quadrs.plots.base import (
     finish_figure,
     label_with_unit,
     line_style,
-    loglog_axes,
     own_phases,
     panel_axes,
+    psd_panel,
     require_drawn,
     short_label,
 )
@@ -111,14 +111,9 @@ def ensemble_psd(
         for part, style, n in curves:
             style["label"] = f"{style['label']}, mean periodogram (n = {n})"
             a.plot(part["frequency"], part["psd"], lw=1.0, **style)
-        a.set(
-            xlabel="frequency (Hz)",
-            ylabel="PSD (m²/Hz)",
-            title=f"ensemble spectral density of the {DISPLACEMENT}, {phase}",
+        drawn.append(
+            psd_panel(a, fmax, f"ensemble spectral density of the {DISPLACEMENT}, {phase}")
         )
-        drawn.append(loglog_axes(a, fmax))
-        if drawn[-1]:
-            add_legend(a)
     require_drawn(drawn, f"ensemble power spectral density of the {DISPLACEMENT}")
     return finish_figure(fig, path)
 

@@ -24,8 +24,8 @@ from quadrs.plots.base import (
     flights_by_label,
     gust_window,
     line_style,
-    loglog_axes,
     panel_axes,
+    psd_panel,
     require_drawn,
     shade_gust,
 )
@@ -142,14 +142,7 @@ def psd(
             f, p = phase_psd(flight, phase, method, resolution)
             keep = (f > 0) & (f <= fmax)
             a.plot(f[keep], p[keep], lw=1.0, **line_style(label, i))
-        a.set(
-            xlabel="frequency (Hz)",
-            ylabel="PSD (m²/Hz)",
-            title=f"spectral density of the {DISPLACEMENT} ({how}), {phase}",
-        )
-        drawn.append(loglog_axes(a, fmax))
-        if drawn[-1]:
-            add_legend(a)
+        drawn.append(psd_panel(a, fmax, f"spectral density of the {DISPLACEMENT} ({how}), {phase}"))
     require_drawn(drawn, f"power spectral density of the {DISPLACEMENT} ({how})")
     return finish_figure(fig, path)
 

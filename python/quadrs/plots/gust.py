@@ -15,12 +15,13 @@ from matplotlib.figure import Figure
 
 from quadrs.plots.base import (
     AxesArg,
-    add_legend,
     finish_figure,
     line_style,
-    loglog_axes,
     panel_axes,
+    panel_rows,
+    psd_panel,
     require_drawn,
+    welch_band,
 )
 from quadrs.runs.psd import gust_spectrum_frame
 
@@ -77,30 +78,14 @@ def gust_spectrum(
     top = 0.1 / p["dt"]
     drawn = []
     for a, model in zip(axes, models, strict=True):
-        sel = frame[(frame["model"] == model) & (frame["frequency"] > 0)]
-        sel = sel[sel["frequency"] <= top]
-        f = sel["frequency"].to_numpy(float)
-        mean, se = sel["welch"].to_numpy(float), sel["welch_se"].to_numpy(float)
+        sel = panel_rows(frame, "model", model, top)
         name = _MODEL_NAMES.get(model, model)
-        label = f"generated, Welch mean of {p['realisations']}"
-        a.plot(f, mean, color="tab:blue", lw=1.2, label=label)
-        a.fill_between(
-            f, np.maximum(mean - 2 * se, 0), mean + 2 * se, color="tab:blue", alpha=0.2,
-            label="±2 standard errors",
-        )  # fmt: skip
+        f = welch_band(a, sel, f"generated, Welch mean of {p['realisations']}")
         a.plot(f, sel["formula"], color="black", ls="--", lw=1.2, label=f"{name} formula")
         if model != "dryden":  # Dryden's filter is its formula
             a.plot(f, sel["filter"], color="tab:red", ls=":", lw=1.2, label="rational filter")
-        a.set(
-            xlabel="frequency (Hz)",
-            ylabel="PSD ((m/s)²/Hz)",
-            title=(
-                f"{name} {p['component']} gust: sigma = {p['sigma']:g} m/s, "
-                f"L = {p['length_scale']:g} m, V = {p['airspeed']:g} m/s"
-            ),
-        )
-        drawn.append(loglog_axes(a, top))
-        if drawn[-1]:
-            add_legend(a)
+        title = (f"{name} {p['component']} gust: sigma = {p['sigma']:g} m/s, "
+                 f"L = {p['length_scale']:g} m, V = {p['airspeed']:g} m/s")  # fmt: skip
+        drawn.append(psd_panel(a, top, title, ylabel="PSD ((m/s)²/Hz)"))
     require_drawn(drawn, "gust spectra")
     return finish_figure(fig, path)

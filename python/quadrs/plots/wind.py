@@ -17,9 +17,11 @@ from quadrs.plots.base import (
     AxesArg,
     add_legend,
     finish_figure,
-    loglog_axes,
     panel_axes,
+    panel_rows,
+    psd_panel,
     require_drawn,
+    welch_band,
 )
 from quadrs.runs.flight import Flight
 from quadrs.runs.gust import COMPONENTS, gust_scales
@@ -115,23 +117,12 @@ def gust_spectra(
     top = 0.1 / p["dt"]
     drawn = []
     for a, c in zip(axes, COMPONENTS, strict=True):
-        sel = frame[(frame["component"] == c) & (frame["frequency"] > 0)]
-        sel = sel[sel["frequency"] <= top]
-        f = sel["frequency"].to_numpy(float)
-        mean, se = sel["welch"].to_numpy(float), sel["welch_se"].to_numpy(float)
-        a.plot(f, mean, color="tab:blue", lw=1.2, label=f"Welch mean of {p['realisations']}")
-        a.fill_between(f, np.maximum(mean - 2 * se, 0), mean + 2 * se, color="tab:blue",
-                       alpha=0.2, label="±2 standard errors")  # fmt: skip
+        sel = panel_rows(frame, "component", c, top)
+        f = welch_band(a, sel, f"Welch mean of {p['realisations']}")
         a.plot(f, sel["formula"], color="black", ls="--", lw=1.2, label="MIL-F-8785C formula")
         sigma, length = float(sel["sigma"].iloc[0]), float(sel["length_scale"].iloc[0])
-        a.set(
-            xlabel="frequency (Hz)",
-            ylabel="PSD ((m/s)²/Hz)",
-            title=f"{c}: sigma = {sigma:.3g} m/s, L = {length:.3g} m",
-        )
-        drawn.append(loglog_axes(a, top))
-        if drawn[-1]:
-            add_legend(a)
+        title = f"{c}: sigma = {sigma:.3g} m/s, L = {length:.3g} m"
+        drawn.append(psd_panel(a, top, title, ylabel="PSD ((m/s)²/Hz)"))
     axes[0].figure.suptitle(
         f"{p['model']} turbulence at h = {p['altitude']:g} m, V = {p['airspeed']:g} m/s"
     )

@@ -19,15 +19,23 @@ __all__ = [
     "UNITS",
     "display_scale",
     "in_g",
+    "is_angle",
     "metric_value",
     "shown_unit",
     "shown_value",
 ]
 
-#: Metrics the results hold in radians (the engine's unit "rad", `_core.METRIC_UNITS`) and every
-#: figure and table shows in degrees (one unit per quantity in everything a person reads: the
-#: mission tables, the figures, --limit): a new angle metric is one of them by its unit alone.
-DEGREE_METRICS = tuple(m for m, unit in _core.METRIC_UNITS.items() if unit == "rad")
+
+def is_angle(name: str) -> bool:
+    """Whether metric ``name`` is an angle: the results hold it in radians (its engine unit,
+    ``_core.METRIC_UNITS``, is "rad") and every figure and table shows it in degrees (one unit
+    per quantity in everything a person reads: the mission tables, the figures, --limit). A
+    new angle metric is one by its unit alone: read from the engine's registry at each call."""
+    return _core.METRIC_UNITS.get(name) == "rad"
+
+
+#: The angle metrics (:func:`is_angle`) of the engine this package was imported with.
+DEGREE_METRICS = tuple(m for m in _core.METRIC_UNITS if is_angle(m))
 
 
 def _shown(unit: str) -> str:
@@ -35,10 +43,15 @@ def _shown(unit: str) -> str:
     return unit.replace("^2", "²").replace("^3", "³")
 
 
+def _metric_unit(unit: str) -> str:
+    """A metric's engine unit as shown: an angle's ``rad`` in ``deg``."""
+    return "deg" if unit == "rad" else _shown(unit)
+
+
 #: Units of the metric columns (the engine's, ``_core.METRIC_UNITS``, angles in degrees) and
 #: of every scenario key, for axis labels.
 UNITS = {
-    **{m: "deg" if m in DEGREE_METRICS else _shown(u) for m, u in _core.METRIC_UNITS.items()},
+    **{m: _metric_unit(u) for m, u in _core.METRIC_UNITS.items()},
     # every scenario key, from the package's one table of them (quadrs.scenario.units)
     **{key: _shown(unit) for key, unit in KEY_UNITS.items()},
 }
@@ -50,12 +63,12 @@ STANDARD_GRAVITY = 9.80665
 
 def in_g(name: str) -> bool:
     """Whether metric ``name`` is an acceleration (m/s²), so also shown and accepted in g."""
-    return UNITS.get(name) == "m/s²" and name in PLAIN_LABELS
+    return shown_unit(name) == "m/s²"
 
 
 def display_scale(name: str) -> float:
     """The factor from a metric's stored (SI) value to the value shown: 180/pi for angles."""
-    return 180.0 / math.pi if name in DEGREE_METRICS else 1.0
+    return 180.0 / math.pi if is_angle(name) else 1.0
 
 
 #: Plain-English axis labels of metrics and scenario keys, with units. Every figure labels a
@@ -82,8 +95,10 @@ _SUFFIXES = {"deg": math.pi / 180.0, "rad": 1.0}
 
 
 def shown_unit(name: str) -> str:
-    """The unit a metric's values are shown and typed in (``max_swing`` -> ``deg``)."""
-    return UNITS.get(name, "")
+    """The unit a metric's (or a key's) values are shown and typed in (``max_swing`` ->
+    ``deg``): a metric's from the engine's registry at the call."""
+    unit = _core.METRIC_UNITS.get(name)
+    return _metric_unit(unit) if unit is not None else UNITS.get(name, "")
 
 
 def metric_value(name: str, text: str) -> float:
@@ -93,7 +108,7 @@ def metric_value(name: str, text: str) -> float:
     metric, a number that is not finite)."""
     raw = text.strip()
     scale = 1.0 / display_scale(name)
-    angle = name in DEGREE_METRICS
+    angle = is_angle(name)
     for suffix, factor in _SUFFIXES.items():
         if raw.lower().endswith(suffix):
             if not angle:

@@ -85,37 +85,14 @@ def _adaptive(
         for level in range(max_levels):
             best = _Best(seeds, dimension)
             failures = _Failures(seeds, per_level)
-            values = np.empty((length, seeds))  # sample l of chain c (level 0: block l, row c)
-            accepted = 0
             if level == 0:
-                for block in range(length):
-                    xi = rng.standard_normal((seeds, dimension))
-                    v = evaluate(xi)
-                    values[block] = v
-                    best.offer(xi, v)
-                    hit = v > threshold
-                    failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
+                values, accepted = _first_level(evaluate, rng, threshold, best, failures,
+                                                (length, seeds, dimension))  # fmt: skip
             else:
-                state = seeds_xi  # the previous level's best: ours to move in place
-                value = seeds_val.copy()
-                cut = levels[-1].threshold
-                sigma = spread
-                rho = math.sqrt(1.0 - sigma * sigma)
-                values[0] = value
-                best.offer(state, value)
-                hit = value > threshold
-                failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
-                candidate = np.empty_like(state)
-                for step in range(1, length):
-                    move = _move(rng, evaluate, state, value, candidate, sigma, rho, cut)
-                    accepted += int(move.sum())
-                    values[step] = value
-                    best.offer(state, value)
-                    # A chain's failure state is recorded when reached, then its copies counted.
-                    new = move & (value > threshold)
-                    held = ~move & (value > threshold)
-                    failures.add(state[new], value[new], np.flatnonzero(new), step)
-                    failures.hold(np.flatnonzero(held))
+                # From the previous level's best (its states ours to move in place).
+                values, accepted = _chains(evaluate, rng, (seeds_xi, seeds_val.copy()),
+                                           levels[-1].threshold, spread, threshold, best,
+                                           failures, length)  # fmt: skip
             flat = values.ravel()
             closest = max(closest, float(flat.max()))
             n_fail = int((flat > threshold).sum())
@@ -150,6 +127,65 @@ def _adaptive(
         bound = math.prod(lv.conditional_p for lv in levels) if levels else None
         return result(None, bound, _none(dimension), interrupted=True)
     raise AssertionError("unreachable: the last level returns")  # pragma: no cover
+
+
+def _first_level(
+    evaluate: _Evaluator,
+    rng: np.random.Generator,
+    threshold: float,
+    best: _Best,
+    failures: _Failures,
+    shape: tuple[int, int, int],
+) -> tuple[np.ndarray, int]:
+    """The first level: ``length`` blocks of ``seeds`` independent draws of ``dimension``
+    (``shape``), ``best`` and ``failures`` offered each; its values (block l, row c) and no
+    moves accepted."""
+    length, seeds, dimension = shape
+    values = np.empty((length, seeds))
+    for block in range(length):
+        xi = rng.standard_normal((seeds, dimension))
+        v = evaluate(xi)
+        values[block] = v
+        best.offer(xi, v)
+        hit = v > threshold
+        failures.add(xi[hit], v[hit], np.flatnonzero(hit) + block * seeds, 0, False)
+    return values, 0
+
+
+def _chains(
+    evaluate: _Evaluator,
+    rng: np.random.Generator,
+    start: tuple[np.ndarray, np.ndarray],
+    below: float,
+    sigma: float,
+    threshold: float,
+    best: _Best,
+    failures: _Failures,
+    length: int,
+) -> tuple[np.ndarray, int]:
+    """A level above the first: a chain of ``length`` samples from each seed (``start``: its
+    states, moved in place, and their values) by preconditioned Crank-Nicolson steps of
+    ``sigma`` kept above ``below``; its values (sample l of chain c) and the moves accepted. A
+    chain's failure state is recorded when reached, then its copies counted."""
+    state, value = start
+    values = np.empty((length, len(value)))
+    rho = math.sqrt(1.0 - sigma * sigma)
+    values[0] = value
+    best.offer(state, value)
+    hit = value > threshold
+    failures.add(state[hit], value[hit], np.flatnonzero(hit), 0)
+    candidate = np.empty_like(state)
+    accepted = 0
+    for step in range(1, length):
+        move = _move(rng, evaluate, state, value, candidate, sigma, rho, below)
+        accepted += int(move.sum())
+        values[step] = value
+        best.offer(state, value)
+        new = move & (value > threshold)
+        held = ~move & (value > threshold)
+        failures.add(state[new], value[new], np.flatnonzero(new), step)
+        failures.hold(np.flatnonzero(held))
+    return values, accepted
 
 
 def pilot_size(per_level: int, p0: float) -> int:

@@ -212,9 +212,7 @@ class ScenarioModel:
 
     def fly(self, xi_row: np.ndarray) -> Flight:
         """The flight of one row of innovations, with its trace (about one row a millisecond)."""
-        import pandas as pd
-
-        from quadrs.runs.flight import Flight, metrics_frame
+        from quadrs.runs.flight import default_record_every, flight_of
 
         row = np.ascontiguousarray(xi_row, dtype=np.float64)
         if row.shape != (self.dimension,):
@@ -223,7 +221,7 @@ class ScenarioModel:
         # per-row values fly exactly this (tested bit for bit).
         scenario = self.flown_scenario(row)
         gust = np.ascontiguousarray(row[: self.innovations])
-        record_every = max(1, round(1e-3 / float(self.scenario["integrator.dt"])))
+        record_every = default_record_every(self.scenario)
         progress = _core.Progress()
         simulate = engine_function("simulate_innovations", scenario.to_json())
         out, interrupted = run_cancellable(
@@ -231,26 +229,4 @@ class ScenarioModel:
         )
         if interrupted:
             raise KeyboardInterrupt
-        raw = out["trace"]
-        # The scenario's own layout (its payload and actuator models add or drop columns).
-        trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"),
-                             columns=out["trace_columns"])  # fmt: skip
-        phases = scenario.phase_names
-        spectra = {
-            name: pd.DataFrame({"frequency": f, "amplitude": a})
-            for name, f, a in zip(
-                phases, scenario.spectrum_frequencies, out["spectra"], strict=True
-            )
-        }
-        return Flight(
-            scenario=scenario,
-            controller=self.controller,
-            seed=0,
-            realisation=0,
-            metrics=metrics_frame(phases, out["metrics"]),
-            trace=trace,
-            spectra=spectra,
-            diverged_at=float(out["diverged_at"]),
-            record_every=record_every,
-            status=out["status"],
-        )
+        return flight_of(out, scenario, self.controller, (0, 0), record_every)

@@ -241,7 +241,7 @@ def simulate(
     # Loud only if the scenario excites an unstable mode (the flight will diverge).
     warn_before_running(scenario, (controller,), gains=False, stacklevel=2)
     if record_every is None:
-        record_every = max(1, round(1e-3 / float(scenario["integrator.dt"])))
+        record_every = default_record_every(scenario)
     record_every = check_int("record_every", record_every, 1, 2**63 - 1)
     prescribed = None
     if wind is not None:
@@ -255,6 +255,25 @@ def simulate(
         lambda: engine.simulate(controller, seed, realisation, record_every, prescribed, progress),
         progress,
     )
+    return flight_of(out, scenario, controller, (seed, realisation), record_every)
+
+
+def default_record_every(scenario: Scenario) -> int:
+    """Steps between a trace's rows by default: about one row a millisecond."""
+    return max(1, round(1e-3 / float(scenario["integrator.dt"])))
+
+
+def flight_of(
+    out: _core.SimulateResult,
+    scenario: Scenario,
+    controller: str,
+    gust: tuple[int, int],
+    record_every: int,
+) -> Flight:
+    """The :class:`Flight` of the engine's result of one flight (``simulate``,
+    ``simulate_innovations``) of ``scenario`` by ``controller``: the trace in the scenario's
+    own layout (its payload and actuator models add or drop columns), per phase the metrics
+    and the amplitude spectrum. ``gust``: the (seed, realisation) it flew."""
     raw = out["trace"]
     columns = out["trace_columns"]
     trace = pd.DataFrame(raw[:, 1:], index=pd.Index(raw[:, 0], name="t"), columns=columns)
@@ -267,8 +286,8 @@ def simulate(
     return Flight(
         scenario=scenario,
         controller=controller,
-        seed=seed,
-        realisation=realisation,
+        seed=gust[0],
+        realisation=gust[1],
         metrics=metrics_frame(phases, out["metrics"]),
         trace=trace,
         spectra=spectra,

@@ -33,7 +33,7 @@ from quadrs.runs.chunk import (
     run_range,
 )
 from quadrs.runs.montecarlo_result import MonteCarloResult, empty_runs
-from quadrs.runs.store import RunStore, missing_ranges
+from quadrs.runs.store import RunStore, checkpoint_record, missing_ranges
 from quadrs.scenario.scenario import Scenario
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -158,16 +158,17 @@ def monte_carlo(
     run = batch_identity(scenario, seed, controllers, spectra, design, fused) if flown else ""
     flown = _check_flown(flown or (), first, runs, sampling, run)
     store = RunStore(out) if out is not None else None
+    experiment = checkpoint_record(scenario, seed, controllers, spectra, design.record(),
+                                   arithmetic)  # fmt: skip
     with contextlib.ExitStack() as held:
         done: set[int] = set()
         if store is not None:
             if store.exists() and resume:
                 held.enter_context(store.writing())  # one writer at a time
-                store.check_matches(scenario, seed, controllers, spectra, design.record(),
-                                    arithmetic)  # fmt: skip
+                store.check_matches(experiment)
                 done = store.done_realisations()
             else:
-                store.create(scenario, seed, controllers, spectra, design.record(), arithmetic)
+                store.create(experiment)
                 held.enter_context(store.writing())
         # A flown chunk the checkpoint holds already is not taken twice.
         flown = [c for c in flown if done.isdisjoint(range(c.first, c.first + c.count))]

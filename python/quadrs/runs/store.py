@@ -79,18 +79,10 @@ class RunStore:
     def exists(self) -> bool:
         return self.manifest_path.exists()
 
-    def create(
-        self,
-        scenario: Scenario,
-        seed: int,
-        controllers: tuple[str, ...],
-        spectra: bool = True,
-        design: dict[str, Any] | None = None,
-        arithmetic: str = "exact",
-    ) -> None:
-        """Start a new run; refuses to overwrite an existing one (FileExistsError), also when
-        another process creates one at the same moment. ``design``: how dispersed values are
-        drawn (``sampling``, and for lhs/sobol the batch ``first``, ``runs``)."""
+    def create(self, record: RunRecord) -> None:
+        """Start a new run, the experiment ``record`` (:func:`checkpoint_record`); refuses to
+        overwrite an existing one (FileExistsError), also when another process creates one at
+        the same moment."""
         if self.exists() or self.parts():
             raise FileExistsError(
                 f"{self.path} already holds a run: resume it, or choose another output"
@@ -98,8 +90,6 @@ class RunStore:
         self.path.mkdir(parents=True, exist_ok=True)
         for leftover in self.path.glob(".*.partial"):  # a write cut short by a kill
             leftover.unlink()
-        record = RunRecord(scenario, seed, tuple(controllers), bool(spectra), "design",
-                           _design(design), arithmetic=arithmetic)  # fmt: skip
         manifest = record.metadata()
         try:
             atomic_create(self.manifest_path, json.dumps(manifest, indent=1).encode())
@@ -138,25 +128,18 @@ class RunStore:
         """The run identity every part must carry."""
         return str(self.manifest()["run"])
 
-    def check_matches(
-        self,
-        scenario: Scenario,
-        seed: int,
-        controllers: tuple[str, ...],
-        spectra: bool = True,
-        design: dict[str, Any] | None = None,
-        arithmetic: str = "exact",
-    ) -> None:
-        """Resuming must continue the same experiment, or its rows would not belong together
-        (a random-sampled run may be extended; a design (lhs, sobol) is fixed by its batch)."""
+    def check_matches(self, record: RunRecord) -> None:
+        """Resuming must continue the same experiment (``record``: :func:`checkpoint_record`),
+        or its rows would not belong together (a random-sampled run may be extended; a design
+        (lhs, sobol) is fixed by its batch)."""
         m = self.manifest()
         for what, ours, saved in (
-            ("scenario", scenario, self.record.scenario),
-            ("seed", seed, m["seed"]),
-            ("controllers", list(controllers), m["controllers"]),
-            ("spectra setting", bool(spectra), m["spectra"]),
-            ("sampling design", _design(design), _design(m.get("design"))),
-            ("arithmetic (fused or exact)", arithmetic, self.record.arithmetic),
+            ("scenario", record.scenario, self.record.scenario),
+            ("seed", record.seed, m["seed"]),
+            ("controllers", list(record.controllers), m["controllers"]),
+            ("spectra setting", record.spectra, m["spectra"]),
+            ("sampling design", _design(record.extra), _design(m.get("design"))),
+            ("arithmetic (fused or exact)", record.arithmetic, self.record.arithmetic),
         ):
             if ours != saved:
                 raise ValueError(f"cannot resume {self.path}: its {what} differs from this run's")
@@ -266,6 +249,22 @@ class RunStore:
         for part in self._selected():
             done |= part.realisations
         return done
+
+
+def checkpoint_record(
+    scenario: Scenario,
+    seed: int,
+    controllers: tuple[str, ...],
+    spectra: bool = True,
+    design: dict[str, Any] | None = None,
+    arithmetic: str = "exact",
+) -> RunRecord:
+    """The experiment a checkpoint holds: the scenario, seed, controllers, whether spectra are
+    kept, ``design`` (how dispersed values are drawn: ``sampling``, and for lhs/sobol the
+    batch ``first``, ``runs``) and the arithmetic; what :meth:`RunStore.create` starts and
+    :meth:`RunStore.check_matches` resumes."""
+    return RunRecord(scenario, seed, tuple(controllers), bool(spectra), "design",
+                     _design(design), arithmetic=arithmetic)  # fmt: skip
 
 
 def _design(design: dict[str, Any] | None) -> dict[str, Any]:

@@ -67,6 +67,7 @@ from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
 from quadrs.scenario.plan_payload import PlanPayload, RouteFileError, _number
+from quadrs.scenario.route_timing import lowering_time
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -238,7 +239,7 @@ class RouteFile:
             return None
         v = float(route.get("payload.winch_speed", base["payload.winch_speed"]))
         a = float(route.get("payload.winch_acceleration", base["payload.winch_acceleration"]))
-        t = sum(p / v + 2 * v / a for p in lower)
+        t = sum(lowering_time(p, v, a) for p in lower)
         if not t > 0.5 * self._time_bound(base, route):
             return None
         rate = origin_of(self.origins, "payload.winch_speed")
@@ -271,7 +272,7 @@ class RouteFile:
         if lower:
             if not (math.isfinite(v) and v > 0 and math.isfinite(a) and a > 0):
                 return 1e5
-            t += sum(p / v + 2 * v / a for p in lower)
+            t += sum(lowering_time(p, v, a) for p in lower)
         return 1.01 * t + 1.0
 
 

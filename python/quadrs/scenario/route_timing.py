@@ -31,6 +31,14 @@ def changes_timing(keys: Iterable[str]) -> bool:
     return any(k.startswith(TIMING_PREFIXES) for k in keys)
 
 
+def lowering_time(payout: float, speed: float, acceleration: float) -> float:
+    """s, how long a lowering of ``payout`` m lasts at the winch's ``speed`` (m/s) and
+    ``acceleration`` (m/s^2): the pay-out at its speed with a ramp ``speed / acceleration`` at
+    each end. The engine's rule (``config::route::lowering_time``), which its schedule
+    flies; Python's one copy until ``_core`` exports it."""
+    return payout / speed + 2 * speed / acceleration
+
+
 def _numbers(values: Any) -> list[float]:
     if not isinstance(values, list | tuple):
         return []
@@ -52,7 +60,7 @@ def time_bound(data: Mapping[str, Any]) -> float | None:
         if lower:
             v = float(dotted_value(data, "payload.winch_speed", 1.0))
             a = float(dotted_value(data, "payload.winch_acceleration", 1.0))
-            t += sum(p / v + 2 * v / a for p in lower)
+            t += sum(lowering_time(p, v, a) for p in lower)
         t += sum(math.dist(p, q) / speed + 2 * speed / accel
                  for p, q in itertools.pairwise(points))  # fmt: skip
     except (TypeError, ValueError, ZeroDivisionError):
