@@ -193,7 +193,11 @@ impl Engine {
             // What the laws read: the state, or the navigation's estimate of it.
             let seen = match nav.as_mut() {
                 Some(n) => {
-                    L::sense(n, k, &view);
+                    if n.due(k) {
+                        L::sense(n, k, &view);
+                    } else {
+                        n.accumulate(&view);
+                    }
                     Sight {
                         rigid: &n.estimate,
                         trig: &n.trig,
@@ -230,7 +234,7 @@ impl Engine {
             let (nav_error, navigating) = match nav.as_mut() {
                 Some(n) => {
                     let v = V::<L, Pay, Act, B>::LAYOUT.vel();
-                    L::accelerometer(n, k, &[k1[v], k1[v + 1], k1[v + 2]], &axes);
+                    n.accelerometer(k, &[k1[v], k1[v + 1], k1[v + 2]], &axes);
                     let est = &n.estimate.pos;
                     let err = [0, 1, 2].map(|i| est[i] - view.pos[i]);
                     (err, L::splat(1.0))

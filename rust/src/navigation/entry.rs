@@ -8,11 +8,9 @@ use crate::lane::{F64x4, KernelOps};
 use crate::lane::{F64x4Avx, F64x4Fma, F64x8Avx512, F64x8Fma512};
 use crate::model::Rigid;
 
-/// A lane type's navigation steps (`Navigation::sense`, `Navigation::accelerometer`),
-/// compiled for its instruction set.
+/// A lane type's navigation step (`Navigation::sense`), compiled for its instruction set.
 pub trait Navigate: KernelOps {
     fn sense(nav: &mut Navigation<Self>, k: usize, truth: &Rigid<Self>);
-    fn accelerometer(nav: &mut Navigation<Self>, k: usize, a: &[Self; 3], axes: &[[Self; 3]; 3]);
 }
 
 macro_rules! portable {
@@ -22,41 +20,19 @@ macro_rules! portable {
             fn sense(nav: &mut Navigation<Self>, k: usize, truth: &Rigid<Self>) {
                 nav.sense(k, truth)
             }
-            #[inline(never)]
-            fn accelerometer(
-                nav: &mut Navigation<Self>,
-                k: usize,
-                a: &[Self; 3],
-                axes: &[[Self; 3]; 3],
-            ) {
-                nav.accelerometer(k, a, axes)
-            }
         }
     )+};
 }
 portable!(f64, F64x4);
 
 macro_rules! intrinsic {
-    ($($ty:ty => $features:literal, $sense:ident, $accel:ident;)+) => {$(
+    ($($ty:ty => $features:literal, $sense:ident;)+) => {$(
         /// # Safety
         #[doc = concat!("The CPU must support ", $features, ".")]
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
         unsafe fn $sense(nav: &mut Navigation<$ty>, k: usize, truth: &Rigid<$ty>) {
             nav.sense(k, truth)
-        }
-
-        /// # Safety
-        #[doc = concat!("The CPU must support ", $features, ".")]
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $accel(
-            nav: &mut Navigation<$ty>,
-            k: usize,
-            a: &[$ty; 3],
-            axes: &[[$ty; 3]; 3],
-        ) {
-            nav.accelerometer(k, a, axes)
         }
 
         #[cfg(target_arch = "x86_64")]
@@ -66,21 +42,12 @@ macro_rules! intrinsic {
                 // set (the flight loop's entry asserts it before making one).
                 unsafe { $sense(nav, k, truth) }
             }
-            fn accelerometer(
-                nav: &mut Navigation<Self>,
-                k: usize,
-                a: &[Self; 3],
-                axes: &[[Self; 3]; 3],
-            ) {
-                // SAFETY: as in `sense`.
-                unsafe { $accel(nav, k, a, axes) }
-            }
         }
     )+};
 }
 intrinsic! {
-    F64x4Avx => "avx2", sense_avx2, accel_avx2;
-    F64x4Fma => "avx2,fma", sense_avx2_fma, accel_avx2_fma;
-    F64x8Avx512 => "avx512f,avx512dq", sense_avx512, accel_avx512;
-    F64x8Fma512 => "avx512f,avx512dq", sense_avx512_fma, accel_avx512_fma;
+    F64x4Avx => "avx2", sense_avx2;
+    F64x4Fma => "avx2,fma", sense_avx2_fma;
+    F64x8Avx512 => "avx512f,avx512dq", sense_avx512;
+    F64x8Fma512 => "avx512f,avx512dq", sense_avx512_fma;
 }

@@ -303,9 +303,7 @@ impl<L: Lane> Navigation<L> {
             }
             self.gyro = [0, 1, 2].map(|i| L::from_fn(|l| gyro[l][i]));
         }
-        for i in 0..3 {
-            self.rate_sum[i] += truth.rate[i];
-        }
+        self.accumulate(truth);
         if k.is_multiple_of(s.filter) {
             if k > 0 {
                 self.filter.predict(&self.tuning);
@@ -316,6 +314,21 @@ impl<L: Lane> Navigation<L> {
         }
         if imu_step || k.is_multiple_of(s.filter) {
             self.refresh();
+        }
+    }
+
+    /// Whether step `k` samples the IMU (and so may update the filter): else the step only adds
+    /// to the IMU's sums (`accumulate`, `accelerometer`).
+    #[inline(always)]
+    pub fn due(&self, k: usize) -> bool {
+        k.is_multiple_of(self.schedule.imu)
+    }
+
+    /// The true body rates of the step into the IMU's period sum.
+    #[inline(always)]
+    pub fn accumulate(&mut self, truth: &Rigid<L>) {
+        for (sum, w) in self.rate_sum.iter_mut().zip(truth.rate) {
+            *sum += w;
         }
     }
 
