@@ -139,3 +139,19 @@ def test_a_bad_target_or_page_is_refused(tmp_path, capsys) -> None:
     code = main(["mission", "--runs", "1", "--safety-case", str(tmp_path / "case.txt")])
     assert code == 2
     assert "expected a file ending in .md" in capsys.readouterr().err
+
+
+def test_the_bound_is_one_sided_95_whatever_the_reports_confidence(flown) -> None:
+    """A safety case files the one-sided 95 % bound: a report asked at 80 % does not lower
+    it; the printed block and the page say the level."""
+    from scipy import stats
+
+    mc = quadrs.MonteCarloResult.read_parquet(flown["runs"])
+    report = mission_report(mc, 2 * 9.80665, "pd", metric="max_specific_force", confidence=0.8)
+    rate = safety_case(mc, report).modes["containment"].rate
+    assert rate is not None and rate.confidence == 0.95
+    assert rate.upper == pytest.approx(stats.chi2.ppf(0.95, 2 * rate.events + 2) / 2 / rate.hours,
+                                       rel=1e-12)  # fmt: skip
+    assert "upper bound per flight hour (one-sided 95 %):" in flown["out"]
+    assert "| upper bound per flight hour (one-sided 95 %) |" in flown["page"]
+    assert max(len(line) for line in flown["out"].splitlines()) <= 100
