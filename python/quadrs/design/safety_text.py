@@ -11,7 +11,7 @@ from typing import Any
 SafetyCase = Any
 FailureMode = Any
 
-__all__ = ["header", "rates_text", "safety_markdown", "shown"]
+__all__ = ["bands_lines", "header", "rates_text", "safety_markdown", "shown"]
 
 
 def shown(x: float) -> str:
@@ -59,7 +59,33 @@ def rates_text(case: SafetyCase, width: int = 100) -> str:
             lines += [f"  {name}: {value}" for name, value in zip(names, cells[2:], strict=True)]
     for v in case.verdicts:
         lines += textwrap.wrap(v.text(case.modes[v.mode].rate), width)
+    if case.bands is not None:
+        lines += bands_lines(case, width)
     return "\n".join(lines)
+
+
+def _band_modes(bands: Any) -> list[str]:
+    """The judged modes the bands table counts, in its order."""
+    return [c.removesuffix("_events") for c in bands.columns if c.endswith("_events")]
+
+
+def bands_lines(case: SafetyCase, width: int = 100) -> list[str]:
+    """Which winds make the risk, short: a line per band of the drawn mean wind with its
+    flights and their share, and per mode that has events the band's events and their share
+    of the mode's (the page's table, the same numbers)."""
+    import textwrap
+
+    bands = case.bands
+    modes = [m for m in _band_modes(bands) if bands[f"{m}_events"].sum() > 0]
+    lines = textwrap.wrap("Which winds make the risk, per band of the drawn mean wind (W20, m/s): "
+                          "its flights (share), each mode's events there (share of the mode's):",
+                          width)  # fmt: skip
+    for band, r in bands.iterrows():
+        said = [f"{m} {int(r[f'{m}_events'])} ({shown(r[f'{m}_share'])})" for m in modes]
+        flights = int(r["flights"])
+        text = f"  {band}: {flights} flight{'s' * (flights != 1)} ({shown(r['share'])})"
+        lines += textwrap.wrap("; ".join([text, *said]), width, subsequent_indent="    ")
+    return lines
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -107,7 +133,7 @@ def safety_markdown(case: SafetyCase) -> str:
 def _bands_table(case: SafetyCase) -> str:
     bands = case.bands
     assert bands is not None
-    modes = [c.removesuffix("_events") for c in bands.columns if c.endswith("_events")]
+    modes = _band_modes(bands)
     header = ["wind (m/s)", "flights", "share"]
     for m in modes:
         header += [f"{m} events", f"{m} per flight", f"{m} share"]
