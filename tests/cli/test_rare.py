@@ -178,9 +178,10 @@ def test_rare_writes_a_safety_case_page_with_its_mode_rate_bound_and_verdict(
     """--safety-case from quadrs rare: the page names the mode (the parcel over its limit,
     the metric's exceedance), the rate per flight hour and its one-sided 95 % bound as the
     table printed them, and the target's verdict."""
-    page = tmp_path / "case.md"
+    page, saved = tmp_path / "case.md", tmp_path / "rare.parquet"
     code = main([*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2", "--workers",
-                 "1", "--target", "parcel=1", "--safety-case", str(page)])  # fmt: skip
+                 "1", "--target", "parcel=1", "--safety-case", str(page), "--out",
+                 str(saved)])  # fmt: skip
     assert code == 0
     out = capsys.readouterr().out
     rows = {ln[2:36].strip(): ln[37:] for ln in out.splitlines() if ln.startswith("  ")}
@@ -198,6 +199,11 @@ def test_rare_writes_a_safety_case_page_with_its_mode_rate_bound_and_verdict(
     assert f"| parcel | 1 | not met | {bound} |" in text
     assert "plain Monte Carlo (level 0 of subset simulation reached the threshold)" in text
     assert "| seed | 2 |" in text
+    # quadrs report rebuilds the page from the saved result, the target given again.
+    again = tmp_path / "again.md"
+    assert main(["report", str(saved), "--safety-case", str(again), "--target", "parcel=1"]) == 0
+    assert again.read_text() == text
+    assert "parcel <= 1 per flight hour: NOT MET" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(
