@@ -162,3 +162,63 @@ def test_real_sigint_keeps_the_levels_done(tmp_path: Path) -> None:
     r = RareEventResult.read_parquet(out)
     assert r.interrupted and len(r.levels) >= 1 and r.probability is None
     assert r.upper_bound is not None and 0 < r.upper_bound <= 0.1 ** (len(r.levels) - 1)
+
+
+@pytest.fixture
+def no_calibration(monkeypatch: pytest.MonkeyPatch) -> None:
+    """quadrs rare's announcement flies 20 calibration flights: not needed here."""
+    import quadrs.cli.rare as cr
+
+    monkeypatch.setattr(cr, "_announce", lambda *a: float("nan"))
+
+
+def test_rare_writes_a_safety_case_page_with_its_mode_rate_bound_and_verdict(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_calibration: None
+) -> None:
+    """--safety-case from quadrs rare: the page names the mode (the parcel over its limit,
+    the metric's exceedance), the rate per flight hour and its one-sided 95 % bound as the
+    table printed them, and the target's verdict."""
+    page, saved = tmp_path / "case.md", tmp_path / "rare.parquet"
+    code = main([*RARE, "--threshold", "3.5", "--per-level", "100", "--seed", "2", "--workers",
+                 "1", "--target", "parcel=1", "--safety-case", str(page), "--out",
+                 str(saved)])  # fmt: skip
+    assert code == 0
+    out = capsys.readouterr().out
+    rows = {ln[2:36].strip(): ln[37:] for ln in out.splitlines() if ln.startswith("  ")}
+    rate = rows["per flight hour [95 % interval]"].split(" [")[0]
+    bound = rows["upper bound per flight hour"].split(" (")[0]
+    assert rows["upper bound per flight hour"].endswith("(one-sided 95 %, Garwood (Poisson))")
+    assert "parcel <= 1 per flight hour: NOT MET" in out
+    text = page.read_text()
+    assert text.startswith("# Safety case summary: PD")
+    modes = text.split("## Failure modes", 1)[1].split("##", 1)[0]
+    row = next(ln for ln in modes.splitlines() if ln.startswith("| Parcel over its limit"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[0] == "Parcel over its limit (max_accel in P2 > 3.5 m/s², or diverged)"
+    assert cells[3].split(" [")[0] == rate and cells[4] == bound
+    assert f"| parcel | 1 | not met | {bound} |" in text
+    assert "plain Monte Carlo (level 0 of subset simulation reached the threshold)" in text
+    assert "| seed | 2 |" in text
+    # quadrs report rebuilds the page from the saved result, the target given again.
+    again = tmp_path / "again.md"
+    assert main(["report", str(saved), "--safety-case", str(again), "--target", "parcel=1"]) == 0
+    assert again.read_text() == text
+    assert "parcel <= 1 per flight hour: NOT MET" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--target", "containment=1e-4"], "--target containment: quadrs rare --metric "
+                                           "max_accel estimates the parcel mode only"),
+        (["--metric", "touchdown_miss", "--safety-case", "case.md"],
+         "--safety-case: an exceedance of touchdown_miss is none of the failure modes"),
+    ],
+)  # fmt: skip
+def test_rare_refuses_a_target_of_another_mode_before_flying(
+    args: list[str], words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    no_calibration: None,
+) -> None:  # fmt: skip
+    args = [str(tmp_path / a) if a.endswith(".md") else a for a in args]
+    assert main([*RARE, "--threshold", "3.5", *args]) == 2
+    assert words in one_error_line(capsys.readouterr().err)

@@ -139,3 +139,55 @@ def test_a_bad_target_or_page_is_refused(tmp_path, capsys) -> None:
     code = main(["mission", "--runs", "1", "--safety-case", str(tmp_path / "case.txt")])
     assert code == 2
     assert "expected a file ending in .md" in capsys.readouterr().err
+
+
+def test_the_bound_is_one_sided_95_whatever_the_reports_confidence(flown) -> None:
+    """A safety case files the one-sided 95 % bound: a report asked at 80 % does not lower
+    it; the printed block and the page say the level."""
+    from scipy import stats
+
+    mc = quadrs.MonteCarloResult.read_parquet(flown["runs"])
+    report = mission_report(mc, 2 * 9.80665, "pd", metric="max_specific_force", confidence=0.8)
+    rate = safety_case(mc, report).modes["containment"].rate
+    assert rate is not None and rate.confidence == 0.95
+    assert rate.upper == pytest.approx(stats.chi2.ppf(0.95, 2 * rate.events + 2) / 2 / rate.hours,
+                                       rel=1e-12)  # fmt: skip
+    assert "upper bound per flight hour (one-sided 95 %):" in flown["out"]
+    assert "| upper bound per flight hour (one-sided 95 %) |" in flown["page"]
+    assert max(len(line) for line in flown["out"].splitlines()) <= 100
+
+
+def test_the_winds_that_make_the_risk_are_printed_as_on_the_page(tmp_path, capsys) -> None:
+    """Over a wind climate the answer prints the bands of the drawn mean wind, short: each
+    band's flights and share and each mode's events there, the page's numbers."""
+    import quadrs.cli.mission as cm
+
+    climate = [{"heading": 0.0, "frequency": 1.0, "shape": 2.0, "scale": 3.0},
+               {"heading": 90.0, "frequency": 1.0, "shape": 2.0, "scale": 6.0}]  # fmt: skip
+    route = tmp_path / "route.toml"
+    scenario = quadrs.Scenario.preset("delivery").override(SHORT_ROUTE)
+    route.write_text(scenario.override({"wind.climate.sectors": climate}).to_toml())
+    page = tmp_path / "case.md"
+    saved = cm._announce
+    cm._announce = lambda *a: []  # type: ignore[assignment]
+    try:
+        code = main(["mission", "--scenario", str(route), "--runs", "8", "--seed", "3",
+                     "--set", "volume.flight_geography=0.3", "--set",
+                     "volume.flight_height_band=3.0", "--safety-case", str(page),
+                     "--no-progress"])  # fmt: skip
+    finally:
+        cm._announce = saved  # type: ignore[assignment]
+    assert code == 0
+    out = capsys.readouterr().out
+    block = out.split("Which winds make the risk", 1)[1].split("\n\n", 1)[0]
+    printed = [ln for ln in block.splitlines() if ln.startswith("  [")]
+    table = page.read_text().split("## Which winds make the risk", 1)[1].split("##", 1)[0]
+    rows = [ln for ln in table.splitlines() if ln.startswith("| [")]
+    assert len(printed) == len(rows) >= 2
+    for line, row in zip(printed, rows, strict=True):
+        cells = [c.strip() for c in row.strip("|").split("|")]  # band, flights, share, ...
+        assert line.startswith(f"  {cells[0]}: {cells[1]} flight")
+        assert f"({cells[2]})" in line
+        assert f"containment {cells[3]} ({cells[5]})" in line
+    assert sum(int(r.split("|")[2]) for r in rows) == 8
+    assert max(len(line) for line in out.splitlines()) <= 100

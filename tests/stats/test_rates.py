@@ -86,18 +86,36 @@ def test_the_flights_to_show_are_the_fewest_that_bring_the_bound_down() -> None:
     assert bound(2_000 + more) <= target < bound(2_000 + more - 1)
 
 
-def test_quadrs_rare_prints_its_estimate_per_flight_hour() -> None:
-    """Subset simulation's probability per flight over the flight's hours (36 s: 0.01 h)."""
+def test_quadrs_rare_prints_its_estimate_per_flight_hour_and_its_one_sided_bound() -> None:
+    """Subset simulation's probability per flight over the flight's hours (36 s: 0.01 h); the
+    bound a target is judged against is the one-sided 95 % (the printed 95 % interval's end
+    is the one-sided 97.5 %), its level said."""
+    import dataclasses
     from types import SimpleNamespace
 
+    import quadrs
     from quadrs.cli.rare import per_hour_rows
+    from quadrs.rare.intervals import one_sided_upper
 
     model = SimpleNamespace(scenario={"integrator.duration": 36.0})
-    found = SimpleNamespace(model=model, probability=1e-3, interval=(5e-4, 2e-3))
-    rows = dict(per_hour_rows(found))
-    assert rows["per flight hour (36 s flights)"] == "0.1 [0.05, 0.2]"
-    assert rows["upper bound per flight hour"].startswith("0.2 ")
-    assert rows["per 10,000 deliveries"] == "10 [5, 20]"
-    none = SimpleNamespace(model=model, probability=None, upper_bound=3e-4)
-    assert dict(per_hour_rows(none))["95 % upper bound per flight hour"] == "0.03"
-    assert per_hour_rows(SimpleNamespace(model=None, probability=1e-3)) == []
+    found = quadrs.rare_event(limit_state=lambda x: x[:, 0], dimension=2, threshold=3.0,
+                              per_level=500, seed=1)  # fmt: skip
+    assert found.probability is not None and len(found.levels) > 1
+    rows = dict(per_hour_rows(dataclasses.replace(found, model=model)))
+    lo, hi = found.interval
+    p = found.probability
+    assert rows["per flight hour [95 % interval]"] == (
+        f"{p / 0.01:.3g} [{lo / 0.01:.3g}, {hi / 0.01:.3g}] (36 s flights)"
+    )
+    upper = one_sided_upper(found.run, 0.95)
+    assert upper < hi
+    assert rows["upper bound per flight hour"] == (
+        f"{upper / 0.01:.3g} (one-sided 95 %, subset simulation)"
+    )
+    assert rows["per 10,000 deliveries"] == f"{1e4 * p:.3g}, <= {1e4 * upper:.3g} (one-sided 95 %)"
+    assert per_hour_rows(found) == []  # a limit-state function flies no flight
+
+
+def test_a_verdict_says_its_bound_is_one_sided_95() -> None:
+    few = flight_rate(0, 5_000, 1_000.0)
+    assert "one-sided 95 % upper bound 0.003" in judge("containment", 1e-3, few).text(few)

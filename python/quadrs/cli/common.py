@@ -364,14 +364,20 @@ def no_progress_option(
     p.add_argument("--no-progress", action="store_true", help=help)
 
 
+def path_option(p: argparse.ArgumentParser, flag: str, metavar: str, help: str) -> None:
+    """An option naming a file or folder to write (``--trace FILE``, ``--safety-case FILE``):
+    a Path, None unless given."""
+    p.add_argument(flag, type=Path, default=None, metavar=metavar, help=help)
+
+
 def parquet_out_option(p: argparse.ArgumentParser, help: str) -> None:
     """``--out FILE.parquet``: where the command saves what it found."""
-    p.add_argument("--out", type=Path, metavar="FILE.parquet", help=help)
+    path_option(p, "--out", "FILE.parquet", help)
 
 
 def plots_option(p: argparse.ArgumentParser, help: str) -> None:
     """``--plots DIR``: where the command writes its figures."""
-    p.add_argument("--plots", type=Path, metavar="DIR", help=help)
+    path_option(p, "--plots", "DIR", help)
 
 
 def controller_names() -> tuple[str, ...]:

@@ -25,6 +25,7 @@ from quadrs.cli.common import (
     workers_option,
 )
 from quadrs.cli.cost import Eta, duration, say
+from quadrs.cli.safety_case import check_safety_case, safety_case_options, write_page
 from quadrs.engine.calls import CONTROLLERS
 
 #: The library's argument names -> the options that set them, in the sampler's messages.
@@ -137,6 +138,7 @@ def add_rare(sub: Any, common: argparse.ArgumentParser) -> None:
         "install quadrs[dask]); the result is the same as on one machine",
     )
     no_progress_option(p, help="no per-level progress lines")
+    safety_case_options(p)
 
 
 def _option_words(text: str) -> str:
@@ -179,6 +181,12 @@ def cmd_rare(args: argparse.Namespace) -> int:
     controllers: tuple[str, ...] = args.controller
     paths = paired_paths(args.out, controllers) if args.out is not None else {}
     check_outputs(*paths.values())
+    check_safety_case(args)
+    if args.target or args.safety_case is not None:
+        from quadrs.rare.safety import check_rare_targets
+
+        check_rare_targets(args.metric, dict(args.target),
+                           "--target" if args.target else "--safety-case")  # fmt: skip
     from quadrs.present.terminal import terminal_text
 
     value_name = terminal_text(f"{args.metric} in {args.phase}")
@@ -233,6 +241,8 @@ def cmd_rare(args: argparse.Namespace) -> int:
               f"{_inputs(result)} a flight")  # fmt: skip
         for label, text in summary_rows(result):
             print(f"  {label:<34} {text}")
+        for line in verdict_lines(result, dict(args.target)):
+            print(line)
     if interrupted:
         result = results[interrupted[0]]
         done = len(result.levels)
@@ -249,6 +259,11 @@ def cmd_rare(args: argparse.Namespace) -> int:
         base = controllers[0]
         for name in controllers[1:]:
             print(ratio_line(out, name, base))
+    if args.safety_case is not None:
+        from quadrs.rare.safety import rare_safety_case
+
+        cases = [rare_safety_case(r, dict(args.target), controllers) for r in results.values()]
+        saved = write_page(cases, args.safety_case) and saved
     return EXIT_OK if saved else EXIT_FAIL
 
 
@@ -344,23 +359,43 @@ def ratio_line(comparison: Any, a: str, b: str) -> str:
 
 def per_hour_rows(result: Any) -> list[tuple[str, str]]:
     """The estimate per flight hour (over the flight's scheduled duration: subset simulation
-    gives a probability per flight, not a count of flights ended early) and per 10,000
-    deliveries; none for a limit-state function (no flight)."""
-    scenario = getattr(result.model, "scenario", None)
-    if scenario is None:
+    gives a probability per flight, not a count of flights ended early), its one-sided 95 %
+    upper bound (what a target is judged against, :func:`quadrs.rare.safety.rare_rate`) and
+    per 10,000 deliveries; none for a limit-state function (no flight)."""
+    from quadrs.rare.safety import rare_rate
+
+    rate = rare_rate(result)
+    if rate is None:
         return []
-    hours = float(scenario["integrator.duration"]) / 3600.0
-    if result.probability is None:
-        bound = result.upper_bound
-        return [("95 % upper bound per flight hour", f"{bound / hours:.3g}"),
-                ("per 10,000 deliveries, upper bound", f"{1e4 * bound:.3g}")]  # fmt: skip
-    lo, hi = result.interval
-    return [(f"per flight hour ({3600 * hours:g} s flights)",
-             f"{result.probability / hours:.3g} [{lo / hours:.3g}, {hi / hours:.3g}]"),
-            ("upper bound per flight hour", f"{hi / hours:.3g} (the 95 % interval's end: "
-                                            "one-sided 97.5 %)"),
-            ("per 10,000 deliveries", f"{1e4 * result.probability:.3g} [{1e4 * lo:.3g}, "
-                                      f"{1e4 * hi:.3g}]")]  # fmt: skip
+    seconds = 3600.0 * rate.hours / rate.flights
+    level = f"one-sided {100 * rate.confidence:.3g} %"
+    if rate.rate != rate.rate:  # no failure deeper than level 0: the bound alone
+        said = f"no estimate ({seconds:g} s flights)"
+    else:
+        said = (f"{rate.rate:.3g} [{rate.ci_low:.3g}, {rate.ci_high:.3g}] ({seconds:g} s "
+                "flights)")  # fmt: skip
+    return [(f"per flight hour [{100 * rate.confidence:.3g} % interval]", said),
+            ("upper bound per flight hour", f"{rate.upper:.3g} ({level}, {rate.method})"),
+            ("per 10,000 deliveries", f"{rate.per_10k:.3g}, <= {rate.per_10k_upper:.3g} "
+                                      f"({level})".removeprefix("nan, "))]  # fmt: skip
+
+
+def verdict_lines(result: Any, targets: dict[str, float]) -> list[str]:
+    """Each ``--target``'s verdict on the result's one-sided bound, wrapped to the report's
+    width (the mode checked before flying)."""
+    import textwrap
+
+    from quadrs.cli.common import report_width
+    from quadrs.rare.safety import rare_safety_case
+
+    if not targets:
+        return []
+    case = rare_safety_case(result, targets)
+    rate = next(iter(case.modes.values())).rate
+    assert rate is not None  # the case is made of a finished result
+    return [line for v in case.verdicts
+            for line in textwrap.wrap(v.text(rate), report_width(), subsequent_indent="  ",
+                                      break_on_hyphens=False)]  # fmt: skip
 
 
 def summary_rows(result: Any) -> list[tuple[str, str]]:

@@ -23,7 +23,8 @@ __all__ = ["add_report", "cmd_report"]
 #: Files quadrs writes that ``report`` does not read: their kind -> what to say instead.
 _NOT_REPORTED = {
     "rare_event": "a rare-event result (quadrs rare --out): report reads Monte Carlo, mission "
-    "and sweep files; read it with RareEventResult.read_parquet",
+    "and sweep files, and a rare-event result's safety case (--safety-case, --target); read "
+    "it with RareEventResult.read_parquet",
     "flight": "one flight's trace (quadrs run --trace): report reads Monte Carlo, mission and "
     "sweep files; read it with quadrs.Flight.read_parquet",
     "sensitivity": "a sensitivity result (quadrs sensitivity --out): report reads Monte Carlo, "
@@ -90,6 +91,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise BadInput(f"{str(args.file)!r}: no such file")
     check_safety_case(args)
     kind = None if args.file.is_dir() else _file_kind(args.file)
+    if kind == "rare_event" and (args.safety_case is not None or args.target):
+        return rare_page(args)
     if kind in _NOT_REPORTED:
         raise BadInput(f"{str(args.file)!r} is {_NOT_REPORTED[kind]}")
     if not args.file.is_dir() and is_sweep_file(args.file):
@@ -121,3 +124,28 @@ def cmd_report(args: argparse.Namespace) -> int:
         elif args.plots is not None:
             mc_plots(mc, args.plots, args.limit)
     return EXIT_OK
+
+
+def rare_page(args: argparse.Namespace) -> int:
+    """A saved rare-event result's answer again: its table's rows, the verdicts of the
+    targets given and its ``--safety-case`` page (the one ``quadrs rare`` wrote, for one law)."""
+    from quadrs.cli.rare import summary_rows, verdict_lines
+    from quadrs.cli.safety_case import write_page
+    from quadrs.rare.result import RareEventResult
+    from quadrs.rare.safety import check_rare_targets, rare_safety_case
+
+    result = RareEventResult.read_parquet(args.file)
+    metric = getattr(result.model, "metric", None)
+    if metric is None or result.interrupted:
+        raise BadInput(f"{str(args.file)!r}: a rare-event result without a flight's estimate "
+                       "(a limit-state function, or interrupted) has no safety case")  # fmt: skip
+    targets = dict(args.target)
+    check_rare_targets(metric, targets, "--target" if targets else "--safety-case")
+    print(f"{args.file}: {result.value_name}, seed {result.seed}")
+    for label, text in summary_rows(result):
+        print(f"  {label:<34} {text}")
+    for line in verdict_lines(result, targets):
+        print(line)
+    return (
+        EXIT_OK if write_page([rare_safety_case(result, targets)], args.safety_case) else EXIT_FAIL
+    )

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from quadrs.cli.common import EXIT_FAIL, EXIT_OK, controller_option, seed_option
+from quadrs.cli.common import EXIT_FAIL, EXIT_OK, controller_option, path_option, seed_option
 
 __all__ = ["add_run", "cmd_run"]
 
@@ -32,14 +32,14 @@ def add_run(sub: Any, common: argparse.ArgumentParser) -> None:
         metavar="I",
         help="gust realisation of the seed, the same as realisation I of `quadrs mc` (default: 0)",
     )
-    p.add_argument("--plot", type=Path, metavar="DIR", help="write the flight's figures here")
-    p.add_argument(
+    path_option(p, "--plot", "DIR", "write the flight's figures here")
+    path_option(
+        p,
         "--trace",
-        type=Path,
-        metavar="FILE",
-        help="write the time trace (t in s; states, references, controls, wind in m/s, e_o "
-        "in m) as .parquet (with the scenario, seed, controller, realisation and version; "
-        "read it with quadrs.Flight.read_parquet) or plain .csv",
+        "FILE",
+        "write the time trace (t in s; states, references, controls, wind in m/s, e_o in m) "
+        "as .parquet (with the scenario, seed, controller, realisation and version; read it "
+        "with quadrs.Flight.read_parquet) or plain .csv",
     )
 
 

@@ -63,7 +63,6 @@ from quadrs.design.mission_tables import (
     _worst,
     contact_split,
     none_seen_bound,
-    one_sided_upper,
 )
 from quadrs.design.mission_text import (
     _acceleration_text,
@@ -82,6 +81,7 @@ from quadrs.design.mission_text import (
 from quadrs.design.route_limits import LimitClash, route_clashes
 from quadrs.present.terminal import fit_columns, terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
+from quadrs.stats.rates import one_sided_upper
 from quadrs.stats.risk import exceedance_stats, quantile_interval
 from quadrs.stats.summary import phase_diverged
 

@@ -124,18 +124,6 @@ def none_seen_bound(n: int, confidence: float = 0.95) -> float:
     return float(1.0 - ((1.0 - confidence) / 2.0) ** (1.0 / n))
 
 
-def one_sided_upper(k: int, n: int, confidence: float = 0.95) -> float:
-    """The one-sided exact (Clopper-Pearson) upper bound of a probability seen ``k`` times in
-    ``n``: ``1 - (1 - confidence)**(1/n)`` for k = 0 (3/n, the "rule of three", for large n)."""
-    from scipy import stats
-
-    if n <= 0:
-        return math.nan
-    if k >= n:
-        return 1.0
-    return float(stats.beta.ppf(confidence, k + 1, n - k))
-
-
 def _off_route(
     values: Any, phase: str, present: set[str], track_limit: float, cross_limit: float
 ) -> tuple[np.ndarray, np.ndarray]:

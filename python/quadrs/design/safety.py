@@ -29,18 +29,27 @@ import pandas as pd
 
 from quadrs.design.mission import MissionReport
 from quadrs.runs.montecarlo_result import MonteCarloResult
-from quadrs.stats.rates import TARGET_MODES, Rate, Verdict, flight_rate, judge
+from quadrs.stats.rates import BOUND_LEVEL, TARGET_MODES, Rate, Verdict, flight_rate, judge
 
-__all__ = ["FailureMode", "SafetyCase", "safety_case", "wind_bands"]
+__all__ = ["MODE_TITLES", "FailureMode", "SafetyCase", "assumptions_of", "safety_case",
+           "wind_bands"]  # fmt: skip
 
 #: m/s, the width of the wind bands (of the drawn ``wind.speed``).
 BAND_WIDTH = 2.0
+#: Each mode's name on the page, its event said after it.
+MODE_TITLES = {
+    "containment": "Containment loss",
+    "control": "Loss of control",
+    "parcel": "Parcel over its limit",
+    "touchdown": "Hard touchdown",
+}
 
 
 @dataclass(frozen=True)
 class FailureMode:
-    """One failure mode: ``events`` of ``flights`` (None, with ``why``, if not judged), the
-    probability per flight with its exact interval, and the rate per flight hour."""
+    """One failure mode: ``events`` of ``flights`` (None if not counted: not judged, with
+    ``why``, or estimated, with a ``rate``), the probability per flight with its interval,
+    and the rate per flight hour."""
 
     mode: str
     label: str
@@ -54,7 +63,14 @@ class FailureMode:
 
     @property
     def judged(self) -> bool:
-        return self.events is not None
+        return self.rate is not None
+
+    @property
+    def tally(self) -> str:
+        """How it was counted: ``k of n`` flights, or the estimate's method."""
+        if self.events is not None:
+            return f"{self.events} of {self.flights}"
+        return "not judged" if self.rate is None else f"estimated ({self.flights:,} flights)"
 
 
 @dataclass(frozen=True)
@@ -71,7 +87,13 @@ class SafetyCase:
     assumptions: tuple[tuple[str, str], ...] = ()
     #: Per wind band of the drawn wind.speed (None without a dispersed wind).
     bands: pd.DataFrame | None = field(default=None, repr=False)
-    confidence: float = 0.95
+    #: The intervals' level (two-sided) and the bounds' (one-sided).
+    confidence: float = BOUND_LEVEL
+    #: What the rates' intervals are (the printed head and the page say it).
+    intervals: str = ("per flight Clopper-Pearson, per flight hour Garwood (Poisson), the "
+                      "bounds one-sided")  # fmt: skip
+    #: How a flight's hours are counted.
+    hours_said: str = "a flight's hours run until it ended (a diverged flight until it diverged)"
 
     def rows(self) -> pd.DataFrame:
         """One row per failure mode: events, flights, per flight [interval], per flight hour
@@ -151,12 +173,13 @@ def _labels(report: MissionReport) -> dict[str, str]:
     from quadrs.present.labels import shown_unit, shown_value
 
     limit = f"{shown_value(report.metric, report.limit):g} {shown_unit(report.metric)}".rstrip()
-    return {
-        "containment": "Containment loss (left the operational volume, or diverged)",
-        "control": "Loss of control (the flight diverged)",
-        "parcel": f"Parcel over its limit ({report.metric} > {limit})",
-        "touchdown": f"Hard touchdown (faster than {report.touchdown_limit:g} m/s)",
+    said = {
+        "containment": "left the operational volume, or diverged",
+        "control": "the flight diverged",
+        "parcel": f"{report.metric} > {limit}",
+        "touchdown": f"faster than {report.touchdown_limit:g} m/s",
     }
+    return {mode: f"{MODE_TITLES[mode]} ({said[mode]})" for mode in TARGET_MODES}
 
 
 def _mode(mode: str, label: str, events: Any, flights: int, hours: float,
@@ -179,7 +202,9 @@ def safety_case(
     targets: dict[str, float] | None = None,
 ) -> SafetyCase:
     """The failure modes of ``report``'s law over ``mc``'s flights, per flight and per flight
-    hour, judged against ``targets`` (mode -> rate per flight hour)."""
+    hour, judged against ``targets`` (mode -> rate per flight hour). Intervals two-sided and
+    bounds one-sided at :data:`~quadrs.stats.rates.BOUND_LEVEL` (95 %, what a safety case
+    files), whatever the report's own confidence."""
     targets = dict(targets or {})
     for mode in targets:
         if mode not in TARGET_MODES:
@@ -187,7 +212,7 @@ def safety_case(
     hours = flight_hours(mc, report.controller)
     total = float(hours.sum())
     labels = _labels(report)
-    modes = {m: _mode(m, labels[m], e, len(hours), total, report.confidence)
+    modes = {m: _mode(m, labels[m], e, len(hours), total, BOUND_LEVEL)
              for m, e in _mode_events(mc, report).items()}  # fmt: skip
     modes = {m: modes[m] for m in TARGET_MODES}
     verdicts = []
@@ -198,22 +223,24 @@ def safety_case(
         verdicts.append(judge(mode, target, rate))
     return SafetyCase(report.controller, len(hours), total,
                       f"plain Monte Carlo, {len(hours):,} flights ({total:.4g} flight hours)",
-                      modes, tuple(verdicts), assumptions(mc, report),
-                      wind_bands(mc, report, modes), report.confidence)  # fmt: skip
+                      modes, tuple(verdicts),
+                      assumptions_of(mc.scenario, report.controller, mc.controllers, mc.seed,
+                                     f"sampling {mc.sampling}"),
+                      wind_bands(mc, report, modes))  # fmt: skip
 
 
-def assumptions(mc: MonteCarloResult, report: MissionReport) -> tuple[tuple[str, str], ...]:
-    """What the numbers assume, from the result's own provenance (its scenario, seed, laws,
-    sampling and the engine's version)."""
+def assumptions_of(s: Any, controller: str, laws: Any, seed: int,
+                   sampling: str) -> tuple[tuple[str, str], ...]:  # fmt: skip
+    """What the numbers assume, from a result's own provenance: its scenario ``s``, the law,
+    the laws flown, the seed, how the dispersions were sampled, and the engine's version."""
     from quadrs import _core
     from quadrs.scenario.dispersion import describe
 
-    s = mc.scenario
     rows = [("model", f"vehicle.body = {s.get('vehicle.body', 'paper')}, payload.model = "
                       f"{s.get('payload.model', 'spring')}, actuator.model = "
                       f"{s.get('actuator.model', 'ideal')}"),
-            ("control law", report.controller),
-            ("laws flown", ", ".join(mc.controllers))]  # fmt: skip
+            ("control law", controller),
+            ("laws flown", ", ".join(laws))]  # fmt: skip
     if s.get("navigation.mode") is not None:
         rows.append(("navigation", str(s.get("navigation.mode"))))
     wind = (f"mean wind {s.get('wind.speed', 0.0):g} m/s toward {s.get('wind.heading', 0.0):g}"
@@ -228,10 +255,10 @@ def assumptions(mc: MonteCarloResult, report: MissionReport) -> tuple[tuple[str,
         rows.append(("operational volume", ", ".join(f"{k} = {v:g} m" for k, v in volume.items())))
     others = [ln for ln in lines if not ln.startswith("wind.") or not climate]
     if others:
-        rows.append(("dispersions", "; ".join(others) + f" (sampling {mc.sampling})"))
+        rows.append(("dispersions", "; ".join(others) + f" ({sampling})"))
     flight = f"{float(s['integrator.duration']):g} s, dt {float(s['integrator.dt']):g} s"
     rows += [("flight", flight),
-             ("seed", str(mc.seed)), ("quadrs", str(_core.__version__))]  # fmt: skip
+             ("seed", str(seed)), ("quadrs", str(_core.__version__))]  # fmt: skip
     return tuple(rows)
 
 

@@ -11,7 +11,7 @@ from typing import Any
 SafetyCase = Any
 FailureMode = Any
 
-__all__ = ["rates_text", "safety_markdown", "shown"]
+__all__ = ["bands_lines", "header", "rates_text", "safety_markdown", "shown"]
 
 
 def shown(x: float) -> str:
@@ -22,18 +22,22 @@ def shown(x: float) -> str:
 
 def _cells(m: FailureMode) -> list[str]:
     """A mode's row: events of flights, per flight [interval], per flight hour [interval],
-    its one-sided upper bound, per 10,000 deliveries and its bound."""
+    its one-sided upper bound, per 10,000 deliveries and its one-sided bound."""
     if m.rate is None:
         return [m.label, "not judged", m.why, "", "", ""]
     r = m.rate
-    return [m.label, f"{m.events} of {m.flights}",
+    return [m.label, m.tally,
             f"{shown(m.probability)} [{shown(m.ci_low)}, {shown(m.ci_high)}]",
             f"{shown(r.rate)} [{shown(r.ci_low)}, {shown(r.ci_high)}]", shown(r.upper),
             f"{shown(r.per_10k)} (<= {shown(r.per_10k_upper)})"]  # fmt: skip
 
 
-HEADER = ["failure mode", "events", "per flight [95 % CI]", "per flight hour [95 % CI]",
-          "upper 95 % per flight hour", "per 10,000 deliveries"]  # fmt: skip
+def header(confidence: float) -> list[str]:
+    """The failure modes table's columns, the intervals' and bounds' level said."""
+    c = f"{100 * confidence:.3g} %"
+    return ["failure mode", "events", f"per flight [{c} CI]", f"per flight hour [{c} CI]",
+            f"upper bound per flight hour (one-sided {c})",
+            f"per 10,000 deliveries (<= one-sided {c})"]  # fmt: skip
 
 
 def rates_text(case: SafetyCase, width: int = 100) -> str:
@@ -42,20 +46,46 @@ def rates_text(case: SafetyCase, width: int = 100) -> str:
     import textwrap
 
     head = (
-        f"Per flight hour ({case.controller.upper()}, {case.method}; 95 % intervals: per "
-        "flight Clopper-Pearson, per flight hour Garwood (Poisson), the bound one-sided):"
+        f"Per flight hour ({case.controller.upper()}, {case.method}; "
+        f"{100 * case.confidence:.3g} % intervals: {case.intervals}):"
     )
     lines = textwrap.wrap(head, width)
+    names = header(case.confidence)[2:]
     for mode, m in case.modes.items():
         cells = _cells(m)
         said = f"{mode}: {cells[1]}" + (f" ({cells[2]})" if m.rate is None else "")
         lines += textwrap.wrap(said, width, subsequent_indent="    ")
         if m.rate is not None:
-            lines += [f"  {name}: {value}" for name, value in zip(HEADER[2:], cells[2:],
-                                                                  strict=True)]  # fmt: skip
+            lines += [f"  {name}: {value}" for name, value in zip(names, cells[2:], strict=True)]
     for v in case.verdicts:
         lines += textwrap.wrap(v.text(case.modes[v.mode].rate), width)
+    if case.bands is not None:
+        lines += bands_lines(case, width)
     return "\n".join(lines)
+
+
+def _band_modes(bands: Any) -> list[str]:
+    """The judged modes the bands table counts, in its order."""
+    return [c.removesuffix("_events") for c in bands.columns if c.endswith("_events")]
+
+
+def bands_lines(case: SafetyCase, width: int = 100) -> list[str]:
+    """Which winds make the risk, short: a line per band of the drawn mean wind with its
+    flights and their share, and per mode that has events the band's events and their share
+    of the mode's (the page's table, the same numbers)."""
+    import textwrap
+
+    bands = case.bands
+    modes = [m for m in _band_modes(bands) if bands[f"{m}_events"].sum() > 0]
+    lines = textwrap.wrap("Which winds make the risk, per band of the drawn mean wind (W20, m/s): "
+                          "its flights (share), each mode's events there (share of the mode's):",
+                          width)  # fmt: skip
+    for band, r in bands.iterrows():
+        said = [f"{m} {int(r[f'{m}_events'])} ({shown(r[f'{m}_share'])})" for m in modes]
+        flights = int(r["flights"])
+        text = f"  {band}: {flights} flight{'s' * (flights != 1)} ({shown(r['share'])})"
+        lines += textwrap.wrap("; ".join([text, *said]), width, subsequent_indent="    ")
+    return lines
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -69,30 +99,24 @@ def safety_markdown(case: SafetyCase) -> str:
     parts = [
         f"# Safety case summary: {case.controller.upper()}",
         "",
-        f"Method: {case.method}. Each flight is one delivery; a flight's hours run until it "
-        "ended (a diverged flight until it diverged). Intervals are 95 %: per flight exact "
-        "(Clopper-Pearson), per flight hour exact (Garwood, Poisson), the upper bound "
-        "one-sided.",
+        f"Method: {case.method}. Each flight is one delivery; {case.hours_said}. Intervals are "
+        f"{100 * case.confidence:.3g} % ({case.intervals}); a target is judged against the "
+        f"one-sided {100 * case.confidence:.3g} % upper bound.",
         "",
         "## Failure modes",
         "",
-        _table(HEADER, [_cells(m) for m in case.modes.values()]),
+        _table(header(case.confidence), [_cells(m) for m in case.modes.values()]),
         "",
         "## Targets",
         "",
     ]
     if case.verdicts:
-        rows = [[v.mode, shown(v.target), v.status,
-                 shown(case.modes[v.mode].rate.upper),
-                 f"{v.more:,}" if v.more else ""] for v in case.verdicts]  # fmt: skip
-        header = [
-            "mode",
-            "target per flight hour",
-            "verdict",
-            "upper 95 % per flight hour",
-            "more flights to show it",
-        ]
-        parts.append(_table(header, rows))
+        rows = [[v.mode, shown(v.target), v.status, shown(case.modes[v.mode].rate.upper),
+                 v.more_text()] for v in case.verdicts]  # fmt: skip
+        columns = ["mode", "target per flight hour", "verdict",
+                   f"upper bound per flight hour (one-sided {100 * case.confidence:.3g} %)",
+                   "more flights to show it"]  # fmt: skip
+        parts.append(_table(columns, rows))
     else:
         parts.append("No target given (`--target MODE=RATE`).")
     if case.bands is not None:
@@ -109,7 +133,7 @@ def safety_markdown(case: SafetyCase) -> str:
 def _bands_table(case: SafetyCase) -> str:
     bands = case.bands
     assert bands is not None
-    modes = [c.removesuffix("_events") for c in bands.columns if c.endswith("_events")]
+    modes = _band_modes(bands)
     header = ["wind (m/s)", "flights", "share"]
     for m in modes:
         header += [f"{m} events", f"{m} per flight", f"{m} share"]

@@ -28,9 +28,8 @@ from quadrs.rare.intervals import (
     CONFIDENCE,
     _binomial_interval,
     _interval,
-    _lognormal_s,
-    _upper_bound_zero,
     lognormal_interval,
+    no_failure_bound,
 )
 from quadrs.rare.levels import (
     INITIAL_SPREAD,
@@ -249,8 +248,7 @@ def _fixed(
             if on_level is not None:
                 on_level(levels[-1])
             if above == 0:
-                return _no_failure(levels, product, var_sum, seeds, per_level, closest,
-                                   first_above, run_of)  # fmt: skip
+                return _no_failure(levels, closest, first_above, run_of)
             product *= p
             var_sum += cov_level**2
             if last:
@@ -280,25 +278,12 @@ def _fixed(
 
 def _no_failure(
     levels: list[Level],
-    product: float,
-    var_sum: float,
-    seeds: int,
-    per_level: int,
     closest: float,
     first_above: np.ndarray | None,
     run_of: Callable[..., SubsetRun],
 ) -> SubsetRun:
-    """No sample of the last level reached lies above its cut: a 95 % upper confidence bound.
-    On level 0, 0 of ``per_level`` independent flights (Clopper-Pearson). Deeper, the product
-    of the fractions so far (its lognormal 97.5 % upper end) times the bound for 0 events in
-    the level's chains counted as independent trials (97.5 %; Bonferroni: 95 % together)."""
-    if len(levels) == 1:
-        bound = _upper_bound_zero(per_level, CONFIDENCE)
-    else:
-        tail = 1.0 - (1.0 - CONFIDENCE) / 2
-        from scipy.stats import norm
-
-        reached = product * math.exp(float(norm.ppf(tail)) * _lognormal_s(math.sqrt(var_sum)))
-        bound = min(1.0, reached * _upper_bound_zero(seeds, tail))
+    """No sample of the last level reached lies above its cut: a 95 % upper confidence bound
+    (:func:`quadrs.rare.intervals.no_failure_bound`)."""
+    bound = no_failure_bound(run_of(levels=levels), CONFIDENCE)
     return run_of(levels=levels, upper_bound=bound, closest=closest, first_above=first_above,
                   interval=(0.0, bound))  # fmt: skip

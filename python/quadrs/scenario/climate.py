@@ -13,10 +13,19 @@ the mean wind's heading and speed drawn per realisation, as wind atlases give th
 ``shape`` and ``scale`` (m/s) of its speed at the height ``wind.speed`` is given for (W20,
 6.1 m). It is a dispersion of the two ``[wind]`` keys ``wind.heading`` and ``wind.speed``
 with one joint law: a realisation's first uniform picks the sector (with probability its
-frequency), its second the speed by the sector's Weibull inverse CDF. Both uniforms are the
-batch's design columns of those keys (:mod:`quadrs.scenario.dispersion`), so the same seed
-gives the same winds and a Latin hypercube or Sobol' design stratifies them too. Python
-alone reads the table: the engine sees each realisation's heading and speed.
+frequency) and the heading within it, its second the speed by the sector's Weibull inverse
+CDF. Both uniforms are the batch's design columns of those keys
+(:mod:`quadrs.scenario.dispersion`), so the same seed gives the same winds and a Latin
+hypercube or Sobol' design stratifies them too. Python alone reads the table: the engine
+sees each realisation's heading and speed.
+
+A sector stands for the headings nearer to it than to its neighbours (an atlas's 12 sectors
+of 30 deg each: its heading +- 15 deg): it reaches half-way to the next sector's heading on
+each side, round the circle, and the heading is drawn uniform within it. Where the first
+uniform u falls in the sector's share of (0, 1), (u - its start) / its frequency, is itself
+uniform and independent of which sector it picked: it places the heading, so no third
+column is needed and a design that stratifies u stratifies the headings within a sector
+too. A lone sector has no neighbours: its heading is its own.
 """
 
 from __future__ import annotations
@@ -30,7 +39,14 @@ import numpy as np
 
 from quadrs.scenario.keys import scenario_error
 
-__all__ = ["CLIMATE_KEYS", "SECTOR_KEYS", "Climate", "climate_of", "strip_climate"]
+__all__ = [
+    "CLIMATE_KEYS",
+    "SECTOR_KEYS",
+    "Climate",
+    "climate_of",
+    "sector_extents",
+    "strip_climate",
+]
 
 #: The keys a climate disperses, in the design's (sorted) order.
 CLIMATE_KEYS = ("wind.heading", "wind.speed")
@@ -46,12 +62,15 @@ SECTOR_KEYS: dict[str, tuple[str, str]] = {
 @dataclass(frozen=True)
 class Climate:
     """The sectors: headings (deg), probabilities (normalised frequencies), Weibull shapes
-    and scales (m/s)."""
+    and scales (m/s), and each sector's extent about its heading: from ``lows`` to ``highs``
+    (deg, half-way to each neighbour; both the heading for a lone sector)."""
 
     headings: np.ndarray
     probabilities: np.ndarray
     shapes: np.ndarray
     scales: np.ndarray
+    lows: np.ndarray
+    highs: np.ndarray
 
     def sectors_of(self, u: np.ndarray) -> np.ndarray:
         """The sector index of uniforms ``u`` in (0, 1): the first whose cumulative
@@ -65,10 +84,14 @@ class Climate:
         the speed by that sector's Weibull inverse CDF of the second."""
         from scipy import stats
 
-        sector = self.sectors_of(u_heading)
+        u = np.asarray(u_heading, dtype=float)
+        sector = self.sectors_of(u)
+        start = np.concatenate(([0.0], np.cumsum(self.probabilities)))[sector]
+        within = np.clip((u - start) / self.probabilities[sector], 0.0, 1.0)
+        low, high = self.lows[sector], self.highs[sector]
         speed = stats.weibull_min.ppf(np.asarray(u_speed, dtype=float), self.shapes[sector],
                                       scale=self.scales[sector])  # fmt: skip
-        return {"wind.heading": self.headings[sector].astype(float),
+        return {"wind.heading": (low + within * (high - low)).astype(float),
                 "wind.speed": np.asarray(speed, dtype=float)}  # fmt: skip
 
     def ranges(self, edge: float) -> dict[str, list[float]]:
@@ -78,15 +101,16 @@ class Climate:
         low = stats.weibull_min.ppf(edge, self.shapes, scale=self.scales)
         high = stats.weibull_min.ppf(1.0 - edge, self.shapes, scale=self.scales)
         drawn = self.probabilities > 0
-        return {"wind.heading": [float(self.headings[drawn].min()),
-                                 float(self.headings[drawn].max())],
+        return {"wind.heading": [float(self.lows[drawn].min()),
+                                 float(self.highs[drawn].max())],
                 "wind.speed": [float(low[drawn].min()), float(high[drawn].max())]}  # fmt: skip
 
     def describe(self) -> str:
         """One line: the sectors' headings, shares and Weibull parameters."""
-        parts = [f"{h:g} deg {100 * p:.3g} % weibull(shape={k:g}, scale={c:g})"
-                 for h, p, k, c in zip(self.headings, self.probabilities, self.shapes,
-                                       self.scales, strict=True)]  # fmt: skip
+        parts = [f"{h:g} deg [{lo:g}, {hi:g}] {100 * p:.3g} % weibull(shape={k:g}, scale={c:g})"
+                 for h, lo, hi, p, k, c in zip(self.headings, self.lows, self.highs,
+                                               self.probabilities, self.shapes, self.scales,
+                                               strict=True)]  # fmt: skip
         return "wind climate: " + "; ".join(parts)
 
 
@@ -142,7 +166,32 @@ def climate_of(data: Mapping[str, Any]) -> Climate | None:
         raise scenario_error("wind.climate.sectors: the frequencies must sum to > 0, got "
                              f"{total:g}", "wind.climate.sectors")  # fmt: skip
     _check_not_dispersed(data)
-    return Climate(heading, frequency / total, shape, scale)
+    low, high = sector_extents(heading)
+    return Climate(heading, frequency / total, shape, scale, low, high)
+
+
+def sector_extents(headings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each sector's first and last heading (deg): half-way to its neighbours round the
+    circle, on the heading's own side of 360 (a sector at 0 with neighbours at 90 and 270
+    reaches from -45 to 45). A lone sector: its heading alone. Two sectors at one heading
+    (modulo 360) are refused, naming the second."""
+    n = len(headings)
+    if n == 1:
+        return headings.copy(), headings.copy()
+    turned = np.mod(headings, 360.0)
+    order = np.argsort(turned, kind="stable")
+    ring = turned[order]
+    gaps = np.diff(np.concatenate((ring, [ring[0] + 360.0])))  # to the next, round the circle
+    for j in np.flatnonzero(gaps == 0.0):
+        first, second = sorted((int(order[j]), int(order[(j + 1) % n])))
+        key = f"wind.climate.sectors[{second}].heading"
+        raise scenario_error(f"{key}: {headings[second]:g} deg is sector {first}'s heading "
+                             "again (modulo 360): give each heading once", key)  # fmt: skip
+    after = np.empty(n)
+    before = np.empty(n)
+    after[order] = gaps / 2.0
+    before[order] = np.roll(gaps, 1) / 2.0
+    return headings - before, headings + after
 
 
 def _check_not_dispersed(data: Mapping[str, Any]) -> None:
