@@ -109,7 +109,7 @@ def cluster():
     """A LocalCluster of two worker processes (one thread each), started by the test."""
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as c:
         yield c
 
@@ -311,7 +311,7 @@ def test_sensitivity_rows_survive_a_lost_worker(short: Scenario) -> None:
                                                          "high": 0.35}}})  # fmt: skip
     local = sensitivity(s, runs=8, seed=2, controllers=("pd",), progress=False)
     cluster = distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     )
     with cluster, distributed.Client(cluster) as client:
         killed: list[str] = []
