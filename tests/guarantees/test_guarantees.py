@@ -91,7 +91,8 @@ def test_report_refuses_tampered_metadata(tiny: Scenario, tmp_path: Path, capsys
 
 
 def test_diverged_trace_stops_at_divergence(tiny: Scenario) -> None:
-    s = tiny.override({"payload.natural_frequency": 400.0, "integrator.dt": 0.002})
+    with pytest.warns(quadrs.PlausibilityWarning, match="400 Hz"):  # too stiff on purpose
+        s = tiny.override({"payload.natural_frequency": 400.0, "integrator.dt": 0.002})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         f = quadrs.simulate(s, "pd", record_every=1)
