@@ -3,7 +3,7 @@
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
 use super::rk4::rk4_advance;
-use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, Winds};
+use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, TensionNoise, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Flying, Laws, Sight};
 use crate::gust::WindField;
@@ -146,6 +146,7 @@ impl Engine {
         let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0));
         let mut rates = Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt));
         let mut release = Release::new();
+        let mut noise = TensionNoise::new(req, &self.cfg);
 
         let reads_payload = law.reads_payload();
         // The actuators' command, held between the inner loop's updates.
@@ -191,6 +192,8 @@ impl Engine {
                 t,
                 dt: self.dt,
                 payout: leg.payout,
+                height: view.pos[2],
+                draw: noise.draw(),
             };
             let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
