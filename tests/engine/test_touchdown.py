@@ -166,6 +166,20 @@ def test_with_the_load_cells_noise_the_slack_hook_never_opens_before_the_touchdo
     assert len(set(released)) > 1, released
 
 
+def test_the_load_cells_noise_is_the_realisations_own_in_a_batch_as_alone() -> None:
+    """Its stream is keyed by (seed, realisation): a batch's lanes draw what single flights
+    of the same realisations draw, bit for bit."""
+    sc = lowering(6.0, **SLACK, **{"payload.tension_noise": 0.3})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", quadrs.StabilityWarning)
+        runs = quadrs.monte_carlo(sc, runs=4, seed=3, controllers=("pd",)).runs
+    batch = runs[runs["phase"] == "flight"].set_index("realisation")["release_time"]
+    alone = [fly(sc, seed=3, realisation=i).metrics.set_index("phase").loc["flight"]
+             for i in range(4)]  # fmt: skip
+    assert [m["release_time"] for m in alone] == batch.loc[[0, 1, 2, 3]].tolist()
+    assert batch.nunique() > 1, batch
+
+
 def test_a_drop_in_still_air_lands_at_the_closed_form_speed() -> None:
     """`payload.release = { height = h }`: the hook opens where the parcel, once above h,
     comes down to h (here as the vehicle descends from 6.5 m to 5.5 m over the drop point);
