@@ -52,10 +52,12 @@ FOURTH_ROUND_DELIVERY_VEHICLE = {
     "payload.length_min": None,
     "payload.winch_speed": None,
     "payload.winch_acceleration": None,
+    "payload.approach_height": None,
+    "payload.approach_speed": None,
     "payload.release": None,
     "payload.release_delay": None,
     "ground.stiffness": None,
-    "ground.damping": None,
+    "ground.dissipation": None,
     "ground.friction": None,
     "initial.trim": "rest",
 }

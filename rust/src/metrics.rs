@@ -311,12 +311,14 @@ metrics! {
         value: |t, _| t.peak.1,
     }
     /// m/s^2, the magnitude of the payload's inertial acceleration.
+    /// The parcel's, while it hangs from the vehicle (0 once released: its fall and impact are
+    /// the touchdown's metrics).
     max_accel {
         unit: "m/s^2",
         label: "Payload acceleration peak",
         signal: |v| {
             let [ax, ay, az] = v.out.accel;
-            (ax * ax + ay * ay + az * az).sqrt()
+            (ax * ax + ay * ay + az * az).sqrt() * v.last.attached
         },
         fold: max,
         value: |_, x| x,
@@ -358,11 +360,11 @@ metrics! {
         fold: min(f64::INFINITY),
         value: |_, x| x,
     }
-    /// 1 where the attachment is slack (tension <= 0), else 0.
+    /// 1 where the attachment is slack (tension <= 0) while the parcel hangs, else 0.
     slack_time {
         unit: "s",
         label: "Time with the line slack",
-        signal: |v| L::select(v.out.tension.cmp_le(L::splat(0.0)), L::splat(1.0), L::splat(0.0)),
+        signal: |v| L::select(v.out.tension.cmp_le(L::splat(0.0)), v.last.attached, L::splat(0.0)),
         fold: sum,
         value: |t, x| x * t.dt,
     }
@@ -398,15 +400,11 @@ metrics! {
     /// m^2/s^4, the squared specific force |a - g| (g pointing down): what an accelerometer on
     /// the payload reads (g at rest, 0 in free fall). Its largest square's root is the largest
     /// |a - g| bit for bit (a correctly rounded square root is monotone): one square root per
-    /// flight, not per step.
+    /// flight, not per step. While the parcel hangs (0 once released).
     max_specific_force {
         unit: "m/s^2",
         label: "Peak specific force on the payload, |a - g|",
-        signal: |v| {
-            let [ax, ay, az] = v.out.accel;
-            let fz = az + v.g;
-            ax * ax + ay * ay + fz * fz
-        },
+        signal: |v| specific_force_sq(&v.out.accel, v.g) * v.last.attached,
         fold: max,
         value: |_, x| x.sqrt(),
     }
@@ -445,6 +443,29 @@ metrics! {
         signal: |v| v.last.touchdown * v.last.touchdown_miss,
         fold: sum,
         value: |_, x| x,
+    }
+    /// m, the height a free fall meets the ground at the touchdown's vertical speed from,
+    /// v^2 / (2 g): the figure a parcel's drop test is rated by.
+    touchdown_drop_height {
+        unit: "m",
+        label: "Touchdown's equivalent drop height",
+        event: |v| v.last.touchdown,
+        signal: |v| {
+            let speed = v.last.touchdown_speed;
+            v.last.touchdown * (speed * speed) / (v.g * 2.0)
+        },
+        fold: sum,
+        value: |_, x| x,
+    }
+    /// m^2/s^4, the squared specific force |a - g| while the parcel touches the ground (its
+    /// largest square's root: `max_specific_force`'s, over the contact alone).
+    touchdown_peak_force {
+        unit: "m/s^2",
+        label: "Peak specific force on the parcel in contact with the ground",
+        event: |v| v.last.contact,
+        signal: |v| v.last.contact * specific_force_sq(&v.out.accel, v.g),
+        fold: max,
+        value: |_, x| x.sqrt(),
     }
     release_time {
         unit: "s",
@@ -608,6 +629,14 @@ fn cross_track_sq<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> L {
 
 /// The offset of `p` from the line through `line.0` along the unit vector `line.1`: the
 /// component of `p - line.0` across the direction.
+/// m^2/s^4, the squared specific force |a - g| of an acceleration `a` (g pointing down).
+#[inline(always)]
+fn specific_force_sq<L: Lane>(a: &[L; 3], g: L) -> L {
+    let [ax, ay, az] = *a;
+    let fz = az + g;
+    ax * ax + ay * ay + fz * fz
+}
+
 #[inline(always)]
 fn line_offset<L: Lane>(p: &[L; 3], line: &([L; 3], [L; 3])) -> [L; 3] {
     let (a, u) = line;
@@ -629,6 +658,11 @@ pub struct LastSample<L> {
     pub touchdown_speed: L,
     pub touchdown_drift: L,
     pub touchdown_miss: L,
+    /// 1 while the parcel is in contact with the ground, else 0.
+    pub contact: L,
+    /// 1 while the parcel hangs from the vehicle (and for a payload that never leaves it),
+    /// 0 once released: the parcel's metrics stop there.
+    pub attached: L,
     /// 1 at the step the hook opens, else 0.
     pub release: L,
     /// 1 within the window after the release, else 0; m, |the vehicle's height error less its
@@ -648,6 +682,8 @@ impl<L: Lane> LastSample<L> {
             touchdown_speed: z,
             touchdown_drift: z,
             touchdown_miss: z,
+            contact: z,
+            attached: L::splat(1.0),
             release: z,
             after_release: z,
             release_change: z,
@@ -926,6 +962,8 @@ mod tests {
                     touchdown_speed: 0.7,
                     touchdown_drift: 0.2,
                     touchdown_miss: 0.3,
+                    contact: if (40..=45).contains(&k) { 1.0 } else { 0.0 },
+                    attached: 1.0,
                     release: if k == 60 { 1.0 } else { 0.0 },
                     after_release: if k >= 60 { 1.0 } else { 0.0 },
                     release_change: if k >= 60 { 0.01 * (k - 60) as f64 } else { 0.0 },
@@ -972,6 +1010,10 @@ mod tests {
             ),
             (0.7, 0.2, 0.3)
         );
+        // The drop height v^2 / 2g of 0.7 m/s; the peak specific force in contact (k = 40 to
+        // 45), 9.81 - 2 t at its first step.
+        assert_eq!(at("touchdown_drop_height"), 0.7 * 0.7 / (9.81 * 2.0));
+        assert!((at("touchdown_peak_force") - (9.81 - 0.8)).abs() < 1e-12);
         assert_eq!(at("release_time"), 60.0 * dt);
         assert!((at("release_height_change") - 0.4).abs() < 1e-12);
         assert!((at("lowering_swing") - 0.039).abs() < 1e-12);
@@ -1097,6 +1139,8 @@ mod tests {
                 "touchdown_speed",
                 "touchdown_drift",
                 "touchdown_miss",
+                "touchdown_drop_height",
+                "touchdown_peak_force",
                 "release_time",
                 "release_height_change",
                 "lowering_swing",
@@ -1116,6 +1160,8 @@ mod tests {
                 "touchdown_speed",
                 "touchdown_drift",
                 "touchdown_miss",
+                "touchdown_drop_height",
+                "touchdown_peak_force",
                 "release_time",
                 "release_height_change",
                 "geography_margin",

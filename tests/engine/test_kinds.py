@@ -60,9 +60,11 @@ def test_every_payload_and_actuator_model_is_registered_once_and_reads() -> None
                 "length_min",
                 "release",
                 "release_delay",
+                "approach_height",
+                "approach_speed",
             ):
                 data["payload"].pop(key, None)
-            for key in ("stiffness", "damping", "friction"):  # the parcel's contact: the cable's
+            for key in ("stiffness", "dissipation", "friction"):  # the contact: the cable's
                 data["ground"].pop(key, None)
             data["trajectory"].pop("lower", None)
             data["trajectory"].pop("names", None)  # the lowering named one of them

@@ -39,7 +39,7 @@ def lowering(payout: float, **extra: Any) -> quadrs.Scenario:
         "payload.winch_acceleration": A,
         "payload.release": "touchdown",
         "ground.stiffness": 2.0e4,
-        "ground.damping": 100.0,
+        "ground.dissipation": 5.0,
         "ground.friction": 0.5,
         "gust.enabled": False,
         "phases": "legs",
@@ -187,7 +187,7 @@ def test_bad_last_metres_values_name_their_key() -> None:
         "payload.winch_speed": {"payload.winch_speed": -1.0},
         "payload.release": {"payload.release": "landing"},
         "trajectory.lower[0]": {"trajectory.lower": [9.0, 0.0]},
-        "ground.damping": {"ground.damping": -1.0},
+        "ground.dissipation": {"ground.dissipation": -1.0},
     }
     for key, change in cases.items():
         with pytest.raises(quadrs.ScenarioError, match=re.escape(key)):
@@ -244,8 +244,8 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
     assert [s.kind for s in segments][:3] == ["lower", "hold", "leg"]
     assert flown["integrator.duration"] >= segments[2].arrival
     # What is not understood is refused, naming the item.
-    for bad, where in (([_item(42600, 1, 4)], "mission.items[2]: DO_WINCH action 4"),
-                       ([_item(211, 1, 0)], "mission.items[2]: DO_GRIPPER action 0")):  # fmt: skip
+    for bad, where in (([_item(42600, 1, 3)], "mission.items[2]: DO_WINCH action 3"),
+                       ([_item(211, 1, 2)], "mission.items[2]: DO_GRIPPER action 2")):  # fmt: skip
         path = _plan(tmp_path, [_item(22, 0, 0, 0, None, None, None, 6.0),  # here
                                 _item(16, 0, 0, 0, None, lat, lon, 6.0), *bad,
                                 _item(16, 0, 0, 0, None, lat, lon, 7.0)])  # fmt: skip

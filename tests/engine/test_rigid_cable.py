@@ -65,10 +65,12 @@ def scenario(drag: bool, damping: float, duration: float) -> quadrs.Scenario:
             "payload.cable_length": 1.0,  # the short sling the equations were checked on
             "payload.winch_speed": None,
             "payload.winch_acceleration": None,
+            "payload.approach_height": None,
+            "payload.approach_speed": None,
             "payload.length_min": None,
             "payload.release": None,
             "ground.stiffness": None,
-            "ground.damping": None,
+            "ground.dissipation": None,
             "ground.friction": None,
             "initial.trim": "rest",
         }

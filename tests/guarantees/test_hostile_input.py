@@ -168,7 +168,7 @@ def test_rust_panic_becomes_an_exception(in_pool: bool) -> None:
 @pytest.mark.parametrize(
     ("key", "value", "says"),
     [
-        ("payload.release", "sometimes", 'must be "touchdown" or a time in s'),
+        ("payload.release", "sometimes", 'must be "touchdown", "slack", a time in s or'),
         ("actuator.layout", "h", "expected `x` or `plus`"),
         ("vehicle.body", "quaternion", "expected `paper` or `rigid`"),
     ],

@@ -124,7 +124,7 @@ def test_a_ground_too_stiff_for_the_step_is_warned() -> None:
 
     delivery = quadrs.Scenario.preset("delivery")
     assert contact_step_warning(delivery) == ""  # 200 1/s at 1 ms: resolved
-    concrete = delivery.override({"ground.stiffness": 1e8, "ground.damping": 0.0})
+    concrete = delivery.override({"ground.stiffness": 1e8, "ground.dissipation": 0.0})
     message = contact_step_warning(concrete)
     assert "ground.stiffness = 1e+08 N/m" in message and "integrator.dt = 0.001 s" in message
     assert "|pole| = 1.414e+04 1/s" in message  # sqrt(1e8 / 0.5 kg)

@@ -65,7 +65,10 @@ def test_the_pd_flies_the_mission_leg_by_leg(delivery) -> None:
     # past 90 % of the tilt limit, in the gusts.
     assert m.loc["transit", "max_tracking"] < 9.0
     assert (m.drop(index=["transit", FLIGHT_PHASE])["near_tilt_time"] == 0.0).all()
-    assert 0.5 < m.loc["lower", "touchdown_speed"] < 1.5
+    # At the final approach's 0.3 m/s (the winch's 1 m/s before the sixth round), give or
+    # take the vehicle's own motion in the gusts: a drop height of a centimetre at most.
+    assert 0.1 < m.loc["lower", "touchdown_speed"] < 0.5
+    assert m.loc["lower", "touchdown_drop_height"] < 0.013
     assert m.loc["lower", "touchdown_miss"] < 3.0
     lower, drop = delivery.route.segments[4:6]
     assert m.loc["lower", "slack_time"] + m.loc["drop", "slack_time"] > 1.0

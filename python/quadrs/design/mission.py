@@ -208,7 +208,7 @@ class MissionReport:
 
         return (f"Parcel {self.metric} past {_shown_limit(self)}: in flight {said(IN_FLIGHT)}; "
                 f"at touchdown {said(TOUCHDOWN)}, the ground contact's peak (the contact "
-                "law's: ground.stiffness, ground.damping), not the flight's")  # fmt: skip
+                "law's: ground.stiffness, ground.dissipation), not the flight's")  # fmt: skip
 
     @property
     def route_flown(self) -> bool:

@@ -114,7 +114,9 @@ FRICTION_SPEED = 0.01
 def contact_step_warning(scenario: Scenario) -> str:
     """Why ``integrator.dt`` is too large for the parcel's contact with the ground ("" if it
     is fine, or the parcel never meets one): the contact is a spring and damper on the
-    parcel's mass, m s^2 + c s + k = 0 (``ground.stiffness``, ``ground.damping``), and the
+    parcel's mass, m s^2 + c s + k = 0 (``ground.stiffness``; Hunt and Crossley's damping
+    at rest, c = alpha m g with alpha ``ground.dissipation``: k d alpha at the static depth
+    d = m g / k), and the
     friction, regularised below FRICTION_SPEED, a pole at -mu g / FRICTION_SPEED. The hover's
     poles (:func:`step_size_warning`) do not hold them: the parcel hangs clear. Past RK4's
     margin (|pole| dt > STEP_LIMIT) a contact rings or blows up (a flight ends "tilt",
@@ -125,7 +127,7 @@ def contact_step_warning(scenario: Scenario) -> str:
     if k is None or payload.get("model") != "cable" or not payload.get("mass"):
         return ""
     dt, m = float(scenario["integrator.dt"]), float(payload["mass"])
-    c = float(ground.get("damping", 0.0))
+    c = float(ground.get("dissipation", 0.0)) * m * float(scenario["environment.gravity"])
     # |pole| of m s^2 + c s + k: sqrt(k / m) for a complex pair, the larger real root's size
     # otherwise (in closed form: a mass near zero overflows to inf, which np.roots refuses).
     disc = c * c - 4.0 * m * float(k)
@@ -135,8 +137,8 @@ def contact_step_warning(scenario: Scenario) -> str:
         return ""  # an absurd parcel mass: the plausibility check names it
     sliding = float(ground.get("friction", 0.0)) * float(scenario["environment.gravity"])
     sliding /= FRICTION_SPEED
-    speed, what = max((contact, f"ground.stiffness = {k:g} N/m with ground.damping = {c:g} "
-                                f"N s/m on the parcel's {m:g} kg"),
+    speed, what = max((contact, f"ground.stiffness = {k:g} N/m with ground.dissipation = "
+                                f"{ground.get('dissipation', 0.0):g} s/m on the parcel's {m:g} kg"),
                       (sliding, f"ground.friction = {ground.get('friction', 0.0):g} (its "
                                 f"regularisation below {FRICTION_SPEED:g} m/s)"))  # fmt: skip
     if speed * dt <= STEP_LIMIT:

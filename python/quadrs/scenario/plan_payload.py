@@ -24,7 +24,7 @@ class RouteFileError(ValueError):
 
 # MAV_CMD_DO_WINCH, MAV_CMD_DO_GRIPPER and the actions read.
 WINCH, GRIPPER = 42600, 211
-WINCH_RELATIVE_LENGTH, WINCH_RETRACT = 1, 6
+WINCH_RELATIVE_LENGTH, WINCH_DELIVER, WINCH_RETRACT = 1, 4, 6
 GRIPPER_RELEASE, GRIPPER_GRAB = 0, 1
 
 
@@ -43,7 +43,12 @@ class PlanPayload:
     """The payload items of one plan, in the order they are flown."""
 
     def __init__(self) -> None:
+        #: "touchdown" (after a lowering), "drop" (a release in flight, at ``drop_point``) or
+        #: None (never).
         self.release: str | None = None
+        self.drop_point: int | None = None
+        #: The DO_WINCH deliver items (action 4): lowerings with the winch's final approach.
+        self.delivers: list[str] = []
         #: The rates DO_WINCH items set (None: no rate, the base scenario's) -> their items.
         self.rates: dict[float | None, list[str]] = {}
         #: Scenario key -> the plan's items that set it.
@@ -59,11 +64,14 @@ class PlanPayload:
         if command == WINCH:
             if action == WINCH_RETRACT:
                 return
-            if action != WINCH_RELATIVE_LENGTH:
+            if action not in (WINCH_RELATIVE_LENGTH, WINCH_DELIVER):
                 raise RouteFileError(
                     f"{where}: DO_WINCH action {action!r} is not supported (1, relative length: "
-                    "pay out params[2] m; 6, retract)"
+                    "pay out params[2] m; 4, deliver: the same with the winch's final "
+                    "approach; 6, retract)"
                 )
+            if action == WINCH_DELIVER:
+                self.delivers.append(label)
             _on_the_pad(route, where, "DO_WINCH lowers the parcel")
             length = _number(params[2], f"{where}: DO_WINCH params[2] (length, m)", 0.0)
             if length <= 0:
@@ -80,13 +88,16 @@ class PlanPayload:
             return
         if action == GRIPPER_GRAB and self.release is None:
             return
-        if action != GRIPPER_RELEASE or not any(x > 0 for x in route.lower):
+        if action != GRIPPER_RELEASE or self.release is not None:
             raise RouteFileError(
                 f"{where}: DO_GRIPPER action {action!r} is not supported here (0, release, "
-                "after a DO_WINCH lowering; 1, grab, before any release)"
+                "once; 1, grab, before any release)"
             )
         _on_the_pad(route, where, "DO_GRIPPER releases the parcel")
-        self.release = "touchdown"
+        if any(x > 0 for x in route.lower):
+            self.release = "touchdown"
+        else:  # in flight, no line lowered: a drop where the vehicle stands
+            self.release, self.drop_point = "drop", len(route.lower) - 1
         self.origins.setdefault("payload.release", []).append(f"{label} DO_GRIPPER")
 
     def winch_speed(self, source: str) -> float | None:

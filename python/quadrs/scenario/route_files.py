@@ -28,10 +28,15 @@ flown in mission order, ``DO_JUMP`` included; what each command becomes:
   cannot fly apart from the cruise speed.
 - ``DO_WINCH`` (42600) action 1 (relative length): the line ``param3`` m is paid out at the
   current point (``trajectory.lower``; ``param4``, a rate in m/s, sets
-  ``payload.winch_speed``: one rate per plan, different ones refused); action 6 (retract)
-  is what the winch does after the release anyway. ``DO_GRIPPER`` (211) action 0 (release)
-  after a lowering opens the hook once the parcel rests (``payload.release =
-  "touchdown"``); action 1 (grab) before any release is the parcel hooked from the start.
+  ``payload.winch_speed``: one rate per plan, different ones refused); action 4 (deliver:
+  "drop, slow down, touch down, reel up, lock") the same lowering with the winch's final
+  approach, which the scenario must have (``payload.approach_height``,
+  ``payload.approach_speed``); action 6 (retract) is what the winch does after the release
+  anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
+  parcel rests (``payload.release = "touchdown"``); in flight, without a lowering before it,
+  it drops the parcel where the vehicle stands: the hook opens as the reference arrives at
+  the point (``payload.release`` that time); action 1 (grab) before any release is the
+  parcel hooked from the start.
   A plan decides the hook: without a ``DO_GRIPPER`` release it never opens (the base
   scenario's ``payload.release`` is dropped). A lowering or release before take-off or after
   landing is refused (it would be flown at the pad), as is any other winch or gripper
@@ -66,8 +71,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
+from quadrs.scenario.keys import dotted_value
 from quadrs.scenario.plan_payload import PlanPayload, RouteFileError, _number
-from quadrs.scenario.route_timing import lowering_time
+from quadrs.scenario.route_timing import lowering_speed, lowering_time
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -163,6 +169,10 @@ class RouteFile:
     decides_release: bool = False
     #: Scenario key -> the file's items that set it (a refused value names them).
     origins: tuple[tuple[str, str], ...] = ()
+    #: A drop (``release = "drop"``): the point whose arrival opens the hook; the DO_WINCH
+    #: deliver items (lowerings with the winch's final approach, which the scenario needs).
+    drop_point: int | None = None
+    delivers: tuple[str, ...] = ()
 
     @property
     def length(self) -> float:
@@ -189,8 +199,10 @@ class RouteFile:
             route["trajectory.speed"] = self.speed
         # The base's own lowerings went with its route.
         route["trajectory.lower"] = list(self.lower) if any(x > 0 for x in self.lower) else None
-        if self.release is not None or self.decides_release:
+        if (self.release is not None or self.decides_release) and self.release != "drop":
             route["payload.release"] = self.release  # None: the hook never opens
+        # A drop's time comes from the schedule below.
+        self._needs_a_final_approach(base, extra)
         if self.winch_speed is not None:
             route["payload.winch_speed"] = self.winch_speed
         route.update(extra)
@@ -210,6 +222,12 @@ class RouteFile:
             needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
                       + sum(g.end - g.start for g in lowerings))  # fmt: skip
             dt = float(long["integrator.dt"])
+            if self.release == "drop":
+                # The hook opens as the reference arrives at the point (PX4 runs the item
+                # there); the vehicle's lag behind it is the flight's.
+                at = self.drop_point or 0
+                if "payload.release" not in extra:
+                    route["payload.release"] = legs[at - 1].arrival if at > 0 else 0.0
             duration = math.ceil(needed / dt - 1e-6) * dt
             route.setdefault("integrator.duration", duration)
             if whole:
@@ -217,6 +235,18 @@ class RouteFile:
             return base.override(route)
         except ValueError as e:
             raise RouteFileError(f"{self.source}: {self._blame(base, route, e)}") from None
+
+    def _needs_a_final_approach(self, base: RoutableScenario, extra: Mapping[str, Any]) -> None:
+        """A DO_WINCH deliver (action 4) slows for the last metres: refused, naming its items,
+        on a scenario without the winch's final approach."""
+        given = {**base.to_dict().get("payload", {}),
+                 **{k.removeprefix("payload."): v for k, v in extra.items()}}  # fmt: skip
+        if self.delivers and given.get("approach_height") is None:
+            raise RouteFileError(
+                f"{self.source}: {', '.join(self.delivers)} DO_WINCH action 4 (deliver) slows "
+                "for the last metres: the scenario needs the winch's final approach "
+                "(payload.approach_height and payload.approach_speed), none given"
+            )
 
     def _blame(self, base: RoutableScenario, route: Mapping[str, Any], e: ValueError) -> str:
         """The engine's refusal ``e`` of the route, led by what in the file caused it: the
@@ -272,7 +302,10 @@ class RouteFile:
         if lower:
             if not (math.isfinite(v) and v > 0 and math.isfinite(a) and a > 0):
                 return 1e5
-            t += sum(lowering_time(p, v, a) for p in lower)
+            # The final approach's speed, where slower, for the whole of each lowering.
+            slow = dotted_value(base.to_dict(), "payload.approach_speed")
+            given = {"payload": {"approach_speed": route.get("payload.approach_speed", slow)}}
+            t += sum(lowering_time(p, v, a, lowering_speed(given, v)) for p in lower)
         return 1.01 * t + 1.0
 
 
@@ -489,7 +522,8 @@ class _PlanRoute(_Builder):
         rate = p.winch_speed(self.source)
         origins = tuple((k, ", ".join(v)) for k, v in p.origins.items())
         return dataclasses.replace(route, release=p.release, winch_speed=rate,
-                                   decides_release=True, origins=origins)  # fmt: skip
+                                   decides_release=True, origins=origins,
+                                   drop_point=p.drop_point, delivers=tuple(p.delivers))  # fmt: skip
 
     @property
     def here(self) -> Point:

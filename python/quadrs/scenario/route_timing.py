@@ -23,7 +23,14 @@ from quadrs.scenario.keys import dotted_value
 from quadrs.scenario.route import Route
 
 #: Keys whose change moves the route's schedule (the dotted keys a change may set).
-TIMING_PREFIXES = ("trajectory.", "payload.winch_", "payload.length_min")
+TIMING_PREFIXES = (
+    "trajectory.",
+    "payload.winch_",
+    "payload.length_min",
+    "payload.approach_",
+    "payload.attachment_offset",
+    "ground.altitude",
+)
 
 
 def changes_timing(keys: Iterable[str]) -> bool:
@@ -31,12 +38,17 @@ def changes_timing(keys: Iterable[str]) -> bool:
     return any(k.startswith(TIMING_PREFIXES) for k in keys)
 
 
-def lowering_time(payout: float, speed: float, acceleration: float) -> float:
+def lowering_time(
+    payout: float, speed: float, acceleration: float, slowest: float | None = None
+) -> float:
     """s, how long a lowering of ``payout`` m lasts at the winch's ``speed`` (m/s) and
     ``acceleration`` (m/s^2): the pay-out at its speed with a ramp ``speed / acceleration`` at
     each end. The engine's rule (``config::route::lowering_time``), which its schedule
-    flies; Python's one copy until ``_core`` exports it."""
-    return payout / speed + 2 * speed / acceleration
+    flies; Python's one copy until ``_core`` exports it. With a final approach (``slowest``,
+    its speed, where slower than the winch's) an upper bound: the whole pay-out at it (the
+    engine's schedule pays out at the winch's speed down to the approach height)."""
+    paid = speed if slowest is None else min(speed, slowest)
+    return payout / paid + 2 * speed / acceleration
 
 
 def _numbers(values: Any) -> list[float]:
@@ -45,11 +57,19 @@ def _numbers(values: Any) -> list[float]:
     return [float(v) for v in values if isinstance(v, int | float) and not isinstance(v, bool)]
 
 
+def lowering_speed(data: Mapping[str, Any], v: float) -> float:
+    """m/s, the slowest speed a lowering pays out at: the winch's ``v``, or the final
+    approach's (``payload.approach_speed``) where the scenario has one."""
+    slow = dotted_value(data, "payload.approach_speed", None)
+    return min(v, float(slow)) if slow is not None else v
+
+
 def time_bound(data: Mapping[str, Any]) -> float | None:
     """Seconds the route of ``data`` (a scenario's nested mapping) surely takes less than: a
     leg of length L at cruise speed V and acceleration bound A takes less than L/V + 2V/A, a
-    lowering of P m at the winch's speed v and acceleration a less than P/v + 2v/a
-    (docs/model.md, "Routes"), plus the holds and a margin. None if the values are not
+    lowering of P m at the winch's speed v and acceleration a less than P/v + 2v/a (P at the
+    final approach's speed where it is slower: docs/model.md, "Routes" and "The last
+    metres"), plus the holds and a margin. None if the values are not
     numbers (the scenario's own checks then name the key)."""
     try:
         speed = float(dotted_value(data, "trajectory.speed"))
@@ -60,7 +80,7 @@ def time_bound(data: Mapping[str, Any]) -> float | None:
         if lower:
             v = float(dotted_value(data, "payload.winch_speed", 1.0))
             a = float(dotted_value(data, "payload.winch_acceleration", 1.0))
-            t += sum(lowering_time(p, v, a) for p in lower)
+            t += sum(lowering_time(p, v, a, lowering_speed(data, v)) for p in lower)
         t += sum(math.dist(p, q) / speed + 2 * speed / accel
                  for p, q in itertools.pairwise(points))  # fmt: skip
     except (TypeError, ValueError, ZeroDivisionError):

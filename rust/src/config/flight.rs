@@ -151,8 +151,9 @@ fn default_max_rate() -> f64 {
 params! {
     /// A flight whose quadrotor goes below `altitude` (m, its z) ends there with status `ground`
     /// when `enabled`. The quadrotor has no contact dynamics (the flight simply stops); a cable
-    /// payload's parcel does, when `stiffness` is given: a spring-damper with friction at
-    /// `altitude` (docs/model.md, "The last metres"; `model::payload::cable`).
+    /// payload's parcel does, when `stiffness` is given: Hunt and Crossley's contact (a spring
+    /// whose damping grows with the depth) with friction at `altitude` (docs/model.md, "The
+    /// last metres"; `model::payload::cable`).
     #[derive(Default)]
     pub struct Ground {
         #[serde(default)]
@@ -162,9 +163,10 @@ params! {
         /// N/m, the ground's contact stiffness under the parcel (none: the parcel never meets it).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         stiffness: Option<f64> => "N/m", "Ground contact stiffness", positive;
-        /// N s/m, the contact's damping (default 0).
+        /// s/m, Hunt and Crossley's dissipation alpha: the normal force is
+        /// stiffness x depth x (1 + alpha x the depth's rate) (default 0: elastic).
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        damping: Option<f64> => "N s/m", "Ground contact damping";
+        dissipation: Option<f64> => "s/m", "Ground contact dissipation (Hunt and Crossley)";
         /// -, the Coulomb friction coefficient between parcel and ground (default 0).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         friction: Option<f64> => "-", "Ground friction coefficient";
@@ -188,7 +190,7 @@ impl Ground {
         g.check_bounds("ground")?;
         // Not bounds: a damping or friction without the stiffness is refused as such first.
         for (key, x) in [
-            ("ground.damping", g.damping),
+            ("ground.dissipation", g.dissipation),
             ("ground.friction", g.friction),
         ] {
             if let Some(x) = x {

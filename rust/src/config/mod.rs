@@ -84,6 +84,11 @@ impl OneOf {
 pub struct Winch {
     pub speed: Option<f64>,
     pub acceleration: Option<f64>,
+    /// The final approach (`payload.approach_height`, `approach_speed`; both or none) and m,
+    /// how far the parcel hangs below the vehicle reeled in (`payload.attachment_offset` plus
+    /// `length_min`): a lowering's time.
+    pub approach: Option<(f64, f64)>,
+    pub hang: f64,
 }
 
 /// What a kind is built and checked from: the scenario's sections below the kinds, by

@@ -138,9 +138,24 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
 
 /// s, how long a lowering of `payout` m lasts (`trajectory.lower`): the pay-out at the winch's
 /// speed `v` with a ramp `v / a` at each end (`model::payload::cable`'s winch reaches its
-/// speed in about that, and settles within it).
-pub fn lowering_time(payout: f64, v: f64, a: f64) -> f64 {
-    payout / v + 2.0 * v / a
+/// speed in about that, and settles within it). With a final approach (`approach`: its
+/// height and speed) the line paid out once the parcel, `height` m above the ground at the
+/// start, is below the approach's height goes at the approach's speed.
+pub fn lowering_time(
+    payout: f64,
+    v: f64,
+    a: f64,
+    approach: Option<(f64, f64)>,
+    height: f64,
+) -> f64 {
+    let ramps = 2.0 * v / a;
+    match approach {
+        None => payout / v + ramps,
+        Some((h, slow)) => {
+            let fast = (height - h).clamp(0.0, payout);
+            fast / v + (payout - fast) / slow + ramps
+        }
+    }
 }
 
 /// The route's schedule over the flight: holds and legs in time order, from t = 0 to
@@ -169,6 +184,8 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
                 payout,
                 cfg.winch.speed.unwrap_or(f64::NAN),
                 cfg.winch.acceleration.unwrap_or(f64::NAN),
+                cfg.winch.approach,
+                tr.route[i][2] - cfg.winch.hang - cfg.ground.altitude,
             );
             out.push(Segment {
                 name: format!("lower{}", i + 1),

@@ -3,7 +3,7 @@
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
 use super::rk4::rk4_advance;
-use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, Winds};
+use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, TensionNoise, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Flying, Laws, Sight};
 use crate::gust::WindField;
@@ -165,6 +165,7 @@ impl Engine {
             let g = vehicle.body.g;
             Navigation::<L>::new(&navs, req.seed, req.indices, &truths, g, trace.is_some())
         });
+        let mut noise = TensionNoise::new(req, &self.cfg);
 
         let reads_payload = law.reads_payload();
         // The actuators' command, held between the inner loop's updates.
@@ -225,6 +226,12 @@ impl Engine {
                 t,
                 dt: self.dt,
                 payout: leg.payout,
+                // The height the vehicle knows: its estimate where it flies on its senses.
+                height: match nav.as_ref() {
+                    Some(n) => n.estimate.pos[2],
+                    None => view.pos[2],
+                },
+                draw: noise.draw(),
             };
             let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.

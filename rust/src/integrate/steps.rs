@@ -9,8 +9,13 @@ use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::{KernelOps, Lane};
 use crate::metrics::LastSample;
 use crate::model::payload::LastMetres;
+use crate::model::payload::Release as Hook;
 use crate::model::{ix, state_from_fn, BodyKind, Bound, Rigid, State, StateVar};
+use crate::scenario::Config;
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 
 /// s, the window after the hook opens over which the vehicle's height change is taken
 /// (`release_height_change`).
@@ -283,8 +288,9 @@ impl Release {
             None => LastSample::none(),
             Some(ev) => {
                 let drop = leg.drop_at.unwrap_or([leg.r.pos[0], leg.r.pos[1]]);
-                let [vx, vy, vz] = ev.approach;
-                let (mx, my) = (ev.pos[0] - drop[0], ev.pos[1] - drop[1]);
+                // At the instant the parcel met the ground (located inside the step).
+                let [vx, vy, vz] = ev.contact_vel;
+                let (mx, my) = (ev.contact_pos[0] - drop[0], ev.contact_pos[1] - drop[1]);
                 let mut after = [0.0; MAX_LANES];
                 let mut change = [0.0; MAX_LANES];
                 // Lane by lane only in a step that releases a hook or inside a release's window
@@ -308,6 +314,8 @@ impl Release {
                     touchdown_speed: vz.abs(),
                     touchdown_drift: vx.mul_add(vx, vy * vy).sqrt(),
                     touchdown_miss: mx.mul_add(mx, my * my).sqrt(),
+                    contact: ev.contact,
+                    attached: ev.hooked,
                     release: ev.release,
                     after_release: L::from_fn(|l| after[l]),
                     release_change: L::from_fn(|l| change[l]),
@@ -319,6 +327,52 @@ impl Release {
                 }
             }
         }
+    }
+}
+
+/// The master seed's offset for the load cell's stream: its numbers are independent of the
+/// turbulence's (`gust::realisation_rng`, the same seed and index).
+const TENSION_STREAM: u64 = 0x6c6f_6164_6365_6c6c; // "loadcell"
+
+/// The load cell's white noise on the measured tension (`payload.tension_noise`): a standard
+/// normal per lane and step from each lane's own stream, keyed by (seed, realisation) as
+/// the turbulence's, `ChaCha8Rng::seed_from_u64(seed ^ TENSION_STREAM)` with
+/// `set_stream(index)`; none (zeros, nothing drawn) without a slack hook with noise.
+pub(super) struct TensionNoise {
+    streams: Vec<ChaCha8Rng>,
+}
+
+impl TensionNoise {
+    #[inline(always)]
+    pub(super) fn new(req: &FlightRequest, cfg: &Config) -> Self {
+        let c = &cfg.payload.cable;
+        let noisy = c.release == Some(Hook::Slack) && c.tension_noise.is_some_and(|x| x > 0.0);
+        let streams = if noisy {
+            req.indices
+                .iter()
+                .map(|&i| {
+                    let mut rng = ChaCha8Rng::seed_from_u64(req.seed ^ TENSION_STREAM);
+                    rng.set_stream(i);
+                    rng
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Self { streams }
+    }
+
+    /// This step's standard normals, one per lane (zeros without the noise).
+    #[inline(always)]
+    pub(super) fn draw<L: Lane>(&mut self) -> L {
+        if self.streams.is_empty() {
+            return L::splat(0.0);
+        }
+        let mut n = [0.0; MAX_LANES];
+        for (x, rng) in n.iter_mut().zip(self.streams.iter_mut()) {
+            *x = StandardNormal.sample(rng);
+        }
+        L::from_fn(|l| n[l])
     }
 }
 

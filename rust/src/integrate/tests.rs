@@ -137,6 +137,8 @@ fn a_flight_diverging_in_p2_keeps_p1_metrics() {
         "touchdown_speed",
         "touchdown_drift",
         "touchdown_miss",
+        "touchdown_drop_height",
+        "touchdown_peak_force",
         "release_time",
         "release_height_change",
         // NaN without an operational volume ([volume]): the paper has none.

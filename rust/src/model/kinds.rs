@@ -219,6 +219,9 @@ macro_rules! kinds {
         }
 
         $(#[$ameta])*
+        // One per realisation, built once and gathered into lanes: its size costs nothing per
+        // step (the cable carries its last metres' state: a few hundred bytes).
+        #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug)]
         pub enum $Any {
             $($K($family::$K),)+

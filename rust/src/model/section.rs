@@ -158,6 +158,10 @@ mod tests {
                 "payload.length_min",
                 "payload.release",
                 "payload.release_delay",
+                "payload.approach_height",
+                "payload.approach_speed",
+                "payload.slack_tension",
+                "payload.tension_noise",
             ]
         );
         let keys: Vec<String> = ActuatorConfig::keys().into_iter().map(|(k, _)| k).collect();
@@ -217,7 +221,8 @@ mod tests {
             e.message.ends_with(
                 "unknown field `colour`, expected one of `model`, `mass`, `natural_frequency`, \
                  `stiffness`, `damping`, `drag_area`, `cable_length`, `attachment_offset`, \
-                 `winch_speed`, `winch_acceleration`, `length_min`, `release`, `release_delay`"
+                 `winch_speed`, `winch_acceleration`, `length_min`, `release`, `release_delay`, \
+                 `approach_height`, `approach_speed`, `slack_tension`, `tension_noise`"
             ),
             "{e}"
         );

@@ -206,6 +206,18 @@ impl Config {
             winch: Winch {
                 speed: self.payload.cable.winch_speed,
                 acceleration: self.payload.cable.winch_acceleration,
+                approach: self
+                    .payload
+                    .cable
+                    .approach_height
+                    .zip(self.payload.cable.approach_speed),
+                hang: self.payload.cable.attachment_offset.unwrap_or(0.0)
+                    + self
+                        .payload
+                        .cable
+                        .length_min
+                        .or(self.payload.cable.cable_length)
+                        .unwrap_or(0.0),
             },
         }
     }

@@ -28,6 +28,7 @@
 //! parcel leaves the vehicle's equations: its states still move (a free body on the ground),
 //! but nothing of them reaches the quadrotor.
 
+pub use super::release::Release;
 use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::{non_negative, params::params, positive, ConfigError};
 use crate::lane::{gather, Lane};
@@ -58,70 +59,24 @@ params! {
         /// When the hook opens: "touchdown" (the parcel rests on the ground with the line
         /// slack for `release_delay`) or a time in s; none: never.
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        release: Option<Release> => "s", "Hook release, \"touchdown\" or a time";
+        release: Option<Release> => "s", "Hook release, \"touchdown\", \"slack\", a time or a height";
         /// s, how long the parcel rests with the line slack before the hook opens (default 1).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         release_delay: Option<f64> => "s", "Rest before the hook opens";
-    }
-}
-
-/// `payload.release`: "touchdown", or a time (s, dispersible).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Release {
-    Touchdown,
-    At(f64),
-}
-
-/// The word `payload.release` takes.
-const TOUCHDOWN: &str = "touchdown";
-
-impl serde::Serialize for Release {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        match self {
-            Release::Touchdown => s.serialize_str(TOUCHDOWN),
-            Release::At(t) => s.serialize_f64(*t),
-        }
-    }
-}
-
-impl<'de> serde::Deserialize<'de> for Release {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl serde::de::Visitor<'_> for V {
-            type Value = Release;
-            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-                write!(f, "\"{TOUCHDOWN}\" or a time in s")
-            }
-            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Release, E> {
-                if v == TOUCHDOWN {
-                    Ok(Release::Touchdown)
-                } else {
-                    Err(E::custom(format_args!(
-                        "must be \"{TOUCHDOWN}\" or a time in s, got {v:?}"
-                    )))
-                }
-            }
-            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Release, E> {
-                Ok(Release::At(v))
-            }
-            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Release, E> {
-                Ok(Release::At(v as f64))
-            }
-            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Release, E> {
-                Ok(Release::At(v as f64))
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
-
-/// A release time is a number a dispersion can draw; "touchdown" is not.
-impl crate::config::params::Field for Release {
-    fn target(&mut self, rest: &[crate::config::params::Seg]) -> crate::config::params::Target<'_> {
-        match self {
-            Release::At(t) => t.target(rest),
-            Release::Touchdown => crate::config::params::not_number(rest),
-        }
+        /// m, the parcel's height above the ground, as the vehicle knows it, below which the
+        /// winch pays out at `approach_speed` (none: at `winch_speed` to the end).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        approach_height: Option<f64> => "m", "Final approach: height the winch slows at";
+        /// m/s, the winch's pay-out speed below `approach_height`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        approach_speed: Option<f64> => "m/s", "Final approach: pay-out speed";
+        /// N, the measured tension below which the line is slack (`release = "slack"`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        slack_tension: Option<f64> => "N", "Tension the hook reads as slack";
+        /// N, the standard deviation of the load cell's white noise on the measured tension
+        /// (default 0).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tension_noise: Option<f64> => "N", "Load cell noise on the tension";
     }
 }
 
@@ -166,7 +121,8 @@ pub struct Cable<L = f64> {
     /// The ground under the parcel: m (its height), N/m, N s/m, - (friction).
     pub ground: L,
     pub ground_k: L,
-    pub ground_c: L,
+    /// s/m, Hunt and Crossley's dissipation alpha: N = kg d (1 + alpha d').
+    pub ground_alpha: L,
     pub friction: L,
     /// Any lane's parcel can meet the ground (else the contact is not computed at all).
     pub contact: bool,
@@ -174,12 +130,33 @@ pub struct Cable<L = f64> {
     pub release_at: L,
     pub release_on_touchdown: L,
     pub release_delay: L,
+    /// The slack hook (`release = "slack"`, any lane): 1 or 0 per lane, N (the threshold and
+    /// the noise's sigma), s (how long the measured tension has been below it), 1 or 0 (below
+    /// it at the last step). A drop: m (the parcel's known height the hook opens at, once it
+    /// has been above it; minus infinity: never), 1 once it has been above it.
+    pub slack_release: bool,
+    pub release_on_slack: L,
+    pub slack_tension: L,
+    pub tension_noise: L,
+    slack_for: L,
+    was_slack: L,
+    pub release_height: L,
+    drop_armed: L,
     /// Events: 1 while hooked, 1 once touched down, s resting with the line slack.
     pub hooked: L,
     touched: L,
     resting: L,
-    /// m/s, the parcel's velocity at the previous step (`LastMetres::approach`).
+    /// The final approach: m (the parcel's known height the winch slows below; minus
+    /// infinity: never), m/s (the pay-out speed there; `winch_speed` without one), m/s (the
+    /// pay-out speed of this step).
+    pub approach_height: L,
+    pub approach_speed: L,
+    payout_speed: L,
+    /// The parcel's velocity at the previous step and the one before, and its position at
+    /// the previous step: the contact instant is located from them (`touchdown.rs`).
     approach: [L; 3],
+    before: [L; 3],
+    last_pos: [L; 3],
 }
 
 /// The cable's states and the quadrotor's it reads, on the body of attitude `F` (the actuator's
@@ -221,10 +198,7 @@ impl OwnsKeys for Cable {
         if !flown {
             // Each value as the scenario gives it: a release at touchdown is a word.
             let shown = |x: Option<f64>| x.map(|x| format!("{x:?}"));
-            let release = c.release.map(|r| match r {
-                Release::At(t) => format!("{t:?}"),
-                Release::Touchdown => format!("\"{TOUCHDOWN}\""),
-            });
+            let release = c.release.map(|r| r.shown());
             for (key, value) in [
                 ("payload.cable_length", shown(c.cable_length)),
                 ("payload.attachment_offset", shown(c.attachment_offset)),
@@ -233,6 +207,10 @@ impl OwnsKeys for Cable {
                 ("payload.length_min", shown(c.length_min)),
                 ("payload.release", release),
                 ("payload.release_delay", shown(c.release_delay)),
+                ("payload.approach_height", shown(c.approach_height)),
+                ("payload.approach_speed", shown(c.approach_speed)),
+                ("payload.slack_tension", shown(c.slack_tension)),
+                ("payload.tension_noise", shown(c.tension_noise)),
                 ("ground.stiffness", shown(cfg.ground.stiffness)),
                 (
                     "trajectory.lower",
@@ -263,128 +241,6 @@ impl OwnsKeys for Cable {
             non_negative("payload.attachment_offset", h)?;
         }
         Self::validate_last_metres(c, l0, cfg)
-    }
-}
-
-impl Cable {
-    /// The winch, the hook and the lowerings of the route (`flown`, `cable_length` = `l0`).
-    fn validate_last_metres(
-        c: &CableParams,
-        l0: f64,
-        cfg: &ModelContext,
-    ) -> Result<(), ConfigError> {
-        let winch = c.winch_speed.is_some() || c.winch_acceleration.is_some();
-        if winch {
-            for (key, x) in [
-                ("payload.winch_speed", c.winch_speed),
-                ("payload.winch_acceleration", c.winch_acceleration),
-            ] {
-                match x {
-                    Some(x) => positive(key, x)?,
-                    None => {
-                        return Err(ConfigError::new(
-                            key,
-                            format!(
-                                "{key} must be given with the winch's other key \
-                                 (payload.winch_speed and payload.winch_acceleration)"
-                            ),
-                        ))
-                    }
-                }
-            }
-            Self::validate_winch_step(c, cfg)?;
-        }
-        let min = c.length_min.unwrap_or(l0);
-        positive("payload.length_min", min)?;
-        if min > l0 {
-            return Err(ConfigError::new(
-                "payload.length_min",
-                format!(
-                    "payload.length_min must be at most payload.cable_length ({l0:?} m), got {min:?}"
-                ),
-            ));
-        }
-        if c.length_min.is_some() && !winch {
-            return Err(ConfigError::new(
-                "payload.length_min",
-                "payload.length_min needs a winch (payload.winch_speed and \
-                 payload.winch_acceleration)",
-            ));
-        }
-        for (i, x) in cfg.trajectory.lower.iter().enumerate() {
-            let key = format!("trajectory.lower[{i}]");
-            if *x > 0.0 && !winch {
-                return Err(ConfigError::new(
-                    &key,
-                    format!(
-                        "{key} lowers the parcel: it needs a winch (payload.winch_speed and \
-                         payload.winch_acceleration), got {x:?} m without one"
-                    ),
-                ));
-            }
-            if min + x > l0 {
-                return Err(ConfigError::new(
-                    &key,
-                    format!(
-                        "{key} must be at most payload.cable_length - payload.length_min \
-                         ({:?} m of line to pay out), got {x:?}",
-                        l0 - min
-                    ),
-                ));
-            }
-        }
-        if let Some(d) = c.release_delay {
-            non_negative("payload.release_delay", d)?;
-        }
-        match c.release {
-            Some(Release::At(t)) => non_negative("payload.release", t)?,
-            Some(Release::Touchdown) if cfg.ground.stiffness.is_none() => {
-                return Err(ConfigError::new(
-                    "payload.release",
-                    "payload.release = \"touchdown\" needs a ground the parcel meets \
-                     (ground.stiffness)",
-                ))
-            }
-            _ => {}
-        }
-        if cfg.ground.stiffness.is_some() {
-            // The parcel starts hanging clear of the ground.
-            let p = &cfg.payload;
-            let stretch = p.mass * cfg.environment.gravity / cfg.stiffness();
-            if !stretch.is_finite() {
-                // A spring too soft to hold the parcel: name the key that set it.
-                let key = if p.stiffness.is_some() {
-                    "payload.stiffness"
-                } else {
-                    "payload.natural_frequency"
-                };
-                let value = p.stiffness.or(p.natural_frequency).unwrap_or(f64::NAN);
-                return Err(ConfigError::new(
-                    key,
-                    format!(
-                        "{key} is too small to hold the parcel above the ground (its weight \
-                         stretches the line {stretch:?} m), got {value:?}"
-                    ),
-                ));
-            }
-            let hang = c.attachment_offset.unwrap_or(0.0) + min + stretch;
-            let z = cfg.initial.position[2] - hang;
-            if z <= cfg.ground.altitude {
-                return Err(ConfigError::new(
-                    "initial.position[2]",
-                    format!(
-                        "initial.position[2] must hang the parcel above the ground \
-                         (ground.altitude = {:?} m; the parcel hangs {hang:?} m below the \
-                         vehicle: payload.attachment_offset, the line's starting length \
-                         payload.length_min and its stretch under the parcel's weight, \
-                         payload.mass x environment.gravity over the line's stiffness, \
-                         payload.stiffness or from payload.natural_frequency), got {:?}",
-                        cfg.ground.altitude, cfg.initial.position[2]
-                    ),
-                ));
-            }
-        }
-        Ok(())
     }
 }
 
@@ -419,7 +275,12 @@ impl Payload for Cable {
         let (release_at, on_touchdown) = match c.release {
             Some(Release::At(t)) => (t, 0.0),
             Some(Release::Touchdown) => (f64::INFINITY, 1.0),
-            None => (f64::INFINITY, 0.0),
+            _ => (f64::INFINITY, 0.0),
+        };
+        let on_slack = c.release == Some(Release::Slack);
+        let release_height = match c.release {
+            Some(Release::Height(h)) => h,
+            _ => f64::NEG_INFINITY,
         };
         Self {
             mc: p.mass,
@@ -439,16 +300,32 @@ impl Payload for Cable {
             target: rest_length,
             ground: g.altitude,
             ground_k: g.stiffness.unwrap_or(0.0),
-            ground_c: g.damping.unwrap_or(0.0),
+            ground_alpha: g.dissipation.unwrap_or(0.0),
             friction: g.friction.unwrap_or(0.0),
             contact: g.stiffness.is_some(),
             release_at,
             release_on_touchdown: on_touchdown,
             release_delay: c.release_delay.unwrap_or(RELEASE_DELAY),
+            slack_release: on_slack,
+            release_on_slack: if on_slack { 1.0 } else { 0.0 },
+            slack_tension: c.slack_tension.unwrap_or(0.0),
+            tension_noise: c.tension_noise.unwrap_or(0.0),
+            slack_for: 0.0,
+            was_slack: 0.0,
+            release_height,
+            drop_armed: 0.0,
             hooked: 1.0,
             touched: 0.0,
             resting: 0.0,
+            approach_height: c
+                .approach_height
+                .filter(|_| c.approach_speed.is_some())
+                .unwrap_or(f64::NEG_INFINITY),
+            approach_speed: c.approach_speed.unwrap_or(v),
+            payout_speed: v,
             approach: [0.0; 3],
+            before: [0.0; 3],
+            last_pos: [0.0; 3],
         }
     }
 
@@ -461,9 +338,12 @@ impl Payload for Cable {
         gather!(|l| each[l] => Cable {
             mc, k, c, rest_length, offset, drag_payload, hover_length, inv_mc, winch_speed,
             winch_acceleration, winch_kp, winch_kw, length_min, length_max, target, ground,
-            ground_k, ground_c, friction, release_at, release_on_touchdown, release_delay,
-            hooked, touched, resting, approach;
-            contact: each.iter().any(|p| p.contact)
+            ground_k, ground_alpha, friction, release_at, release_on_touchdown, release_delay,
+            hooked, touched, resting, approach_height, approach_speed, payout_speed, approach,
+            before, last_pos, release_on_slack, slack_tension, tension_noise, slack_for,
+            was_slack, release_height, drop_armed;
+            contact: each.iter().any(|p| p.contact),
+            slack_release: each.iter().any(|p| p.slack_release)
         })
     }
 }
@@ -577,9 +457,12 @@ impl<L: Lane> Cable<L> {
         let Ix { xc, vxc, .. } = Ix::of::<L, F>();
         let depth = self.ground - s[xc + 2];
         let (vx, vy, vz) = (s[vxc], s[vxc + 1], s[vxc + 2]);
+        // Hunt and Crossley: kg d (1 + alpha d'), d' = -vzc: no force at d = 0 whatever the
+        // speed (no jump at the first contact), the damping growing with the depth.
+        let spring = depth * self.ground_k;
         let normal = where_positive(
             depth,
-            L::splat(0.0).max(depth.mul_add(self.ground_k, -(self.ground_c * vz))),
+            L::splat(0.0).max(spring * (-self.ground_alpha).mul_add(vz, L::splat(1.0))),
         );
         let slide = vx.mul_add(
             vx,
@@ -597,7 +480,8 @@ impl<L: Lane> Cable<L> {
         } = Ix::of::<L, F>();
         let v = self.winch_speed;
         let a = self.winch_acceleration;
-        let rate = (self.winch_kp * (self.target - s[ln])).clamp(-v, v);
+        // Paying out no faster than this step's speed (the final approach's, below its height).
+        let rate = (self.winch_kp * (self.target - s[ln])).clamp(-v, self.payout_speed);
         (self.winch_kw * (rate - s[vline])).clamp(-a, a)
     }
 
@@ -740,16 +624,19 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         &mut self,
         s: &State<L, N>,
         frame: &F,
-        cue: &Cue,
+        cue: &Cue<L>,
     ) -> Option<LastMetres<L>> {
         let Ix { xc, vxc, .. } = Ix::of::<L, F>();
         let (zero, one) = (L::splat(0.0), L::splat(1.0));
         let on = |gate: L| where_positive(gate, one);
         let vel = [s[vxc], s[vxc + 1], s[vxc + 2]];
+        let pos = [s[xc], s[xc + 1], s[xc + 2]];
         let approach = std::mem::replace(&mut self.approach, vel);
-        let mut touchdown = zero;
+        let before = std::mem::replace(&mut self.before, approach);
+        let last_pos = std::mem::replace(&mut self.last_pos, pos);
+        let (mut touchdown, mut contact) = (zero, zero);
         if self.contact {
-            let contact = on(self.ground - s[xc + 2]) * on(self.ground_k);
+            contact = on(self.ground - s[xc + 2]) * on(self.ground_k);
             touchdown = contact * (one - self.touched);
             self.touched = self.touched.max(contact);
             // Only a lane in contact rests: the line's tension is read only if one is.
@@ -762,25 +649,41 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
                 (self.resting + cue.dt) * rests
             };
         }
+        // Where and how fast the parcel met the ground: located inside the step that crossed
+        // it (only in a step where some lane touches down).
+        let (contact_pos, contact_vel) = if touchdown.le_mask(zero) == L::ALL {
+            (pos, vel)
+        } else {
+            self.contact_instant(&last_pos, &approach, &before, cue.dt)
+        };
         let half = cue.dt * 0.5;
-        let due = on(L::splat(cue.t + half) - self.release_at).max(
-            self.release_on_touchdown * on(self.resting - self.release_delay + half) * self.touched,
-        );
+        let known = self.known_height::<F, N>(s, cue.height);
+        let due = on(L::splat(cue.t + half) - self.release_at)
+            .max(
+                self.release_on_touchdown
+                    * on(self.resting - self.release_delay + half)
+                    * self.touched,
+            )
+            .max(self.slack_hook::<F, N>(s, frame, cue))
+            .max(self.drop_hook(known));
         let release = self.hooked * due;
         self.hooked = self.hooked - release;
         if let Some(payout) = cue.payout {
             self.target = self.length_min + L::splat(payout);
         }
+        self.payout_speed = self.final_approach(known);
         // Released: the winch reels the line in.
         self.target = self.target * self.hooked + self.length_min * (one - self.hooked);
         Some(LastMetres {
             touchdown,
+            contact,
             release,
             hooked: self.hooked,
             grounded: self.touched,
-            pos: [s[xc], s[xc + 1], s[xc + 2]],
+            pos,
             vel,
-            approach,
+            contact_pos,
+            contact_vel,
         })
     }
 }
@@ -844,6 +747,14 @@ impl<L: Lane> Cable<L> {
 #[cfg(test)]
 #[path = "cable_tests.rs"]
 mod tests;
+
+// The contact instant and the final approach (`Cable::contact_instant`, `final_approach`).
+#[path = "touchdown.rs"]
+mod touchdown;
+
+// The last metres' keys (`Cable::validate_last_metres`).
+#[path = "last_metres_checks.rs"]
+mod last_metres_checks;
 
 // The winch's servo against the step (`Cable::validate_winch_step`).
 #[path = "winch_step.rs"]

@@ -9,6 +9,7 @@
 //! line; docs/architecture.md).
 
 mod cable;
+mod release;
 pub mod shared;
 mod spring;
 
@@ -63,22 +64,30 @@ impl<L: Lane> PayloadView<L> {
     }
 }
 
-/// What the route tells the payload at one step (`PayloadModel::last_metres`).
+/// What the route and the vehicle tell the payload at one step (`PayloadModel::last_metres`).
 #[derive(Clone, Copy, Debug)]
-pub struct Cue {
+pub struct Cue<L> {
     /// s, the step's time, and the step.
     pub t: f64,
     pub dt: f64,
     /// m, the line a lowering in progress pays out beyond the reeled-in length
     /// (`trajectory.lower`), else None (the winch keeps its target).
     pub payout: Option<f64>,
+    /// m, the vehicle's height as it knows it (its estimate; the state's under
+    /// `navigation.mode = "truth"`): the winch's final approach reads it.
+    pub height: L,
+    /// A standard normal per lane for the load cell's noise on the measured tension (its own
+    /// seeded stream: `integrate::steps::TensionNoise`; 0 without the noise).
+    pub draw: L,
 }
 
 /// The last metres at one step (lane values: 1 or 0 for the events), for the metrics.
 #[derive(Clone, Copy, Debug)]
 pub struct LastMetres<L> {
-    /// 1 at the step of the parcel's first contact with the ground, else 0.
+    /// 1 at the step of the parcel's first contact with the ground, else 0; 1 while it is in
+    /// contact, else 0.
     pub touchdown: L,
+    pub contact: L,
     /// 1 at the step the hook opens, else 0.
     pub release: L,
     /// 1 while the parcel hangs on the hook, 0 once released; 1 once it has touched down.
@@ -87,9 +96,10 @@ pub struct LastMetres<L> {
     /// m and m/s, the parcel's inertial position and velocity.
     pub pos: [L; 3],
     pub vel: [L; 3],
-    /// m/s, its velocity at the previous step: the speed it met the ground with (by the step
-    /// at which the contact is first seen, the ground has already pushed for part of it).
-    pub approach: [L; 3],
+    /// m and m/s, its position and velocity at the instant it met the ground, located inside
+    /// the step that crossed it (at the touchdown's step; elsewhere `pos` and `vel`).
+    pub contact_pos: [L; 3],
+    pub contact_vel: [L; 3],
 }
 
 /// A payload's dynamics, with parameters of lane type `L`.
@@ -164,7 +174,7 @@ pub trait PayloadModel<L: Lane>: Sync {
         &mut self,
         _s: &State<L, N>,
         _frame: &F,
-        _cue: &Cue,
+        _cue: &Cue<L>,
     ) -> Option<LastMetres<L>> {
         None
     }

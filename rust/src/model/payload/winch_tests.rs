@@ -31,7 +31,7 @@ fn winch_config(l0: f64, min: f64) -> Config {
     c.length_min = Some(min);
     cfg.payload.natural_frequency = Some(3.0);
     cfg.ground.stiffness = Some(2.0e4);
-    cfg.ground.damping = Some(50.0);
+    cfg.ground.dissipation = Some(1.0);
     cfg.ground.friction = Some(0.5);
     cfg.initial.position = [0.0, 0.0, 10.0];
     cfg.validate().expect("a valid winch scenario");
@@ -135,6 +135,8 @@ fn the_release_leaves_the_released_weight_over_the_mass_and_nothing_of_the_paylo
         t,
         dt: 1e-3,
         payout: None,
+        height: 10.0,
+        draw: 0.0,
     };
     let trig = Trig::of(&s);
     let before = v.payload.last_metres(&s, &trig, &cue(1.998)).unwrap();
@@ -205,6 +207,8 @@ fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
             t: k as f64 * 1e-3,
             dt: 1e-3,
             payout: None,
+            height: 10.0,
+            draw: 0.0,
         };
         let ev = v.payload.last_metres(&s, &trig, &cue).unwrap();
         assert_eq!(ev.touchdown, if k == 0 { 1.0 } else { 0.0 });
@@ -214,6 +218,36 @@ fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
     }
     let t = opened.expect("the hook opens");
     assert!((t - 0.5).abs() < 1.5e-3, "{t}");
+}
+
+/// Hunt and Crossley's contact: kg d (1 + alpha d'), d' = -vzc, never pulling; no force at
+/// the first instant of contact whatever the speed (the linear damper pushed c v0 at once).
+#[test]
+fn the_ground_pushes_kg_d_one_plus_alpha_rate_and_nothing_at_first_contact() {
+    let mut cfg = winch_config(12.0, 1.0);
+    cfg.gust.air_density = 0.0;
+    let v = vehicle(&cfg);
+    let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 10.0], [0.0; 3]);
+    s[LINE] = 11.0; // slack
+    let (g, kg, alpha, mc) = (
+        v.body.g,
+        v.payload.ground_k,
+        v.payload.ground_alpha,
+        v.payload.mc,
+    );
+    assert_eq!(alpha, 1.0);
+    // At first contact, at speed; in it, sinking and rising; rising fast (it would pull).
+    for (depth, vz) in [(1e-15, -5.0), (1e-3, -1.0), (2e-3, 0.5), (1e-3, 1.5)] {
+        s[ZC] = -depth;
+        s[VXC + 2] = vz;
+        let a = derivative(&v, &s)[VXC + 2];
+        let normal = (kg * depth * (1.0 - alpha * vz)).max(0.0);
+        assert!(
+            (a - (normal / mc - g)).abs() < 1e-9,
+            "depth {depth} vz {vz}: {a} vs {}",
+            normal / mc - g
+        );
+    }
 }
 
 /// The ground's force and the resting clock are computed only when some lane's parcel
@@ -255,8 +289,20 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
                 t: k as f64 * 1e-3,
                 dt: 1e-3,
                 payout: None,
+                height: 10.0,
+                draw: 0.0,
             };
-            let ev = set.payload.last_metres(&s, &Trig::of(&s), &cue).unwrap();
+            let lanes_cue = Cue {
+                t: cue.t,
+                dt: cue.dt,
+                payout: cue.payout,
+                height: F64x4::splat(cue.height),
+                draw: F64x4::splat(0.0),
+            };
+            let ev = set
+                .payload
+                .last_metres(&s, &Trig::of(&s), &lanes_cue)
+                .unwrap();
             for (l, v) in each.iter_mut().enumerate() {
                 let sl = &states[lanes[l]];
                 let e = v.payload.last_metres(sl, &Trig::of(sl), &cue).unwrap();
