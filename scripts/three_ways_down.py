@@ -23,7 +23,7 @@ ways = {
     "lowered at the winch's 1 m/s": base.override(
         {"payload.approach_height": None, "payload.approach_speed": None}
     ),
-    "lowered with the final approach (0.3 m/s below 1 m)": base,
+    "lowered with the final approach (0.3 m/s below 2 m)": base,
     "dropped on arrival ({ height = 4.0 })": base.override(
         {
             "trajectory.lower": [0.0] * 5,
