@@ -4,7 +4,7 @@
 //! EKF2 defaults for the GNSS receiver and the barometer, the Gazebo GPS plugin's drift time.
 
 use super::params::{not_numbers, params, Params};
-use super::{steps_per_update, ConfigError};
+use super::ConfigError;
 use serde::{Deserialize, Serialize};
 
 /// What the laws read (`navigation.mode`).
@@ -258,56 +258,32 @@ impl Navigation {
     }
 
     /// Steps between updates of the filter (`rate`), of each sensor and the GNSS delay in
-    /// steps, at the step `dt`: every period a whole number of steps, the filter's a whole
-    /// number of IMU periods, each measurement's period and the GNSS delay whole numbers of
-    /// the filter's (a measurement is fused at the filter update it arrives at).
+    /// steps, at the step `dt`, as flown: a sensor samples, and the filter updates, only at
+    /// steps, so each period is rounded to whole steps (at least one: the IMU at 200 Hz on a
+    /// 2 ms step samples every 3 steps, at 167 Hz), the filter's to whole IMU periods, each
+    /// measurement's period and the GNSS delay to whole filter periods (a measurement is fused
+    /// at the filter update it arrives at). docs/model.md, "Navigation".
     pub fn schedule(&self, sensors: &Sensors, dt: f64) -> Result<Schedule, ConfigError> {
-        let steps = |key: &str, rate: f64| {
-            steps_per_update(rate, dt).map_err(|why| ConfigError::new(key, format!("{key}: {why}")))
+        // Whole multiples of `unit` steps nearest `period` s, at least `least`.
+        let whole = |period: f64, unit: usize, least: usize| -> usize {
+            let n = (period / (unit as f64 * dt)).round();
+            (if n.is_finite() { n as usize } else { 0 }).max(least) * unit
         };
-        let imu = steps("sensors.imu.rate", sensors.imu.rate)?;
-        let filter = steps("navigation.rate", self.rate)?;
-        let whole = |key: &str, n: usize, of: usize, what: &str| {
-            if n.is_multiple_of(of) {
-                Ok(())
-            } else {
-                Err(ConfigError::new(
-                    key,
-                    format!(
-                        "{key}: its period ({:.6} s) must be a whole number of {what} \
-                         ({:.6} s)",
-                        n as f64 * dt,
-                        of as f64 * dt
-                    ),
-                ))
-            }
+        let imu = if sensors.imu.rate == 0.0 {
+            1
+        } else {
+            whole(1.0 / sensors.imu.rate, 1, 1)
         };
-        whole("navigation.rate", filter, imu, "sensors.imu.rate periods")?;
-        let gnss = steps("sensors.gnss.rate", sensors.gnss.rate)?;
-        let baro = steps("sensors.baro.rate", sensors.baro.rate)?;
-        let heading = steps("sensors.heading.rate", sensors.heading.rate)?;
-        let filter_periods = "navigation.rate periods";
-        whole("sensors.gnss.rate", gnss, filter, filter_periods)?;
-        whole("sensors.baro.rate", baro, filter, filter_periods)?;
-        whole("sensors.heading.rate", heading, filter, filter_periods)?;
-        let d = sensors.gnss.delay / dt;
-        let delay = d.round();
-        if (d - delay).abs() > 1e-9 * d.max(1.0) || !(delay as usize).is_multiple_of(filter) {
-            return Err(ConfigError::new(
-                "sensors.gnss.delay",
-                format!(
-                    "sensors.gnss.delay must be a whole number of navigation.rate periods \
-                     ({:.6} s), got {:?} s",
-                    filter as f64 * dt,
-                    sensors.gnss.delay
-                ),
-            ));
-        }
+        let filter = whole(1.0 / self.rate, imu, 1);
+        let gnss = whole(1.0 / sensors.gnss.rate, filter, 1);
+        let baro = whole(1.0 / sensors.baro.rate, filter, 1);
+        let heading = whole(1.0 / sensors.heading.rate, filter, 1);
+        let delay = whole(sensors.gnss.delay, filter, 0);
         Ok(Schedule {
             imu,
             filter,
             gnss,
-            delay: delay as usize,
+            delay,
             baro,
             heading,
         })
