@@ -345,6 +345,7 @@ def test_the_filter_is_consistent(leg: bool) -> None:
         assert np.all((e > lo) & (e < hi)), (axes, e, lo, hi)
 
 
+@pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # coarse on purpose
 def test_the_sensors_sample_at_whole_steps_on_a_coarser_step() -> None:
     """On a 2 ms step the IMU's 200 Hz is every 3 steps (2.5 rounded: 6 ms), the filter's
     100 Hz two IMU periods (12 ms), the GNSS's 5 Hz 17 filter periods (204 ms), its 110 ms
