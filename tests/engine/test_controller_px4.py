@@ -17,6 +17,7 @@ from scipy.integrate import solve_ivp
 import quadrs
 import quadrs.runs.flight  # test_cable reads it at import
 from quadrs import _core
+from tests.engine import delivery_on_the_state
 from tests.engine.test_cable import RATE_ORDER, STATE_ORDER, cable_rhs
 
 #: PX4's defaults, as docs/model.md lists them.
@@ -621,7 +622,7 @@ def test_the_law_at_px4s_own_rates_is_px4s_code_at_them() -> None:
 
 @pytest.fixture(scope="module")
 def delivery() -> quadrs.Scenario:
-    return quadrs.Scenario.preset("delivery")
+    return delivery_on_the_state()
 
 
 def test_stable_at_hover_with_the_delivery_cable_and_rotors(delivery: quadrs.Scenario) -> None:

@@ -17,6 +17,7 @@ import pytest
 import quadrs
 from quadrs import _core
 from tests.conftest import DELIVERY_DROP
+from tests.engine import delivery_on_the_state
 
 #: The defaults docs/model.md gives (a scenario without [controller.se3] flies them).
 DEFAULTS = {"kx": [1.0, 1.0, 4.0], "kv": [1.6, 1.6, 3.2], "kR": [100.0, 100.0, 40.0],
@@ -348,7 +349,7 @@ def test_the_linearisation_is_the_central_differences_of_the_closed_loop() -> No
 
 @pytest.fixture(scope="module")
 def delivery() -> quadrs.Scenario:
-    return quadrs.Scenario.preset("delivery")
+    return delivery_on_the_state()
 
 
 def test_stable_at_hover_with_the_line_and_the_rotors(delivery) -> None:

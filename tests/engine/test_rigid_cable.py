@@ -18,6 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import quadrs
+from tests.engine import delivery_on_the_state
 
 #: The law with no gains is marginal at hover: known, and the point here.
 pytestmark = pytest.mark.filterwarnings("ignore::quadrs.hover.stability.StabilityWarning")
@@ -31,7 +32,7 @@ THRUST = 25.0
 
 
 def scenario(drag: bool, damping: float, duration: float) -> quadrs.Scenario:
-    return quadrs.Scenario.preset("delivery").override(
+    return delivery_on_the_state().override(
         {
             "actuator.model": "ideal",
             "vehicle.drag_coefficients": [0.06, 0.08, 0.1] if drag else [0.0, 0.0, 0.0],

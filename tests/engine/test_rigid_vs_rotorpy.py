@@ -24,6 +24,7 @@ from rotorpy.controllers.quadrotor_control import SE3Control
 from rotorpy.vehicles.multirotor import Multirotor
 
 import quadrs
+from tests.engine import delivery_on_the_state
 
 #: The weightless payload's swing is marginal and its bounce fast: both known, both harmless here.
 pytestmark = [
@@ -62,7 +63,7 @@ def scenario(flight: str, terms: set[str]) -> quadrs.Scenario:
         "turbulence": [[0.0, 0.0, 0.0, z0, 0.0], [2.0, 10.0, 0.0, z0, 0.0]],
     }[flight]
     windy = flight in ("crosswind", "turbulence")
-    return quadrs.Scenario.preset("delivery").override(
+    return delivery_on_the_state().override(
         {
             "vehicle.body": "rigid",
             "vehicle.drag_coefficients": DRAG if "drag" in terms else [0.0, 0.0, 0.0],
@@ -236,6 +237,6 @@ def test_rotor_aerodynamics_are_refused_on_the_papers_body() -> None:
         paper = {"vehicle.body": "paper", "vehicle.drag_coefficients": None,
                  "actuator.rotor_drag": None, "actuator.flapping": None,
                  "actuator.translational_lift": None}  # fmt: skip
-        quadrs.Scenario.preset("delivery").override(paper)  # reads without them
+        delivery_on_the_state().override(paper)  # reads without them
         with pytest.raises(quadrs.ScenarioError, match=key.replace(".", r"\.")):
-            quadrs.Scenario.preset("delivery").override({**paper, key: value})
+            delivery_on_the_state().override({**paper, key: value})

@@ -14,6 +14,7 @@ import pytest
 
 import quadrs
 from quadrs.scenario.units import label, unit
+from tests.engine import delivery_on_the_state
 
 KEYS = ("controller.pd.swing_gain", "controller.pd.swing_damping")
 
@@ -35,7 +36,7 @@ def swing(sc: quadrs.Scenario, damping: float, seed: int = 0) -> Any:
 def step() -> quadrs.Scenario:
     """The delivery vehicle (1 m line) hovering at 10 m in still air, its reference stepping
     2 m forward at 1 s; the swing measured from 4 s, once the vehicle has arrived."""
-    return quadrs.Scenario.preset("delivery").override(
+    return delivery_on_the_state().override(
         {
             "trajectory.interpolation": "step",
             "trajectory.route": None,
@@ -63,7 +64,7 @@ def test_the_keys_are_the_pds_and_left_out_by_the_presets() -> None:
         assert "swing_" not in sc.to_toml()
     assert [unit(k) for k in KEYS] == ["m/s^2", "m/s"]
     assert all(label(k).startswith("PD swing") for k in KEYS)
-    sc = quadrs.Scenario.preset("delivery").override({KEYS[0]: 0.5, KEYS[1]: 2.0})
+    sc = delivery_on_the_state().override({KEYS[0]: 0.5, KEYS[1]: 2.0})
     back = quadrs.Scenario.from_toml_string(sc.to_toml())
     assert back == sc and [back[k] for k in KEYS] == [0.5, 2.0]
 
@@ -89,7 +90,7 @@ def test_damping_shrinks_the_swing_of_the_delivery_lift(seed: int) -> None:
     """The delivery preset's whole flight through the same gusts: over the 2 s settle before
     the climb (the parcel let go in the breeze) the swing is about half (measured, seed 0:
     peak 11.2 -> 5.9 deg, RMS 5.7 -> 3.1); no phase's peak grows by more than a degree."""
-    sc = quadrs.Scenario.preset("delivery")
+    sc = delivery_on_the_state()
     off, on = swing(sc, 0.0, seed), swing(sc, 2.0, seed)
     assert on.loc["lift", "max_swing"] < 0.7 * off.loc["lift", "max_swing"]
     assert on.loc["lift", "rms_swing"] < 0.7 * off.loc["lift", "rms_swing"]
@@ -100,11 +101,11 @@ def test_damping_shrinks_the_swing_of_the_delivery_lift(seed: int) -> None:
 @pytest.mark.parametrize("bad", [-1.0, -1e-9])
 def test_negative_gains_are_refused_by_name(key: str, bad: float) -> None:
     with pytest.raises(quadrs.ScenarioError, match=rf"{re.escape(key)} must be >= 0, got"):
-        quadrs.Scenario.preset("delivery").override({key: bad})
+        delivery_on_the_state().override({key: bad})
 
 
 @pytest.mark.parametrize("key", KEYS)
 @pytest.mark.parametrize("bad", [math.nan, math.inf])
 def test_non_finite_gains_are_refused_by_name(key: str, bad: float) -> None:
     with pytest.raises(quadrs.ScenarioError, match=re.escape(key)):
-        quadrs.Scenario.preset("delivery").override({key: bad})
+        delivery_on_the_state().override({key: bad})

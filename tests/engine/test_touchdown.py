@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import quadrs
+from tests.engine import delivery_on_the_state
 
 from .test_last_metres import DROP, A, V, fly, lowering
 
@@ -25,7 +26,7 @@ SPEED_TOLERANCE, FORCE_TOLERANCE = 1e-3, 2e-2
 def delivery_touchdown(dt: float) -> dict[str, float]:
     """The delivery preset's touchdown (the `lower` phase) in its mean wind without the
     turbulence (whose draws are per step, so a smaller step would fly another gust)."""
-    sc = quadrs.Scenario.preset("delivery").override({"gust.enabled": False,
+    sc = delivery_on_the_state().override({"gust.enabled": False,
                                                       "integrator.dt": dt})  # fmt: skip
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", quadrs.StepSizeWarning)
@@ -46,7 +47,7 @@ def test_the_touchdown_converges_in_the_step_on_the_delivery_preset() -> None:
     finest = runs[-1]
     # The final approach's speed (0.3 m/s) with the vehicle's own motion in the mean wind.
     assert 0.25 < finest["touchdown_speed"] < 0.35, finest
-    g = quadrs.Scenario.preset("delivery")["environment.gravity"]
+    g = delivery_on_the_state()["environment.gravity"]
     assert finest["touchdown_drop_height"] == pytest.approx(
         finest["touchdown_speed"] ** 2 / (2 * g), rel=1e-12
     )

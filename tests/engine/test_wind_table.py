@@ -15,6 +15,7 @@ import pytest
 import quadrs
 from quadrs import _core
 from tests.conftest import DELIVERY_DROP
+from tests.engine import delivery_on_the_state
 
 WIND = ["wind_x", "wind_y", "wind_z"]
 
@@ -22,7 +23,7 @@ WIND = ["wind_x", "wind_y", "wind_z"]
 def _scenario(tmp_path: Path, csv: str, by: str, extra: str = "") -> quadrs.Scenario:
     """The delivery preset over its drop point with a wind table from a CSV beside the file."""
     (tmp_path / "wind.csv").write_text(csv)
-    drop = quadrs.Scenario.preset("delivery").override(DELIVERY_DROP)
+    drop = delivery_on_the_state().override(DELIVERY_DROP)
     text = drop.to_toml() + f'\n[wind.table]\nfile = "wind.csv"\nby = "{by}"\n{extra}'
     (tmp_path / "scenario.toml").write_text(text)
     return quadrs.Scenario.from_toml(tmp_path / "scenario.toml")
@@ -32,7 +33,7 @@ def test_a_constant_table_is_the_mean_wind_it_copies(tmp_path) -> None:
     """The delivery's 5 m/s wind unsheared, once as ``[wind]`` and once as a one-row table by
     time (the turbulence on, at the vehicle's altitude and airspeed through the mean air):
     the same flight, bit for bit."""
-    drop = quadrs.Scenario.preset("delivery").override(
+    drop = delivery_on_the_state().override(
         {**DELIVERY_DROP, "wind.shear": "none", "wind.heading": 0.0}
     )
     table = _scenario(tmp_path, "t,wind_x,wind_y,wind_z\n0,5,0,0\n", "time")

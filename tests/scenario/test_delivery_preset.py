@@ -10,6 +10,7 @@ import pytest
 
 import quadrs
 from quadrs.scenario.route import FLIGHT_PHASE
+from tests.engine import ON_THE_STATE
 
 
 @pytest.fixture(scope="module")
@@ -102,6 +103,9 @@ def test_the_smc_flies_the_route_because_it_meets_its_reaching_condition(deliver
     downwind of it by the offset a law without an integrator leaves in the preset's breeze
     (from the east, +y); with paper_stable_lateral's 1.432 the moment exceeds it and the
     attitude is lost (on the paper's body)."""
+    # The argument is the law's on the state (the preset flies on its senses, whose noise adds
+    # to the moment the attitude loop sees).
+    delivery = delivery.override(ON_THE_STATE)
     eps = delivery["controller.smc.epsilon_attitude"][0]
     f = quadrs.simulate(delivery, "smc", seed=1)
     assert f.status == "ok"
