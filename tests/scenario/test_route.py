@@ -300,7 +300,9 @@ def test_pythons_lowering_time_is_the_engines(payout: float, speed: float, accel
     delivery = Scenario.preset("delivery").override(
         {"payload.winch_speed": speed, "payload.winch_acceleration": accel,
          "trajectory.route": [[0.0, 0.0, 5.0], [0.0, 0.0, 6.0]], "trajectory.hold": [6.0, 0.0],
-         "trajectory.lower": [payout, 0.0], "initial.position": [0.0, 0.0, 5.0]}
+         "trajectory.lower": [payout, 0.0], "initial.position": [0.0, 0.0, 5.0],
+         # The rule without a final approach (with one, Python's is an upper bound).
+         "payload.approach_height": None, "payload.approach_speed": None}
     )  # fmt: skip
     assert delivery.route is not None
     (lowering,) = delivery.route.lowerings
