@@ -241,7 +241,7 @@ impl Engine {
             let (nav_error, navigating) = match nav.as_mut() {
                 Some(n) => {
                     let v = V::<L, Pay, Act, B>::LAYOUT.vel();
-                    n.accelerometer(k, &[k1[v], k1[v + 1], k1[v + 2]], &axes);
+                    n.accelerometer(&[k1[v], k1[v + 1], k1[v + 2]], &axes);
                     let est = &n.estimate.pos;
                     let err = [0, 1, 2].map(|i| est[i] - view.pos[i]);
                     (err, L::splat(1.0))

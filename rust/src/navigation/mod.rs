@@ -332,10 +332,10 @@ impl<L: Lane> Navigation<L> {
         }
     }
 
-    /// After step `k`'s derivative: the specific force of the step's state (its acceleration
+    /// After a step's derivative: the specific force of the step's state (its acceleration
     /// `a`, world axes, with the body's `axes`), in body axes, into the IMU's period sum.
     #[inline(always)]
-    pub fn accelerometer(&mut self, _k: usize, a: &[L; 3], axes: &[[L; 3]; 3]) {
+    pub fn accelerometer(&mut self, a: &[L; 3], axes: &[[L; 3]; 3]) {
         let f = [a[0], a[1], a[2] + self.g];
         let body = Rotation { axes: *axes }.to_body(&f);
         for (sum, f) in self.force_sum.iter_mut().zip(body) {
