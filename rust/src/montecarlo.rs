@@ -233,6 +233,39 @@ pub fn run_innovations(
     finished.then_some(metrics)
 }
 
+/// Lane-set `set` of `batch` (`lanes` a set): each lane's stream index, and in a dispersed
+/// batch each lane's realisation (its own vehicle), built once per set, reusing the scenario's
+/// gust filters unless a gust key is dispersed. The last set is padded by repeating the final
+/// realisation; padded lanes are dropped.
+fn lane_set(
+    engine: &Engine,
+    batch: &Batch,
+    set: usize,
+    lanes: usize,
+) -> (Vec<u64>, Option<Vec<Realisation>>) {
+    let (first, count) = (batch.first, batch.count);
+    let rows: Vec<usize> = (0..lanes)
+        .map(|l| (set * lanes + l).min(count - 1))
+        .collect();
+    let indices: Vec<u64> = rows
+        .iter()
+        .map(|&j| match batch.streams {
+            Some(s) => s[j],
+            None => first + j as u64,
+        })
+        .collect();
+    let realisations = batch.dispersion.map(|d| {
+        let wind = (!d.touches_wind()).then_some(&engine.realisation);
+        rows.iter()
+            .map(|&j| {
+                let cfg = d.patched(j, first).expect("checked by Batch::check");
+                Realisation::with_wind_of(&cfg, wind).expect("checked by Batch::check")
+            })
+            .collect()
+    });
+    (indices, realisations)
+}
+
 /// Fly `batch` (checked with `Batch::check`). `progress` counts finished realisations; setting
 /// `cancel` stops work promptly and leaves `done` false for whatever had not finished.
 pub fn run_batch(
@@ -244,7 +277,6 @@ pub fn run_batch(
     let Batch {
         kinds,
         seed,
-        first,
         count,
         want_spectra,
         ..
@@ -288,28 +320,7 @@ pub fn run_batch(
             |(mut spectra, mut planner, (mut set_metrics, mut set_diverged, mut set_spectra)),
              (set, ((out_metrics, out_diverged), (out_status, out_done)))| {
                 set_spectra.clear();
-                // Pad the last lane-set by repeating the final realisation; padded lanes are dropped.
-                let rows: Vec<usize> = (0..lanes_per_set)
-                    .map(|l| (set * lanes_per_set + l).min(count - 1))
-                    .collect();
-                let indices: Vec<u64> = rows
-                    .iter()
-                    .map(|&j| match batch.streams {
-                        Some(s) => s[j],
-                        None => first + j as u64,
-                    })
-                    .collect();
-                // A dispersed batch builds each lane's realisation (its own vehicle) once per set,
-                // reusing the scenario's gust filters unless a gust key is dispersed.
-                let realisations: Option<Vec<Realisation>> = batch.dispersion.map(|d| {
-                    let wind = (!d.touches_wind()).then_some(&engine.realisation);
-                    rows.iter()
-                        .map(|&j| {
-                            let cfg = d.patched(j, first).expect("checked by Batch::check");
-                            Realisation::with_wind_of(&cfg, wind).expect("checked by Batch::check")
-                        })
-                        .collect()
-                });
+                let (indices, realisations) = lane_set(engine, batch, set, lanes_per_set);
                 let lane_realisations: Option<Vec<&Realisation>> =
                     realisations.as_ref().map(|c| c.iter().collect());
                 let lanes = out_done.len();

@@ -263,7 +263,7 @@ impl Navigation {
     /// 2 ms step samples every 3 steps, at 167 Hz), the filter's to whole IMU periods, each
     /// measurement's period and the GNSS delay to whole filter periods (a measurement is fused
     /// at the filter update it arrives at). docs/model.md, "Navigation".
-    pub fn schedule(&self, sensors: &Sensors, dt: f64) -> Result<Schedule, ConfigError> {
+    pub fn schedule(&self, sensors: &Sensors, dt: f64) -> Schedule {
         // Whole multiples of `unit` steps nearest `period` s, at least `least`.
         let whole = |period: f64, unit: usize, least: usize| -> usize {
             let n = (period / (unit as f64 * dt)).round();
@@ -279,18 +279,18 @@ impl Navigation {
         let baro = whole(1.0 / sensors.baro.rate, filter, 1);
         let heading = whole(1.0 / sensors.heading.rate, filter, 1);
         let delay = whole(sensors.gnss.delay, filter, 0);
-        Ok(Schedule {
+        Schedule {
             imu,
             filter,
             gnss,
             delay,
             baro,
             heading,
-        })
+        }
     }
 
-    /// Check every value; the schedule against the step.
-    pub fn validate(&self, sensors: &Sensors, dt: f64) -> Result<(), ConfigError> {
+    /// Check every value (any step flies the schedule: `schedule` rounds it to whole steps).
+    pub fn validate(&self, sensors: &Sensors) -> Result<(), ConfigError> {
         self.check_bounds("navigation")?;
         sensors.imu.check_bounds("sensors.imu")?;
         sensors.gnss.check_bounds("sensors.gnss")?;
@@ -298,11 +298,7 @@ impl Navigation {
             o.check_bounds(&format!("sensors.gnss.outages[{i}]"))?;
         }
         sensors.baro.check_bounds("sensors.baro")?;
-        sensors.heading.check_bounds("sensors.heading")?;
-        if self.estimates() {
-            self.schedule(sensors, dt)?;
-        }
-        Ok(())
+        sensors.heading.check_bounds("sensors.heading")
     }
 }
 

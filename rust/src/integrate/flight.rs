@@ -11,10 +11,11 @@ use crate::lane::KernelOps;
 use crate::metrics::{LawLimits, PhaseAccumulator, Views};
 use crate::model::payload::Cue;
 use crate::model::{
-    dispatch, state_from_fn, Actuator, ActuatorModel, AnyVehicle, BodyKind, Payload, Rigid, State,
-    Tick, Vehicle, VehicleVisitor,
+    dispatch, state_from_fn, Actuator, ActuatorModel, AnyVehicle, BodyKind, Inputs, Payload,
+    PayloadView, Rigid, State, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::navigation::{Navigate, Navigation, NavigationParams};
+use crate::trajectory::Reference;
 use rustfft::FftPlanner;
 use std::marker::PhantomData;
 use std::sync::atomic::Ordering;
@@ -105,6 +106,51 @@ impl Engine {
         )
     }
 
+    /// The flight loop's state at the start (`Start`): the lanes' initial states, their winds
+    /// and metrics, the law of the request gathered one vehicle per lane (its memory at rest at
+    /// the start) with its loops' schedule, and the sensors and filter where the laws fly the
+    /// estimate (every lane or none; `record`: keep lane 0's record).
+    #[inline(always)]
+    fn start<'f, 'a, L, B, Pay, Act, const N: usize>(
+        &self,
+        vehicle: &Vehicle<L, Pay, Act, B>,
+        realisations: &[&'f Realisation],
+        req: &FlightRequest<'a>,
+        record: bool,
+    ) -> Start<'f, 'a, L, N>
+    where
+        L: Navigate,
+        B: BodyKind,
+        Pay: crate::model::PayloadModel<L>,
+        Act: ActuatorModel<L>,
+    {
+        assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
+        let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
+        let laws: Vec<&LawLimits> = realisations.iter().map(|c| &c.law_limits).collect();
+        let start = Attitude::<L, B>::of(&x0);
+        let view0 = Vehicle::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
+        let trig0 = B::trig(&start.frame, &view0.att);
+        let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
+        let navs: Vec<&NavigationParams> = realisations
+            .iter()
+            .filter_map(|c| c.navigation.as_ref())
+            .collect();
+        let g = vehicle.body.g;
+        Start {
+            s: x0,
+            wind: Winds::<L>::new(realisations, req, &fields),
+            acc: PhaseAccumulator::new(&self.phases, self.dt, self.decimation, self.steps, &laws),
+            ends: Ends::new(L::LANES),
+            runaway: Runaway::<L, N>::new::<B>(&self.vars, realisations),
+            law: Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0)),
+            rates: Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt)),
+            nav: (!navs.is_empty()).then(|| {
+                Navigation::<L>::starting_at(&navs, req.seed, req.indices, &view0, g, record)
+            }),
+        }
+    }
+
     /// Fly the lane-set: step by step, the reference, the law, the wind, the payload's last
     /// metres, the metrics and the trace, then the RK4 step and the runaway checks; at the end
     /// each lane's result.
@@ -125,46 +171,20 @@ impl Engine {
         Act: ActuatorModel<L>,
     {
         type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
-        assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
-        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
-        let mut s = x0;
-        let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
-        let mut wind = Winds::<L>::new(realisations, req, &fields);
-        let laws: Vec<&LawLimits> = realisations.iter().map(|c| &c.law_limits).collect();
-        let mut acc =
-            PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps, &laws);
-        let mut ends = Ends::new(L::LANES);
-        let runaway = Runaway::<L, N>::new::<B>(&self.vars, realisations);
+        let Start {
+            mut s,
+            mut wind,
+            mut acc,
+            mut ends,
+            runaway,
+            mut law,
+            mut rates,
+            mut nav,
+        } = self.start::<L, B, Pay, Act, N>(vehicle, realisations, req, trace.is_some());
         let mut leg = Leg::<L>::new();
         let mut extra = [L::splat(0.0); MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
-        // The law of the request, gathered one vehicle per lane, its memory at rest at the
-        // start; its loops' schedule (`Rates`).
-        let start = Attitude::<L, B>::of(&x0);
-        let view0 = V::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
-        let trig0 = B::trig(&start.frame, &view0.att);
-        let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
-        let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0));
-        let mut rates = Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt));
         let mut release = Release::new();
-        // The sensors and the filter, where the laws fly the estimate (every lane or none).
-        let navs: Vec<&NavigationParams> = realisations
-            .iter()
-            .filter_map(|c| c.navigation.as_ref())
-            .collect();
-        let mut nav = (!navs.is_empty()).then(|| {
-            assert_eq!(navs.len(), L::LANES, "every lane of a set navigates alike");
-            let truths: Vec<Rigid<f64>> = (0..L::LANES)
-                .map(|l| Rigid {
-                    pos: view0.pos.map(|x| x.lane(l)),
-                    att: view0.att.map(|x| x.lane(l)),
-                    vel: view0.vel.map(|x| x.lane(l)),
-                    rate: view0.rate.map(|x| x.lane(l)),
-                })
-                .collect();
-            let g = vehicle.body.g;
-            Navigation::<L>::new(&navs, req.seed, req.indices, &truths, g, trace.is_some())
-        });
         let mut noise = TensionNoise::new(req, &self.cfg);
 
         let reads_payload = law.reads_payload();
@@ -176,84 +196,28 @@ impl Engine {
             let t = k as f64 * self.dt;
             leg.follow(&self.trajectory, t, realisations);
             let r = &leg.r;
-            // A match, not `Option::unwrap_or_else`: nothing here may be left out of line.
-            let attitude = match checked.take() {
-                Some(a) => a,
-                None => Attitude::of(&s),
-            };
+            let attitude = Attitude::checked_or_of(checked.take(), &s);
             let trig = attitude.frame;
             let tick = Tick { step: k, t };
             let view = V::<L, Pay, Act, B>::rigid_with(&s, attitude.euler);
             // What the law sees of the payload: only computed for a law that reads it.
-            let payload = if reads_payload {
-                Some(vehicle.payload.view(&s, &trig))
-            } else {
-                None
-            };
+            let payload = payload_view(reads_payload, vehicle, &s, &trig);
             let law_trig = B::trig(&trig, &view.att);
-            // What the laws read: the state, or the navigation's estimate of it.
-            let seen = match nav.as_mut() {
-                Some(n) => {
-                    if n.due(k) {
-                        L::sense(n, k, &view);
-                    } else {
-                        n.accumulate(&view);
-                    }
-                    Sight {
-                        rigid: &n.estimate,
-                        trig: &n.trig,
-                        payload: payload.as_ref(),
-                    }
-                }
-                None => Sight {
-                    rigid: &view,
-                    trig: &law_trig,
-                    payload: payload.as_ref(),
-                },
-            };
+            let seen = sight(nav.as_mut(), k, &view, &law_trig, payload.as_ref());
             let due = rates.due(k);
             let u = law.step(&seen, r, tick, due);
-            // The mixer runs with the inner loop (every loop is due at the first step).
-            let cmd = match held {
-                Some(c) if !due.rate => c,
-                _ => vehicle.actuator.command(&u, tick),
-            };
-            held = Some(cmd);
+            let cmd = mixer(&mut held, due.rate, &vehicle.actuator, &u, tick);
             let w = wind.sample(k, k == self.steps && k > 0, &view, realisations);
-            // The route's cue to the payload and its events, before the step (a hook that opens
-            // now is open over the step).
-            let cue = Cue {
-                t,
-                dt: self.dt,
-                payout: leg.payout,
-                // The height the vehicle knows: its estimate where it flies on its senses.
-                height: match nav.as_ref() {
-                    Some(n) => n.estimate.pos[2],
-                    None => view.pos[2],
-                },
-                draw: noise.draw(),
-            };
+            let cue = cue(t, self.dt, &leg, nav.as_ref(), &view, &mut noise);
             let events = vehicle.payload.last_metres(&s, &trig, &cue);
             // The payload's record of the step and its RK4 step's first stage, together.
             let (k1, out) = vehicle.derivative_and_outputs(&s, &trig, &cmd, &w, u.u1);
             let axes = crate::model::Frame::axes(&trig);
-            let zero = L::splat(0.0);
-            let (nav_error, navigating) = match nav.as_mut() {
-                Some(n) => {
-                    let v = V::<L, Pay, Act, B>::LAYOUT.vel();
-                    n.accelerometer(&[k1[v], k1[v + 1], k1[v + 2]], &axes);
-                    let est = &n.estimate.pos;
-                    let err = [0, 1, 2].map(|i| est[i] - view.pos[i]);
-                    (err, L::splat(1.0))
-                }
-                None => ([zero; 3], zero),
-            };
+            let vel = V::<L, Pay, Act, B>::LAYOUT.vel();
+            let a = [k1[vel], k1[vel + 1], k1[vel + 2]];
+            let (nav_error, navigating) = navigation_error(nav.as_mut(), &a, &axes, &view.pos);
             // The position error, from the rigid view the law read (the same state).
-            let e = [
-                view.pos[0] * -1.0 + r.pos[0],
-                view.pos[1] * -1.0 + r.pos[1],
-                view.pos[2] * -1.0 + r.pos[2],
-            ];
+            let e = position_error(r, &view.pos);
             let last = release.sample(events, &leg, &e, t, out.swing);
             // What the metrics derive their signals from (`metrics!`); |a| for the trace.
             let views = Views {
@@ -274,29 +238,14 @@ impl Engine {
             if let Some(tr) = trace.as_deref_mut() {
                 // The trace ends where its lane diverged: nothing after `diverged_at` is recorded.
                 if k % tr.every == 0 && ends.diverged_at[0].is_nan() {
-                    let lay = V::<L, Pay, Act, B>::LAYOUT;
-                    vehicle.actuator.signals(&cmd, &s, lay.actuator(), extra);
-                    let derived = &view.att[..B::DERIVED.len()];
-                    let nav_columns = nav.as_ref().map(|n| n.columns());
-                    let nav_row: &[f64] = match &nav_columns {
-                        Some(c) => c,
-                        None => &[],
-                    };
-                    tr.push(&TraceRow {
-                        t,
-                        s: &s,
-                        derived,
-                        r,
+                    let held = Held {
+                        cmd: &cmd,
                         u: &u,
                         w: &w,
-                        e_o: out.e_o,
-                        accel_c: accel,
-                        drag_z: crate::model::Frame::drag(&trig, &vehicle.body, &view.vel, &w)[2],
-                        swing: out.swing,
-                        tension: out.tension,
-                        extra,
-                        nav: nav_row,
-                    });
+                        trig: &trig,
+                        accel,
+                    };
+                    record(tr, vehicle, &s, &views, &held, nav.as_ref(), extra);
                 }
             }
             if k == self.steps {
@@ -316,8 +265,7 @@ impl Engine {
                     break;
                 }
             }
-            if k % CANCEL_CHECK_STEPS == 0 && req.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
-            {
+            if cancelled(req, k) {
                 return None;
             }
         }
@@ -372,4 +320,197 @@ impl Engine {
             })
             .collect()
     }
+}
+
+/// What the laws read at step `k`: the navigation's estimate where it flies (the IMU sampled
+/// on its steps, its sums added to between them), else the state itself (`view`, `trig`).
+#[inline(always)]
+fn sight<'a, L: Navigate>(
+    nav: Option<&'a mut Navigation<L>>,
+    k: usize,
+    view: &'a Rigid<L>,
+    trig: &'a Trig<L>,
+    payload: Option<&'a PayloadView<L>>,
+) -> Sight<'a, L> {
+    match nav {
+        Some(n) => {
+            if n.due(k) {
+                L::sense(n, k, view);
+            } else {
+                n.accumulate(view);
+            }
+            let n: &'a Navigation<L> = n;
+            Sight {
+                rigid: &n.estimate,
+                trig: &n.trig,
+                payload,
+            }
+        }
+        None => Sight {
+            rigid: view,
+            trig,
+            payload,
+        },
+    }
+}
+
+/// What a trace row reads of the step beside its `Views`: the actuators' command `cmd` and
+/// the law's `u` held over it, the wind `w`, the body's frame, the payload's |a|.
+struct Held<'a, L, C, F> {
+    cmd: &'a C,
+    u: &'a Inputs<L>,
+    w: &'a [L; 3],
+    trig: &'a F,
+    accel: L,
+}
+
+/// The trace's row of the step `views` describes (state `s`): the actuator's own columns
+/// (into `extra`) and the navigation's, gathered here.
+#[inline(always)]
+fn record<L, B, Pay, Act, const N: usize>(
+    tr: &mut Trace,
+    vehicle: &Vehicle<L, Pay, Act, B>,
+    s: &State<L, N>,
+    views: &Views<L>,
+    held: &Held<L, Act::Command, B::Frame<L>>,
+    nav: Option<&Navigation<L>>,
+    extra: &mut [L],
+) where
+    L: Navigate,
+    B: BodyKind,
+    Pay: crate::model::PayloadModel<L>,
+    Act: ActuatorModel<L>,
+{
+    let lay = Vehicle::<L, Pay, Act, B>::LAYOUT;
+    vehicle.actuator.signals(held.cmd, s, lay.actuator(), extra);
+    let nav_columns = nav.map(|n| n.columns());
+    let nav_row: &[f64] = match &nav_columns {
+        Some(c) => c,
+        None => &[],
+    };
+    let (view, w) = (views.rigid, held.w);
+    tr.push(&TraceRow {
+        t: views.t,
+        s,
+        derived: &view.att[..B::DERIVED.len()],
+        r: views.r,
+        u: held.u,
+        w,
+        e_o: views.out.e_o,
+        accel_c: held.accel,
+        drag_z: crate::model::Frame::drag(held.trig, &vehicle.body, &view.vel, w)[2],
+        swing: views.out.swing,
+        tension: views.out.tension,
+        extra,
+        nav: nav_row,
+    });
+}
+
+/// The flight loop's state at its first step (`Engine::start`).
+struct Start<'f, 'a, L: Navigate, const N: usize> {
+    s: State<L, N>,
+    wind: Winds<'f, 'a, L>,
+    acc: PhaseAccumulator<L>,
+    ends: Ends,
+    runaway: Runaway<L, N>,
+    law: Flying<L>,
+    rates: Rates,
+    nav: Option<Navigation<L>>,
+}
+
+/// What the law sees of the payload at state `s`: only computed for a law that reads it.
+#[inline(always)]
+fn payload_view<L, B, Pay, Act, const N: usize>(
+    reads: bool,
+    vehicle: &Vehicle<L, Pay, Act, B>,
+    s: &State<L, N>,
+    trig: &B::Frame<L>,
+) -> Option<PayloadView<L>>
+where
+    L: Navigate,
+    B: BodyKind,
+    Pay: crate::model::PayloadModel<L>,
+    Act: ActuatorModel<L>,
+{
+    // A match, not `bool::then`: nothing here may be left out of line.
+    match reads {
+        true => Some(vehicle.payload.view(s, trig)),
+        false => None,
+    }
+}
+
+/// The route's cue to the payload at `t`, before the step (a hook that opens now is open
+/// over the step): the lowering in progress, the height the vehicle knows (its estimate where
+/// it flies on its senses, else the state's `view`), the load cell's normal.
+#[inline(always)]
+fn cue<L: Navigate>(
+    t: f64,
+    dt: f64,
+    leg: &Leg<L>,
+    nav: Option<&Navigation<L>>,
+    view: &Rigid<L>,
+    noise: &mut TensionNoise,
+) -> Cue<L> {
+    let height = match nav {
+        Some(n) => n.estimate.pos[2],
+        None => view.pos[2],
+    };
+    Cue {
+        t,
+        dt,
+        payout: leg.payout,
+        height,
+        draw: noise.draw(),
+    }
+}
+
+/// The navigation's position error (estimate less the true `pos`) after the step's
+/// acceleration `a` (world axes; the body's `axes`) went into its accelerometer, and 1 where
+/// the laws fly the estimate; zeros where they read the state.
+#[inline(always)]
+fn navigation_error<L: Navigate>(
+    nav: Option<&mut Navigation<L>>,
+    a: &[L; 3],
+    axes: &[[L; 3]; 3],
+    pos: &[L; 3],
+) -> ([L; 3], L) {
+    let zero = L::splat(0.0);
+    match nav {
+        Some(n) => (n.error_after(a, axes, pos), L::splat(1.0)),
+        None => ([zero; 3], zero),
+    }
+}
+
+/// m, the position error p_ref - p of the reference `r` at the true position `pos`.
+#[inline(always)]
+fn position_error<L: Navigate>(r: &Reference, pos: &[L; 3]) -> [L; 3] {
+    [
+        pos[0] * -1.0 + r.pos[0],
+        pos[1] * -1.0 + r.pos[1],
+        pos[2] * -1.0 + r.pos[2],
+    ]
+}
+
+/// Whether the request was cancelled, looked at every `CANCEL_CHECK_STEPS` steps.
+#[inline(always)]
+fn cancelled(req: &FlightRequest, k: usize) -> bool {
+    k.is_multiple_of(CANCEL_CHECK_STEPS) && req.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+}
+
+/// The actuators' command over the step: the mixer runs with the inner loop (`rate` due;
+/// every loop is due at the first step), its command `held` between the loop's updates.
+#[inline(always)]
+fn mixer<L: Navigate, Act: ActuatorModel<L>>(
+    held: &mut Option<Act::Command>,
+    rate: bool,
+    actuator: &Act,
+    u: &Inputs<L>,
+    tick: Tick,
+) -> Act::Command {
+    let cmd = match *held {
+        Some(c) if !rate => c,
+        _ => actuator.command(u, tick),
+    };
+    *held = Some(cmd);
+    cmd
 }

@@ -448,6 +448,16 @@ impl<L: Lane, B: BodyKind> Attitude<L, B> {
         let euler = B::euler(s, &frame);
         Self { frame, euler }
     }
+
+    /// The attitude the last runaway check derived for state `s` (`checked`), else `of(s)`.
+    #[inline(always)]
+    pub(super) fn checked_or_of<const N: usize>(checked: Option<Self>, s: &State<L, N>) -> Self {
+        // A match, not `Option::unwrap_or_else`: nothing here may be left out of line.
+        match checked {
+            Some(a) => a,
+            None => Self::of(s),
+        }
+    }
 }
 
 /// How each lane's flight ended: its divergence time (NaN while it flies) and status, and the

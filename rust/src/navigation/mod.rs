@@ -80,7 +80,7 @@ impl NavigationParams {
         f.heading_noise.get_or_insert(sensors.heading.noise);
         Ok(Some(Self {
             sensors: sensors.clone(),
-            schedule: keys.schedule(sensors, dt)?,
+            schedule: keys.schedule(sensors, dt),
             filter: f,
             dt,
         }))
@@ -315,6 +315,40 @@ impl<L: Lane> Navigation<L> {
         if imu_step || k.is_multiple_of(s.filter) {
             self.refresh();
         }
+    }
+
+    /// `new` from the lanes' true initial rigid body `start` (lane values).
+    pub fn starting_at(
+        params: &[&NavigationParams],
+        seed: u64,
+        indices: &[u64],
+        start: &Rigid<L>,
+        g: L,
+        record: bool,
+    ) -> Self {
+        assert_eq!(
+            params.len(),
+            L::LANES,
+            "every lane of a set navigates alike"
+        );
+        let truths: Vec<Rigid<f64>> = (0..L::LANES)
+            .map(|l| Rigid {
+                pos: start.pos.map(|x| x.lane(l)),
+                att: start.att.map(|x| x.lane(l)),
+                vel: start.vel.map(|x| x.lane(l)),
+                rate: start.rate.map(|x| x.lane(l)),
+            })
+            .collect();
+        Self::new(params, seed, indices, &truths, g, record)
+    }
+
+    /// After a step's derivative (its acceleration `a`, world axes; the body's `axes`): the
+    /// accelerometer's sum (`accelerometer`), and the estimate's position error against the
+    /// true position `pos`.
+    #[inline(always)]
+    pub fn error_after(&mut self, a: &[L; 3], axes: &[[L; 3]; 3], pos: &[L; 3]) -> [L; 3] {
+        self.accelerometer(a, axes);
+        [0, 1, 2].map(|i| self.estimate.pos[i] - pos[i])
     }
 
     /// Whether step `k` samples the IMU (and so may update the filter): else the step only adds

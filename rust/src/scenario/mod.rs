@@ -321,8 +321,7 @@ impl Config {
         self.divergence.validate()?;
         self.ground.validate(&self.initial)?;
         self.volume.validate()?;
-        self.navigation
-            .validate(&self.sensors, self.integrator.dt)?;
+        self.navigation.validate(&self.sensors)?;
         self.validate_dispersions()
     }
 

@@ -180,33 +180,49 @@ pub(in crate::gust) fn dryden_lanes<L: KernelOps>(
     let rejected = valid.le_mask(zero);
     let fallback = !scalar.le_mask(zero) & L::ALL;
     if rejected | fallback != 0 {
-        for l in 0..L::LANES {
-            let bit = 1 << l;
-            if rejected & bit != 0 {
-                d.out[..n].iter_mut().for_each(|v| v.set_lane(l, f64::NAN));
-                for i in 0..n {
-                    for j in 0..n {
-                        d.phi[i][j].set_lane(l, f64::NAN);
-                        d.g[i][j].set_lane(l, f64::NAN);
-                    }
+        rare_lanes(d, n, q, rejected, fallback);
+    }
+}
+
+/// [`dryden_lanes`]' lanes whose scales `rescaled_coefficients` rejects (bits of `rejected`:
+/// NaN) and those whose Cholesky pivot is not positive (bits of `fallback`: `chol2`'s fallback,
+/// `noise_factor`'s eigen-factor of the lane's `I - Phi Phi^T`, `q` = its q11, q12, q22). Out
+/// of line: no flight's lanes take it.
+#[cold]
+fn rare_lanes<L: KernelOps>(
+    d: DrydenLanes<'_, L>,
+    n: usize,
+    q: [L; 3],
+    rejected: u32,
+    fallback: u32,
+) {
+    for l in 0..L::LANES {
+        let bit = 1 << l;
+        if rejected & bit != 0 {
+            d.out[..n].iter_mut().for_each(|v| v.set_lane(l, f64::NAN));
+            for i in 0..n {
+                for j in 0..n {
+                    d.phi[i][j].set_lane(l, f64::NAN);
+                    d.g[i][j].set_lane(l, f64::NAN);
                 }
-            } else if fallback & bit != 0 {
-                // `chol2`'s fallback on this lane's I - Phi Phi^T (finite: the scales are).
-                let q = DMatrix::from_row_slice(
-                    2,
-                    2,
-                    &[q[0].lane(l), q[1].lane(l), q[1].lane(l), q[2].lane(l)],
-                );
-                let g = noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2));
-                for i in 0..2 {
-                    for j in 0..2 {
-                        d.g[i][j].set_lane(l, g[(i, j)]);
-                    }
+            }
+        } else if fallback & bit != 0 {
+            // `chol2`'s fallback on this lane's I - Phi Phi^T (finite: the scales are).
+            let q = DMatrix::from_row_slice(
+                2,
+                2,
+                &[q[0].lane(l), q[1].lane(l), q[1].lane(l), q[2].lane(l)],
+            );
+            let g = noise_factor(&q).unwrap_or_else(|_| DMatrix::zeros(2, 2));
+            for i in 0..2 {
+                for j in 0..2 {
+                    d.g[i][j].set_lane(l, g[(i, j)]);
                 }
             }
         }
     }
 }
+
 /// Where the forming filters' unit normals come from: a realisation's seeded stream, or
 /// innovations given explicitly (`WindState`). Both hand them out in the same order.
 pub trait Normals {
