@@ -19,7 +19,7 @@ from tests.engine import delivery_on_the_state
 from .test_last_metres import DROP, A, V, fly, lowering
 
 #: The steps the convergence is shown over (s), and its tolerances (relative).
-STEPS = (1e-3, 5e-4, 2.5e-4)
+STEPS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 SPEED_TOLERANCE, FORCE_TOLERANCE = 1e-3, 2e-2
 
 

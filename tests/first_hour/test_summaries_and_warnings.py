@@ -82,6 +82,27 @@ def test_step_warning_follows_accuracy_at_the_fastest_excited_mode(paper: Scenar
     assert 13.2 * 0.0076 / 2 == pytest.approx(STEP_ACCURACY, rel=0.01)
 
 
+def test_a_law_at_its_own_rates_is_not_lagged_by_the_step() -> None:
+    """Before: the half-step lag of controls held over a step was charged to every law, so the
+    delivery preset, whose loops all run at their own rates (their holds the model's, the same
+    at any step that divides them), warned at 2 ms that its metrics depend on dt by more than
+    1 %; they move by less (the convergence test of the touchdown, the rates' table in
+    docs/model.md)."""
+    pole = -10 + 68j
+    assert step_error(pole, 0.002, held=False) < 1e-5
+    assert step_error(pole, 0.002) == pytest.approx(abs(pole) * 0.001)
+    delivery = Scenario.preset("delivery")
+    assert not any(delivery.engine.every_step("pd"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StepSizeWarning)
+        warn_before_running(delivery, ("pd", "smc"), gains=False, stacklevel=1)
+    # Its inner loop every step: the 2 ms step holds the mixer, and the lag is the step's.
+    tied = delivery.override({"controller.inner_rate": 0.0})
+    assert tied.engine.every_step("pd") == [False, False, True]
+    with pytest.warns(StepSizeWarning, match=r"integrator\.dt = 0\.002 s is coarse.*held"):
+        warn_before_running(tied, ("pd",), gains=False, stacklevel=1)
+
+
 def test_diverging_in_p2_keeps_p1(short: Scenario) -> None:
     s = short.override(
         {"gust.components": ["vertical", "lateral"], "integrator.duration": 30.0,

@@ -384,10 +384,10 @@ def test_a_route_longer_than_the_probe_is_flown(tmp_path: Path, capsys) -> None:
     could not change it."""
     doc = plan([item(22, alt=20.0), item(16, LAT + north(50.0), LON, 20.0, hold=150_000.0)])
     p = write(tmp_path, doc)
-    # A 20 ms step (a long route's quick look): the preset's 250 Hz attitude loop and 100 Hz
-    # wind are no whole number of its steps, so they run every step.
+    # A 20 ms step (a long route's quick look): the preset's 250 Hz attitude loop, 500 Hz inner
+    # loop and 100 Hz wind are no whole number of its steps, so they run every step.
     coarse = ["--set", "integrator.dt=0.02", "--set", "controller.attitude_rate=0",
-              "--set", "gust.rate=0"]  # fmt: skip
+              "--set", "controller.inner_rate=0", "--set", "gust.rate=0"]  # fmt: skip
     data = route_of(capsys, p, *coarse)
     assert data["integrator"]["duration"] > 150_000
     line = refused(capsys, "scenario", "show", "--preset", "delivery", *coarse, "--set",

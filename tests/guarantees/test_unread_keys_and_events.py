@@ -123,17 +123,17 @@ def test_a_ground_too_stiff_for_the_step_is_warned() -> None:
     from quadrs.hover.stability import contact_step_warning, warn_before_running
 
     delivery = quadrs.Scenario.preset("delivery")
-    assert contact_step_warning(delivery) == ""  # 200 1/s at 1 ms: resolved
+    assert contact_step_warning(delivery) == ""  # 200 1/s at 2 ms: resolved
     concrete = delivery.override({"ground.stiffness": 1e8, "ground.dissipation": 0.0})
     message = contact_step_warning(concrete)
-    assert "ground.stiffness = 1e+08 N/m" in message and "integrator.dt = 0.001 s" in message
+    assert "ground.stiffness = 1e+08 N/m" in message and "integrator.dt = 0.002 s" in message
     assert "|pole| = 1.414e+04 1/s" in message  # sqrt(1e8 / 0.5 kg)
     with pytest.warns(quadrs.StepSizeWarning, match=r"ground\.stiffness = 1e\+08"):
         warn_before_running(concrete, ("pd",), gains=False, stacklevel=1)
-    # (At 10 ms the preset's 250 Hz attitude loop is no whole number of steps: every step.)
-    slippery = delivery.override(
-        {"ground.friction": 5.0, "integrator.dt": 0.01, "controller.attitude_rate": 0.0}
-    )
+    # (At 10 ms the preset's 250 Hz attitude and 500 Hz inner loops are no whole number of
+    # steps: every step.)
+    coarse = {"integrator.dt": 0.01, "controller.attitude_rate": 0.0, "controller.inner_rate": 0.0}
+    slippery = delivery.override({"ground.friction": 5.0, **coarse})
     assert "ground.friction = 5" in contact_step_warning(slippery)
 
 

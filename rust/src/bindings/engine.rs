@@ -44,6 +44,13 @@ impl CompiledEngine {
         Ok(self.engine.cfg.controller.loop_steps(kind, self.engine.dt))
     }
 
+    /// Whether `controller`'s position, attitude and inner loops each run at every step
+    /// whatever the step (no rate of their own: a coarser step holds them longer).
+    fn every_step(&self, controller: &str) -> PyResult<[bool; 3]> {
+        let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+        Ok(self.engine.cfg.controller.every_step(kind))
+    }
+
     /// Standard normals one flight's turbulence draws: its onset's stationary state and every
     /// later update of the gust window, per active component (docs/rare-events.md).
     fn innovations_dimension(&self) -> usize {

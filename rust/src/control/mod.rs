@@ -567,6 +567,16 @@ impl ControllerConfig {
         })
     }
 
+    /// Which of law `kind`'s position, attitude and inner loops run at every step whatever
+    /// the step (the key 0, or unset where the law has no rate of its own): their hold is the
+    /// step's, so a coarser step lags them more; a loop at a rate holds its own period at any
+    /// step that divides it.
+    pub fn every_step(&self, kind: ControllerKind) -> [bool; 3] {
+        let own = kind.rates();
+        let set = [self.position_rate, self.attitude_rate, self.inner_rate];
+        [0, 1, 2].map(|i| set[i].unwrap_or(own[i]) == 0.0)
+    }
+
     /// s, law `kind`'s loops' periods at the step `dt` (`loop_steps` steps each).
     pub fn loop_periods(&self, kind: ControllerKind, dt: f64) -> [f64; 3] {
         self.loop_steps(kind, dt).map(|n| n as f64 * dt)
