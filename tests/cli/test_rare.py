@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+import quadrs
 from quadrs.cli.main import main
 from quadrs.rare import RareEventResult
 from quadrs.rare.scenario_model import ScenarioModel
@@ -222,3 +223,30 @@ def test_rare_refuses_a_target_of_another_mode_before_flying(
     args = [str(tmp_path / a) if a.endswith(".md") else a for a in args]
     assert main([*RARE, "--threshold", "3.5", *args]) == 2
     assert words in one_error_line(capsys.readouterr().err)
+
+
+def test_rare_announces_its_memory_and_the_delivery_fits_four_gib(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: the announcement gave the time only. The delivery preset at the default 1,000
+    flights a level holds about 2 GiB (105,500 innovations a flight: its turbulence at 100 Hz);
+    at every step of 1 ms it held 19 GiB."""
+    import argparse
+
+    import quadrs.cli.rare as cr
+    from quadrs.cli.cost import Calibration
+    from quadrs.rare.scenario_model import ScenarioModel
+    from quadrs.rare.subset import subset_memory
+
+    monkeypatch.setattr(cr, "calibrate_rare", lambda *a: Calibration(20, 20.0, 2))
+    delivery = quadrs.Scenario.preset("delivery")
+    args = argparse.Namespace(per_level=1000, metric="touchdown_speed", phase="lower")
+    cr._announce(delivery, args, ("pd",), 0.1, 4)
+    said = capsys.readouterr().err
+    dimension = ScenarioModel(delivery, "pd", "touchdown_speed", "lower").dimension
+    nbytes = subset_memory(dimension, 1000, 0.1)
+    assert f"and about {nbytes / 2**30:.2g} GiB of memory;" in said, said
+    assert nbytes < 4 * 2**30
+    every_step = delivery.override({"gust.rate": 0.0})
+    dense = ScenarioModel(every_step, "pd", "touchdown_speed", "lower").dimension
+    assert subset_memory(dense, 1000, 0.1) > 4 * 2**30

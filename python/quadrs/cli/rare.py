@@ -328,11 +328,22 @@ def _announce(
     say(
         f"quadrs rare: {args.per_level} flights a level{' per controller' * (len(controllers) > 1)}"
         f", about {duration(level)} a level here ({cal.per_flight:.2g} s a flight, from "
-        f"{cal.flights} calibration flights); a probability p takes about log(p)/log({p0:g}) "
-        f"levels (1e-4: {example}), at most {max_levels} ({deepest:,} flights, about "
-        f"{duration(cal.estimate(deepest))}); Ctrl-C keeps the finished levels",
+        f"{cal.flights} calibration flights) and {_memory(scenario, args, controllers[0], p0)}; a "
+        f"probability p takes about log(p)/log({p0:g}) levels (1e-4: {example}), at most "
+        f"{max_levels} ({deepest:,} flights, about {duration(cal.estimate(deepest))}); Ctrl-C "
+        "keeps the finished levels",
         cal.estimate(deepest))  # fmt: skip
     return level
+
+
+def _memory(scenario: Any, args: argparse.Namespace, controller: str, p0: float) -> str:
+    """``about 1.2 GiB of memory``: what the levels' samples hold at once (each flight's
+    innovations and dispersed keys' normals; :func:`quadrs.rare.subset.subset_memory`)."""
+    from quadrs.rare.scenario_model import ScenarioModel
+    from quadrs.rare.subset import subset_memory
+
+    dimension = ScenarioModel(scenario, controller, args.metric, args.phase).dimension
+    return f"about {subset_memory(dimension, args.per_level, p0) / 2**30:.2g} GiB of memory"
 
 
 def _inputs(result: Any) -> str:

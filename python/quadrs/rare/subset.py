@@ -66,6 +66,18 @@ __all__ = [
 _F8 = 8
 
 
+def subset_memory(dimension: int, per_level: int, p0: float) -> int:
+    """Bytes subset simulation holds at once in ``dimension`` normals a flight with
+    ``per_level`` samples a level. Measured with tracemalloc
+    (tests/guarantees/test_delivery_and_rare.py): about seven chain-sized arrays of rows
+    (states, candidates, the pilot's running best and its pool, the seeds' reservoir); per
+    sample about eight numbers (the level's values, their copies, indicators, ancestries, sort
+    order, copy counts); and the failure samples, up to a whole level's rows, held twice while
+    joined."""
+    seeds = per_level // round(1.0 / p0)
+    return (7 * seeds * dimension + 8 * per_level + 2 * per_level * dimension) * _F8
+
+
 def subset_simulation(
     model: Model,
     dimension: int,
@@ -120,16 +132,10 @@ def subset_simulation(
         pilot = pilot_size(per_level, p0)
     pilot, _, _ = check_settings(pilot, p0, max_levels)
     seeds = per_level // length
-    # Measured with tracemalloc (tests/guarantees/test_delivery_and_rare.py): about seven
-    # chain-sized arrays of rows (states, candidates, the pilot's running best and its pool,
-    # the seeds' reservoir);
-    # per sample about eight numbers (the level's values, their copies, indicators, ancestries,
-    # sort order, copy counts); and the failure samples, up to a whole level's rows, held
-    # twice while joined.
     check_memory(
         f"subset simulation in {dimension} dimensions with {seeds} chains of {per_level} "
         f"samples a level",
-        (7 * seeds * dimension + 8 * per_level + 2 * per_level * dimension) * _F8,
+        subset_memory(dimension, per_level, p0),
     )
     evaluate = _Evaluator(model, name)
     pilot_rng, main_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
