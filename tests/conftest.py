@@ -60,6 +60,15 @@ FOURTH_ROUND_DELIVERY_VEHICLE = {
     "ground.dissipation": None,
     "ground.friction": None,
     "initial.trim": "rest",
+    "trajectory.speed": 10.0,  # the fifth round slowed the cruise to 8 m/s (the descent's too)
+    # The sixth round's: the laws on the state, every loop and the wind every 1 ms step.
+    "navigation": None,
+    "sensors": None,
+    "controller.position_rate": None,
+    "controller.attitude_rate": None,
+    "controller.inner_rate": None,
+    "gust.rate": None,
+    "integrator.dt": 0.001,
 }
 
 # The fourth round's delivery vehicle over its drop point: the vehicle the brute-force reference

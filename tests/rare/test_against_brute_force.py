@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.stats import norm
 
@@ -76,6 +77,25 @@ def test_the_delivery_vehicle_over_its_drop_point_centres_and_covers() -> None:
     assert abs(est.mean() - p) < 3 * se + (ref["high"] - ref["low"]) / 2, (est.mean() / p, se / p)
     covered = sum(r.interval is not None and r.interval[0] <= p <= r.interval[1] for r in runs)
     assert covered >= 92, covered
+
+
+def test_the_fourth_round_vehicle_is_the_one_the_reference_was_flown_on() -> None:
+    """FOURTH_ROUND_DELIVERY_DROP over today's preset flies the flights the fourth round's
+    preset (tests/data/delivery_fourth_round.toml, 031ee14's) flies with DELIVERY_DROP, bit for
+    bit: every key a later round added to the preset (its navigation, loop rates, the wind's
+    rate, the step) is set back, so the slow test above checks against the vehicle its brute
+    force was flown on. Before: the preset's sixth-round keys (the estimator, the rates, a
+    2 ms step) were not, and that test flew another vehicle."""
+    from tests.conftest import DELIVERY_DROP
+
+    data = Path(__file__).parents[1] / "data" / "delivery_fourth_round.toml"
+    # (031ee14 had no `initial.trim`: its flights started at rest, today's "rest".)
+    then = quadrs.Scenario.from_toml(data).override({**DELIVERY_DROP, "initial.trim": "rest"})
+    now = quadrs.Scenario.preset("delivery").override(FOURTH_ROUND_DELIVERY_DROP)
+    for seed in (0, 1):
+        a = quadrs.simulate(then, "pd", seed=seed).metrics
+        b = quadrs.simulate(now, "pd", seed=seed).metrics
+        pd.testing.assert_frame_equal(a, b, check_exact=True, obj=f"seed {seed}")
 
 
 def stepped(x: np.ndarray) -> np.ndarray:
