@@ -5,6 +5,7 @@ alone outside it; once it rests on the ground nothing of it is integrated any mo
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -99,3 +100,22 @@ def test_a_released_parcel_at_rest_stays_where_it_rests_under_a_wind() -> None:
     phases = flight.metrics.set_index("phase")
     last = phases.index[-2]  # the climb away, after the release
     assert math.isnan(phases.loc[last, "touchdown_peak_force"])
+
+
+def test_each_lanes_wake_and_rest_are_its_own_in_a_batch_as_alone() -> None:
+    """Four drops whose parcels' drag differs (each falls, lands and comes to rest at its own
+    time): in a batch, each realisation's fall through the wake, impact and rest are those
+    it flies alone, bit for bit (the wake and the still parcel are per lane)."""
+    sc = drop(**{"integrator.duration": 5.0,
+                 "dispersions": {"payload.drag_area": {"dist": "uniform", "low": 0.05,
+                                                       "high": 0.15}}})  # fmt: skip
+    names = ["touchdown_speed", "touchdown_miss", "touchdown_peak_force", "release_time"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", quadrs.StabilityWarning)
+        runs = quadrs.monte_carlo(sc, runs=4, seed=5, controllers=("pd",), progress=False).runs
+    batch = runs[runs["phase"] == "flight"].set_index("realisation")[names]
+    alone = [fly(sc, seed=5, realisation=i).metrics.set_index("phase").loc["flight", names]
+             for i in range(4)]  # fmt: skip
+    for i, m in enumerate(alone):
+        assert m.tolist() == batch.loc[i].tolist(), (i, m, batch.loc[i])
+    assert batch["touchdown_speed"].nunique() == 4
