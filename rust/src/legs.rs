@@ -117,8 +117,19 @@ pub struct Segment {
     pub to: usize,
     /// The motion along a leg (all zero for a hold or a lowering).
     pub profile: Profile,
-    /// m, the line a lowering pays out beyond `payload.length_min` (0 for a hold or a leg).
+    /// m, the line a lowering pays out beyond `payload.length_min` (0 for a hold or a leg,
+    /// and for a retract, which reels it in) and m/s, its pay-out speed (infinity: the winch's;
+    /// 0 for a hold or a leg).
     pub payout: f64,
+    pub rate: f64,
+}
+
+/// A lowering in progress (`Trajectory::lowering`): m of line beyond `payload.length_min`
+/// (0: a retract, reeling it in) and m/s, its own pay-out speed (infinity: the winch's).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lowering {
+    pub payout: f64,
+    pub speed: f64,
 }
 
 /// m, from `a` to `b`.

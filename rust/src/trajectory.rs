@@ -167,13 +167,16 @@ impl Trajectory {
         }
     }
 
-    /// m, the line segment `segment` of a route pays out beyond `payload.length_min` when it is
-    /// a lowering (`trajectory.lower`), else None.
-    pub fn lowering(&self, segment: usize) -> Option<f64> {
+    /// The line segment `segment` of a route pays out beyond `payload.length_min` and its
+    /// speed when it is a lowering (`trajectory.lower`, `.lower_speed`, `.retract`), else None.
+    pub fn lowering(&self, segment: usize) -> Option<crate::legs::Lowering> {
         self.segments
             .get(segment)
             .filter(|s| s.kind == SegmentKind::Lower)
-            .map(|s| s.payout)
+            .map(|s| crate::legs::Lowering {
+                payout: s.payout,
+                speed: s.rate,
+            })
     }
 
     /// The horizontal point (m) segment `segment` of a route lowers at, if it is a lowering.

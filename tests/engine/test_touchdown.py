@@ -186,9 +186,11 @@ def test_a_drop_in_still_air_lands_at_the_closed_form_speed() -> None:
     comes down to h (here as the vehicle descends from 6.5 m to 5.5 m over the drop point);
     the parcel falls through still air with its quadratic drag, from the speed v0 it had at
     the release: v^2 = vt^2 + (v0^2 - vt^2) exp(-2 g H / vt^2) after a fall of H. Before:
-    refused."""
+    refused. Without the rotors' downwash (`vehicle.downwash = false`; with it:
+    test_released_parcel.py)."""
     dt = 2.5e-4
     sc = lowering(0.0, **{"payload.release": {"height": 4.9}, "trajectory.lower": [0.0, 0.0],
+                          "vehicle.downwash": False,
                           "trajectory.route": [[*DROP, 6.5], [*DROP, 5.5]],
                           "initial.position": [*DROP, 6.5], "trajectory.hold": [0.5, 0.0],
                           "integrator.dt": dt, "integrator.duration": 6.0})  # fmt: skip

@@ -48,8 +48,7 @@ def test_a_plan_that_never_opens_the_gripper_keeps_the_parcel(tmp_path: Path) ->
     ("items", "where", "when"),
     [
         ([_winch(5.0), TAKEOFF, OVER, AWAY], "mission.items[0]: DO_WINCH", "before take-off"),
-        ([TAKEOFF, OVER, _winch(5.0), AWAY, LAND, RELEASE], "mission.items[5]: DO_GRIPPER",
-         "after landing"),
+        ([RELEASE, TAKEOFF, OVER, AWAY], "mission.items[0]: DO_GRIPPER", "before take-off"),
         ([TAKEOFF, OVER, AWAY, LAND, _winch(2.0)], "mission.items[4]: DO_WINCH", "after landing"),
     ],
 )  # fmt: skip
@@ -59,21 +58,13 @@ def test_payload_items_on_the_pad_are_refused(tmp_path: Path, items: list[Any], 
         read_plan(_plan(tmp_path, items), start_height=6.0)
 
 
-def test_two_winch_rates_are_refused_naming_both_items(tmp_path: Path) -> None:
+def test_one_winch_rate_given_twice_is_the_winchs_speed(tmp_path: Path) -> None:
+    """Different rates are each lowering's own (tests/guarantees/test_plan_as_px4_runs_it.py);
+    one rate given twice is the winch's speed, no speed per lowering."""
     second = _item(16, 2.0, 0, 0, None, LAT + 1e-4, LON, 6.0)
-    with pytest.raises(
-        RouteFileError,
-        match=r"different rates \(0\.5 m/s at mission\.items"
-        r"\[2\]; 0\.8 m/s at mission\.items\[4\]\)",
-    ):
-        read_plan(_plan(tmp_path, [TAKEOFF, OVER, _winch(2.0, 0.5), second, _winch(2.0, 0.8),
-                                   AWAY]), start_height=6.0)  # fmt: skip
-    with pytest.raises(RouteFileError, match=r"no rate \(the base scenario's winch_speed\)"):
-        read_plan(_plan(tmp_path, [TAKEOFF, OVER, _winch(2.0, 0.5), second, _winch(2.0),
-                                   AWAY]), start_height=6.0)  # fmt: skip
-    # One rate given twice is one rate.
     same = _flown(tmp_path, [TAKEOFF, OVER, _winch(2.0, 0.5), second, _winch(2.0, 0.5), AWAY])
     assert same["payload.winch_speed"] == 0.5
+    assert "lower_speed" not in same.to_dict()["trajectory"]
 
 
 def test_a_winch_value_the_engine_refuses_names_the_plans_item(tmp_path: Path) -> None:

@@ -27,21 +27,28 @@ flown in mission order, ``DO_JUMP`` included; what each command becomes:
   speeds in one plan are refused, as is a climb (2) or descent (3) speed, which the engine
   cannot fly apart from the cruise speed.
 - ``DO_WINCH`` (42600) action 1 (relative length): the line ``param3`` m is paid out at the
-  current point (``trajectory.lower``; ``param4``, a rate in m/s, sets
-  ``payload.winch_speed``: one rate per plan, different ones refused); action 4 (deliver:
+  current point (``trajectory.lower``; on top of the line still out) at its own rate
+  ``param4`` (m/s, ``trajectory.lower_speed``; the winch's top speed ``payload.winch_speed``
+  the fastest rate, or the base scenario's where a lowering has none); action 4 (deliver:
   "drop, slow down, touch down, reel up, lock") the same lowering with the winch's final
   approach, which the scenario must have (``payload.approach_height``,
-  ``payload.approach_speed``); action 6 (retract) is what the winch does after the release
-  anyway. ``DO_GRIPPER`` (211) action 0 (release) after a lowering opens the hook once the
-  parcel rests (``payload.release = "touchdown"``); in flight, without a lowering before it,
-  it drops the parcel where the vehicle stands: the hook opens as the reference arrives at
-  the point (``payload.release`` that time); action 1 (grab) before any release is the
+  ``payload.approach_speed``); action 6 (retract) before the release reels the parcel back
+  in, in its order (``trajectory.retract``); after the release it is what the winch does
+  anyway.
+  ``DO_GRIPPER`` (211) action 0 (release) opens the hook where the mission reaches it: at the
+  point of a lowering, once the parcel rests (``payload.release = "touchdown"``, read from the
+  lowering's start on: ``payload.release_after``); anywhere else where the parcel stands, at
+  the time the mission reaches the item (``payload.release`` that time: the reference's
+  arrival at the point, after the point's lowering and retract): in flight, a drop; after a
+  ``NAV_LAND`` (PX4's land-and-release) the landing sets the parcel down (the vehicle over
+  its point at half the reeled-in line's hang above the ground, the line slack) and the hook
+  opens once it rests; a ``NAV_TAKEOFF`` flies on. Action 1 (grab) before any release is the
   parcel hooked from the start.
   A plan decides the hook: without a ``DO_GRIPPER`` release it never opens (the base
-  scenario's ``payload.release`` is dropped). A lowering or release before take-off or after
-  landing is refused (it would be flown at the pad), as is any other winch or gripper
-  action, naming its item (quadrs.scenario.plan_payload). At a point with a lowering the
-  point's hold follows the lowering.
+  scenario's ``payload.release`` is dropped). A lowering before take-off or after landing, a
+  release before take-off, is refused (it would be flown at the pad), as is any other winch or
+  gripper action, naming its item (quadrs.scenario.plan_payload). At a point with a lowering
+  the point's hold follows the lowering.
 - Commands that neither move the vehicle nor act on its payload (camera, gimbal, region of
   interest, video, ``CONDITION_DELAY``/``DISTANCE``/``YAW``, ``DO_LAND_START``): not flown,
   named in a warning.
@@ -60,6 +67,7 @@ regular file of at most MAX_BYTES, UTF-8 (a byte-order mark is dropped).
 
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import io
@@ -71,9 +79,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
-from quadrs.scenario.keys import dotted_value
-from quadrs.scenario.plan_payload import PlanPayload, RouteFileError, _number
-from quadrs.scenario.route_timing import lowering_speed, lowering_time
+from quadrs.scenario.plan_payload import (
+    PlanPayload,
+    RouteFileError,
+    _number,
+    needs_a_final_approach,
+    reached,
+    set_down_height,
+    winch_speeds,
+)
+from quadrs.scenario.route_timing import lowering_time, time_bound
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -169,10 +184,16 @@ class RouteFile:
     decides_release: bool = False
     #: Scenario key -> the file's items that set it (a refused value names them).
     origins: tuple[tuple[str, str], ...] = ()
-    #: A drop (``release = "drop"``): the point whose arrival opens the hook; the DO_WINCH
-    #: deliver items (lowerings with the winch's final approach, which the scenario needs).
+    #: The point the mission reaches the release at (``release``: "touchdown", "drop" where
+    #: it stands, "land" after a landing); the DO_WINCH deliver items (lowerings with the
+    #: winch's final approach, which the scenario needs).
     drop_point: int | None = None
     delivers: tuple[str, ...] = ()
+    #: Per point: a lowering's own rate (m/s, None: the winch's), a retract after it; whether
+    #: a lowering at an earlier point came before the release's (its rest must not open it).
+    lower_rate: tuple[float | None, ...] = ()
+    retract: tuple[bool, ...] = ()
+    lowered_before: bool = False
 
     @property
     def length(self) -> float:
@@ -199,12 +220,18 @@ class RouteFile:
             route["trajectory.speed"] = self.speed
         # The base's own lowerings went with its route.
         route["trajectory.lower"] = list(self.lower) if any(x > 0 for x in self.lower) else None
-        if (self.release is not None or self.decides_release) and self.release != "drop":
-            route["payload.release"] = self.release  # None: the hook never opens
-        # A drop's time comes from the schedule below.
-        self._needs_a_final_approach(base, extra)
-        if self.winch_speed is not None:
-            route["payload.winch_speed"] = self.winch_speed
+        route["trajectory.retract"] = list(self.retract) if any(self.retract) else None
+        if self.release is None and self.decides_release:
+            route["payload.release"] = None  # the hook never opens
+        elif self.release in ("touchdown", "land"):
+            route["payload.release"] = "touchdown"
+        if self.release == "land":
+            points[self.drop_point or 0][2] = set_down_height(base.to_dict(), extra)
+        # A drop's time, and where a rest opens the hook from, come from the schedule below.
+        given = {**base.to_dict().get("payload", {}),
+                 **{k.removeprefix("payload."): v for k, v in extra.items()}}  # fmt: skip
+        needs_a_final_approach(self.source, self.delivers, given)
+        route.update(winch_speeds(self.lower, self.lower_rate, self.winch_speed, given))
         route.update(extra)
         data = base.to_dict()
         gust = data.get("gust", {})
@@ -222,12 +249,16 @@ class RouteFile:
             needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
                       + sum(g.end - g.start for g in lowerings))  # fmt: skip
             dt = float(long["integrator.dt"])
-            if self.release == "drop":
-                # The hook opens as the reference arrives at the point (PX4 runs the item
-                # there); the vehicle's lag behind it is the flight's.
-                at = self.drop_point or 0
-                if "payload.release" not in extra:
-                    route["payload.release"] = legs[at - 1].arrival if at > 0 else 0.0
+            at = self.drop_point or 0
+            arrival = legs[at - 1].arrival if at > 0 else 0.0
+            if self.release == "drop" and "payload.release" not in extra:
+                # The hook opens where the mission reaches the item (PX4 runs it there): the
+                # reference's arrival at the point, after its lowering and retract; the
+                # vehicle's lag behind it is the flight's.
+                route["payload.release"] = reached(arrival, lowerings)
+            elif self.release == "land" or (self.release == "touchdown" and self.lowered_before):
+                # A rest before the mission reaches the point does not open it.
+                route.setdefault("payload.release_after", arrival)
             duration = math.ceil(needed / dt - 1e-6) * dt
             route.setdefault("integrator.duration", duration)
             if whole:
@@ -235,18 +266,6 @@ class RouteFile:
             return base.override(route)
         except ValueError as e:
             raise RouteFileError(f"{self.source}: {self._blame(base, route, e)}") from None
-
-    def _needs_a_final_approach(self, base: RoutableScenario, extra: Mapping[str, Any]) -> None:
-        """A DO_WINCH deliver (action 4) slows for the last metres: refused, naming its items,
-        on a scenario without the winch's final approach."""
-        given = {**base.to_dict().get("payload", {}),
-                 **{k.removeprefix("payload."): v for k, v in extra.items()}}  # fmt: skip
-        if self.delivers and given.get("approach_height") is None:
-            raise RouteFileError(
-                f"{self.source}: {', '.join(self.delivers)} DO_WINCH action 4 (deliver) slows "
-                "for the last metres: the scenario needs the winch's final approach "
-                "(payload.approach_height and payload.approach_speed), none given"
-            )
 
     def _blame(self, base: RoutableScenario, route: Mapping[str, Any], e: ValueError) -> str:
         """The engine's refusal ``e`` of the route, led by what in the file caused it: the
@@ -279,34 +298,19 @@ class RouteFile:
                 "route")  # fmt: skip
 
     def _time_bound(self, base: RoutableScenario, route: Mapping[str, Any]) -> float:
-        """Seconds the route surely takes less than: a leg of length L at cruise speed V and
-        acceleration bound A takes L/V + 2V/A (two ramps of 2V/A with L/V - 2V/A between; a
-        shorter leg, 2 sqrt(2L/A), is less), a lowering of P m at the winch's speed v and
-        acceleration a takes P/v + 2v/a (docs/model.md, "Routes"), plus the holds and a
-        margin."""
-        try:
-            speed = float(route.get("trajectory.speed", base["trajectory.speed"]))
-            accel = float(route.get("trajectory.acceleration", base["trajectory.acceleration"]))
-            hold = sum(float(h) for h in route.get("trajectory.hold", self.hold))
-            lower = [float(x) for x in route.get("trajectory.lower") or () if float(x) > 0]
-            if lower:
-                v = float(route.get("payload.winch_speed", base["payload.winch_speed"]))
-                a = float(route.get("payload.winch_acceleration",
-                                    base["payload.winch_acceleration"]))  # fmt: skip
-        except (KeyError, TypeError, ValueError):
-            return 1e5  # the scenario refuses the route below, naming the key
-        if not (math.isfinite(speed) and speed > 0 and math.isfinite(accel) and accel > 0):
-            return 1e5
-        legs = zip(self.points, self.points[1:], strict=False)
-        t = sum(math.dist(a, b) / speed + 2 * speed / accel for a, b in legs) + hold
-        if lower:
-            if not (math.isfinite(v) and v > 0 and math.isfinite(a) and a > 0):
-                return 1e5
-            # The final approach's speed, where slower, for the whole of each lowering.
-            slow = dotted_value(base.to_dict(), "payload.approach_speed")
-            given = {"payload": {"approach_speed": route.get("payload.approach_speed", slow)}}
-            t += sum(lowering_time(p, v, a, lowering_speed(given, v)) for p in lower)
-        return 1.01 * t + 1.0
+        """Seconds the route surely takes less than (``route_timing.time_bound``: its legs,
+        holds, lowerings and retracts at their bounds, and a margin) on ``base`` with the
+        route's dotted keys; 1e5 where its values are not numbers (the scenario refuses the
+        route below, naming the key)."""
+        data = copy.deepcopy(base.to_dict())
+        for key, value in route.items():
+            *tables, last = key.split(".")
+            node = data
+            for table in tables:
+                node = node.setdefault(table, {})
+            node[last] = value
+        bound = time_bound(data)
+        return 1e5 if bound is None else bound
 
 
 def read_route_file(path: str | Path, start_height: float = 0.0) -> RouteFile:
@@ -478,6 +482,8 @@ class _Builder:
         self.points: list[Point] = []
         self.hold: list[float] = []
         self.lower: list[float] = []
+        self.lower_rate: list[float | None] = []
+        self.retract: list[bool] = []
 
     def to(self, point: Point, hold: float = 0.0) -> None:
         if self.points and math.dist(point, self.points[-1]) < SAME_POINT:
@@ -486,6 +492,8 @@ class _Builder:
             self.points.append(point)
             self.hold.append(hold)
             self.lower.append(0.0)
+            self.lower_rate.append(None)
+            self.retract.append(False)
 
     def route(self, speed: float | None) -> RouteFile:
         if len(self.points) < 2:
@@ -511,19 +519,24 @@ class _PlanRoute(_Builder):
         self.speeds: dict[float | None, str] = {}
         self.not_flown: list[str] = []
         self.payload = PlanPayload()
-        #: Off the pad (after a take-off or a waypoint, until a landing); landed since.
+        #: Off the pad (after a take-off or a waypoint, until a landing); landed since, and
+        #: the point of the last landing.
         self.airborne = self.landed = False
+        self.landed_at: int | None = None
         self.to((0.0, 0.0, start_height))
 
     def route(self, speed: float | None) -> RouteFile:
         """The route with the payload's items: the plan decides the hook (module docstring)."""
         route = super().route(speed)
         p = self.payload
-        rate = p.winch_speed(self.source)
+        rate = p.winch_speed()
         origins = tuple((k, ", ".join(v)) for k, v in p.origins.items())
         return dataclasses.replace(route, release=p.release, winch_speed=rate,
                                    decides_release=True, origins=origins,
-                                   drop_point=p.drop_point, delivers=tuple(p.delivers))  # fmt: skip
+                                   drop_point=p.drop_point, delivers=tuple(p.delivers),
+                                   lower_rate=tuple(self.lower_rate),
+                                   retract=tuple(self.retract),
+                                   lowered_before=p.lowered_before)  # fmt: skip
 
     @property
     def here(self) -> Point:
@@ -610,6 +623,7 @@ def _land(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) ->
     r.to((x, y, r.here[2]))
     r.to((x, y, r.start_height))
     r.airborne, r.landed = False, True
+    r.landed_at = len(r.points) - 1
 
 
 def _return(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:

@@ -80,7 +80,13 @@ def time_bound(data: Mapping[str, Any]) -> float | None:
         if lower:
             v = float(dotted_value(data, "payload.winch_speed", 1.0))
             a = float(dotted_value(data, "payload.winch_acceleration", 1.0))
-            t += sum(lowering_time(p, v, a, lowering_speed(data, v)) for p in lower)
+            # Each at its own speed where it has one; a retract reels the longest line in.
+            own = [p for p in _numbers(dotted_value(data, "trajectory.lower_speed", [])) if p > 0]
+            least = min([lowering_speed(data, v), *own])
+            t += sum(lowering_time(p, v, a, least) for p in lower)
+            retracts = dotted_value(data, "trajectory.retract", [])
+            if isinstance(retracts, list | tuple):
+                t += sum(1 for r in retracts if r is True) * lowering_time(max(lower), v, a)
         t += sum(math.dist(p, q) / speed + 2 * speed / accel
                  for p, q in itertools.pairwise(points))  # fmt: skip
     except (TypeError, ValueError, ZeroDivisionError):

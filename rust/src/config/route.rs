@@ -22,6 +22,8 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             ("trajectory.acceleration", tr.acceleration.is_some()),
             ("trajectory.hold", !tr.hold.is_empty()),
             ("trajectory.lower", !tr.lower.is_empty()),
+            ("trajectory.lower_speed", !tr.lower_speed.is_empty()),
+            ("trajectory.retract", !tr.retract.is_empty()),
             ("trajectory.names", !tr.names.is_empty()),
         ] {
             if set {
@@ -95,16 +97,7 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             Some(_) => {}
         }
     }
-    if !tr.hold.is_empty() && tr.hold.len() != r.len() {
-        return Err(ConfigError::new(
-            "trajectory.hold",
-            format!(
-                "trajectory.hold needs one value per route point ({}), got {}",
-                r.len(),
-                tr.hold.len()
-            ),
-        ));
-    }
+    one_per_point("trajectory.hold", tr.hold.len(), r.len())?;
     for (i, h) in tr.hold.iter().enumerate() {
         if !(h.is_finite() && *h >= 0.0) {
             let key = format!("trajectory.hold[{i}]");
@@ -114,16 +107,7 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             ));
         }
     }
-    if !tr.lower.is_empty() && tr.lower.len() != r.len() {
-        return Err(ConfigError::new(
-            "trajectory.lower",
-            format!(
-                "trajectory.lower needs one value per route point ({}), got {}",
-                r.len(),
-                tr.lower.len()
-            ),
-        ));
-    }
+    one_per_point("trajectory.lower", tr.lower.len(), r.len())?;
     for (i, x) in tr.lower.iter().enumerate() {
         if !(x.is_finite() && *x >= 0.0) {
             let key = format!("trajectory.lower[{i}]");
@@ -133,7 +117,53 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             ));
         }
     }
+    validate_lowering_speeds(cfg)?;
+    one_per_point("trajectory.retract", tr.retract.len(), r.len())
+}
+
+/// A per-point key (`key`, `given` values) on a route of `points`: empty, or one per point.
+fn one_per_point(key: &str, given: usize, points: usize) -> Result<(), ConfigError> {
+    if given != 0 && given != points {
+        return Err(ConfigError::new(
+            key,
+            format!("{key} needs one value per route point ({points}), got {given}"),
+        ));
+    }
     Ok(())
+}
+
+/// `trajectory.lower_speed`: one per point, each 0 (the winch's speed) or a pay-out speed in
+/// (0, `payload.winch_speed`] (the winch's top speed).
+fn validate_lowering_speeds(cfg: &Context) -> Result<(), ConfigError> {
+    let tr = &cfg.trajectory;
+    one_per_point(
+        "trajectory.lower_speed",
+        tr.lower_speed.len(),
+        tr.route.len(),
+    )?;
+    let top = cfg.winch.speed.unwrap_or(f64::INFINITY);
+    for (i, x) in tr.lower_speed.iter().enumerate() {
+        if !(x.is_finite() && *x >= 0.0 && *x <= top) {
+            let key = format!("trajectory.lower_speed[{i}]");
+            return Err(ConfigError::new(
+                &key,
+                format!(
+                    "{key} must be 0 (payload.winch_speed) or a pay-out speed in (0, \
+                     payload.winch_speed = {top:?}] m/s, got {x:?}"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// m/s, the pay-out speed of point `i`'s lowering: its `trajectory.lower_speed`, or the
+/// winch's top speed `top` (0 or none given).
+pub fn lowering_speed(tr: &crate::config::Trajectory, i: usize, top: f64) -> f64 {
+    match tr.lower_speed.get(i) {
+        Some(&x) if x > 0.0 => x.min(top),
+        _ => top,
+    }
 }
 
 /// s, how long a lowering of `payout` m lasts (`trajectory.lower`): the pay-out at the winch's
@@ -176,29 +206,51 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
     let n = tr.route.len();
     let mut out = Vec::with_capacity(2 * n);
     let mut t = 0.0;
+    // m, the line out beyond the reeled-in length (a retract reels it in).
+    let mut line_out = 0.0;
     for i in 0..n {
         let payout = tr.lower.get(i).copied().unwrap_or(0.0);
+        let (top, a) = (
+            cfg.winch.speed.unwrap_or(f64::NAN),
+            cfg.winch.acceleration.unwrap_or(f64::NAN),
+        );
         if payout > 0.0 {
-            // The winch's keys are the cable's, checked with it (`Cable::validate`).
+            // The winch's keys are the cable's, checked with it (`Cable::validate`). At the
+            // lowering's own speed r (the servo's ramps are the winch's, 2 v / a).
+            let rate = lowering_speed(tr, i, top);
             let span = lowering_time(
                 payout,
-                cfg.winch.speed.unwrap_or(f64::NAN),
-                cfg.winch.acceleration.unwrap_or(f64::NAN),
-                cfg.winch.approach,
+                rate,
+                a,
+                cfg.winch.approach.map(|(h, slow)| (h, slow.min(rate))),
                 tr.route[i][2] - cfg.winch.hang - cfg.ground.altitude,
-            );
-            out.push(Segment {
-                name: format!("lower{}", i + 1),
-                kind: SegmentKind::Lower,
-                start: t,
-                arrival: t,
-                end: t + span,
-                from: i,
-                to: i,
-                profile: Profile::default(),
+            ) + 2.0 * (top - rate) / a;
+            let given = if rate < top { rate } else { f64::INFINITY };
+            out.push(lowering_segment(
+                format!("lower{}", i + 1),
+                i,
+                t,
+                span,
                 payout,
-            });
+                given,
+            ));
             t += span;
+            line_out = payout;
+        }
+        if tr.retract.get(i).copied().unwrap_or(false) && line_out > 0.0 {
+            // Reeled in at the winch's speed, the parcel still on the hook.
+            let span = lowering_time(line_out, top, a, None, 0.0);
+            let all = f64::INFINITY;
+            out.push(lowering_segment(
+                format!("retract{}", i + 1),
+                i,
+                t,
+                span,
+                0.0,
+                all,
+            ));
+            t += span;
+            line_out = 0.0;
         }
         let h = tr.hold.get(i).copied().unwrap_or(0.0);
         if h > 0.0 {
@@ -222,6 +274,7 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
                 to: i,
                 profile: Profile::default(),
                 payout: 0.0,
+                rate: 0.0,
             });
             t += h;
         }
@@ -265,6 +318,7 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
                 to: i + 1,
                 profile,
                 payout: 0.0,
+                rate: 0.0,
             });
             t += span;
         }
@@ -296,6 +350,7 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
             to: n - 1,
             profile: Profile::default(),
             payout: 0.0,
+            rate: 0.0,
         });
     }
     if !tr.names.is_empty() {
@@ -340,6 +395,23 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
         }
     }
     Ok(out)
+}
+
+/// A lowering (`payout` m beyond the reeled-in length at `rate` m/s, infinity: the winch's
+/// speed; 0 m: a retract) at point `i` from `t` for `span` s.
+fn lowering_segment(name: String, i: usize, t: f64, span: f64, payout: f64, rate: f64) -> Segment {
+    Segment {
+        name,
+        kind: SegmentKind::Lower,
+        start: t,
+        arrival: t,
+        end: t + span,
+        from: i,
+        to: i,
+        profile: Profile::default(),
+        payout,
+        rate,
+    }
 }
 
 /// `a, b, c` for a few names; the first and last few around a count for many (a message

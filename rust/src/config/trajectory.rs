@@ -44,6 +44,14 @@ params! {
         /// none): on arrival the vehicle hovers while the parcel is lowered, then holds.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         lower: Vec<f64> => "m", "Line lowered at each route point";
+        /// Route only: m/s, each point's lowering's own pay-out speed (a `.plan`'s DO_WINCH
+        /// rate; one per point; 0 or empty: `payload.winch_speed`).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        lower_speed: Vec<f64> => "m/s", "Pay-out speed of each point's lowering";
+        /// Route only: after each point's lowering (true), the winch reels the line in with
+        /// the parcel still on the hook (a `.plan`'s DO_WINCH retract before its release).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        retract: Vec<bool> => "-", "Line reeled in at each route point";
         /// Route only: the names of the route's segments (holds and legs, in time order) in place
         /// of leg1, hold2, ...; empty: those defaults.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]

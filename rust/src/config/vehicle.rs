@@ -26,7 +26,35 @@ params! {
         /// c_z); the paper's body uses the drag areas instead.
         #[serde(default, skip_serializing_if = "is_zero3")]
         drag_coefficients: [f64; 3] => "N/(m/s)^2", "Body-axis drag coefficients (x, y, z)", non_negative;
+        /// The rotors' wake on a dropped parcel (docs/model.md, "The rotors' downwash"): a
+        /// column of momentum theory's far wake below the vehicle (default on).
+        #[serde(default = "downwash_on", skip_serializing_if = "is_on")]
+        downwash: bool => "-", "Rotors' downwash on a dropped parcel";
+        /// m, each of the four rotors' radius: their disk area for the downwash (default
+        /// ROTOR_RADIUS, a 10-inch propeller's).
+        #[serde(default = "default_rotor_radius", skip_serializing_if = "is_default_radius")]
+        rotor_radius: f64 => "m", "Rotor radius (downwash)", positive;
     }
+}
+
+/// m, the rotor radius without `vehicle.rotor_radius`: a 10-inch (254 mm) propeller, the
+/// x500's (PX4's `motorConstant`, the rotors' default thrust coefficient, is measured on it).
+pub const ROTOR_RADIUS: f64 = 0.127;
+
+fn downwash_on() -> bool {
+    true
+}
+
+fn is_on(x: &bool) -> bool {
+    *x
+}
+
+fn default_rotor_radius() -> f64 {
+    ROTOR_RADIUS
+}
+
+fn is_default_radius(r: &f64) -> bool {
+    *r == ROTOR_RADIUS
 }
 
 fn is_zero3(c: &[f64; 3]) -> bool {

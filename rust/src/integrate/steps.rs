@@ -32,7 +32,7 @@ pub(super) struct Leg<L> {
     line_of: usize,
     /// The last metres: a lowering's line to pay out and the point it lowers at (the last
     /// lowering's; before any, the reference's).
-    pub(super) payout: Option<f64>,
+    pub(super) payout: Option<crate::legs::Lowering>,
     drop_at: Option<[f64; 2]>,
 }
 

@@ -162,6 +162,7 @@ mod tests {
                 "payload.approach_speed",
                 "payload.slack_tension",
                 "payload.tension_noise",
+                "payload.release_after",
             ]
         );
         let keys: Vec<String> = ActuatorConfig::keys().into_iter().map(|(k, _)| k).collect();
@@ -222,7 +223,8 @@ mod tests {
                 "unknown field `colour`, expected one of `model`, `mass`, `natural_frequency`, \
                  `stiffness`, `damping`, `drag_area`, `cable_length`, `attachment_offset`, \
                  `winch_speed`, `winch_acceleration`, `length_min`, `release`, `release_delay`, \
-                 `approach_height`, `approach_speed`, `slack_tension`, `tension_noise`"
+                 `approach_height`, `approach_speed`, `slack_tension`, `tension_noise`, \
+                 `release_after`"
             ),
             "{e}"
         );

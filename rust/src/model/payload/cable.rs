@@ -77,6 +77,10 @@ params! {
         /// (default 0).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         tension_noise: Option<f64> => "N", "Load cell noise on the tension";
+        /// s, the hook's condition ("touchdown", "slack", a height) is read from this time on
+        /// (a `.plan`'s release item: not before the mission reaches it; default: always).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        release_after: Option<f64> => "s", "Hook's condition read from this time on";
     }
 }
 
@@ -87,6 +91,14 @@ pub const FRICTION_SPEED: f64 = 0.01;
 pub const REST_SPEED: f64 = 0.1;
 /// s, the release delay without `payload.release_delay`.
 pub const RELEASE_DELAY: f64 = 1.0;
+/// s, how long a released parcel rests on the ground (slower than REST_SPEED) before it is
+/// still: from then on nothing of it is integrated (its states held) and its metrics stop.
+/// Many contact periods (2 pi sqrt(m / kg), 31 ms for 0.5 kg on 20 kN/m): a bounce's turning
+/// point is not a rest.
+pub const SETTLE_TIME: f64 = 0.5;
+/// The downwash's edge: the wake's speed falls from full to 0 over r_w (1 -+ WAKE_EDGE), a
+/// cubic smoothstep (C1; the band symmetric about r_w keeps the column's area).
+const WAKE_EDGE: f64 = 0.1;
 /// The winch's speed loop gain over its position loop's, a / v: kw = 4 a / v (1/s).
 const WINCH_SPEED_GAIN: f64 = 4.0;
 
@@ -152,6 +164,20 @@ pub struct Cable<L = f64> {
     pub approach_height: L,
     pub approach_speed: L,
     payout_speed: L,
+    /// The lowering's own pay-out speed (m/s; infinity: the winch's), and s, the time the
+    /// hook's condition is read from (`release_after`).
+    lowering_speed: L,
+    pub release_from: L,
+    /// 1 once the released parcel is still on the ground (SETTLE_TIME at rest): its states
+    /// are held from then on.
+    still: L,
+    /// The rotors' downwash on the released parcel (`vehicle.downwash`, any lane; 1 or 0 per
+    /// lane), 1 / sqrt(2 rho A) times 2 (the far wake's speed per sqrt(N) of thrust) and m,
+    /// the far wake's radius (the disk area A halved, as one column).
+    pub downwash: bool,
+    pub wake_on: L,
+    pub wake_gain: L,
+    pub wake_radius: L,
     /// The parcel's velocity at the previous step and the one before, and its position at
     /// the previous step: the contact instant is located from them (`touchdown.rs`).
     approach: [L; 3],
@@ -211,6 +237,7 @@ impl OwnsKeys for Cable {
                 ("payload.approach_speed", shown(c.approach_speed)),
                 ("payload.slack_tension", shown(c.slack_tension)),
                 ("payload.tension_noise", shown(c.tension_noise)),
+                ("payload.release_after", shown(c.release_after)),
                 ("ground.stiffness", shown(cfg.ground.stiffness)),
                 (
                     "trajectory.lower",
@@ -323,6 +350,13 @@ impl Payload for Cable {
                 .unwrap_or(f64::NEG_INFINITY),
             approach_speed: c.approach_speed.unwrap_or(v),
             payout_speed: v,
+            lowering_speed: f64::INFINITY,
+            release_from: c.release_after.unwrap_or(f64::NEG_INFINITY),
+            still: 0.0,
+            downwash: cfg.vehicle.downwash,
+            wake_on: if cfg.vehicle.downwash { 1.0 } else { 0.0 },
+            wake_gain: wake_gain(cfg.vehicle.rotor_radius, cfg.gust.air_density),
+            wake_radius: wake_radius(cfg.vehicle.rotor_radius),
             approach: [0.0; 3],
             before: [0.0; 3],
             last_pos: [0.0; 3],
@@ -341,11 +375,27 @@ impl Payload for Cable {
             ground_k, ground_alpha, friction, release_at, release_on_touchdown, release_delay,
             hooked, touched, resting, approach_height, approach_speed, payout_speed, approach,
             before, last_pos, release_on_slack, slack_tension, tension_noise, slack_for,
-            was_slack, release_height, drop_armed;
+            was_slack, release_height, drop_armed, lowering_speed, release_from, still, wake_on,
+            wake_gain, wake_radius;
+            downwash: each.iter().any(|p| p.downwash),
             contact: each.iter().any(|p| p.contact),
             slack_release: each.iter().any(|p| p.slack_release)
         })
     }
+}
+
+/// Rotors in the wake's disk area: a quadrotor's four.
+const ROTORS: f64 = 4.0;
+
+/// 2 / sqrt(2 rho A), A = 4 pi R^2: the far wake's speed 2 v_i = 2 sqrt(T / (2 rho A)) per
+/// sqrt(N) of the thrust T (momentum theory in hover; docs/model.md, "The rotors' downwash").
+pub fn wake_gain(radius: f64, rho: f64) -> f64 {
+    2.0 / (2.0 * rho * ROTORS * std::f64::consts::PI * radius * radius).sqrt()
+}
+
+/// m, the far wake's radius: one column of the disk area halved, sqrt(A / (2 pi)) = R sqrt(2).
+pub fn wake_radius(radius: f64) -> f64 {
+    (ROTORS * radius * radius / 2.0).sqrt()
 }
 
 /// `[f(0), f(1), f(2)]`, always inlined (`array::map` is not guaranteed to be: see
@@ -485,7 +535,33 @@ impl<L: Lane> Cable<L> {
         (self.winch_kw * (rate - s[vline])).clamp(-a, a)
     }
 
-    /// mc dvc/dt = -T u - mc g e3 + Fdc: the payload's inertial acceleration.
+    /// m/s, the rotors' downwash at the released parcel (downward; docs/model.md, "The
+    /// rotors' downwash"): the far wake 2 v_i of the thrust `u1` within the column of radius
+    /// r_w below the vehicle's centre, its edge smoothed over r_w (1 -+ WAKE_EDGE), 0 above the
+    /// vehicle, on the hook and without `vehicle.downwash`.
+    #[inline(always)]
+    fn wake<F: Frame<L>, const N: usize>(&self, s: &State<L, N>, u1: L) -> L {
+        let xc = Ix::of::<L, F>().xc;
+        let one = L::splat(1.0);
+        let (dx, dy) = (s[xc] - s[ix::X], s[xc + 1] - s[ix::Y]);
+        let r = dx.mul_add(dx, dy * dy).sqrt();
+        let band = self.wake_radius * (2.0 * WAKE_EDGE);
+        let x = ((self.wake_radius * (1.0 + WAKE_EDGE) - r) / band).clamp(L::splat(0.0), one);
+        let edge = x * x * (x * -2.0 + 3.0);
+        let below = where_positive(s[ix::Z] - s[xc + 2], one);
+        let speed = self.wake_gain * L::splat(0.0).max(u1).sqrt();
+        speed * edge * below * self.wake_on * (one - self.hooked)
+    }
+
+    /// Some lane's parcel is released where the downwash blows (else it is not computed).
+    #[inline(always)]
+    fn blown(&self) -> bool {
+        self.downwash && self.hooked.le_mask(L::splat(0.5)) != 0
+    }
+
+    /// mc dvc/dt = -T u - mc g e3 + Fdc: the payload's inertial acceleration (0 once the
+    /// released parcel is still); the air it moves through is the wind `w` and, released,
+    /// the rotors' downwash of the thrust `u1`.
     #[inline(always)]
     fn acceleration<F: Frame<L>, const N: usize>(
         &self,
@@ -493,11 +569,16 @@ impl<L: Lane> Cable<L> {
         s: &State<L, N>,
         line: &Line<L>,
         w: &[L; 3],
+        u1: L,
     ) -> [L; 3] {
         let vxc = Ix::of::<L, F>().vxc;
+        let mut air = *w;
+        if self.blown() {
+            air[2] = air[2] - self.wake::<F, N>(s, u1);
+        }
         let rel = vec3(
             #[inline(always)]
-            |i| s[vxc + i] - w[i],
+            |i| s[vxc + i] - air[i],
         );
         let k = dot(&rel, &rel).sqrt() * (-self.drag_payload);
         let mut a = vec3(
@@ -511,7 +592,19 @@ impl<L: Lane> Cable<L> {
             }
         }
         a[2] = a[2] - body.g;
+        if self.any_still() {
+            let moving = L::splat(1.0) - self.still;
+            for x in a.iter_mut() {
+                *x = *x * moving;
+            }
+        }
         a
+    }
+
+    /// Some lane's released parcel is still (its states held).
+    #[inline(always)]
+    fn any_still(&self) -> bool {
+        self.still.le_mask(L::splat(0.0)) != L::ALL
     }
 
     /// rad, the cable's angle from hanging straight down, acos(-u_z), as 2 asin(|u + e3| / 2):
@@ -548,11 +641,11 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         body: &Body<L>,
         s: &State<L, N>,
         frame: &F,
-        _u1: L,
+        u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
         let line = self.line(s, frame);
-        let accel = self.acceleration::<F, N>(body, s, &line, w);
+        let accel = self.acceleration::<F, N>(body, s, &line, w, u1);
         self.outputs_of::<F, N>(s, &line, accel)
     }
 
@@ -658,22 +751,28 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         };
         let half = cue.dt * 0.5;
         let known = self.known_height::<F, N>(s, cue.height);
-        let due = on(L::splat(cue.t + half) - self.release_at)
-            .max(
-                self.release_on_touchdown
-                    * on(self.resting - self.release_delay + half)
-                    * self.touched,
-            )
+        // The hook's conditions, read once the mission reaches the release (`release_after`).
+        let armed = on(L::splat(cue.t + half) - self.release_from);
+        let condition = (self.release_on_touchdown
+            * on(self.resting - self.release_delay + half)
+            * self.touched)
             .max(self.slack_hook::<F, N>(s, frame, cue))
             .max(self.drop_hook(known));
+        let due = on(L::splat(cue.t + half) - self.release_at).max(condition * armed);
         let release = self.hooked * due;
         self.hooked = self.hooked - release;
-        if let Some(payout) = cue.payout {
-            self.target = self.length_min + L::splat(payout);
+        if let Some(lowering) = cue.payout {
+            self.target = self.length_min + L::splat(lowering.payout);
+            self.lowering_speed = L::splat(lowering.speed);
         }
-        self.payout_speed = self.final_approach(known);
+        self.payout_speed = self.final_approach(known).min(self.lowering_speed);
         // Released: the winch reels the line in.
         self.target = self.target * self.hooked + self.length_min * (one - self.hooked);
+        // Released and at rest for SETTLE_TIME: still from now on, its metrics stopped.
+        self.still = self
+            .still
+            .max((one - self.hooked) * on(self.resting - SETTLE_TIME + half));
+        let contact = contact * (one - self.still);
         Some(LastMetres {
             touchdown,
             contact,
@@ -714,8 +813,16 @@ impl<L: Lane> Cable<L> {
             ds[vx + i] = thrust[i].mul_add(u1, pull[i] + fd[i]) * body.inv_m;
         }
         ds[vx + 2] = ds[vx + 2] - body.g;
-        let ac = self.acceleration::<F, N>(body, s, line, w);
+        let ac = self.acceleration::<F, N>(body, s, line, w, u1);
         ds[vxc..vxc + 3].copy_from_slice(&ac);
+        if self.any_still() {
+            // A still parcel's position is held too (its velocity's derivative is 0 above).
+            let xc = Ix::of::<L, F>().xc;
+            let moving = L::splat(1.0) - self.still;
+            for i in 0..3 {
+                ds[xc + i] = ds[xc + i] * moving;
+            }
+        }
         ds[Ix::of::<L, F>().vline] = self.winch::<F, N>(s);
         // hb x f with hb = (0, 0, -h) and f = R^T (T u) = (ex . Tu, ey . Tu, ez . Tu).
         let h = self.offset;

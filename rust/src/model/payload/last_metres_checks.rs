@@ -76,6 +76,9 @@ impl Cable {
         if let Some(d) = c.release_delay {
             non_negative("payload.release_delay", d)?;
         }
+        if let Some(t) = c.release_after {
+            non_negative("payload.release_after", t)?;
+        }
         Self::validate_slack_hook(c)?;
         match c.release {
             Some(Release::At(t)) => non_negative("payload.release", t)?,

@@ -70,9 +70,9 @@ pub struct Cue<L> {
     /// s, the step's time, and the step.
     pub t: f64,
     pub dt: f64,
-    /// m, the line a lowering in progress pays out beyond the reeled-in length
-    /// (`trajectory.lower`), else None (the winch keeps its target).
-    pub payout: Option<f64>,
+    /// The lowering in progress: the line it pays out beyond the reeled-in length
+    /// (`trajectory.lower`) and its speed, else None (the winch keeps its target).
+    pub payout: Option<crate::legs::Lowering>,
     /// m, the vehicle's height as it knows it (its estimate; the state's under
     /// `navigation.mode = "truth"`): the winch's final approach reads it.
     pub height: L,

@@ -126,7 +126,9 @@ fn energy_changes_by_the_winchs_work_to_rk4_order() {
 /// reaches the vehicle's equations.
 #[test]
 fn the_release_leaves_the_released_weight_over_the_mass_and_nothing_of_the_payload() {
-    let cfg = winch_config(3.0, 1.0);
+    let mut cfg = winch_config(3.0, 1.0);
+    // The parcel in still air: without the rotors' wake it falls at g exactly.
+    cfg.vehicle.downwash = false;
     let mut v = vehicle(&cfg);
     let s: State<f64, NX> = v.rest_state([0.3, -0.2, 10.0], [0.0; 3]);
     assert!(derivative(&v, &s)[VZ].abs() < 1e-12);
@@ -260,6 +262,9 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
     let mut cfg = winch_config(12.0, 1.0);
     cfg.payload.cable.release = Some(Release::Touchdown);
     cfg.payload.cable.release_delay = Some(0.005);
+    // The derivatives compared are taken hooked and released: without the rotors' wake on the
+    // released parcel they agree (the line is slack either way).
+    cfg.vehicle.downwash = false;
     cfg.validate().unwrap();
     let one = vehicle(&cfg);
     let base: State<f64, NX> = one.rest_state([0.0, 0.0, 10.0], [0.0; 3]);
