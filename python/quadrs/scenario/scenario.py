@@ -446,7 +446,8 @@ class Scenario:
         """A new Scenario whose ``[controller.px4]`` takes the airframe's parameters from a
         QGroundControl ``.params`` file or a PX4 ``.ulg`` log: the parameters the table knows
         (PX4's names and units; each axis's ``MC_*RATE_K`` multiplies its rate P, I and D, as
-        PX4 does; ``MPC_THR_HOVER`` is not applied, with a warning saying why), the rest of
+        PX4 does; ``MPC_THR_HOVER`` is the position loop's hover feed-forward, as in PX4, the
+        thrust's scale staying the vehicle's full thrust), the rest of
         the file ignored (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them).
         ScenarioError naming the file for one that is neither."""
         from quadrs.scenario.px4_files import px4_changes, read_px4_parameters
