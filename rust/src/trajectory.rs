@@ -37,7 +37,7 @@ impl Default for Reference {
 
 pub(crate) use crate::legs::TIME_SLACK;
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Trajectory {
     waypoints: Vec<[f64; 5]>,
     interpolation: Interpolation,

@@ -270,3 +270,35 @@ def test_a_logs_wind_is_thinned_and_px4_files_are_capped(
     big = _params(tmp_path / "big.params", [(f"P{i}", "1") for i in range(100_000)])
     with pytest.raises(ValueError, match=r"big\.params.*larger than 1 MiB"):
         px4.read_px4_parameters(big)
+
+
+# -- a dispersed winch's schedule ---------------------------------------------------------------
+def test_a_dispersed_winch_flies_its_own_schedule_in_a_batch() -> None:
+    """Each realisation's winch times its own lowering and every segment after it: batch row
+    ``i`` is ``simulate(realisation=i)`` bit for bit (before, the batch flew the nominal
+    schedule with each realisation's winch, and its rows differed). A draw whose schedule
+    does not fit the flight is refused naming the realisation."""
+    import numpy as np
+
+    from quadrs.runs.flight import METRIC_COLUMNS
+
+    base = lowering(6.0, **{"integrator.dt": 0.001})
+    dispersed = base.override({"dispersions": {
+        "payload.winch_speed": {"dist": "uniform", "low": 0.5, "high": 1.0},
+    }})  # fmt: skip
+    runs = 6
+    mc = quadrs.monte_carlo(dispersed, runs=runs, seed=3, controllers=["pd"], progress=False,
+                            spectra=False)  # fmt: skip
+    metrics = list(METRIC_COLUMNS)
+    for i in (0, 2, 5):
+        alone = quadrs.simulate(dispersed, "pd", seed=3, realisation=i)
+        row = mc.runs[mc.runs["realisation"] == i][metrics].to_numpy()
+        np.testing.assert_array_equal(alone.metrics[metrics].to_numpy(), row, err_msg=f"row {i}")
+    # The realisations' lowerings did differ: the touchdowns fall at their own times.
+    lowered = mc.runs[mc.runs["phase"] == "lower1"]["touchdown_speed"]
+    assert lowered.nunique() == runs, lowered
+    too_slow = base.override({"dispersions": {
+        "payload.winch_speed": {"dist": "uniform", "low": 0.1, "high": 0.2},
+    }})  # fmt: skip
+    with pytest.raises(quadrs.ScenarioError, match=r"realisation \d+ drew .*integrator\.duration"):
+        quadrs.monte_carlo(too_slow, runs=2, seed=3, controllers=["pd"], progress=False)

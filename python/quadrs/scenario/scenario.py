@@ -514,11 +514,21 @@ class Scenario:
 
     def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
         """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
-        realisation drew) set: the scenario one realisation of a dispersed batch flies."""
+        realisation drew) set: the scenario one realisation of a dispersed batch flies. Where
+        the values move the route's schedule (a drawn winch times its own lowering) its phases
+        stay this scenario's windows (``phases = "legs"`` as the nominal schedule gives them),
+        as the batch's rows have them: the realisation flies its own schedule in them."""
         data = strip_climate(copy.deepcopy(self._data))
         data.pop("dispersions", None)
         fixed = Scenario(data)
-        return fixed.override(dict(values)) if values else fixed
+        if not values:
+            return fixed
+        drawn = fixed.override(dict(values))
+        if drawn.phase_windows == fixed.phase_windows:
+            return drawn
+        windows = [{"name": name, "start": start, "end": end}
+                   for name, (start, end) in fixed.phase_windows.items()][:-1]  # fmt: skip
+        return drawn.override({"phases": windows})
 
     def realisation(self, seed: int, realisation: int) -> Scenario:
         """The fixed scenario realisation ``realisation`` of master ``seed`` flies under

@@ -42,6 +42,10 @@ impl Engine {
             }
             None => &own[..L::LANES],
         };
+        let lead = &realisations[0].trajectory;
+        if realisations.iter().any(|c| c.trajectory != *lead) {
+            return self.fly_by_schedule::<L>(realisations, req, trace, planner);
+        }
         /// The request, carried through the dispatch to `LoopEntry::enter`.
         struct Fly<'e, 'r, 't, L> {
             engine: &'e Engine,
@@ -75,6 +79,60 @@ impl Engine {
         };
         let cfg = &self.cfg;
         dispatch(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model, fly)
+    }
+
+    /// A lane-set whose realisations fly different schedules (a dispersed winch's lowering
+    /// lasts its own time; the loop gives the whole set one reference): flown once per
+    /// schedule, the set filled with the lanes of that schedule and the rest padded with the
+    /// first of them, each lane's result taken from its own schedule's flight. Lanes never mix,
+    /// so each is bit for bit its flight alone; a batch that disperses the schedule pays up to
+    /// one flight of the set per lane.
+    fn fly_by_schedule<L: LoopEntry>(
+        &self,
+        realisations: &[&Realisation],
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert!(trace.is_none(), "a trace is of one flight: one schedule");
+        let mut out: Vec<Option<LaneResult>> = (0..L::LANES).map(|_| None).collect();
+        for first in 0..L::LANES {
+            if out[first].is_some() {
+                continue;
+            }
+            let schedule = &realisations[first].trajectory;
+            let lanes: Vec<usize> = (0..L::LANES)
+                .map(|l| {
+                    if realisations[l].trajectory == *schedule {
+                        l
+                    } else {
+                        first
+                    }
+                })
+                .collect();
+            let set: Vec<&Realisation> = lanes.iter().map(|&l| realisations[l]).collect();
+            let indices: Vec<u64> = lanes.iter().map(|&l| req.indices[l]).collect();
+            let innovations: Option<Vec<&[f64]>> = req
+                .innovations
+                .map(|lane| lanes.iter().map(|&l| lane[l]).collect());
+            let sub = FlightRequest {
+                indices: &indices,
+                realisations: Some(&set),
+                innovations: innovations.as_deref(),
+                ..*req
+            };
+            let results = self.fly_kinds::<L>(&sub, None, planner)?;
+            for (l, r) in results.into_iter().enumerate() {
+                if lanes[l] == l && out[l].is_none() {
+                    out[l] = Some(r);
+                }
+            }
+        }
+        Some(
+            out.into_iter()
+                .map(|r| r.expect("every lane flown"))
+                .collect(),
+        )
     }
 
     /// Gather the lanes' realisations into lane-valued parameters and fly them: the body of
@@ -135,6 +193,8 @@ impl Engine {
             PhaseAccumulator::<L>::new(&self.phases, self.dt, self.decimation, self.steps, &laws);
         let mut ends = Ends::new(L::LANES);
         let runaway = Runaway::<L, N>::new::<B>(&self.vars, realisations);
+        // One reference for the set: its lanes share a schedule (`fly_kinds`).
+        let trajectory = &realisations[0].trajectory;
         let mut leg = Leg::<L>::new();
         let mut extra = [L::splat(0.0); MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
@@ -174,7 +234,7 @@ impl Engine {
         let mut checked: Option<Attitude<L, B>> = None;
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
-            leg.follow(&self.trajectory, t, realisations);
+            leg.follow(trajectory, t, realisations);
             let r = &leg.r;
             // A match, not `Option::unwrap_or_else`: nothing here may be left out of line.
             let attitude = match checked.take() {
