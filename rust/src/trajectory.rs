@@ -176,6 +176,22 @@ impl Trajectory {
             .map(|s| s.payout)
     }
 
+    /// The line (m) a lowering due at segment `segment` pays out: in a lowering, and in the
+    /// hold at its point after it (a lowering that could not start on time, the vehicle not
+    /// yet over the point, may start there).
+    pub fn lowering_due(&self, segment: usize) -> Option<f64> {
+        let s = self.segments.get(segment)?;
+        match s.kind {
+            SegmentKind::Lower => Some(s.payout),
+            SegmentKind::Hold => {
+                let before = self.segments.get(segment.checked_sub(1)?)?;
+                (before.kind == SegmentKind::Lower && before.from == s.from)
+                    .then_some(before.payout)
+            }
+            _ => None,
+        }
+    }
+
     /// The horizontal point (m) segment `segment` of a route lowers at, if it is a lowering.
     pub fn drop_point(&self, segment: usize) -> Option<[f64; 2]> {
         self.lowering(segment)?;

@@ -64,3 +64,24 @@ def test_the_line_reaches_its_speed_when_the_acceleration_limit_says(v: float, a
     assert abs(at(v / a) - v) <= a / KW
     assert at(v / a + 5 / KW) == pytest.approx(v, abs=0.01 * a / KW)
 
+
+def test_a_late_vehicle_lowers_over_the_point_not_on_the_way() -> None:
+    """The vehicle starts 14 m short of the drop point when the lowering is due (t = 0): the
+    winch waits until it is within LOWER_RADIUS (10 m, PX4's NAV_ACC_RAD) of the point, then
+    pays out; the parcel touches down at the point. Before, the winch started on the time alone, the vehicle still
+    on its way (issue 72: 70 m before the point on a late flight)."""
+    from tests.engine.test_last_metres import DROP
+
+    sc = lowering(6.0, **{"initial.position": [DROP[0] - 14.0, DROP[1], 6.0],
+                          "integrator.dt": 0.001})  # fmt: skip
+    flight = fly(sc, record_every=10)
+    assert not flight.diverged
+    tr = flight.trace
+    off = np.hypot(tr["x"] - DROP[0], tr["y"] - DROP[1])
+    started = tr.index[tr["line"] > 1.0 + 1e-9][0]
+    over = tr.index[off <= 10.0][0]
+    assert started >= over - 0.011, (started, over)
+    assert off[tr.index < started].min() > 9.9
+    assert started > 0.3  # not on the time alone
+    miss = flight.metrics.set_index("phase").loc["flight", "touchdown_miss"]
+    assert miss < 1.0, miss

@@ -282,15 +282,17 @@ impl Engine {
             let w = wind.sample(k, k == self.steps && k > 0, &view, realisations);
             // The route's cue to the payload and its events, before the step (a hook that opens
             // now is open over the step).
+            // Where the vehicle knows it is: its estimate where it flies on its senses.
+            let known = match nav.as_ref() {
+                Some(n) => &n.estimate.pos,
+                None => &view.pos,
+            };
             let cue = Cue {
                 t,
                 dt: self.dt,
-                payout: leg.payout,
-                // The height the vehicle knows: its estimate where it flies on its senses.
-                height: match nav.as_ref() {
-                    Some(n) => n.estimate.pos[2],
-                    None => view.pos[2],
-                },
+                payout: leg.due,
+                off_drop: leg.off_drop(known),
+                height: known[2],
                 draw: noise.draw(),
             };
             let events = vehicle.payload.last_metres(&s, &trig, &cue);

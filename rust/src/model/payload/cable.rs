@@ -679,7 +679,9 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         let release = self.hooked * due;
         self.hooked = self.hooked - release;
         if let Some(payout) = cue.payout {
-            self.target = self.length_min + L::splat(payout);
+            // Started over the point only (then kept: the target stays where it was set).
+            let over = one - on(cue.off_drop);
+            self.target = (self.length_min + L::splat(payout)) * over + self.target * (one - over);
         }
         self.payout_speed = self.final_approach(known);
         // Released: the winch reels the line in.

@@ -135,6 +135,7 @@ fn the_release_leaves_the_released_weight_over_the_mass_and_nothing_of_the_paylo
         t,
         dt: 1e-3,
         payout: None,
+        off_drop: 0.0,
         height: 10.0,
         draw: 0.0,
     };
@@ -207,6 +208,7 @@ fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
             t: k as f64 * 1e-3,
             dt: 1e-3,
             payout: None,
+            off_drop: 0.0,
             height: 10.0,
             draw: 0.0,
         };
@@ -289,6 +291,7 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
                 t: k as f64 * 1e-3,
                 dt: 1e-3,
                 payout: None,
+                off_drop: 0.0,
                 height: 10.0,
                 draw: 0.0,
             };
@@ -296,6 +299,7 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
                 t: cue.t,
                 dt: cue.dt,
                 payout: cue.payout,
+                off_drop: F64x4::splat(0.0),
                 height: F64x4::splat(cue.height),
                 draw: F64x4::splat(0.0),
             };
