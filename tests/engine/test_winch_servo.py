@@ -66,13 +66,15 @@ def test_the_line_reaches_its_speed_when_the_acceleration_limit_says(v: float, a
 
 
 def test_a_late_vehicle_lowers_over_the_point_not_on_the_way() -> None:
-    """The vehicle starts 14 m short of the drop point when the lowering is due (t = 0): the
-    winch waits until it is within LOWER_RADIUS (10 m, PX4's NAV_ACC_RAD) of the point, then
-    pays out; the parcel touches down at the point. Before, the winch started on the time alone, the vehicle still
-    on its way (issue 72: 70 m before the point on a late flight)."""
+    """The vehicle starts 12 m short of the drop point when the lowering is due (t = 0; its
+    tilt held to 0.3 rad, so that the PD flies there rather than tumbles): the winch waits
+    until it is within LOWER_RADIUS (10 m, PX4's NAV_ACC_RAD) of the point, then pays out; the
+    parcel touches down at the point. Before, the winch started on the time alone, the vehicle
+    still on its way (issue 72: 70 m before the point on a late flight)."""
     from tests.engine.test_last_metres import DROP
 
-    sc = lowering(6.0, **{"initial.position": [DROP[0] - 14.0, DROP[1], 6.0],
+    sc = lowering(6.0, **{"initial.position": [DROP[0] - 12.0, DROP[1], 6.0],
+                          "controller.tilt_limit": 0.3,
                           "integrator.dt": 0.001})  # fmt: skip
     flight = fly(sc, record_every=10)
     assert not flight.diverged
