@@ -37,7 +37,7 @@ impl Default for Reference {
 
 pub(crate) use crate::legs::TIME_SLACK;
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Trajectory {
     waypoints: Vec<[f64; 5]>,
     interpolation: Interpolation,
@@ -177,6 +177,26 @@ impl Trajectory {
                 payout: s.payout,
                 speed: s.rate,
             })
+    }
+
+    /// The lowering due at segment `segment` (its line and speed, `lowering`): in a lowering,
+    /// and in the hold at its point after it (a lowering that could not start on time, the
+    /// vehicle not yet over the point, may start there).
+    pub fn lowering_due(&self, segment: usize) -> Option<crate::legs::Lowering> {
+        let s = self.segments.get(segment)?;
+        match s.kind {
+            SegmentKind::Lower => self.lowering(segment),
+            SegmentKind::Hold => {
+                let before = segment.checked_sub(1)?;
+                let b = self.segments.get(before)?;
+                if b.kind == SegmentKind::Lower && b.from == s.from {
+                    self.lowering(before)
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        }
     }
 
     /// The horizontal point (m) segment `segment` of a route lowers at, if it is a lowering.

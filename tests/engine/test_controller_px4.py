@@ -20,13 +20,14 @@ from quadrs import _core
 from tests.engine import delivery_on_the_state
 from tests.engine.test_cable import RATE_ORDER, STATE_ORDER, cable_rhs
 
-#: PX4's defaults, as docs/model.md lists them.
+#: PX4's defaults, as docs/model.md lists them (MPC_THR_HOVER 0: the vehicle's own hover
+#: thrust, as PX4's hover-thrust estimator learns it).
 DEFAULTS = {
     "MPC_XY_P": 0.95, "MPC_Z_P": 1.0, "MPC_XY_VEL_P_ACC": 1.8, "MPC_XY_VEL_I_ACC": 0.4,
     "MPC_XY_VEL_D_ACC": 0.2, "MPC_Z_VEL_P_ACC": 4.0, "MPC_Z_VEL_I_ACC": 2.0,
     "MPC_Z_VEL_D_ACC": 0.0, "MPC_VELD_LP": 5.0, "MPC_XY_VEL_MAX": 12.0,
     "MPC_Z_VEL_MAX_UP": 3.0, "MPC_Z_VEL_MAX_DN": 1.5, "MPC_TILTMAX_AIR": 45.0,
-    "MPC_THR_HOVER": 0.5, "MPC_THR_MIN": 0.12, "MPC_THR_MAX": 1.0, "MPC_THR_XY_MARG": 0.3,
+    "MPC_THR_HOVER": 0.0, "MPC_THR_MIN": 0.12, "MPC_THR_MAX": 1.0, "MPC_THR_XY_MARG": 0.3,
     "MC_ROLL_P": 6.5, "MC_PITCH_P": 6.5, "MC_YAW_P": 2.8, "MC_YAW_WEIGHT": 0.4,
     "MC_ROLLRATE_MAX": 220.0, "MC_PITCHRATE_MAX": 220.0, "MC_YAWRATE_MAX": 200.0,
     "MC_ROLLRATE_P": 0.15, "MC_ROLLRATE_I": 0.2, "MC_ROLLRATE_D": 0.003,
@@ -172,9 +173,19 @@ class Px4Law:
         self.g = sc["environment.gravity"]
         self.dt = sc["integrator.dt"]
         mt = sc["vehicle.mass"] + sc["payload.mass"]
-        self.t_full = mt * self.g / k["MPC_THR_HOVER"]
-        self.alloc = Px4Allocator(sc, k["yaw_torque_ratio"])
         on_rotors = sc["actuator.model"] == "rotors"
+        # the vehicle's full thrust: the rotors' 4 thrust_max; ideal actuators twice the weight
+        thrust_max = sc.get("controller.thrust_max")
+        self.t_full = (
+            4 * sc["actuator.thrust_max"]
+            if on_rotors
+            else thrust_max
+            if thrust_max is not None
+            else 2 * mt * self.g
+        )
+        # the hover thrust fed forward: MPC_THR_HOVER, else (0) the vehicle's own
+        self.hover = k["MPC_THR_HOVER"] or mt * self.g / self.t_full
+        self.alloc = Px4Allocator(sc, k["yaw_torque_ratio"])
         cq = sc["actuator.torque_ratio"] if on_rotors else k["yaw_torque_ratio"]
         # a motor's output times its full thrust T_full / 4, through the rotors' geometry
         self.wrench = motor_wrench(sc, cq) * self.t_full / 4
@@ -197,6 +208,8 @@ class Px4Law:
 
         self.a_vel, self.a_rate = weight(k["MPC_VELD_LP"]), weight(k["IMU_DGYRO_CUTOFF"])
         self.vel_int = np.zeros(3)
+        if k["MPC_THR_HOVER"]:  # hovering for ever: the integrator takes up the weight's rest
+            self.vel_int[2] = self.g * (mt * self.g / (self.hover * self.t_full) - 1)
         self.rate_int = np.zeros(3)
         self.vel_dot = np.zeros(3)
         self.rate_dot = np.zeros(3)
@@ -235,7 +248,7 @@ class Px4Law:
             a_xy *= lim / n
         b = np.array([a_xy[0], a_xy[1], g])
         b /= np.linalg.norm(b)
-        hover = k["MPC_THR_HOVER"]
+        hover = self.hover
         collective = max(hover * (acc[2] + g) / g / b[2], k["MPC_THR_MIN"])
         t = collective * b
         t_z_acc = t[2]
@@ -321,7 +334,7 @@ class Px4Law:
                 e[2] = max(e[2], 0.0)
             if x["t_z_acc"] >= k["MPC_THR_MAX"]:
                 e[2] = min(e[2], 0.0)
-            produced = x["t_xy"] * g / k["MPC_THR_HOVER"]
+            produced = x["t_xy"] * g / self.hover
             a_xy = x["acc"][:2]
             limited = produced if a_xy @ a_xy > produced @ produced else a_xy
             e[:2] -= 2 / k["MPC_XY_VEL_P_ACC"] * (a_xy - limited)

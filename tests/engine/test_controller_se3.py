@@ -356,9 +356,10 @@ def test_stable_at_hover_with_the_line_and_the_rotors(delivery) -> None:
     st = quadrs.stability(delivery, "se3")
     assert st.stable and (st.poles["real"] < -0.05).all(), st.poles
     # 12 of the body, 8 of the cable (the parcel's position and velocity, the line's length
-    # and rate: a winch's servo holds it, at -2 1/s), 4 of the rotors
+    # and rate: a winch's servo holds it, a critically damped pair at -kw / 2 = -10 1/s), 4 of
+    # the rotors
     assert len(st.poles) == 24 and {"swing x"} <= set(st.poles["mode"])
-    assert np.isclose(st.poles["real"], -2.0, atol=1e-4).sum() == 2
+    assert np.isclose(st.poles["real"], -10.0, atol=1e-4).sum() == 2
     # and the paper's vehicle with its defaults too
     assert quadrs.stability(quadrs.Scenario.paper(), "se3").stable
 

@@ -57,11 +57,15 @@ def fly(sc: quadrs.Scenario, **kw: Any) -> Any:
 
 
 # -- the line's length as a function of time, derived from the winch's law ---------------------
-# L'' = clamp(kw (clamp(kp (L* - L), -v, v) - L'), -a, a), kp = a / v, kw = 4 kp, from rest at
-# L0 with L* - L > v / kp (the speed loop saturated at v): L'' = a while kw (v - L') >= a, i.e.
-# until L' = v - a / kw at t1 = (v - a / kw) / a; then L' = v - (a / kw) exp(-kw (t - t1)).
+# L'' = clamp(kw (r - L'), -a, a), r = min(kp e, sqrt(a e), v) paying out (e = L* - L),
+# kw = 20 1/s, kp = kw / 4, from rest at L0 with e > v^2 / a and e > v / kp (r = v):
+# L'' = a while kw (v - L') >= a, i.e. until L' = v - a / kw at t1 = (v - a / kw) / a; then
+# L' = v - (a / kw) exp(-kw (t - t1)).
+KW = 20.0
+
+
 def line_length(t: float, l0: float) -> tuple[float, float]:
-    kw = 4 * A / V
+    kw = KW
     t1 = (V - A / kw) / A
     if t <= t1:
         return l0 + 0.5 * A * t * t, A * t
@@ -127,7 +131,7 @@ def test_the_paid_out_line_agrees_with_an_independent_integration() -> None:
     sc = lowering(2.0)
     flight = fly(sc, record_every=1)
     tr = flight.trace
-    dt, steps = sc["integrator.dt"], 3000  # 1.5 s: through the winch's switch at 0.75 s
+    dt, steps = sc["integrator.dt"], 3000  # 1.5 s: through the winch's switch at 0.95 s
     t = tr.index.to_numpy()
     l0 = 1.0
     # The engine's line is the law's closed form.
@@ -257,12 +261,13 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
 @pytest.mark.filterwarnings("ignore::quadrs.StepSizeWarning")  # dt = 2 ms: a count, not a metric
 def test_the_missions_touchdown_answer_covers_a_brute_force_count() -> None:
     """A short lowering from 3 m with the winch's speed dispersed about 0.5 m/s: P(touchdown
-    faster than 0.5 m/s) from 100 flights, its interval against the count over 300 others."""
+    faster than 0.5 m/s) from 100 flights, its interval against the count over 300 others.
+    (16 s: each realisation's slower winch times its own schedule, which must fit the flight.)"""
     from quadrs.design.mission import mission_report
 
     sc = lowering(3.0, **{
         "trajectory.route": [[*DROP, 3.0], [*DROP, 4.0]], "initial.position": [*DROP, 3.0],
-        "trajectory.hold": [3.0, 0.0], "integrator.dt": 0.002, "integrator.duration": 14.0,
+        "trajectory.hold": [3.0, 0.0], "integrator.dt": 0.002, "integrator.duration": 16.0,
         "dispersions": {"payload.winch_speed": {"dist": "normal", "mean": 0.5, "std": 0.05}},
     })  # fmt: skip
 

@@ -156,14 +156,48 @@ def test_rate_k_multiplies_the_rate_gains_as_px4_does(tmp_path: Path) -> None:
     assert s["controller.px4.MC_PITCHRATE_P"] == defaults["MC_PITCHRATE_P"]  # no K: as it was
 
 
-def test_the_files_hover_thrust_is_not_the_vehicles_full_thrust(tmp_path: Path) -> None:
-    from quadrs.scenario.px4_files import Px4FileWarning
+def _px4_hover(sc: quadrs.Scenario) -> Any:
+    """``sc``'s vehicle on the state, px4, 0.1 m below its reference, 6 s in still air."""
+    from tests.engine import ON_THE_STATE
+
+    still = sc.override({
+        **ON_THE_STATE,
+        "trajectory.interpolation": "step",
+        "trajectory.waypoints": [[0.0, 0.0, 0.0, 2.1, 0.0], [6.0, 0.0, 0.0, 2.1, 0.0]],
+        "trajectory.route": None, "trajectory.lower": None, "trajectory.hold": None,
+        "trajectory.speed": None, "trajectory.acceleration": None,
+        "trajectory.names": None, "phases": [{"name": "all", "start": 0.0, "end": 6.0}],
+        "integrator.duration": 6.0, "gust.enabled": False, "wind.speed": 0.0,
+    })  # fmt: skip
+    return quadrs.simulate(still, "px4", record_every=1)
+
+
+def test_the_files_hover_thrust_is_the_hover_feed_forward(tmp_path: Path) -> None:
+    """``MPC_THR_HOVER`` is read into ``[controller.px4]`` (before: skipped with a warning,
+    the law scaling its thrust by it: 53 N on the delivery's 48 N rotors) and flown as PX4
+    flies it, the position loop's hover feed-forward, the thrust's scale the rotors' 4 x 12 N:
+    a height error's thrust is MPC_THR_HOVER (a + g) / g x 48 N, so it scales with the
+    parameter (before, with the scale weight / MPC_THR_HOVER, it did not); the vertical
+    integrator, at its hover value from the start, takes up the rest of the weight."""
+    import warnings
 
     base = quadrs.Scenario.preset("delivery")
     path = _params(tmp_path / "a.params", [("MPC_THR_HOVER", "0.42"), ("MPC_XY_P", "0.5")])
-    with pytest.warns(Px4FileWarning, match=r"MPC_THR_HOVER = 0\.42 is not applied"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         s = base.with_px4_params(path)
-    assert s["controller.px4.MPC_THR_HOVER"] == 0.5  # PX4's default, the law's
+    assert s["controller.px4.MPC_THR_HOVER"] == 0.42
+    assert s["controller.px4.MPC_XY_P"] == 0.5
+    g = base["environment.gravity"]
+    weight = (base["vehicle.mass"] + base["payload.mass"]) * g
+    full = 4 * base["actuator.thrust_max"]
+    own, set_ = _px4_hover(base).trace, _px4_hover(s).trace
+    # 0.1 m low: a = MPC_Z_VEL_P_ACC x MPC_Z_P x 0.1 = 0.4 m/s^2 asked of each.
+    for trace, hover in [(own, weight / full), (set_, 0.42)]:
+        assert trace["U1"].iloc[0] == pytest.approx(weight + hover * 0.4 / g * full, abs=1e-9)
+        late = trace[trace.index > 5.0]
+        assert late["U1"].mean() == pytest.approx(weight, rel=1e-3)
+        assert (late["z"] - 2.1).abs().max() < 0.02
 
 
 def test_px4_names_and_values_are_shown_safely(tmp_path: Path) -> None:
@@ -227,3 +261,35 @@ def test_a_logs_wind_is_thinned_and_px4_files_are_capped(
     big = _params(tmp_path / "big.params", [(f"P{i}", "1") for i in range(100_000)])
     with pytest.raises(ValueError, match=r"big\.params.*larger than 1 MiB"):
         px4.read_px4_parameters(big)
+
+
+# -- a dispersed winch's schedule ---------------------------------------------------------------
+def test_a_dispersed_winch_flies_its_own_schedule_in_a_batch() -> None:
+    """Each realisation's winch times its own lowering and every segment after it: batch row
+    ``i`` is ``simulate(realisation=i)`` bit for bit (before, the batch flew the nominal
+    schedule with each realisation's winch, and its rows differed). A draw whose schedule
+    does not fit the flight is refused naming the realisation."""
+    import numpy as np
+
+    from quadrs.runs.flight import METRIC_COLUMNS
+
+    base = lowering(6.0, **{"integrator.dt": 0.001})
+    dispersed = base.override({"dispersions": {
+        "payload.winch_speed": {"dist": "uniform", "low": 0.5, "high": 1.0},
+    }})  # fmt: skip
+    runs = 6
+    mc = quadrs.monte_carlo(dispersed, runs=runs, seed=3, controllers=["pd"], progress=False,
+                            spectra=False)  # fmt: skip
+    metrics = list(METRIC_COLUMNS)
+    for i in (0, 2, 5):
+        alone = quadrs.simulate(dispersed, "pd", seed=3, realisation=i)
+        row = mc.runs[mc.runs["realisation"] == i][metrics].to_numpy()
+        np.testing.assert_array_equal(alone.metrics[metrics].to_numpy(), row, err_msg=f"row {i}")
+    # The realisations' lowerings did differ: the touchdowns fall at their own times.
+    lowered = mc.runs[mc.runs["phase"] == "lower1"]["touchdown_speed"]
+    assert lowered.nunique() == runs, lowered
+    too_slow = base.override({"dispersions": {
+        "payload.winch_speed": {"dist": "uniform", "low": 0.1, "high": 0.2},
+    }})  # fmt: skip
+    with pytest.raises(quadrs.ScenarioError, match=r"realisation \d+ drew .*integrator\.duration"):
+        quadrs.monte_carlo(too_slow, runs=2, seed=3, controllers=["pd"], progress=False)

@@ -137,16 +137,24 @@ def test_a_ground_too_stiff_for_the_step_is_warned() -> None:
     assert "ground.friction = 5" in contact_step_warning(slippery)
 
 
-def test_a_winch_acceleration_the_step_cannot_resolve_is_refused_naming_it() -> None:
-    """Before: the line's length went negative and the flight ended "ok"."""
-    delivery = quadrs.Scenario.preset("delivery")  # winch 1 m/s, dt 1 ms: at most 250 m/s^2
-    assert delivery.override({"payload.winch_acceleration": 250.0})
+def test_any_winch_acceleration_flies_and_a_coarse_step_is_refused() -> None:
+    """Before: the servo's gain 4 a / v grew with the acceleration; past 1 / dt the line's
+    length went negative and the flight ended "ok" (so 1000 m/s^2 was refused). Now its gain is
+    a constant 20 1/s: any acceleration flies (the line never shorter than reeled in), and only
+    a step too coarse for the servo is refused, naming integrator.dt."""
+    from tests.engine.test_last_metres import fly, lowering
+
+    flight = fly(lowering(6.0, **{"payload.winch_acceleration": 1000.0,
+                                  "integrator.dt": 0.001}), record_every=10)  # fmt: skip
+    assert flight.status == "ok"
+    assert flight.trace["line"].min() >= 1.0 - 1e-9
+    assert 5.0 < flight.trace["line"].max() <= 7.0 + 1e-9
+    assert flight.metrics.set_index("phase").loc["flight", "release_time"] > 0  # it landed
     with pytest.raises(
         quadrs.ScenarioError,
-        match=r"payload\.winch_acceleration is more than "
-        r"integrator\.dt \(0\.001 s\) can resolve",
+        match=r"integrator\.dt is too coarse for the winch's speed servo .* got 0\.06",
     ):
-        delivery.override({"payload.winch_acceleration": 1000.0})
+        lowering(6.0, **{"integrator.dt": 0.06})
 
 
 def test_a_touchdown_release_on_a_spring_is_named_as_given() -> None:

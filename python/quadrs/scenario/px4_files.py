@@ -48,19 +48,11 @@ FLOAT32_MAX = 3.4028234663852886e38
 #: global gain, ``MC_ROLLRATE_K`` ...): read and folded into the gains the law flies.
 RATE_K = {axis: (f"MC_{axis}RATE_K", tuple(f"MC_{axis}RATE_{g}" for g in "PID"))
           for axis in ("ROLL", "PITCH", "YAW")}  # fmt: skip
-#: Parameters read from a file but not applied, and why.
-NOT_APPLIED = {
-    "MPC_THR_HOVER": "the engine's px4 law scales its normalised thrust by it (full thrust = "
-    "weight / MPC_THR_HOVER), where PX4 uses it only as the hover feed-forward: the "
-    "airframe's value would set this vehicle's full thrust and stiffen every gain; the "
-    "scenario's is kept (set controller.px4.MPC_THR_HOVER to this vehicle's weight over its "
-    "full thrust)",
-}
 
 
 class Px4FileWarning(UserWarning):
     """What a PX4 file holds that is read in a way the user should know (a log with several
-    instances of the wind topic, a parameter not applied)."""
+    instances of the wind topic)."""
 
 
 @dataclass(frozen=True)
@@ -73,8 +65,6 @@ class Px4Parameters:
     ignored: tuple[str, ...]
     #: The rate controller's K per axis the file gives (``MC_ROLLRATE_K`` -> value).
     rate_k: dict[str, float] = dataclasses.field(default_factory=dict)
-    #: Parameters read but not applied (NOT_APPLIED) -> the file's value.
-    not_applied: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def note(self) -> str:
         """One line: what was read and what was not (a name holding control characters
@@ -94,10 +84,8 @@ def _shown(name: str) -> str:
 def px4_changes(read: Px4Parameters, table: Mapping[str, Any]) -> dict[str, float]:
     """The ``controller.px4.*`` values a file gives: its parameters, with each axis's rate P,
     I and D (the file's, else the scenario's ``[controller.px4]`` ``table``, else the law's
-    defaults) multiplied by the axis's K as PX4 does; a parameter NOT_APPLIED left out with a
-    Px4FileWarning naming it and its value."""
-    import warnings
-
+    defaults) multiplied by the axis's K as PX4 does. ``MPC_THR_HOVER`` is the position loop's
+    hover feed-forward, as in PX4 (the thrust's scale is the vehicle's full thrust)."""
     gains = {**json.loads(_core.CONTROLLER_DEFAULTS["px4"]), **table}
     values = dict(read.known)
     for k_name, gain_names in RATE_K.values():
@@ -106,9 +94,6 @@ def px4_changes(read: Px4Parameters, table: Mapping[str, Any]) -> dict[str, floa
             continue
         for g in gain_names:
             values[g] = float(values.get(g, gains[g])) * k
-    for name, value in read.not_applied.items():
-        warnings.warn(f"{read.path}: {name} = {value:g} is not applied: {NOT_APPLIED[name]}",
-                      Px4FileWarning, stacklevel=3)  # fmt: skip
     return {f"controller.px4.{k}": v for k, v in values.items()}
 
 
@@ -160,11 +145,10 @@ def read_px4_parameters(path: str | Path) -> Px4Parameters:
         values = _ulog_parameters(path, f) if _is_log(path) else _qgc(path, f.read())
     keys = set(px4_keys())
     floats = {k: _px4_float(path, k, v) for k, v in values.items()}
-    known = {k: v for k, v in floats.items() if k in keys and k not in NOT_APPLIED}
+    known = {k: v for k, v in floats.items() if k in keys}
     rate_k = {k: floats[k] for k, _ in RATE_K.values() if k in floats}
-    not_applied = {k: floats[k] for k in NOT_APPLIED if k in floats}
     ignored = tuple(sorted(k for k in values if k not in keys and k not in rate_k))
-    return Px4Parameters(str(path), known, ignored, rate_k, not_applied)
+    return Px4Parameters(str(path), known, ignored, rate_k)
 
 
 def _px4_float(path: Path, name: str, value: tuple[float, str]) -> float:

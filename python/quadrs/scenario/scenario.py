@@ -446,7 +446,8 @@ class Scenario:
         """A new Scenario whose ``[controller.px4]`` takes the airframe's parameters from a
         QGroundControl ``.params`` file or a PX4 ``.ulg`` log: the parameters the table knows
         (PX4's names and units; each axis's ``MC_*RATE_K`` multiplies its rate P, I and D, as
-        PX4 does; ``MPC_THR_HOVER`` is not applied, with a warning saying why), the rest of
+        PX4 does; ``MPC_THR_HOVER`` is the position loop's hover feed-forward, as in PX4, the
+        thrust's scale staying the vehicle's full thrust), the rest of
         the file ignored (:func:`quadrs.scenario.px4_files.read_px4_parameters` lists them).
         ScenarioError naming the file for one that is neither."""
         from quadrs.scenario.px4_files import px4_changes, read_px4_parameters
@@ -513,11 +514,21 @@ class Scenario:
 
     def fixed(self, values: Mapping[str, float] | None = None) -> Scenario:
         """This scenario without its ``[dispersions]`` table, with ``values`` (e.g. the ones a
-        realisation drew) set: the scenario one realisation of a dispersed batch flies."""
+        realisation drew) set: the scenario one realisation of a dispersed batch flies. Where
+        the values move the route's schedule (a drawn winch times its own lowering) its phases
+        stay this scenario's windows (``phases = "legs"`` as the nominal schedule gives them),
+        as the batch's rows have them: the realisation flies its own schedule in them."""
         data = strip_climate(copy.deepcopy(self._data))
         data.pop("dispersions", None)
         fixed = Scenario(data)
-        return fixed.override(dict(values)) if values else fixed
+        if not values:
+            return fixed
+        drawn = fixed.override(dict(values))
+        if drawn.phase_windows == fixed.phase_windows:
+            return drawn
+        windows = [{"name": name, "start": start, "end": end}
+                   for name, (start, end) in fixed.phase_windows.items()][:-1]  # fmt: skip
+        return drawn.override({"phases": windows})
 
     def realisation(self, seed: int, realisation: int) -> Scenario:
         """The fixed scenario realisation ``realisation`` of master ``seed`` flies under

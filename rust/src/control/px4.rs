@@ -36,7 +36,10 @@ params! {
         MPC_Z_VEL_MAX_UP: f64 => "m/s", "PX4 largest ascent velocity setpoint", positive;
         MPC_Z_VEL_MAX_DN: f64 => "m/s", "PX4 largest descent velocity setpoint", positive;
         MPC_TILTMAX_AIR: f64 => "deg", "PX4 largest tilt of the thrust setpoint";
-        MPC_THR_HOVER: f64 => "-", "PX4 hover thrust (normalised)", positive;
+        /// The position loop's hover thrust feed-forward (PX4's `_hover_thrust`), normalised
+        /// by the vehicle's full thrust (`full_thrust`); 0: the vehicle's own, mt g / full
+        /// thrust, as PX4's hover-thrust estimator (`MPC_USE_HTE`, on by default) learns it.
+        MPC_THR_HOVER: f64 => "-", "PX4 hover thrust (normalised; 0: the vehicle's own)", non_negative;
         MPC_THR_MIN: f64 => "-", "PX4 least collective thrust (normalised)", non_negative;
         MPC_THR_MAX: f64 => "-", "PX4 largest collective thrust (normalised)", positive;
         MPC_THR_XY_MARG: f64 => "-", "PX4 horizontal thrust margin (normalised)", non_negative;
@@ -84,7 +87,7 @@ impl Default for Px4Params {
             MPC_Z_VEL_MAX_UP: 3.0,
             MPC_Z_VEL_MAX_DN: 1.5,
             MPC_TILTMAX_AIR: 45.0,
-            MPC_THR_HOVER: 0.5,
+            MPC_THR_HOVER: 0.0,
             MPC_THR_MIN: 0.12,
             MPC_THR_MAX: 1.0,
             MPC_THR_XY_MARG: 0.3,
@@ -189,8 +192,11 @@ pub struct Px4<P = f64> {
     rate_i: [P; 3],
     rate_d: [P; 3],
     rate_int_lim: [P; 3],
-    /// N per unit normalised thrust: mt g / MPC_THR_HOVER.
+    /// N per unit normalised thrust: the vehicle's full thrust (`full_thrust`).
     thrust_full: P,
+    /// m/s^2, the vertical velocity integrator of a vehicle hovering for ever: what takes up
+    /// the difference between the hover feed-forward and the weight (0 with the vehicle's own).
+    vel_int_hover: P,
     /// PX4's allocation (`px4_allocator::Mixer`): motor i's output per normalised control,
     /// its usable inverse, and the control per output.
     mix: [[P; 4]; 4],
@@ -229,7 +235,7 @@ impl Controller for Px4 {
         Some(Px4Params::default())
     }
 
-    fn validate(k: &Px4Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
+    fn validate(k: &Px4Params, key: &str, cfg: &ControlContext) -> Result<(), ConfigError> {
         k.check_bounds(key)?;
         let range = |name: &str, x: f64, lo: f64, hi: f64, what: &str| {
             if x > lo && x < hi {
@@ -255,20 +261,36 @@ impl Controller for Px4 {
             f64::INFINITY,
             "above MPC_THR_MIN and MPC_THR_XY_MARG",
         )?;
-        range(
-            "MPC_THR_HOVER",
-            k.MPC_THR_HOVER,
-            0.0,
-            k.MPC_THR_MAX,
-            "between 0 and MPC_THR_MAX (exclusive)",
-        )?;
-        if k.MPC_THR_MIN >= k.MPC_THR_HOVER {
+        if k.MPC_THR_HOVER != 0.0 {
+            range(
+                "MPC_THR_HOVER",
+                k.MPC_THR_HOVER,
+                0.0,
+                k.MPC_THR_MAX,
+                "0 (the vehicle's own) or between 0 and MPC_THR_MAX (exclusive)",
+            )?;
+        }
+        let hover = hover_thrust(k, cfg);
+        if hover >= k.MPC_THR_MAX {
+            // Only the vehicle's own can get here (a set value is checked above).
+            return Err(ConfigError::new(
+                format!("{key}.MPC_THR_HOVER"),
+                format!(
+                    "{key}.MPC_THR_HOVER: the vehicle's own hover thrust (its weight over its \
+                     full thrust, {:?} N) is {hover:?}, not below MPC_THR_MAX ({:?}): it cannot \
+                     hover",
+                    full_thrust(cfg),
+                    k.MPC_THR_MAX
+                ),
+            ));
+        }
+        if k.MPC_THR_MIN >= hover {
             // At a least thrust at or above hover the vehicle cannot descend: it climbs away.
             return Err(ConfigError::new(
                 format!("{key}.MPC_THR_MIN"),
                 format!(
                     "{key}.MPC_THR_MIN must be below MPC_THR_HOVER ({:?}): at a least thrust at or above hover the vehicle cannot descend, got {:?}",
-                    k.MPC_THR_HOVER, k.MPC_THR_MIN
+                    hover, k.MPC_THR_MIN
                 ),
             ));
         }
@@ -297,7 +319,7 @@ impl Controller for Px4 {
         let [dt_vel, _, dt_rate] = cfg
             .controller
             .loop_periods(ControllerKind::Px4, cfg.integrator.dt);
-        let thrust_full = shared.mt * g / k.MPC_THR_HOVER;
+        let thrust_full = full_thrust(cfg);
         let arm = cfg.vehicle.arm_length;
         let (layout, torque_ratio) = px4_geometry(k, cfg);
         let mixer = Mixer::new(layout, arm, k.yaw_torque_ratio);
@@ -314,7 +336,8 @@ impl Controller for Px4 {
             vel_max_up: k.MPC_Z_VEL_MAX_UP,
             vel_max_dn: k.MPC_Z_VEL_MAX_DN,
             acc_max_xy: g * deg(k.MPC_TILTMAX_AIR).tan(),
-            thr_hover: k.MPC_THR_HOVER,
+            thr_hover: hover_thrust(k, cfg),
+            vel_int_hover: hover_integrator(k, cfg),
             thr_min: k.MPC_THR_MIN,
             thr_max: k.MPC_THR_MAX,
             thr_xy_marg: k.MPC_THR_XY_MARG,
@@ -346,9 +369,48 @@ impl Controller for Px4 {
         gather!(|l| each[l] => Px4 {
             shared, pos_p, vel_p, vel_i, vel_d, vel_max_xy, vel_max_up, vel_max_dn, acc_max_xy,
             thr_hover, thr_min, thr_max, thr_xy_marg, att_p, yaw_w, rate_max, rate_p, rate_i,
-            rate_d, rate_int_lim, thrust_full, mix, mix_inv, effect, out, status_every, dt_vel,
+            rate_d, rate_int_lim, thrust_full, vel_int_hover, mix, mix_inv, effect, out, status_every, dt_vel,
             dt_rate, alpha_vel, alpha_rate,
         })
+    }
+}
+
+/// N, the vehicle's full collective thrust, PX4's normalised thrust 1 (every motor's output
+/// at 1): what the rotors give (4 `actuator.thrust_max`, before any battery sag or fault, which
+/// PX4 does not know of); with the ideal actuator, which has no limit, `controller.thrust_max`
+/// if given, else twice the weight the law believes (an airframe hovering at half thrust,
+/// PX4's default `MPC_THR_HOVER`).
+pub fn full_thrust(cfg: &ControlContext) -> f64 {
+    match cfg.actuator.model {
+        ActuatorKind::Rotors => 4.0 * cfg.actuator.rotors.thrust_max,
+        _ => cfg
+            .controller
+            .thrust_max
+            .unwrap_or_else(|| Shared::new(cfg).mt * cfg.environment.gravity / 0.5),
+    }
+}
+
+/// The hover thrust the position loop feeds forward (normalised): `MPC_THR_HOVER`, or where it
+/// is 0 the vehicle's own, mt g / `full_thrust`. Only the feed-forward: the thrust's scale,
+/// and so every gain in N and N m, is the vehicle's full thrust whatever it is.
+pub fn hover_thrust(k: &Px4Params, cfg: &ControlContext) -> f64 {
+    if k.MPC_THR_HOVER > 0.0 {
+        k.MPC_THR_HOVER
+    } else {
+        Shared::new(cfg).mt * cfg.environment.gravity / full_thrust(cfg)
+    }
+}
+
+/// m/s^2, the vertical velocity integrator at steady hover: the acceleration setpoint a with
+/// `MPC_THR_HOVER (a + g) / g` full thrust = mt g, within the integrator's limit g; exactly 0
+/// with the vehicle's own hover thrust.
+fn hover_integrator(k: &Px4Params, cfg: &ControlContext) -> f64 {
+    if k.MPC_THR_HOVER > 0.0 {
+        let g = cfg.environment.gravity;
+        let weight = Shared::new(cfg).mt * g;
+        (g * (weight / (k.MPC_THR_HOVER * full_thrust(cfg)) - 1.0)).clamp(-g, g)
+    } else {
+        0.0
     }
 }
 
@@ -763,14 +825,18 @@ impl<P: Copy + Sync> Px4<P> {
 impl<P: Copy + Sync> Control<P> for Px4<P> {
     type Memory<L: Lane> = Memory<L>;
 
-    /// Integrators zero (their hover value), derivative terms zero: at rest, the law is what
-    /// the linearisation differentiates (docs/model.md, "The PX4 cascade").
+    /// Integrators at their hover value (the vertical one taking up the difference between
+    /// the hover feed-forward and the weight, `hover_integrator`; the others zero), derivative
+    /// terms zero: at rest, the law is what the linearisation differentiates (docs/model.md,
+    /// "The PX4 cascade").
     #[inline(always)]
     fn memory<L: Masks>(&self, seen: &Sight<L>) -> Memory<L>
     where
         P: Param<L>,
     {
-        Self::at_rest(seen.rigid)
+        let mut m = Self::at_rest(seen.rigid);
+        m[VEL_INT + 2] = self.vel_int_hover.get();
+        m
     }
 
     /// One step of PX4's loops: each that is due runs (position, attitude, rate and allocator,
@@ -848,14 +914,18 @@ mod tests {
             ..Reference::default()
         };
         let u = c.control(&s, &r, Tick::START);
+        let full = full_thrust(&cfg.control_context());
+        // The paper's ideal actuators: twice the weight, the vehicle's own hover thrust 0.5.
         let mt = cfg.vehicle.mass + cfg.payload.mass;
-        let full = mt * 9.81 / k.MPC_THR_HOVER;
+        assert_eq!(full, mt * 9.81 * 2.0);
+        let hover = hover_thrust(&k, &cfg.control_context());
+        assert_eq!(hover, 0.5);
         // PX4's normalisation of a quad X: one unit of roll moves each motor by 1/sqrt 2 of
         // its full thrust full / 4, at arm / sqrt 2 from the axis: arm full / 2 in all.
         let roll_full = cfg.vehicle.arm_length * full / 2.0;
         assert!((u.tau[0] - k.MC_ROLLRATE_P * 0.1 * roll_full).abs() < 1e-12);
         let acc = k.MPC_Z_VEL_P_ACC * k.MPC_Z_P * 0.1;
-        let want = k.MPC_THR_HOVER * (acc + 9.81) / 9.81 * full;
+        let want = hover * (acc + 9.81) / 9.81 * full;
         assert!((u.u1 - want).abs() < 1e-9, "{} vs {want}", u.u1);
     }
 
@@ -938,6 +1008,58 @@ mod tests {
             let e = crate::scenario::Config::from_json(&v.to_string()).unwrap_err();
             assert_eq!(e.key, "controller.px4.MPC_THR_MIN");
             assert!(e.message.contains("below MPC_THR_HOVER"), "{e}");
+        }
+    }
+
+    /// The delivery vehicle's full thrust is its rotors' (4 x 12 N), whatever `MPC_THR_HOVER`
+    /// says: the hover thrust is only the position loop's feed-forward. At rest on its
+    /// reference the vertical integrator takes up the difference between it and the weight
+    /// (the collective is the weight); a height error's thrust scales with it, as PX4's
+    /// acceleration-to-thrust does; the torque per unit (the rate gains in N m) does not move.
+    #[test]
+    fn the_hover_thrust_is_a_feed_forward_not_the_thrust_scale() {
+        let cfg = delivery();
+        let ctx = cfg.control_context();
+        assert_eq!(full_thrust(&ctx), 48.0);
+        let g = cfg.environment.gravity;
+        let weight = (cfg.vehicle.mass + cfg.payload.mass) * g;
+        let start = cfg.trajectory.points()[0];
+        let r = Reference {
+            pos: start,
+            ..Reference::default()
+        };
+        let own = px4(&cfg);
+        let set = Px4::new(
+            &Px4Params {
+                MPC_THR_HOVER: 0.42,
+                ..Px4Params::default()
+            },
+            &ctx,
+        );
+        assert_eq!((own.thrust_full, set.thrust_full), (48.0, 48.0));
+        assert_eq!(own.out, set.out);
+        assert_eq!(own.vel_int_hover, 0.0);
+        let want = g * (weight / (0.42 * 48.0) - 1.0);
+        assert!(
+            (set.vel_int_hover - want).abs() < 1e-12,
+            "{}",
+            set.vel_int_hover
+        );
+        let k = Px4Params::default();
+        for (law, hover) in [(&own, weight / 48.0), (&set, 0.42)] {
+            let s = at_rest(start, 0.0);
+            let u = law.control(&s, &r, Tick::START);
+            assert!((u.u1 - weight).abs() < 1e-9, "{} vs {weight}", u.u1);
+            // 0.1 m low: the P-P vertical acceleration through this hover thrust.
+            let low = at_rest([start[0], start[1], start[2] - 0.1], 0.0);
+            let u = law.control(&low, &r, Tick::START);
+            let extra = hover * k.MPC_Z_VEL_P_ACC * k.MPC_Z_P * 0.1 / g * 48.0;
+            assert!(
+                (u.u1 - weight - extra).abs() < 1e-9,
+                "{} vs {}",
+                u.u1,
+                weight + extra
+            );
         }
     }
 

@@ -37,6 +37,10 @@ pub struct Realisation {
     pub(super) law_limits: LawLimits,
     /// The sensors and the filter the laws read (`None`: the laws read the state).
     pub(super) navigation: Option<NavigationParams>,
+    /// The reference and the route's schedule: a realisation's own (a dispersed winch's
+    /// lowering lasts its own time, and every segment after it moves), so that a batch row
+    /// flies what `simulate(realisation=i)` flies.
+    pub(super) trajectory: Trajectory,
 }
 
 impl Realisation {
@@ -64,6 +68,7 @@ impl Realisation {
             floor: cfg.ground.floor(),
             law_limits: LawLimits::of(&cfg.controller),
             navigation: NavigationParams::of(&cfg.navigation, &cfg.sensors, cfg.integrator.dt)?,
+            trajectory: Trajectory::new(&cfg.context()),
         })
     }
 }
@@ -178,7 +183,6 @@ pub struct Engine {
     pub realisation: Realisation,
     /// The states, in order (names, axes, runaway bounds).
     pub vars: Vec<StateVar>,
-    pub(super) trajectory: Trajectory,
     pub(super) phases: Vec<PhaseSteps>,
     pub steps: usize,
     pub dt: f64,
@@ -215,7 +219,6 @@ impl Engine {
         Ok(Self {
             realisation: Realisation::new(&cfg)?,
             vars: state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
-            trajectory: Trajectory::new(&cfg.context()),
             phases: phase_steps(&cfg.context()),
             steps,
             dt,

@@ -43,6 +43,10 @@ impl Engine {
             }
             None => &own[..L::LANES],
         };
+        let lead = &realisations[0].trajectory;
+        if realisations.iter().any(|c| c.trajectory != *lead) {
+            return self.fly_by_schedule::<L>(realisations, req, trace, planner);
+        }
         /// The request, carried through the dispatch to `LoopEntry::enter`.
         struct Fly<'e, 'r, 't, L> {
             engine: &'e Engine,
@@ -76,6 +80,60 @@ impl Engine {
         };
         let cfg = &self.cfg;
         dispatch(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model, fly)
+    }
+
+    /// A lane-set whose realisations fly different schedules (a dispersed winch's lowering
+    /// lasts its own time; the loop gives the whole set one reference): flown once per
+    /// schedule, the set filled with the lanes of that schedule and the rest padded with the
+    /// first of them, each lane's result taken from its own schedule's flight. Lanes never mix,
+    /// so each is bit for bit its flight alone; a batch that disperses the schedule pays up to
+    /// one flight of the set per lane.
+    fn fly_by_schedule<L: LoopEntry>(
+        &self,
+        realisations: &[&Realisation],
+        req: &FlightRequest,
+        trace: Option<&mut Trace>,
+        planner: &mut FftPlanner<f64>,
+    ) -> Option<Vec<LaneResult>> {
+        assert!(trace.is_none(), "a trace is of one flight: one schedule");
+        let mut out: Vec<Option<LaneResult>> = (0..L::LANES).map(|_| None).collect();
+        for first in 0..L::LANES {
+            if out[first].is_some() {
+                continue;
+            }
+            let schedule = &realisations[first].trajectory;
+            let lanes: Vec<usize> = (0..L::LANES)
+                .map(|l| {
+                    if realisations[l].trajectory == *schedule {
+                        l
+                    } else {
+                        first
+                    }
+                })
+                .collect();
+            let set: Vec<&Realisation> = lanes.iter().map(|&l| realisations[l]).collect();
+            let indices: Vec<u64> = lanes.iter().map(|&l| req.indices[l]).collect();
+            let innovations: Option<Vec<&[f64]>> = req
+                .innovations
+                .map(|lane| lanes.iter().map(|&l| lane[l]).collect());
+            let sub = FlightRequest {
+                indices: &indices,
+                realisations: Some(&set),
+                innovations: innovations.as_deref(),
+                ..*req
+            };
+            let results = self.fly_kinds::<L>(&sub, None, planner)?;
+            for (l, r) in results.into_iter().enumerate() {
+                if lanes[l] == l && out[l].is_none() {
+                    out[l] = Some(r);
+                }
+            }
+        }
+        Some(
+            out.into_iter()
+                .map(|r| r.expect("every lane flown"))
+                .collect(),
+        )
     }
 
     /// Gather the lanes' realisations into lane-valued parameters and fly them: the body of
@@ -181,6 +239,8 @@ impl Engine {
             mut rates,
             mut nav,
         } = self.start::<L, B, Pay, Act, N>(vehicle, realisations, req, trace.is_some());
+        // One reference for the set: its lanes share a schedule (`fly_kinds`).
+        let trajectory = &realisations[0].trajectory;
         let mut leg = Leg::<L>::new();
         let mut extra = [L::splat(0.0); MAX_ACTUATOR_SIGNALS];
         let extra = &mut extra[..Act::SIGNALS.len()];
@@ -194,7 +254,7 @@ impl Engine {
         let mut checked: Option<Attitude<L, B>> = None;
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
-            leg.follow(&self.trajectory, t, realisations);
+            leg.follow(trajectory, t, realisations);
             let r = &leg.r;
             let attitude = Attitude::checked_or_of(checked.take(), &s);
             let trig = attitude.frame;
@@ -440,8 +500,9 @@ where
 }
 
 /// The route's cue to the payload at `t`, before the step (a hook that opens now is open
-/// over the step): the lowering in progress, the height the vehicle knows (its estimate where
-/// it flies on its senses, else the state's `view`), the load cell's normal.
+/// over the step): the lowering due, where the vehicle knows it is (its estimate where it flies
+/// on its senses, else the state's `view`): its height and its distance from the lowering's
+/// point, the load cell's normal.
 #[inline(always)]
 fn cue<L: Navigate>(
     t: f64,
@@ -451,15 +512,16 @@ fn cue<L: Navigate>(
     view: &Rigid<L>,
     noise: &mut TensionNoise,
 ) -> Cue<L> {
-    let height = match nav {
-        Some(n) => n.estimate.pos[2],
-        None => view.pos[2],
+    let known = match nav {
+        Some(n) => &n.estimate.pos,
+        None => &view.pos,
     };
     Cue {
         t,
         dt,
-        payout: leg.payout,
-        height,
+        payout: leg.due,
+        off_drop: leg.off_drop(known),
+        height: known[2],
         draw: noise.draw(),
     }
 }

@@ -8,8 +8,8 @@ use crate::control::{Due, Flying};
 use crate::gust::{Kinematics, LaneWind, WindField, WindState};
 use crate::lane::{KernelOps, Lane};
 use crate::metrics::LastSample;
-use crate::model::payload::LastMetres;
 use crate::model::payload::Release as Hook;
+use crate::model::payload::{LastMetres, LOWER_RADIUS};
 use crate::model::{ix, state_from_fn, BodyKind, Bound, Rigid, State, StateVar};
 use crate::scenario::Config;
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
@@ -34,6 +34,9 @@ pub(super) struct Leg<L> {
     /// lowering's; before any, the reference's).
     pub(super) payout: Option<crate::legs::Lowering>,
     drop_at: Option<[f64; 2]>,
+    /// The line a lowering due pays out (`Trajectory::lowering_due`: in the lowering and the
+    /// hold after it), the winch's cue.
+    pub(super) due: Option<crate::legs::Lowering>,
 }
 
 impl<L: Lane> Leg<L> {
@@ -47,6 +50,21 @@ impl<L: Lane> Leg<L> {
             line_of: usize::MAX,
             payout: None,
             drop_at: None,
+            due: None,
+        }
+    }
+
+    /// The vehicle's horizontal distance squared from the lowering's point, as it knows its
+    /// position (`known`), less `LOWER_RADIUS` squared (`Cue::off_drop`); 0 (over it) without a
+    /// lowering due.
+    #[inline(always)]
+    pub(super) fn off_drop(&self, known: &[L; 3]) -> L {
+        match (self.due, self.drop_at) {
+            (Some(_), Some([x, y])) => {
+                let (dx, dy) = (known[0] - L::splat(x), known[1] - L::splat(y));
+                dx * dx + dy * dy - L::splat(LOWER_RADIUS * LOWER_RADIUS)
+            }
+            _ => L::splat(0.0),
         }
     }
 
@@ -62,6 +80,7 @@ impl<L: Lane> Leg<L> {
             self.r = trajectory.at(t, &mut self.segment);
             self.changes = trajectory.next_change(self.segment);
             self.payout = trajectory.lowering(self.segment);
+            self.due = trajectory.lowering_due(self.segment);
             self.drop_at = trajectory.drop_point(self.segment).or(self.drop_at);
             // Each lane's line (they differ before the first waypoint, which each lane's
             // own initial position leads to), once per segment: it depends on nothing else.

@@ -315,6 +315,10 @@ impl Config {
         if fixed {
             route::schedule(&self.context())?;
             trajectory::validate_phases(&self.phases, &self.integrator)?;
+        } else if self.trajectory.lower.iter().any(|&p| p > 0.0) {
+            // A realisation's winch times its own lowering (`Realisation::trajectory`): its
+            // schedule must still fit the flight.
+            route::schedule(&self.context())?;
         }
         self.actuator.validate(&self.model_context())?;
         self.metrics.validate()?;

@@ -12,8 +12,9 @@
 //! quadrotor     m  dv/dt  =  U1 R e3 + T u - m g e3 + Fd
 //! torque        tau += hb x (R^T (T u))
 //! payload drag  Fdc = -1/2 rho CdA_c |vc - vw| (vc - vw)
-//! winch         L'' = clamp(kw (clamp(kp (L* - L), -vw, vw) - L'), -aw, aw),
-//!               kp = aw / vw,  kw = 4 kp   (L* the route's target)
+//! winch         L'' = clamp(kw (r - L'), -aw, aw),   e = L* - L   (L* the route's target)
+//!               r = clamp(clamp(kp e, -sqrt(aw |e|), sqrt(aw |e|)), -vw, vw),
+//!               kw = 20 1/s,  kp = kw / 4
 //! ground        n = zg - zc,  N = max(0, kg n - cg vzc) if n > 0, else 0
 //!               Fg = (-mu N vxc / s, -mu N vyc / s, N),  s = sqrt(vxc^2 + vyc^2 + eps^2)
 //! ```
@@ -99,8 +100,14 @@ pub const SETTLE_TIME: f64 = 0.5;
 /// The downwash's edge: the wake's speed falls from full to 0 over r_w (1 -+ WAKE_EDGE), a
 /// cubic smoothstep (C1; the band symmetric about r_w keeps the column's area).
 const WAKE_EDGE: f64 = 0.1;
-/// The winch's speed loop gain over its position loop's, a / v: kw = 4 a / v (1/s).
-const WINCH_SPEED_GAIN: f64 = 4.0;
+/// 1/s, the winch's speed loop gain kw: the line's rate follows its command with a 50 ms lag
+/// (a drum's motor), within the acceleration limit. A constant: neither the speed nor the
+/// acceleration limit slows the servo (before the sixth round's fix kw was 4 a / v, so a
+/// faster winch paid out slower on a short lowering).
+pub const WINCH_SPEED_GAIN: f64 = 20.0;
+/// 1/s, the position loop's gain kp near the target, kw / 4: the pair critically damped (both
+/// poles at -kw / 2), so the line stops at its length without overshoot.
+const WINCH_POSITION_GAIN: f64 = WINCH_SPEED_GAIN / 4.0;
 
 /// Cable payload parameters: `L = f64` for one vehicle, a lane type for one per lane.
 #[derive(Clone, Copy, Debug)]
@@ -120,12 +127,9 @@ pub struct Cable<L = f64> {
     pub hover_length: L,
     /// 1 / mc, computed once.
     inv_mc: L,
-    /// The winch: m/s and m/s^2 (its bounds), 1/s (its position and speed gains), m (the
-    /// reeled-in length and the full line).
+    /// The winch: m/s and m/s^2 (its bounds), m (the reeled-in length and the full line).
     pub winch_speed: L,
     pub winch_acceleration: L,
-    winch_kp: L,
-    winch_kw: L,
     pub length_min: L,
     pub length_max: L,
     /// m, the length the winch drives the line to (set by the route: `last_metres`).
@@ -293,7 +297,7 @@ impl Payload for Cable {
         let length_max = c.cable_length.unwrap_or(f64::NAN); // required: `validate`
         let rest_length = c.length_min.unwrap_or(length_max);
         // Without a winch the line is held at its length by the same servo (its own modes,
-        // at -2 1/s, stay apart from the vehicle's: nothing drives them).
+        // at -kw / 2 = -10 1/s, stay apart from the vehicle's: nothing drives them).
         let (v, a) = (
             c.winch_speed.unwrap_or(1.0),
             c.winch_acceleration.unwrap_or(1.0),
@@ -320,8 +324,6 @@ impl Payload for Cable {
             inv_mc: 1.0 / p.mass,
             winch_speed: v,
             winch_acceleration: a,
-            winch_kp: a / v,
-            winch_kw: WINCH_SPEED_GAIN * a / v,
             length_min: rest_length,
             length_max,
             target: rest_length,
@@ -371,7 +373,7 @@ impl Payload for Cable {
     fn gather<L: Lane>(each: &[&Self]) -> Cable<L> {
         gather!(|l| each[l] => Cable {
             mc, k, c, rest_length, offset, drag_payload, hover_length, inv_mc, winch_speed,
-            winch_acceleration, winch_kp, winch_kw, length_min, length_max, target, ground,
+            winch_acceleration, length_min, length_max, target, ground,
             ground_k, ground_alpha, friction, release_at, release_on_touchdown, release_delay,
             hooked, touched, resting, approach_height, approach_speed, payout_speed, approach,
             before, last_pos, release_on_slack, slack_tension, tension_noise, slack_for,
@@ -522,7 +524,11 @@ impl<L: Lane> Cable<L> {
         [vx * k, vy * k, normal]
     }
 
-    /// L'', the winch's speed servo driving the line toward `target` within its bounds.
+    /// L'', the winch's speed servo driving the line toward `target` within its bounds: the
+    /// rate command is the speed limit, or the speed from which half the acceleration limit
+    /// stops the line at its target (sqrt(a |e|): the other half is the speed loop's to follow
+    /// the profile, so the line never overshoots), or near the target kp e, whichever is least
+    /// (a trapezoidal profile: the line reaches its speed v / a after it starts).
     #[inline(always)]
     fn winch<F: Frame<L>, const N: usize>(&self, s: &State<L, N>) -> L {
         let Ix {
@@ -530,9 +536,13 @@ impl<L: Lane> Cable<L> {
         } = Ix::of::<L, F>();
         let v = self.winch_speed;
         let a = self.winch_acceleration;
+        let e = self.target - s[ln];
+        let stop = (a * e.abs()).sqrt();
         // Paying out no faster than this step's speed (the final approach's, below its height).
-        let rate = (self.winch_kp * (self.target - s[ln])).clamp(-v, self.payout_speed);
-        (self.winch_kw * (rate - s[vline])).clamp(-a, a)
+        let rate = (e * WINCH_POSITION_GAIN)
+            .clamp(-stop, stop)
+            .clamp(-v, self.payout_speed);
+        ((rate - s[vline]) * WINCH_SPEED_GAIN).clamp(-a, a)
     }
 
     /// m/s, the rotors' downwash at the released parcel (downward; docs/model.md, "The
@@ -762,7 +772,10 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
         let release = self.hooked * due;
         self.hooked = self.hooked - release;
         if let Some(lowering) = cue.payout {
-            self.target = self.length_min + L::splat(lowering.payout);
+            // Started over the point only (then kept: the target stays where it was set).
+            let over = one - on(cue.off_drop);
+            let target = self.length_min + L::splat(lowering.payout);
+            self.target = target * over + self.target * (one - over);
             self.lowering_speed = L::splat(lowering.speed);
         }
         self.payout_speed = self.final_approach(known).min(self.lowering_speed);

@@ -64,15 +64,27 @@ impl<L: Lane> PayloadView<L> {
     }
 }
 
+/// m, how close (horizontally) the vehicle must be to a lowering's point, as it knows its
+/// position, for the winch to start paying out: PX4's acceptance radius `NAV_ACC_RAD` (its
+/// default), within which a mission's waypoint is reached and its winch item runs. A late
+/// vehicle lowers at the point, not on the way to it; one held off it by a steady wind (the
+/// delivery preset's PD, about 2.5 m downwind) still lowers.
+pub const LOWER_RADIUS: f64 = 10.0;
+
 /// What the route and the vehicle tell the payload at one step (`PayloadModel::last_metres`).
 #[derive(Clone, Copy, Debug)]
 pub struct Cue<L> {
     /// s, the step's time, and the step.
     pub t: f64,
     pub dt: f64,
-    /// The lowering in progress: the line it pays out beyond the reeled-in length
-    /// (`trajectory.lower`) and its speed, else None (the winch keeps its target).
+    /// The lowering due (`trajectory.lower`: from the lowering's scheduled start to the end of
+    /// its point's hold): the line it pays out beyond the reeled-in length and its speed, else
+    /// None (the winch keeps its target).
     pub payout: Option<crate::legs::Lowering>,
+    /// m^2, the vehicle's horizontal distance from the lowering's point, as it knows its
+    /// position, squared, less LOWER_RADIUS squared: the winch starts a lowering due only
+    /// where it is at most 0 (over the point), never on the time alone.
+    pub off_drop: L,
     /// m, the vehicle's height as it knows it (its estimate; the state's under
     /// `navigation.mode = "truth"`): the winch's final approach reads it.
     pub height: L,
