@@ -254,73 +254,13 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
         }
         let h = tr.hold.get(i).copied().unwrap_or(0.0);
         if h > 0.0 {
-            if h < MIN_STEPS * dt {
-                let key = format!("trajectory.hold[{i}]");
-                return Err(ConfigError::new(
-                    &key,
-                    format!(
-                        "{key} must be 0 or at least {MIN_STEPS} steps ({MIN_STEPS} integrator.dt = {:?} s), got {h:?}",
-                        MIN_STEPS * dt
-                    ),
-                ));
-            }
-            out.push(Segment {
-                name: format!("hold{}", i + 1),
-                kind: SegmentKind::Hold,
-                start: t,
-                arrival: t,
-                end: t + h,
-                from: i,
-                to: i,
-                profile: Profile::default(),
-                payout: 0.0,
-                rate: 0.0,
-            });
+            out.push(hold_segment(i, t, h, dt)?);
             t += h;
         }
         if i + 1 < n {
-            let profile = Profile::new(length(tr.route[i], tr.route[i + 1]), speed, accel);
-            let span = profile.duration();
-            if !span.is_finite() {
-                // A subnormal speed or acceleration: the leg would never end.
-                let (key, x) = if speed <= accel {
-                    ("trajectory.speed", speed)
-                } else {
-                    ("trajectory.acceleration", accel)
-                };
-                return Err(ConfigError::new(
-                    key,
-                    format!(
-                        "{key} is too small: the leg to trajectory.route[{}] would last {span:?} s, \
-                         got {x:?}",
-                        i + 1
-                    ),
-                ));
-            }
-            if span < MIN_STEPS * dt {
-                let key = format!("trajectory.route[{}]", i + 1);
-                return Err(ConfigError::new(
-                    &key,
-                    format!(
-                        "{key}: the leg to it lasts {span:?} s, less than {MIN_STEPS} steps \
-                         ({MIN_STEPS} integrator.dt = {:?} s): move the point or lower trajectory.acceleration",
-                        MIN_STEPS * dt
-                    ),
-                ));
-            }
-            out.push(Segment {
-                name: format!("leg{}", i + 1),
-                kind: SegmentKind::Leg,
-                start: t,
-                arrival: t + span,
-                end: t + span,
-                from: i,
-                to: i + 1,
-                profile,
-                payout: 0.0,
-                rate: 0.0,
-            });
-            t += span;
+            let leg = leg_segment(tr, i, t, speed, accel, dt)?;
+            t = leg.end;
+            out.push(leg);
         }
     }
     if t > duration + TIME_SLACK {
@@ -353,48 +293,135 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
             rate: 0.0,
         });
     }
-    if !tr.names.is_empty() {
-        if tr.names.len() != out.len() {
-            let defaults: Vec<&str> = out.iter().map(|s| s.name.as_str()).collect();
+    name_segments(&mut out, &tr.names)?;
+    Ok(out)
+}
+
+/// The hold of `h` s at point `i` from `t` (at least MIN_STEPS steps of `dt`).
+fn hold_segment(i: usize, t: f64, h: f64, dt: f64) -> Result<Segment, ConfigError> {
+    if h < MIN_STEPS * dt {
+        let key = format!("trajectory.hold[{i}]");
+        return Err(ConfigError::new(
+            &key,
+            format!(
+                "{key} must be 0 or at least {MIN_STEPS} steps ({MIN_STEPS} integrator.dt = {:?} s), got {h:?}",
+                MIN_STEPS * dt
+            ),
+        ));
+    }
+    Ok(Segment {
+        name: format!("hold{}", i + 1),
+        kind: SegmentKind::Hold,
+        start: t,
+        arrival: t,
+        end: t + h,
+        from: i,
+        to: i,
+        profile: Profile::default(),
+        payout: 0.0,
+        rate: 0.0,
+    })
+}
+
+/// The leg from point `i` to the next from `t`, by its profile at `speed` and `accel` (at
+/// least MIN_STEPS steps of `dt`, and finite).
+fn leg_segment(
+    tr: &crate::config::Trajectory,
+    i: usize,
+    t: f64,
+    speed: f64,
+    accel: f64,
+    dt: f64,
+) -> Result<Segment, ConfigError> {
+    let profile = Profile::new(length(tr.route[i], tr.route[i + 1]), speed, accel);
+    let span = profile.duration();
+    if !span.is_finite() {
+        // A subnormal speed or acceleration: the leg would never end.
+        let (key, x) = if speed <= accel {
+            ("trajectory.speed", speed)
+        } else {
+            ("trajectory.acceleration", accel)
+        };
+        return Err(ConfigError::new(
+            key,
+            format!(
+                "{key} is too small: the leg to trajectory.route[{}] would last {span:?} s, \
+                 got {x:?}",
+                i + 1
+            ),
+        ));
+    }
+    if span < MIN_STEPS * dt {
+        let key = format!("trajectory.route[{}]", i + 1);
+        return Err(ConfigError::new(
+            &key,
+            format!(
+                "{key}: the leg to it lasts {span:?} s, less than {MIN_STEPS} steps \
+                 ({MIN_STEPS} integrator.dt = {:?} s): move the point or lower trajectory.acceleration",
+                MIN_STEPS * dt
+            ),
+        ));
+    }
+    Ok(Segment {
+        name: format!("leg{}", i + 1),
+        kind: SegmentKind::Leg,
+        start: t,
+        arrival: t + span,
+        end: t + span,
+        from: i,
+        to: i + 1,
+        profile,
+        payout: 0.0,
+        rate: 0.0,
+    })
+}
+
+/// `trajectory.names` given to the segments `out` in order (one each, unique, not blank, not
+/// the whole flight's phase name).
+fn name_segments(out: &mut [Segment], names: &[String]) -> Result<(), ConfigError> {
+    if names.is_empty() {
+        return Ok(());
+    }
+    if names.len() != out.len() {
+        let defaults: Vec<&str> = out.iter().map(|s| s.name.as_str()).collect();
+        return Err(ConfigError::new(
+            "trajectory.names",
+            format!(
+                "trajectory.names must name each of the route's {} segments in order ({}), got {}",
+                out.len(),
+                abridged(&defaults),
+                names.len()
+            ),
+        ));
+    }
+    let mut seen = std::collections::HashSet::with_capacity(names.len());
+    for (i, name) in names.iter().enumerate() {
+        let key = format!("trajectory.names[{i}]");
+        if name.trim().is_empty() {
             return Err(ConfigError::new(
-                "trajectory.names",
+                &key,
+                format!("{key} must not be blank, got {name:?}"),
+            ));
+        }
+        if name == FLIGHT_PHASE {
+            return Err(ConfigError::new(
+                &key,
                 format!(
-                    "trajectory.names must name each of the route's {} segments in order ({}), got {}",
-                    out.len(),
-                    abridged(&defaults),
-                    tr.names.len()
+                    "{key} must be a name other than {FLIGHT_PHASE:?} (the whole flight's), got {name:?}"
                 ),
             ));
         }
-        let mut seen = std::collections::HashSet::with_capacity(tr.names.len());
-        for (i, name) in tr.names.iter().enumerate() {
-            let key = format!("trajectory.names[{i}]");
-            if name.trim().is_empty() {
-                return Err(ConfigError::new(
-                    &key,
-                    format!("{key} must not be blank, got {name:?}"),
-                ));
-            }
-            if name == FLIGHT_PHASE {
-                return Err(ConfigError::new(
-                    &key,
-                    format!(
-                        "{key} must be a name other than {FLIGHT_PHASE:?} (the whole flight's), got {name:?}"
-                    ),
-                ));
-            }
-            if !seen.insert(name.as_str()) {
-                return Err(ConfigError::new(
-                    &key,
-                    format!("{key} must be unique, got {name:?} twice"),
-                ));
-            }
-        }
-        for (s, name) in out.iter_mut().zip(&tr.names) {
-            s.name = name.clone();
+        if !seen.insert(name.as_str()) {
+            return Err(ConfigError::new(
+                &key,
+                format!("{key} must be unique, got {name:?} twice"),
+            ));
         }
     }
-    Ok(out)
+    for (s, name) in out.iter_mut().zip(names) {
+        s.name = name.clone();
+    }
+    Ok(())
 }
 
 /// A lowering (`payout` m beyond the reeled-in length at `rate` m/s, infinity: the winch's
