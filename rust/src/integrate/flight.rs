@@ -15,6 +15,7 @@ use crate::model::{
     Tick, Vehicle, VehicleVisitor,
 };
 use crate::navigation::{Navigate, Navigation, NavigationParams};
+use crate::start::LawStart;
 use rustfft::FftPlanner;
 use std::marker::PhantomData;
 use std::sync::atomic::Ordering;
@@ -126,7 +127,9 @@ impl Engine {
     {
         type V<L, Pay, Act, B> = Vehicle<L, Pay, Act, B>;
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
-        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
+        // Each lane's start for this law: its closed-loop equilibrium (`crate::start`).
+        let starts: Vec<&LawStart> = realisations.iter().map(|c| c.start(req.kind)).collect();
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| starts[l].state[i]));
         let mut s = x0;
         let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
         let mut wind = Winds::<L>::new(realisations, req, &fields);
@@ -144,7 +147,8 @@ impl Engine {
         let view0 = V::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
         let trig0 = B::trig(&start.frame, &view0.att);
         let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
-        let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0));
+        let held: Vec<&[(usize, f64)]> = starts.iter().map(|c| c.held.as_slice()).collect();
+        let mut law = Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0), &held);
         let mut rates = Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt));
         let mut release = Release::new();
         // The sensors and the filter, where the laws fly the estimate (every lane or none).
