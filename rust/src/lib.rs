@@ -20,6 +20,7 @@ pub mod montecarlo;
 pub mod navigation;
 pub mod scenario;
 pub mod stability;
+pub mod start;
 pub mod trajectory;
 
 pub use bindings::{EngineError, ScenarioError};

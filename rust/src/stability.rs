@@ -23,7 +23,7 @@
 //! eigenvectors, and each pole keeps an unambiguous mode label.
 
 use crate::control::{
-    AnyController, Control, Controller, ControllerKind, ControllerVisitor, Due, Sight,
+    AnyController, Control, Controller, ControllerKind, ControllerVisitor, Due, Kept, Sight,
 };
 use crate::integrate::rk4_step;
 use crate::lane::{dual::Dual, Lane, Masks};
@@ -151,6 +151,15 @@ pub trait ClosedLoop {
     /// schedule and holding between, the plant integrated as the flight loop integrates it:
     /// the state it ends in.
     fn fly_period(&self, s: &[f64]) -> Vec<f64>;
+    /// The law's integrator slots (`Controller::integrators`).
+    fn integrators(&self) -> &[usize];
+    /// The closed loop at `s` in the steady wind `w` with the law's integrators at `held` (one
+    /// per `integrators`), every loop updating: ds/dt, then each integrator's change over the
+    /// update. Zero at a closed-loop equilibrium (`crate::start`).
+    fn eval_held(&self, s: &[f64], held: &[f64], w: &[f64; 3]) -> Vec<f64>;
+    /// The loop's states of a vehicle's full state (the dependent one left out), and back.
+    fn reduced(&self, full: &[f64]) -> Vec<f64>;
+    fn expanded(&self, s: &[f64]) -> Vec<f64>;
 }
 
 /// The closed loop of one vehicle and law. The states are the vehicle's less the body's
@@ -165,6 +174,8 @@ struct Loop<B: BodyKind, Pay: Payload, Act: Actuator, C, const N: usize> {
     /// Steps between the updates of the position, attitude and inner loops, and the step (s).
     steps: [usize; 3],
     dt: f64,
+    /// The law's integrator slots (`Controller::integrators`).
+    integrators: Vec<usize>,
 }
 
 impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Loop<B, Pay, Act, C, N> {
@@ -281,6 +292,33 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, C: Control, const N: usize> Close
         }
         Self::reduce(&s)
     }
+    fn integrators(&self) -> &[usize] {
+        &self.integrators
+    }
+    fn eval_held(&self, s: &[f64], held: &[f64], w: &[f64; 3]) -> Vec<f64> {
+        let (v, s) = (&self.plain, Self::full(s));
+        let frame = B::frame(&s);
+        let (view, trig, payload) = Self::seen(v, &s, &frame);
+        let seen = Sight::of(&view, &trig, &payload);
+        let mut mem = self.ctrl.memory(&seen);
+        (self.integrators.iter().zip(held)).for_each(|(&i, &x)| mem.slots_mut()[i] = x);
+        let before = mem;
+        let u = self
+            .ctrl
+            .step(&seen, &self.r, Tick::START, Due::ALL, &mut mem);
+        let f = v.derivative(&s, &frame, &v.actuator.command(&u, Tick::START), w);
+        let change = self
+            .integrators
+            .iter()
+            .map(|&i| mem.slots()[i] - before.slots()[i]);
+        Self::reduce(&f).into_iter().chain(change).collect()
+    }
+    fn reduced(&self, full: &[f64]) -> Vec<f64> {
+        Self::reduce(full)
+    }
+    fn expanded(&self, s: &[f64]) -> Vec<f64> {
+        Self::full(s).to_vec()
+    }
 }
 
 /// The least common multiple of two step counts.
@@ -322,13 +360,15 @@ pub fn closed_loop(cfg: &Config, kind: ControllerKind, r: Reference) -> Box<dyn 
             {
                 type Output = Box<dyn ClosedLoop>;
                 fn visit<C: Controller>(self) -> Box<dyn ClosedLoop> {
+                    let ctrl = AnyController::new(self.kind, &self.cfg.control_context())
+                        .get::<C>()
+                        .clone();
                     Box::new(Loop::<B, Pay, Act, C, N> {
                         vars: self.vars,
                         plain: self.parts.vehicle_on::<B, Pay, Act>(),
                         dual: AnyVehicle::gather_on::<Dual, B, Pay, Act>(&[&self.parts]),
-                        ctrl: AnyController::new(self.kind, &self.cfg.control_context())
-                            .get::<C>()
-                            .clone(),
+                        integrators: ctrl.integrators(),
+                        ctrl,
                         r: self.r,
                         steps: self
                             .cfg

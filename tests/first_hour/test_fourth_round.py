@@ -40,6 +40,12 @@ VARIANT = [
     "--set", "payload.mass=1.5", "--set", "payload.cable_length=3", "--set",
     "trajectory.speed=12", "--set", "wind.speed=8",
 ]  # fmt: skip
+#: PX4's own vertical speed limits (the delivery preset raises them to 5 and 4 m/s for its
+#: route): the limits these tests check the route against.
+PX4_DEFAULT_VERTICAL_LIMITS = {
+    "controller.px4.MPC_Z_VEL_MAX_UP": 3.0,
+    "controller.px4.MPC_Z_VEL_MAX_DN": 1.5,
+}
 
 
 def cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
@@ -86,6 +92,7 @@ def test_the_users_px4_variant_names_the_vertical_speed_limit_and_the_leg(
             "integrator.duration": 70.0,
             "gust.end": 70.0,
         }
+        | PX4_DEFAULT_VERTICAL_LIMITS
     )
     code, out, err = cli(capsys, "mission", "--scenario", route_file(tmp_path, short),
                          "--controller", "px4", "--runs", "2", *VARIANT)  # fmt: skip
@@ -106,7 +113,9 @@ def test_each_leg_is_checked_against_the_laws_limits_by_its_own_numbers() -> Non
     against MPC_XY_VEL_MAX (equal is no margin: flagged)."""
     from quadrs.design.route_limits import route_clashes
 
-    s = quadrs.Scenario.preset("delivery").override({"trajectory.speed": 12.0})
+    s = quadrs.Scenario.preset("delivery").override(
+        {"trajectory.speed": 12.0} | PX4_DEFAULT_VERTICAL_LIMITS
+    )
     clashes = {(c.leg, c.limit): c for c in route_clashes(s, "px4")}
     a = float(s["trajectory.acceleration"])
     climb = min(12.0, math.sqrt(a * 28.0 / 2))  # 2 m -> 30 m
@@ -127,10 +136,11 @@ def test_each_leg_is_checked_against_the_laws_limits_by_its_own_numbers() -> Non
 def test_a_route_past_the_tilt_limit_is_said_before_flying() -> None:
     from quadrs.design.route_limits import route_clashes
 
-    s = quadrs.Scenario.preset("delivery").override({"trajectory.acceleration": 9.0})
+    # The preset's tilt limit is 45 deg (PX4's MPC_TILTMAX_AIR): 12 m/s^2 asks 50.7.
+    s = quadrs.Scenario.preset("delivery").override({"trajectory.acceleration": 12.0})
     tilt = [c for c in route_clashes(s, "pd") if c.limit == "controller.tilt_limit"]
     assert tilt and tilt[0].leg == "transit"
-    assert tilt[0].asked == pytest.approx(math.degrees(math.atan(9.0 / 9.81)), rel=1e-3)
+    assert tilt[0].asked == pytest.approx(math.degrees(math.atan(12.0 / 9.81)), rel=1e-3)
 
 
 # -- 2. one unit per quantity on every input ---------------------------------------------------

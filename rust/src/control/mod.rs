@@ -103,6 +103,9 @@ impl Due {
 pub trait Kept<L: Lane>: Copy {
     /// Lane `lane` set to `from`'s (a retired lane parked on the memory it started with).
     fn park(&mut self, lane: usize, from: &Self);
+    /// The slots, in order (`Controller::integrators` names some by index).
+    fn slots(&self) -> &[L];
+    fn slots_mut(&mut self) -> &mut [L];
 }
 
 impl<L: Lane, const K: usize> Kept<L> for [L; K] {
@@ -111,6 +114,12 @@ impl<L: Lane, const K: usize> Kept<L> for [L; K] {
         for (m, m0) in self.iter_mut().zip(from.iter()) {
             m.set_lane(lane, m0.lane(lane));
         }
+    }
+    fn slots(&self) -> &[L] {
+        self
+    }
+    fn slots_mut(&mut self) -> &mut [L] {
+        self
     }
 }
 
@@ -210,6 +219,13 @@ pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static
     fn new(p: &Self::Params, cfg: &ControlContext) -> Self;
     /// One vehicle per lane: lane `l` of every gain is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;
+
+    /// The memory slots (`Kept::slots`) that integrate an error, those whose gain is not zero:
+    /// at a closed-loop equilibrium each holds what balances a steady disturbance, and the
+    /// trimmed start (`crate::start`) solves for them. None for a law without integral action.
+    fn integrators(&self) -> Vec<usize> {
+        Vec::new()
+    }
 }
 
 /// Work to do with a controller whose kind is known at compile time (the flight loop, the
@@ -430,12 +446,18 @@ macro_rules! controllers {
 
         impl<L: KernelOps> Flying<L> {
             /// Law `kind` of each lane's realisation (`each[l]`), gathered one vehicle per lane,
-            /// its memory at rest at `seen`.
-            pub fn new(kind: ControllerKind, each: &[&Laws], seen: &Sight<L>) -> Self {
+            /// its memory at rest at `seen` but for the slots each lane's trimmed start sets
+            /// (`held[l]`: slot and value, `crate::start`).
+            pub fn new(
+                kind: ControllerKind,
+                each: &[&Laws],
+                seen: &Sight<L>,
+                held: &[&[(usize, f64)]],
+            ) -> Self {
                 match kind {
                     $(ControllerKind::$Ty => {
                         let laws: Vec<&$Ty> = each.iter().map(|l| l.get(kind).get::<$Ty>()).collect();
-                        Self::$Ty(InFlight::new(<$Ty as Controller>::gather::<L>(&laws), seen))
+                        Self::$Ty(InFlight::new(<$Ty as Controller>::gather::<L>(&laws), seen, held))
                     })+
                 }
             }
@@ -667,8 +689,13 @@ pub struct InFlight<C: Control<L>, L: KernelOps> {
 }
 
 impl<C: Control<L>, L: KernelOps> InFlight<C, L> {
-    fn new(law: C, seen: &Sight<L>) -> Self {
-        let mem = law.memory(seen);
+    fn new(law: C, seen: &Sight<L>, held: &[&[(usize, f64)]]) -> Self {
+        let mut mem = law.memory(seen);
+        for (lane, slots) in held.iter().enumerate() {
+            for &(i, x) in slots.iter() {
+                mem.slots_mut()[i].set_lane(lane, x);
+            }
+        }
         Self {
             law,
             mem,
@@ -767,24 +794,29 @@ impl<P: Copy> Shared<P> {
 }
 
 /// What an Euler-angle cascade (PD, SMC) holds between its loops' updates: the position loop's
-/// thrust and commanded roll and pitch, the attitude loop's torques.
-pub type EulerHeld<L> = [L; 6];
+/// thrust and commanded roll and pitch, the attitude loop's torques; then the position loop's
+/// own state (the SMC's integral of the position error, x, y, z; unused by the PD).
+pub type EulerHeld<L> = [L; 9];
 const HELD_U1: usize = 0;
 const HELD_PHI: usize = 1;
 const HELD_THETA: usize = 2;
 const HELD_TAU: usize = 3;
+/// The first of the position loop's own slots (`EulerCascade::position`'s `own`).
+pub(crate) const HELD_OWN: usize = 6;
 
 /// The held outputs of an Euler-angle cascade at the flight's start (every loop updates at its
 /// first step, so none is read before it is written).
 #[inline(always)]
 fn euler_held<L: Lane>() -> EulerHeld<L> {
-    [L::splat(0.0); 6]
+    [L::splat(0.0); 9]
 }
 
 /// An Euler-angle cascade (PD, SMC): a position loop giving the thrust and the commanded roll
 /// and pitch, and an attitude loop giving the torques toward them.
 trait EulerCascade<P> {
-    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
+    /// The thrust and the commanded roll and pitch; `own` is the position loop's own state
+    /// (`EulerHeld`'s last three slots), which it advances by one update.
+    fn position<L: Masks>(&self, seen: &Sight<L>, r: &Reference, own: &mut [L]) -> (L, L, L)
     where
         P: Param<L>;
     fn attitude<L: Lane>(&self, s: &Rigid<L>, phi_d: L, theta_d: L, r: &Reference) -> [L; 3]
@@ -840,7 +872,7 @@ use euler_control;
 /// An Euler-angle cascade's step: each loop that is due updates its held outputs in `mem` (the
 /// attitude loop from the position loop's held setpoint), and the inputs are the held ones.
 #[inline(always)]
-fn euler_step<P, C: EulerCascade<P>, L: Lane>(
+fn euler_step<P, C: EulerCascade<P>, L: Masks>(
     law: &C,
     seen: &Sight<L>,
     r: &Reference,
@@ -851,7 +883,7 @@ where
     P: Param<L>,
 {
     if due.position {
-        let (u1, phi_d, theta_d) = law.position(seen, r);
+        let (u1, phi_d, theta_d) = law.position(seen, r, &mut mem[HELD_OWN..]);
         mem[HELD_U1] = u1;
         mem[HELD_PHI] = phi_d;
         mem[HELD_THETA] = theta_d;

@@ -89,7 +89,7 @@ impl<P: Copy> EulerCascade<P> for Pd<P> {
     /// The position loop: the thrust and the commanded roll and pitch, with the swing feedback
     /// where it is on and the payload is seen.
     #[inline(always)]
-    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
+    fn position<L: Masks>(&self, seen: &Sight<L>, r: &Reference, _own: &mut [L]) -> (L, L, L)
     where
         P: Param<L>,
     {

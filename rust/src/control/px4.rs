@@ -373,6 +373,16 @@ impl Controller for Px4 {
             dt_rate, alpha_vel, alpha_rate,
         })
     }
+
+    /// The velocity integrator (x, y, z) and the rate integrator (roll, pitch, yaw), each whose
+    /// gain is not zero.
+    fn integrators(&self) -> Vec<usize> {
+        let velocity = (0..3).filter(|&i| self.vel_i[i] > 0.0).map(|i| VEL_INT + i);
+        let rate = (0..3)
+            .filter(|&i| self.rate_i[i] > 0.0)
+            .map(|i| RATE_INT + i);
+        velocity.chain(rate).collect()
+    }
 }
 
 /// N, the vehicle's full collective thrust, PX4's normalised thrust 1 (every motor's output
@@ -1064,8 +1074,7 @@ mod tests {
     }
 
     fn delivery() -> Config {
-        let text = include_str!("../../../python/quadrs/presets/delivery.toml");
-        let v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        let v = crate::scenario::tests::delivery_value();
         Config::from_json(&v.to_string()).expect("the delivery preset is valid")
     }
 

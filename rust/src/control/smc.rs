@@ -1,9 +1,12 @@
-//! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma).
+//! Sliding-mode cascade (paper eqs. 8-12): s = lambda e + edot, sat(s) = s / (|s| + gamma);
+//! optionally (`integral`, off by default and in the paper) the integral sliding surface
+//! s = lambda e + edot + k_i int e of the position channels, which holds the reference in a
+//! steady disturbance (docs/model.md, "The SMC's integral sliding surface").
 
 use super::ControlContext;
 use super::{
-    euler_control, euler_held, euler_step, position_errors, Control, Controller, Due, EulerCascade,
-    EulerHeld, Shared, Sight,
+    euler_control, euler_held, euler_step, position_errors, Control, Controller, ControllerKind,
+    Due, EulerCascade, EulerHeld, Shared, Sight, HELD_OWN,
 };
 use crate::config::params::{params, Params};
 use crate::config::ConfigError;
@@ -23,6 +26,10 @@ params! {
         eta_attitude: [f64; 3] => "1/s", "SMC reaching gains (roll, pitch, yaw)", non_negative;
         /// Boundary-layer width of sat(s) = s / (|s| + gamma), > 0.
         gamma: f64 => "m/s (x, y, z) or rad/s", "SMC boundary-layer width", positive;
+        /// Integral sliding surface s = lambda e + edot + k_i int e (x, y, z; 0: none, the
+        /// paper's law); k_i int e is limited to +/- g.
+        #[serde(default)]
+        integral: [f64; 3] => "1/s^2", "SMC integral sliding-surface gains (x, y, z)", non_negative;
     }
 }
 
@@ -39,6 +46,10 @@ pub struct Smc<P = f64> {
     eta_attitude: [P; 3],
     /// Boundary-layer width of sat(s) = s / (|s| + gamma).
     gamma: P,
+    /// 1/s^2, the integral sliding surface's gains (x, y, z; 0: none).
+    integral: [P; 3],
+    /// s, the position loop's period (the integral's step).
+    dt_position: P,
 }
 
 impl Controller for Smc {
@@ -60,27 +71,79 @@ impl Controller for Smc {
             lambda_attitude: k.lambda_attitude,
             eta_attitude: k.eta_attitude,
             gamma: k.gamma,
+            integral: k.integral,
+            dt_position: cfg
+                .controller
+                .loop_periods(ControllerKind::Smc, cfg.integrator.dt)[0],
         }
     }
 
     fn gather<L: Lane>(each: &[&Smc]) -> Smc<L> {
         gather!(|l| each[l] => Smc {
             shared, epsilon, lambda, eta, epsilon_attitude, lambda_attitude, eta_attitude, gamma,
+            integral, dt_position,
         })
+    }
+
+    fn integrators(&self) -> Vec<usize> {
+        (0..3)
+            .filter(|&i| self.integral[i] > 0.0)
+            .map(|i| HELD_OWN + i)
+            .collect()
     }
 }
 
 impl<P: Copy> Smc<P> {
-    /// lambda edot + eta s + eps sat(s): the reaching law shared by every channel.
+    /// lambda edot + eta s + eps sat(s): the reaching law shared by every channel, on the
+    /// surface s = lambda e + edot.
     #[inline(always)]
     fn reach<L: Lane>(&self, lambda: P, eta: P, eps: P, e: L, ed: L) -> L
     where
         P: Param<L>,
     {
+        let l: L = lambda.get();
+        self.reach_on(lambda, eta, eps, e * l + ed, ed)
+    }
+
+    /// The reaching law on the surface `s`.
+    #[inline(always)]
+    fn reach_on<L: Lane>(&self, lambda: P, eta: P, eps: P, s: L, ed: L) -> L
+    where
+        P: Param<L>,
+    {
         let (lambda, eta, eps): (L, L, L) = (lambda.get(), eta.get(), eps.get());
-        let s = e * lambda + ed;
         let sat = s / (s.abs() + self.gamma.get());
         ed * lambda + s * eta + sat * eps
+    }
+
+    /// A position channel's reaching law on the integral surface s = lambda e + edot + `held`.
+    #[inline(always)]
+    fn reach_integral<L: Lane>(&self, lambda: P, eta: P, eps: P, e: L, ed: L, held: L) -> L
+    where
+        P: Param<L>,
+    {
+        let l: L = lambda.get();
+        self.reach_on(lambda, eta, eps, e * l + ed + held, ed)
+    }
+
+    /// The integral sliding surface's terms k_i int e (x, y, z), each limited to +/- g, from
+    /// the integrals in `own`; then `own` advanced by e over the position loop's period, but
+    /// not past the limit (no winding beyond what the term can use). With k_i = 0 the terms
+    /// are zero and the paper's surface is unchanged.
+    #[inline(always)]
+    fn integral_terms<L: Masks>(&self, e: &[L; 3], own: &mut [L]) -> [L; 3]
+    where
+        P: Param<L>,
+    {
+        let (g, dt): (L, L) = (self.shared.g.get(), self.dt_position.get());
+        let mut terms = [L::splat(0.0); 3];
+        for i in 0..3 {
+            let ki: L = self.integral[i].get();
+            terms[i] = (own[i] * ki).clamp(-g, g);
+            let next = own[i] + e[i] * dt;
+            own[i] = L::select((next * ki).abs().cmp_le(g), next, own[i]);
+        }
+        terms
     }
 }
 
@@ -89,7 +152,7 @@ euler_control!(Smc);
 impl<P: Copy> EulerCascade<P> for Smc<P> {
     /// The position loop: the thrust and the commanded roll and pitch.
     #[inline(always)]
-    fn position<L: Lane>(&self, seen: &Sight<L>, r: &Reference) -> (L, L, L)
+    fn position<L: Masks>(&self, seen: &Sight<L>, r: &Reference, own: &mut [L]) -> (L, L, L)
     where
         P: Param<L>,
     {
@@ -99,13 +162,14 @@ impl<P: Copy> EulerCascade<P> for Smc<P> {
         let (e, ed) = position_errors(s, r);
         let ([lx, ly, lz], [hx, hy, hz], [ex, ey, ez]) = (self.lambda, self.eta, self.epsilon);
         let (g, mt): (L, L) = (sh.g.get(), sh.mt.get());
+        let held = self.integral_terms(&e, own);
 
-        let vz = self.reach(lz, hz, ez, e[2], ed[2]);
+        let vz = self.reach_integral(lz, hz, ez, e[2], ed[2], held[2]);
         let u1 = (vz + r.acc[2] + g) * mt * sh.inv_tilt(cphi, cth);
         let u1 = sh.limit_thrust(u1);
         let m_u1 = sh.mass_over_thrust(u1);
-        let ux = (self.reach(lx, hx, ex, e[0], ed[0]) + r.acc[0]) * m_u1;
-        let uy = (self.reach(ly, hy, ey, e[1], ed[1]) + r.acc[1]) * m_u1;
+        let ux = (self.reach_integral(lx, hx, ex, e[0], ed[0], held[0]) + r.acc[0]) * m_u1;
+        let uy = (self.reach_integral(ly, hy, ey, e[1], ed[1], held[1]) + r.acc[1]) * m_u1;
         let (phi_d, theta_d) = sh.desired_attitude(ux, uy, spsi, cpsi);
         (u1, phi_d, theta_d)
     }
@@ -164,5 +228,40 @@ mod tests {
         let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;
         let mt = cfg.vehicle.mass + cfg.payload.mass;
         assert!((u.u1 - mt * (v + 9.81)).abs() < 1e-12);
+    }
+
+    /// The integral surface s = lambda e + edot + k_i int e by hand, the integral advanced by
+    /// e over the position loop's period; with k_i = 0 the paper's surface.
+    #[test]
+    fn integral_surface_law_by_hand() {
+        let mut cfg = paper();
+        cfg.controller.smc.integral = [0.0, 0.0, 2.0];
+        let smc = Smc::new(&cfg.controller.smc, &cfg.control_context());
+        let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
+        s.pos[2] = 1.9;
+        s.vel[2] = 0.05;
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        let trig = crate::model::Trig::of_angles(0.0, 0.0, 0.0);
+        let seen = Sight::blind(&s, &trig);
+        let mut mem = smc.memory(&seen);
+        mem[HELD_OWN + 2] = 0.25;
+        let u = smc.step(&seen, &r, Tick::START, Due::ALL, &mut mem);
+        let (e, ed) = (0.1, -0.05);
+        let sz = 3.2 * e + ed + 2.0 * 0.25;
+        let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;
+        let mt = cfg.vehicle.mass + cfg.payload.mass;
+        assert!((u.u1 - mt * (v + 9.81)).abs() < 1e-12);
+        let dt = cfg
+            .controller
+            .loop_periods(ControllerKind::Smc, cfg.integrator.dt)[0];
+        assert!((mem[HELD_OWN + 2] - (0.25 + e * dt)).abs() < 1e-15);
+        assert_eq!(smc.integrators(), vec![HELD_OWN + 2]);
+        // Its term stops winding at g.
+        mem[HELD_OWN + 2] = 9.81 / 2.0;
+        smc.step(&seen, &r, Tick::START, Due::ALL, &mut mem);
+        assert_eq!(mem[HELD_OWN + 2], 9.81 / 2.0);
     }
 }

@@ -13,6 +13,7 @@ use crate::model::{
 };
 use crate::navigation::{NavigationParams, NAVIGATION_COLUMNS};
 use crate::scenario::{Config, ConfigError, Trim};
+use crate::start::{law_starts, LawStart};
 use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
 use std::sync::atomic::AtomicBool;
 
@@ -26,8 +27,12 @@ pub struct Realisation {
     /// Every controller kind's law (`Laws::get`): a batch flies each through the same gusts.
     pub laws: Laws,
     pub(super) wind: WindField,
-    /// The initial state (the layout's order).
+    /// The initial state (the layout's order): the plant's trim (or rest), the cross-track
+    /// line's start and where a retired lane is parked.
     pub x0: Vec<f64>,
+    /// Each law's start (`ControllerKind::ALL`'s order): its closed-loop equilibrium in the
+    /// start's steady wind (`crate::start`).
+    pub starts: Vec<LawStart>,
     /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
     /// the order of `Bound`.
     pub(super) limits: [f64; 4],
@@ -58,9 +63,14 @@ impl Realisation {
             None => WindField::new(&cfg.wind_context())?,
         };
         let x0 = initial_state(&vehicle, cfg, &wind)?;
+        let starts = match cfg.initial.trim {
+            Trim::Wind => law_starts(cfg, &x0, &|z| start_wind(&wind, z)),
+            Trim::Rest => law_starts(cfg, &x0, &|_| [0.0; 3]),
+        };
         let d = &cfg.divergence;
         Ok(Self {
             vehicle,
+            starts,
             laws: Laws::new(&cfg.control_context()),
             wind,
             x0,
@@ -77,6 +87,11 @@ impl Realisation {
     /// The gust field.
     pub fn wind(&self) -> &WindField {
         &self.wind
+    }
+
+    /// Where law `kind` starts (`crate::start`).
+    pub fn start(&self, kind: ControllerKind) -> &LawStart {
+        &self.starts[kind as usize]
     }
 }
 

@@ -15,6 +15,7 @@ use crate::model::{
     PayloadView, Rigid, State, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::navigation::{Navigate, Navigation, NavigationParams};
+use crate::start::LawStart;
 use crate::trajectory::Reference;
 use rustfft::FftPlanner;
 use std::marker::PhantomData;
@@ -183,13 +184,16 @@ impl Engine {
         Act: ActuatorModel<L>,
     {
         assert_eq!(self.vars.len(), N, "the engine's layout is the vehicle's");
-        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| realisations[l].x0[i]));
+        // Each lane's start for this law: its closed-loop equilibrium (`crate::start`).
+        let starts: Vec<&LawStart> = realisations.iter().map(|c| c.start(req.kind)).collect();
+        let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| starts[l].state[i]));
         let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
         let laws: Vec<&LawLimits> = realisations.iter().map(|c| &c.law_limits).collect();
         let start = Attitude::<L, B>::of(&x0);
         let view0 = Vehicle::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
         let trig0 = B::trig(&start.frame, &view0.att);
         let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
+        let held: Vec<&[(usize, f64)]> = starts.iter().map(|c| c.held.as_slice()).collect();
         let navs: Vec<&NavigationParams> = realisations
             .iter()
             .filter_map(|c| c.navigation.as_ref())
@@ -201,7 +205,7 @@ impl Engine {
             acc: PhaseAccumulator::new(&self.phases, self.dt, self.decimation, self.steps, &laws),
             ends: Ends::new(L::LANES),
             runaway: Runaway::<L, N>::new::<B>(&self.vars, realisations),
-            law: Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0)),
+            law: Flying::<L>::new(req.kind, &each, &Sight::blind(&view0, &trig0), &held),
             rates: Rates::new(self.cfg.controller.loop_steps(req.kind, self.dt)),
             nav: (!navs.is_empty()).then(|| {
                 Navigation::<L>::starting_at(&navs, req.seed, req.indices, &view0, g, record)

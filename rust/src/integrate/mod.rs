@@ -24,7 +24,9 @@ mod status;
 mod steps;
 mod trace;
 
-pub use engine::{initial_state, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
+pub use engine::{
+    initial_state, start_wind, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES,
+};
 pub use entry::LoopEntry;
 pub use rk4::{rk4_advance, rk4_step};
 pub use status::ExitStatus;

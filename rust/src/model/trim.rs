@@ -112,8 +112,7 @@ mod tests {
 
     /// The delivery preset on the paper's body.
     fn delivery() -> Config {
-        let text = include_str!("../../../python/quadrs/presets/delivery.toml");
-        let mut v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        let mut v = crate::scenario::tests::delivery_value();
         // On the paper's body (the checks below write its drag law): the rigid body's drag
         // and the rotors' aerodynamics out.
         v["vehicle"]["body"] = "paper".into();

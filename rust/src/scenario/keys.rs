@@ -113,9 +113,7 @@ mod tests {
 
     /// The paper and delivery presets, as the engine reads them.
     fn presets() -> Vec<Config> {
-        let delivery: serde_json::Value =
-            toml::from_str(include_str!("../../../python/quadrs/presets/delivery.toml"))
-                .expect("delivery.toml parses");
+        let delivery = crate::scenario::tests::delivery_value();
         let delivery = Config::from_json(&delivery.to_string()).expect("delivery is valid");
         vec![paper(), delivery]
     }

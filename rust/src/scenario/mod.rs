@@ -468,6 +468,27 @@ pub(crate) mod tests {
         Config::from_json(&paper_value().to_string()).expect("paper preset is valid")
     }
 
+    /// The delivery preset as the Python package reads it: a controller table it gives in part
+    /// (`[controller.px4]`, the keys it changes) completed from the kind's defaults, as
+    /// `quadrs.scenario.tables` completes it.
+    pub(crate) fn delivery_value() -> serde_json::Value {
+        let text = include_str!("../../../python/quadrs/presets/delivery.toml");
+        let mut v: serde_json::Value = toml::from_str(text).expect("delivery.toml parses");
+        for (name, table) in crate::control::ControllerConfig::default_tables() {
+            let given = v["controller"]
+                .get_mut(name)
+                .and_then(|t| t.as_object_mut());
+            if let (Some(json), Some(given)) = (table, given) {
+                let defaults: serde_json::Map<String, serde_json::Value> =
+                    serde_json::from_str(&json).expect("a kind's defaults parse");
+                for (key, x) in defaults {
+                    given.entry(key).or_insert(x);
+                }
+            }
+        }
+        v
+    }
+
     #[test]
     fn paper_preset_parses_and_round_trips() {
         let c = paper();
