@@ -126,3 +126,60 @@ def test_no_engine_file_is_over_the_limit():
     assert not over, f"engine files over {LIMIT} code lines (split them by concern): " + ", ".join(
         f"{path} ({n})" for n, path in over
     )
+
+
+#: Lines a Rust function may span, its signature to its closing brace (as Python's,
+#: tests/test_module_sizes.py): a longer one is split into named pieces.
+MAX_FUNCTION_LINES = 120
+_FN = re.compile(r"\s*(pub(\([^)]*\))?\s+)?(const\s+)?(unsafe\s+)?fn\s+(\w+)")
+
+
+def function_spans(text: str) -> list[tuple[str, int, int]]:
+    """Each `fn` in `text` (outside `#[cfg(test)]` modules or not): its name, first line and
+    the lines it spans, from its signature to its body's closing brace (a declaration without
+    a body, `fn f();`, spans none)."""
+    lines = text.splitlines()
+    out = []
+    for i, line in enumerate(lines):
+        m = _FN.match(line)
+        if not m:
+            continue
+        depth, in_block, opened = 0, False, False
+        for j in range(i, len(lines)):
+            change, in_block = _braces(lines[j], in_block)
+            depth += change
+            opened = opened or change > 0 or "{" in lines[j].split("//")[0]
+            if not opened and lines[j].split("//")[0].rstrip().endswith(";"):
+                break
+            if opened and depth <= 0:
+                out.append((m.group(5), i + 1, j - i + 1))
+                break
+    return out
+
+
+def test_the_function_rule():
+    text = (
+        """fn short() {
+    let s = "}";
+}
+
+fn declared();
+
+pub(crate) fn long(x: u8) -> u8 {
+"""
+        + "    x;\n" * 200
+        + "}\n"
+    )
+    spans = function_spans(text)
+    assert spans == [("short", 1, 3), ("long", 7, 202)]
+
+
+def test_no_engine_function_is_over_the_limit():
+    root = SOURCE.parents[1]
+    over = [
+        f"{p.relative_to(root).as_posix()}:{line} {name} ({n} lines)"
+        for p in engine_files()
+        for name, line, n in function_spans(p.read_text())
+        if n > MAX_FUNCTION_LINES
+    ]
+    assert not over, f"engine functions over {MAX_FUNCTION_LINES} lines: " + ", ".join(over)

@@ -18,6 +18,7 @@ pub mod metrics;
 pub mod model;
 pub mod montecarlo;
 pub mod navigation;
+pub mod rk4;
 pub mod scenario;
 pub mod stability;
 pub mod start;

@@ -25,12 +25,12 @@
 use crate::control::{
     AnyController, Control, Controller, ControllerKind, ControllerVisitor, Due, Kept, Sight,
 };
-use crate::integrate::rk4_step;
 use crate::lane::{dual::Dual, Lane, Masks};
 use crate::model::{
     dispatch, ix, Actuator, ActuatorModel, AnyVehicle, Axis, BodyKind, Part, Payload, PayloadModel,
     PayloadView, Rigid, State, StateVar, Tick, Trig, Vehicle, VehicleVisitor,
 };
+use crate::rk4::rk4_step;
 use crate::scenario::{Config, GustComponent};
 use crate::trajectory::Reference;
 use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};

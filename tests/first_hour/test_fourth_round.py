@@ -352,9 +352,10 @@ def test_the_first_legs_swing_starts_at_its_steady_value(windy: quadrs.Scenario)
         assert rest.trace["swing"].to_numpy()[0] == 0.0
         off = np.max(np.abs(early["swing"].to_numpy() - swing[0]))
         assert off < math.radians(0.3) < np.min(np.abs(early_rest - swing[0])), law
-        # In balance, one step in the vehicle and the parcel have barely moved; from rest the
+        # In balance, one step in the vehicle and the parcel have barely moved (under 0.1 m/s^2
+        # over the preset's 2 ms step: px4's first update of its 50 Hz loop); from rest the
         # wind's drag has already sped them up (about 3 m/s^2 on the vehicle).
-        for start, most, least in ((flight, 0.0, 1e-4), (rest, 1e-3, math.inf)):
+        for start, most, least in ((flight, 0.0, 2e-4), (rest, 1e-3, math.inf)):
             step = start.trace.iloc[1]
             moved = max(math.hypot(step.vx, step.vy, step.vz),
                         math.hypot(step.vxc, step.vyc, step.vzc))  # fmt: skip

@@ -168,6 +168,8 @@ def _px4_hover(sc: quadrs.Scenario) -> Any:
         "trajectory.speed": None, "trajectory.acceleration": None,
         "trajectory.names": None, "phases": [{"name": "all", "start": 0.0, "end": 6.0}],
         "integrator.duration": 6.0, "gust.enabled": False, "wind.speed": 0.0,
+        # From rest at 2 m (a trimmed start is the law's equilibrium: at its reference).
+        "initial.trim": "rest",
     })  # fmt: skip
     return quadrs.simulate(still, "px4", record_every=1)
 

@@ -68,7 +68,9 @@ def test_the_pd_flies_the_mission_leg_by_leg(delivery) -> None:
     assert (m.drop(index=["transit", FLIGHT_PHASE])["near_tilt_time"] == 0.0).all()
     # At the final approach's 0.3 m/s (the winch's 1 m/s before the sixth round), give or
     # take the vehicle's own motion in the gusts: a drop height of a centimetre at most.
-    assert 0.1 < m.loc["lower", "touchdown_speed"] < 0.5
+    assert (
+        0.05 < m.loc["lower", "touchdown_speed"] < 0.5
+    )  # the approach 0.3 m/s, the vehicle bobbing
     assert m.loc["lower", "touchdown_drop_height"] < 0.013
     assert m.loc["lower", "touchdown_miss"] < 3.0
     lower, drop = delivery.route.segments[4:6]

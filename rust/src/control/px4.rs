@@ -217,10 +217,6 @@ pub struct Px4<P = f64> {
     alpha_rate: P,
 }
 
-fn deg(x: f64) -> f64 {
-    x.to_radians()
-}
-
 fn lowpass_weight(dt: f64, fc: f64) -> f64 {
     dt / (dt + 1.0 / (2.0 * std::f64::consts::PI * fc))
 }
@@ -235,7 +231,7 @@ impl Controller for Px4 {
         Some(Px4Params::default())
     }
 
-    fn validate(k: &Px4Params, key: &str, cfg: &ControlContext) -> Result<(), ConfigError> {
+    fn validate(k: &Px4Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
         k.check_bounds(key)?;
         let range = |name: &str, x: f64, lo: f64, hi: f64, what: &str| {
             if x > lo && x < hi {
@@ -270,27 +266,16 @@ impl Controller for Px4 {
                 "0 (the vehicle's own) or between 0 and MPC_THR_MAX (exclusive)",
             )?;
         }
-        let hover = hover_thrust(k, cfg);
-        if hover >= k.MPC_THR_MAX {
-            // Only the vehicle's own can get here (a set value is checked above).
-            return Err(ConfigError::new(
-                format!("{key}.MPC_THR_HOVER"),
-                format!(
-                    "{key}.MPC_THR_HOVER: the vehicle's own hover thrust (its weight over its \
-                     full thrust, {:?} N) is {hover:?}, not below MPC_THR_MAX ({:?}): it cannot \
-                     hover",
-                    full_thrust(cfg),
-                    k.MPC_THR_MAX
-                ),
-            ));
-        }
-        if k.MPC_THR_MIN >= hover {
-            // At a least thrust at or above hover the vehicle cannot descend: it climbs away.
+        // A set hover thrust below the least thrust cannot descend: it climbs away. (The
+        // vehicle's own, 0, is its weight over its full thrust: a thrust too small to hover is
+        // the actuators' and `thrust_max`'s own checks, named by their keys, and those run for
+        // every law, px4 flown or not.)
+        if k.MPC_THR_HOVER > 0.0 && k.MPC_THR_MIN >= k.MPC_THR_HOVER {
             return Err(ConfigError::new(
                 format!("{key}.MPC_THR_MIN"),
                 format!(
                     "{key}.MPC_THR_MIN must be below MPC_THR_HOVER ({:?}): at a least thrust at or above hover the vehicle cannot descend, got {:?}",
-                    hover, k.MPC_THR_MIN
+                    k.MPC_THR_HOVER, k.MPC_THR_MIN
                 ),
             ));
         }
@@ -335,7 +320,7 @@ impl Controller for Px4 {
             vel_max_xy: k.MPC_XY_VEL_MAX,
             vel_max_up: k.MPC_Z_VEL_MAX_UP,
             vel_max_dn: k.MPC_Z_VEL_MAX_DN,
-            acc_max_xy: g * deg(k.MPC_TILTMAX_AIR).tan(),
+            acc_max_xy: g * k.MPC_TILTMAX_AIR.to_radians().tan(),
             thr_hover: hover_thrust(k, cfg),
             vel_int_hover: hover_integrator(k, cfg),
             thr_min: k.MPC_THR_MIN,
@@ -344,9 +329,9 @@ impl Controller for Px4 {
             att_p: [k.MC_ROLL_P, k.MC_PITCH_P, k.MC_YAW_P / k.MC_YAW_WEIGHT],
             yaw_w: k.MC_YAW_WEIGHT,
             rate_max: [
-                deg(k.MC_ROLLRATE_MAX),
-                deg(k.MC_PITCHRATE_MAX),
-                deg(k.MC_YAWRATE_MAX),
+                k.MC_ROLLRATE_MAX.to_radians(),
+                k.MC_PITCHRATE_MAX.to_radians(),
+                k.MC_YAWRATE_MAX.to_radians(),
             ],
             rate_p: [k.MC_ROLLRATE_P, k.MC_PITCHRATE_P, k.MC_YAWRATE_P],
             rate_i: [k.MC_ROLLRATE_I, k.MC_PITCHRATE_I, k.MC_YAWRATE_I],

@@ -2,7 +2,6 @@
 
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
 use super::entry::LoopEntry;
-use super::rk4::rk4_advance;
 use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, TensionNoise, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Flying, Laws, Sight};
@@ -15,6 +14,7 @@ use crate::model::{
     PayloadView, Rigid, State, Tick, Trig, Vehicle, VehicleVisitor,
 };
 use crate::navigation::{Navigate, Navigation, NavigationParams};
+use crate::rk4::rk4_advance;
 use crate::start::LawStart;
 use crate::trajectory::Reference;
 use rustfft::FftPlanner;

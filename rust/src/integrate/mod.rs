@@ -6,7 +6,7 @@
 //! payload's outputs, the layout gives the state names and runaway bounds, the law
 //! (`control::Flying`) its inputs.
 //!
-//! `rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
+//! `crate::rk4` is the step; `flight` the loop over a lane-set (`fly_kinds` dispatches on the vehicle
 //! kinds, `fly_vehicle` gathers the lanes' parameters, `fly_loop` flies them, choosing the
 //! request's law once per step); `steps` the loop's named steps (the reference's leg, the
 //! wind, the loops' schedule, the last metres, the runaway checks), inlined into it (the
@@ -19,16 +19,15 @@
 mod engine;
 mod entry;
 mod flight;
-mod rk4;
 mod status;
 mod steps;
 mod trace;
 
+pub use crate::rk4::{rk4_advance, rk4_step};
 pub use engine::{
     initial_state, start_wind, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES,
 };
 pub use entry::LoopEntry;
-pub use rk4::{rk4_advance, rk4_step};
 pub use status::ExitStatus;
 pub use trace::{trace_columns, Trace, SIGNAL_COLUMNS};
 

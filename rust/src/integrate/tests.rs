@@ -1,6 +1,5 @@
 use super::engine::LaneResult;
 use super::engine::{Engine, FlightRequest, MAX_LANES};
-use super::rk4::rk4_step;
 use super::status::{classify, ExitStatus};
 use super::trace::trace_columns;
 use crate::control::ControllerKind;
@@ -10,6 +9,7 @@ use crate::model::actuator::Ideal;
 use crate::model::paper_ix::{self as ix, NX};
 use crate::model::payload::Spring;
 use crate::model::{state_from_fn, AnyVehicle, Inputs, PaperVehicle, State, Trig};
+use crate::rk4::rk4_step;
 use crate::scenario::tests::paper;
 use crate::scenario::Config;
 use rustfft::FftPlanner;

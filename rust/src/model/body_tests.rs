@@ -3,10 +3,10 @@
 //! quaternion's Euler angles and rotation matrix agree with the paper's; the body-axis drag.
 
 use super::*;
-use crate::integrate::rk4_step;
 use crate::model::actuator::Ideal;
 use crate::model::payload::Cable;
 use crate::model::{AnyVehicle, Inputs, State, Vehicle};
+use crate::rk4::rk4_step;
 use crate::scenario::tests::paper;
 use crate::scenario::{Config, PayloadKind};
 

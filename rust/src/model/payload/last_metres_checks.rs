@@ -80,6 +80,13 @@ impl Cable {
             non_negative("payload.release_after", t)?;
         }
         Self::validate_slack_hook(c)?;
+        Self::validate_release(c, cfg)?;
+        Self::validate_hanging_clear(c, cfg, min)
+    }
+
+    /// `payload.release`: a time or a height at least 0; a drop or a release on touchdown
+    /// needs a ground the parcel meets.
+    fn validate_release(c: &CableParams, cfg: &ModelContext) -> Result<(), ConfigError> {
         match c.release {
             Some(Release::At(t)) => non_negative("payload.release", t)?,
             Some(Release::Height(h)) => {
@@ -103,6 +110,16 @@ impl Cable {
             }
             _ => {}
         }
+        Ok(())
+    }
+
+    /// With a ground, the parcel starts hanging clear of it (the line's starting length
+    /// `min`, its stretch under the parcel's weight and the hook's offset below the vehicle).
+    fn validate_hanging_clear(
+        c: &CableParams,
+        cfg: &ModelContext,
+        min: f64,
+    ) -> Result<(), ConfigError> {
         if cfg.ground.stiffness.is_some() {
             // The parcel starts hanging clear of the ground.
             let p = &cfg.payload;
