@@ -231,7 +231,7 @@ impl Controller for Px4 {
         Some(Px4Params::default())
     }
 
-    fn validate(k: &Px4Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
+    fn validate(k: &Px4Params, key: &str, cfg: &ControlContext) -> Result<(), ConfigError> {
         k.check_bounds(key)?;
         let range = |name: &str, x: f64, lo: f64, hi: f64, what: &str| {
             if x > lo && x < hi {
@@ -266,16 +266,19 @@ impl Controller for Px4 {
                 "0 (the vehicle's own) or between 0 and MPC_THR_MAX (exclusive)",
             )?;
         }
-        // A set hover thrust below the least thrust cannot descend: it climbs away. (The
-        // vehicle's own, 0, is its weight over its full thrust: a thrust too small to hover is
-        // the actuators' and `thrust_max`'s own checks, named by their keys, and those run for
-        // every law, px4 flown or not.)
-        if k.MPC_THR_HOVER > 0.0 && k.MPC_THR_MIN >= k.MPC_THR_HOVER {
+        // At a least thrust at or above hover the vehicle cannot descend: it climbs away. The
+        // hover thrust set, or the vehicle's own (0: its weight over its full thrust) where the
+        // least thrust is set away from PX4's default: a vehicle too strong for the default
+        // least thrust is refused only for px4's own keys, not for every law (a thrust too
+        // small to hover is the actuators' and `thrust_max`'s checks, named by their keys).
+        let hover = hover_thrust(k, cfg);
+        let judged = k.MPC_THR_HOVER > 0.0 || k.MPC_THR_MIN != Px4Params::default().MPC_THR_MIN;
+        if judged && k.MPC_THR_MIN >= hover {
             return Err(ConfigError::new(
                 format!("{key}.MPC_THR_MIN"),
                 format!(
                     "{key}.MPC_THR_MIN must be below MPC_THR_HOVER ({:?}): at a least thrust at or above hover the vehicle cannot descend, got {:?}",
-                    k.MPC_THR_HOVER, k.MPC_THR_MIN
+                    hover, k.MPC_THR_MIN
                 ),
             ));
         }
