@@ -226,7 +226,7 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
     lat, lon = HOME[0], HOME[1]
     path = _plan(tmp_path, [
         _item(22, 0, 0, 0, None, None, None, 6.0),     # take off to 6 m, here
-        _item(16, 8.0, 0, 0, None, lat, lon, 6.0),     # hold 8 s there
+        _item(16, 8.0, 0, 0, None, lat, lon, 6.0),     # hold 8 s there, then its items
         _item(42600, 1, 1, 5.0, 0.5),                  # DO_WINCH: pay out 5 m at 0.5 m/s
         _item(211, 1, 0),                              # DO_GRIPPER: release
         _item(42600, 1, 6),                            # DO_WINCH: retract
@@ -235,17 +235,20 @@ def test_winch_and_gripper_items_become_the_route_written_by_hand(tmp_path: Path
     base = lowering(5.0)
     flown = read_plan(path, start_height=6.0).apply(base)
     by_hand = base.override({"trajectory.route": [[0.0, 0.0, 6.0], [0.0, 0.0, 7.0]],
-                             "trajectory.lower": [5.0, 0.0], "trajectory.hold": [8.0, 0.0],
+                             "trajectory.lower": [5.0, 0.0], "trajectory.hold": [0.0, 0.0],
+                             "trajectory.arrival_hold": [8.0, 0.0],
                              "payload.release": "touchdown", "payload.winch_speed": 0.5,
                              "initial.position": [0.0, 0.0, 6.0], "trajectory.speed": 1.0,
                              "integrator.duration": flown["integrator.duration"]})  # fmt: skip
-    for key in ("trajectory.route", "trajectory.lower", "trajectory.hold", "payload.release",
-                "payload.winch_speed", "initial.position"):  # fmt: skip
+    for key in ("trajectory.route", "trajectory.lower", "trajectory.hold",
+                "trajectory.arrival_hold", "payload.release", "payload.winch_speed",
+                "initial.position"):  # fmt: skip
         assert flown[key] == by_hand[key], key
     assert flown.route == by_hand.route
-    # The flight is long enough for the lowering, the hold and the climb.
+    # The flight is long enough for the hold (flown first, as PX4 does), the lowering and the
+    # climb.
     segments = flown.route.segments
-    assert [s.kind for s in segments][:3] == ["lower", "hold", "leg"]
+    assert [s.kind for s in segments][:3] == ["hold", "lower", "leg"]
     assert flown["integrator.duration"] >= segments[2].arrival
     # What is not understood is refused, naming the item.
     for bad, where in (([_item(42600, 1, 3)], "mission.items[2]: DO_WINCH action 3"),

@@ -1,7 +1,7 @@
 """A ``.plan``'s winch and gripper items as PX4 and MAVLink run them (docs/guarantees.md,
-quadrs.scenario.plan_payload): each DO_WINCH rate its own lowering's, a retract before the
-release in its order, a release opening where the mission reaches it, and PX4's
-land-and-release delivery flown."""
+quadrs.scenario.plan_payload): a waypoint's hold flown before its items, each DO_WINCH rate
+its own lowering's, a retract before the release in its order, a release opening where the
+mission reaches it, and PX4's land-and-release delivery flown."""
 
 from __future__ import annotations
 
@@ -26,6 +26,10 @@ RELEASE = _item(211, 1, 0)
 RETRACT = _item(42600, 1, 6)
 
 
+def _delay(seconds: float) -> dict[str, Any]:
+    return _item(93, seconds)
+
+
 def _winch(length: float, rate: float | None = None) -> dict[str, Any]:
     return _item(42600, 1, 1, length, rate)
 
@@ -36,6 +40,33 @@ def _flown(tmp_path: Path, items: list[dict[str, Any]], **extra: Any) -> quadrs.
 
 def _release(sc: quadrs.Scenario) -> float:
     return float(fly(sc).metrics.set_index("phase").loc["flight", "release_time"])
+
+
+def test_a_waypoints_hold_is_flown_before_its_items(tmp_path: Path) -> None:
+    """OVER holds 2 s, then lowers 2 m, then a NAV_DELAY of 3 s: PX4 holds at the waypoint
+    first, runs the DO_WINCH, then the delay (before: the 2 s hold followed the lowering,
+    merged with the delay). The line stays in while the vehicle holds on arrival."""
+    sc = _flown(tmp_path, [TAKEOFF, OVER, _winch(2.0), _delay(3.0), AWAY])
+    # The take-off and OVER are home at 6 m: the route's first point, then AWAY.
+    assert sc["trajectory.arrival_hold"] == [2.0, 0.0] and sc["trajectory.hold"] == [3.0, 0.0]
+    names = [g.name for g in sc.route.segments]
+    assert names[:4] == ["arrive1", "lower1", "hold1", "leg1"]
+    arrive, lower, hold, leg = sc.route.segments[:4]
+    assert arrive.start == 0.0 and lower.start == arrive.end == 2.0
+    assert hold.start == lower.end and hold.end == hold.start + 3.0 == leg.start
+    tr = fly(sc, record_every=10).trace
+    held = tr[(tr.index > arrive.start + 0.1) & (tr.index < arrive.end - 0.1)]
+    assert held["line_rate"].abs().max() < 1e-9
+    assert tr[(tr.index > lower.start) & (tr.index < lower.end)]["line_rate"].max() > 0.4
+    # A drop from a waypoint that holds: the hook opens as the hold ends (the mission reaches
+    # the release after it), not on arrival.
+    drop = _flown(tmp_path, [TAKEOFF, OVER, RELEASE, AWAY])
+    (arrive,) = [g for g in drop.route.segments if g.name.startswith("arrive")]
+    assert drop["payload.release"] == arrive.end == arrive.start + 2.0
+    # A point without items keeps its hold as before (after arrival, named hold).
+    plain = _flown(tmp_path, [TAKEOFF, OVER, AWAY])
+    assert "arrival_hold" not in plain.to_dict()["trajectory"]
+    assert plain["trajectory.hold"] == [2.0, 0.0]
 
 
 def test_each_winch_rate_is_its_own_lowerings(tmp_path: Path) -> None:

@@ -53,6 +53,8 @@ class _Route(Protocol):
 
     def to(self, point: tuple[float, float, float], hold: float = 0.0) -> None: ...
 
+    def items_here(self) -> None: ...
+
 
 class PlanPayload:
     """The payload items of one plan, in the order they are flown."""
@@ -88,6 +90,7 @@ class PlanPayload:
                 if self.lowered_at is not None and self.release is None:
                     # Before the release: the parcel reeled back in, in the plan's order (after
                     # it, what the winch does anyway).
+                    route.items_here()
                     route.retract[here] = True
                     self.lowered_at = None
                 return
@@ -100,6 +103,7 @@ class PlanPayload:
             if action == WINCH_DELIVER:
                 self.delivers.append(label)
             _on_the_pad(route, where, "DO_WINCH lowers the parcel")
+            route.items_here()
             length = _number(params[2], f"{where}: DO_WINCH params[2] (length, m)", 0.0)
             if length <= 0:
                 raise RouteFileError(
@@ -140,6 +144,7 @@ class PlanPayload:
             here = len(route.lower) - 1
         else:
             _on_the_pad(route, where, "DO_GRIPPER releases the parcel")
+            route.items_here()
             # Lowered here: once it rests; else where it stands (in flight: a drop).
             self.release = "touchdown" if self.lowered_at == here else "drop"
         self.drop_point = here

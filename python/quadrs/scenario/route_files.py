@@ -47,8 +47,11 @@ flown in mission order, ``DO_JUMP`` included; what each command becomes:
   A plan decides the hook: without a ``DO_GRIPPER`` release it never opens (the base
   scenario's ``payload.release`` is dropped). A lowering before take-off or after landing, a
   release before take-off, is refused (it would be flown at the pad), as is any other winch or
-  gripper action, naming its item (quadrs.scenario.plan_payload). At a point with a lowering
-  the point's hold follows the lowering.
+  gripper action, naming its item (quadrs.scenario.plan_payload). At a point with payload
+  items the holds before them (the waypoint's ``param1``, a ``NAV_DELAY``) are flown on
+  arrival, before the items (``trajectory.arrival_hold``), as PX4 holds at a waypoint before
+  it runs the items that follow; a ``NAV_DELAY`` after them holds after them
+  (``trajectory.hold``).
 - Commands that neither move the vehicle nor act on its payload (camera, gimbal, region of
   interest, video, ``CONDITION_DELAY``/``DISTANCE``/``YAW``, ``DO_LAND_START``): not flown,
   named in a warning.
@@ -88,7 +91,7 @@ from quadrs.scenario.plan_payload import (
     set_down_height,
     winch_speeds,
 )
-from quadrs.scenario.route_timing import lowering_time, time_bound
+from quadrs.scenario.route_timing import hold_time, lowering_time, time_bound
 
 _S = TypeVar("_S", bound="RoutableScenario")
 
@@ -194,6 +197,9 @@ class RouteFile:
     lower_rate: tuple[float | None, ...] = ()
     retract: tuple[bool, ...] = ()
     lowered_before: bool = False
+    #: s, per point: the hold on arrival, before the point's items (a waypoint's hold, which
+    #: PX4 flies before them); ``hold`` is then the hold after them (empty: none before).
+    arrival_hold: tuple[float, ...] = ()
 
     @property
     def length(self) -> float:
@@ -213,6 +219,7 @@ class RouteFile:
             "trajectory.interpolation": "route",
             "trajectory.route": points,
             "trajectory.hold": list(self.hold),
+            "trajectory.arrival_hold": list(self.arrival_hold) if any(self.arrival_hold) else None,
             "trajectory.names": None,
             "initial.position": points[0],
         }
@@ -246,11 +253,13 @@ class RouteFile:
             long = base.override({**route, "integrator.duration": probe, **timing})
             legs = long.route.legs if long.route is not None else []
             lowerings = long.route.lowerings if long.route is not None else []
-            needed = (sum(g.arrival - g.start for g in legs) + sum(long["trajectory.hold"])
+            needed = (sum(g.arrival - g.start for g in legs) + hold_time(long.to_dict())
                       + sum(g.end - g.start for g in lowerings))  # fmt: skip
             dt = float(long["integrator.dt"])
             at = self.drop_point or 0
-            arrival = legs[at - 1].arrival if at > 0 else 0.0
+            # The mission reaches the point's items after its hold on arrival.
+            held = self.arrival_hold[at] if at < len(self.arrival_hold) else 0.0
+            arrival = (legs[at - 1].arrival if at > 0 else 0.0) + held
             if self.release == "drop" and "payload.release" not in extra:
                 # The hook opens where the mission reaches the item (PX4 runs it there): the
                 # reference's arrival at the point, after its lowering and retract; the
@@ -475,12 +484,16 @@ def _flown_order(items: list[Any], commands: list[int], where: str) -> Iterator[
 
 
 class _Builder:
-    """Points with a hold at each; a point on top of the last one adds its hold to it."""
+    """Points with a hold at each; a point on top of the last one adds its hold to it. A hold
+    before the point's first payload item is its hold on arrival (:meth:`items_here`)."""
 
     def __init__(self, source: str) -> None:
         self.source = source
         self.points: list[Point] = []
         self.hold: list[float] = []
+        self.arrival_hold: list[float] = []
+        #: Per point: whether a payload item has been flown there (later holds follow it).
+        self.itemised: list[bool] = []
         self.lower: list[float] = []
         self.lower_rate: list[float | None] = []
         self.retract: list[bool] = []
@@ -491,15 +504,25 @@ class _Builder:
         else:
             self.points.append(point)
             self.hold.append(hold)
+            self.arrival_hold.append(0.0)
+            self.itemised.append(False)
             self.lower.append(0.0)
             self.lower_rate.append(None)
             self.retract.append(False)
+
+    def items_here(self) -> None:
+        """A payload item at the current point: the point's hold so far was flown on arrival,
+        before it (PX4 holds at a waypoint, then runs the items that follow it)."""
+        if not self.itemised[-1]:
+            self.itemised[-1] = True
+            self.arrival_hold[-1], self.hold[-1] = self.hold[-1], 0.0
 
     def route(self, speed: float | None) -> RouteFile:
         if len(self.points) < 2:
             raise RouteFileError(f"{self.source}: the route goes nowhere (one point)")
         lower = tuple(self.lower) if any(x > 0 for x in self.lower) else ()
-        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower)
+        return RouteFile(tuple(self.points), tuple(self.hold), speed, self.source, lower,
+                         arrival_hold=tuple(self.arrival_hold))  # fmt: skip
 
 
 #: What flying one mission item does to the route: (route, params, item, where).

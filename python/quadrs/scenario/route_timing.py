@@ -64,6 +64,12 @@ def lowering_speed(data: Mapping[str, Any], v: float) -> float:
     return min(v, float(slow)) if slow is not None else v
 
 
+def hold_time(data: Mapping[str, Any]) -> float:
+    """s, the route's holds in all (``trajectory.hold`` and ``trajectory.arrival_hold``)."""
+    keys = ("trajectory.hold", "trajectory.arrival_hold")
+    return sum(sum(_numbers(dotted_value(data, k, None))) for k in keys)
+
+
 def time_bound(data: Mapping[str, Any]) -> float | None:
     """Seconds the route of ``data`` (a scenario's nested mapping) surely takes less than: a
     leg of length L at cruise speed V and acceleration bound A takes less than L/V + 2V/A, a
@@ -75,7 +81,7 @@ def time_bound(data: Mapping[str, Any]) -> float | None:
         speed = float(dotted_value(data, "trajectory.speed"))
         accel = float(dotted_value(data, "trajectory.acceleration", 1.0))
         points = [tuple(float(x) for x in p) for p in dotted_value(data, "trajectory.route")]
-        t = sum(_numbers(dotted_value(data, "trajectory.hold", [])))
+        t = hold_time(data)
         lower = [p for p in _numbers(dotted_value(data, "trajectory.lower", [])) if p > 0]
         if lower:
             v = float(dotted_value(data, "payload.winch_speed", 1.0))
@@ -110,8 +116,7 @@ def route_time(data: Mapping[str, Any]) -> float | None:
     except (ValueError, TypeError):
         return None
     route = Route.from_engine(rows)
-    holds = sum(_numbers(dotted_value(data, "trajectory.hold", [])))
-    return (sum(s.arrival - s.start for s in route.legs) + holds
+    return (sum(s.arrival - s.start for s in route.legs) + hold_time(data)
             + sum(s.end - s.start for s in route.lowerings))  # fmt: skip
 
 

@@ -140,8 +140,9 @@ def _resolve_base(data: dict[str, Any], chain: tuple[str, ...] = ()) -> dict[str
 
 
 #: Keys a route file sets that a scenario file may also give (they then win over the file's).
-_ROUTE_FILE_KEYS = ("trajectory.hold", "trajectory.speed", "trajectory.names",
-                    "initial.position", "integrator.duration", "gust.end")  # fmt: skip
+_ROUTE_FILE_KEYS = ("trajectory.hold", "trajectory.arrival_hold", "trajectory.speed",
+                    "trajectory.names", "initial.position", "integrator.duration",
+                    "gust.end")  # fmt: skip
 
 
 def start_height(position: Any) -> float:

@@ -21,6 +21,7 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             ("trajectory.speed", tr.speed.is_some()),
             ("trajectory.acceleration", tr.acceleration.is_some()),
             ("trajectory.hold", !tr.hold.is_empty()),
+            ("trajectory.arrival_hold", !tr.arrival_hold.is_empty()),
             ("trajectory.lower", !tr.lower.is_empty()),
             ("trajectory.lower_speed", !tr.lower_speed.is_empty()),
             ("trajectory.retract", !tr.retract.is_empty()),
@@ -97,14 +98,19 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
             Some(_) => {}
         }
     }
-    one_per_point("trajectory.hold", tr.hold.len(), r.len())?;
-    for (i, h) in tr.hold.iter().enumerate() {
-        if !(h.is_finite() && *h >= 0.0) {
-            let key = format!("trajectory.hold[{i}]");
-            return Err(ConfigError::new(
-                &key,
-                format!("{key} must be >= 0, got {h:?}"),
-            ));
+    for (name, holds) in [
+        ("trajectory.hold", &tr.hold),
+        ("trajectory.arrival_hold", &tr.arrival_hold),
+    ] {
+        one_per_point(name, holds.len(), r.len())?;
+        for (i, h) in holds.iter().enumerate() {
+            if !(h.is_finite() && *h >= 0.0) {
+                let key = format!("{name}[{i}]");
+                return Err(ConfigError::new(
+                    &key,
+                    format!("{key} must be >= 0, got {h:?}"),
+                ));
+            }
         }
     }
     one_per_point("trajectory.lower", tr.lower.len(), r.len())?;
@@ -209,6 +215,12 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
     // m, the line out beyond the reeled-in length (a retract reels it in).
     let mut line_out = 0.0;
     for i in 0..n {
+        // On arrival: the waypoint's own hold (PX4 holds before the point's items).
+        let w = tr.arrival_hold.get(i).copied().unwrap_or(0.0);
+        if w > 0.0 {
+            out.push(hold_segment(ARRIVAL, i, t, w, dt)?);
+            t += w;
+        }
         let payout = tr.lower.get(i).copied().unwrap_or(0.0);
         let (top, a) = (
             cfg.winch.speed.unwrap_or(f64::NAN),
@@ -254,7 +266,7 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
         }
         let h = tr.hold.get(i).copied().unwrap_or(0.0);
         if h > 0.0 {
-            out.push(hold_segment(i, t, h, dt)?);
+            out.push(hold_segment(AFTER, i, t, h, dt)?);
             t += h;
         }
         if i + 1 < n {
@@ -297,10 +309,21 @@ pub fn schedule(cfg: &Context) -> Result<Vec<Segment>, ConfigError> {
     Ok(out)
 }
 
+/// A point's two holds: (key, the segment's default name), on arrival and after its items.
+type HoldKind = (&'static str, &'static str);
+const ARRIVAL: HoldKind = ("trajectory.arrival_hold", "arrive");
+const AFTER: HoldKind = ("trajectory.hold", "hold");
+
 /// The hold of `h` s at point `i` from `t` (at least MIN_STEPS steps of `dt`).
-fn hold_segment(i: usize, t: f64, h: f64, dt: f64) -> Result<Segment, ConfigError> {
+fn hold_segment(
+    (name, label): HoldKind,
+    i: usize,
+    t: f64,
+    h: f64,
+    dt: f64,
+) -> Result<Segment, ConfigError> {
     if h < MIN_STEPS * dt {
-        let key = format!("trajectory.hold[{i}]");
+        let key = format!("{name}[{i}]");
         return Err(ConfigError::new(
             &key,
             format!(
@@ -310,7 +333,7 @@ fn hold_segment(i: usize, t: f64, h: f64, dt: f64) -> Result<Segment, ConfigErro
         ));
     }
     Ok(Segment {
-        name: format!("hold{}", i + 1),
+        name: format!("{label}{}", i + 1),
         kind: SegmentKind::Hold,
         start: t,
         arrival: t,

@@ -37,9 +37,15 @@ params! {
         /// Route only: m/s^2, the bound on the reference's acceleration along a leg.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         acceleration: Option<f64> => "m/s^2", "Route acceleration bound";
-        /// Route only: s, the hover at each point (one per point; empty: no holds).
+        /// Route only: s, the hover at each point after its lowering and retract (one per point;
+        /// empty: no holds).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         hold: Vec<f64> => "s", "Hover at each route point";
+        /// Route only: s, the hover on arrival at each point before its lowering, retract and
+        /// `hold` (one per point; empty: none): a `.plan` waypoint's hold, which PX4 flies
+        /// before the waypoint's items.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        arrival_hold: Vec<f64> => "s", "Hover on arrival at each route point, before its lowering";
         /// Route only: m, the line the winch pays out at each point (one per point; 0 or empty:
         /// none): on arrival the vehicle hovers while the parcel is lowered, then holds.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
