@@ -204,7 +204,8 @@ pub fn run_innovations(
                         .map(|l| {
                             let j = (set * lanes + l).min(n - 1);
                             let cfg = d.patched(j, 0).expect("checked by the caller");
-                            Realisation::with_wind_of(&cfg, wind).expect("checked by the caller")
+                            Realisation::for_laws(&cfg, wind, &[kind])
+                                .expect("checked by the caller")
                         })
                         .collect()
                 });
@@ -259,7 +260,7 @@ fn lane_set(
         rows.iter()
             .map(|&j| {
                 let cfg = d.patched(j, first).expect("checked by Batch::check");
-                Realisation::with_wind_of(&cfg, wind).expect("checked by Batch::check")
+                Realisation::for_laws(&cfg, wind, batch.kinds).expect("checked by Batch::check")
             })
             .collect()
     });

@@ -57,21 +57,16 @@ impl LawStart {
 /// another wind where the wind is sheared).
 pub type WindAt<'a> = &'a dyn Fn(f64) -> [f64; 3];
 
-/// Each law's start (in the order of `ControllerKind::ALL`) for the plant's start `x0` in the
-/// steady wind `wind_at`: in still air the plant's start itself (bit for bit: the laws hold
-/// hover there at rest), else each law's closed-loop equilibrium near it, or the plant's start
-/// where the law has none (then the flight shows what the law does from there).
-pub fn law_starts(cfg: &Config, x0: &[f64], wind_at: WindAt) -> Vec<LawStart> {
-    let still = wind_at(x0[2]) == [0.0; 3];
-    ControllerKind::ALL
-        .iter()
-        .map(|&kind| {
-            if still {
-                return LawStart::plant(x0);
-            }
-            closed_loop_start(cfg, kind, x0, wind_at).unwrap_or_else(|| LawStart::plant(x0))
-        })
-        .collect()
+/// Law `kind`'s start for the plant's start `x0` in the steady wind `wind_at`: in still air
+/// the plant's start itself (bit for bit: the laws hold hover there at rest), else the law's
+/// closed-loop equilibrium near it, or the plant's start where the law has none (then the
+/// flight shows what the law does from there). Each is a Newton solve (tens of ms): a batch
+/// solves for the laws it flies alone (`Realisation::for_laws`).
+pub fn law_start(cfg: &Config, kind: ControllerKind, x0: &[f64], wind_at: WindAt) -> LawStart {
+    if wind_at(x0[2]) == [0.0; 3] {
+        return LawStart::plant(x0);
+    }
+    closed_loop_start(cfg, kind, x0, wind_at).unwrap_or_else(|| LawStart::plant(x0))
 }
 
 /// Law `kind`'s closed-loop equilibrium in the steady wind `wind_at`, from the plant's trim
@@ -260,7 +255,11 @@ mod tests {
     fn still_air_starts_at_the_plant_start() {
         let (cfg, _) = windy();
         let x0 = vec![0.25; 3];
-        let starts = law_starts(&cfg, &x0, &|_| [0.0; 3]);
-        assert!(starts.iter().all(|s| *s == LawStart::plant(&x0)));
+        for &kind in ControllerKind::ALL {
+            assert_eq!(
+                law_start(&cfg, kind, &x0, &|_| [0.0; 3]),
+                LawStart::plant(&x0)
+            );
+        }
     }
 }

@@ -13,7 +13,7 @@ use crate::model::{
 };
 use crate::navigation::{NavigationParams, NAVIGATION_COLUMNS};
 use crate::scenario::{Config, ConfigError, Trim};
-use crate::start::{law_starts, LawStart};
+use crate::start::{law_start, LawStart};
 use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
 use std::sync::atomic::AtomicBool;
 
@@ -31,8 +31,9 @@ pub struct Realisation {
     /// line's start and where a retired lane is parked.
     pub x0: Vec<f64>,
     /// Each law's start (`ControllerKind::ALL`'s order): its closed-loop equilibrium in the
-    /// start's steady wind (`crate::start`).
-    pub starts: Vec<LawStart>,
+    /// start's steady wind (`crate::start`); `None` for a law the realisation is not built to
+    /// fly (`Realisation::for_laws`).
+    starts: Vec<Option<LawStart>>,
     /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
     /// the order of `Bound`.
     pub(super) limits: [f64; 4],
@@ -57,16 +58,30 @@ impl Realisation {
     /// The realisation of `cfg`, with `other`'s gust field if given (the same `gust.*` values and
     /// step: its discretised filters are reused rather than rebuilt).
     pub fn with_wind_of(cfg: &Config, other: Option<&Realisation>) -> Result<Self, ConfigError> {
+        Self::for_laws(cfg, other, ControllerKind::ALL)
+    }
+
+    /// `with_wind_of`, with the starts of the laws in `kinds` alone (a batch's realisation:
+    /// each start is a Newton solve on the closed loop, most of a dispersed flight's set-up).
+    pub fn for_laws(
+        cfg: &Config,
+        other: Option<&Realisation>,
+        kinds: &[ControllerKind],
+    ) -> Result<Self, ConfigError> {
         let vehicle = AnyVehicle::new(&cfg.model_context());
         let wind = match other {
             Some(c) => c.wind.clone(),
             None => WindField::new(&cfg.wind_context())?,
         };
         let x0 = initial_state(&vehicle, cfg, &wind)?;
-        let starts = match cfg.initial.trim {
-            Trim::Wind => law_starts(cfg, &x0, &|z| start_wind(&wind, z)),
-            Trim::Rest => law_starts(cfg, &x0, &|_| [0.0; 3]),
+        let wind_at = |z| match cfg.initial.trim {
+            Trim::Wind => start_wind(&wind, z),
+            Trim::Rest => [0.0; 3],
         };
+        let starts = ControllerKind::ALL
+            .iter()
+            .map(|k| kinds.contains(k).then(|| law_start(cfg, *k, &x0, &wind_at)))
+            .collect();
         let d = &cfg.divergence;
         Ok(Self {
             vehicle,
@@ -91,7 +106,9 @@ impl Realisation {
 
     /// Where law `kind` starts (`crate::start`).
     pub fn start(&self, kind: ControllerKind) -> &LawStart {
-        &self.starts[kind as usize]
+        self.starts[kind as usize]
+            .as_ref()
+            .expect("a realisation is built with the start of each law it flies")
     }
 }
 
