@@ -35,8 +35,8 @@ def test_a_dispersed_batch_row_is_its_single_flight_for_each_law() -> None:
         for i in (0, 4):
             alone = quadrs.simulate(sc, law, seed=2, realisation=i)
             rows = mc.runs[(mc.runs["realisation"] == i) & (mc.runs["controller"] == law)]
-            np.testing.assert_array_equal(alone.metrics[metrics].to_numpy(),
-                                          rows[metrics].to_numpy(), err_msg=f"{law} {i}")  # fmt: skip
+            want = alone.metrics[metrics].to_numpy()
+            np.testing.assert_array_equal(want, rows[metrics].to_numpy(), err_msg=f"{law} {i}")
     # Each realisation's start is its own closed-loop equilibrium (its own parcel's mass), not
     # the nominal vehicle's: hovering from it, the swing holds within 1e-3 rad of its start.
     for law in laws:
