@@ -210,6 +210,12 @@ params! {
         /// rad, sigma of the filter's initial attitude error about [x, y, z] (world axes).
         #[serde(default = "attitude_error")]
         attitude_error: [f64; 3] => "rad", "Initial attitude error sigma", non_negative;
+        /// m, sigma of the filter's initial height error: a filter aligned on the pad knows its
+        /// height above it (PX4's EKF2 sets its height origin where it initialises, and a
+        /// mission's altitudes are above home); absent, the GNSS's vertical position noise (a
+        /// filter started on a GNSS fix alone).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        height_error: Option<f64> => "m", "Initial height error sigma", non_negative;
         #[serde(default, skip_serializing_if = "Option::is_none")]
         gyro_noise: Option<f64> => "rad/s/sqrt(Hz)", "Filter gyro noise density", non_negative;
         #[serde(default, skip_serializing_if = "Option::is_none")]

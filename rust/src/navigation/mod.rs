@@ -93,6 +93,7 @@ impl NavigationParams {
         let v = f.velocity_noise.expect("resolved");
         let mut sd = [0.0; STATES];
         sd[P..P + 3].copy_from_slice(&p);
+        sd[P + 2] = f.height_error.unwrap_or(p[2]);
         sd[V..V + 3].fill(v);
         sd[TH..TH + 3].copy_from_slice(&f.attitude_error);
         sd[ekf::BG..ekf::BG + 3].fill(f.gyro_bias.expect("resolved"));
