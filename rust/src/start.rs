@@ -154,19 +154,7 @@ impl Balance<'_> {
 
     /// Central-difference slopes of the residual at z.
     fn jacobian(&self, z: &[f64]) -> DMatrix<f64> {
-        let m = z.len();
-        let mut jac = DMatrix::zeros(m, m);
-        for j in 0..m {
-            let h = 1e-6 * z[j].abs().max(1.0);
-            let (mut up, mut down) = (z.to_vec(), z.to_vec());
-            up[j] += h;
-            down[j] -= h;
-            jac.set_column(
-                j,
-                &((self.residual(&up) - self.residual(&down)) / (2.0 * h)),
-            );
-        }
-        jac
+        crate::differences::central(z, |z| self.residual(z))
     }
 }
 
