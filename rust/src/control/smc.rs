@@ -86,9 +86,32 @@ impl Controller for Smc {
     }
 
     fn integrators(&self) -> Vec<usize> {
+        self.integral_channels().iter().map(|c| c.slot).collect()
+    }
+}
+
+/// A position channel the integral sliding surface integrates the error of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntegralChannel {
+    /// 0, 1, 2: x, y, z.
+    pub axis: usize,
+    /// The memory slot holding int e (m s).
+    pub slot: usize,
+    /// m s, the largest |int e| the surface uses: its term k_i int e is limited to +/- g.
+    pub limit: f64,
+}
+
+impl Smc {
+    /// The channels with an integral (k_i > 0), x to z. At an equilibrium each one's position
+    /// error is zero (else its integral would move) and its integral within its limit.
+    pub fn integral_channels(&self) -> Vec<IntegralChannel> {
         (0..3)
             .filter(|&i| self.integral[i] > 0.0)
-            .map(|i| HELD_OWN + i)
+            .map(|i| IntegralChannel {
+                axis: i,
+                slot: HELD_OWN + i,
+                limit: self.shared.g / self.integral[i],
+            })
             .collect()
     }
 }
@@ -255,6 +278,12 @@ mod tests {
         assert!((u.u1 - thrust_by_hand(3.2 * e - 0.05 + 2.0 * 0.25, mt)).abs() < 1e-12);
         assert!((mem[HELD_OWN + 2] - (0.25 + e * smc.dt_position)).abs() < 1e-15);
         assert_eq!(smc.integrators(), vec![HELD_OWN + 2]);
+        let channel = IntegralChannel {
+            axis: 2,
+            slot: HELD_OWN + 2,
+            limit: 9.81 / 2.0,
+        };
+        assert_eq!(smc.integral_channels(), vec![channel]);
         // Its term stops winding at g.
         mem[HELD_OWN + 2] = 9.81 / 2.0;
         smc.step(&seen, &r, Tick::START, Due::ALL, &mut mem);
