@@ -8,6 +8,7 @@
 mod bindings;
 pub mod config;
 pub mod control;
+pub mod differences;
 pub mod dispersion;
 pub mod gust;
 pub mod integrate;

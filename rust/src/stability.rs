@@ -469,19 +469,7 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
 /// by central differences (the flight loop's own steps on plain numbers: the holds and the
 /// schedule have no derivative to carry).
 fn period_map(cl: &dyn ClosedLoop, s: &[f64]) -> Jacobian {
-    let n = s.len();
-    let mut phi = Jacobian::zeros(n, n);
-    for j in 0..n {
-        let h = 1e-6 * s[j].abs().max(1.0);
-        let (mut up, mut down) = (s.to_vec(), s.to_vec());
-        up[j] += h;
-        down[j] -= h;
-        let (fu, fd) = (cl.fly_period(&up), cl.fly_period(&down));
-        for i in 0..n {
-            phi[(i, j)] = (fu[i] - fd[i]) / (2.0 * h);
-        }
-    }
-    phi
+    crate::differences::central(s, |s| DVector::from_vec(cl.fly_period(s)))
 }
 
 /// The closed loop linearised at hover in a steady wind: deviations from the equilibrium obey

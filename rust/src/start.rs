@@ -13,11 +13,18 @@
 //! acceleration of any state) and no integrator changes. Newton's method on the closed loop
 //! (`stability::ClosedLoop::eval_held`) from the plant's trim finds it in a few steps. A sampled
 //! law at a constant state gives constant outputs, so the equilibrium is its too.
+//!
+//! An integrator held at its limit does not move whatever the error: past the limit every
+//! value is "balanced". The SMC's integral surface integrates the position error, so its
+//! equilibrium is solved with the position pinned at the reference on each integrated channel
+//! and the integrals within their limits; where the limit cannot hold the drag there is no
+//! such equilibrium, and the SMC's flights are refused by name (`LawStart::refused`).
 
-use crate::control::ControllerKind;
+use crate::config::ConfigError;
+use crate::control::{Controller, ControllerKind, Smc};
 use crate::scenario::Config;
 use crate::stability::{closed_loop, ClosedLoop};
-use crate::trajectory::Trajectory;
+use crate::trajectory::{Reference, Trajectory};
 use nalgebra::{DMatrix, DVector, SVD};
 
 /// Newton steps at most.
@@ -32,6 +39,8 @@ const MIN_SCALE: f64 = 1e-3;
 const TOLERANCE: f64 = 1e-10;
 /// The SVD's own iteration bound (the plain SVD never returns on a non-finite matrix).
 const SVD_ITERATIONS: usize = 1000;
+/// An integral within this fraction of its limit counts as held by the limit.
+const AT_LIMIT: f64 = 1.0 - 1e-6;
 
 /// Where a flight by one law starts: the vehicle's state (the layout's order) and the law's
 /// memory slots that differ from its memory at rest there (slot, value: its integrators).
@@ -39,6 +48,10 @@ const SVD_ITERATIONS: usize = 1000;
 pub struct LawStart {
     pub state: Vec<f64>,
     pub held: Vec<(usize, f64)>,
+    /// Why the law has no equilibrium at its reference in the start's wind (an error naming
+    /// the keys; a flight of the scenario by it is refused): `state` and `held` are then the
+    /// equilibrium with its integrals at their limits, off the reference.
+    pub refused: Option<ConfigError>,
 }
 
 impl LawStart {
@@ -48,6 +61,7 @@ impl LawStart {
         Self {
             state: x0.to_vec(),
             held: Vec::new(),
+            refused: None,
         }
     }
 }
@@ -79,18 +93,38 @@ pub fn closed_loop_start(
 ) -> Option<LawStart> {
     let r = Trajectory::new(&cfg.context()).at(0.0, &mut 0);
     let cl = closed_loop(cfg, kind, r);
+    let channels = integral_channels(cfg, kind);
+    let limits: Vec<f64> = (cl.integrators().iter())
+        .map(|slot| channels.iter().find(|c| c.slot == *slot))
+        .map(|c| c.map_or(f64::INFINITY, |c| c.limit))
+        .collect();
     let b = Balance {
         cl: cl.as_ref(),
         n: cl.reduced(x0).len(),
         wind_at,
+        pinned: Vec::new(),
+        limits: &limits,
     };
-    let z = settle(&b, cl.reduced(x0))?;
+    let (z, refused) = settle(&b, cl.reduced(x0), &channels, &r, cfg)?;
     let n = b.n;
     let held = cl.integrators().iter().copied().zip(z[n..].iter().copied());
     Some(LawStart {
         state: cl.expanded(&z[..n]),
         held: held.collect(),
+        refused,
     })
+}
+
+/// The position channels law `kind` integrates the error of, with their integrals' slots and
+/// limits: the SMC's integral surface's; none for the others (PX4 integrates the velocity
+/// error and the rates').
+fn integral_channels(cfg: &Config, kind: ControllerKind) -> Vec<crate::control::IntegralChannel> {
+    match kind {
+        ControllerKind::Smc => {
+            Smc::new(&cfg.controller.smc, &cfg.control_context()).integral_channels()
+        }
+        _ => Vec::new(),
+    }
 }
 
 /// The equilibrium in two steps: the states with the integrators held empty (the law's
@@ -98,42 +132,131 @@ pub fn closed_loop_start(
 /// value in `CONTINUATION` steps from rest, each solved from the last (a soft law's offset is metres,
 /// beyond where Newton's method from the plant's trim converges); then from there the states
 /// and the integrators together at the full wind: the integrators take over what the position
-/// error held, and Newton's method goes straight to the equilibrium at the reference (from the
-/// plant's trim it can settle where an integrator's anti-windup holds it at its limit, metres
-/// off). A law whose offset equilibrium is not found is solved from the plant's trim.
-fn settle(b: &Balance, x0: Vec<f64>) -> Option<Vec<f64>> {
+/// error held. Where the law integrates the position error (`channels`), the position is pinned
+/// at the reference on those channels: unpinned, Newton's step can carry an integral past its
+/// limit, where it no longer moves, and settle metres off the reference (issue 72: the SMC
+/// 3.5 m upwind at 8 m/s). If the pinned balance has no solution with the integrals within
+/// their limits, the law's equilibrium at the limit is the start, refused by name. A law whose
+/// offset equilibrium is not found is solved from the plant's trim.
+fn settle(
+    b: &Balance,
+    x0: Vec<f64>,
+    channels: &[crate::control::IntegralChannel],
+    r: &Reference,
+    cfg: &Config,
+) -> Option<(Vec<f64>, Option<ConfigError>)> {
+    let k = b.cl.integrators().len();
+    let states = offset_equilibrium(b);
+    if k == 0 {
+        return states.map(|z| (z, None));
+    }
+    let mut z = states.unwrap_or(x0);
+    z.extend(std::iter::repeat_n(0.0, k));
+    let mut refused = None;
+    if !channels.is_empty() {
+        let pinned = Balance {
+            pinned: channels.iter().map(|c| (c.axis, r.pos[c.axis])).collect(),
+            ..*b
+        };
+        match newton(&pinned, pinned.unknowns(&z)) {
+            Ok(u) => return Some((pinned.full(&u), None)),
+            Err(last) => {
+                let full = pinned.full(&last);
+                let beyond: Vec<usize> = (channels.iter().enumerate())
+                    .filter(|(i, c)| full[b.n + i].abs() >= c.limit * AT_LIMIT)
+                    .map(|(_, c)| c.axis)
+                    .collect();
+                if !beyond.is_empty() {
+                    refused = Some(beyond_limit(cfg, &beyond, (b.wind_at)(r.pos[2])));
+                }
+            }
+        }
+    }
+    newton(b, z).ok().map(|z| (z, refused))
+}
+
+/// The states with the integrators held empty, the wind raised from rest to its value.
+fn offset_equilibrium(b: &Balance) -> Option<Vec<f64>> {
     // From rest at the reference: in a tenth of the wind the law is near its linear range.
     let mut states = Some(b.cl.rest());
     for step in 1..=CONTINUATION {
         let f = step as f64 / CONTINUATION as f64;
         let at = |h: f64| (b.wind_at)(h).map(|w| w * f);
         let scaled = Balance {
-            cl: b.cl,
-            n: b.n,
             wind_at: &at,
+            limits: &[],
+            pinned: Vec::new(),
+            ..*b
         };
-        states = states.and_then(|z| newton(&scaled, z));
+        states = states.and_then(|z| newton(&scaled, z).ok());
     }
-    let k = b.cl.integrators().len();
-    if k == 0 {
-        return states;
-    }
-    let mut z = states.unwrap_or(x0);
-    z.extend(std::iter::repeat_n(0.0, k));
-    newton(b, z)
+    states
 }
 
-/// What is balanced: the closed loop's rates of change (`ClosedLoop::eval_held`) at the
-/// unknowns z, the loop's `n` states and, if z goes on, the law's integrators (else they are
-/// held empty and their rows left out), in the wind at z's altitude.
+/// The SMC cannot hold its reference: the integral surface's term past its limit on `axes`.
+fn beyond_limit(cfg: &Config, axes: &[usize], wind: [f64; 3]) -> ConfigError {
+    let names: Vec<&str> = axes.iter().map(|&a| ["x", "y", "z"][a]).collect();
+    let speed = wind.iter().map(|w| w * w).sum::<f64>().sqrt();
+    ConfigError {
+        key: "controller.smc.integral".into(),
+        message: format!(
+            "controller.smc.integral = {:?}: the SMC has no equilibrium at its reference in the \
+             start's steady wind (wind.speed; {speed:.2} m/s at the start): holding the drag \
+             there needs the integral sliding surface's term k_i int e on {} past its limit \
+             g = {} m/s^2; raise controller.smc.eta or controller.smc.epsilon (the reaching \
+             law eta s + epsilon sat(s) gives the acceleration that holds the drag), lower \
+             wind.speed, or start at rest (initial.trim = \"rest\")",
+            cfg.controller.smc.integral,
+            names.join(", "),
+            cfg.environment.gravity,
+        ),
+    }
+}
+
+/// What is balanced: the closed loop's rates of change (`ClosedLoop::eval_held`) at z, the
+/// loop's `n` states and, if z goes on, the law's integrators (else they are held empty and
+/// their rows left out), in the wind at z's altitude. The unknowns are z less the `pinned`
+/// states (index, value); each integrator is kept within its limit (`limits`).
 struct Balance<'a> {
     cl: &'a dyn ClosedLoop,
     n: usize,
     wind_at: WindAt<'a>,
+    pinned: Vec<(usize, f64)>,
+    limits: &'a [f64],
 }
 
 impl Balance<'_> {
-    fn residual(&self, z: &[f64]) -> DVector<f64> {
+    /// z of the unknowns u: the pinned states put back.
+    fn full(&self, u: &[f64]) -> Vec<f64> {
+        let mut z = u.to_vec();
+        for &(i, x) in &self.pinned {
+            z.insert(i, x);
+        }
+        z
+    }
+
+    /// The unknowns of z: the pinned states taken out.
+    fn unknowns(&self, z: &[f64]) -> Vec<f64> {
+        let mut u = z.to_vec();
+        for &(i, _) in self.pinned.iter().rev() {
+            u.remove(i);
+        }
+        u
+    }
+
+    /// The unknowns with each integrator (the last ones) within its limit.
+    fn within_limits(&self, u: &mut [f64]) {
+        let k = self.limits.len();
+        if u.len() + self.pinned.len() > self.n {
+            let first = u.len() - k;
+            for (x, l) in u[first..].iter_mut().zip(self.limits) {
+                *x = x.clamp(-l, *l);
+            }
+        }
+    }
+
+    fn residual(&self, u: &[f64]) -> DVector<f64> {
+        let z = self.full(u);
         // The loop's states begin with the position (x, y, z), as the vehicle's do.
         let wind = (self.wind_at)(z[2]);
         let empty = vec![0.0; self.cl.integrators().len()];
@@ -147,47 +270,43 @@ impl Balance<'_> {
         DVector::from_vec(f)
     }
 
-    /// Central-difference slopes of the residual at z.
-    fn jacobian(&self, z: &[f64]) -> DMatrix<f64> {
-        let m = z.len();
-        let mut jac = DMatrix::zeros(m, m);
-        for j in 0..m {
-            let h = 1e-6 * z[j].abs().max(1.0);
-            let (mut up, mut down) = (z.to_vec(), z.to_vec());
-            up[j] += h;
-            down[j] -= h;
-            jac.set_column(
-                j,
-                &((self.residual(&up) - self.residual(&down)) / (2.0 * h)),
-            );
-        }
-        jac
+    /// Central-difference slopes of the residual at u.
+    fn jacobian(&self, u: &[f64]) -> DMatrix<f64> {
+        crate::differences::central(u, |u| self.residual(u))
     }
 }
 
 /// Newton's method with central-difference slopes and a pseudo-inverse (relative to the
 /// largest singular value: a line length the winch keeps wherever it is, or any other
-/// direction the loop does not hold, is left where it is), each step halved until the
-/// residual falls (a soft law's offset is far from the plant's trim).
-fn newton(b: &Balance, mut z: Vec<f64>) -> Option<Vec<f64>> {
+/// direction the loop does not hold, is left where it is; least squares where there are more
+/// equations than unknowns), each step halved until the residual falls (a soft law's offset
+/// is far from the plant's trim) and the integrators kept within their limits. The balanced
+/// unknowns, or the last iterate where none is found.
+fn newton(b: &Balance, mut z: Vec<f64>) -> Result<Vec<f64>, Vec<f64>> {
     let mut r = b.residual(&z);
     for _ in 0..MAX_ITERATIONS {
         if !r.iter().all(|x| x.is_finite()) {
-            return None;
+            return Err(z);
         }
         if r.amax() < TOLERANCE {
-            return Some(z);
+            return Ok(z);
         }
-        let svd = SVD::try_new(b.jacobian(&z), true, true, f64::EPSILON, SVD_ITERATIONS)?;
+        let Some(svd) = SVD::try_new(b.jacobian(&z), true, true, f64::EPSILON, SVD_ITERATIONS)
+        else {
+            return Err(z);
+        };
         let cut = svd.singular_values.max() * SINGULAR;
-        let step = svd.solve(&r, cut).ok()?;
+        let Ok(step) = svd.solve(&r, cut) else {
+            return Err(z);
+        };
         let mut scale = 1.0;
         loop {
-            let next: Vec<f64> = z
+            let mut next: Vec<f64> = z
                 .iter()
                 .zip(step.iter())
                 .map(|(x, d)| x - scale * d)
                 .collect();
+            b.within_limits(&mut next);
             let rn = b.residual(&next);
             if rn.norm() < r.norm() || scale < MIN_SCALE {
                 (z, r) = (next, rn);
@@ -196,7 +315,7 @@ fn newton(b: &Balance, mut z: Vec<f64>) -> Option<Vec<f64>> {
             scale *= 0.5;
         }
     }
-    None
+    Err(z)
 }
 
 #[cfg(test)]
@@ -207,10 +326,15 @@ mod tests {
     /// The delivery preset in a steady 8 m/s crosswind at the start (no turbulence), the laws
     /// reading the state.
     fn windy() -> (Config, crate::gust::WindField) {
+        windy_at(8.0)
+    }
+
+    /// `windy` at `speed` m/s (at 20 ft).
+    fn windy_at(speed: f64) -> (Config, crate::gust::WindField) {
         let mut v = delivery_value();
         v["gust"]["enabled"] = false.into();
         v["navigation"]["mode"] = "truth".into();
-        v["wind"]["speed"] = 8.0.into();
+        v["wind"]["speed"] = speed.into();
         let cfg = Config::from_json(&v.to_string()).expect("valid");
         let field = crate::gust::WindField::new(&cfg.wind_context()).unwrap();
         (cfg, field)
@@ -240,13 +364,50 @@ mod tests {
             let downwind = start.state[1] - cfg.initial.position[1];
             let integral = matches!(kind, ControllerKind::Px4 | ControllerKind::Smc);
             assert_eq!(start.held.is_empty(), !integral, "{}", kind.name());
+            assert_eq!(start.refused, None, "{}", kind.name());
             match kind {
-                // PX4's integrators hold it at its reference (within its anti-windup's
-                // centimetre); the SMC's integral is found at its limit (issue 72: left open).
-                ControllerKind::Px4 => assert!(downwind.abs() < 0.05, "px4: {downwind}"),
-                ControllerKind::Smc => {}
+                // PX4's integrators hold it at its reference, but for the centimetre its
+                // horizontal anti-windup (tracking the tilt the thrust gives) leaves.
+                ControllerKind::Px4 => assert!(downwind.abs() < 0.02, "px4: {downwind}"),
+                // The SMC's integral surface at its reference, each integral well within its
+                // limit (before: 3.5 m upwind, the y integral past its limit).
+                ControllerKind::Smc => {
+                    let offset: Vec<f64> = (0..3)
+                        .map(|i| start.state[i] - cfg.initial.position[i])
+                        .collect();
+                    assert!(offset.iter().all(|e| e.abs() < 0.01), "smc: {offset:?}");
+                    let smc = Smc::new(&cfg.controller.smc, &cfg.control_context());
+                    for (c, (slot, value)) in smc.integral_channels().iter().zip(&start.held) {
+                        assert_eq!(c.slot, *slot);
+                        assert!(value.abs() < 0.7 * c.limit, "smc {}: {value}", c.axis);
+                    }
+                    // The y integral takes up the surface lambda e held downwind.
+                    assert!(start.held[1].1 < -10.0, "{:?}", start.held);
+                }
                 _ => assert!(downwind > 0.1, "{}: {downwind}", kind.name()),
             }
+        }
+    }
+
+    /// Where the integral's limit cannot hold the drag (a 12 m/s wind at 20 ft: the surface
+    /// needs its term past g) the SMC has no equilibrium at its reference: its start is the
+    /// equilibrium with the integral at its limit, off the reference, and it is refused by
+    /// name; the other laws are not.
+    #[test]
+    fn the_smc_is_refused_a_wind_its_integral_cannot_hold() {
+        let (cfg, _) = windy_at(12.0);
+        let engine_start = crate::integrate::Realisation::new(&cfg).unwrap();
+        let smc = engine_start.start(ControllerKind::Smc);
+        let refused = smc.refused.as_ref().expect("refused");
+        assert_eq!(refused.key, "controller.smc.integral");
+        for part in ["on y past its limit", "controller.smc.eta", "wind.speed"] {
+            assert!(refused.message.contains(part), "{}", refused.message);
+        }
+        let limit =
+            Smc::new(&cfg.controller.smc, &cfg.control_context()).integral_channels()[1].limit;
+        assert!((smc.held[1].1.abs() - limit).abs() < 1e-9, "{:?}", smc.held);
+        for kind in [ControllerKind::Pd, ControllerKind::Px4, ControllerKind::Se3] {
+            assert_eq!(engine_start.start(kind).refused, None, "{}", kind.name());
         }
     }
 

@@ -1,11 +1,13 @@
 """A delivery engineer's first hour, fifth round (issue 72), the laws' items: each of the four
 laws tuned for the delivery preset flies its route (item 2), and the start trimmed in the wind
-is an equilibrium of the closed loop, the law's integrators included (item 6). Each fails on
-the code before issue 72's fix."""
+is an equilibrium of the closed loop, the law's integrators included (item 6), the SMC's at its
+reference. Each fails on the code before issue 72's fix but the last, a characterisation of the
+lift's jolt."""
 
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import quadrs
@@ -101,3 +103,79 @@ def test_a_hover_from_the_trimmed_start_holds_its_swing(
     start, drift = swing_drift(hover, law)
     assert start == pytest.approx(0.142, abs=0.002)  # the parcel's drag on its weight at 6.2 m/s
     assert drift < 1e-3, (law, drift)
+
+
+# -- 6, follow-up: each law's start at its own equilibrium, the SMC's at its reference ----------
+def start_offset(s: quadrs.Scenario, law: str) -> tuple[np.ndarray, pd.DataFrame]:
+    """The start's position less the reference (m, x y z) and the trace."""
+    t = quadrs.simulate(s, law, record_every=10).trace
+    first = t.iloc[0]
+    offset = np.array([first.x - first.x_ref, first.y - first.y_ref, first.z - first.z_ref])
+    return offset, t
+
+
+@pytest.mark.parametrize(("law", "bound"), [("smc", 0.01), ("px4", 0.02)])
+def test_a_law_with_integral_action_starts_at_its_reference(
+    delivery: quadrs.Scenario, law: str, bound: float
+) -> None:
+    """In the steady 8 m/s wind the SMC's integral surface starts at its reference: the start
+    is solved with the position pinned there and the integrals within their limits (before:
+    3.54 m upwind, its y integral wound past its limit, where it no longer moves and any
+    value balances). PX4 within 2 cm: its horizontal anti-windup, tracking the acceleration
+    the thrust gives, leaves 1.1 cm. The hover holds there: within 1 mm and 1e-3 rad of swing
+    for 5 s."""
+    hover = delivery.override(HOVER_IN_WIND | {"navigation.mode": "truth"})
+    offset, t = start_offset(hover, law)
+    assert np.abs(offset).max() < bound, (law, offset)
+    early = t[t.index <= 5.0]
+    drift = np.hypot(early.x - early.x.iloc[0], early.y - early.y.iloc[0]).max()
+    assert drift < 1e-3, (law, drift)
+    assert np.abs(early.swing - early.swing.iloc[0]).max() < 1e-3
+
+
+@pytest.mark.parametrize("law", ["pd", "se3"])
+def test_a_law_without_integral_action_starts_downwind(delivery: quadrs.Scenario, law: str) -> None:
+    """The PD and the geometric law hold the wind's drag with their position error: they start
+    downwind (+y) of the reference, 2.5 m and 1.2 m at 8 m/s, on the route's side of 10 m."""
+    hover = delivery.override(HOVER_IN_WIND | {"navigation.mode": "truth"})
+    offset, _ = start_offset(hover, law)
+    assert 1.0 < offset[1] < TRACK_LIMIT, (law, offset)
+    assert abs(offset[0]) < 1e-3, (law, offset)
+
+
+def test_the_smc_is_refused_a_wind_its_integral_surface_cannot_hold(
+    delivery: quadrs.Scenario,
+) -> None:
+    """At 12 m/s (at 20 ft) holding the drag at the reference needs the integral surface's term
+    past its limit g: the SMC has no equilibrium there and its flight is refused by name (it
+    used to start 1 m downwind, its integral at the limit, without a word); the PD flies."""
+    hover = delivery.override(HOVER_IN_WIND | {"navigation.mode": "truth", "wind.speed": 12.0})
+    match = r"controller\.smc\.integral = \[0\.3, 0\.3, 2\.0\]: .* on y past its limit"
+    with pytest.raises(quadrs.ScenarioError, match=match) as refused:
+        quadrs.simulate(hover, "smc")
+    assert "controller.smc.eta" in str(refused.value) and "wind.speed" in str(refused.value)
+    with pytest.raises(quadrs.ScenarioError, match=r"controller\.smc\.integral"):
+        quadrs.monte_carlo(hover, runs=1, controllers=("pd", "smc"), progress=False)
+    assert quadrs.simulate(hover, "pd").status == "ok"
+
+
+def test_the_lift_jolt_is_the_parcel_meeting_the_pad_from_the_estimates_start(
+    delivery: quadrs.Scenario,
+) -> None:
+    """The delivery's jolt at the lift (1 SMC flight in 20, about 15 g) is not the law's start:
+    reading the state, no SMC flight of 20 moves its parcel by more than 0.3 g in the first 4 s.
+    Reading the EKF, realisation 3's estimate starts 0.70 m above the truth (the filter's
+    initial vertical sigma is 0.73 m), the law descends about 1 m to it and the parcel, 0.95 m
+    below the vehicle, strikes the pad. A characterisation: the navigation's start is left
+    open (issue 72 follow-up report)."""
+    lift = delivery.override(HOVER_IN_WIND | {"wind.speed": 5.0, "gust.enabled": True})
+    truth = lift.override({"navigation.mode": "truth"})
+    peaks = [
+        float(quadrs.simulate(truth, "smc", realisation=i, record_every=5).trace.accel_c.max())
+        for i in range(20)
+    ]
+    assert max(peaks) < 0.3 * 9.81, peaks
+    t = quadrs.simulate(lift, "smc", realisation=3, record_every=1).trace
+    assert t.z_est.iloc[0] - t.z.iloc[0] > 0.5
+    early = t[t.index <= 4.0]
+    assert early.zc.min() < 0.0 and early.accel_c.max() > 5 * 9.81

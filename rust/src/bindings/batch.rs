@@ -39,6 +39,9 @@ pub(super) fn run_batch<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let e = Cow::Borrowed(engine);
     let kinds = controller_kinds(&controllers)?;
+    for &kind in &kinds {
+        e.check_start(kind).map_err(scenario_error)?;
+    }
     if count == 0 {
         return Err(PyValueError::new_err("runs must be >= 1, got 0"));
     }
@@ -142,6 +145,7 @@ pub(super) fn run_innovations<'py>(
     let e = engine;
     use numpy::ndarray::Array3;
     let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
+    e.check_start(kind).map_err(scenario_error)?;
     let xi = xi.as_array();
     let (n, dim) = (xi.nrows(), xi.ncols());
     check_innovations(e, dim)?;

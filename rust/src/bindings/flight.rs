@@ -83,6 +83,7 @@ pub(super) fn simulate_on<'py>(
                 .map_err(PyValueError::new_err)?,
         );
     }
+    e.check_start(kind).map_err(scenario_error)?;
     let rows = (e.steps / record_every + 1) as u128;
     let width = 1 + e.trace_columns().len();
     memory::check(

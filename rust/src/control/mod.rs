@@ -17,7 +17,7 @@ mod smc;
 pub use pd::Pd;
 pub use px4::Px4;
 pub use se3::Se3;
-pub use smc::Smc;
+pub use smc::{IntegralChannel, Smc};
 
 use crate::config::keys::{Seg, Target};
 use crate::config::params::{params, Key, Params, Table};

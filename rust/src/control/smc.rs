@@ -86,9 +86,32 @@ impl Controller for Smc {
     }
 
     fn integrators(&self) -> Vec<usize> {
+        self.integral_channels().iter().map(|c| c.slot).collect()
+    }
+}
+
+/// A position channel the integral sliding surface integrates the error of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IntegralChannel {
+    /// 0, 1, 2: x, y, z.
+    pub axis: usize,
+    /// The memory slot holding int e (m s).
+    pub slot: usize,
+    /// m s, the largest |int e| the surface uses: its term k_i int e is limited to +/- g.
+    pub limit: f64,
+}
+
+impl Smc {
+    /// The channels with an integral (k_i > 0), x to z. At an equilibrium each one's position
+    /// error is zero (else its integral would move) and its integral within its limit.
+    pub fn integral_channels(&self) -> Vec<IntegralChannel> {
         (0..3)
             .filter(|&i| self.integral[i] > 0.0)
-            .map(|i| HELD_OWN + i)
+            .map(|i| IntegralChannel {
+                axis: i,
+                slot: HELD_OWN + i,
+                limit: self.shared.g / self.integral[i],
+            })
             .collect()
     }
 }
@@ -211,9 +234,11 @@ mod tests {
     use super::*;
     use crate::scenario::tests::paper;
 
-    #[test]
-    fn sliding_surface_law_by_hand() {
-        let cfg = paper();
+    /// The paper's SMC with the integral gains `integral` 0.1 m below its reference at 2 m,
+    /// climbing at 0.05 m/s, at rest otherwise; and the errors (e, edot) on z.
+    fn below_its_reference(integral: [f64; 3]) -> (Smc, Rigid<f64>, Reference, f64) {
+        let mut cfg = paper();
+        cfg.controller.smc.integral = integral;
         let smc = Smc::new(&cfg.controller.smc, &cfg.control_context());
         let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
         s.pos[2] = 1.9;
@@ -222,43 +247,43 @@ mod tests {
             pos: [0.0, 0.0, 2.0],
             ..Reference::default()
         };
+        (smc, s, r, cfg.vehicle.mass + cfg.payload.mass)
+    }
+
+    /// u1 = mt (v + g) of the z channel's reaching law on the surface s (e = 0.1, edot = -0.05).
+    fn thrust_by_hand(surface: f64, mt: f64) -> f64 {
+        let ed = -0.05;
+        let v = 1.8 * surface / (surface.abs() + 0.2) + 0.4 * surface + 3.2 * ed;
+        mt * (v + 9.81)
+    }
+
+    #[test]
+    fn sliding_surface_law_by_hand() {
+        let (smc, s, r, mt) = below_its_reference([0.0; 3]);
         let u = smc.control(&s, &r, Tick::START);
-        let (e, ed) = (0.1, -0.05);
-        let sz = 3.2 * e + ed;
-        let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;
-        let mt = cfg.vehicle.mass + cfg.payload.mass;
-        assert!((u.u1 - mt * (v + 9.81)).abs() < 1e-12);
+        assert!((u.u1 - thrust_by_hand(3.2 * 0.1 - 0.05, mt)).abs() < 1e-12);
     }
 
     /// The integral surface s = lambda e + edot + k_i int e by hand, the integral advanced by
     /// e over the position loop's period; with k_i = 0 the paper's surface.
     #[test]
     fn integral_surface_law_by_hand() {
-        let mut cfg = paper();
-        cfg.controller.smc.integral = [0.0, 0.0, 2.0];
-        let smc = Smc::new(&cfg.controller.smc, &cfg.control_context());
-        let mut s = crate::control::tests::at_rest([0.0; 3], 0.0);
-        s.pos[2] = 1.9;
-        s.vel[2] = 0.05;
-        let r = Reference {
-            pos: [0.0, 0.0, 2.0],
-            ..Reference::default()
-        };
+        let (smc, s, r, mt) = below_its_reference([0.0, 0.0, 2.0]);
         let trig = crate::model::Trig::of_angles(0.0, 0.0, 0.0);
         let seen = Sight::blind(&s, &trig);
         let mut mem = smc.memory(&seen);
         mem[HELD_OWN + 2] = 0.25;
         let u = smc.step(&seen, &r, Tick::START, Due::ALL, &mut mem);
-        let (e, ed) = (0.1, -0.05);
-        let sz = 3.2 * e + ed + 2.0 * 0.25;
-        let v = 1.8 * sz / (sz.abs() + 0.2) + 0.4 * sz + 3.2 * ed;
-        let mt = cfg.vehicle.mass + cfg.payload.mass;
-        assert!((u.u1 - mt * (v + 9.81)).abs() < 1e-12);
-        let dt = cfg
-            .controller
-            .loop_periods(ControllerKind::Smc, cfg.integrator.dt)[0];
-        assert!((mem[HELD_OWN + 2] - (0.25 + e * dt)).abs() < 1e-15);
+        let e = 0.1;
+        assert!((u.u1 - thrust_by_hand(3.2 * e - 0.05 + 2.0 * 0.25, mt)).abs() < 1e-12);
+        assert!((mem[HELD_OWN + 2] - (0.25 + e * smc.dt_position)).abs() < 1e-15);
         assert_eq!(smc.integrators(), vec![HELD_OWN + 2]);
+        let channel = IntegralChannel {
+            axis: 2,
+            slot: HELD_OWN + 2,
+            limit: 9.81 / 2.0,
+        };
+        assert_eq!(smc.integral_channels(), vec![channel]);
         // Its term stops winding at g.
         mem[HELD_OWN + 2] = 9.81 / 2.0;
         smc.step(&seen, &r, Tick::START, Due::ALL, &mut mem);

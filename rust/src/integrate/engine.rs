@@ -261,6 +261,15 @@ impl Engine {
         })
     }
 
+    /// Whether law `kind` may fly the scenario: an error naming the keys where its start has
+    /// no equilibrium at its reference (`LawStart::refused`).
+    pub fn check_start(&self, kind: ControllerKind) -> Result<(), ConfigError> {
+        match &self.realisation.start(kind).refused {
+            Some(e) => Err(e.clone()),
+            None => Ok(()),
+        }
+    }
+
     /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
     pub fn innovations(&self) -> usize {
         let wind = self.realisation.wind();

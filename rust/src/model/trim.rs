@@ -8,7 +8,7 @@
 //! pitching moment that the attitude loop holds).
 
 use super::{ActuatorModel, BodyKind, Inputs, PayloadModel, State, Tick, Vehicle};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 
 /// Newton steps at most; a trim converges in 3 to 5 (the balance is nearly linear in the
 /// unknowns).
@@ -78,14 +78,9 @@ impl<Pay: PayloadModel<f64>, Act: ActuatorModel<f64>, B: BodyKind> Vehicle<f64, 
                 let (s, _) = state_of(&x);
                 return Ok(s);
             }
-            let mut jac = DMatrix::zeros(n, n);
-            for j in 0..n {
-                let h = 1e-6 * x[j].abs().max(1.0);
-                let (mut up, mut down) = (x.clone(), x.clone());
-                up[j] += h;
-                down[j] -= h;
-                jac.set_column(j, &((residual(&up) - residual(&down)) / (2.0 * h)));
-            }
+            let jac = crate::differences::central(x.as_slice(), |x| {
+                residual(&DVector::from_column_slice(x))
+            });
             let Some(step) = jac.lu().solve(&r) else {
                 break;
             };
