@@ -189,6 +189,26 @@ pub trait KernelOps: Masks + Param<Self> {
     fn shr52_bits(self) -> Self;
 }
 
+/// `Lane`'s trigonometry from the branch-free kernels (`kernels::sin_cos`, `kernels::asin`,
+/// `kernels::atan2`), for every lane type built from `KernelOps` (`f64`, `F64x4`, the x86
+/// registers): written once, expanded inside each `impl Lane`.
+macro_rules! kernel_trig {
+    () => {
+        #[inline(always)]
+        fn sin_cos(self) -> (Self, Self) {
+            $crate::lane::kernels::sin_cos(self)
+        }
+        #[inline(always)]
+        fn asin(self) -> Self {
+            $crate::lane::kernels::asin(self)
+        }
+        #[inline(always)]
+        fn atan2(self, x: Self) -> Self {
+            $crate::lane::kernels::atan2(self, x)
+        }
+    };
+}
+
 #[inline(always)]
 fn mask_f64(b: bool) -> f64 {
     f64::from_bits(if b { u64::MAX } else { 0 })
@@ -240,18 +260,7 @@ impl Lane for f64 {
     fn le_mask(self, bound: Self) -> u32 {
         (self <= bound) as u32
     }
-    #[inline(always)]
-    fn sin_cos(self) -> (Self, Self) {
-        kernels::sin_cos(self)
-    }
-    #[inline(always)]
-    fn asin(self) -> Self {
-        kernels::asin(self)
-    }
-    #[inline(always)]
-    fn atan2(self, x: Self) -> Self {
-        kernels::atan2(self, x)
-    }
+    kernel_trig!();
 }
 
 impl Masks for f64 {

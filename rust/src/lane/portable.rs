@@ -1,7 +1,7 @@
 //! Four lanes as a plain array, operation by operation (LLVM vectorises what it can): the lane
 //! type off x86-64. Also compiled, and tested, on x86-64 test builds.
 
-use super::{kernels, KernelOps, Lane, Masks, Param};
+use super::{KernelOps, Lane, Masks, Param};
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 #[derive(Clone, Copy, Debug)]
@@ -68,18 +68,7 @@ impl Lane for F64x4 {
     fn set_lane(&mut self, i: usize, x: f64) {
         self.0[i] = x;
     }
-    #[inline(always)]
-    fn sin_cos(self) -> (Self, Self) {
-        kernels::sin_cos(self)
-    }
-    #[inline(always)]
-    fn asin(self) -> Self {
-        kernels::asin(self)
-    }
-    #[inline(always)]
-    fn atan2(self, x: Self) -> Self {
-        kernels::atan2(self, x)
-    }
+    kernel_trig!();
     #[inline(always)]
     fn abs(self) -> Self {
         each!(|x| x.abs(), self)
