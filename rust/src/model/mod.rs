@@ -475,4 +475,4 @@ impl AnyVehicle {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
