@@ -879,6 +879,22 @@ mod tests {
         Px4::new(&Px4Params::default(), &cfg.control_context())
     }
 
+    /// The paper's scenario, PX4's default parameters and the law they make.
+    fn paper_px4() -> (Config, Px4Params, Px4) {
+        let cfg = paper();
+        let c = px4(&cfg);
+        (cfg, Px4Params::default(), c)
+    }
+
+    /// The vehicle at rest and level 2 m up, and a reference holding it there.
+    fn held_at_two_metres() -> (Rigid<f64>, Reference) {
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        (at_rest(r.pos, 0.0), r)
+    }
+
     #[test]
     fn hover_is_the_weight_and_no_torque() {
         let cfg = paper();
@@ -901,16 +917,10 @@ mod tests {
     /// torques; a height error gives the cascade's P-P vertical thrust.
     #[test]
     fn gains_map_to_si_as_documented() {
-        let cfg = paper();
-        let k = Px4Params::default();
-        let c = px4(&cfg);
-        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        let (cfg, k, c) = paper_px4();
+        let (mut s, r) = held_at_two_metres();
         s.rate[0] = -0.1;
         s.pos[2] = 1.9;
-        let r = Reference {
-            pos: [0.0, 0.0, 2.0],
-            ..Reference::default()
-        };
         let u = c.control(&s, &r, Tick::START);
         let full = full_thrust(&cfg.control_context());
         // The paper's ideal actuators: twice the weight, the vehicle's own hover thrust 0.5.
@@ -953,16 +963,10 @@ mod tests {
     /// integrator likewise.
     #[test]
     fn integrators_advance_once_per_update() {
-        let cfg = paper();
-        let k = Px4Params::default();
-        let c = px4(&cfg);
-        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        let (cfg, k, c) = paper_px4();
+        let (mut s, r) = held_at_two_metres();
         s.vel[2] = -0.2;
         s.rate[0] = 0.05;
-        let r = Reference {
-            pos: [0.0, 0.0, 2.0],
-            ..Reference::default()
-        };
         let trig = Trig::of_angles(0.0, 0.0, 0.0);
         let seen = Sight::blind(&s, &trig);
         let mut mem = c.memory(&seen);

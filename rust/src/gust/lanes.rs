@@ -1081,17 +1081,10 @@ mod tests {
                 c.wind.table = Some(by_altitude.clone());
             },
         ];
-        let mut fields: Vec<WindField> = edits
-            .iter()
-            .map(|edit| {
-                field(0.01, |c| {
-                    c.gust.components = GustComponent::ALL.to_vec();
-                    c.gust.start = 0.3;
-                    c.gust.end = 2.0;
-                    edit(c);
-                })
-            })
-            .collect();
+        let mut fields = edited_fields(&edits, &|c| {
+            c.gust.start = 0.3;
+            c.gust.end = 2.0;
+        });
         // A prescribed wind (a source, added last) over a sheared mean wind, a table by
         // altitude and a gust, the turbulence off.
         let sheared = field(0.01, |c| {
@@ -1104,6 +1097,20 @@ mod tests {
         });
         fields.push(sheared.prescribed(prescribed_rows(0.0)));
         fields
+    }
+
+    /// One field (at 0.01 s) per edit, each over the same `base`, all three components blowing.
+    fn edited_fields(edits: &[&dyn Fn(&mut Config)], base: &dyn Fn(&mut Config)) -> Vec<WindField> {
+        edits
+            .iter()
+            .map(|edit| {
+                field(0.01, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    base(c);
+                    edit(c);
+                })
+            })
+            .collect()
     }
 
     /// A prescribed wind's rows, one per step of the tests' flights (and one past them).
@@ -1153,20 +1160,13 @@ mod tests {
                 c.wind.roughness = 0.3;
             },
         ];
-        let fields: Vec<WindField> = edits
-            .iter()
-            .map(|edit| {
-                field(0.01, |c| {
-                    c.gust.components = GustComponent::ALL.to_vec();
-                    c.gust.start = 0.0;
-                    c.gust.end = 2.0;
-                    c.wind.speed = 4.0;
-                    c.wind.heading = 60.0;
-                    c.wind.shear = Shear::Log;
-                    edit(c);
-                })
-            })
-            .collect();
+        let fields = edited_fields(&edits, &|c| {
+            c.gust.start = 0.0;
+            c.gust.end = 2.0;
+            c.wind.speed = 4.0;
+            c.wind.heading = 60.0;
+            c.wind.shear = Shear::Log;
+        });
         let four: Vec<&WindField> = fields.iter().collect();
         let (sources, one) = seeded(&four, 5);
         wind_matches::<F64x4>(&four, sources, one, 200, kin);

@@ -33,6 +33,15 @@ fn cable_config(l0: f64, fn_hz: f64, h: f64) -> Config {
     cfg
 }
 
+/// `cfg` without air (no drag on either body), with the line's `damping` where given.
+fn still_air(mut cfg: Config, damping: Option<f64>) -> Config {
+    cfg.gust.air_density = 0.0;
+    if let Some(d) = damping {
+        cfg.payload.damping = d;
+    }
+    cfg
+}
+
 pub(super) fn vehicle(cfg: &Config) -> Slung {
     AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Ideal>()
 }
@@ -163,9 +172,7 @@ fn hover_is_a_fixed_point() {
 /// With the hook held fixed a small swing is a pendulum of length l_eq: sqrt(g / l_eq).
 #[test]
 fn a_small_swing_below_a_fixed_hook_has_the_pendulum_frequency() {
-    let mut cfg = cable_config(2.0, 20.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(2.0, 20.0, 0.1), None));
     let mut s = swung(&v, 0.01, [0.0; 3]);
     let hook_x = s[0];
     let dt = 1e-3;
@@ -186,10 +193,7 @@ fn a_small_swing_below_a_fixed_hook_has_the_pendulum_frequency() {
 /// error, which falls as dt^4.
 #[test]
 fn a_free_swing_conserves_energy_to_rk4_accuracy() {
-    let mut cfg = cable_config(1.0, 5.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    cfg.payload.damping = 0.0;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(1.0, 5.0, 0.1), Some(0.0)));
     let drift = |dt: f64| {
         let mut s = swung(&v, 0.4, [0.0, 1.2, 0.3]);
         let e0 = energy(&v, &s);
@@ -211,10 +215,7 @@ fn a_free_swing_conserves_energy_to_rk4_accuracy() {
 /// damper alone would pull (the ends separating) or push (a taut cable shortening fast).
 #[test]
 fn a_slack_cable_has_no_tension_and_the_payload_falls_freely() {
-    let mut cfg = cable_config(1.0, 4.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    cfg.payload.damping = 0.8;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(1.0, 4.0, 0.1), Some(0.8)));
     let p = &v.payload;
     let g = v.body.g;
     // Thrown up at 3 m/s from hover: slack until it falls back past L0.
