@@ -23,6 +23,8 @@ pub mod rk4;
 pub mod scenario;
 pub mod stability;
 pub mod start;
+#[cfg(test)]
+mod testing;
 pub mod trajectory;
 
 pub use bindings::{EngineError, ScenarioError};

@@ -383,19 +383,15 @@ pub fn run_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::tests::paper;
+    use crate::scenario::tests::paper_cut;
     use crate::scenario::Config;
 
     fn short() -> Config {
-        let mut cfg = paper();
-        cfg.integrator.duration = 6.0;
-        cfg.integrator.dt = 2e-3;
+        let mut cfg = paper_cut(6.0, 2e-3, 2);
         cfg.gust.start = 1.0;
         cfg.gust.end = 5.0;
-        cfg.phases.truncate(2);
         cfg.phases[0].end = 3.0;
         cfg.phases[1].start = 3.0;
-        cfg.phases[1].end = 6.0;
         cfg
     }
 

@@ -15,24 +15,16 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let events: Vec<&str> = METRICS.iter().filter(|x| x.event).map(|x| x.name).collect();
     m.add("EVENT_METRICS", events)?;
     // Each metric's unit (SI, as stored) and plain-English label, from its one definition.
-    let units = PyDict::new(m.py());
-    let labels = PyDict::new(m.py());
-    for metric in &METRICS {
-        units.set_item(metric.name, metric.unit)?;
-        labels.set_item(metric.name, metric.label)?;
-    }
-    m.add("METRIC_UNITS", units)?;
-    m.add("METRIC_LABELS", labels)?;
+    let metrics = METRICS
+        .iter()
+        .map(|x| (x.name.to_string(), x.unit, x.label));
+    add_units_and_labels(m, "METRIC", metrics)?;
     // The unit and label of every scenario key (dotted, indices dropped), from the
     // declaration beside its section's struct or in its kind's file (`config::params!`).
-    let units = PyDict::new(m.py());
-    let labels = PyDict::new(m.py());
-    for (key, k) in crate::scenario::Config::keys() {
-        units.set_item(&key, k.unit)?;
-        labels.set_item(&key, k.label)?;
-    }
-    m.add("KEY_UNITS", units)?;
-    m.add("KEY_LABELS", labels)?;
+    let keys = crate::scenario::Config::keys()
+        .into_iter()
+        .map(|(key, k)| (key, k.unit, k.label));
+    add_units_and_labels(m, "KEY", keys)?;
     // The pairs of keys that give one thing two ways: setting one replaces the other.
     m.add(
         "ONE_OF_KEYS",
@@ -56,43 +48,33 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
         rates.set_item(kind.name(), kind.rates().to_vec())?;
     }
     m.add("CONTROLLER_RATES", rates)?;
-    m.add(
+    add_names(
+        m,
         "CONTROLLER_LABELS",
-        ControllerKind::ALL
-            .iter()
-            .map(|k| k.label())
-            .collect::<Vec<_>>(),
+        ControllerKind::ALL.iter().map(|k| k.label()),
     )?;
-    m.add(
+    add_names(
+        m,
         "CONTROLLER_NAMES",
-        ControllerKind::ALL
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>(),
+        ControllerKind::ALL.iter().map(|k| k.name()),
     )?;
     // The payload and actuator models (`payload.model`, `actuator.model`), registered once
     // (`model::kinds!`).
-    m.add(
+    add_names(
+        m,
         "PAYLOAD_MODELS",
-        crate::model::PAYLOAD_KINDS
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>(),
+        crate::model::PAYLOAD_KINDS.iter().map(|k| k.name()),
     )?;
-    m.add(
+    add_names(
+        m,
         "ACTUATOR_MODELS",
-        crate::model::ACTUATOR_KINDS
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>(),
+        crate::model::ACTUATOR_KINDS.iter().map(|k| k.name()),
     )?;
     // The bodies (`vehicle.body`).
-    m.add(
+    add_names(
+        m,
         "BODY_MODELS",
-        crate::model::BODY_MODELS
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>(),
+        crate::model::BODY_MODELS.iter().map(|k| k.name()),
     )?;
     // The paper's layout (vertical spring, ideal actuators); a scenario's own come with its
     // description (`describe`) and its flights.
@@ -122,4 +104,29 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
         ExitStatus::ALL.map(ExitStatus::message).to_vec(),
     )?;
     Ok(())
+}
+
+/// `{prefix}_UNITS` and `{prefix}_LABELS`: dicts from each name to its unit and its label.
+fn add_units_and_labels<'a, K: AsRef<str>>(
+    m: &Bound<'_, PyModule>,
+    prefix: &str,
+    entries: impl Iterator<Item = (K, &'a str, &'a str)>,
+) -> PyResult<()> {
+    let units = PyDict::new(m.py());
+    let labels = PyDict::new(m.py());
+    for (name, unit, label) in entries {
+        units.set_item(name.as_ref(), unit)?;
+        labels.set_item(name.as_ref(), label)?;
+    }
+    m.add(format!("{prefix}_UNITS").as_str(), units)?;
+    m.add(format!("{prefix}_LABELS").as_str(), labels)
+}
+
+/// A list of a registry's names (or labels) under `name`.
+fn add_names<'a>(
+    m: &Bound<'_, PyModule>,
+    name: &str,
+    names: impl Iterator<Item = &'a str>,
+) -> PyResult<()> {
+    m.add(name, names.collect::<Vec<_>>())
 }

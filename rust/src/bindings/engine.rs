@@ -168,9 +168,20 @@ impl CompiledEngine {
         streams: Option<PyReadonlyArray1<'py, u64>>,
         fused: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        #[rustfmt::skip]
-        let out = super::batch::run_batch(py, &self.engine, controllers, seed, first, count, workers, spectra, progress, dispersion_keys, dispersion_values, streams, fused);
-        out
+        let args = super::batch::BatchArgs {
+            controllers,
+            seed,
+            first,
+            count,
+            workers,
+            spectra,
+            progress,
+            dispersion_keys,
+            dispersion_values,
+            streams,
+            fused,
+        };
+        super::batch::run_batch(py, &self.engine, args)
     }
 
     /// Fly one row of `xi` ((N, innovations_dimension)) per flight with `controller`, in
@@ -189,8 +200,14 @@ impl CompiledEngine {
         dispersion_keys: Vec<String>,
         dispersion_values: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
-        #[rustfmt::skip]
-        let out = super::batch::run_innovations(py, &self.engine, controller, xi, progress, workers, dispersion_keys, dispersion_values);
-        out
+        let args = super::batch::InnovationsArgs {
+            controller,
+            xi,
+            progress,
+            workers,
+            dispersion_keys,
+            dispersion_values,
+        };
+        super::batch::run_innovations(py, &self.engine, args)
     }
 }

@@ -27,6 +27,21 @@ pub use vehicle::{BodyModel, Vehicle, BODY_MODELS};
 pub use volume::Volume;
 pub use wind::{GustAirspeed, GustAltitude, Intensity};
 
+/// A context built on a lower one held in its `$field`, read through it (`Deref`): a law's
+/// `cfg.vehicle` is its model context's, whose is the sections'. One rule for every layer's
+/// context (model, control, wind).
+macro_rules! reads_through {
+    ($Ctx:ident => $field:ident: $Lower:ident) => {
+        impl<'a> std::ops::Deref for $Ctx<'a> {
+            type Target = $Lower<'a>;
+            fn deref(&self) -> &$Lower<'a> {
+                &self.$field
+            }
+        }
+    };
+}
+pub(crate) use reads_through;
+
 /// A bad scenario value: `key` is the dotted TOML path, `message` the whole sentence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigError {

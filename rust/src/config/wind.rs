@@ -24,65 +24,56 @@ enum NumberOrWord {
     Word(String),
 }
 
-/// `gust.altitude`: a fixed altitude (m) or `"vehicle"` (the quadrotor's z at each step).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "NumberOrWord", into = "NumberOrWord")]
-pub enum GustAltitude {
-    Fixed(f64),
-    Vehicle,
-}
-
-/// `gust.airspeed`: a fixed airspeed (m/s) or `"relative"` (the speed through the mean air).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "NumberOrWord", into = "NumberOrWord")]
-pub enum GustAirspeed {
-    Fixed(f64),
-    Relative,
-}
-
-impl TryFrom<NumberOrWord> for GustAltitude {
-    type Error = String;
-    fn try_from(v: NumberOrWord) -> Result<Self, String> {
-        match v {
-            NumberOrWord::Number(x) => Ok(Self::Fixed(x)),
-            NumberOrWord::Word(w) if w == "vehicle" => Ok(Self::Vehicle),
-            NumberOrWord::Word(w) => Err(format!(
-                "must be an altitude in m or \"vehicle\", got {w:?}"
-            )),
+/// A key that takes a number or one word: the enum `$Ty` with `Fixed(f64)` and the word's
+/// variant, read and written through `NumberOrWord` (one rule for both keys below).
+macro_rules! number_or_word {
+    ($(#[$doc:meta])* $Ty:ident, $Word:ident = $word:literal, $what:literal) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+        #[serde(try_from = "NumberOrWord", into = "NumberOrWord")]
+        pub enum $Ty {
+            Fixed(f64),
+            $Word,
         }
-    }
+
+        impl TryFrom<NumberOrWord> for $Ty {
+            type Error = String;
+            fn try_from(v: NumberOrWord) -> Result<Self, String> {
+                match v {
+                    NumberOrWord::Number(x) => Ok(Self::Fixed(x)),
+                    NumberOrWord::Word(w) if w == $word => Ok(Self::$Word),
+                    NumberOrWord::Word(w) => Err(format!(
+                        concat!("must be ", $what, " or \"", $word, "\", got {:?}"),
+                        w
+                    )),
+                }
+            }
+        }
+
+        impl From<$Ty> for NumberOrWord {
+            fn from(v: $Ty) -> Self {
+                match v {
+                    $Ty::Fixed(x) => Self::Number(x),
+                    $Ty::$Word => Self::Word($word.into()),
+                }
+            }
+        }
+    };
 }
 
-impl From<GustAltitude> for NumberOrWord {
-    fn from(v: GustAltitude) -> Self {
-        match v {
-            GustAltitude::Fixed(x) => Self::Number(x),
-            GustAltitude::Vehicle => Self::Word("vehicle".into()),
-        }
-    }
-}
+number_or_word!(
+    /// `gust.altitude`: a fixed altitude (m) or `"vehicle"` (the quadrotor's z at each step).
+    GustAltitude,
+    Vehicle = "vehicle",
+    "an altitude in m"
+);
 
-impl TryFrom<NumberOrWord> for GustAirspeed {
-    type Error = String;
-    fn try_from(v: NumberOrWord) -> Result<Self, String> {
-        match v {
-            NumberOrWord::Number(x) => Ok(Self::Fixed(x)),
-            NumberOrWord::Word(w) if w == "relative" => Ok(Self::Relative),
-            NumberOrWord::Word(w) => Err(format!(
-                "must be an airspeed in m/s or \"relative\", got {w:?}"
-            )),
-        }
-    }
-}
-
-impl From<GustAirspeed> for NumberOrWord {
-    fn from(v: GustAirspeed) -> Self {
-        match v {
-            GustAirspeed::Fixed(x) => Self::Number(x),
-            GustAirspeed::Relative => Self::Word("relative".into()),
-        }
-    }
-}
+number_or_word!(
+    /// `gust.airspeed`: a fixed airspeed (m/s) or `"relative"` (the speed through the mean air).
+    GustAirspeed,
+    Relative = "relative",
+    "an airspeed in m/s"
+);
 
 /// `gust.intensity`: the standard's named turbulence levels, W20 = 15, 30, 45 knots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

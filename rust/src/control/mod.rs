@@ -38,12 +38,7 @@ pub struct ControlContext<'a> {
     pub controller: &'a ControllerConfig,
 }
 
-impl<'a> std::ops::Deref for ControlContext<'a> {
-    type Target = ModelContext<'a>;
-    fn deref(&self) -> &ModelContext<'a> {
-        &self.model
-    }
-}
+crate::config::reads_through!(ControlContext => model: ModelContext);
 
 /// What a law sees at a step: the rigid body (`Rigid`), the sines and cosines of its angles
 /// (`Trig`: the flight loop computes them once and shares them with the plant's first RK4

@@ -138,6 +138,48 @@ const HELD_QD: usize = 26;
 const HELD_RATE_SP: usize = 30;
 const HELD_U1: usize = 33;
 const HELD_TAU: usize = 34;
+
+/// PX4's PID with the derivative on the measurement, per axis: the error `sp - x` and
+/// `(sp - x) kp + integral - derivative kd`, the integrator and the filtered derivative as
+/// `mem` holds them (`slots`: their first indices). The velocity and the rate loops' rule.
+#[inline(always)]
+fn pid_on_measurement<L: Lane, P: Param<L>>(
+    sp: &[L; 3],
+    x: &[L; 3],
+    (kp, kd): (&[P; 3], &[P; 3]),
+    mem: &Memory<L>,
+    (int, dot): (usize, usize),
+) -> ([L; 3], [L; 3]) {
+    let err = each3(
+        #[inline(always)]
+        |i| sp[i] - x[i],
+    );
+    let out = each3(
+        #[inline(always)]
+        |i| err[i] * kp[i].get() + mem[int + i] - mem[dot + i] * kd[i].get(),
+    );
+    (err, out)
+}
+
+/// PX4's filtered derivative of a measurement `x` (x, y, z or roll, pitch, yaw): its change
+/// since the last one (`mem[prev..]`) over the loop's period `dt`, low-passed by `alpha` into
+/// `mem[dot..]`; `x` then becomes the last one.
+#[inline(always)]
+#[allow(clippy::manual_memcpy)] // each slot read before it is written, as PX4 does
+fn filter_derivative<L: Lane>(
+    x: &[L; 3],
+    mem: &mut Memory<L>,
+    prev: usize,
+    dot: usize,
+    dt: L,
+    alpha: L,
+) {
+    for i in 0..3 {
+        let raw = (x[i] - mem[prev + i]) / dt;
+        mem[dot + i] += (raw - mem[dot + i]) * alpha;
+        mem[prev + i] = x[i];
+    }
+}
 /// Slots the law uses.
 const PX4_MEMORY: usize = 37;
 
@@ -501,18 +543,12 @@ impl<P: Copy + Sync> Px4<P> {
     /// (`PositionControl::_velocityControl`). Holds the collective thrust, the desired body z
     /// axis and the desired attitude.
     #[inline(always)]
-    #[allow(clippy::manual_memcpy)] // each slot read before it is written, as PX4 does
     fn position_loop<L: Masks>(&self, s: &Rigid<L>, r: &Reference, mem: &mut Memory<L>)
     where
         P: Param<L>,
     {
-        let dt: L = self.dt_vel.get();
-        let av: L = self.alpha_vel.get();
-        for i in 0..3 {
-            let raw = (s.vel[i] - mem[VEL_PREV + i]) / dt;
-            mem[VEL_DOT + i] += (raw - mem[VEL_DOT + i]) * av;
-            mem[VEL_PREV + i] = s.vel[i];
-        }
+        let (dt, alpha) = (self.dt_vel.get(), self.alpha_vel.get());
+        filter_derivative(&s.vel, mem, VEL_PREV, VEL_DOT, dt, alpha);
         let (thrust, b3, qd, p) = self.setpoints(s, r, mem);
         mem[HELD_THRUST] = thrust;
         mem[HELD_B3..HELD_B3 + 3].copy_from_slice(&b3);
@@ -578,17 +614,11 @@ impl<P: Copy + Sync> Px4<P> {
         let ff_z = feed_forward_weight(L::splat(r.vel[2]) - self.vel_max_up.get())
             * feed_forward_weight(L::splat(-r.vel[2]) - vmax_dn);
         let ff = [ff_xy, ff_xy, ff_z];
-        let vel_err = each3(
-            #[inline(always)]
-            |i| v_sp[i] - s.vel[i],
-        );
+        let gains = (&self.vel_p, &self.vel_d);
+        let (vel_err, pid) = pid_on_measurement(&v_sp, &s.vel, gains, mem, (VEL_INT, VEL_DOT));
         let acc_sp = each3(
             #[inline(always)]
-            |i| {
-                vel_err[i] * self.vel_p[i].get() + mem[VEL_INT + i]
-                    - mem[VEL_DOT + i] * self.vel_d[i].get()
-                    + ff[i] * r.acc[i]
-            },
+            |i| pid[i] + ff[i] * r.acc[i],
         );
         // Acceleration to thrust: tilt limit on the horizontal acceleration (the thrust
         // direction assumes g vertically), collective thrust from the hover thrust.
@@ -724,18 +754,12 @@ impl<P: Copy + Sync> Px4<P> {
     /// (`RateControl::updateIntegral`) and the allocator's status is published on its period.
     /// Holds the thrust and torques the motors give.
     #[inline(always)]
-    #[allow(clippy::manual_memcpy)] // each slot read before it is written, as PX4 does
     fn rate_loop<L: Masks>(&self, s: &Rigid<L>, mem: &mut Memory<L>)
     where
         P: Param<L>,
     {
-        let dt: L = self.dt_rate.get();
-        let ar: L = self.alpha_rate.get();
-        for i in 0..3 {
-            let raw = (s.rate[i] - mem[RATE_PREV + i]) / dt;
-            mem[RATE_DOT + i] += (raw - mem[RATE_DOT + i]) * ar;
-            mem[RATE_PREV + i] = s.rate[i];
-        }
+        let (dt, alpha) = (self.dt_rate.get(), self.alpha_rate.get());
+        filter_derivative(&s.rate, mem, RATE_PREV, RATE_DOT, dt, alpha);
         let rate_sp = [
             mem[HELD_RATE_SP],
             mem[HELD_RATE_SP + 1],
@@ -743,17 +767,9 @@ impl<P: Copy + Sync> Px4<P> {
         ];
         let thrust = mem[HELD_THRUST];
         // Rate PID (derivative on the measurement), normalised torque, then N m.
-        let rate_err = each3(
-            #[inline(always)]
-            |i| rate_sp[i] - s.rate[i],
-        );
-        let torque = each3(
-            #[inline(always)]
-            |i| {
-                rate_err[i] * self.rate_p[i].get() + mem[RATE_INT + i]
-                    - mem[RATE_DOT + i] * self.rate_d[i].get()
-            },
-        );
+        let gains = (&self.rate_p, &self.rate_d);
+        let (rate_err, torque) =
+            pid_on_measurement(&rate_sp, &s.rate, gains, mem, (RATE_INT, RATE_DOT));
         // PX4's allocator: normalised torques and thrust (along body z down) to motor outputs
         // in [0, 1]; each motor's thrust is its output times T_full / 4.
         let c = [torque[0], torque[1], torque[2], -thrust];
@@ -879,6 +895,22 @@ mod tests {
         Px4::new(&Px4Params::default(), &cfg.control_context())
     }
 
+    /// The paper's scenario, PX4's default parameters and the law they make.
+    fn paper_px4() -> (Config, Px4Params, Px4) {
+        let cfg = paper();
+        let c = px4(&cfg);
+        (cfg, Px4Params::default(), c)
+    }
+
+    /// The vehicle at rest and level 2 m up, and a reference holding it there.
+    fn held_at_two_metres() -> (Rigid<f64>, Reference) {
+        let r = Reference {
+            pos: [0.0, 0.0, 2.0],
+            ..Reference::default()
+        };
+        (at_rest(r.pos, 0.0), r)
+    }
+
     #[test]
     fn hover_is_the_weight_and_no_torque() {
         let cfg = paper();
@@ -901,16 +933,10 @@ mod tests {
     /// torques; a height error gives the cascade's P-P vertical thrust.
     #[test]
     fn gains_map_to_si_as_documented() {
-        let cfg = paper();
-        let k = Px4Params::default();
-        let c = px4(&cfg);
-        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        let (cfg, k, c) = paper_px4();
+        let (mut s, r) = held_at_two_metres();
         s.rate[0] = -0.1;
         s.pos[2] = 1.9;
-        let r = Reference {
-            pos: [0.0, 0.0, 2.0],
-            ..Reference::default()
-        };
         let u = c.control(&s, &r, Tick::START);
         let full = full_thrust(&cfg.control_context());
         // The paper's ideal actuators: twice the weight, the vehicle's own hover thrust 0.5.
@@ -953,16 +979,10 @@ mod tests {
     /// integrator likewise.
     #[test]
     fn integrators_advance_once_per_update() {
-        let cfg = paper();
-        let k = Px4Params::default();
-        let c = px4(&cfg);
-        let mut s = at_rest([0.0, 0.0, 2.0], 0.0);
+        let (cfg, k, c) = paper_px4();
+        let (mut s, r) = held_at_two_metres();
         s.vel[2] = -0.2;
         s.rate[0] = 0.05;
-        let r = Reference {
-            pos: [0.0, 0.0, 2.0],
-            ..Reference::default()
-        };
         let trig = Trig::of_angles(0.0, 0.0, 0.0);
         let seen = Sight::blind(&s, &trig);
         let mut mem = c.memory(&seen);

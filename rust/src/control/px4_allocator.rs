@@ -149,23 +149,20 @@ fn gain<L: Lane>(inv: &[L; 4], u: &[L; 4], lo: f64, hi: f64) -> L {
 fn desaturate<L: Lane>(u: &mut [L; 4], d: &[L; 4], inv: &[L; 4], hi: f64, reduce_only: bool) {
     let zero = L::splat(0.0);
     let first = gain(inv, u, MOTOR_MIN, hi);
-    let g = if reduce_only {
-        first.if_negative(zero, first)
-    } else {
-        first
+    // Each move along `d`: none at all where `reduce_only` and the first gain is negative.
+    let nudge = |u: &mut [L; 4], g: L| {
+        let g = if reduce_only {
+            first.if_negative(zero, g)
+        } else {
+            g
+        };
+        for i in 0..4 {
+            u[i] += g * d[i];
+        }
     };
-    for i in 0..4 {
-        u[i] += g * d[i];
-    }
+    nudge(u, first);
     let second = gain(inv, u, MOTOR_MIN, hi) * 0.5;
-    let g = if reduce_only {
-        first.if_negative(zero, second)
-    } else {
-        second
-    };
-    for i in 0..4 {
-        u[i] += g * d[i];
-    }
+    nudge(u, second);
 }
 
 /// `mixAirmodeDisabled` then `clipActuatorSetpoint`: `c` the normalised control (roll, pitch,
@@ -185,20 +182,15 @@ pub fn allocate<L: Lane>(
     );
     let (thrust, thrust_inv) = (column(mix, THRUST_Z), column(inv, THRUST_Z));
     desaturate(&mut u, &thrust, &thrust_inv, MOTOR_MAX, true);
-    desaturate(
-        &mut u,
-        &column(mix, ROLL),
-        &column(inv, ROLL),
-        MOTOR_MAX,
-        false,
-    );
-    desaturate(
-        &mut u,
-        &column(mix, PITCH),
-        &column(inv, PITCH),
-        MOTOR_MAX,
-        false,
-    );
+    for axis in [ROLL, PITCH] {
+        desaturate(
+            &mut u,
+            &column(mix, axis),
+            &column(inv, axis),
+            MOTOR_MAX,
+            false,
+        );
+    }
     // mixYaw: yaw added and given up first (15 % headroom at the top), then thrust reduced.
     let yaw = column(mix, YAW);
     for i in 0..4 {

@@ -20,7 +20,7 @@ use super::filter::{dryden_lanes, Coefficients, DrydenLanes, Normals};
 use super::source::Kinematics;
 use super::spectra::low_altitude_scales_lanes;
 use super::steady::SteadyLanes;
-use super::wind::{FollowLanes, Source, WindField};
+use super::wind::{turned, FollowLanes, Source, WindField};
 use super::AnySource;
 use crate::config::{GustComponent, GustModel};
 use crate::lane::isa::Isa;
@@ -194,14 +194,7 @@ impl<'a, L: Lane> LaneGust<'a, L> {
                 }
             }
         }
-        match self.axes {
-            None => w,
-            Some((cos, sin)) => [
-                w[0] * cos - w[1] * sin + self.mean[0],
-                w[0] * sin + w[1] * cos + self.mean[1],
-                w[2] + self.mean[2],
-            ],
-        }
+        turned(w, self.axes, &self.mean)
     }
 
     /// Whether step `step` is inside the window.
@@ -488,15 +481,15 @@ impl<'f, 'a, L: KernelOps> LaneWind<'f, 'a, L> {
                 Some(g) if rescale => Some(&mut g.components),
                 _ => None,
             };
-            at_vehicles(
+            let at = AtVehicles {
                 step,
-                &self.fields,
-                &kin,
-                self.mean.as_ref().map(|m| (m, height)),
-                self.follow_lanes.as_ref().map(|f| (f, velocity)),
-                components.map(|c| (c, &self.rescale, &mut *self.coefficients)),
-                &mut steady,
-            );
+                fields: &self.fields,
+                kin: &kin,
+                mean: self.mean.as_ref().map(|m| (m, height)),
+                follow: self.follow_lanes.as_ref().map(|f| (f, velocity)),
+                rescale: components.map(|c| (c, &self.rescale, &mut *self.coefficients)),
+            };
+            at_vehicles(at, &mut steady);
         }
         let mut w = match self.gust.as_mut() {
             Some(g) if turbulent => g.sample(step),
@@ -554,32 +547,35 @@ type Rescaling<'r, L> = (
 /// vector register is the caller's to save); compiled for the lane type's instruction set
 /// (`Lane::within`).
 #[inline(never)]
-fn at_vehicles<L: KernelOps>(
-    step: u64,
-    fields: &[&WindField],
-    kin: &[Kinematics; MAX_LANES],
-    mean: Option<(&SteadyLanes<L>, L)>,
-    follow: Option<(&FollowLanes<L>, [L; 3])>,
-    rescale: Option<Rescaling<'_, L>>,
-    steady: &mut [L; 3],
-) {
+fn at_vehicles<L: KernelOps>(at: AtVehicles<'_, L>, steady: &mut [L; 3]) {
     L::splat(0.0).within(
         #[inline(always)]
-        |_| at_vehicles_within(step, fields, kin, mean, follow, rescale, steady),
+        |_| at_vehicles_within(at, steady),
     )
+}
+
+/// What `at_vehicles` reads: the step, the lanes' fields and vehicles, and the lane-set's
+/// mean wind, scales' inputs and filters to rescale where it has them.
+struct AtVehicles<'a, L: KernelOps> {
+    step: u64,
+    fields: &'a [&'a WindField],
+    kin: &'a [Kinematics; MAX_LANES],
+    mean: Option<(&'a SteadyLanes<L>, L)>,
+    follow: Option<(&'a FollowLanes<L>, [L; 3])>,
+    rescale: Option<Rescaling<'a, L>>,
 }
 
 /// `at_vehicles`' work, inlined into its instruction set's function.
 #[inline(always)]
-fn at_vehicles_within<L: KernelOps>(
-    step: u64,
-    fields: &[&WindField],
-    kin: &[Kinematics; MAX_LANES],
-    mean: Option<(&SteadyLanes<L>, L)>,
-    follow: Option<(&FollowLanes<L>, [L; 3])>,
-    rescale: Option<Rescaling<'_, L>>,
-    steady: &mut [L; 3],
-) {
+fn at_vehicles_within<L: KernelOps>(at: AtVehicles<'_, L>, steady: &mut [L; 3]) {
+    let AtVehicles {
+        step,
+        fields,
+        kin,
+        mean,
+        follow,
+        rescale,
+    } = at;
     let lanes = |a: &[f64; MAX_LANES]| {
         L::from_fn(
             #[inline(always)]
@@ -1085,17 +1081,10 @@ mod tests {
                 c.wind.table = Some(by_altitude.clone());
             },
         ];
-        let mut fields: Vec<WindField> = edits
-            .iter()
-            .map(|edit| {
-                field(0.01, |c| {
-                    c.gust.components = GustComponent::ALL.to_vec();
-                    c.gust.start = 0.3;
-                    c.gust.end = 2.0;
-                    edit(c);
-                })
-            })
-            .collect();
+        let mut fields = edited_fields(&edits, &|c| {
+            c.gust.start = 0.3;
+            c.gust.end = 2.0;
+        });
         // A prescribed wind (a source, added last) over a sheared mean wind, a table by
         // altitude and a gust, the turbulence off.
         let sheared = field(0.01, |c| {
@@ -1108,6 +1097,20 @@ mod tests {
         });
         fields.push(sheared.prescribed(prescribed_rows(0.0)));
         fields
+    }
+
+    /// One field (at 0.01 s) per edit, each over the same `base`, all three components blowing.
+    fn edited_fields(edits: &[&dyn Fn(&mut Config)], base: &dyn Fn(&mut Config)) -> Vec<WindField> {
+        edits
+            .iter()
+            .map(|edit| {
+                field(0.01, |c| {
+                    c.gust.components = GustComponent::ALL.to_vec();
+                    base(c);
+                    edit(c);
+                })
+            })
+            .collect()
     }
 
     /// A prescribed wind's rows, one per step of the tests' flights (and one past them).
@@ -1157,20 +1160,13 @@ mod tests {
                 c.wind.roughness = 0.3;
             },
         ];
-        let fields: Vec<WindField> = edits
-            .iter()
-            .map(|edit| {
-                field(0.01, |c| {
-                    c.gust.components = GustComponent::ALL.to_vec();
-                    c.gust.start = 0.0;
-                    c.gust.end = 2.0;
-                    c.wind.speed = 4.0;
-                    c.wind.heading = 60.0;
-                    c.wind.shear = Shear::Log;
-                    edit(c);
-                })
-            })
-            .collect();
+        let fields = edited_fields(&edits, &|c| {
+            c.gust.start = 0.0;
+            c.gust.end = 2.0;
+            c.wind.speed = 4.0;
+            c.wind.heading = 60.0;
+            c.wind.shear = Shear::Log;
+        });
         let four: Vec<&WindField> = fields.iter().collect();
         let (sources, one) = seeded(&four, 5);
         wind_matches::<F64x4>(&four, sources, one, 200, kin);

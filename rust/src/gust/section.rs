@@ -64,9 +64,4 @@ pub struct WindContext<'a> {
     pub wind: &'a Wind,
 }
 
-impl<'a> std::ops::Deref for WindContext<'a> {
-    type Target = Context<'a>;
-    fn deref(&self) -> &Context<'a> {
-        &self.sections
-    }
-}
+crate::config::reads_through!(WindContext => sections: Context);

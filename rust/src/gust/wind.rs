@@ -8,7 +8,7 @@ use super::spectra::{low_altitude_scales, low_altitude_scales_lanes};
 use super::{AnySource, Prescribed};
 use crate::config::{ConfigError, GustAirspeed, GustAltitude, GustComponent};
 use crate::gust::WindContext;
-use crate::lane::KernelOps;
+use crate::lane::{KernelOps, Lane};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -155,6 +155,21 @@ pub struct WindField {
     sources: Vec<AnySource>,
     /// How many of `sources` (the first) are the mean air's.
     mean_len: usize,
+}
+
+/// The filters' sum `w` (u, v, w) in the turned axes (cos chi, sin chi) turned to inertial
+/// and `gust.mean_wind` added; unturned, `w` as it is (its sum began from the mean): the one
+/// rule of the scalar field and of the lanes (`LaneGust::sample`).
+#[inline(always)]
+pub(super) fn turned<L: Lane>(w: [L; 3], axes: Option<(L, L)>, mean: &[L; 3]) -> [L; 3] {
+    match axes {
+        None => w,
+        Some((c, s)) => [
+            w[0] * c - w[1] * s + mean[0],
+            w[0] * s + w[1] * c + mean[1],
+            w[2] + mean[2],
+        ],
+    }
 }
 
 /// The unit normals of one flight's turbulence: its seeded stream, or innovations given
@@ -561,14 +576,7 @@ impl WindField {
                 w
             }
         };
-        match self.axes {
-            None => w,
-            Some((c, s)) => [
-                w[0] * c - w[1] * s + self.mean[0],
-                w[0] * s + w[1] * c + self.mean[1],
-                w[2] + self.mean[2],
-            ],
-        }
+        turned(w, self.axes, &self.mean)
     }
 
     /// The step's filters where the scales follow the vehicle: sigma and L from its altitude
@@ -1352,15 +1360,15 @@ mod tests {
         c.validate().expect("a table by altitude");
         let path = c.per_realisation_key("wind.table.points[1][2]").unwrap();
         assert!(c.set_number(&path, 0.5));
-        for (key, says) in [
-            ("wind.table.by", "not a number"),
-            ("wind.table.points[1]", "not a number"),
-            ("wind.table.points[2][0]", "not a key"),
-            ("wind.table.points[1][4]", "not a key"),
-        ] {
-            let e = c.per_realisation_key(key).unwrap_err();
-            assert!(e.message.contains(says), "{key}: {e}");
-        }
+        crate::scenario::tests::assert_refused(
+            &c,
+            &[
+                ("wind.table.by", "not a number"),
+                ("wind.table.points[1]", "not a number"),
+                ("wind.table.points[2][0]", "not a key"),
+                ("wind.table.points[1][4]", "not a key"),
+            ],
+        );
     }
 
     #[test]

@@ -24,10 +24,7 @@ macro_rules! flight_loop_for {
         #[target_feature(enable = $features)]
         unsafe fn $name<L, B, Pay, Act, const N: usize>(
             &self,
-            realisations: &[&Realisation],
-            req: &FlightRequest,
-            trace: Option<&mut Trace>,
-            planner: &mut FftPlanner<f64>,
+            sortie: Sortie<'_>,
         ) -> Option<Vec<LaneResult>>
         where
             L: Navigate,
@@ -35,7 +32,7 @@ macro_rules! flight_loop_for {
             Pay: Payload,
             Act: Actuator,
         {
-            self.fly_vehicle::<L, B, Pay, Act, N>(realisations, req, trace, planner)
+            self.fly_vehicle::<L, B, Pay, Act, N>(sortie)
         }
     )+};
 }
@@ -52,11 +49,17 @@ pub trait LoopEntry: Navigate {
     /// realisation per lane.
     fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
         engine: &Engine,
-        realisations: &[&Realisation],
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
+        sortie: Sortie<'_>,
     ) -> Option<Vec<LaneResult>>;
+}
+
+/// What one entry into the flight loop flies: the lanes' realisations, the request, a trace
+/// of lane 0 if asked, and the planner the turbulence's spectra are drawn with.
+pub struct Sortie<'a> {
+    pub realisations: &'a [&'a Realisation],
+    pub req: &'a FlightRequest<'a>,
+    pub trace: Option<&'a mut Trace>,
+    pub planner: &'a mut FftPlanner<f64>,
 }
 
 macro_rules! portable_entry {
@@ -64,12 +67,9 @@ macro_rules! portable_entry {
         impl LoopEntry for $ty {
             fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 engine: &Engine,
-                realisations: &[&Realisation],
-                req: &FlightRequest,
-                trace: Option<&mut Trace>,
-                planner: &mut FftPlanner<f64>,
+                sortie: Sortie<'_>,
             ) -> Option<Vec<LaneResult>> {
-                engine.fly_vehicle::<Self, B, Pay, Act, N>(realisations, req, trace, planner)
+                engine.fly_vehicle::<Self, B, Pay, Act, N>(sortie)
             }
         }
     )+};
@@ -84,10 +84,7 @@ macro_rules! intrinsic_entry {
         impl LoopEntry for $ty {
             fn enter<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 engine: &Engine,
-                realisations: &[&Realisation],
-                req: &FlightRequest,
-                trace: Option<&mut Trace>,
-                planner: &mut FftPlanner<f64>,
+                sortie: Sortie<'_>,
             ) -> Option<Vec<LaneResult>> {
                 let isa: Isa = $isa;
                 assert!(
@@ -97,9 +94,7 @@ macro_rules! intrinsic_entry {
                     if $fused { " (fused)" } else { "" }
                 );
                 // SAFETY: the CPU supports the instruction set (asserted just above).
-                unsafe {
-                    engine.$name::<Self, B, Pay, Act, N>(realisations, req, trace, planner)
-                }
+                unsafe { engine.$name::<Self, B, Pay, Act, N>(sortie) }
             }
         }
     )+};

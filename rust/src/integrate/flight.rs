@@ -1,7 +1,7 @@
 //! The flight loop: hold, step, check, accumulate, for every lane of a lane-set at once.
 
 use super::engine::{Engine, FlightRequest, LaneResult, Realisation, MAX_LANES};
-use super::entry::LoopEntry;
+use super::entry::{LoopEntry, Sortie};
 use super::steps::{Attitude, Ends, Leg, Rates, Release, Runaway, TensionNoise, Winds};
 use super::trace::{Trace, TraceRow, MAX_ACTUATOR_SIGNALS};
 use crate::control::{Flying, Laws, Sight};
@@ -49,34 +49,27 @@ impl Engine {
             return self.fly_by_schedule::<L>(realisations, req, trace, planner);
         }
         /// The request, carried through the dispatch to `LoopEntry::enter`.
-        struct Fly<'e, 'r, 't, L> {
+        struct Fly<'e, 'r, L> {
             engine: &'e Engine,
-            realisations: &'r [&'r Realisation],
-            req: &'r FlightRequest<'r>,
-            trace: Option<&'t mut Trace>,
-            planner: &'t mut FftPlanner<f64>,
+            sortie: Sortie<'r>,
             kinds: PhantomData<L>,
         }
-        impl<L: LoopEntry> VehicleVisitor for Fly<'_, '_, '_, L> {
+        impl<L: LoopEntry> VehicleVisitor for Fly<'_, '_, L> {
             type Output = Option<Vec<LaneResult>>;
             fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(
                 self,
             ) -> Self::Output {
-                L::enter::<B, Pay, Act, N>(
-                    self.engine,
-                    self.realisations,
-                    self.req,
-                    self.trace,
-                    self.planner,
-                )
+                L::enter::<B, Pay, Act, N>(self.engine, self.sortie)
             }
         }
         let fly = Fly {
             engine: self,
-            realisations,
-            req,
-            trace,
-            planner,
+            sortie: Sortie {
+                realisations,
+                req,
+                trace,
+                planner,
+            },
             kinds: PhantomData::<L>,
         };
         let cfg = &self.cfg;
@@ -142,10 +135,7 @@ impl Engine {
     #[inline(always)]
     pub(super) fn fly_vehicle<L, B, Pay, Act, const N: usize>(
         &self,
-        realisations: &[&Realisation],
-        req: &FlightRequest,
-        trace: Option<&mut Trace>,
-        planner: &mut FftPlanner<f64>,
+        sortie: Sortie<'_>,
     ) -> Option<Vec<LaneResult>>
     where
         L: Navigate,
@@ -153,6 +143,12 @@ impl Engine {
         Pay: Payload,
         Act: Actuator,
     {
+        let Sortie {
+            realisations,
+            req,
+            trace,
+            planner,
+        } = sortie;
         let each: Vec<&AnyVehicle> = realisations.iter().map(|c| &c.vehicle).collect();
         // Mutable: a payload's winch target and hook change along the flight (`last_metres`).
         let mut vehicle = AnyVehicle::gather_on::<L, B, Pay, Act>(&each);
@@ -265,7 +261,7 @@ impl Engine {
             let tick = Tick { step: k, t };
             let view = V::<L, Pay, Act, B>::rigid_with(&s, attitude.euler);
             // What the law sees of the payload: only computed for a law that reads it.
-            let payload = payload_view(reads_payload, vehicle, &s, &trig);
+            let payload = vehicle.payload_view_if(reads_payload, &s, &trig);
             let law_trig = B::trig(&trig, &view.att);
             let seen = sight(nav.as_mut(), k, &view, &law_trig, payload.as_ref());
             let due = rates.due(k);
@@ -480,27 +476,6 @@ struct Start<'f, 'a, L: Navigate, const N: usize> {
     law: Flying<L>,
     rates: Rates,
     nav: Option<Navigation<L>>,
-}
-
-/// What the law sees of the payload at state `s`: only computed for a law that reads it.
-#[inline(always)]
-fn payload_view<L, B, Pay, Act, const N: usize>(
-    reads: bool,
-    vehicle: &Vehicle<L, Pay, Act, B>,
-    s: &State<L, N>,
-    trig: &B::Frame<L>,
-) -> Option<PayloadView<L>>
-where
-    L: Navigate,
-    B: BodyKind,
-    Pay: crate::model::PayloadModel<L>,
-    Act: ActuatorModel<L>,
-{
-    // A match, not `bool::then`: nothing here may be left out of line.
-    match reads {
-        true => Some(vehicle.payload.view(s, trig)),
-        false => None,
-    }
 }
 
 /// The route's cue to the payload at `t`, before the step (a hook that opens now is open

@@ -10,7 +10,7 @@ use crate::model::paper_ix::{self as ix, NX};
 use crate::model::payload::Spring;
 use crate::model::{state_from_fn, AnyVehicle, Inputs, PaperVehicle, State, Trig};
 use crate::rk4::rk4_step;
-use crate::scenario::tests::paper;
+use crate::scenario::tests::{paper, paper_cut};
 use crate::scenario::Config;
 use rustfft::FftPlanner;
 
@@ -54,11 +54,7 @@ fn rk4_converges_at_fourth_order() {
         free_oscillation_error(0.005, 2.0),
     );
     for (coarse, fine) in [(e1, e2), (e2, e3)] {
-        let ratio = coarse / fine;
-        assert!(
-            (14.0..18.0).contains(&ratio),
-            "error ratio {ratio} (errors {e1} {e2} {e3})"
-        );
+        crate::testing::assert_halving_ratio(coarse, fine, 14.0..18.0);
     }
 }
 
@@ -76,22 +72,11 @@ fn free_oscillation_frequency_is_the_two_body_one() {
     };
     let dt = 1e-4;
     let d0 = plant.payload.hover_offset;
-    let (mut crossings, mut first, mut last) = (0usize, f64::NAN, f64::NAN);
-    let mut prev = s[ix::Z] - s[ix::ZC] - d0;
-    for k in 1..=100_000 {
+    let start = s[ix::Z] - s[ix::ZC] - d0;
+    let (_, measured) = crate::testing::crossing_frequency(start, 100_000, dt, || {
         s = step(&plant, &s, &u, dt);
-        let cur = s[ix::Z] - s[ix::ZC] - d0;
-        if prev.signum() != cur.signum() {
-            let tc = (k as f64 - cur / (cur - prev)) * dt;
-            if first.is_nan() {
-                first = tc;
-            }
-            last = tc;
-            crossings += 1;
-        }
-        prev = cur;
-    }
-    let measured = 0.5 * (crossings - 1) as f64 / (last - first);
+        s[ix::Z] - s[ix::ZC] - d0
+    });
     let fn_payload = 2.0;
     let expected = fn_payload * ((cfg.vehicle.mass + 0.22) / cfg.vehicle.mass).sqrt();
     assert!(
@@ -161,11 +146,7 @@ fn a_flight_diverging_in_p2_keeps_p1_metrics() {
 #[test]
 fn exit_status_names_what_ended_the_flight() {
     let fly = |edit: &dyn Fn(&mut Config)| {
-        let mut cfg = paper();
-        cfg.integrator.dt = 1e-3;
-        cfg.integrator.duration = 10.0;
-        cfg.phases.truncate(1);
-        cfg.phases[0].end = 10.0;
+        let mut cfg = paper_cut(10.0, 1e-3, 1);
         cfg.gust.enabled = false;
         cfg.initial.attitude = [0.02, -0.01, 0.5];
         edit(&mut cfg);
@@ -262,12 +243,8 @@ fn hover_equilibrium_holds_for_both_laws() {
 
 #[test]
 fn simd_lanes_match_scalar_flights() {
-    let mut cfg = paper();
-    cfg.integrator.duration = 30.0;
-    cfg.integrator.dt = 1e-3;
+    let mut cfg = paper_cut(30.0, 1e-3, 2);
     cfg.gust.end = 29.0;
-    cfg.phases.truncate(2);
-    cfg.phases[1].end = 30.0;
     // Lateral motion too, so that every kernel (asin included) sees non-trivial inputs.
     cfg.initial.position = [0.3, -0.2, 0.0];
     cfg.initial.attitude = [0.05, -0.03, 0.5];
@@ -393,13 +370,9 @@ fn drag_z_vanishes_at_hover_without_wind() {
 /// mode (last digits), yet not identical (the fusing happened).
 #[test]
 fn fused_mode_is_close_to_the_default_and_refused_without_fma() {
-    let mut cfg = paper();
-    cfg.integrator.duration = 10.0;
-    cfg.integrator.dt = 1e-3;
+    let mut cfg = paper_cut(10.0, 1e-3, 1);
     cfg.gust.start = 1.0;
     cfg.gust.end = 9.0;
-    cfg.phases.truncate(1);
-    cfg.phases[0].end = 10.0;
     let mut planner = FftPlanner::new();
     for isa in Isa::ALL {
         let mut engine = Engine::new(cfg.clone()).unwrap();
@@ -438,11 +411,7 @@ fn windy_cfg() -> Config {
     use crate::scenario::{
         DiscreteGust, GustAirspeed, GustAltitude, GustComponent, GustShape, Shear,
     };
-    let mut cfg = paper();
-    cfg.integrator.dt = 1e-3;
-    cfg.integrator.duration = 24.0;
-    cfg.phases.truncate(2);
-    cfg.phases[1].end = 24.0;
+    let mut cfg = paper_cut(24.0, 1e-3, 2);
     cfg.trajectory.interpolation = crate::config::Interpolation::MinJerk;
     cfg.trajectory.waypoints = vec![[0.0, 0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 20.0, 0.0]];
     cfg.trajectory.transition = 15.0;

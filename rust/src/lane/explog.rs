@@ -376,6 +376,17 @@ pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64
         }
         out
     }
+    /// `run::<L>` compiled for `L`'s instruction set (`Lane::within`), where this CPU has it
+    /// (`isa`): a value of `L`, the proof `within` asks for, is made only then.
+    #[cfg(target_arch = "x86_64")]
+    fn on<L: KernelOps>(isa: Isa, f: usize, x: &[f64], y: f64) -> Option<Vec<f64>> {
+        isa.supported().then(|| {
+            L::splat(0.0).within(
+                #[inline(always)]
+                |_| run::<L>(f, x, y),
+            )
+        })
+    }
     use super::isa::Isa;
     let unsupported =
         |isa: Isa| format!("path {path:?} needs {}, which this CPU lacks", isa.name());
@@ -383,30 +394,10 @@ pub fn evaluate(function: &str, path: &str, x: &[f64], y: f64) -> Result<Vec<f64
         "scalar" => Ok(run::<f64>(f, x, y)),
         "sse2" => Ok(run::<super::F64x4>(f, x, y)),
         #[cfg(target_arch = "x86_64")]
-        "avx2" => {
-            if !Isa::Avx2.supported() {
-                return Err(unsupported(Isa::Avx2));
-            }
-            // SAFETY: AVX2 is available (checked above).
-            #[target_feature(enable = "avx2")]
-            unsafe fn avx2(f: usize, x: &[f64], y: f64) -> Vec<f64> {
-                run::<super::F64x4Avx>(f, x, y)
-            }
-            // SAFETY: AVX2 is available (checked above).
-            Ok(unsafe { avx2(f, x, y) })
-        }
+        "avx2" => on::<super::F64x4Avx>(Isa::Avx2, f, x, y).ok_or_else(|| unsupported(Isa::Avx2)),
         #[cfg(target_arch = "x86_64")]
         "avx512" => {
-            if !Isa::Avx512.supported() {
-                return Err(unsupported(Isa::Avx512));
-            }
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            #[target_feature(enable = "avx512f,avx512dq")]
-            unsafe fn avx512(f: usize, x: &[f64], y: f64) -> Vec<f64> {
-                run::<super::F64x8Avx512>(f, x, y)
-            }
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            Ok(unsafe { avx512(f, x, y) })
+            on::<super::F64x8Avx512>(Isa::Avx512, f, x, y).ok_or_else(|| unsupported(Isa::Avx512))
         }
         _ => Err(format!(
             "path must be one of [\"scalar\", \"sse2\", \"avx2\", \"avx512\"], got {path:?}"

@@ -189,6 +189,26 @@ pub trait KernelOps: Masks + Param<Self> {
     fn shr52_bits(self) -> Self;
 }
 
+/// `Lane`'s trigonometry from the branch-free kernels (`kernels::sin_cos`, `kernels::asin`,
+/// `kernels::atan2`), for every lane type built from `KernelOps` (`f64`, `F64x4`, the x86
+/// registers): written once, expanded inside each `impl Lane`.
+macro_rules! kernel_trig {
+    () => {
+        #[inline(always)]
+        fn sin_cos(self) -> (Self, Self) {
+            $crate::lane::kernels::sin_cos(self)
+        }
+        #[inline(always)]
+        fn asin(self) -> Self {
+            $crate::lane::kernels::asin(self)
+        }
+        #[inline(always)]
+        fn atan2(self, x: Self) -> Self {
+            $crate::lane::kernels::atan2(self, x)
+        }
+    };
+}
+
 #[inline(always)]
 fn mask_f64(b: bool) -> f64 {
     f64::from_bits(if b { u64::MAX } else { 0 })
@@ -240,18 +260,7 @@ impl Lane for f64 {
     fn le_mask(self, bound: Self) -> u32 {
         (self <= bound) as u32
     }
-    #[inline(always)]
-    fn sin_cos(self) -> (Self, Self) {
-        kernels::sin_cos(self)
-    }
-    #[inline(always)]
-    fn asin(self) -> Self {
-        kernels::asin(self)
-    }
-    #[inline(always)]
-    fn atan2(self, x: Self) -> Self {
-        kernels::atan2(self, x)
-    }
+    kernel_trig!();
 }
 
 impl Masks for f64 {
@@ -310,34 +319,9 @@ macro_rules! lane_ops {
                 self
             }
         }
-        impl Add for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn add(self, o: Self) -> Self {
-                self.add_(o)
-            }
-        }
-        impl Sub for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn sub(self, o: Self) -> Self {
-                self.sub_(o)
-            }
-        }
-        impl Mul for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn mul(self, o: Self) -> Self {
-                self.mul_(o)
-            }
-        }
-        impl Div for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn div(self, o: Self) -> Self {
-                self.div_(o)
-            }
-        }
+        lane_ops!(@op $ty, Self, |o| o; Add add add_, Sub sub sub_, Mul mul mul_, Div div div_);
+        // An `f64` operand is the same in every lane.
+        lane_ops!(@op $ty, f64, |o| <$ty as Lane>::splat(o); Add add add_, Sub sub sub_, Mul mul mul_);
         impl Neg for $ty {
             type Output = Self;
             #[inline(always)]
@@ -351,28 +335,18 @@ macro_rules! lane_ops {
                 *self = self.add_(o);
             }
         }
-        impl Add<f64> for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn add(self, o: f64) -> Self {
-                self.add_(<$ty as Lane>::splat(o))
-            }
-        }
-        impl Sub<f64> for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn sub(self, o: f64) -> Self {
-                self.sub_(<$ty as Lane>::splat(o))
-            }
-        }
-        impl Mul<f64> for $ty {
-            type Output = Self;
-            #[inline(always)]
-            fn mul(self, o: f64) -> Self {
-                self.mul_(<$ty as Lane>::splat(o))
-            }
-        }
     };
+    // Each operator `$Op` with operand `$Rhs` (`$rhs` of it as a lane value) is its inherent
+    // method.
+    (@op $ty:ident, $Rhs:ty, |$o:ident| $rhs:expr; $($Op:ident $op:ident $inherent:ident),+) => {$(
+        impl $Op<$Rhs> for $ty {
+            type Output = Self;
+            #[inline(always)]
+            fn $op(self, $o: $Rhs) -> Self {
+                self.$inherent($rhs)
+            }
+        }
+    )+};
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -593,26 +567,25 @@ mod tests {
         pack_agrees_bitwise::<F64x4>();
         pack_agrees_bitwise::<portable::F64x4>();
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 is available (checked above).
-            #[target_feature(enable = "avx2")]
-            unsafe fn avx() {
-                pack_agrees_bitwise::<F64x4Avx>();
-            }
-            // SAFETY: AVX2 is available (checked above).
-            unsafe { avx() };
+        {
+            on_its_isa::<F64x4Avx>(isa::Isa::Avx2.supported(), pack_agrees_bitwise::<F64x4Avx>);
+            let runs = isa::Isa::Avx512.supported();
+            on_its_isa::<F64x8Avx512>(runs, pack_agrees_bitwise::<F64x8Avx512>);
         }
-        #[cfg(target_arch = "x86_64")]
-        if isa::Isa::Avx512.supported() {
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            #[target_feature(enable = "avx512f,avx512dq")]
-            unsafe fn avx512() {
-                pack_agrees_bitwise::<F64x8Avx512>();
-            }
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            unsafe { avx512() };
+    }
+
+    /// `check` (a test of lane type `L`) run where this CPU has `L`'s instruction set (`runs`),
+    /// compiled for it (`Lane::within`: a value of `L` is made only then); skipped, and said
+    /// on stderr, where it has not.
+    #[cfg(target_arch = "x86_64")]
+    fn on_its_isa<L: Lane>(runs: bool, check: fn()) {
+        if runs {
+            L::splat(0.0).within(|_| check());
         } else {
-            eprintln!("skipped F64x8Avx512: this CPU lacks AVX-512F/DQ");
+            eprintln!(
+                "skipped {}: this CPU lacks its instruction set",
+                std::any::type_name::<L>()
+            );
         }
     }
 
@@ -645,26 +618,11 @@ mod tests {
     #[test]
     fn fused_kernels_stay_accurate() {
         #[cfg(target_arch = "x86_64")]
-        if isa::Isa::Avx2.fused_supported() {
-            // SAFETY: AVX2 and FMA are available (checked above).
-            #[target_feature(enable = "avx2,fma")]
-            unsafe fn avx2() {
-                fused_kernels_are_accurate::<F64x4Fma>();
-            }
-            // SAFETY: AVX2 and FMA are available (checked above).
-            unsafe { avx2() };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if isa::Isa::Avx512.fused_supported() {
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            #[target_feature(enable = "avx512f,avx512dq")]
-            unsafe fn avx512() {
-                fused_kernels_are_accurate::<F64x8Fma512>();
-            }
-            // SAFETY: AVX-512F and DQ are available (checked above).
-            unsafe { avx512() };
-        } else {
-            eprintln!("skipped F64x8Fma512: this CPU lacks AVX-512F/DQ");
+        {
+            let runs = isa::Isa::Avx2.fused_supported();
+            on_its_isa::<F64x4Fma>(runs, fused_kernels_are_accurate::<F64x4Fma>);
+            let runs = isa::Isa::Avx512.fused_supported();
+            on_its_isa::<F64x8Fma512>(runs, fused_kernels_are_accurate::<F64x8Fma512>);
         }
     }
 

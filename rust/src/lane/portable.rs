@@ -1,7 +1,7 @@
 //! Four lanes as a plain array, operation by operation (LLVM vectorises what it can): the lane
 //! type off x86-64. Also compiled, and tested, on x86-64 test builds.
 
-use super::{kernels, KernelOps, Lane, Masks, Param};
+use super::{KernelOps, Lane, Masks, Param};
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 #[derive(Clone, Copy, Debug)]
@@ -19,6 +19,16 @@ macro_rules! each {
         let f = |$x: f64, $y: f64| $e;
         F64x4([f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]), f(a[3], b[3])])
     }};
+}
+
+/// Methods of trait `$Trait` that are `f64`'s own, lane by lane (`o`: a second operand).
+macro_rules! lanewise {
+    ($Trait:ident: $($name:ident($($o:ident)?);)+) => {$(
+        #[inline(always)]
+        fn $name(self $(, $o: Self)?) -> Self {
+            each!(|x $(, $o)?| <f64 as $Trait>::$name(x $(, $o)?), self $(, $o)?)
+        }
+    )+};
 }
 
 impl F64x4 {
@@ -68,34 +78,8 @@ impl Lane for F64x4 {
     fn set_lane(&mut self, i: usize, x: f64) {
         self.0[i] = x;
     }
-    #[inline(always)]
-    fn sin_cos(self) -> (Self, Self) {
-        kernels::sin_cos(self)
-    }
-    #[inline(always)]
-    fn asin(self) -> Self {
-        kernels::asin(self)
-    }
-    #[inline(always)]
-    fn atan2(self, x: Self) -> Self {
-        kernels::atan2(self, x)
-    }
-    #[inline(always)]
-    fn abs(self) -> Self {
-        each!(|x| x.abs(), self)
-    }
-    #[inline(always)]
-    fn sqrt(self) -> Self {
-        each!(|x| x.sqrt(), self)
-    }
-    #[inline(always)]
-    fn max(self, o: Self) -> Self {
-        each!(|x, y| Lane::max(x, y), self, o)
-    }
-    #[inline(always)]
-    fn min(self, o: Self) -> Self {
-        each!(|x, y| Lane::min(x, y), self, o)
-    }
+    kernel_trig!();
+    lanewise!(Lane: abs(); sqrt(); max(o); min(o););
     #[inline(always)]
     fn le_mask(self, bound: Self) -> u32 {
         let (a, b) = (self.0, bound.0);
@@ -107,18 +91,7 @@ impl Lane for F64x4 {
 }
 
 impl Masks for F64x4 {
-    #[inline(always)]
-    fn cmp_le(self, o: Self) -> Self {
-        each!(|x, y| Masks::cmp_le(x, y), self, o)
-    }
-    #[inline(always)]
-    fn cmp_ge(self, o: Self) -> Self {
-        each!(|x, y| Masks::cmp_ge(x, y), self, o)
-    }
-    #[inline(always)]
-    fn cmp_ne(self, o: Self) -> Self {
-        each!(|x, y| Masks::cmp_ne(x, y), self, o)
-    }
+    lanewise!(Masks: cmp_le(o); cmp_ge(o); cmp_ne(o););
     #[inline(always)]
     fn select(m: Self, a: Self, b: Self) -> Self {
         let (m, a, b) = (m.0, a.0, b.0);
@@ -133,28 +106,5 @@ impl Masks for F64x4 {
 }
 
 impl KernelOps for F64x4 {
-    #[inline(always)]
-    fn and_bits(self, o: Self) -> Self {
-        each!(|x, y| x.and_bits(y), self, o)
-    }
-    #[inline(always)]
-    fn xor_bits(self, o: Self) -> Self {
-        each!(|x, y| x.xor_bits(y), self, o)
-    }
-    #[inline(always)]
-    fn add_bits(self, o: Self) -> Self {
-        each!(|x, y| x.add_bits(y), self, o)
-    }
-    #[inline(always)]
-    fn shl62_bits(self) -> Self {
-        each!(|x| x.shl62_bits(), self)
-    }
-    #[inline(always)]
-    fn shl52_bits(self) -> Self {
-        each!(|x| x.shl52_bits(), self)
-    }
-    #[inline(always)]
-    fn shr52_bits(self) -> Self {
-        each!(|x| x.shr52_bits(), self)
-    }
+    lanewise!(KernelOps: and_bits(o); xor_bits(o); add_bits(o); shl62_bits(); shl52_bits(); shr52_bits(););
 }

@@ -18,7 +18,7 @@
 //! lands in the target-feature-compiled flight loop; an operation left out of line there would
 //! still be correct, only slow.
 
-use super::{kernels, KernelOps, Lane, Masks, Param};
+use super::{KernelOps, Lane, Masks, Param};
 use std::arch::x86_64::*;
 use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
@@ -164,18 +164,7 @@ macro_rules! x86_lane {
                 a[i] = x;
                 *self = Self::from_array(a);
             }
-            #[inline(always)]
-            fn sin_cos(self) -> (Self, Self) {
-                kernels::sin_cos(self)
-            }
-            #[inline(always)]
-            fn asin(self) -> Self {
-                kernels::asin(self)
-            }
-            #[inline(always)]
-            fn atan2(self, x: Self) -> Self {
-                kernels::atan2(self, x)
-            }
+            kernel_trig!();
             #[inline(always)]
             fn abs(self) -> Self {
                 self.and_bits(Self::splat(f64::from_bits(!(1u64 << 63))))

@@ -26,7 +26,7 @@ pub use kinds::{
     ACTUATOR_KINDS, PAYLOAD_KINDS, RIGID_PAYLOADS,
 };
 pub use layout::{Axis, Bound, Layout, Part, StateVar};
-pub use payload::{Payload, PayloadModel, PayloadOutputs, PayloadView};
+pub use payload::{AtState, Payload, PayloadModel, PayloadOutputs, PayloadView};
 pub use section::{ModelContext, OwnsKeys};
 
 use crate::lane::{KernelOps, Lane};
@@ -265,7 +265,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
             cmd,
             w,
             #[inline(always)]
-            |p, body, u1, ds| (p.accelerations(body, s, trig, u1, w, ds), ()),
+            |p, at, ds| (p.accelerations(at, ds), ()),
         )
         .0
     }
@@ -288,7 +288,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
             cmd,
             w,
             #[inline(always)]
-            |p, body, u1_felt, ds| p.accelerations_and_outputs(body, s, trig, u1_felt, u1, w, ds),
+            |p, at, ds| p.accelerations_and_outputs(at, u1, ds),
         )
     }
 
@@ -302,7 +302,11 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         frame: &B::Frame<L>,
         cmd: &Act::Command,
         w: &[L; 3],
-        payload: impl FnOnce(&Pay, &Body<L>, L, &mut State<L, N>) -> (Option<[L; 3]>, R),
+        payload: impl FnOnce(
+            &Pay,
+            &AtState<'_, L, B::Frame<L>, N>,
+            &mut State<L, N>,
+        ) -> (Option<[L; 3]>, R),
     ) -> (State<L, N>, R) {
         const { assert!(N == Self::LAYOUT.len()) };
         let lay = Self::LAYOUT;
@@ -313,7 +317,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         ds[..3].copy_from_slice(&s[v..v + 3]);
         B::attitude_rates(s, lay, &mut ds);
         ds[pp..pp + Pay::DOF].copy_from_slice(&s[pv..pv + Pay::DOF]);
-        let (torque, out) = payload(&self.payload, &self.body, u.u1, &mut ds);
+        let (torque, out) = payload(&self.payload, &self.payload_at(s, frame, u.u1, w), &mut ds);
         let rates = [s[v + 3], s[v + 4], s[v + 5]];
         let mut tau = u.tau;
         let air = [s[v] - w[0], s[v + 1] - w[1], s[v + 2] - w[2]];
@@ -331,6 +335,41 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         (ds, out)
     }
 
+    /// What a law sees of the payload at state `s` (`PayloadModel::view`), where it reads it
+    /// (`reads`); None, and nothing computed, where it does not.
+    #[inline(always)]
+    pub fn payload_view_if<const N: usize>(
+        &self,
+        reads: bool,
+        s: &State<L, N>,
+        trig: &B::Frame<L>,
+    ) -> Option<PayloadView<L>> {
+        // A match, not `bool::then`: nothing here may be left out of line.
+        match reads {
+            true => Some(self.payload.view(s, trig)),
+            false => None,
+        }
+    }
+
+    /// What the payload's dynamics read (`AtState`): this vehicle's body at `s`, whose attitude
+    /// is `frame`, under the total thrust `u1` in the wind `w`.
+    #[inline(always)]
+    fn payload_at<'a, const N: usize>(
+        &'a self,
+        s: &'a State<L, N>,
+        frame: &'a B::Frame<L>,
+        u1: L,
+        w: &'a [L; 3],
+    ) -> AtState<'a, L, B::Frame<L>, N> {
+        AtState {
+            body: &self.body,
+            s,
+            frame,
+            u1,
+            w,
+        }
+    }
+
     /// Everything the flight loop records about the payload at `s` in wind `w`.
     #[inline(always)]
     pub fn payload_outputs<const N: usize>(
@@ -340,7 +379,7 @@ impl<L: Lane, Pay: PayloadModel<L>, Act: ActuatorModel<L>, B: BodyKind> Vehicle<
         u1: L,
         w: &[L; 3],
     ) -> PayloadOutputs<L> {
-        self.payload.outputs(&self.body, s, trig, u1, w)
+        self.payload.outputs(&self.payload_at(s, trig, u1, w))
     }
 }
 
@@ -475,4 +514,4 @@ impl AnyVehicle {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

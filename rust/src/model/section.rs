@@ -103,12 +103,7 @@ pub struct ModelContext<'a> {
     pub actuator: &'a ActuatorConfig,
 }
 
-impl<'a> std::ops::Deref for ModelContext<'a> {
-    type Target = Context<'a>;
-    fn deref(&self) -> &Context<'a> {
-        &self.sections
-    }
-}
+crate::config::reads_through!(ModelContext => sections: Context);
 
 impl ModelContext<'_> {
     /// kc in N/m, from whichever of stiffness / natural frequency was given.

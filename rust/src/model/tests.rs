@@ -1,4 +1,5 @@
 use super::*;
+use crate::lane::F64x4;
 use crate::scenario::tests::paper;
 use crate::scenario::Config;
 
@@ -16,8 +17,70 @@ fn hover(v: &Paper) -> Inputs<f64> {
     }
 }
 
-fn derivative(v: &Paper, s: &State<f64, NX>, u: &Inputs<f64>, w: &[f64; 3]) -> State<f64, NX> {
+/// ds/dt of a vehicle on the ideal actuators at `s`, its attitude worked out from `s`.
+pub(crate) fn derivative<Pay: PayloadModel<f64>, const N: usize>(
+    v: &Vehicle<f64, Pay, actuator::Ideal>,
+    s: &State<f64, N>,
+    u: &Inputs<f64>,
+    w: &[f64; 3],
+) -> State<f64, N> {
     v.derivative(s, &Trig::of(s), u, w)
+}
+
+/// The gathered-lanes checks' case: each config's vehicle (`parts`) and their lane-set
+/// (`lanes`), a state splatted to every lane (`sl`), a command `u` and a wind `w`, each also
+/// splatted (`ul`, `wl`).
+pub(crate) struct LaneCase<Pay: Payload, Act: Actuator, const N: usize> {
+    pub parts: Vec<AnyVehicle>,
+    pub lanes: Vehicle<F64x4, Pay::At<F64x4>, Act::At<F64x4>>,
+    pub sl: State<F64x4, N>,
+    pub u: Inputs<f64>,
+    pub ul: Inputs<F64x4>,
+    pub w: [f64; 3],
+    pub wl: [F64x4; 3],
+}
+
+impl<Pay: Payload, Act: Actuator, const N: usize> LaneCase<Pay, Act, N> {
+    pub(crate) fn new(cfgs: &[Config], s: State<f64, N>) -> Self {
+        let parts: Vec<AnyVehicle> = cfgs
+            .iter()
+            .map(|c| AnyVehicle::new(&c.model_context()))
+            .collect();
+        let refs: Vec<&AnyVehicle> = parts.iter().collect();
+        let lanes = AnyVehicle::gather::<F64x4, Pay, Act>(&refs);
+        let u = Inputs {
+            u1: 25.0,
+            tau: [0.01, -0.02, 0.003],
+        };
+        let w = [0.3, -0.1, 1.2];
+        Self {
+            sl: state_from_fn(|i| F64x4::splat(s[i])),
+            ul: Inputs {
+                u1: F64x4::splat(u.u1),
+                tau: u.tau.map(F64x4::splat),
+            },
+            wl: w.map(F64x4::splat),
+            parts,
+            lanes,
+            u,
+            w,
+        }
+    }
+}
+
+/// Lane `l` of `got` is `want`, bit for bit, in every state.
+pub(crate) fn assert_lane_bits<const N: usize>(
+    got: &State<F64x4, N>,
+    want: &State<f64, N>,
+    l: usize,
+) {
+    for i in 0..N {
+        assert_eq!(
+            got[i].lane(l).to_bits(),
+            want[i].to_bits(),
+            "lane {l} state {i}"
+        );
+    }
 }
 
 #[test]
@@ -92,41 +155,19 @@ fn drag_opposes_relative_velocity() {
 /// its own derivative, bit for bit.
 #[test]
 fn gathered_lanes_fly_their_own_vehicle() {
-    use crate::lane::F64x4;
     let mut cfgs = [paper(), paper(), paper(), paper()];
     cfgs[1].payload.mass = 0.4;
     cfgs[2].vehicle.inertia[0] = 0.03;
     cfgs[3].gust.air_density = 0.9;
-    let parts: Vec<AnyVehicle> = cfgs
-        .iter()
-        .map(|c| AnyVehicle::new(&c.model_context()))
-        .collect();
-    let refs: Vec<&AnyVehicle> = parts.iter().collect();
-    let lanes = AnyVehicle::gather::<F64x4, payload::Spring, actuator::Ideal>(&refs);
     let mut s: State<f64, NX> =
         paper_vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
     s[13] = 0.2;
     s[10] = 0.4;
-    let sl: State<F64x4, NX> = state_from_fn(|i| F64x4::splat(s[i]));
-    let u = Inputs {
-        u1: 25.0,
-        tau: [0.01, -0.02, 0.003],
-    };
-    let ul = Inputs {
-        u1: F64x4::splat(u.u1),
-        tau: u.tau.map(F64x4::splat),
-    };
-    let w = [0.3, -0.1, 1.2];
-    let got = lanes.derivative(&sl, &Trig::of(&sl), &ul, &w.map(F64x4::splat));
-    for (l, p) in parts.iter().enumerate() {
-        let want = derivative(&p.vehicle::<payload::Spring, actuator::Ideal>(), &s, &u, &w);
-        for i in 0..NX {
-            assert_eq!(
-                got[i].lane(l).to_bits(),
-                want[i].to_bits(),
-                "lane {l} state {i}"
-            );
-        }
+    let c = LaneCase::<payload::Spring, actuator::Ideal, NX>::new(&cfgs, s);
+    let got = c.lanes.derivative(&c.sl, &Trig::of(&c.sl), &c.ul, &c.wl);
+    for (l, p) in c.parts.iter().enumerate() {
+        let one = p.vehicle::<payload::Spring, actuator::Ideal>();
+        assert_lane_bits(&got, &derivative(&one, &s, &c.u, &c.w), l);
     }
 }
 

@@ -64,16 +64,14 @@ impl NavigationParams {
         }
         let (i, g, b) = (&sensors.imu, &sensors.gnss, &sensors.baro);
         let mut f = keys.clone();
-        f.gyro_noise.get_or_insert(i.gyro_noise);
-        f.accel_noise.get_or_insert(i.accel_noise);
-        f.gyro_bias_walk.get_or_insert(i.gyro_bias_walk);
-        f.accel_bias_walk.get_or_insert(i.accel_bias_walk);
-        f.gyro_bias.get_or_insert(i.gyro_bias);
-        f.accel_bias.get_or_insert(i.accel_bias);
-        f.position_noise.get_or_insert(g.position_noise);
-        f.velocity_noise.get_or_insert(g.velocity_noise);
-        f.drift.get_or_insert(g.drift);
-        f.drift_time.get_or_insert(g.drift_time);
+        // A key named as its sensor's value takes that value where unset (a matched filter).
+        macro_rules! matched {
+            ($sensor:ident: $($key:ident),+) => {$(
+                f.$key.get_or_insert($sensor.$key);
+            )+};
+        }
+        matched!(i: gyro_noise, accel_noise, gyro_bias_walk, accel_bias_walk, gyro_bias, accel_bias);
+        matched!(g: position_noise, velocity_noise, drift, drift_time);
         f.baro_noise.get_or_insert(b.noise);
         f.baro_drift.get_or_insert(b.drift);
         f.baro_drift_time.get_or_insert(b.drift_time);

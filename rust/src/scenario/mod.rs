@@ -468,6 +468,35 @@ pub(crate) mod tests {
         Config::from_json(&paper_value().to_string()).expect("paper preset is valid")
     }
 
+    /// The paper's scenario cut to `duration` s at step `dt`: its first `phases` phases, the
+    /// last ending with the flight.
+    pub(crate) fn paper_cut(duration: f64, dt: f64, phases: usize) -> Config {
+        let mut cfg = paper();
+        cfg.integrator.duration = duration;
+        cfg.integrator.dt = dt;
+        cfg.phases.truncate(phases);
+        cfg.phases[phases - 1].end = duration;
+        cfg
+    }
+
+    /// Each of `keys` is a per-realisation number, and setting it changes the scenario.
+    pub(crate) fn assert_settable(cfg: &Config, keys: &[&str]) {
+        for key in keys {
+            let path = cfg.per_realisation_key(key).unwrap();
+            let mut c = cfg.clone();
+            assert!(c.set_number(&path, 0.25), "{key}");
+            assert_ne!(c.to_json(), cfg.to_json(), "{key}");
+        }
+    }
+
+    /// Each key of `refused` is no per-realisation number, the message saying why.
+    pub(crate) fn assert_refused(cfg: &Config, refused: &[(&str, &str)]) {
+        for (key, says) in refused {
+            let e = cfg.per_realisation_key(key).unwrap_err();
+            assert!(e.message.contains(says), "{key}: {e:?}");
+        }
+    }
+
     /// The delivery preset as the Python package reads it: a controller table it gives in part
     /// (`[controller.px4]`, the keys it changes) completed from the kind's defaults, as
     /// `quadrs.scenario.tables` completes it.

@@ -30,7 +30,7 @@
 //! but nothing of them reaches the quadrotor.
 
 pub use super::release::Release;
-use super::{Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
+use super::{AtState, Cue, LastMetres, Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::{non_negative, params::params, positive, ConfigError};
 use crate::lane::{gather, Lane};
 use crate::model::body::{Body, Frame};
@@ -635,25 +635,21 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
     #[inline(always)]
     fn accelerations<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
+        at: &AtState<'_, L, F, N>,
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
-        self.accelerations_of(body, s, frame, &self.line(s, frame), u1, w, ds)
+        self.accelerations_of(at, &self.line(at.s, at.frame), ds)
     }
 
     #[inline(always)]
-    fn outputs<F: Frame<L>, const N: usize>(
-        &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
-    ) -> PayloadOutputs<L> {
+    fn outputs<F: Frame<L>, const N: usize>(&self, at: &AtState<'_, L, F, N>) -> PayloadOutputs<L> {
+        let AtState {
+            body,
+            s,
+            frame,
+            u1,
+            w,
+        } = *at;
         let line = self.line(s, frame);
         let accel = self.acceleration::<F, N>(body, s, &line, w, u1);
         self.outputs_of::<F, N>(s, &line, accel)
@@ -663,16 +659,13 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
     #[inline(always)]
     fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
+        at: &AtState<'_, L, F, N>,
         _u1_out: L,
-        w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let line = self.line(s, frame);
-        let torque = self.accelerations_of(body, s, frame, &line, u1, w, ds);
+        let s = at.s;
+        let line = self.line(s, at.frame);
+        let torque = self.accelerations_of(at, &line, ds);
         // `accelerations_of` stored the payload's acceleration in `ds`.
         let vxc = Ix::of::<L, F>().vxc;
         let accel = [ds[vxc], ds[vxc + 1], ds[vxc + 2]];
@@ -803,17 +796,19 @@ impl<L: Lane> PayloadModel<L> for Cable<L> {
 impl<L: Lane> Cable<L> {
     /// `PayloadModel::accelerations` with the line at `s` given.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn accelerations_of<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
+        at: &AtState<'_, L, F, N>,
         line: &Line<L>,
-        u1: L,
-        w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
+        let AtState {
+            body,
+            s,
+            frame,
+            u1,
+            w,
+        } = *at;
         let pull = vec3(
             #[inline(always)]
             |i| line.tension * line.u[i],

@@ -5,6 +5,7 @@
 use super::*;
 use crate::lane::F64x4;
 use crate::model::actuator::Ideal;
+use crate::model::tests::{assert_lane_bits, derivative, LaneCase};
 use crate::model::{state_from_fn, state_vars, ActuatorKind, AnyVehicle, Inputs, Trig, Vehicle};
 use crate::scenario::tests::paper;
 use crate::scenario::Config;
@@ -16,7 +17,7 @@ const XC: usize = LAYOUT.payload();
 const VX: usize = LAYOUT.vel();
 const VXC: usize = LAYOUT.payload_vel();
 const P: usize = LAYOUT.rate();
-type Slung = Vehicle<f64, Cable, Ideal>;
+pub(super) type Slung = Vehicle<f64, Cable, Ideal>;
 const YC: usize = XC + 1;
 const ZC: usize = XC + 2;
 const VZ: usize = VX + 2;
@@ -32,19 +33,24 @@ fn cable_config(l0: f64, fn_hz: f64, h: f64) -> Config {
     cfg
 }
 
-fn vehicle(cfg: &Config) -> Slung {
+/// `cfg` without air (no drag on either body), with the line's `damping` where given.
+fn still_air(mut cfg: Config, damping: Option<f64>) -> Config {
+    cfg.gust.air_density = 0.0;
+    if let Some(d) = damping {
+        cfg.payload.damping = d;
+    }
+    cfg
+}
+
+pub(super) fn vehicle(cfg: &Config) -> Slung {
     AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Ideal>()
 }
 
-fn hover_thrust(v: &Slung) -> Inputs<f64> {
+pub(super) fn hover_thrust(v: &Slung) -> Inputs<f64> {
     Inputs {
         u1: (v.body.m + v.payload.mc) * v.body.g,
         tau: [0.0; 3],
     }
-}
-
-fn derivative(v: &Slung, s: &State<f64, NX>, u: &Inputs<f64>, w: &[f64; 3]) -> State<f64, NX> {
-    v.derivative(s, &Trig::of(s), u, w)
 }
 
 fn outputs(v: &Slung, s: &State<f64, NX>) -> PayloadOutputs<f64> {
@@ -88,6 +94,12 @@ fn energy(v: &Slung, s: &State<f64, NX>) -> f64 {
     let stretch = (line.length - p.rest_length).max(0.0);
     let speed2: f64 = (0..3).map(|i| s[VXC + i] * s[VXC + i]).sum();
     0.5 * p.mc * speed2 + p.mc * v.body.g * s[ZC] + 0.5 * p.k * stretch * stretch
+}
+
+/// The outputs a step records of the cable, in one list (their bits compared).
+fn recorded<L: Lane>(o: &PayloadOutputs<L>) -> [L; 6] {
+    let [ax, ay, az] = o.accel;
+    [o.e_o, o.swing, o.tension, ax, ay, az]
 }
 
 fn p_line(v: &Slung, s: &State<f64, NX>) -> Line<f64> {
@@ -160,29 +172,16 @@ fn hover_is_a_fixed_point() {
 /// With the hook held fixed a small swing is a pendulum of length l_eq: sqrt(g / l_eq).
 #[test]
 fn a_small_swing_below_a_fixed_hook_has_the_pendulum_frequency() {
-    let mut cfg = cable_config(2.0, 20.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(2.0, 20.0, 0.1), None));
     let mut s = swung(&v, 0.01, [0.0; 3]);
     let hook_x = s[0];
     let dt = 1e-3;
-    let (mut crossings, mut first, mut last) = (0usize, f64::NAN, f64::NAN);
-    let mut prev = s[XC] - hook_x;
-    for k in 1..=30_000 {
+    let start = s[XC] - hook_x;
+    let (crossings, measured) = crate::testing::crossing_frequency(start, 30_000, dt, || {
         s = fixed_hook_step(&v, &s, dt);
-        let cur = s[XC] - hook_x;
-        if prev.signum() != cur.signum() {
-            let tc = (k as f64 - cur / (cur - prev)) * dt;
-            if first.is_nan() {
-                first = tc;
-            }
-            last = tc;
-            crossings += 1;
-        }
-        prev = cur;
-    }
+        s[XC] - hook_x
+    });
     assert!(crossings > 10, "{crossings} crossings");
-    let measured = 0.5 * (crossings - 1) as f64 / (last - first);
     let expected = (v.body.g / v.payload.hover_length).sqrt() / (2.0 * std::f64::consts::PI);
     assert!(
         ((measured - expected) / expected).abs() < 0.005,
@@ -194,10 +193,7 @@ fn a_small_swing_below_a_fixed_hook_has_the_pendulum_frequency() {
 /// error, which falls as dt^4.
 #[test]
 fn a_free_swing_conserves_energy_to_rk4_accuracy() {
-    let mut cfg = cable_config(1.0, 5.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    cfg.payload.damping = 0.0;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(1.0, 5.0, 0.1), Some(0.0)));
     let drift = |dt: f64| {
         let mut s = swung(&v, 0.4, [0.0, 1.2, 0.3]);
         let e0 = energy(&v, &s);
@@ -212,21 +208,14 @@ fn a_free_swing_conserves_energy_to_rk4_accuracy() {
     assert!(fine < 1e-6, "relative energy drift {fine:e}");
     // At least fourth order (16 when halving dt); 32 is seen here, the fifth order of RK4's
     // per-step error, as the energy error of a periodic swing does not build up over periods.
-    let ratio = coarse / fine;
-    assert!(
-        (12.0..40.0).contains(&ratio),
-        "{coarse:e} / {fine:e} = {ratio}"
-    );
+    crate::testing::assert_halving_ratio(coarse, fine, 12.0..40.0);
 }
 
 /// A slack cable pulls nothing: tension exactly 0 and the payload in free fall, also when the
 /// damper alone would pull (the ends separating) or push (a taut cable shortening fast).
 #[test]
 fn a_slack_cable_has_no_tension_and_the_payload_falls_freely() {
-    let mut cfg = cable_config(1.0, 4.0, 0.1);
-    cfg.gust.air_density = 0.0;
-    cfg.payload.damping = 0.8;
-    let v = vehicle(&cfg);
+    let v = vehicle(&still_air(cable_config(1.0, 4.0, 0.1), Some(0.8)));
     let p = &v.payload;
     let g = v.body.g;
     // Thrown up at 3 m/s from hover: slack until it falls back past L0.
@@ -278,7 +267,7 @@ fn the_cable_force_is_internal_and_torque_free_at_the_centre_of_gravity() {
     for h in [0.0, 0.15] {
         let cfg = cable_config(1.2, 3.0, h);
         let v = vehicle(&cfg);
-        let mut s = v.rest_state([0.0, 0.0, 3.0], [0.1, -0.2, 0.4]);
+        let mut s: State<f64, NX> = v.rest_state([0.0, 0.0, 3.0], [0.1, -0.2, 0.4]);
         s[XC] += 0.3;
         s[YC] -= 0.2;
         s[VX] = 1.0;
@@ -320,47 +309,19 @@ fn gathered_lanes_fly_their_own_cable() {
         cable_config(1.0, 3.0, 0.3),
     ];
     cfgs[0].payload.damping = 0.4;
-    let parts: Vec<AnyVehicle> = cfgs
-        .iter()
-        .map(|c| AnyVehicle::new(&c.model_context()))
-        .collect();
-    let refs: Vec<&AnyVehicle> = parts.iter().collect();
-    let lanes = AnyVehicle::gather::<F64x4, Cable, Ideal>(&refs);
     let mut s: State<f64, NX> = vehicle(&cfgs[0]).rest_state([0.0, 0.0, 1.0], [0.1, -0.2, 0.3]);
     s[XC] += 0.2;
     s[VXC + 2] = 0.2;
     s[P] = 0.4;
-    let sl: State<F64x4, NX> = state_from_fn(|i| F64x4::splat(s[i]));
-    let u = Inputs {
-        u1: 25.0,
-        tau: [0.01, -0.02, 0.003],
-    };
-    let ul = Inputs {
-        u1: F64x4::splat(u.u1),
-        tau: u.tau.map(F64x4::splat),
-    };
-    let w = [0.3, -0.1, 1.2];
-    let got = lanes.derivative(&sl, &Trig::of(&sl), &ul, &w.map(F64x4::splat));
-    let out = lanes.payload_outputs(&sl, &Trig::of(&sl), ul.u1, &w.map(F64x4::splat));
-    for (l, p) in parts.iter().enumerate() {
+    let c = LaneCase::<Cable, Ideal, NX>::new(&cfgs, s);
+    let (sl, trig) = (&c.sl, Trig::of(&c.sl));
+    let got = c.lanes.derivative(sl, &trig, &c.ul, &c.wl);
+    let out = c.lanes.payload_outputs(sl, &trig, c.ul.u1, &c.wl);
+    for (l, p) in c.parts.iter().enumerate() {
         let one = p.vehicle::<Cable, Ideal>();
-        let want = derivative(&one, &s, &u, &w);
-        for i in 0..NX {
-            assert_eq!(
-                got[i].lane(l).to_bits(),
-                want[i].to_bits(),
-                "lane {l} state {i}"
-            );
-        }
-        let o = one.payload_outputs(&s, &Trig::of(&s), u.u1, &w);
-        for (a, b) in [
-            (out.e_o, o.e_o),
-            (out.swing, o.swing),
-            (out.tension, o.tension),
-            (out.accel[0], o.accel[0]),
-            (out.accel[1], o.accel[1]),
-            (out.accel[2], o.accel[2]),
-        ] {
+        assert_lane_bits(&got, &derivative(&one, &s, &c.u, &c.w), l);
+        let o = one.payload_outputs(&s, &Trig::of(&s), c.u.u1, &c.w);
+        for (a, b) in recorded(&out).into_iter().zip(recorded(&o)) {
             assert_eq!(a.lane(l).to_bits(), b.to_bits(), "lane {l}");
         }
     }
@@ -393,14 +354,7 @@ fn the_shared_first_stage_is_the_derivative_and_the_outputs_bit_for_bit() {
             for i in 0..NX {
                 assert_eq!(ds[i].to_bits(), want[i].to_bits(), "state {n} ds[{i}]");
             }
-            for (a, b) in [
-                (out.e_o, o.e_o),
-                (out.swing, o.swing),
-                (out.tension, o.tension),
-                (out.accel[0], o.accel[0]),
-                (out.accel[1], o.accel[1]),
-                (out.accel[2], o.accel[2]),
-            ] {
+            for (a, b) in recorded(&out).into_iter().zip(recorded(&o)) {
                 assert_eq!(a.to_bits(), b.to_bits(), "state {n}");
             }
             if n == 3 {

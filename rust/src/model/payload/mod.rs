@@ -114,6 +114,26 @@ pub struct LastMetres<L> {
     pub contact_vel: [L; 3],
 }
 
+/// Where a payload's dynamics are evaluated: the quadrotor's `body`, the state `s` and its
+/// attitude `frame` (its axes, its own drag, and where the states sit: `Frame::layout`), the
+/// total thrust `u1` and the wind `w` (m/s, inertial). What every payload model reads, passed
+/// as one.
+pub struct AtState<'a, L, F, const N: usize> {
+    pub body: &'a Body<L>,
+    pub s: &'a State<L, N>,
+    pub frame: &'a F,
+    pub u1: L,
+    pub w: &'a [L; 3],
+}
+
+// By hand: a derive would ask `F: Copy`, and only the references are copied.
+impl<L: Copy, F, const N: usize> Clone for AtState<'_, L, F, N> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<L: Copy, F, const N: usize> Copy for AtState<'_, L, F, N> {}
+
 /// A payload's dynamics, with parameters of lane type `L`.
 pub trait PayloadModel<L: Lane>: Sync {
     /// Degrees of freedom: the payload has this many positions (after the quadrotor's angles)
@@ -121,48 +141,31 @@ pub trait PayloadModel<L: Lane>: Sync {
     const DOF: usize;
 
     /// Write the quadrotor's translational accelerations (`ds[vx..vx + 3]`) and the payload's
-    /// (`ds[payload_vel..]`) for total thrust `u1` and wind `w` (m/s, inertial); return the
-    /// torque the payload applies to the quadrotor (body axes), if it applies one. `frame` is
-    /// the body's attitude at `s` (its axes, its own drag, and where the states sit:
-    /// `Frame::layout`).
+    /// (`ds[payload_vel..]`) at `at` (`AtState`: the state, its attitude, the total thrust and
+    /// the wind); return the torque the payload applies to the quadrotor (body axes), if it
+    /// applies one.
     fn accelerations<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
+        at: &AtState<'_, L, F, N>,
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]>;
 
-    /// What the loop records (`PayloadOutputs`) at `s`.
-    fn outputs<F: Frame<L>, const N: usize>(
-        &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
-    ) -> PayloadOutputs<L>;
+    /// What the loop records (`PayloadOutputs`) at `at`.
+    fn outputs<F: Frame<L>, const N: usize>(&self, at: &AtState<'_, L, F, N>) -> PayloadOutputs<L>;
 
-    /// `accelerations(body, s, trig, u1, w, ds)` and `outputs(body, s, trig, u1_out, w)`
-    /// together, bit for bit: a model whose outputs repeat work of its accelerations at the
-    /// same state (the cable's line) computes it once. The flight loop records the outputs at
-    /// the state its RK4 step starts from, so the first stage's derivative shares them.
+    /// `accelerations(at, ds)` and `outputs` at `at` with the thrust `u1_out`, together, bit
+    /// for bit: a model whose outputs repeat work of its accelerations at the same state (the
+    /// cable's line) computes it once. The flight loop records the outputs at the state its
+    /// RK4 step starts from, so the first stage's derivative shares them.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn accelerations_and_outputs<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
+        at: &AtState<'_, L, F, N>,
         u1_out: L,
-        w: &[L; 3],
         ds: &mut State<L, N>,
     ) -> (Option<[L; 3]>, PayloadOutputs<L>) {
-        let torque = self.accelerations(body, s, frame, u1, w, ds);
-        (torque, self.outputs(body, s, frame, u1_out, w))
+        let torque = self.accelerations(at, ds);
+        (torque, self.outputs(&AtState { u1: u1_out, ..*at }))
     }
 
     /// What a control law sees of the payload at `s` (`frame` its attitude): `PayloadView`.

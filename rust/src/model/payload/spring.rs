@@ -2,7 +2,7 @@
 //! of zero rest length. It moves only vertically; laterally it travels with the quadrotor, so
 //! the lateral mass is m + mc. One degree of freedom: `zc`, `vzc`.
 
-use super::{Payload, PayloadModel, PayloadOutputs, PayloadView};
+use super::{AtState, Payload, PayloadModel, PayloadOutputs, PayloadView};
 use crate::config::params::params;
 use crate::lane::{gather, Lane};
 use crate::model::body::{drag, Body, Frame};
@@ -94,15 +94,15 @@ impl<L: Lane> Spring<L> {
 
     /// The lateral accelerations of quadrotor and payload together (mass m + mc).
     #[inline(always)]
-    fn lateral<F: Frame<L>, const N: usize>(
-        &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
-    ) -> [L; 2] {
+    fn lateral<F: Frame<L>, const N: usize>(&self, at: &AtState<'_, L, F, N>) -> [L; 2] {
         const { assert!(F::ATT == 3, "the spring flies on the paper's body only") };
+        let AtState {
+            body,
+            s,
+            frame,
+            u1,
+            w,
+        } = *at;
         let fdx = drag(body.drag_lateral, s[VX], w[0]);
         let fdy = drag(body.drag_lateral, s[VY], w[1]);
         // Products-plus-sums as `mul_add`: the same bits as `a * b + c` except in the fused
@@ -129,16 +129,19 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
     #[inline(always)]
     fn accelerations<F: Frame<L>, const N: usize>(
         &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
+        at: &AtState<'_, L, F, N>,
         ds: &mut State<L, N>,
     ) -> Option<[L; 3]> {
+        let AtState {
+            body,
+            s,
+            frame,
+            u1,
+            w,
+        } = *at;
         let fdz = body.vertical_drag(s[VZ], w[2]);
         let spring = self.force(s);
-        [ds[VX], ds[VY]] = self.lateral(body, s, frame, u1, w);
+        [ds[VX], ds[VY]] = self.lateral(at);
         let az = frame.axes()[2][2].mul_add(u1, -spring) + fdz;
         ds[VZ] = az * body.inv_m - body.g;
         ds[VZC] = self.acceleration(body, s, spring, w[2]);
@@ -146,17 +149,11 @@ impl<L: Lane> PayloadModel<L> for Spring<L> {
     }
 
     #[inline(always)]
-    fn outputs<F: Frame<L>, const N: usize>(
-        &self,
-        body: &Body<L>,
-        s: &State<L, N>,
-        frame: &F,
-        u1: L,
-        w: &[L; 3],
-    ) -> PayloadOutputs<L> {
+    fn outputs<F: Frame<L>, const N: usize>(&self, at: &AtState<'_, L, F, N>) -> PayloadOutputs<L> {
+        let AtState { body, s, w, .. } = *at;
         let spring = self.force(s);
         // The payload moves laterally with the quadrotor (docs/model.md section 12).
-        let [ax, ay] = self.lateral(body, s, frame, u1, w);
+        let [ax, ay] = self.lateral(at);
         PayloadOutputs {
             e_o: s[ZC] - s[ix::Z] + self.hover_offset,
             accel: [ax, ay, self.acceleration(body, s, spring, w[2])],

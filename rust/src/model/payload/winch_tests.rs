@@ -1,9 +1,10 @@
 //! The last metres' checks on the cable (docs/model.md, "The last metres"): the energy balance
 //! with the winch's work, the hook's release, the ground's hold on a resting parcel.
 
+use super::tests::{hover_thrust, vehicle, Slung};
 use super::*;
 use crate::model::actuator::Ideal;
-use crate::model::{state_from_fn, AnyVehicle, Inputs, Trig, Vehicle};
+use crate::model::{state_from_fn, AnyVehicle, Inputs, Trig};
 use crate::scenario::tests::paper;
 use crate::scenario::Config;
 use crate::scenario::PayloadKind;
@@ -15,7 +16,6 @@ const LINE: usize = XC + 3;
 const VX: usize = LAYOUT.vel();
 const VXC: usize = LAYOUT.payload_vel();
 const VLINE: usize = VXC + 3;
-type Slung = Vehicle<f64, Cable, Ideal>;
 const ZC: usize = XC + 2;
 const VZ: usize = VX + 2;
 
@@ -38,19 +38,20 @@ fn winch_config(l0: f64, min: f64) -> Config {
     cfg
 }
 
-fn vehicle(cfg: &Config) -> Slung {
-    AnyVehicle::new(&cfg.model_context()).vehicle::<Cable, Ideal>()
-}
-
-fn hover_thrust(v: &Slung) -> Inputs<f64> {
-    Inputs {
-        u1: (v.body.m + v.payload.mc) * v.body.g,
-        tau: [0.0; 3],
-    }
-}
-
 fn derivative(v: &Slung, s: &State<f64, NX>) -> State<f64, NX> {
     v.derivative(s, &Trig::of(s), &hover_thrust(v), &[0.0; 3])
+}
+
+/// The cue of 1 ms step `k` at 10 m over the drop point, no lowering due, no noise drawn.
+fn cue_at<L: Lane>(k: usize) -> Cue<L> {
+    Cue {
+        t: k as f64 * 1e-3,
+        dt: 1e-3,
+        payout: None,
+        off_drop: L::splat(0.0),
+        height: L::splat(10.0),
+        draw: L::splat(0.0),
+    }
 }
 
 /// With the hook fixed, no damping and no drag, the parcel's energy (kinetic, gravitational,
@@ -114,11 +115,7 @@ fn energy_changes_by_the_winchs_work_to_rk4_order() {
     };
     let (coarse, fine) = (drift(4e-3), drift(2e-3));
     assert!(fine < 1e-7, "relative energy error {fine:e}");
-    let ratio = coarse / fine;
-    assert!(
-        (14.0..40.0).contains(&ratio),
-        "{coarse:e} / {fine:e} = {ratio}"
-    );
+    crate::testing::assert_halving_ratio(coarse, fine, 14.0..40.0);
 }
 
 /// At hover the vehicle's thrust carries the parcel too; the instant the hook opens it
@@ -206,14 +203,7 @@ fn the_ground_holds_a_resting_parcel_and_friction_slows_a_sliding_one() {
     let trig = Trig::of(&s);
     let mut opened = None;
     for k in 0..1000 {
-        let cue = Cue {
-            t: k as f64 * 1e-3,
-            dt: 1e-3,
-            payout: None,
-            off_drop: 0.0,
-            height: 10.0,
-            draw: 0.0,
-        };
+        let cue = cue_at::<f64>(k);
         let ev = v.payload.last_metres(&s, &trig, &cue).unwrap();
         assert_eq!(ev.touchdown, if k == 0 { 1.0 } else { 0.0 });
         if ev.release == 1.0 {
@@ -292,22 +282,7 @@ fn lanes_on_and_off_the_ground_fly_their_own_parcels() {
         let w = [F64x4::splat(0.0); 3];
         let got = set.derivative(&s, &Trig::of(&s), &u, &w);
         for k in 0..20 {
-            let cue = Cue {
-                t: k as f64 * 1e-3,
-                dt: 1e-3,
-                payout: None,
-                off_drop: 0.0,
-                height: 10.0,
-                draw: 0.0,
-            };
-            let lanes_cue = Cue {
-                t: cue.t,
-                dt: cue.dt,
-                payout: cue.payout,
-                off_drop: F64x4::splat(0.0),
-                height: F64x4::splat(cue.height),
-                draw: F64x4::splat(0.0),
-            };
+            let (cue, lanes_cue) = (cue_at::<f64>(k), cue_at::<F64x4>(k));
             let ev = set
                 .payload
                 .last_metres(&s, &Trig::of(&s), &lanes_cue)
