@@ -72,6 +72,32 @@ def test_the_parcels_answer_parts_the_touchdown_from_the_flight(
     assert line.split(":")[0] in text and max(len(s) for s in text.splitlines()) <= 100
 
 
+def test_a_parcel_on_the_ground_twice_counts_both_contacts_as_touchdowns() -> None:
+    """A parcel that bumps the pad at the lift (its first contact: ``touchdown_speed`` in
+    ``climb``) and touches down at the drop point (``lower``: contact, ``touchdown_peak_force``,
+    but no first contact) has both contacts' peaks under ``touchdown`` and neither ``in
+    flight`` (before: the drop point's 8 g contact was counted in flight)."""
+    from quadrs.design.mission_tables import IN_FLIGHT, TOUCHDOWN, contact_split
+
+    nan = math.nan
+    table = {  # two flights: the first bumps the pad, the second lowers as meant
+        ("touchdown_speed", "climb"): [0.17, nan], ("touchdown_speed", "lower"): [nan, 0.4],
+        ("touchdown_peak_force", "climb"): [43.0, nan],
+        ("touchdown_peak_force", "lower"): [89.0, 60.0],
+        ("max_accel", "climb"): [34.0, 2.5], ("max_accel", "transit"): [2.1, 2.2],
+        ("max_accel", "lower"): [80.0, 55.0],
+    }  # fmt: skip
+
+    def values(metric: str, phase: str) -> np.ndarray:
+        return np.asarray(table.get((metric, phase), [nan, nan]), float)
+
+    present = {"touchdown_speed", "touchdown_peak_force", "max_accel"}
+    split = contact_split(["climb", "transit", "lower"], values, present, "max_accel")
+    assert split is not None
+    np.testing.assert_array_equal(split[IN_FLIGHT], [2.1, 2.5])
+    np.testing.assert_array_equal(split[TOUCHDOWN], [80.0, 55.0])
+
+
 def test_an_answer_without_touchdowns_has_no_touchdown_rows(delivery: quadrs.Scenario) -> None:
     calm = delivery.override({**DROP_HERE, "trajectory.lower": [0.0, 0.0]})
     mc = quadrs.monte_carlo(calm, runs=2, seed=0, controllers=("pd",), progress=False,

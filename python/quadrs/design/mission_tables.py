@@ -92,13 +92,24 @@ def _last_metres_table(
 def contact_split(
     own: list[str], values: Any, present: set[str], metric: str
 ) -> dict[str, np.ndarray] | None:  # fmt: skip
-    """Per flight, the parcel ``metric``'s worst in flight (over its phases but the one its
-    parcel touched down in: the contact's peak is the ground's, not the flight's) and in the
-    phase of its touchdown (NaN for a flight that never touched down; +inf for a diverged
-    one, as everywhere). None when no flight touched down (or the results lack the column)."""
+    """Per flight, the parcel ``metric``'s worst in flight (over its phases but those its
+    parcel was on the ground in: the contact's peak is the ground's, not the flight's) and
+    over the phases of its ground contacts (NaN for a flight that never touched down; +inf
+    for a diverged one, as everywhere). A phase is in contact where its parcel touched down
+    in it (``touchdown_speed``, the flight's first contact) or met the ground in it
+    (``touchdown_peak_force``: a parcel that bumped the pad at the lift touches down again at
+    the drop point, and that contact is not the flight's). None when no flight touched down
+    (or the results lack the column)."""
     if "touchdown_speed" not in present or not own:
         return None
-    touched = {p: np.isfinite(values("touchdown_speed", p)) for p in own}
+
+    def in_contact(p: str) -> np.ndarray:
+        hit = np.isfinite(values("touchdown_speed", p))
+        if "touchdown_peak_force" in present:
+            hit |= np.isfinite(values("touchdown_peak_force", p))
+        return hit
+
+    touched = {p: in_contact(p) for p in own}
     if not any(t.any() for t in touched.values()):
         return None
     per_phase = {p: values(metric, p) for p in own}
@@ -107,7 +118,7 @@ def contact_split(
     contact = np.full(n, np.nan)
     for p in own:
         x = per_phase[p]
-        contact = np.where(touched[p], x, contact)
+        contact = np.fmax(contact, np.where(touched[p], x, np.nan))
         flight = np.fmax(flight, np.where(touched[p], np.nan, x))
     diverged = np.isinf(flight) | np.array([np.isinf(per_phase[p]) for p in own]).any(axis=0)
     contact = np.where(diverged & np.isnan(contact), np.inf, contact)
