@@ -209,8 +209,11 @@ pub trait Controller: Control + Clone + std::fmt::Debug + Send + Sized + 'static
         None
     }
     /// Check every parameter; `key` is the table's dotted key (`"controller.pd"`), which every
-    /// message names as `{key}.{name}`.
-    fn validate(p: &Self::Params, key: &str, cfg: &ControlContext) -> Result<(), ConfigError>;
+    /// message names as `{key}.{name}`. By default each key within its declared bounds (a law
+    /// whose keys bound one another says so).
+    fn validate(p: &Self::Params, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
+        p.check_bounds(key)
+    }
     fn new(p: &Self::Params, cfg: &ControlContext) -> Self;
     /// One vehicle per lane: lane `l` of every gain is `each[l]`'s.
     fn gather<L: Lane>(each: &[&Self]) -> Self::At<L>;

@@ -6,8 +6,7 @@ use super::{
     euler_control, euler_held, euler_step, position_errors, Control, Controller, Due, EulerCascade,
     EulerHeld, Shared, Sight,
 };
-use crate::config::params::{params, Params};
-use crate::config::ConfigError;
+use crate::config::params::params;
 use crate::lane::{gather, Lane, Masks, Param};
 use crate::model::{Inputs, PayloadView, Rigid, Tick};
 use crate::trajectory::Reference;
@@ -57,10 +56,6 @@ impl Controller for Pd {
     const LABEL: &'static str = "PD";
     type Params = PdGains;
     type At<L: Lane> = Pd<L>;
-
-    fn validate(k: &PdGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        k.check_bounds(key)
-    }
 
     fn new(k: &PdGains, cfg: &ControlContext) -> Self {
         Self {

@@ -8,8 +8,7 @@
 
 use super::ControlContext;
 use super::{position_errors, Control, Controller, Due, Shared, Sight, MIN_TILT_COS};
-use crate::config::params::{params, Params};
-use crate::config::ConfigError;
+use crate::config::params::params;
 use crate::lane::{gather, Lane, Masks, Param};
 use crate::model::{Frame, Inputs, Tick};
 use crate::trajectory::Reference;
@@ -56,10 +55,6 @@ impl Controller for Se3 {
 
     fn defaults() -> Option<Se3Gains> {
         Some(DEFAULTS)
-    }
-
-    fn validate(k: &Se3Gains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        k.check_bounds(key)
     }
 
     fn new(k: &Se3Gains, cfg: &ControlContext) -> Self {

@@ -8,8 +8,7 @@ use super::{
     euler_control, euler_held, euler_step, position_errors, Control, Controller, ControllerKind,
     Due, EulerCascade, EulerHeld, Shared, Sight, HELD_OWN,
 };
-use crate::config::params::{params, Params};
-use crate::config::ConfigError;
+use crate::config::params::params;
 use crate::lane::{gather, Lane, Masks, Param};
 use crate::model::{Inputs, Rigid, Tick};
 use crate::trajectory::Reference;
@@ -56,10 +55,6 @@ impl Controller for Smc {
     const LABEL: &'static str = "SMC";
     type Params = SmcGains;
     type At<L: Lane> = Smc<L>;
-
-    fn validate(k: &SmcGains, key: &str, _cfg: &ControlContext) -> Result<(), ConfigError> {
-        k.check_bounds(key)
-    }
 
     fn new(k: &SmcGains, cfg: &ControlContext) -> Self {
         Self {
