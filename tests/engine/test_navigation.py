@@ -311,14 +311,15 @@ def test_the_filter_starts_within_its_initial_height_error(height: float | None)
     ``navigation.height_error`` (a filter aligned on the pad), or of the GNSS's vertical noise
     (0.75 m) where it is not set: the sample sigma of 120 starts within its 95 % chi-square
     band, the horizontal errors the GNSS's 0.5 m whatever the height's."""
-    s = hover_scenario(**{"integrator.duration": 2.0, "navigation.height_error": height})
+    s = hover_scenario(**{"integrator.duration": 7.0, "navigation.height_error": height})
     sigma = 0.75 if height is None else height
     starts = []
     for i in range(120):
         row = quadrs.simulate(s, "pd", seed=5, realisation=i, record_every=1000).trace.iloc[0]
         starts.append([row["x_est"] - row["x"], row["z_est"] - row["z"], row["z_std"]])
     e = np.asarray(starts)
-    assert np.all(e[:, 2] == sigma)
+    # Its own sigma at the first row (after the first update) is the start's, narrowed a little.
+    assert np.all(e[:, 2] <= sigma) and np.all(e[:, 2] > 0.8 * sigma)
     n = len(e)
     lo, hi = (np.sqrt(stats.chi2.ppf(q, n) / n) for q in (0.025, 0.975))
     assert lo < np.sqrt(np.mean(e[:, 1] ** 2)) / sigma < hi

@@ -77,11 +77,12 @@ import io
 import json
 import math
 import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, TypeVar
 
+from quadrs.scenario.plan_order import flown_order, item_command, whole_number
 from quadrs.scenario.plan_payload import (
     PlanPayload,
     RouteFileError,
@@ -163,8 +164,6 @@ SAME_POINT = 1e-3
 MAX_DISTANCE = 50e3
 #: Mean Earth radius (m), for the distance along the ground that MAX_DISTANCE bounds.
 EARTH_RADIUS = 6371008.8
-#: Most mission items flown once DO_JUMPs are expanded (a jump inside a jump multiplies).
-MAX_FLOWN_ITEMS = 100_000
 #: Largest route file read (bytes).
 MAX_BYTES = 16 << 20
 
@@ -365,8 +364,8 @@ def read_plan(path: str | Path, start_height: float = 0.0) -> RouteFile:
         raise RouteFileError(f"{p}: mission.items: no mission items")
     hover = _speed(mission.get("hoverSpeed"), f"{p}: mission.hoverSpeed")
     plan = _PlanRoute(home, start_height, str(p), hover)
-    commands = [_command(item, f"{p}: mission.items[{i}]") for i, item in enumerate(items)]
-    for i in _flown_order(items, commands, f"{p}: mission.items"):
+    commands = [item_command(item, f"{p}: mission.items[{i}]") for i, item in enumerate(items)]
+    for i in flown_order(items, commands, f"{p}: mission.items"):
         plan.item(commands[i], items[i]["params"], items[i], f"{p}: mission.items[{i}]")
     plan.end()
     route = plan.route(plan.cruise_speed())
@@ -418,69 +417,6 @@ class RouteFileWarning(UserWarning):
 
 
 # -- internals ----------------------------------------------------------------------------
-
-
-def _command(item: Any, where: str) -> int:
-    """An item's MAV_CMD, after checking the item's shape."""
-    if not isinstance(item, dict):
-        raise RouteFileError(f"{where}: not a mission item (a JSON object)")
-    if item.get("type") != "SimpleItem":
-        kind = item.get("complexItemType", item.get("type"))
-        raise RouteFileError(
-            f"{where}: a {kind!r} item is not supported: export the pattern as waypoints"
-        )
-    command = item.get("command")
-    params = item.get("params")
-    if (not isinstance(command, int) or isinstance(command, bool) or not isinstance(params, list)
-            or len(params) != 7):  # fmt: skip
-        raise RouteFileError(f"{where}: a mission item needs a command and 7 params")
-    return command
-
-
-def _whole(value: Any, where: str, minimum: int) -> int:
-    v = _number(value, where, float(minimum), 2.0**31)
-    if v != int(v):
-        raise RouteFileError(f"{where}: must be a whole number, got {value!r}")
-    return int(v)
-
-
-def _flown_order(items: list[Any], commands: list[int], where: str) -> Iterator[int]:
-    """The indices of ``items`` in the order the vehicle flies them, ``DO_JUMP``s followed
-    (module docstring); the jumps themselves are not yielded."""
-    seq: dict[int, int] = {}
-    for i, item in enumerate(items):
-        jump_id = item.get("doJumpId", i + 1)
-        if isinstance(jump_id, int) and not isinstance(jump_id, bool):
-            seq.setdefault(jump_id, i)
-    targets: dict[int, tuple[int, int]] = {}
-    for i, command in enumerate(commands):
-        if command != JUMP:
-            continue
-        params, here = items[i]["params"], f"{where}[{i}]: DO_JUMP"
-        if params[1] is not None and _number(params[1], f"{here} params[1] (repeat)") == -1:
-            raise RouteFileError(f"{here} repeats forever (params[1] = -1): the flight would "
-                                 "never end")  # fmt: skip
-        number = _whole(params[0], f"{here} params[0] (sequence number)", 0)
-        if number not in seq:
-            raise RouteFileError(f"{here} params[0]: no mission item has sequence number "
-                                 f"{number} (home is 0, the first item 1)")  # fmt: skip
-        targets[i] = (seq[number], _whole(params[1], f"{here} params[1] (repeat)", 0))
-    jumped = [0] * len(items)
-    i = flown = 0
-    while i < len(items):
-        if i in targets:
-            target, repeat = targets[i]
-            if jumped[i] < repeat:
-                jumped[i] += 1
-                i = target
-            else:
-                i += 1
-            continue
-        flown += 1
-        if flown > MAX_FLOWN_ITEMS:
-            raise RouteFileError(f"{where}: its DO_JUMPs fly more than {MAX_FLOWN_ITEMS} items")
-        yield i
-        i += 1
 
 
 class _Builder:
@@ -665,7 +601,7 @@ SPEED_TYPES = {0: "airspeed", 1: "ground speed", 2: "climb speed", 3: "descent s
 
 def _change_speed(r: _PlanRoute, params: list[Any], item: dict[str, Any], where: str) -> None:
     here = f"{where}: DO_CHANGE_SPEED"
-    kind = _whole(0 if params[0] is None else params[0], f"{here} params[0] (speed type)", 0)
+    kind = whole_number(0 if params[0] is None else params[0], f"{here} params[0] (speed type)", 0)
     if kind not in SPEED_TYPES:
         raise RouteFileError(f"{here} params[0] (speed type) must be 0 (airspeed), 1 (ground "
                              f"speed), 2 (climb) or 3 (descent), got {params[0]!r}")  # fmt: skip
