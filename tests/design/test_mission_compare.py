@@ -100,3 +100,27 @@ def test_the_pairs_share_their_gusts(mc: quadrs.MonteCarloResult) -> None:
     their per-realisation peaks correlate (an unpaired comparison would not see that)."""
     a, b = column(mc, "smc", "P2", "max_accel"), column(mc, "pd", "P2", "max_accel")
     assert np.corrcoef(a, b)[0, 1] > 0.5
+
+
+def test_the_in_flight_and_touchdown_rows_are_their_own(tmp_path: object) -> None:
+    """The comparison's ``in flight`` and ``touchdown`` rows are the parcel's peak over the
+    phases its parcel was off the ground in and over those it met the ground in, per law,
+    paired by realisation (before: both read as the whole flight's, the touchdown's 9 g in the
+    ``in flight`` mean)."""
+    from tests.first_hour.test_fifth_round import DROP_HERE
+
+    s = quadrs.Scenario.preset("delivery").override(DROP_HERE)
+    mc = quadrs.monte_carlo(s, runs=4, seed=0, controllers=("pd", "se3"), progress=False,
+                            spectra=False)  # fmt: skip
+    c = compare_laws(mc, 2 * 9.80665, metric="max_specific_force")
+    for law in ("pd", "se3"):
+        runs = mc.runs[(mc.runs.controller == law) & (mc.runs.phase != "flight")]
+        wide = runs.set_index(["realisation", "phase"]).unstack("phase")
+        contact = wide["touchdown_peak_force"].notna() | wide["touchdown_speed"].notna()
+        force = wide["max_specific_force"]
+        in_flight = force.where(~contact).max(axis=1).mean()
+        touchdown = force.where(contact).max(axis=1).mean()
+        assert c.means.loc["in flight", (law, "metric")] == pytest.approx(in_flight, rel=1e-12)
+        assert c.means.loc["touchdown", (law, "metric")] == pytest.approx(touchdown, rel=1e-12)
+        assert in_flight < 2 * 9.80665 < touchdown
+    assert c.paired.loc[("in flight", "se3"), "n_pairs"] == 4

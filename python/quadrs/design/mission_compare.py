@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from quadrs.design.mission import MissionReport, mission_report, none_seen_bound
+from quadrs.design.mission_tables import FLIGHT_PHASE, IN_FLIGHT, TOUCHDOWN, contact_split
 from quadrs.design.mission_text import _shown_limit, _shown_name
 from quadrs.present.terminal import fit_columns, terminal_text
 from quadrs.runs.montecarlo_result import MonteCarloResult
@@ -200,7 +201,10 @@ def _per_realisation(
     """Per realisation of ``law`` in ``phase`` (the worst over the phases for 'all phases'):
     the metric and the tracking (NaN where the flight diverged) and whether it exceeded."""
     runs = mc.runs[mc.runs["controller"] == law]
-    if phase in set(runs["phase"]):
+    if phase in (IN_FLIGHT, TOUCHDOWN):
+        value, diverged, index = _contact_part(runs, phase, metric)
+        track = np.full(len(index), np.nan)
+    elif phase in set(runs["phase"]):
         sel = runs[runs["phase"] == phase].set_index("realisation").sort_index()
         diverged = phase_diverged(sel)
         value = sel[metric].to_numpy(float)
@@ -222,6 +226,28 @@ def _per_realisation(
     value = np.where(diverged, np.nan, value)
     track = np.where(diverged, np.nan, track)
     return pd.DataFrame({"value": value, "track": track, "hit": hit}, index=index)
+
+
+def _contact_part(
+    runs: pd.DataFrame, part: str, metric: str
+) -> tuple[np.ndarray, np.ndarray, pd.Index]:  # fmt: skip
+    """Per realisation, the parcel ``metric`` in flight or at its touchdowns (``part``: the
+    mission's rows, :func:`quadrs.design.mission_tables.contact_split`), whether the flight
+    diverged, and the realisations."""
+    own = [p for p in dict.fromkeys(runs["phase"]) if p != FLIGHT_PHASE]
+    by_phase = runs.assign(diverged_=phase_diverged(runs)).set_index(["realisation", "phase"])
+    present = {metric, "touchdown_speed", "touchdown_peak_force"} & set(runs.columns)
+    table = {m: by_phase[m].unstack("phase").sort_index() for m in present}
+    diverged = by_phase["diverged_"].unstack("phase").sort_index()
+
+    def values(m: str, p: str) -> np.ndarray:
+        x = table[m][p].to_numpy(float)
+        return np.where(diverged[p].to_numpy(bool), np.inf, x) if m == metric else x
+
+    index = table[metric].index
+    split = contact_split(own, values, present, metric)
+    x = split[part] if split is not None else np.full(len(index), np.nan)
+    return x, np.isinf(x), index
 
 
 def _risk(r: MissionReport, phase: str) -> str:
@@ -251,4 +277,5 @@ def _ci(v: float, lo: float, hi: float) -> str:
 
 
 def _g(v: float) -> str:
-    return f"{v:.3g}"
+    """Three figures; blank where the row has no value (the tracking of 'in flight')."""
+    return f"{v:.3g}" if math.isfinite(v) else ""
