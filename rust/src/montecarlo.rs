@@ -69,6 +69,78 @@ pub struct BatchOutput {
     /// (count,): the realisation finished (false only after a cancel).
     pub done: Vec<bool>,
     pub spectra: SpectrumSums,
+    /// A dispersed realisation a law cannot start at its reference (`Refusal`): the batch
+    /// stopped there, and its results are not to be read.
+    pub refused: Option<ConfigError>,
+}
+
+/// The first dispersed realisation whose law has no equilibrium at its reference
+/// (`LawStart::refused`: the SMC's integral limit cannot hold that realisation's drag). The
+/// scenario's own vehicle is refused before a batch starts (`Engine::check_start`); a
+/// realisation's is known only once its start is solved, in the batch, which then stops and is
+/// refused naming it, as a drawn value the scenario refuses is (`Dispersion::config`). The one
+/// named is the lowest refused, whatever the threads' order: a lane-set is skipped only when
+/// its rows all come after a realisation already refused (`passed`).
+struct Refusal {
+    lowest: AtomicU64,
+    kept: Mutex<Option<ConfigError>>,
+}
+
+impl Refusal {
+    fn new() -> Self {
+        Self {
+            lowest: AtomicU64::new(u64::MAX),
+            kept: Mutex::new(None),
+        }
+    }
+
+    /// Whether realisation `index` comes after one already refused.
+    fn passed(&self, index: u64) -> bool {
+        index > self.lowest.load(Ordering::Relaxed)
+    }
+
+    /// Whether a law in `kinds` of the lanes' `realisations` (realisation `index[l]`) is
+    /// refused (`refuse`).
+    fn check(
+        &self,
+        realisations: &[Realisation],
+        index: impl Iterator<Item = u64>,
+        kinds: &[ControllerKind],
+        cancel: &AtomicBool,
+    ) -> bool {
+        let found = realisations.iter().zip(index).find_map(|(r, index)| {
+            kinds
+                .iter()
+                .find_map(|&k| r.start(k).refused.as_ref().map(|e| (index, k, e)))
+        });
+        found.is_some_and(|(index, kind, e)| {
+            self.refuse(index, kind, e, cancel);
+            true
+        })
+    }
+
+    /// Realisation `index`'s law `kind` refused (`e`): kept if the lowest so far; `cancel`
+    /// stops the batch.
+    fn refuse(&self, index: u64, kind: ControllerKind, e: &ConfigError, cancel: &AtomicBool) {
+        let mut kept = self.kept.lock().unwrap_or_else(|p| p.into_inner());
+        if index < self.lowest.load(Ordering::Relaxed) {
+            self.lowest.store(index, Ordering::Relaxed);
+            *kept = Some(ConfigError {
+                key: e.key.clone(),
+                message: format!(
+                    "dispersions: realisation {index} drew values the {} law has no start at \
+                     its reference for: {} (narrow or truncate the distribution)",
+                    kind.name(),
+                    e.message
+                ),
+            });
+        }
+        cancel.store(true, Ordering::Relaxed);
+    }
+
+    fn into_error(self) -> Option<ConfigError> {
+        self.kept.into_inner().unwrap_or_else(|p| p.into_inner())
+    }
 }
 
 /// Thread pools kept alive between calls (most recently used last).
@@ -171,7 +243,8 @@ impl<'a> Batch<'a> {
 /// `Engine::innovations` of them), in lane-sets on `workers` threads: metrics row-major
 /// (rows, phases, N_METRICS), NaN after a divergence. With `dispersion`, row j flies the
 /// scenario with its row j of values (checked by the caller: `Dispersion::config` accepts
-/// every row). `done` counts finished rows; None if `cancel` was set.
+/// every row; a row whose law has no start at its reference is refused by name, `Refusal`).
+/// `done` counts finished rows; None if `cancel` was set.
 pub fn run_innovations(
     engine: &Engine,
     kind: ControllerKind,
@@ -180,8 +253,9 @@ pub fn run_innovations(
     workers: usize,
     done: &AtomicU64,
     cancel: &AtomicBool,
-) -> Option<Vec<f64>> {
+) -> Result<Option<Vec<f64>>, ConfigError> {
     let e = engine;
+    let refusal = Refusal::new();
     let n = rows.len();
     let row = e.phase_count() * N_METRICS;
     let mut metrics = vec![f64::NAN; n * row];
@@ -191,6 +265,9 @@ pub fn run_innovations(
             .par_chunks_mut(lanes * row)
             .enumerate()
             .map_init(FftPlanner::new, |planner, (set, out)| {
+                if refusal.passed((set * lanes) as u64) {
+                    return false;
+                }
                 // Pad the last lane-set by repeating its final row.
                 let mine: Vec<&[f64]> = (0..lanes)
                     .map(|l| rows[(set * lanes + l).min(n - 1)])
@@ -209,6 +286,12 @@ pub fn run_innovations(
                         })
                         .collect()
                 });
+                if let Some(r) = &realisations {
+                    let rows = (0..lanes).map(|l| (set * lanes + l).min(n - 1) as u64);
+                    if refusal.check(r, rows, &[kind], cancel) {
+                        return false;
+                    }
+                }
                 let lane_realisations: Option<Vec<&Realisation>> =
                     realisations.as_ref().map(|c| c.iter().collect());
                 let req = FlightRequest {
@@ -231,7 +314,10 @@ pub fn run_innovations(
             })
             .all(|ok| ok)
     });
-    finished.then_some(metrics)
+    match refusal.into_error() {
+        Some(e) => Err(e),
+        None => Ok(finished.then_some(metrics)),
+    }
 }
 
 /// Lane-set `set` of `batch` (`lanes` a set): each lane's stream index, and in a dispersed
@@ -291,6 +377,7 @@ pub fn run_batch(
     let mut status = vec![ExitStatus::Ok as u8; count * n_ctrl];
     let mut done = vec![false; count];
     let lanes_per_set = engine.lanes_per_set();
+    let refusal = Refusal::new();
 
     // Each lane-set writes its rows straight into the output (disjoint chunks): nothing per set
     // is kept on the heap, so memory is the output arrays plus a few buffers per thread.
@@ -321,7 +408,17 @@ pub fn run_batch(
             |(mut spectra, mut planner, (mut set_metrics, mut set_diverged, mut set_spectra)),
              (set, ((out_metrics, out_diverged), (out_status, out_done)))| {
                 set_spectra.clear();
+                if refusal.passed(batch.first + (set * lanes_per_set) as u64) {
+                    return (spectra, planner, (set_metrics, set_diverged, set_spectra));
+                }
                 let (indices, realisations) = lane_set(engine, batch, set, lanes_per_set);
+                if let Some(r) = &realisations {
+                    let rows = (0..lanes_per_set)
+                        .map(|l| batch.first + (set * lanes_per_set + l).min(count - 1) as u64);
+                    if refusal.check(r, rows, kinds, cancel) {
+                        return (spectra, planner, (set_metrics, set_diverged, set_spectra));
+                    }
+                }
                 let lane_realisations: Option<Vec<&Realisation>> =
                     realisations.as_ref().map(|c| c.iter().collect());
                 let lanes = out_done.len();
@@ -377,6 +474,7 @@ pub fn run_batch(
         status,
         done,
         spectra,
+        refused: refusal.into_error(),
     }
 }
 
@@ -442,6 +540,7 @@ mod tests {
         for kind in [ControllerKind::Pd, ControllerKind::Smc] {
             for workers in [1, 2] {
                 let got = run_innovations(&engine, kind, &rows, None, workers, &done, &cancel)
+                    .expect("not dispersed")
                     .expect("not cancelled");
                 let per = engine.phase_count() * N_METRICS;
                 let c = kind as usize;
@@ -455,7 +554,8 @@ mod tests {
         assert_eq!(done.load(Ordering::Relaxed), 4 * n as u64);
         cancel.store(true, Ordering::Relaxed);
         let kind = ControllerKind::Pd;
-        assert!(run_innovations(&engine, kind, &rows, None, 1, &done, &cancel).is_none());
+        let got = run_innovations(&engine, kind, &rows, None, 1, &done, &cancel);
+        assert!(got.expect("not dispersed").is_none());
     }
 
     /// The spectrum counts equal the finished, non-diverged realisations per controller, even
@@ -509,6 +609,33 @@ mod tests {
         let out = run_batch(&engine, &Batch::new(&[ControllerKind::Pd], 0, 0, 8), &p, &c);
         assert!(out.done.iter().all(|d| !d));
         assert!(out.metrics.iter().all(|x| x.is_nan()));
+    }
+
+    /// A batch refused by several realisations, found in any order, names the lowest, and
+    /// skips only the lane-sets past one already refused (so it always finds the lowest).
+    /// (A dispersed batch refused end to end: tests/engine/test_dispersed_starts.py.)
+    #[test]
+    fn a_refused_batch_names_its_lowest_refused_realisation() {
+        let r = Refusal::new();
+        let cancel = AtomicBool::new(false);
+        assert!(!r.passed(u64::MAX - 1) && !cancel.load(Ordering::Relaxed));
+        let e = |key: &str| ConfigError {
+            key: key.into(),
+            message: format!("{key} cannot hold it"),
+        };
+        r.refuse(10, ControllerKind::Smc, &e("a"), &cancel);
+        assert!(cancel.load(Ordering::Relaxed));
+        r.refuse(3, ControllerKind::Smc, &e("b"), &cancel);
+        r.refuse(7, ControllerKind::Pd, &e("c"), &cancel);
+        assert!(r.passed(4) && !r.passed(3) && !r.passed(0));
+        let got = r.into_error().expect("refused");
+        assert_eq!(got.key, "b");
+        assert_eq!(
+            got.message,
+            "dispersions: realisation 3 drew values the smc law has no start at its reference \
+             for: b cannot hold it (narrow or truncate the distribution)"
+        );
+        assert_eq!(Refusal::new().into_error(), None);
     }
 
     #[test]

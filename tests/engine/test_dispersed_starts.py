@@ -6,9 +6,11 @@ crosswind where the starts are the laws' own closed-loop equilibria (not the pla
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import quadrs
 from quadrs.runs.flight import METRIC_COLUMNS
+from quadrs.scenario.dispersion import draw
 
 #: The delivery vehicle hovering 3 s at 2 m in a steady 8 m/s crosswind (6.2 m/s at 2 m), on
 #: its state, its parcel's mass dispersed: every flight its own vehicle, so its own starts.
@@ -44,3 +46,29 @@ def test_a_dispersed_batch_row_is_its_single_flight_for_each_law() -> None:
             t = quadrs.simulate(sc, law, seed=2, realisation=i, record_every=10).trace
             swing = t.swing[t.index <= 3.0].to_numpy()
             assert np.max(np.abs(swing - swing[0])) < 1e-3, (law, i, swing[0])
+
+
+def test_a_dispersed_realisation_the_smc_cannot_start_is_refused_by_name() -> None:
+    """A drawn wind past what the SMC's integral limit holds (about 12 m/s at 20 ft here)
+    leaves the law no equilibrium at its reference: its single flight is refused by name, as
+    the scenario's own vehicle would be, and so is a batch that draws it, naming the lowest
+    such realisation (whichever lane-set finds one first); the PD (no integral) flies the same
+    draws."""
+    sc = quadrs.Scenario.preset("delivery").override(
+        {**HOVER, "dispersions": {"wind.speed": {"dist": "uniform", "low": 5.0, "high": 14.0}}}
+    )
+    runs, seed = 6, 4
+    refused = []
+    for i in range(runs):
+        try:
+            quadrs.simulate(sc, "smc", seed=seed, realisation=i)
+        except quadrs.ScenarioError as e:
+            assert "controller.smc.integral" in str(e), e
+            refused.append(i)
+    drawn = draw(sc, seed=seed, first=0, count=runs)["wind.speed"].to_numpy()
+    assert 0 < len(refused) < runs and min(drawn[refused]) > 10.0, (refused, drawn)
+    with pytest.raises(quadrs.ScenarioError, match=rf"realisation {refused[0]} drew") as e:
+        quadrs.monte_carlo(sc, runs=runs, seed=seed, controllers=("smc",), progress=False)
+    assert "controller.smc.integral" in str(e.value) and "narrow or truncate" in str(e.value)
+    mc = quadrs.monte_carlo(sc, runs=runs, seed=seed, controllers=("pd",), progress=False)
+    assert len(mc.runs) == runs and mc.runs["status"].eq("ok").all()

@@ -107,6 +107,9 @@ pub(super) fn run_batch<'py>(
         })
     })?;
     let out = out.map_err(scenario_error)?;
+    if let Some(e) = out.refused {
+        return Err(scenario_error(e));
+    }
     let n_ctrl = kinds.len();
     let n_phase = e.phase_count();
     let d = PyDict::new(py);
@@ -174,11 +177,13 @@ pub(super) fn run_innovations<'py>(
     };
     let n_phase = e.phase_count();
     let (done, cancel) = counters(args.progress);
-    let flown = py.detach(|| {
-        guarded("run_innovations", || {
-            innovations_batch(e, kind, &rows, dispersion.as_ref(), workers, &done, &cancel)
-        })
-    })?;
+    let flown = py
+        .detach(|| {
+            guarded("run_innovations", || {
+                innovations_batch(e, kind, &rows, dispersion.as_ref(), workers, &done, &cancel)
+            })
+        })?
+        .map_err(scenario_error)?;
     let Some(metrics) = flown else {
         return Err(PyKeyboardInterrupt::new_err(
             "run_innovations was cancelled",
