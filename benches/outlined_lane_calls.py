@@ -4,7 +4,8 @@ the loop's line").
 A function the optimiser leaves out of the flight loop's line (a closure, an array's ``map``,
 an iterator's ``fold``) is compiled without the lane type's instruction set, so every SIMD
 intrinsic in it becomes a call. This lists, from the engine's disassembly, the functions the
-flight loops (``fly_avx2``, ``fly_avx2_fma``, ``fly_avx512``) reach that make such calls, with
+flight loops (``fly_avx2``, ``fly_avx2_fma``, ``fly_avx512``) and the navigation's step
+(``sense_avx2``, ...) reach that make such calls, with
 how many: per-flight setup (``gather``, ``new``, ``finish``, the trace) is harmless, anything
 called per step is not.
 
@@ -47,7 +48,9 @@ def main() -> None:
         elif here is not None and (m := re.search(r"\tcall\s+([0-9a-f]+) <(.*)>", line)):
             calls[here].append(int(m.group(1), 16))
             intrinsic[here] += "core_arch" in m.group(2)
-    loops = [a for a, n in name.items() if re.search(r"::fly_avx(512|2)(_fma)?$", n)]
+    # The flight loops and the navigation's step, each compiled apart for its instruction set.
+    loops = [a for a, n in name.items()
+             if re.search(r"::(fly|sense)_avx(512|2)(_fma)?$", n)]  # fmt: skip
     reached: set[int] = set()
     todo = list(loops)
     while todo:
@@ -61,7 +64,7 @@ def main() -> None:
         if intrinsic[a]:
             sites[name[a]] += intrinsic[a]
             functions[name[a]] += 1
-    print(f"{so.name}: {len(loops)} flight loops reach {sum(functions.values())} functions "
+    print(f"{so.name}: {len(loops)} flight loops and navigation steps reach {sum(functions.values())} functions "
           f"with {sum(sites.values())} lane-intrinsic calls out of line")  # fmt: skip
     for n, count in sites.most_common(20):
         print(f"{count:6d} calls in {functions[n]:3d} x {n[:110]}")

@@ -147,22 +147,23 @@ fn gain<L: Lane>(inv: &[L; 4], u: &[L; 4], lo: f64, hi: f64) -> L {
 /// thrust column lowers the thrust) leaves `u` untouched when the first gain is negative.
 #[inline(always)]
 fn desaturate<L: Lane>(u: &mut [L; 4], d: &[L; 4], inv: &[L; 4], hi: f64, reduce_only: bool) {
-    let zero = L::splat(0.0);
     let first = gain(inv, u, MOTOR_MIN, hi);
     // Each move along `d`: none at all where `reduce_only` and the first gain is negative.
-    let nudge = |u: &mut [L; 4], g: L| {
-        let g = if reduce_only {
-            first.if_negative(zero, g)
-        } else {
-            g
+    // (A function inlined always, not a closure: see `lane::each3`.)
+    #[inline(always)]
+    fn nudge<L: Lane>(u: &mut [L; 4], d: &[L; 4], g: L, held: Option<L>) {
+        let g = match held {
+            Some(first) => first.if_negative(L::splat(0.0), g),
+            None => g,
         };
         for i in 0..4 {
             u[i] += g * d[i];
         }
-    };
-    nudge(u, first);
+    }
+    let held = reduce_only.then_some(first);
+    nudge(u, d, first, held);
     let second = gain(inv, u, MOTOR_MIN, hi) * 0.5;
-    nudge(u, second);
+    nudge(u, d, second, held);
 }
 
 /// `mixAirmodeDisabled` then `clipActuatorSetpoint`: `c` the normalised control (roll, pitch,

@@ -12,7 +12,7 @@
 // no `-=`/`*=`).
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
-use crate::lane::Lane;
+use crate::lane::{each3, each4, Lane};
 use crate::model::Rotation;
 
 /// Error states.
@@ -107,8 +107,14 @@ impl<L: Lane> Ekf<L> {
     #[inline(always)]
     pub fn propagate(&mut self, gyro: &[L; 3], accel: &[L; 3], h: f64, g: L) {
         let rot = self.rotation();
-        let f = [0, 1, 2].map(|i| accel[i] - self.ba[i]);
-        let w = [0, 1, 2].map(|i| (gyro[i] - self.bg[i]) * h);
+        let f = each3(
+            #[inline(always)]
+            |i| accel[i] - self.ba[i],
+        );
+        let w = each3(
+            #[inline(always)]
+            |i| (gyro[i] - self.bg[i]) * h,
+        );
         let fw = rot.to_inertial(&f);
         let a = [fw[0], fw[1], fw[2] - g];
         for i in 0..3 {
@@ -245,7 +251,10 @@ impl<L: Lane> Ekf<L> {
                 c[i][j] = c[i][j] - k[i] * ph[j];
             }
         }
-        let dx = k.map(|ki| ki * y);
+        let mut dx = k;
+        for d in dx.iter_mut() {
+            *d = *d * y;
+        }
         self.inject(&dx);
     }
 
@@ -286,7 +295,10 @@ pub fn product<L: Lane>(a: &[L; 4], b: &[L; 4]) -> [L; 4] {
 #[inline(always)]
 pub fn normalised<L: Lane>(q: [L; 4]) -> [L; 4] {
     let inv = L::splat(1.0) / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    q.map(|c| c * inv)
+    each4(
+        #[inline(always)]
+        |i| q[i] * inv,
+    )
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ pub use entry::Navigate;
 
 use crate::config::navigation::{Navigation as NavigationKeys, Schedule, Sensors};
 use crate::config::ConfigError;
-use crate::lane::Lane;
+use crate::lane::{each3, Lane};
 use crate::model::{Rigid, RigidBody, Rotation, Trig};
 use ekf::{Ekf, Tuning, BETA, E, P, STATES, TH, V};
 use sensors::{initial_error, wrap, LaneSensors};
@@ -347,7 +347,10 @@ impl<L: Lane> Navigation<L> {
     #[inline(always)]
     pub fn error_after(&mut self, a: &[L; 3], axes: &[[L; 3]; 3], pos: &[L; 3]) -> [L; 3] {
         self.accelerometer(a, axes);
-        [0, 1, 2].map(|i| self.estimate.pos[i] - pos[i])
+        each3(
+            #[inline(always)]
+            |i| self.estimate.pos[i] - pos[i],
+        )
     }
 
     /// Whether step `k` samples the IMU (and so may update the filter): else the step only adds
@@ -383,12 +386,24 @@ impl<L: Lane> Navigation<L> {
         let m = self.schedule.imu as f64;
         let (mut g, mut a) = ([[0.0; 3]; 8], [[0.0; 3]; 8]);
         for (l, lane) in self.lanes.iter_mut().enumerate() {
-            let w = self.rate_sum.map(|x| x.lane(l) / m);
-            let f = self.force_sum.map(|x| x.lane(l) / m);
+            let w = each3(
+                #[inline(always)]
+                |i| self.rate_sum[i].lane(l) / m,
+            );
+            let f = each3(
+                #[inline(always)]
+                |i| self.force_sum[i].lane(l) / m,
+            );
             (g[l], a[l]) = lane.imu(w, f);
         }
-        self.gyro = [0, 1, 2].map(|i| L::from_fn(|l| g[l][i]));
-        let accel = [0, 1, 2].map(|i| L::from_fn(|l| a[l][i]));
+        self.gyro = each3(
+            #[inline(always)]
+            |i| L::from_fn(|l| g[l][i]),
+        );
+        let accel = each3(
+            #[inline(always)]
+            |i| L::from_fn(|l| a[l][i]),
+        );
         self.rate_sum = [L::splat(0.0); 3];
         self.force_sum = [L::splat(0.0); 3];
         let h = m * self.dt;
@@ -445,11 +460,15 @@ impl<L: Lane> Navigation<L> {
             pos: f.p,
             att,
             vel: f.v,
-            rate: [0, 1, 2].map(|i| self.gyro[i] - f.bg[i]),
+            rate: each3(
+                #[inline(always)]
+                |i| self.gyro[i] - f.bg[i],
+            ),
         };
         self.trig = Trig::of_angles(att[0], att[1], att[2]);
     }
 
+    #[inline(always)]
     fn mark_update(&mut self) {
         let f = &self.filter;
         self.mark = [f.p[0], f.p[1], f.p[2], f.v[0], f.v[1], f.v[2]];
@@ -463,7 +482,11 @@ impl<L: Lane> Navigation<L> {
         }
         let f = &self.filter;
         let now = [f.p[0], f.p[1], f.p[2], f.v[0], f.v[1], f.v[2]];
-        self.increments[self.next] = std::array::from_fn(|i| now[i] - self.mark[i]);
+        let mut increment = now;
+        for i in 0..6 {
+            increment[i] = now[i] - self.mark[i];
+        }
+        self.increments[self.next] = increment;
         self.next = (self.next + 1) % self.increments.len();
     }
 
@@ -474,8 +497,14 @@ impl<L: Lane> Navigation<L> {
         let s = self.schedule;
         if k.is_multiple_of(s.gnss) {
             for (l, lane) in self.lanes.iter_mut().enumerate() {
-                let p = truth.pos.map(|x| x.lane(l));
-                let v = truth.vel.map(|x| x.lane(l));
+                let p = each3(
+                    #[inline(always)]
+                    |i| truth.pos[i].lane(l),
+                );
+                let v = each3(
+                    #[inline(always)]
+                    |i| truth.vel[i].lane(l),
+                );
                 lane.gnss_epoch(k, self.dt, p, v);
             }
         }
