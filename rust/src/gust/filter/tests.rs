@@ -444,6 +444,22 @@ fn noise_factor_fallback_on_singular_matrices() {
 }
 
 #[test]
+fn each_filters_order_is_its_denominators_degree() {
+    use GustComponent::{Lateral, Longitudinal, Vertical};
+    for (model, orders) in [
+        (GustModel::Dryden, [1, 2, 2]),
+        (GustModel::VonKarman, [2, 3, 3]),
+    ] {
+        for (c, order) in [Longitudinal, Lateral, Vertical].into_iter().zip(orders) {
+            let r = rational(model, c);
+            let gain2 = if c == Longitudinal { 2.0 } else { 1.0 };
+            assert_eq!((r.order, r.gain2), (order, gain2), "{model:?} {c:?}");
+            assert_eq!(filt(model, c, 1.0, 0.5).order(), order);
+        }
+    }
+}
+
+#[test]
 fn bad_input_is_rejected_with_the_parameter_named() {
     let d = GustModel::Dryden;
     let v = GustComponent::Vertical;
