@@ -2,7 +2,7 @@
 //! schedule of holds and legs a route's values give (`schedule`), and the phases of
 //! `phases = "legs"` (`leg_phases`). The motion along a leg is `crate::legs`.
 
-use crate::config::{ConfigError, Context, Interpolation, Phase};
+use crate::config::{rows_checked, ConfigError, Context, Interpolation, Phase};
 use crate::legs::{length, Profile, Segment, SegmentKind, TIME_SLACK};
 
 /// The whole-flight phase every result carries after the scenario's own phases.
@@ -51,33 +51,17 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
         ));
     }
     let r = &tr.route;
-    if r.len() < 2 {
-        return Err(ConfigError::new(
-            "trajectory.route",
-            format!(
-                "trajectory.route needs at least two points [x, y, z], got {}",
-                r.len()
-            ),
-        ));
-    }
-    for (i, p) in r.iter().enumerate() {
-        for (j, x) in p.iter().enumerate() {
-            if !x.is_finite() {
-                let key = format!("trajectory.route[{i}][{j}]");
-                return Err(ConfigError::new(
-                    &key,
-                    format!("{key} must be a finite number, got {x:?}"),
-                ));
-            }
-        }
-        if i > 0 && length(r[i - 1], *p) == 0.0 {
+    rows_checked("trajectory.route", r, "points [x, y, z]", |i| {
+        let p = r[i];
+        if i > 0 && length(r[i - 1], p) == 0.0 {
             let key = format!("trajectory.route[{i}]");
             return Err(ConfigError::new(
                 &key,
                 format!("{key} repeats the previous point {p:?}: a leg needs two distinct points"),
             ));
         }
-    }
+        Ok(())
+    })?;
     for (key, x) in [
         ("trajectory.speed", tr.speed),
         ("trajectory.acceleration", tr.acceleration),
