@@ -672,6 +672,42 @@ mod tests {
     }
 
     #[test]
+    fn a_table_needs_two_finite_rows_checked_row_by_row() {
+        let none = |_| Ok(());
+        let e = rows_checked("t.rows", &[[0.0, 1.0]], "points", none).unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            ("t.rows", "t.rows needs at least two points, got 1")
+        );
+        let e = rows_checked("t.rows", &[[0.0, 1.0], [f64::NAN, 2.0]], "points", none).unwrap_err();
+        assert_eq!(e.key, "t.rows[1][0]");
+        assert_eq!(e.message, "t.rows[1][0] must be a finite number, got NaN");
+        // Row 1's own check fails before row 2's numbers are read: the first problem found.
+        let rows = [[0.0, 0.0], [0.0, 0.0], [f64::NAN, 0.0]];
+        let repeated = |i| match i {
+            1 => Err(ConfigError::new("t.rows[1]", "repeats")),
+            _ => Ok(()),
+        };
+        assert_eq!(
+            rows_checked("t.rows", &rows, "points", repeated)
+                .unwrap_err()
+                .key,
+            "t.rows[1]"
+        );
+        let e = route_cfg(|c| c["trajectory"]["route"] = json!([[0, 0, 0]])).unwrap_err();
+        assert_eq!(
+            e.message,
+            "trajectory.route needs at least two points [x, y, z], got 1"
+        );
+        let mut paper = crate::scenario::tests::paper();
+        paper.trajectory.waypoints.truncate(1);
+        assert_eq!(
+            paper.validate().unwrap_err().message,
+            "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got 1"
+        );
+    }
+
+    #[test]
     fn unflyable_routes_name_their_key() {
         let key = |edit: fn(&mut serde_json::Value)| route_cfg(edit).unwrap_err().key;
         assert_eq!(
