@@ -229,22 +229,15 @@ def lane_math(
     function: str, x: npt.NDArray[np.float64], path: str = "scalar", y: float = 0.0
 ) -> npt.NDArray[np.float64]: ...
 def mean_wind(config_json: str, altitudes: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+
+# A forming filter's numbers: (model, component, sigma, length_scale, airspeed, dt).
+_GustSpec = tuple[str, str, float, float, float, float]
+
 def gust_psd(
-    model: str,
-    component: str,
-    sigma: float,
-    length_scale: float,
-    airspeed: float,
-    dt: float,
-    frequency: npt.NDArray[np.float64],
+    spec: _GustSpec, frequency: npt.NDArray[np.float64]
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def gust_series(
-    model: str,
-    component: str,
-    sigma: float,
-    length_scale: float,
-    airspeed: float,
-    dt: float,
+    spec: _GustSpec,
     steps: int,
     realisations: int,
     seed: int,

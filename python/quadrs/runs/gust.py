@@ -51,10 +51,8 @@ def gust_series(
     first = check_int("first", first, 0, U64_MAX - max(realisations - 1, 0))
     workers = check_int("workers", default_workers() if workers is None else workers, 1,
                         MAX_WORKERS)  # fmt: skip
-    return _core.gust_series(
-        model, component, sigma, length_scale, airspeed, dt, int(steps), int(realisations),
-        seed, first, workers,
-    )  # fmt: skip
+    spec = (model, component, sigma, length_scale, airspeed, dt)
+    return _core.gust_series(spec, int(steps), int(realisations), seed, first, workers)
 
 
 def gust_psd(
@@ -81,4 +79,4 @@ def gust_psd(
     f = np.ascontiguousarray(frequency, dtype=np.float64)
     if f.ndim != 1:
         raise ValueError(f"frequency must be a 1-D array of Hz, got shape {f.shape}")
-    return _core.gust_psd(model, component, sigma, length_scale, airspeed, dt, f)
+    return _core.gust_psd((model, component, sigma, length_scale, airspeed, dt), f)

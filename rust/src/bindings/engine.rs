@@ -116,10 +116,13 @@ impl CompiledEngine {
             seed,
             realisation,
             record_every,
+            wind,
+            progress,
+            xi,
+            dispersion_keys,
+            dispersion_values,
         };
-        #[rustfmt::skip]
-        let out = simulate_on(py, Cow::Borrowed(&self.engine), flight, wind, progress, xi, dispersion_keys, dispersion_values);
-        out
+        simulate_on(py, Cow::Borrowed(&self.engine), flight)
     }
 
     /// `simulate` driven by the innovations `xi_row` (see `simulate`'s `xi`, and its
@@ -141,10 +144,13 @@ impl CompiledEngine {
             seed: 0,
             realisation: 0,
             record_every,
+            wind: None,
+            progress,
+            xi: Some(xi_row),
+            dispersion_keys,
+            dispersion_values,
         };
-        #[rustfmt::skip]
-        let out = simulate_on(py, Cow::Borrowed(&self.engine), flight, None, progress, Some(xi_row), dispersion_keys, dispersion_values);
-        out
+        simulate_on(py, Cow::Borrowed(&self.engine), flight)
     }
 
     /// Realisations first..first+count of every controller, on `workers` threads. With

@@ -17,46 +17,40 @@ use pyo3::types::PyDict;
 use rustfft::FftPlanner;
 use std::borrow::Cow;
 
-/// What `simulate` flies, besides the scenario and its inputs.
-pub(super) struct Flight<'a> {
+/// What `simulate` flies, besides the scenario: the law, the stream and the record, and the
+/// inputs that replace the scenario's own (`simulate`'s `wind`, `xi` and dispersion values).
+pub(super) struct Flight<'a, 'py> {
     pub(super) controller: &'a str,
     pub(super) seed: u64,
     pub(super) realisation: u64,
     pub(super) record_every: usize,
+    pub(super) wind: Option<PyReadonlyArray2<'py, f64>>,
+    pub(super) progress: Option<&'a Bound<'py, Progress>>,
+    pub(super) xi: Option<PyReadonlyArray1<'py, f64>>,
+    pub(super) dispersion_keys: Vec<String>,
+    pub(super) dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
 }
 
-#[allow(clippy::too_many_arguments)]
 pub(super) fn simulate_on<'py>(
     py: Python<'py>,
     mut e: Cow<'_, Engine>,
-    flight: Flight<'_>,
-    wind: Option<PyReadonlyArray2<'py, f64>>,
-    progress: Option<&Bound<'py, Progress>>,
-    xi: Option<PyReadonlyArray1<'py, f64>>,
-    dispersion_keys: Vec<String>,
-    dispersion_values: Option<PyReadonlyArray1<'py, f64>>,
+    f: Flight<'_, 'py>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let Flight {
-        controller,
-        seed,
-        realisation,
-        record_every,
-    } = flight;
-    let kind = ControllerKind::parse(controller).map_err(PyValueError::new_err)?;
-    if record_every == 0 {
+    let kind = ControllerKind::parse(f.controller).map_err(PyValueError::new_err)?;
+    if f.record_every == 0 {
         return Err(PyValueError::new_err("record_every must be >= 1, got 0"));
     }
-    if xi.is_some() {
-        let values = dispersion_values.map(|v| {
+    if f.xi.is_some() {
+        let values = f.dispersion_values.map(|v| {
             let v: Vec<f64> = v.as_array().iter().copied().collect();
             Array2::from_shape_vec((1, v.len()), v).expect("one row")
         });
-        if let Some(d) = innovations_dispersion(&e, dispersion_keys, values.as_ref(), 1)? {
+        if let Some(d) = innovations_dispersion(&e, f.dispersion_keys, values.as_ref(), 1)? {
             // The fixed scenario of the row: exactly what an override of the keys flies.
             let cfg = d.config(0, 0).map_err(scenario_error)?;
             e = Cow::Owned(Engine::of_valid(cfg).map_err(scenario_error)?);
         }
-    } else if !dispersion_keys.is_empty() || dispersion_values.is_some() {
+    } else if !f.dispersion_keys.is_empty() || f.dispersion_values.is_some() {
         return Err(PyValueError::new_err(
             "dispersion_keys and dispersion_values go with xi (a flight driven by innovations)",
         ));
@@ -68,7 +62,7 @@ pub(super) fn simulate_on<'py>(
             e.cfg.dispersions.keys().collect::<Vec<_>>()
         )));
     }
-    if let Some(w) = wind {
+    if let Some(w) = f.wind {
         let w = w.as_array();
         if w.ncols() != 3 {
             return Err(PyValueError::new_err(format!(
@@ -84,7 +78,7 @@ pub(super) fn simulate_on<'py>(
         );
     }
     e.check_start(kind).map_err(scenario_error)?;
-    let rows = (e.steps / record_every + 1) as u128;
+    let rows = (e.steps / f.record_every + 1) as u128;
     let width = 1 + e.trace_columns().len();
     memory::check(
         "trace (integrator.duration / integrator.dt / record_every rows)",
@@ -93,21 +87,21 @@ pub(super) fn simulate_on<'py>(
     )
     .and_then(|()| flight_memory(&e, 1, 1))
     .map_err(PyMemoryError::new_err)?;
-    let cancel = progress.map(|p| p.get().cancel.clone());
-    let xi: Option<Vec<f64>> = xi.map(|x| x.as_array().iter().copied().collect());
+    let cancel = f.progress.map(|p| p.get().cancel.clone());
+    let xi: Option<Vec<f64>> = f.xi.map(|x| x.as_array().iter().copied().collect());
     if let Some(x) = &xi {
         check_innovations(&e, x.len())?;
     }
     let flown = py.detach(|| {
         guarded("simulate", || {
-            let mut trace = e.trace(record_every);
-            let indices = [realisation];
+            let mut trace = e.trace(f.record_every);
+            let indices = [f.realisation];
             let rows: Option<[&[f64]; 1]> = xi.as_deref().map(|x| [x]);
             let req = FlightRequest {
                 want_spectra: true,
                 cancel: cancel.as_deref(),
                 innovations: rows.as_ref().map(|r| &r[..]),
-                ..FlightRequest::new(kind, seed, &indices)
+                ..FlightRequest::new(kind, f.seed, &indices)
             };
             let res = e.fly::<f64>(&req, Some(&mut trace), &mut FftPlanner::new())?;
             Some((trace, res.into_iter().next().expect("one lane")))

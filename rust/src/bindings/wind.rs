@@ -6,7 +6,7 @@ use super::errors::{guarded, scenario_error};
 use crate::gust;
 use crate::memory;
 use crate::montecarlo::pool;
-use crate::scenario::{Config, GustComponent, GustModel};
+use crate::scenario::Config;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::exceptions::{PyMemoryError, PyValueError};
@@ -46,38 +46,38 @@ pub(super) fn low_altitude_scales(altitude: f64, w20: f64) -> PyResult<([f64; 3]
 
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 
-/// The forming filter `gust_psd` and `gust_series` use, its model and component read
-/// through the scenario's own words (`GustModel`, `GustComponent`).
-fn gust_filter(
-    model: &str,
-    component: &str,
-    sigma: f64,
-    length_scale: f64,
-    airspeed: f64,
-    dt: f64,
-) -> PyResult<gust::GustFilter> {
-    let model: GustModel = model.parse().map_err(PyValueError::new_err)?;
-    let component: GustComponent = component.parse().map_err(PyValueError::new_err)?;
-    gust::GustFilter::new(model, component, sigma, length_scale, airspeed, dt)
+/// A forming filter's numbers as `gust_psd` and `gust_series` take them, in one tuple:
+/// (model, component, sigma, length_scale, airspeed, dt), the model and component in the
+/// scenario's words (`GustModel`, `GustComponent`).
+#[derive(FromPyObject)]
+pub(super) struct FilterArgs(String, String, f64, f64, f64, f64);
+
+impl FilterArgs {
+    /// The filter these numbers build.
+    fn build(self) -> PyResult<gust::GustFilter> {
+        let FilterArgs(model, component, sigma, length_scale, airspeed, dt) = self;
+        gust::GustFilter::new(gust::GustSpec {
+            model: model.parse().map_err(PyValueError::new_err)?,
+            component: component.parse().map_err(PyValueError::new_err)?,
+            sigma,
+            length_scale,
+            airspeed,
+            dt,
+        })
         .map_err(PyValueError::new_err)
+    }
 }
 
 /// One-sided spectra ((m/s)^2/Hz) of one gust component at `frequency` (Hz): the spectrum
 /// the discretised forming filter realises (`filter`) and the formula it is built for
 /// (`target`: the Dryden PSD, or the exact von Karman PSD of MIL-F-8785C).
 #[pyfunction]
-#[allow(clippy::too_many_arguments)]
 pub(super) fn gust_psd<'py>(
     py: Python<'py>,
-    model: &str,
-    component: &str,
-    sigma: f64,
-    length_scale: f64,
-    airspeed: f64,
-    dt: f64,
+    spec: FilterArgs,
     frequency: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<(Array<'py>, Array<'py>)> {
-    let filter = gust_filter(model, component, sigma, length_scale, airspeed, dt)?;
+    let filter = spec.build()?;
     let f = frequency.as_array();
     if let Some(bad) = f.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
         return Err(PyValueError::new_err(format!(
@@ -92,22 +92,16 @@ pub(super) fn gust_psd<'py>(
 /// `realisations` stationary series of one gust component, `steps` samples each, row r from
 /// the random stream (seed, first + r).
 #[pyfunction]
-#[allow(clippy::too_many_arguments)]
 pub(super) fn gust_series<'py>(
     py: Python<'py>,
-    model: &str,
-    component: &str,
-    sigma: f64,
-    length_scale: f64,
-    airspeed: f64,
-    dt: f64,
+    spec: FilterArgs,
     steps: usize,
     realisations: usize,
     seed: u64,
     first: u64,
     workers: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let filter = gust_filter(model, component, sigma, length_scale, airspeed, dt)?;
+    let filter = spec.build()?;
     check_workers(workers)?;
     let len = (realisations as u128) * (steps as u128);
     let mut buf = usize::try_from(len)

@@ -183,6 +183,30 @@ pub(crate) fn finite(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> 
     }
 }
 
+/// A table of rows (`trajectory.waypoints`, `trajectory.route`): at least two rows (`what`
+/// names them), and row by row every number finite, then `each(i)`'s check of row i.
+pub(crate) fn rows_checked<const W: usize>(
+    key: &str,
+    rows: &[[f64; W]],
+    what: &str,
+    mut each: impl FnMut(usize) -> Result<(), ConfigError>,
+) -> Result<(), ConfigError> {
+    if rows.len() < 2 {
+        let n = rows.len();
+        return Err(ConfigError::new(
+            key,
+            format!("{key} needs at least two {what}, got {n}"),
+        ));
+    }
+    for (i, row) in rows.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            finite(format_args!("{key}[{i}][{j}]"), *x)?;
+        }
+        each(i)?;
+    }
+    Ok(())
+}
+
 /// (`key` is formatted only on failure: the checks run once per dispersed realisation.)
 pub(crate) fn positive(key: impl fmt::Display, x: f64) -> Result<(), ConfigError> {
     if x.is_finite() && x > 0.0 {

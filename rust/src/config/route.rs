@@ -2,7 +2,7 @@
 //! schedule of holds and legs a route's values give (`schedule`), and the phases of
 //! `phases = "legs"` (`leg_phases`). The motion along a leg is `crate::legs`.
 
-use crate::config::{ConfigError, Context, Interpolation, Phase};
+use crate::config::{rows_checked, ConfigError, Context, Interpolation, Phase};
 use crate::legs::{length, Profile, Segment, SegmentKind, TIME_SLACK};
 
 /// The whole-flight phase every result carries after the scenario's own phases.
@@ -51,33 +51,17 @@ pub fn validate(cfg: &Context) -> Result<(), ConfigError> {
         ));
     }
     let r = &tr.route;
-    if r.len() < 2 {
-        return Err(ConfigError::new(
-            "trajectory.route",
-            format!(
-                "trajectory.route needs at least two points [x, y, z], got {}",
-                r.len()
-            ),
-        ));
-    }
-    for (i, p) in r.iter().enumerate() {
-        for (j, x) in p.iter().enumerate() {
-            if !x.is_finite() {
-                let key = format!("trajectory.route[{i}][{j}]");
-                return Err(ConfigError::new(
-                    &key,
-                    format!("{key} must be a finite number, got {x:?}"),
-                ));
-            }
-        }
-        if i > 0 && length(r[i - 1], *p) == 0.0 {
+    rows_checked("trajectory.route", r, "points [x, y, z]", |i| {
+        let p = r[i];
+        if i > 0 && length(r[i - 1], p) == 0.0 {
             let key = format!("trajectory.route[{i}]");
             return Err(ConfigError::new(
                 &key,
                 format!("{key} repeats the previous point {p:?}: a leg needs two distinct points"),
             ));
         }
-    }
+        Ok(())
+    })?;
     for (key, x) in [
         ("trajectory.speed", tr.speed),
         ("trajectory.acceleration", tr.acceleration),
@@ -685,6 +669,42 @@ mod tests {
         let names: Vec<&str> = cfg.phases.iter().map(|p| p.name.as_str()).collect();
         assert_eq!(names, ["climb", "transit", "descent", "drop"]);
         assert_eq!(cfg.phases[0].start, 0.0);
+    }
+
+    #[test]
+    fn a_table_needs_two_finite_rows_checked_row_by_row() {
+        let none = |_| Ok(());
+        let e = rows_checked("t.rows", &[[0.0, 1.0]], "points", none).unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.message.as_str()),
+            ("t.rows", "t.rows needs at least two points, got 1")
+        );
+        let e = rows_checked("t.rows", &[[0.0, 1.0], [f64::NAN, 2.0]], "points", none).unwrap_err();
+        assert_eq!(e.key, "t.rows[1][0]");
+        assert_eq!(e.message, "t.rows[1][0] must be a finite number, got NaN");
+        // Row 1's own check fails before row 2's numbers are read: the first problem found.
+        let rows = [[0.0, 0.0], [0.0, 0.0], [f64::NAN, 0.0]];
+        let repeated = |i| match i {
+            1 => Err(ConfigError::new("t.rows[1]", "repeats")),
+            _ => Ok(()),
+        };
+        assert_eq!(
+            rows_checked("t.rows", &rows, "points", repeated)
+                .unwrap_err()
+                .key,
+            "t.rows[1]"
+        );
+        let e = route_cfg(|c| c["trajectory"]["route"] = json!([[0, 0, 0]])).unwrap_err();
+        assert_eq!(
+            e.message,
+            "trajectory.route needs at least two points [x, y, z], got 1"
+        );
+        let mut paper = crate::scenario::tests::paper();
+        paper.trajectory.waypoints.truncate(1);
+        assert_eq!(
+            paper.validate().unwrap_err().message,
+            "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got 1"
+        );
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! their checks (the reference itself is `crate::trajectory`).
 
 use super::params::{not_numbers, params, Key, Params};
-use super::{finite, non_negative, route, ConfigError, Context, Integrator};
+use super::{finite, non_negative, route, rows_checked, ConfigError, Context, Integrator};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -126,31 +126,26 @@ impl Trajectory {
             return Ok(());
         }
         let w = &self.waypoints;
-        if w.len() < 2 {
-            return Err(ConfigError::new(
-                "trajectory.waypoints",
-                format!(
-                    "trajectory.waypoints needs at least two waypoints (t, x, y, z, psi), got {}",
-                    w.len()
-                ),
-            ));
-        }
-        for (i, row) in w.iter().enumerate() {
-            for (j, x) in row.iter().enumerate() {
-                finite(format_args!("trajectory.waypoints[{i}][{j}]"), *x)?;
-            }
-            if i > 0 && row[0] <= w[i - 1][0] {
+        // Each waypoint's time after the previous one's.
+        let later = |i: usize| {
+            if i > 0 && w[i][0] <= w[i - 1][0] {
                 let key = format!("trajectory.waypoints[{i}][0]");
                 return Err(ConfigError::new(
                     &key,
                     format!(
                         "{key} (time) must be later than the previous waypoint's ({:?} s), got {:?}",
-                        w[i - 1][0], row[0]
+                        w[i - 1][0], w[i][0]
                     ),
                 ));
             }
-        }
-        Ok(())
+            Ok(())
+        };
+        rows_checked(
+            "trajectory.waypoints",
+            w,
+            "waypoints (t, x, y, z, psi)",
+            later,
+        )
     }
 }
 

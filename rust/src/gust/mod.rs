@@ -42,7 +42,7 @@ source::wind_sources! {
     prescribed => Prescribed,
 }
 
-pub use filter::{Coefficients, GustFilter};
+pub use filter::{Coefficients, GustFilter, GustSpec};
 pub use lanes::{LaneGust, LaneWind};
 pub use section::{Wind, WindContext};
 pub use source::Kinematics;

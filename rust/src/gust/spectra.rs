@@ -89,33 +89,23 @@ pub(super) struct Rational {
     pub(super) gain2: f64,
 }
 
+/// Each filter's `N` and `D`: its order is the degree of `D`, and `gain2` is 2 for the
+/// longitudinal component (its PSD's `2 L / (pi V)`) and 1 for the lateral and vertical ones.
 pub(super) fn rational(model: GustModel, component: GustComponent) -> Rational {
+    use GustModel::{Dryden, VonKarman};
+    let longitudinal = component == GustComponent::Longitudinal;
     let sqrt3 = 3.0_f64.sqrt();
-    match (model, component) {
-        (GustModel::Dryden, GustComponent::Longitudinal) => Rational {
-            num: [1.0, 0.0, 0.0, 0.0],
-            den: [1.0, 1.0, 0.0, 0.0],
-            order: 1,
-            gain2: 2.0,
-        },
-        (GustModel::Dryden, _) => Rational {
-            num: [1.0, sqrt3, 0.0, 0.0],
-            den: [1.0, 2.0, 1.0, 0.0],
-            order: 2,
-            gain2: 1.0,
-        },
-        (GustModel::VonKarman, GustComponent::Longitudinal) => Rational {
-            num: [1.0, 0.25, 0.0, 0.0],
-            den: [1.0, 1.357, 0.1987, 0.0],
-            order: 2,
-            gain2: 2.0,
-        },
-        (GustModel::VonKarman, _) => Rational {
-            num: [1.0, 2.7478, 0.3398, 0.0],
-            den: [1.0, 2.9958, 1.9754, 0.1539],
-            order: 3,
-            gain2: 1.0,
-        },
+    let (num, den) = match (model, longitudinal) {
+        (Dryden, true) => ([1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]),
+        (Dryden, false) => ([1.0, sqrt3, 0.0, 0.0], [1.0, 2.0, 1.0, 0.0]),
+        (VonKarman, true) => ([1.0, 0.25, 0.0, 0.0], [1.0, 1.357, 0.1987, 0.0]),
+        (VonKarman, false) => ([1.0, 2.7478, 0.3398, 0.0], [1.0, 2.9958, 1.9754, 0.1539]),
+    };
+    Rational {
+        num,
+        den,
+        order: den.iter().rposition(|&d| d != 0.0).expect("D(0) = 1"),
+        gain2: if longitudinal { 2.0 } else { 1.0 },
     }
 }
 

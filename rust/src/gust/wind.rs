@@ -1,7 +1,7 @@
 //! The wind a flight sees (`WindField`: the scenario's components inside the gust window, one
 //! random stream per realisation) and stationary series of one component (`fill_series`).
 
-use super::filter::{step_fixed, GustFilter, Normals};
+use super::filter::{step_fixed, GustFilter, GustSpec, Normals};
 use super::source::{Kinematics, Moment};
 use super::spectra::METRES_PER_FOOT;
 use super::spectra::{low_altitude_scales, low_altitude_scales_lanes};
@@ -329,8 +329,15 @@ impl WindField {
         for c in GustComponent::ALL {
             let i = c.index();
             if g.components.contains(&c) {
-                let f = GustFilter::new(g.model, c, sigma[i], length[i], airspeed, dt)
-                    .map_err(|e| component_error(c, e))?;
+                let spec = GustSpec {
+                    model: g.model,
+                    component: c,
+                    sigma: sigma[i],
+                    length_scale: length[i],
+                    airspeed,
+                    dt,
+                };
+                let f = GustFilter::new(spec).map_err(|e| component_error(c, e))?;
                 field.filters[i] = Some(f);
             }
         }

@@ -84,14 +84,7 @@ pub const VEHICLE_POSITIONS: [StateVar; 6] = [
 ];
 
 /// The quadrotor's velocities and Euler-angle rates.
-pub const VEHICLE_VELOCITIES: [StateVar; 6] = [
-    vehicle("vx", Axis::X, Some(Bound::Speed)),
-    vehicle("vy", Axis::Y, Some(Bound::Speed)),
-    vehicle("vz", Axis::Z, Some(Bound::Speed)),
-    vehicle("p", Axis::Roll, Some(Bound::Rate)),
-    vehicle("q", Axis::Pitch, Some(Bound::Rate)),
-    vehicle("r", Axis::Yaw, Some(Bound::Rate)),
-];
+pub const VEHICLE_VELOCITIES: [StateVar; 6] = velocities(["p", "q", "r"]);
 
 /// The rigid body's positions and attitude quaternion (`model::body::Rigid`).
 pub const RIGID_POSITIONS: [StateVar; 7] = [
@@ -107,14 +100,20 @@ pub const RIGID_POSITIONS: [StateVar; 7] = [
 ];
 
 /// The rigid body's velocities and true body rates.
-pub const RIGID_VELOCITIES: [StateVar; 6] = [
-    vehicle("vx", Axis::X, Some(Bound::Speed)),
-    vehicle("vy", Axis::Y, Some(Bound::Speed)),
-    vehicle("vz", Axis::Z, Some(Bound::Speed)),
-    vehicle("wx", Axis::Roll, Some(Bound::Rate)),
-    vehicle("wy", Axis::Pitch, Some(Bound::Rate)),
-    vehicle("wz", Axis::Yaw, Some(Bound::Rate)),
-];
+pub const RIGID_VELOCITIES: [StateVar; 6] = velocities(["wx", "wy", "wz"]);
+
+/// The vehicle's velocities (bounded by the speed), then its roll, pitch and yaw rates named
+/// `rates` (bounded by the rate): every body's, whatever its attitude.
+const fn velocities(rates: [&'static str; 3]) -> [StateVar; 6] {
+    [
+        vehicle("vx", Axis::X, Some(Bound::Speed)),
+        vehicle("vy", Axis::Y, Some(Bound::Speed)),
+        vehicle("vz", Axis::Z, Some(Bound::Speed)),
+        vehicle(rates[0], Axis::Roll, Some(Bound::Rate)),
+        vehicle(rates[1], Axis::Pitch, Some(Bound::Rate)),
+        vehicle(rates[2], Axis::Yaw, Some(Bound::Rate)),
+    ]
+}
 
 /// Where each part's states sit: `[vehicle positions and attitude (3 + attitude), payload
 /// positions (dof), vehicle velocities and rates (6), payload velocities (dof), actuator

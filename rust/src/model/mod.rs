@@ -137,16 +137,19 @@ impl<L: Lane> Trig<L> {
 
     #[inline(always)]
     pub fn of_angles(phi: L, theta: L, psi: L) -> Self {
-        let (sphi, cphi) = phi.sin_cos();
-        let (sth, cth) = theta.sin_cos();
-        let (spsi, cpsi) = psi.sin_cos();
+        Self::of_pairs(phi.sin_cos(), theta.sin_cos(), psi.sin_cos())
+    }
+
+    /// From the (sine, cosine) pairs of phi, theta and psi.
+    #[inline(always)]
+    fn of_pairs(phi: (L, L), theta: (L, L), psi: (L, L)) -> Self {
         Self {
-            sphi,
-            cphi,
-            sth,
-            cth,
-            spsi,
-            cpsi,
+            sphi: phi.0,
+            cphi: phi.1,
+            sth: theta.0,
+            cth: theta.1,
+            spsi: psi.0,
+            cpsi: psi.1,
         }
     }
 }
@@ -180,17 +183,11 @@ impl<L: KernelOps> Trig<L> {
             (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
         }
         let (dphi, dth, dpsi) = (k[ix::PHI] * h, k[ix::THETA] * h, k[ix::PSI] * h);
-        let (sphi, cphi) = turn(self.sphi, self.cphi, dphi);
-        let (sth, cth) = turn(self.sth, self.cth, dth);
-        let (spsi, cpsi) = turn(self.spsi, self.cpsi, dpsi);
-        let t = Self {
-            sphi,
-            cphi,
-            sth,
-            cth,
-            spsi,
-            cpsi,
-        };
+        let t = Self::of_pairs(
+            turn(self.sphi, self.cphi, dphi),
+            turn(self.sth, self.cth, dth),
+            turn(self.spsi, self.cpsi, dpsi),
+        );
         let ok = dphi.abs().le_mask(small) & dth.abs().le_mask(small) & dpsi.abs().le_mask(small);
         if ok == L::ALL {
             return t;

@@ -3,7 +3,7 @@
 //! covariance by Van Loan's method and its factor), and the closed forms of the Dryden filters.
 
 use super::super::spectra::Rational;
-use super::GustFilter;
+use super::{GustFilter, GustSpec};
 use crate::config::{GustComponent, GustModel};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
@@ -262,12 +262,14 @@ pub(super) fn check_non_negative(name: &str, v: f64) -> Result<(), String> {
 impl GustFilter {
     pub(super) fn blank(order: usize) -> Self {
         GustFilter {
-            model: GustModel::Dryden,
-            component: GustComponent::Vertical,
-            sigma: 0.0,
-            length_scale: 1.0,
-            airspeed: 1.0,
-            dt: 1.0,
+            spec: GustSpec {
+                model: GustModel::Dryden,
+                component: GustComponent::Vertical,
+                sigma: 0.0,
+                length_scale: 1.0,
+                airspeed: 1.0,
+                dt: 1.0,
+            },
             k: 1.0,
             order,
             phi: Matrix3::zeros(),

@@ -41,6 +41,18 @@ impl Coefficients {
         }
     }
 }
+/// What a forming filter is built from: its model and component, the output's standard
+/// deviation `sigma` (m/s), the scale length (m), the airspeed (m/s) and the step `dt` (s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GustSpec {
+    pub model: GustModel,
+    pub component: GustComponent,
+    pub sigma: f64,
+    pub length_scale: f64,
+    pub airspeed: f64,
+    pub dt: f64,
+}
+
 /// One gust component's forming filter, exactly discretised for a step `dt`,
 /// with its state normalised to unit stationary covariance:
 /// `x' = Phi x + G n`, `w = sigma c.x` (`|c| = 1`, `G G^T = I - Phi Phi^T`).
@@ -60,12 +72,7 @@ impl Coefficients {
 /// [`GustFilter::approximant_variance_ratio`] and docs/gust.md).
 #[derive(Clone, Copy, Debug)]
 pub struct GustFilter {
-    model: GustModel,
-    component: GustComponent,
-    sigma: f64,
-    length_scale: f64,
-    airspeed: f64,
-    dt: f64,
+    spec: GustSpec,
     /// V dt / L.
     k: f64,
     order: usize,
@@ -92,28 +99,22 @@ impl GustFilter {
     /// (s) > 0, all finite; otherwise `Err` with a message naming the
     /// parameter and the value (e.g. `airspeed must be > 0 (the Dryden filters
     /// are singular at zero airspeed), got 0.0`).
-    pub fn new(
-        model: GustModel,
-        component: GustComponent,
-        sigma: f64,
-        length_scale: f64,
-        airspeed: f64,
-        dt: f64,
-    ) -> Result<Self, String> {
-        let k = Self::check(model, sigma, length_scale, airspeed, dt)?;
-        let r = rational(model, component);
-        let mut f = match model {
-            GustModel::Dryden => Self::dryden_closed_form(component, k),
+    pub fn new(spec: GustSpec) -> Result<Self, String> {
+        let k = Self::check(
+            spec.model,
+            spec.sigma,
+            spec.length_scale,
+            spec.airspeed,
+            spec.dt,
+        )?;
+        let r = rational(spec.model, spec.component);
+        let mut f = match spec.model {
+            GustModel::Dryden => Self::dryden_closed_form(spec.component, k),
             GustModel::VonKarman => Self::general(&r, k)?,
         };
-        f.model = model;
-        f.component = component;
-        f.sigma = sigma;
-        f.length_scale = length_scale;
-        f.airspeed = airspeed;
-        f.dt = dt;
+        f.spec = spec;
         f.k = k;
-        f.out = f.c * sigma;
+        f.out = f.c * spec.sigma;
         f.num = r.num;
         f.den = r.den;
         f.gain2 = r.gain2;
@@ -158,14 +159,12 @@ impl GustFilter {
     /// variance jump. Dryden: the closed forms, no allocation.
     #[inline]
     pub fn rescaled(&self, sigma: f64, length_scale: f64, airspeed: f64) -> Result<Self, String> {
-        Self::new(
-            self.model,
-            self.component,
+        Self::new(GustSpec {
             sigma,
             length_scale,
             airspeed,
-            self.dt,
-        )
+            ..self.spec
+        })
     }
 
     /// The `Phi`, `G` and `sigma c` of this filter re-discretised for new scales, or
@@ -182,14 +181,14 @@ impl GustFilter {
         length_scale: f64,
         airspeed: f64,
     ) -> Coefficients {
-        match self.model {
+        match self.spec.model {
             GustModel::Dryden => {
                 // `check`'s conditions, inline (`dt` was checked when `self` was built): the
                 // same `k`, and an error exactly where `check` errs.
                 let ok = |x: f64| x.is_finite() && x > 0.0;
-                let k = airspeed * self.dt / length_scale;
+                let k = airspeed * self.spec.dt / length_scale;
                 let valid = sigma.is_finite() && sigma >= 0.0;
-                if !(valid && ok(length_scale) && ok(airspeed) && ok(self.dt) && ok(k)) {
+                if !(valid && ok(length_scale) && ok(airspeed) && ok(self.spec.dt) && ok(k)) {
                     return Coefficients::NAN;
                 }
                 let mut out = Coefficients {
@@ -198,11 +197,11 @@ impl GustFilter {
                     out: [self.c[0] * sigma, self.c[1] * sigma, self.c[2] * sigma],
                 };
                 dryden_lanes(
-                    self.component,
+                    self.spec.component,
                     sigma,
                     length_scale,
                     airspeed,
-                    self.dt,
+                    self.spec.dt,
                     [self.c[0], self.c[1]],
                     DrydenLanes {
                         phi: &mut out.phi,
@@ -225,7 +224,7 @@ impl GustFilter {
     /// [`poisoned`](Self::poisoned) where the scales are rejected.
     #[inline]
     pub fn rescaled_following(&self, sigma: f64, length_scale: f64, airspeed: f64) -> Self {
-        if self.model == GustModel::VonKarman {
+        if self.spec.model == GustModel::VonKarman {
             return self
                 .rescaled(sigma, length_scale, airspeed)
                 .unwrap_or_else(|_| self.poisoned());
@@ -235,10 +234,13 @@ impl GustFilter {
         f.phi = Matrix3::from_fn(|i, j| c.phi[i][j]);
         f.chol = Matrix3::from_fn(|i, j| c.g[i][j]);
         f.out = Vector3::from(c.out);
-        f.sigma = sigma;
-        f.length_scale = length_scale;
-        f.airspeed = airspeed;
-        f.k = airspeed * self.dt / length_scale;
+        f.spec = GustSpec {
+            sigma,
+            length_scale,
+            airspeed,
+            ..self.spec
+        };
+        f.k = airspeed * self.spec.dt / length_scale;
         f
     }
 
@@ -274,31 +276,31 @@ impl GustFilter {
     }
 
     pub fn model(&self) -> GustModel {
-        self.model
+        self.spec.model
     }
 
     pub fn component(&self) -> GustComponent {
-        self.component
+        self.spec.component
     }
 
     /// Output standard deviation, m/s.
     pub fn sigma(&self) -> f64 {
-        self.sigma
+        self.spec.sigma
     }
 
     /// Scale length, m.
     pub fn length_scale(&self) -> f64 {
-        self.length_scale
+        self.spec.length_scale
     }
 
     /// Airspeed, m/s.
     pub fn airspeed(&self) -> f64 {
-        self.airspeed
+        self.spec.airspeed
     }
 
     /// Step, s.
     pub fn dt(&self) -> f64 {
-        self.dt
+        self.spec.dt
     }
 
     /// `k = V dt / L`, the step in scale lengths.
@@ -327,13 +329,13 @@ impl GustFilter {
 
     /// Continuous `A` of the normalised state, in 1/s (`Phi = expm(A dt)`).
     pub fn continuous_a(&self) -> Matrix3<f64> {
-        self.a * (self.airspeed / self.length_scale)
+        self.a * (self.spec.airspeed / self.spec.length_scale)
     }
 
     /// Continuous `B` of the normalised state for unit-intensity white noise,
     /// in 1/sqrt(s): `A + A^T + B B^T = 0` (stationary covariance I).
     pub fn continuous_b(&self) -> Vector3<f64> {
-        self.b * (self.airspeed / self.length_scale).sqrt()
+        self.b * (self.spec.airspeed / self.spec.length_scale).sqrt()
     }
 
     /// Output row `sigma c` (m/s per unit state), padded.
@@ -347,9 +349,9 @@ impl GustFilter {
     /// `x = 2 pi f T`); von Karman: the approximant's, rescaled by
     /// `1/approximant_variance_ratio()` like the output. Integrates to sigma^2.
     pub fn psd(&self, f_hz: f64) -> f64 {
-        let t = self.length_scale / self.airspeed;
+        let t = self.spec.length_scale / self.spec.airspeed;
         let x = 2.0 * std::f64::consts::PI * f_hz.abs() * t;
-        2.0 * self.sigma * self.sigma * t * self.gain2 / self.raw_variance_ratio
+        2.0 * self.spec.sigma * self.spec.sigma * t * self.gain2 / self.raw_variance_ratio
             * poly_abs2(&self.num, x)
             / poly_abs2(&self.den, x)
     }
@@ -357,13 +359,13 @@ impl GustFilter {
     /// The spectrum this filter is meant to realise: equal to [`Self::psd`] for
     /// Dryden, the exact von Karman PSD ([`von_karman_psd_exact`]) for von Karman.
     pub fn target_psd(&self, f_hz: f64) -> f64 {
-        match self.model {
+        match self.spec.model {
             GustModel::Dryden => self.psd(f_hz),
             GustModel::VonKarman => von_karman_psd_exact(
-                self.component,
-                self.sigma,
-                self.length_scale,
-                self.airspeed,
+                self.spec.component,
+                self.spec.sigma,
+                self.spec.length_scale,
+                self.spec.airspeed,
                 f_hz,
             ),
         }
@@ -374,9 +376,9 @@ impl GustFilter {
     /// (lateral/vertical), `u = V |tau| / L`. Von Karman: the approximant's,
     /// `sigma^2 c expm(A u) c^T` from the normalised state-space form.
     pub fn autocorrelation(&self, tau: f64) -> f64 {
-        let u = self.airspeed * tau.abs() / self.length_scale;
-        let s2 = self.sigma * self.sigma;
-        match (self.model, self.component) {
+        let u = self.spec.airspeed * tau.abs() / self.spec.length_scale;
+        let s2 = self.spec.sigma * self.spec.sigma;
+        match (self.spec.model, self.spec.component) {
             (GustModel::Dryden, GustComponent::Longitudinal) => s2 * (-u).exp(),
             (GustModel::Dryden, _) => s2 * (-u).exp() * (1.0 - 0.5 * u),
             (GustModel::VonKarman, _) => {

@@ -11,7 +11,23 @@ pub(in crate::gust) const MODELS: [GustModel; 2] = [GustModel::Dryden, GustModel
 /// A filter with V dt / L = k (L = 2 m, V = 10 m/s).
 pub(in crate::gust) fn filt(model: GustModel, c: GustComponent, sigma: f64, k: f64) -> GustFilter {
     let (l, v) = (2.0, 10.0);
-    GustFilter::new(model, c, sigma, l, v, k * l / v).unwrap()
+    built(model, c, [sigma, l, v, k * l / v]).unwrap()
+}
+
+/// `GustFilter::new` of these numbers: sigma, length_scale, airspeed, dt.
+fn built(
+    model: GustModel,
+    component: GustComponent,
+    [sigma, length_scale, airspeed, dt]: [f64; 4],
+) -> Result<GustFilter, String> {
+    GustFilter::new(GustSpec {
+        model,
+        component,
+        sigma,
+        length_scale,
+        airspeed,
+        dt,
+    })
 }
 
 fn max_abs(m: &Matrix3<f64>) -> f64 {
@@ -428,27 +444,43 @@ fn noise_factor_fallback_on_singular_matrices() {
 }
 
 #[test]
+fn each_filters_order_is_its_denominators_degree() {
+    use GustComponent::{Lateral, Longitudinal, Vertical};
+    for (model, orders) in [
+        (GustModel::Dryden, [1, 2, 2]),
+        (GustModel::VonKarman, [2, 3, 3]),
+    ] {
+        for (c, order) in [Longitudinal, Lateral, Vertical].into_iter().zip(orders) {
+            let r = rational(model, c);
+            let gain2 = if c == Longitudinal { 2.0 } else { 1.0 };
+            assert_eq!((r.order, r.gain2), (order, gain2), "{model:?} {c:?}");
+            assert_eq!(filt(model, c, 1.0, 0.5).order(), order);
+        }
+    }
+}
+
+#[test]
 fn bad_input_is_rejected_with_the_parameter_named() {
     let d = GustModel::Dryden;
     let v = GustComponent::Vertical;
-    let e = GustFilter::new(d, v, 1.0, 2.0, 0.0, 0.01).unwrap_err();
+    let e = built(d, v, [1.0, 2.0, 0.0, 0.01]).unwrap_err();
     assert_eq!(
         e,
         "airspeed must be > 0 (the Dryden filters are singular at zero airspeed), got 0.0"
     );
-    let e = GustFilter::new(d, v, -1.0, 2.0, 10.0, 0.01).unwrap_err();
+    let e = built(d, v, [-1.0, 2.0, 10.0, 0.01]).unwrap_err();
     assert_eq!(e, "sigma must be >= 0, got -1.0");
-    let e = GustFilter::new(d, v, 1.0, 0.0, 10.0, 0.01).unwrap_err();
+    let e = built(d, v, [1.0, 0.0, 10.0, 0.01]).unwrap_err();
     assert_eq!(e, "length_scale must be > 0, got 0.0");
-    let e = GustFilter::new(d, v, 1.0, 2.0, 10.0, -0.01).unwrap_err();
+    let e = built(d, v, [1.0, 2.0, 10.0, -0.01]).unwrap_err();
     assert_eq!(e, "dt must be > 0, got -0.01");
-    let e = GustFilter::new(d, v, f64::NAN, 2.0, 10.0, 0.01).unwrap_err();
+    let e = built(d, v, [f64::NAN, 2.0, 10.0, 0.01]).unwrap_err();
     assert_eq!(e, "sigma must be finite, got NaN");
-    let e = GustFilter::new(d, v, 1.0, 2.0, f64::INFINITY, 0.01).unwrap_err();
+    let e = built(d, v, [1.0, 2.0, f64::INFINITY, 0.01]).unwrap_err();
     assert_eq!(e, "airspeed must be finite, got inf");
-    let e = GustFilter::new(d, v, 1.0, 1e300, 1e-300, 1e-300).unwrap_err();
+    let e = built(d, v, [1.0, 1e300, 1e-300, 1e-300]).unwrap_err();
     assert!(e.starts_with("airspeed * dt / length_scale"), "{e}");
-    assert!(GustFilter::new(d, v, 0.0, 2.0, 10.0, 0.01).is_ok());
+    assert!(built(d, v, [0.0, 2.0, 10.0, 0.01]).is_ok());
 }
 
 // ---- The lane-set's Dryden numbers ------------------------------------------------
@@ -600,7 +632,7 @@ fn dryden_lanes_match<L: KernelOps>() {
             let lanes = |f: &dyn Fn(&Scales) -> f64| L::from_fn(|l| f(&g[l]));
             let base: Vec<GustFilter> = g
                 .iter()
-                .map(|s| GustFilter::new(GustModel::Dryden, c, 1.0, 2.0, 10.0, s.3).unwrap())
+                .map(|s| built(GustModel::Dryden, c, [1.0, 2.0, 10.0, s.3]).unwrap())
                 .collect();
             let unit = [0, 1].map(|i| L::from_fn(|l| base[l].unit_output()[i]));
             {
