@@ -64,8 +64,9 @@ def main() -> None:
         if intrinsic[a]:
             sites[name[a]] += intrinsic[a]
             functions[name[a]] += 1
-    print(f"{so.name}: {len(loops)} flight loops and navigation steps reach {sum(functions.values())} functions "
-          f"with {sum(sites.values())} lane-intrinsic calls out of line")  # fmt: skip
+    print(f"{so.name}: {len(loops)} flight loops and navigation steps reach "
+          f"{sum(functions.values())} functions with {sum(sites.values())} lane-intrinsic "
+          "calls out of line")  # fmt: skip
     for n, count in sites.most_common(20):
         print(f"{count:6d} calls in {functions[n]:3d} x {n[:110]}")
 
