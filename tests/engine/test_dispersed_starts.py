@@ -71,4 +71,4 @@ def test_a_dispersed_realisation_the_smc_cannot_start_is_refused_by_name() -> No
         quadrs.monte_carlo(sc, runs=runs, seed=seed, controllers=("smc",), progress=False)
     assert "controller.smc.integral" in str(e.value) and "narrow or truncate" in str(e.value)
     mc = quadrs.monte_carlo(sc, runs=runs, seed=seed, controllers=("pd",), progress=False)
-    assert len(mc.runs) == runs and mc.runs["status"].eq("ok").all()
+    assert mc.runs["realisation"].nunique() == runs and mc.runs["status"].eq("ok").all()
