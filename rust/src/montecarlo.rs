@@ -320,17 +320,21 @@ pub fn run_innovations(
     }
 }
 
-/// Lane-set `set` of `batch` (`lanes` a set): each lane's stream index, and in a dispersed
-/// batch each lane's realisation (its own vehicle), built once per set, reusing the scenario's
-/// gust filters unless a gust key is dispersed. The last set is padded by repeating the final
-/// realisation; padded lanes are dropped.
+/// Lane-set `set` of `batch` (`engine.lanes_per_set()` a set): each lane's stream index, and in
+/// a dispersed batch each lane's realisation (its own vehicle), built once per set, reusing the
+/// scenario's gust filters unless a gust key is dispersed. The last set is padded by repeating
+/// the final realisation; padded lanes are dropped. `None` where a realisation's law has no
+/// start at its reference, or the set comes after one that had none (`Refusal`).
 fn lane_set(
     engine: &Engine,
     batch: &Batch,
     set: usize,
-    lanes: usize,
-) -> (Vec<u64>, Option<Vec<Realisation>>) {
-    let (first, count) = (batch.first, batch.count);
+    (refusal, cancel): (&Refusal, &AtomicBool),
+) -> Option<(Vec<u64>, Option<Vec<Realisation>>)> {
+    let (first, count, lanes) = (batch.first, batch.count, engine.lanes_per_set());
+    if refusal.passed(first + (set * lanes) as u64) {
+        return None;
+    }
     let rows: Vec<usize> = (0..lanes)
         .map(|l| (set * lanes + l).min(count - 1))
         .collect();
@@ -341,7 +345,7 @@ fn lane_set(
             None => first + j as u64,
         })
         .collect();
-    let realisations = batch.dispersion.map(|d| {
+    let realisations: Option<Vec<Realisation>> = batch.dispersion.map(|d| {
         let wind = (!d.touches_wind()).then_some(&engine.realisation);
         rows.iter()
             .map(|&j| {
@@ -350,7 +354,13 @@ fn lane_set(
             })
             .collect()
     });
-    (indices, realisations)
+    if let Some(r) = &realisations {
+        let index = rows.iter().map(|&j| first + j as u64);
+        if refusal.check(r, index, batch.kinds, cancel) {
+            return None;
+        }
+    }
+    Some((indices, realisations))
 }
 
 /// Fly `batch` (checked with `Batch::check`). `progress` counts finished realisations; setting
@@ -408,17 +418,10 @@ pub fn run_batch(
             |(mut spectra, mut planner, (mut set_metrics, mut set_diverged, mut set_spectra)),
              (set, ((out_metrics, out_diverged), (out_status, out_done)))| {
                 set_spectra.clear();
-                if refusal.passed(batch.first + (set * lanes_per_set) as u64) {
+                let refused = (&refusal, cancel);
+                let Some((indices, realisations)) = lane_set(engine, batch, set, refused) else {
                     return (spectra, planner, (set_metrics, set_diverged, set_spectra));
-                }
-                let (indices, realisations) = lane_set(engine, batch, set, lanes_per_set);
-                if let Some(r) = &realisations {
-                    let rows = (0..lanes_per_set)
-                        .map(|l| batch.first + (set * lanes_per_set + l).min(count - 1) as u64);
-                    if refusal.check(r, rows, kinds, cancel) {
-                        return (spectra, planner, (set_metrics, set_diverged, set_spectra));
-                    }
-                }
+                };
                 let lane_realisations: Option<Vec<&Realisation>> =
                     realisations.as_ref().map(|c| c.iter().collect());
                 let lanes = out_done.len();
