@@ -329,6 +329,20 @@ def test_a_parcel_hanging_into_the_ground_names_every_key_of_its_hang(
     assert key in str(e.value), str(e.value)
 
 
+@pytest.mark.parametrize("delay", [8.01, 1e7, 1e12, 1e300])
+def test_a_gnss_delay_longer_than_the_flight_is_refused_by_name(
+    short_delivery: Scenario, delay: float
+) -> None:
+    """The filter keeps its predictions over the GNSS's delay to fuse a late fix: a delay of
+    1e12 s asked for 320 TB and aborted the process (the fuzz test above killed its worker
+    now and then), 1e300 overflowed. Longer than the flight, no fix would arrive: refused by
+    name; a delay within the flight flies."""
+    with pytest.raises(ScenarioError, match=r"sensors\.gnss\.delay .*integrator\.duration"):
+        short_delivery.override({"sensors.gnss.delay": delay})
+    flight = quadrs.simulate(short_delivery.override({"sensors.gnss.delay": 7.9}), "pd")
+    assert math.isnan(flight.diverged_at)
+
+
 @settings(max_examples=100, deadline=None)
 @given(
     table=st.sampled_from(TABLES),

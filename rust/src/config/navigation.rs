@@ -271,9 +271,15 @@ impl Navigation {
     /// at the filter update it arrives at). docs/model.md, "Navigation".
     pub fn schedule(&self, sensors: &Sensors, dt: f64) -> Schedule {
         // Whole multiples of `unit` steps nearest `period` s, at least `least`.
+        // (Saturating: a period longer than any flight, say a rate of 1e-300 Hz, never comes.)
         let whole = |period: f64, unit: usize, least: usize| -> usize {
             let n = (period / (unit as f64 * dt)).round();
-            (if n.is_finite() { n as usize } else { 0 }).max(least) * unit
+            let n = if n.is_finite() {
+                n.min(1e15) as usize
+            } else {
+                0
+            };
+            n.max(least).saturating_mul(unit)
         };
         let imu = if sensors.imu.rate == 0.0 {
             1
@@ -296,10 +302,23 @@ impl Navigation {
     }
 
     /// Check every value (any step flies the schedule: `schedule` rounds it to whole steps).
-    pub fn validate(&self, sensors: &Sensors) -> Result<(), ConfigError> {
+    /// The GNSS's delay is at most the flight's `duration` (s): the filter keeps its
+    /// predictions over the delay to fuse a late fix, and a fix later than the flight never
+    /// arrives.
+    pub fn validate(&self, sensors: &Sensors, duration: f64) -> Result<(), ConfigError> {
         self.check_bounds("navigation")?;
         sensors.imu.check_bounds("sensors.imu")?;
         sensors.gnss.check_bounds("sensors.gnss")?;
+        if self.estimates() && sensors.gnss.delay > duration {
+            return Err(ConfigError {
+                key: "sensors.gnss.delay".into(),
+                message: format!(
+                    "sensors.gnss.delay = {} s is longer than the flight (integrator.duration \
+                     = {duration} s): no fix would arrive",
+                    sensors.gnss.delay
+                ),
+            });
+        }
         for (i, o) in sensors.gnss.outages.iter().enumerate() {
             o.check_bounds(&format!("sensors.gnss.outages[{i}]"))?;
         }

@@ -325,7 +325,8 @@ impl Config {
         self.divergence.validate()?;
         self.ground.validate(&self.initial)?;
         self.volume.validate()?;
-        self.navigation.validate(&self.sensors)?;
+        self.navigation
+            .validate(&self.sensors, self.integrator.duration)?;
         self.validate_dispersions()
     }
 
