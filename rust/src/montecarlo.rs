@@ -312,7 +312,9 @@ pub fn run_innovations(
                 done.fetch_add((out.len() / row) as u64, Ordering::Relaxed);
                 true
             })
-            .all(|ok| ok)
+            // Every set is visited (`all` would stop at the first false, and a set below the
+            // realisation refused first could go unchecked): the lowest refused is named.
+            .reduce(|| true, |a, b| a && b)
     });
     match refusal.into_error() {
         Some(e) => Err(e),

@@ -33,6 +33,8 @@ const MAX_ITERATIONS: usize = 60;
 const SINGULAR: f64 = 1e-10;
 /// Steps in which the wind is raised to its value (`settle`).
 const CONTINUATION: usize = 10;
+/// A continuation step is halved at most this many times over (a power of two).
+const FINEST_STEP: usize = 64;
 /// The smallest fraction of a Newton step tried before it is taken anyway.
 const MIN_SCALE: f64 = 1e-3;
 /// Largest residual (state units per s, integrator units per update) accepted as balanced.
@@ -152,7 +154,6 @@ fn settle(
     }
     let mut z = states.unwrap_or(x0);
     z.extend(std::iter::repeat_n(0.0, k));
-    let mut refused = None;
     if !channels.is_empty() {
         let pinned = Balance {
             pinned: channels.iter().map(|c| (c.axis, r.pos[c.axis])).collect(),
@@ -161,26 +162,35 @@ fn settle(
         match newton(&pinned, pinned.unknowns(&z)) {
             Ok(u) => return Some((pinned.full(&u), None)),
             Err(last) => {
+                // No equilibrium at the reference: refused, whether Newton's last iterate
+                // holds an integral at its limit or stopped short of one (past about 13 m/s
+                // at 20 ft it did, and the flight started from the plant's trim, drifting
+                // metres off its reference, unrefused).
                 let full = pinned.full(&last);
                 let beyond: Vec<usize> = (channels.iter().enumerate())
                     .filter(|(i, c)| full[b.n + i].abs() >= c.limit * AT_LIMIT)
                     .map(|(_, c)| c.axis)
                     .collect();
-                if !beyond.is_empty() {
-                    refused = Some(beyond_limit(cfg, &beyond, (b.wind_at)(r.pos[2])));
-                }
+                let refused = Some(beyond_limit(cfg, &beyond, (b.wind_at)(r.pos[2])));
+                // The start is then the equilibrium at the limit where one is found.
+                let z = newton(b, z.clone()).unwrap_or(z);
+                return Some((z, refused));
             }
         }
     }
-    newton(b, z).ok().map(|z| (z, refused))
+    newton(b, z).ok().map(|z| (z, None))
 }
 
-/// The states with the integrators held empty, the wind raised from rest to its value.
+/// The states with the integrators held empty, the wind raised from rest to its value: in
+/// tenths, each step halved where Newton's method does not converge from the last (a law near
+/// its saturations, about 16 m/s at 20 ft for the delivery's PD), down to `FINEST_STEP`.
 fn offset_equilibrium(b: &Balance) -> Option<Vec<f64>> {
     // From rest at the reference: in a tenth of the wind the law is near its linear range.
-    let mut states = Some(b.cl.rest());
-    for step in 1..=CONTINUATION {
-        let f = step as f64 / CONTINUATION as f64;
+    let mut states = b.cl.rest();
+    // The wind's fraction solved for is done / parts (whole numbers: the tenths are exact).
+    let (mut done, mut parts) = (0usize, CONTINUATION);
+    while done < parts {
+        let f = (done + 1) as f64 / parts as f64;
         let at = |h: f64| (b.wind_at)(h).map(|w| w * f);
         let scaled = Balance {
             wind_at: &at,
@@ -188,27 +198,42 @@ fn offset_equilibrium(b: &Balance) -> Option<Vec<f64>> {
             pinned: Vec::new(),
             ..*b
         };
-        states = states.and_then(|z| newton(&scaled, z).ok());
+        match newton(&scaled, states.clone()) {
+            Ok(z) => (states, done) = (z, done + 1),
+            Err(_) if parts < CONTINUATION * FINEST_STEP => (done, parts) = (2 * done, 2 * parts),
+            Err(_) => return None,
+        }
     }
-    states
+    Some(states)
 }
 
-/// The SMC cannot hold its reference: the integral surface's term past its limit on `axes`.
+/// The SMC cannot hold its reference: the integral surface's term past its limit on `axes`
+/// (none named where Newton's method stopped short of the limit without a balance).
 fn beyond_limit(cfg: &Config, axes: &[usize], wind: [f64; 3]) -> ConfigError {
     let names: Vec<&str> = axes.iter().map(|&a| ["x", "y", "z"][a]).collect();
     let speed = wind.iter().map(|w| w * w).sum::<f64>().sqrt();
+    let g = cfg.environment.gravity;
+    let why = if names.is_empty() {
+        format!(
+            "no balance of the closed loop was found with the integral sliding surface's \
+             terms k_i int e within their limit g = {g} m/s^2"
+        )
+    } else {
+        format!(
+            "holding the drag there needs the integral sliding surface's term k_i int e on {} \
+             past its limit g = {g} m/s^2",
+            names.join(", ")
+        )
+    };
     ConfigError {
         key: "controller.smc.integral".into(),
         message: format!(
             "controller.smc.integral = {:?}: the SMC has no equilibrium at its reference in the \
-             start's steady wind (wind.speed; {speed:.2} m/s at the start): holding the drag \
-             there needs the integral sliding surface's term k_i int e on {} past its limit \
-             g = {} m/s^2; raise controller.smc.eta or controller.smc.epsilon (the reaching \
-             law eta s + epsilon sat(s) gives the acceleration that holds the drag), lower \
-             wind.speed, or start at rest (initial.trim = \"rest\")",
+             start's steady wind (wind.speed; {speed:.2} m/s at the start): {why}; raise \
+             controller.smc.eta or controller.smc.epsilon (the reaching law eta s + epsilon \
+             sat(s) gives the acceleration that holds the drag), lower wind.speed, or start at \
+             rest (initial.trim = \"rest\")",
             cfg.controller.smc.integral,
-            names.join(", "),
-            cfg.environment.gravity,
         ),
     }
 }
