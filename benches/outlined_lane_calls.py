@@ -31,10 +31,9 @@ def engine_path() -> Path:
     return Path(quadrs._core.__file__)
 
 
-def main() -> None:
-    so = Path(sys.argv[1]) if len(sys.argv) > 1 else engine_path()
-    if shutil.which("objdump") is None:
-        sys.exit("objdump (binutils) is needed")
+def outlined_calls(so: Path) -> tuple[int, collections.Counter[str], collections.Counter[str]]:
+    """From ``so``'s disassembly: how many flight loops and navigation steps there are, and per
+    function name they reach that calls lane intrinsics out of line, the calls and the copies."""
     text = subprocess.run(["objdump", "-d", "--no-show-raw-insn", "-C", str(so)],
                           capture_output=True, text=True, check=True).stdout  # fmt: skip
     name: dict[int, str] = {}
@@ -64,7 +63,15 @@ def main() -> None:
         if intrinsic[a]:
             sites[name[a]] += intrinsic[a]
             functions[name[a]] += 1
-    print(f"{so.name}: {len(loops)} flight loops and navigation steps reach "
+    return len(loops), sites, functions
+
+
+def main() -> None:
+    so = Path(sys.argv[1]) if len(sys.argv) > 1 else engine_path()
+    if shutil.which("objdump") is None:
+        sys.exit("objdump (binutils) is needed")
+    loops, sites, functions = outlined_calls(so)
+    print(f"{so.name}: {loops} flight loops and navigation steps reach "
           f"{sum(functions.values())} functions with {sum(sites.values())} lane-intrinsic "
           "calls out of line")  # fmt: skip
     for n, count in sites.most_common(20):

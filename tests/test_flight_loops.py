@@ -74,3 +74,26 @@ def test_the_flight_loop_is_compiled_once_per_lane_entry_and_vehicle() -> None:
         f"{loops} flight loops (`{FLIGHT_LOOP}`), expected at most one per lane entry and "
         f"vehicle ({LANE_ENTRIES} x {VEHICLES}): is the law a type parameter of the loop again?"
     )
+
+
+def test_no_closure_the_flight_loops_call_makes_lane_operations_out_of_line() -> None:
+    """A closure the optimiser leaves out of the flight loop's line is compiled without the
+    lane type's instruction set, so each lane operation in it becomes a call (docs/performance.md,
+    "Lane operations in the loop's line"). One made the state's sines and cosines per step
+    through `FnOnce::call_once`, 1,395 such calls, and the delivery flown on its state ran 1.5x
+    slower. The flight loops' set-up closures are named by their function (`start::{{closure}}`,
+    `Runaway::new::{{closure}}`, a dozen calls each); an anonymous one reached from the loops
+    makes none."""
+    if shutil.which("objdump") is None:
+        pytest.skip("needs objdump (binutils)")
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benches"))
+    try:
+        from outlined_lane_calls import outlined_calls
+    finally:
+        sys.path.pop(0)
+    loops, sites, _ = outlined_calls(Path(_core.__file__))
+    assert loops > 0, "no flight loop found by name in the engine's disassembly"
+    anonymous = {n: c for n, c in sites.items() if n.startswith("core::ops::function::Fn")}
+    assert anonymous == {}, anonymous

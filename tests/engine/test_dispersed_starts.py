@@ -104,9 +104,10 @@ def test_each_law_starts_still_in_a_steady_wind_or_is_refused(speed: float) -> N
     from a start that is not one (before: past about 13 m/s at 20 ft the SMC's balance at its
     reference was not found, the flight started from the plant's trim and drifted 6 m in 5 s,
     unrefused; at 16 m/s the PD's and PX4's offset equilibria were not found either, and they
-    moved 4 m in 2 s). The SMC's integral holds up to about 11 m/s here and is refused past
-    it. At 24 m/s the vehicle has no hover at all (the plant's trim has none): it starts level,
-    at rest, and the wind blows it away (documented, not refused)."""
+    moved 4 m in 2 s). The SMC's integral holds up to about 12 m/s here (at 12 its balance
+    is within a thousandth of the limit) and is refused past it. At 24 m/s the vehicle has no
+    hover at all (the plant's trim has none): it starts level, at rest, and the wind blows it
+    away (documented, not refused)."""
     sc = quadrs.Scenario.preset("delivery").override(
         {**HOVER, "wind.speed": speed, "dispersions": {}}
     )
@@ -117,7 +118,7 @@ def test_each_law_starts_still_in_a_steady_wind_or_is_refused(speed: float) -> N
             assert law == "smc" and "controller.smc.integral" in str(e), (law, speed, e)
             assert speed >= 12.0, (law, speed, e)
             continue
-        assert law != "smc" or speed <= 11.0, ("the SMC flew", speed)
+        assert law != "smc" or speed <= 12.0, ("the SMC flew", speed)
         if np.hypot(t.qx.iloc[0], t.qy.iloc[0]) == 0.0:  # no hover in this wind: at rest
             assert speed > 16.0, (law, speed)
             continue

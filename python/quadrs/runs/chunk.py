@@ -324,27 +324,27 @@ def runs_frame(
     shape = (count, n_ctrl, n_phase)
     diverged_at = np.broadcast_to(raw["diverged_at"][:, :, None], shape)
     keep = np.broadcast_to(done[:, None, None], shape).reshape(-1)
-    frame = pd.DataFrame(
-        {
-            "realisation": np.broadcast_to(real[:, None, None], shape).reshape(-1),
-            "controller": np.broadcast_to(np.asarray(controllers)[None, :, None], shape).reshape(
-                -1
-            ),
-            "phase": np.broadcast_to(np.asarray(phases)[None, None, :], shape).reshape(-1),
-        }
-    )
+
+    def flat(a: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(a, shape).reshape(-1)
+
+    # The columns gathered first and the table made once (a column at a time, pandas copied
+    # its blocks per column: 20 ms a batch call).
+    columns: dict[str, np.ndarray] = {
+        "realisation": flat(real[:, None, None]).astype(np.int64),
+        "controller": flat(np.asarray(controllers)[None, :, None]),
+        "phase": flat(np.asarray(phases)[None, None, :]),
+    }
     for k, name in enumerate(METRIC_COLUMNS):
-        frame[name] = metrics[..., k].reshape(-1)
-    frame["diverged"] = ~np.isnan(diverged_at.reshape(-1))
-    frame["diverged_at"] = diverged_at.reshape(-1)
-    status = np.broadcast_to(np.asarray(raw["status"])[:, :, None], shape).reshape(-1)
-    frame["status"] = np.asarray(_core.EXIT_STATUSES, dtype=object)[status]
-    frame["realisation"] = frame["realisation"].astype(np.int64)
+        columns[name] = metrics[..., k].reshape(-1)
+    columns["diverged"] = ~np.isnan(diverged_at.reshape(-1))
+    columns["diverged_at"] = diverged_at.reshape(-1)
+    status = flat(np.asarray(raw["status"])[:, :, None])
+    columns["status"] = np.asarray(_core.EXIT_STATUSES, dtype=object)[status]
     if values is not None:
         for key in values.columns:
-            column = values[key].to_numpy(dtype=np.float64)
-            frame[key] = np.broadcast_to(column[:, None, None], shape).reshape(-1)
-    return frame[keep].reset_index(drop=True)
+            columns[key] = flat(values[key].to_numpy(dtype=np.float64)[:, None, None])
+    return pd.DataFrame(columns)[keep].reset_index(drop=True)
 
 
 def spectrum_sums(raw: _core.BatchResult, scenario: Scenario) -> SpectrumSums | None:

@@ -193,6 +193,26 @@ impl<L: Lane> Rotation<L> {
         }
     }
 
+    /// The sines and cosines of `euler`'s angles from the matrix itself, without a
+    /// trigonometric function: cos(pitch) = |(R21, R22)| (the pitch within +-90 deg, as
+    /// `euler`'s), the roll's and yaw's its entries over it (at the pole, where neither angle is
+    /// defined, both pairs 0).
+    #[inline(always)]
+    pub fn trig(&self) -> Trig<L> {
+        let [ex, ey, ez] = self.axes;
+        let one = L::splat(1.0);
+        let cth = (ey[2] * ey[2] + ez[2] * ez[2]).sqrt();
+        let inv = one / cth.max(L::splat(f64::MIN_POSITIVE));
+        Trig {
+            sphi: ey[2] * inv,
+            cphi: ez[2] * inv,
+            sth: (-ex[2]).max(-one).min(one),
+            cth,
+            spsi: ex[1] * inv,
+            cpsi: ex[0] * inv,
+        }
+    }
+
     /// The ZYX Euler angles (roll, pitch, yaw) of R: yaw in (-pi, pi].
     #[inline(always)]
     pub fn euler(&self) -> [L; 3] {

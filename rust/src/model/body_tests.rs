@@ -117,6 +117,18 @@ fn quaternion_euler_and_rotation_agree_with_the_papers_angles() {
         for i in 0..3 {
             assert!((back[i] - euler[i]).abs() < 1e-14, "{back:?} vs {euler:?}");
         }
+        // The angles' sines and cosines from the matrix, without a trigonometric function.
+        let (got, want) = (rot.trig(), Trig::of_angles(euler[0], euler[1], euler[2]));
+        for (g, w) in [
+            (got.sphi, want.sphi),
+            (got.cphi, want.cphi),
+            (got.sth, want.sth),
+            (got.cth, want.cth),
+            (got.spsi, want.spsi),
+            (got.cpsi, want.cpsi),
+        ] {
+            assert!((g - w).abs() < 1e-14, "{euler:?}: {g} vs {w}");
+        }
         // A quaternion off unit length gives the same rotation (normalised on the way).
         let scaled = Rotation::of_quaternion(q.map(|x| 1.001 * x));
         for j in 0..3 {

@@ -137,6 +137,12 @@ impl<L: Lane> Ekf<L> {
 
     /// Propagate the error covariance over the samples since the last update (their sums),
     /// with the process noises of `t`; the drift and bias states decay.
+    ///
+    /// P' = F P F^T + Q is symmetric, so only its upper triangle is computed and then copied
+    /// to the lower (as PX4's EKF2 predicts its covariance): the rows (F P) only on the columns
+    /// the upper triangle's column operations read, the columns ((F P) F^T) only from each
+    /// row's own block on. F is the identity but for its blocks P-V (dt), V-TH (-[dv]x), V-BA
+    /// (-M), TH-BG (-M) and the decays of E and BETA.
     #[inline(always)]
     pub fn predict(&mut self, t: &Tuning<L>) {
         let dt = self.span;
@@ -152,16 +158,19 @@ impl<L: Lane> Ekf<L> {
             [dv[2], zero, -dv[0]],
             [-dv[1], dv[0], zero],
         ];
-        // Rows (F P), then columns ((F P) F^T): position first (reads the old velocity rows),
-        // then velocity (the old attitude rows), then attitude (the bias rows, unchanged).
         let c = &mut self.cov;
+        // Rows (F P), in place: position first (reads the old velocity rows), then velocity
+        // (the old attitude rows), then attitude (the bias rows, unchanged). A row of block b
+        // is needed on the columns from b's first on (the upper triangle's column operations
+        // on rows of block b read no column left of it); the rest of it is left stale, below
+        // the diagonal, and overwritten by the copy.
         for i in 0..3 {
             for k in 0..STATES {
                 c[P + i][k] = c[P + i][k] + c[V + i][k] * dt;
             }
         }
         for i in 0..3 {
-            for k in 0..STATES {
+            for k in V..STATES {
                 let mut x = c[V + i][k];
                 for j in 0..3 {
                     x = x - skew[i][j] * c[TH + j][k] - m[i][j] * c[BA + j][k];
@@ -170,7 +179,7 @@ impl<L: Lane> Ekf<L> {
             }
         }
         for i in 0..3 {
-            for k in 0..STATES {
+            for k in TH..STATES {
                 let mut x = c[TH + i][k];
                 for j in 0..3 {
                     x = x - m[i][j] * c[BG + j][k];
@@ -178,35 +187,43 @@ impl<L: Lane> Ekf<L> {
                 c[TH + i][k] = x;
             }
         }
-        for k in 0..STATES {
-            for i in 0..3 {
+        for i in 0..3 {
+            for k in E..STATES {
                 c[E + i][k] = c[E + i][k] * t.drift_decay;
             }
-            c[BETA][k] = c[BETA][k] * t.baro_decay;
         }
-        for row in c.iter_mut() {
-            for i in 0..3 {
-                row[P + i] = row[P + i] + row[V + i] * dt;
-            }
-            for i in 0..3 {
-                let mut x = row[V + i];
-                for j in 0..3 {
-                    x = x - skew[i][j] * row[TH + j] - m[i][j] * row[BA + j];
+        c[BETA][BETA] = c[BETA][BETA] * t.baro_decay;
+        // Columns ((F P) F^T) on each row from its block's first column on.
+        for (r, row) in c.iter_mut().enumerate() {
+            if r < V {
+                for i in 0..3 {
+                    row[P + i] = row[P + i] + row[V + i] * dt;
                 }
-                row[V + i] = x;
             }
-            for i in 0..3 {
-                let mut x = row[TH + i];
-                for j in 0..3 {
-                    x = x - m[i][j] * row[BG + j];
+            if r < TH {
+                for i in 0..3 {
+                    let mut x = row[V + i];
+                    for j in 0..3 {
+                        x = x - skew[i][j] * row[TH + j] - m[i][j] * row[BA + j];
+                    }
+                    row[V + i] = x;
                 }
-                row[TH + i] = x;
+            }
+            if r < BG {
+                for i in 0..3 {
+                    let mut x = row[TH + i];
+                    for j in 0..3 {
+                        x = x - m[i][j] * row[BG + j];
+                    }
+                    row[TH + i] = x;
+                }
             }
             for i in 0..3 {
                 row[E + i] = row[E + i] * t.drift_decay;
             }
             row[BETA] = row[BETA] * t.baro_decay;
         }
+        mirror(c);
         for i in 0..3 {
             c[V + i][V + i] = c[V + i][V + i] + t.accel_noise2 * dt;
             c[TH + i][TH + i] = c[TH + i][TH + i] + t.gyro_noise2 * dt;
@@ -246,9 +263,12 @@ impl<L: Lane> Ekf<L> {
         for i in 0..STATES {
             k[i] = ph[i] * gain;
         }
+        // The upper triangle, copied to the lower: the update stays symmetric to the bit.
         for i in 0..STATES {
-            for j in 0..STATES {
-                c[i][j] = c[i][j] - k[i] * ph[j];
+            for j in i..STATES {
+                let x = c[i][j] - k[i] * ph[j];
+                c[i][j] = x;
+                c[j][i] = x;
             }
         }
         let mut dx = k;
@@ -276,6 +296,16 @@ impl<L: Lane> Ekf<L> {
             dx[TH + 2] * 0.5,
         ];
         self.q = normalised(product(&d, &self.q));
+    }
+}
+
+/// The upper triangle of `c` copied to the lower.
+#[inline(always)]
+fn mirror<L: Lane>(c: &mut [[L; STATES]; STATES]) {
+    for i in 0..STATES {
+        for j in i + 1..STATES {
+            c[j][i] = c[i][j];
+        }
     }
 }
 
@@ -336,8 +366,7 @@ mod tests {
             assert!(f.cov[i][i] > 0.0, "variance {i} stays positive");
             for j in 0..STATES {
                 let (a, b) = (f.cov[i][j], f.cov[j][i]);
-                let scale = (f.cov[i][i] * f.cov[j][j]).sqrt();
-                assert!((a - b).abs() <= 1e-12 * scale, "{i} {j}: {a} {b}");
+                assert_eq!(a.to_bits(), b.to_bits(), "{i} {j}: {a} {b}");
             }
         }
         // Fusing a lane that has no measurement (`on` = 0) changes nothing.
@@ -345,6 +374,108 @@ mod tests {
         f.fuse(&[(P, 1.0)], 5.0, 0.25, 0.0);
         assert_eq!(before.p, f.p);
         assert_eq!(before.cov, f.cov);
+    }
+
+    /// A symmetric positive definite matrix with entries of every sign and size (a seeded
+    /// Gram matrix), and the dense F of `predict` for the sums `m`, `dv` over `dt`.
+    type Matrix = [[f64; STATES]; STATES];
+
+    fn dense_case() -> (Matrix, [[f64; 3]; 3], [f64; 3], f64) {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let a: Vec<[f64; STATES]> = (0..STATES)
+            .map(|_| std::array::from_fn(|_| next()))
+            .collect();
+        let mut p = [[0.0; STATES]; STATES];
+        for i in 0..STATES {
+            for j in 0..STATES {
+                p[i][j] = (0..STATES).map(|k| a[i][k] * a[j][k]).sum::<f64>();
+            }
+        }
+        let m = std::array::from_fn(|_| std::array::from_fn(|_| next() * 0.01));
+        let dv = std::array::from_fn(|_| next() * 0.2);
+        (p, m, dv, 0.01)
+    }
+
+    /// `predict` (the upper triangle, copied) equals F P F^T + Q multiplied out densely, and is
+    /// symmetric to the bit; `fuse` (the upper triangle, copied) equals P - P h^T h P / s.
+    #[test]
+    fn the_covariance_is_f_p_f_transposed_plus_q_and_symmetric() {
+        let (p, m, dv, dt) = dense_case();
+        let t = tuning();
+        let mut f = Ekf::new([0.0; 3], [0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; STATES]);
+        f.cov = p;
+        (f.sum_r, f.sum_dv, f.span) = (m, dv, dt);
+        f.predict(&t);
+        let mut fm = [[0.0; STATES]; STATES];
+        for i in 0..STATES {
+            fm[i][i] = 1.0;
+        }
+        let skew = [
+            [0.0, -dv[2], dv[1]],
+            [dv[2], 0.0, -dv[0]],
+            [-dv[1], dv[0], 0.0],
+        ];
+        for i in 0..3 {
+            fm[P + i][V + i] = dt;
+            for j in 0..3 {
+                fm[V + i][TH + j] = -skew[i][j];
+                fm[V + i][BA + j] = -m[i][j];
+                fm[TH + i][BG + j] = -m[i][j];
+            }
+            fm[E + i][E + i] = t.drift_decay;
+        }
+        fm[BETA][BETA] = t.baro_decay;
+        let mut want = [[0.0; STATES]; STATES];
+        for i in 0..STATES {
+            for j in 0..STATES {
+                want[i][j] = (0..STATES)
+                    .flat_map(|k| (0..STATES).map(move |l| (k, l)))
+                    .map(|(k, l)| fm[i][k] * p[k][l] * fm[j][l])
+                    .sum::<f64>();
+            }
+        }
+        for i in 0..3 {
+            want[V + i][V + i] += t.accel_noise2 * dt;
+            want[TH + i][TH + i] += t.gyro_noise2 * dt;
+            want[BG + i][BG + i] += t.gyro_walk2 * dt;
+            want[BA + i][BA + i] += t.accel_walk2 * dt;
+            want[E + i][E + i] += t.drift_gain;
+        }
+        want[BETA][BETA] += t.baro_gain;
+        for i in 0..STATES {
+            for j in 0..STATES {
+                let scale = (want[i][i] * want[j][j]).sqrt();
+                assert!(
+                    (f.cov[i][j] - want[i][j]).abs() <= 1e-13 * scale,
+                    "{i} {j}: {} against {}",
+                    f.cov[i][j],
+                    want[i][j]
+                );
+                assert_eq!(f.cov[i][j].to_bits(), f.cov[j][i].to_bits(), "{i} {j}");
+            }
+        }
+        // A scalar fusion of h = (1 at P + 1, -0.3 at V + 1, 1 at E + 1).
+        let before = f.cov;
+        let h = [(P + 1, 1.0), (V + 1, -0.3), (E + 1, 1.0)];
+        f.fuse(&h, 0.0, 0.4, 1.0);
+        let ph: Vec<f64> = (0..STATES)
+            .map(|i| h.iter().map(|&(j, hj)| before[i][j] * hj).sum())
+            .collect();
+        let s = 0.4 + h.iter().map(|&(j, hj)| hj * ph[j]).sum::<f64>();
+        for i in 0..STATES {
+            for j in 0..STATES {
+                let want = before[i][j] - ph[i] * ph[j] / s;
+                let scale = (before[i][i] * before[j][j]).sqrt();
+                assert!((f.cov[i][j] - want).abs() <= 1e-13 * scale, "{i} {j}");
+                assert_eq!(f.cov[i][j].to_bits(), f.cov[j][i].to_bits(), "{i} {j}");
+            }
+        }
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! another's, on the law, on the gust or on the workers.
 
 use crate::config::navigation::{Schedule, Sensors};
-use crate::lane::random::normal::standard_normal;
+use crate::lane::isa::Isa;
+use crate::lane::random::normal::{standard_normal, Ahead, CHUNK};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::collections::VecDeque;
@@ -51,6 +52,63 @@ fn normals<const N: usize>(rng: &mut ChaCha8Rng) -> [f64; N] {
     std::array::from_fn(|_| standard_normal(rng))
 }
 
+/// The IMU's normals drawn at once: `IMU_DRAWS` a sample, for this many samples.
+const IMU_SAMPLES: usize = 32;
+/// Normals an IMU sample draws.
+const IMU_DRAWS: usize = 12;
+/// The buffer's normals (`Ahead::normals` may write up to `CHUNK - 1` past the last).
+const IMU_BUFFER: usize = IMU_SAMPLES * IMU_DRAWS + CHUNK;
+
+/// The IMU stream's next normals, drawn in bulk (`Ahead`): the same numbers, in the same
+/// order, as `standard_normal` drawing them one at a time, which cost the filter's step 4 %
+/// of the delivery's time (a ChaCha8 word and the ziggurat's branch per normal).
+struct ImuNormals {
+    ahead: Ahead,
+    buffer: Box<[f64; IMU_BUFFER]>,
+    /// `next..filled` are the stream's next normals.
+    next: usize,
+    filled: usize,
+    /// The instruction set the keystream and the ziggurat's candidates are made with.
+    isa: Isa,
+}
+
+impl ImuNormals {
+    fn new(isa: Isa) -> Self {
+        Self {
+            ahead: Ahead::new(),
+            buffer: Box::new([0.0; IMU_BUFFER]),
+            next: 0,
+            filled: 0,
+            isa,
+        }
+    }
+
+    /// The stream's next `N` normals.
+    #[inline(always)]
+    fn take<const N: usize>(&mut self, rng: &mut ChaCha8Rng) -> [f64; N] {
+        if self.filled - self.next < N {
+            self.refill(rng);
+        }
+        let mut out = [0.0; N];
+        out.copy_from_slice(&self.buffer[self.next..self.next + N]);
+        self.next += N;
+        out
+    }
+
+    /// The normals held moved to the front, and the buffer filled up after them.
+    #[inline(never)]
+    fn refill(&mut self, rng: &mut ChaCha8Rng) {
+        let held = self.filled - self.next;
+        self.buffer.copy_within(self.next..self.filled, 0);
+        let n = IMU_SAMPLES * IMU_DRAWS - held;
+        let buffer = &mut self.buffer;
+        self.ahead.normals(rng, n, self.isa, |r, xs| {
+            buffer[held + r..held + r + xs.len()].copy_from_slice(xs);
+        });
+        (self.next, self.filled) = (0, held + n);
+    }
+}
+
 /// A GNSS fix: position and velocity, and whether it was received (not in an outage).
 #[derive(Clone, Copy, Debug)]
 pub struct Fix {
@@ -63,6 +121,7 @@ pub struct Fix {
 /// their way.
 pub struct LaneSensors {
     imu: ChaCha8Rng,
+    imu_normals: ImuNormals,
     gnss: ChaCha8Rng,
     baro: ChaCha8Rng,
     heading: ChaCha8Rng,
@@ -92,8 +151,15 @@ pub struct LaneSensors {
 
 impl LaneSensors {
     /// The sensors of realisation `index` under `seed` at the step `dt`: their initial biases
-    /// and drifts drawn (the IMU's biases from N(0, sigma^2), the drifts stationary).
-    pub fn new(s: &Sensors, schedule: &Schedule, dt: f64, seed: u64, index: u64) -> Self {
+    /// and drifts drawn (the IMU's biases from N(0, sigma^2), the drifts stationary). `isa`:
+    /// the instruction set the caller runs on (`Lane::within`), for the IMU's bulk draws.
+    pub fn new(
+        s: &Sensors,
+        schedule: &Schedule,
+        (dt, isa): (f64, Isa),
+        seed: u64,
+        index: u64,
+    ) -> Self {
         let mut imu = sensor_rng(seed, index, Stream::Imu);
         let mut gnss = sensor_rng(seed, index, Stream::Gnss);
         let mut baro = sensor_rng(seed, index, Stream::Baro);
@@ -107,6 +173,7 @@ impl LaneSensors {
         let baro_decay = (-(schedule.baro as f64 * dt) / b.drift_time).exp();
         Self {
             imu,
+            imu_normals: ImuNormals::new(isa),
             gnss,
             baro,
             heading,
@@ -139,7 +206,7 @@ impl LaneSensors {
     /// accelerometer noise, gyro bias step, accelerometer bias step (3 each).
     #[inline(always)]
     pub fn imu(&mut self, w: [f64; 3], f: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-        let n: [f64; 12] = normals(&mut self.imu);
+        let n: [f64; IMU_DRAWS] = self.imu_normals.take(&mut self.imu);
         let gyro = [0, 1, 2].map(|k| w[k] + self.bg[k] + n[k] * self.gyro_sd);
         let accel = [0, 1, 2].map(|k| f[k] + self.ba[k] + n[3 + k] * self.accel_sd);
         for k in 0..3 {
@@ -153,7 +220,7 @@ impl LaneSensors {
     /// bias and one white-noise draw (3 draws).
     #[inline(always)]
     pub fn first_gyro(&mut self, w: [f64; 3]) -> [f64; 3] {
-        let n: [f64; 3] = normals(&mut self.imu);
+        let n: [f64; 3] = self.imu_normals.take(&mut self.imu);
         [0, 1, 2].map(|k| w[k] + self.bg[k] + n[k] * self.gyro_sd)
     }
 
@@ -244,6 +311,27 @@ mod tests {
         assert_ne!(a, gust);
     }
 
+    /// The IMU's normals drawn in bulk are the stream's normals one at a time, in order, across
+    /// refills and on each instruction set this machine has (the first gyro's 3, then 12 a
+    /// sample).
+    #[test]
+    fn the_imus_bulk_normals_are_its_streams_one_at_a_time() {
+        let isas = [Isa::Baseline, Isa::Avx2, Isa::Avx512];
+        for isa in isas.into_iter().filter(|isa| isa.supported()) {
+            let mut one = sensor_rng(5, 2, Stream::Imu);
+            let want: Vec<f64> = (0..3 + 12 * 100)
+                .map(|_| standard_normal(&mut one))
+                .collect();
+            let mut rng = sensor_rng(5, 2, Stream::Imu);
+            let mut bulk = ImuNormals::new(isa);
+            let mut got = bulk.take::<3>(&mut rng).to_vec();
+            for _ in 0..100 {
+                got.extend(bulk.take::<IMU_DRAWS>(&mut rng));
+            }
+            assert_eq!(got, want, "{isa:?}");
+        }
+    }
+
     fn sensors(change: impl Fn(&mut Sensors)) -> (Sensors, Schedule) {
         let mut s = Sensors::default();
         change(&mut s);
@@ -285,7 +373,7 @@ mod tests {
         });
         let dt = 1e-3;
         let h = sch.imu as f64 * dt;
-        let mut lane = LaneSensors::new(&s, &sch, dt, 9, 0);
+        let mut lane = LaneSensors::new(&s, &sch, (dt, Isa::Baseline), 9, 0);
         let x: Vec<f64> = (0..400_000)
             .map(|_| lane.imu([0.0; 3], [0.0; 3]).0[0])
             .collect();
@@ -310,7 +398,7 @@ mod tests {
         });
         let dt = 1e-3;
         let epoch = sch.gnss as f64 * dt;
-        let mut lane = LaneSensors::new(&s, &sch, dt, 4, 1);
+        let mut lane = LaneSensors::new(&s, &sch, (dt, Isa::Baseline), 4, 1);
         let n = 400_000;
         let mut e = Vec::with_capacity(n);
         for j in 0..n {
