@@ -185,8 +185,8 @@ impl Engine {
         let x0: State<L, N> = state_from_fn(|i| L::from_fn(|l| starts[l].state[i]));
         let fields: Vec<&WindField> = realisations.iter().map(|c| &c.wind).collect();
         let laws: Vec<&LawLimits> = realisations.iter().map(|c| &c.law_limits).collect();
-        let start = Attitude::<L, B>::of(&x0);
-        let view0 = Vehicle::<L, Pay, Act, B>::rigid_with(&x0, start.euler);
+        let mut start = Attitude::<L, B>::of(&x0);
+        let view0 = Vehicle::<L, Pay, Act, B>::rigid_with(&x0, start.euler(&x0));
         let trig0 = B::trig(&start.frame, &view0.att);
         let each: Vec<&Laws> = realisations.iter().map(|c| &c.laws).collect();
         let held: Vec<&[(usize, f64)]> = starts.iter().map(|c| c.held.as_slice()).collect();
@@ -250,16 +250,16 @@ impl Engine {
         let reads_payload = law.reads_payload();
         // The actuators' command, held between the inner loop's updates.
         let mut held = None;
-        // The attitude the last runaway check derived for this state, if it did.
-        let mut checked: Option<Attitude<L, B>> = None;
+        let mut checked: Option<Attitude<L, B>> = None; // the runaway check's, of `s`
         for k in 0..=self.steps {
             let t = k as f64 * self.dt;
             leg.follow(trajectory, t, realisations);
             let r = &leg.r;
-            let attitude = Attitude::checked_or_of(checked.take(), &s);
+            let mut attitude = Attitude::checked_or_of(checked.take(), &s);
             let trig = attitude.frame;
             let tick = Tick { step: k, t };
-            let view = V::<L, Pay, Act, B>::rigid_with(&s, attitude.euler);
+            let att = euler_read(nav.as_ref(), k, trace.is_some(), &mut attitude, &s);
+            let view = V::<L, Pay, Act, B>::rigid_with(&s, att);
             // What the law sees of the payload: only computed for a law that reads it.
             let payload = vehicle.payload_view_if(reads_payload, &s, &trig);
             let law_trig = truth_trig::<L, B>(nav.is_none(), &trig, &view.att);
@@ -318,7 +318,7 @@ impl Engine {
                 checked = attitude;
             } else {
                 // Retired lanes are parked on their initial state: the next step derives its own.
-                let tilt = attitude.map(|a| a.euler);
+                let tilt = Attitude::angles_of(attitude, &s);
                 #[rustfmt::skip]
                 ends.retire(ok, t, self.dt, tilt, &mut s, &mut law, realisations, &self.vars);
                 if ends.alive == 0 {
@@ -401,6 +401,31 @@ fn truth_trig<L: Navigate, B: BodyKind>(
         ))
     } else {
         None
+    }
+}
+
+/// The true Euler angles at step `k` where something reads them (the laws where they read the
+/// state, the navigation's heading sample, the trace; and the paper's body, whose angles are
+/// states, free to read), else NaN: a reader this step did not foresee would make the
+/// flight's numbers NaN, never silently wrong.
+#[inline(always)]
+fn euler_read<L: Navigate, B: BodyKind, const N: usize>(
+    nav: Option<&Navigation<L>>,
+    k: usize,
+    tracing: bool,
+    attitude: &mut Attitude<L, B>,
+    s: &State<L, N>,
+) -> [L; 3] {
+    let reads = B::DERIVED.is_empty()
+        || tracing
+        || match nav {
+            Some(n) => n.reads_attitude(k),
+            None => true,
+        };
+    if reads {
+        attitude.euler(s)
+    } else {
+        [L::splat(f64::NAN); 3]
     }
 }
 

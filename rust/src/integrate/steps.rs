@@ -10,7 +10,9 @@ use crate::lane::{KernelOps, Lane};
 use crate::metrics::LastSample;
 use crate::model::payload::Release as Hook;
 use crate::model::payload::{LastMetres, LOWER_RADIUS};
-use crate::model::{ix, state_from_fn, BodyKind, Bound, Rigid, State, StateVar};
+use crate::model::{
+    ix, state_from_fn, BodyKind, Bound, Rigid, Rotation, State, StateVar, TiltBound,
+};
 use crate::scenario::Config;
 use crate::trajectory::{Reference, Trajectory, TIME_SLACK};
 use rand::SeedableRng;
@@ -402,6 +404,8 @@ pub(super) struct Runaway<L, const N: usize> {
     grounded: bool,
     derives_tilt: bool,
     max_tilt: L,
+    /// `max_tilt` as the check's first, cheaper test reads it (`Rotation::surely_within`).
+    tilt: TiltBound<L>,
 }
 
 impl<L: Lane, const N: usize> Runaway<L, N> {
@@ -423,12 +427,14 @@ impl<L: Lane, const N: usize> Runaway<L, N> {
             // The rigid body's roll and pitch are no states: held to `divergence.max_tilt` here.
             derives_tilt: !B::DERIVED.is_empty(),
             max_tilt: L::from_fn(|l| realisations[l].limits[Bound::Tilt as usize]),
+            tilt: TiltBound::new(|l| realisations[l].limits[Bound::Tilt as usize]),
         }
     }
 
     /// The mask of the lanes within every bound in state `s`, and for a body whose roll and
-    /// pitch are no states (the rigid body's) the attitude it derived them from: `s`'s frame
-    /// and Euler angles, which the next step reads unchanged (`Attitude`).
+    /// pitch are no states (the rigid body's) the attitude it derived them from: `s`'s frame,
+    /// and its Euler angles where the tilt's first test left a lane to them, which the next
+    /// step reads unchanged (`Attitude`).
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
     pub(super) fn check<B: BodyKind>(&self, s: &State<L, N>) -> (u32, Option<Attitude<L, B>>) {
@@ -440,9 +446,16 @@ impl<L: Lane, const N: usize> Runaway<L, N> {
             ok &= self.floor.le_mask(s[ix::Z]);
         }
         let attitude = if self.derives_tilt {
-            let at = Attitude::<L, B>::of(s);
-            let att = &at.euler;
-            ok &= att[0].abs().le_mask(self.max_tilt) & att[1].abs().le_mask(self.max_tilt);
+            let mut at = Attitude::<L, B>::of(s);
+            let r = Rotation {
+                axes: crate::model::Frame::axes(&at.frame),
+            };
+            // The Euler angles only where a lane is not surely within (near the bound, past
+            // it, not finite): the same decision, without two atan2 and an asin a step.
+            if r.surely_within(&self.tilt) != L::ALL {
+                let att = at.euler(s);
+                ok &= att[0].abs().le_mask(self.max_tilt) & att[1].abs().le_mask(self.max_tilt);
+            }
             Some(at)
         } else {
             None
@@ -451,21 +464,50 @@ impl<L: Lane, const N: usize> Runaway<L, N> {
     }
 }
 
-/// A state's attitude as the step reads it: its frame (`BodyKind::frame`) and Euler angles
-/// (`BodyKind::euler`), derived once: the runaway check after a step derives them for the
-/// rigid body's tilt, and the next step starts from the same state.
+/// A state's attitude as the step reads it: its frame (`BodyKind::frame`) and, once derived,
+/// its Euler angles (`BodyKind::euler`): the runaway check after a step derives the frame and,
+/// near the tilt bound, the angles; the next step starts from the same state and derives the
+/// angles only where something reads them (`euler`).
 pub(super) struct Attitude<L: Lane, B: BodyKind> {
     pub(super) frame: B::Frame<L>,
-    pub(super) euler: [L; 3],
+    derived: Option<[L; 3]>,
 }
 
 impl<L: Lane, B: BodyKind> Attitude<L, B> {
-    /// The attitude at `s`.
+    /// The attitude at `s` (its frame; the Euler angles when asked).
     #[inline(always)]
     pub(super) fn of<const N: usize>(s: &State<L, N>) -> Self {
-        let frame = B::frame(s);
-        let euler = B::euler(s, &frame);
-        Self { frame, euler }
+        Self {
+            frame: B::frame(s),
+            derived: None,
+        }
+    }
+
+    /// The Euler angles of `s` (this attitude's state), derived on first use.
+    #[inline(always)]
+    pub(super) fn euler<const N: usize>(&mut self, s: &State<L, N>) -> [L; 3] {
+        // A match, not `Option::get_or_insert_with`: nothing here may be left out of line.
+        match self.derived {
+            Some(e) => e,
+            None => {
+                let e = B::euler(s, &self.frame);
+                self.derived = Some(e);
+                e
+            }
+        }
+    }
+
+    /// The Euler angles of `s` where the runaway check derived its attitude (`checked`).
+    #[inline(always)]
+    pub(super) fn angles_of<const N: usize>(
+        checked: Option<Self>,
+        s: &State<L, N>,
+    ) -> Option<[L; 3]> {
+        // A match, not `Option::map`: nothing here may be left out of line.
+        match checked {
+            Some(mut a) => Some(a.euler(s)),
+            None => None,
+        }
     }
 
     /// The attitude the last runaway check derived for state `s` (`checked`), else `of(s)`.

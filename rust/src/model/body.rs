@@ -160,6 +160,40 @@ impl<L: Lane> Frame<L> for Trig<L> {
     }
 }
 
+/// A bound T on the roll and pitch, as `Rotation::surely_within` reads it: each lane's bound
+/// narrowed by `MARGIN` of itself, T' = T (1 - MARGIN), and its sine and cosine. The margin
+/// is far above the roundings of both sides (the matrix's products and square root, `euler`'s
+/// `atan2` and `asin`, each within an ulp or two), so a lane found within T' is within T as
+/// `euler` finds it.
+#[derive(Clone, Copy, Debug)]
+pub struct TiltBound<L> {
+    sin_pitch: L,
+    cos_roll: L,
+}
+
+impl<L: Lane> TiltBound<L> {
+    /// The bound's relative narrowing.
+    pub const MARGIN: f64 = 1e-6;
+
+    /// The bound of each lane `max_tilt(lane)` (rad).
+    pub fn new(max_tilt: impl Fn(usize) -> f64) -> Self {
+        // Below 1e-4 rad the cosines of T and T' differ by under a hundred roundings, and a
+        // bound that is no number is no bound to narrow: those lanes are left to `euler`.
+        let narrowed = |l| {
+            let t = max_tilt(l);
+            (t > 1e-4).then(|| (t * (1.0 - Self::MARGIN)).min(std::f64::consts::PI))
+        };
+        Self {
+            // Past pi/2 every pitch (`euler`'s, within +-pi/2) is within.
+            sin_pitch: L::from_fn(|l| {
+                narrowed(l).map_or(-1.0, |t| t.min(std::f64::consts::FRAC_PI_2).sin())
+            }),
+            // cos is decreasing on [0, pi]; 2 admits no lane.
+            cos_roll: L::from_fn(|l| narrowed(l).map_or(2.0, f64::cos)),
+        }
+    }
+}
+
 /// The rigid body's attitude at one state: its rotation matrix.
 #[derive(Clone, Copy, Debug)]
 pub struct Rotation<L> {
@@ -223,6 +257,22 @@ impl<L: Lane> Rotation<L> {
             (-ex[2]).max(-one).min(one).asin(),
             ex[1].atan2(ex[0]),
         ]
+    }
+
+    /// The lanes (a `Lane::le_mask`) whose roll and pitch (`euler`'s) are surely within
+    /// `bound`, from the matrix's entries alone: a square root and three comparisons where
+    /// `euler` takes two `atan2` and an `asin`. A lane left out may still be within: near the
+    /// bound (a relative `TiltBound::MARGIN`), at the pole and where a value is not finite,
+    /// only `euler` decides.
+    #[inline(always)]
+    pub fn surely_within(&self, bound: &TiltBound<L>) -> u32 {
+        let [ex, ey, ez] = self.axes;
+        // |roll| <= T' <=> cos(roll) = R33 / |(R32, R33)| >= cos T' (T' in [0, pi]);
+        // |pitch| <= T' <=> |R31| <= sin T' (T' in [0, pi/2]; beyond it every pitch is).
+        let cth = (ey[2] * ey[2] + ez[2] * ez[2]).sqrt();
+        (bound.cos_roll * cth).le_mask(ez[2])
+            & ex[2].abs().le_mask(bound.sin_pitch)
+            & L::splat(f64::MIN_POSITIVE).le_mask(cth)
     }
 
     /// R^T a: inertial `a` in body axes.

@@ -171,3 +171,66 @@ fn the_rigid_body_refuses_the_spring_and_the_paper_body_the_coefficients() {
         .expect_err("drag coefficients on the paper's body");
     assert_eq!(e.key, "vehicle.drag_coefficients");
 }
+
+#[test]
+fn a_lane_surely_within_the_tilt_bound_is_within_it_as_euler_finds() {
+    use rand::{RngExt, SeedableRng};
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let bounds = [
+        1e-5,
+        2e-4,
+        0.05,
+        0.3,
+        PI / 4.0,
+        1.0,
+        FRAC_PI_2,
+        2.0,
+        3.1,
+        PI,
+        4.0,
+    ];
+    let mut surely = 0;
+    for t in bounds.into_iter().chain([f64::INFINITY, f64::NAN]) {
+        let bound = TiltBound::<f64>::new(|_| t);
+        let edge = t.min(PI);
+        for i in 0..20_000 {
+            // Angles anywhere, and on the bound to within a relative 1e-3 .. 1e-16 either side.
+            let d = 10f64.powf(rng.random_range(-16.0..-3.0)) * rng.random_range(-1.0..1.0);
+            let near = edge * (1.0 + d) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let (any_roll, any_pitch) = (
+                rng.random_range(-PI..PI),
+                rng.random_range(-FRAC_PI_2..FRAC_PI_2),
+            );
+            let (roll, pitch) = match i % 3 {
+                0 => (near, any_pitch),
+                1 => (any_roll, near.clamp(-FRAC_PI_2, FRAC_PI_2)),
+                _ => (any_roll, any_pitch),
+            };
+            let yaw = rng.random_range(-PI..PI);
+            let rot = Rotation::of_quaternion(Rigid::quaternion_of_euler([roll, pitch, yaw]));
+            let e = rot.euler();
+            let within = e[0].abs() <= t && e[1].abs() <= t;
+            let sure = rot.surely_within(&bound) == 1;
+            assert!(
+                within || !sure,
+                "t {t}: {e:?} is past the bound, found surely within"
+            );
+            // Well inside a bound the test can resolve, the angles are never needed (but at
+            // the pole, where the roll is rounding's, and |R31| may round past 1).
+            let off_pole = e[1].cos() > 1e-6;
+            if t >= 1e-3 && off_pole && e[0].abs() <= 0.99 * t && e[1].abs() <= 0.99 * t {
+                assert!(sure, "t {t}: {e:?} is well within, not found so");
+            }
+            surely += sure as usize;
+        }
+        if t.is_nan() || t <= 1e-4 {
+            let any = Rotation::of_quaternion([1.0, 0.0, 0.0, 0.0]).surely_within(&bound);
+            assert_eq!(
+                any, 0,
+                "t {t}: no lane is surely within a bound too small to narrow"
+            );
+        }
+    }
+    assert!(surely > 50_000, "{surely}");
+}

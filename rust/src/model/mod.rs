@@ -19,7 +19,7 @@ mod trim;
 
 pub use actuator::{Actuator, ActuatorModel};
 pub use body::{
-    Body, BodyKind, BodyModel, Frame, Paper, Rigid as RigidBody, Rotation, BODY_MODELS,
+    Body, BodyKind, BodyModel, Frame, Paper, Rigid as RigidBody, Rotation, TiltBound, BODY_MODELS,
 };
 pub use kinds::{
     dispatch, ActuatorConfig, ActuatorKind, AnyActuator, AnyPayload, PayloadConfig, PayloadKind,

@@ -361,6 +361,14 @@ impl<L: Lane> Navigation<L> {
         k.is_multiple_of(self.schedule.imu)
     }
 
+    /// Whether step `k`'s senses read the true attitude (the heading's sample: `sense` on a
+    /// filter step that is the heading's); else no sense reads the truth's Euler angles.
+    #[inline(always)]
+    pub fn reads_attitude(&self, k: usize) -> bool {
+        let s = self.schedule;
+        self.due(k) && k.is_multiple_of(s.filter) && k.is_multiple_of(s.heading)
+    }
+
     /// The true body rates of the step into the IMU's period sum.
     #[inline(always)]
     pub fn accumulate(&mut self, truth: &Rigid<L>) {
