@@ -243,11 +243,12 @@ fn beyond_limit(cfg: &Config, axes: &[usize], wind: [f64; 3]) -> ConfigError {
         key: "controller.smc.integral".into(),
         message: format!(
             "controller.smc.integral = {:?}: the SMC has no equilibrium at its reference in the \
-             start's steady wind (wind.speed; {speed:.2} m/s at the start): {why}; raise \
-             controller.smc.eta or controller.smc.epsilon (the reaching law eta s + epsilon \
-             sat(s) gives the acceleration that holds the drag), lower wind.speed, or start at \
-             rest (initial.trim = \"rest\")",
-            cfg.controller.smc.integral,
+             start's steady wind (wind.speed; {speed:.2} m/s at the start): {why} (the drag is \
+             held per kilogram of vehicle.mass = {} kg); raise controller.smc.eta or \
+             controller.smc.epsilon (the reaching law eta s + epsilon sat(s) gives the \
+             acceleration that holds the drag), lower wind.speed, or start at rest \
+             (initial.trim = \"rest\")",
+            cfg.controller.smc.integral, cfg.vehicle.mass,
         ),
     }
 }
@@ -377,6 +378,24 @@ mod tests {
         let cfg = Config::from_json(&v.to_string()).expect("valid");
         let field = crate::gust::WindField::new(&cfg.wind_context()).unwrap();
         (cfg, field)
+    }
+
+    /// The engine solves a law's start when a flight first asks for it: the start a
+    /// realisation built for every law has, and with a prescribed wind (`with_wind`) still the
+    /// scenario's, in its own steady wind.
+    #[test]
+    fn the_engines_starts_solved_on_first_use_are_the_built_ones() {
+        let (cfg, _) = windy();
+        let built = crate::integrate::Realisation::new(&cfg).unwrap();
+        let engine = crate::integrate::Engine::new(cfg.clone()).unwrap();
+        let calm = crate::integrate::Engine::new(cfg).unwrap();
+        let rows = vec![[0.0; 3]; calm.steps + 1];
+        let calm = calm.with_wind(rows).unwrap();
+        for &kind in ControllerKind::ALL {
+            assert!(built.start(kind).state != built.x0, "{}", kind.name());
+            assert_eq!(engine.own_start(kind), built.start(kind), "{}", kind.name());
+            assert_eq!(calm.own_start(kind), built.start(kind), "{}", kind.name());
+        }
     }
 
     /// Each law's start is a fixed point of its closed loop (no state accelerates, no

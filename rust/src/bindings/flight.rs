@@ -208,7 +208,8 @@ pub(super) fn innovations_dispersion(
     for j in 0..rows {
         let cfg = d.config(j, 0).map_err(scenario_error)?;
         if d.touches_wind() {
-            let got = Realisation::new(&cfg)
+            // (no law's start: only the wind's innovations are compared)
+            let got = Realisation::for_laws(&cfg, None, &[])
                 .map_err(scenario_error)?
                 .wind()
                 .innovations(e.steps);

@@ -16,6 +16,7 @@ use crate::scenario::{Config, ConfigError, Trim};
 use crate::start::{law_start, LawStart};
 use crate::trajectory::{phase_steps, PhaseSteps, Trajectory};
 use std::sync::atomic::AtomicBool;
+use std::sync::OnceLock;
 
 /// What may differ between realisations: one vehicle's physical parameters, controllers,
 /// wind field, initial state and runaway bounds, built from one validated `Config`. A fixed
@@ -31,9 +32,10 @@ pub struct Realisation {
     /// line's start and where a retired lane is parked.
     pub x0: Vec<f64>,
     /// Each law's start (`ControllerKind::ALL`'s order): its closed-loop equilibrium in the
-    /// start's steady wind (`crate::start`); `None` for a law the realisation is not built to
-    /// fly (`Realisation::for_laws`).
-    starts: Vec<Option<LawStart>>,
+    /// start's steady wind (`crate::start`), solved when the realisation is built for the laws
+    /// it flies (`Realisation::for_laws`), or for the engine's own on first use
+    /// (`Engine::own_start`); unset for a law no one asked for.
+    starts: Vec<OnceLock<LawStart>>,
     /// `divergence.max_distance`, `max_tilt`, `max_speed`, `max_rate` (m, rad, m/s, rad/s), in
     /// the order of `Bound`.
     pub(super) limits: [f64; 4],
@@ -74,18 +76,13 @@ impl Realisation {
             None => WindField::new(&cfg.wind_context())?,
         };
         let x0 = initial_state(&vehicle, cfg, &wind)?;
-        let wind_at = |z| match cfg.initial.trim {
-            Trim::Wind => start_wind(&wind, z),
-            Trim::Rest => [0.0; 3],
-        };
-        let starts = ControllerKind::ALL
-            .iter()
-            .map(|k| kinds.contains(k).then(|| law_start(cfg, *k, &x0, &wind_at)))
-            .collect();
         let d = &cfg.divergence;
-        Ok(Self {
+        let realisation = Self {
             vehicle,
-            starts,
+            starts: ControllerKind::ALL
+                .iter()
+                .map(|_| OnceLock::new())
+                .collect(),
             laws: Laws::new(&cfg.control_context()),
             wind,
             x0,
@@ -94,6 +91,22 @@ impl Realisation {
             law_limits: LawLimits::of(&cfg.controller),
             navigation: NavigationParams::of(&cfg.navigation, &cfg.sensors, cfg.integrator.dt)?,
             trajectory: Trajectory::new(&cfg.context()),
+        };
+        for &kind in kinds {
+            realisation.start_of(cfg, kind);
+        }
+        Ok(realisation)
+    }
+
+    /// Law `kind`'s start in this realisation of `cfg` (the config it was built from), solved
+    /// on first use.
+    fn start_of(&self, cfg: &Config, kind: ControllerKind) -> &LawStart {
+        self.starts[kind as usize].get_or_init(|| {
+            let wind_at = |z| match cfg.initial.trim {
+                Trim::Wind => start_wind(&self.wind, z),
+                Trim::Rest => [0.0; 3],
+            };
+            law_start(cfg, kind, &self.x0, &wind_at)
         })
     }
 }
@@ -107,7 +120,7 @@ impl Realisation {
     /// Where law `kind` starts (`crate::start`).
     pub fn start(&self, kind: ControllerKind) -> &LawStart {
         self.starts[kind as usize]
-            .as_ref()
+            .get()
             .expect("a realisation is built with the start of each law it flies")
     }
 }
@@ -249,7 +262,9 @@ impl Engine {
         let steps = cfg.steps();
         let decimation = cfg.decimation();
         Ok(Self {
-            realisation: Realisation::new(&cfg)?,
+            // Each law's start solved when a flight first asks for it (`own_start`): a Newton
+            // solve on the closed loop each, most of a compile where the wind blows.
+            realisation: Realisation::for_laws(&cfg, None, &[])?,
             vars: state_vars(cfg.vehicle.body, cfg.payload.model, cfg.actuator.model),
             phases: phase_steps(&cfg.context()),
             steps,
@@ -264,10 +279,15 @@ impl Engine {
     /// Whether law `kind` may fly the scenario: an error naming the keys where its start has
     /// no equilibrium at its reference (`LawStart::refused`).
     pub fn check_start(&self, kind: ControllerKind) -> Result<(), ConfigError> {
-        match &self.realisation.start(kind).refused {
+        match &self.own_start(kind).refused {
             Some(e) => Err(e.clone()),
             None => Ok(()),
         }
+    }
+
+    /// Law `kind`'s start in the engine's own realisation, solved on first use.
+    pub fn own_start(&self, kind: ControllerKind) -> &LawStart {
+        self.realisation.start_of(&self.cfg, kind)
     }
 
     /// Unit normals one flight's turbulence draws (see `WindField::innovations`).
@@ -313,6 +333,10 @@ impl Engine {
         }
         if let Some(k) = wind.iter().position(|w| !w.iter().all(|x| x.is_finite())) {
             return Err(format!("wind must be finite, got {:?} in row {k}", wind[k]));
+        }
+        // The laws' starts are the scenario's, in its own steady wind: solved before it goes.
+        for &kind in ControllerKind::ALL {
+            self.own_start(kind);
         }
         // A wind source of the realisation's field (`gust/prescribed.rs`), the turbulence off.
         self.realisation.wind = self.realisation.wind.clone().prescribed(wind);

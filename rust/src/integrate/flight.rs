@@ -42,7 +42,10 @@ impl Engine {
                 assert_eq!(c.len(), L::LANES, "one realisation per lane");
                 c
             }
-            None => &own[..L::LANES],
+            None => {
+                self.own_start(req.kind); // solved here if no flight of the law came first
+                &own[..L::LANES]
+            }
         };
         let lead = &realisations[0].trajectory;
         if realisations.iter().any(|c| c.trajectory != *lead) {
