@@ -118,6 +118,38 @@ exit_after_dask = ExitAfterDask()
 CONNECT_TIMEOUT = 10.0
 
 
+def _check_address(address: str) -> None:
+    """BadInput, at once, for an address no connection can reach, read by Dask's own parser (a
+    protocol it does not know, a port that is no number, an inproc:// address no scheduler of
+    this process listens at): a loaded machine took more than the connection's timeout to find
+    that by trying."""
+    from distributed.comm import registry
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        registry.get_backend(scheme)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+        if scheme == "inproc" and not _listened_in_process(location):
+            raise ValueError("no scheduler of this process listens there")
+    except (ValueError, TypeError) as e:
+        text = str(e).strip()
+        why = text.splitlines()[0] if text else type(e).__name__
+        raise BadInput(f"--scheduler {address}: cannot connect ({why})") from None
+
+
+def _listened_in_process(location: str) -> bool:
+    """Whether a listener of this process has the inproc:// address ``location`` (Dask's
+    in-process registry; ValueError for an address of another process or no such address)."""
+    from distributed.comm import inproc
+
+    manager = getattr(inproc, "global_manager", None)
+    if manager is None:  # (another Dask: left to the connection)
+        return True
+    return manager.get_listener_for(location) is not None
+
+
 @contextlib.contextmanager
 def connect(address: str, timeout: float | None = None) -> Iterator[Any]:
     """A Dask client of the scheduler at ``address``, connected within ``timeout`` s or
@@ -126,6 +158,7 @@ def connect(address: str, timeout: float | None = None) -> Iterator[Any]:
     daemon thread that is left behind when it does not finish in time."""
     from dask.distributed import Client
 
+    _check_address(address)
     timeout = CONNECT_TIMEOUT if timeout is None else timeout
     made: dict[str, Any] = {}
 
