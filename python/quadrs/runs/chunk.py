@@ -275,6 +275,8 @@ def fly_chunk(
     """Fly one chunk (its dispersed values drawn from (seed, design), so on any machine the
     same) and return its record."""
     values = design.values(scenario, seed, first, count)
+    # (before the flights: a Ctrl-C while it was hashed after them lost the finished chunk)
+    run = batch_identity(scenario, seed, tuple(controllers), spectra, design, fused)
     raw, interrupted = run_range(
         scenario, controllers, seed, first, count, workers, spectra, on_progress, values,
         fused=fused,
@@ -285,7 +287,6 @@ def fly_chunk(
     with deferred_signals(deliver=False) as held:
         rows = runs_frame(raw, controllers, scenario.phase_names, first, values)
         sums = spectrum_sums(raw, scenario)
-    run = batch_identity(scenario, seed, tuple(controllers), spectra, design, fused)
     return Chunk(first, count, rows, sums, interrupted or bool(held), run)
 
 
