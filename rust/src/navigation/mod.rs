@@ -361,12 +361,19 @@ impl<L: Lane> Navigation<L> {
         k.is_multiple_of(self.schedule.imu)
     }
 
-    /// Whether step `k`'s senses read the true attitude (the heading's sample: `sense` on a
-    /// filter step that is the heading's); else no sense reads the truth's Euler angles.
+    /// Whether step `k`'s senses read the true attitude (the heading's sample, `heading_due`,
+    /// on a step that senses at all, `due`); else no sense reads the truth's Euler angles.
     #[inline(always)]
     pub fn reads_attitude(&self, k: usize) -> bool {
+        self.due(k) && self.heading_due(k)
+    }
+
+    /// Whether a step that senses (`sense`) samples and fuses the heading: a filter step that
+    /// is the heading's. The one rule `measure_and_fuse` and `reads_attitude` both follow.
+    #[inline(always)]
+    fn heading_due(&self, k: usize) -> bool {
         let s = self.schedule;
-        self.due(k) && k.is_multiple_of(s.filter) && k.is_multiple_of(s.heading)
+        k.is_multiple_of(s.filter) && k.is_multiple_of(s.heading)
     }
 
     /// The true body rates of the step into the IMU's period sum.
@@ -537,7 +544,7 @@ impl<L: Lane> Navigation<L> {
                 L::splat(1.0),
             );
         }
-        if k.is_multiple_of(s.heading) {
+        if self.heading_due(k) {
             let z = self.read(
                 t,
                 |r| &mut r.heading,
@@ -619,6 +626,54 @@ impl<L: Lane> Navigation<L> {
             let zi = L::from_fn(|l| z[l][3 + i]);
             let y = (zi - (f.v[i] - back[3 + i])) * on;
             f.fuse(&[(V + i, one)], y, self.tuning.velocity2, on);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::navigation::NavigationMode;
+
+    /// The flight loop derives the truth's Euler angles only where `reads_attitude` says a
+    /// sense reads them (else it hands the navigation NaN): the steps it names must be exactly
+    /// the steps whose heading sample is taken, at rates whose periods do not divide evenly.
+    #[test]
+    fn the_attitude_is_read_on_exactly_the_steps_that_sample_the_heading() {
+        let dt = 1e-3;
+        for (imu, filter, heading) in [(250.0, 50.0, 7.0), (0.0, 300.0, 45.0), (333.0, 90.0, 90.0)]
+        {
+            let mut sensors = Sensors::default();
+            sensors.imu.rate = imu;
+            sensors.heading.rate = heading;
+            let keys = NavigationKeys {
+                mode: NavigationMode::Ekf,
+                rate: filter,
+                ..Default::default()
+            };
+            let p = NavigationParams::of(&keys, &sensors, dt).unwrap().unwrap();
+            let truth = Rigid {
+                pos: [1.0, -2.0, 3.0],
+                att: [0.1, -0.05, 0.7],
+                vel: [0.0; 3],
+                rate: [0.0; 3],
+            };
+            let mut nav = Navigation::<f64>::new(&[&p], 7, &[0], &[truth], 9.81, true);
+            let mut read = vec![];
+            for k in 0..3000 {
+                if nav.reads_attitude(k) {
+                    read.push(k as f64 * dt);
+                }
+                if nav.due(k) {
+                    nav.sense(k, &truth);
+                }
+            }
+            let sampled: Vec<f64> = nav.finish().unwrap().heading.iter().map(|r| r[0]).collect();
+            assert!(sampled.len() >= 10, "{imu} {filter} {heading}: {sampled:?}");
+            assert_eq!(
+                read, sampled,
+                "imu {imu} Hz, filter {filter} Hz, heading {heading} Hz"
+            );
         }
     }
 }
