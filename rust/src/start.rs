@@ -385,16 +385,36 @@ mod tests {
     /// scenario's, in its own steady wind.
     #[test]
     fn the_engines_starts_solved_on_first_use_are_the_built_ones() {
-        let (cfg, _) = windy();
+        let (cfg, field) = windy();
         let built = crate::integrate::Realisation::new(&cfg).unwrap();
         let engine = crate::integrate::Engine::new(cfg.clone()).unwrap();
-        let calm = crate::integrate::Engine::new(cfg).unwrap();
-        let rows = vec![[0.0; 3]; calm.steps + 1];
-        let calm = calm.with_wind(rows).unwrap();
+        let other = crate::integrate::Engine::new(cfg).unwrap();
+        let rows = vec![[3.0, -4.0, 0.5]; other.steps + 1];
+        let other = other.with_wind(rows).unwrap();
+        // The prescribed rows add to the steady wind, so the prescribed field's own start wind
+        // is another and a start solved on it another: the engine's starts equal to the built
+        // show they were solved before the wind was replaced.
+        let z0 = built.x0[2];
+        let (scenario, prescribed) = (
+            crate::integrate::start_wind(&field, z0),
+            crate::integrate::start_wind(other.realisation.wind(), z0),
+        );
+        assert!(
+            (prescribed[0] - scenario[0] - 3.0).abs() < 1e-12,
+            "{prescribed:?}"
+        );
+        assert!(
+            (prescribed[1] - scenario[1] + 4.0).abs() < 1e-12,
+            "{prescribed:?}"
+        );
         for &kind in ControllerKind::ALL {
             assert!(built.start(kind).state != built.x0, "{}", kind.name());
             assert_eq!(engine.own_start(kind), built.start(kind), "{}", kind.name());
-            assert_eq!(calm.own_start(kind), built.start(kind), "{}", kind.name());
+            let on_prescribed = law_start(&other.cfg, kind, &built.x0, &|z| {
+                crate::integrate::start_wind(other.realisation.wind(), z)
+            });
+            assert!(on_prescribed != *built.start(kind), "{}", kind.name());
+            assert_eq!(other.own_start(kind), built.start(kind), "{}", kind.name());
         }
     }
 
