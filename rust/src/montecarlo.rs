@@ -269,29 +269,18 @@ pub fn run_innovations(
                     return false;
                 }
                 // Pad the last lane-set by repeating its final row.
-                let mine: Vec<&[f64]> = (0..lanes)
-                    .map(|l| rows[(set * lanes + l).min(n - 1)])
-                    .collect();
+                let set_rows: Vec<usize> =
+                    (0..lanes).map(|l| (set * lanes + l).min(n - 1)).collect();
+                let mine: Vec<&[f64]> = set_rows.iter().map(|&j| rows[j]).collect();
                 let indices: Vec<u64> = (0..lanes as u64).collect();
-                // A dispersed scenario: each lane's realisation of its row's values, with the
-                // scenario's gust filters unless a gust key is dispersed.
-                let realisations: Option<Vec<Realisation>> = dispersion.map(|d| {
-                    let wind = (!d.touches_wind()).then_some(&e.realisation);
-                    (0..lanes)
-                        .map(|l| {
-                            let j = (set * lanes + l).min(n - 1);
-                            let cfg = d.patched(j, 0).expect("checked by the caller");
-                            Realisation::for_laws(&cfg, wind, &[kind])
-                                .expect("checked by the caller")
-                        })
-                        .collect()
-                });
-                if let Some(r) = &realisations {
-                    let rows = (0..lanes).map(|l| (set * lanes + l).min(n - 1) as u64);
-                    if refusal.check(r, rows, &[kind], cancel) {
-                        return false;
-                    }
-                }
+                let realisations = match dispersion {
+                    Some(d) => match dispersed_set(e, d, &set_rows, 0, &[kind], (&refusal, cancel))
+                    {
+                        Some(r) => Some(r),
+                        None => return false,
+                    },
+                    None => None,
+                };
                 let lane_realisations: Option<Vec<&Realisation>> =
                     realisations.as_ref().map(|c| c.iter().collect());
                 let req = FlightRequest {
@@ -347,22 +336,44 @@ fn lane_set(
             None => first + j as u64,
         })
         .collect();
-    let realisations: Option<Vec<Realisation>> = batch.dispersion.map(|d| {
-        let wind = (!d.touches_wind()).then_some(&engine.realisation);
-        rows.iter()
-            .map(|&j| {
-                let cfg = d.patched(j, first).expect("checked by Batch::check");
-                Realisation::for_laws(&cfg, wind, batch.kinds).expect("checked by Batch::check")
-            })
-            .collect()
-    });
-    if let Some(r) = &realisations {
-        let index = rows.iter().map(|&j| first + j as u64);
-        if refusal.check(r, index, batch.kinds, cancel) {
-            return None;
-        }
-    }
+    let realisations = match batch.dispersion {
+        Some(d) => Some(dispersed_set(
+            engine,
+            d,
+            &rows,
+            first,
+            batch.kinds,
+            (refusal, cancel),
+        )?),
+        None => None,
+    };
     Some((indices, realisations))
+}
+
+/// Each lane's realisation of rows `rows` of the dispersion `d` (realisations `first + j`):
+/// its own vehicle, with the scenario's gust filters unless a gust key is dispersed, and the
+/// starts of the laws `kinds`. `None` where a lane's law has no start at its reference
+/// (`Refusal` keeps the lowest such realisation to name).
+fn dispersed_set(
+    engine: &Engine,
+    d: &Dispersion,
+    rows: &[usize],
+    first: u64,
+    kinds: &[ControllerKind],
+    (refusal, cancel): (&Refusal, &AtomicBool),
+) -> Option<Vec<Realisation>> {
+    let wind = (!d.touches_wind()).then_some(&engine.realisation);
+    let set: Vec<Realisation> = rows
+        .iter()
+        .map(|&j| {
+            let cfg = d
+                .patched(j, first)
+                .expect("every row is checked before the batch");
+            Realisation::for_laws(&cfg, wind, kinds).expect("every row is checked before the batch")
+        })
+        .collect();
+    let index = rows.iter().map(|&j| first + j as u64);
+    (!refusal.check(&set, index, kinds, cancel)).then_some(set)
 }
 
 /// Fly `batch` (checked with `Batch::check`). `progress` counts finished realisations; setting
