@@ -264,36 +264,40 @@ def _fly(
         disable=not shows_progress(progress),
     )
     interrupted = False
-    try:
-        chunks: Generator[Chunk, None, None]
-        if client is None:
-            chunks = _local_chunks(scenario, controllers, seed, ranges, workers, spectra, design,
-                                   bar, fused)  # fmt: skip
-        else:
-            from quadrs.runs.distributed import run_on_dask
-
-            chunks = run_on_dask(client, scenario, controllers, seed, ranges, spectra, design,
-                                 fused)  # fmt: skip
+    # Flown here, the batch holds Ctrl-C and SIGTERM from its first chunk to its last flush: a
+    # signal cancels the engine call under way (run_cancellable's own handler) or, between
+    # calls, stops the batch after the chunk in hand; it is never raised between a chunk's
+    # flights and its landing in `pending`, where it would drop them. On Dask the wait for a
+    # chunk is the client's, and a signal raises into it.
+    holding: contextlib.AbstractContextManager[list[int]] = (
+        deferred_signals(deliver=False) if client is None else contextlib.nullcontext([])
+    )
+    with holding as signalled:
         try:
-            for done in chunks:
-                pending.append(done)
-                flush()
-                if client is not None:
-                    bar.update(done.count)
-                if done.interrupted or interrupted:  # (a signal held while saving it)
-                    interrupted = True
-                    break
+            chunks = _chunks(scenario, controllers, seed, ranges, workers, spectra, design, bar,
+                             fused, client)  # fmt: skip
+            try:
+                for done in chunks:
+                    pending.append(done)
+                    flush()
+                    if client is not None:
+                        bar.update(done.count)
+                    # (a signal held while it was flown, assembled or saved)
+                    if done.interrupted or interrupted or signalled:
+                        interrupted = True
+                        break
+            finally:
+                chunks.close()
+        except KeyboardInterrupt:
+            # Waiting for Dask (flown here, no KeyboardInterrupt is raised in the batch).
+            interrupted = True
         finally:
-            chunks.close()
-    except KeyboardInterrupt:
-        # Between chunks (inside one, run_range already turned Ctrl-C into a cancel).
-        interrupted = True
-    finally:
-        # Closing the bar draws on the terminal: a Ctrl-C meanwhile must not skip the flush.
-        with deferred_signals(deliver=False) as closing:
-            bar.close()
-            flush()
-        interrupted = interrupted or bool(closing)
+            # Closing the bar draws on the terminal: a Ctrl-C meanwhile must not skip the flush.
+            with deferred_signals(deliver=False) as closing:
+                bar.close()
+                flush()
+            interrupted = interrupted or bool(closing)
+    interrupted = interrupted or bool(signalled)
     # What finished is assembled whatever arrives meanwhile: a signal now only marks the
     # batch interrupted (the command line then saves it and exits 130).
     with deferred_signals(deliver=False) as held:
@@ -311,19 +315,53 @@ def _fly(
             )
         if store is not None:
             return MonteCarloResult.from_store(store, interrupted or bool(held))
-        frames = [part.runs for part in parts]
-        if not frames:
-            table = empty_runs(scenario)
-        elif len(frames) == 1:
-            table = frames[0]
-        else:
-            table = pd.concat(frames, ignore_index=True)
-            table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
-        # Summed in realisation order, not arrival order (Dask): the same run gives the same bits.
-        ordered = sorted(parts, key=lambda part: part.first)
-        sums = [part.spectra for part in ordered if part.spectra is not None]
-        return _result(scenario, seed, controllers, table, sums, interrupted or bool(held),
-                       sampling, arithmetic)  # fmt: skip
+        return _in_memory(scenario, seed, controllers, parts, interrupted or bool(held),
+                          sampling, arithmetic)  # fmt: skip
+
+
+def _chunks(
+    scenario: Scenario,
+    controllers: tuple[str, ...],
+    seed: int,
+    ranges: Sequence[tuple[int, int]],
+    workers: int,
+    spectra: bool,
+    design: Design,
+    bar: Any,
+    fused: bool,
+    client: Client | None,
+) -> Generator[Chunk, None, None]:
+    """The batch's chunks as they finish: flown here (:func:`_local_chunks`), or on Dask."""
+    if client is None:
+        return _local_chunks(scenario, controllers, seed, ranges, workers, spectra, design, bar,
+                             fused)  # fmt: skip
+    from quadrs.runs.distributed import run_on_dask
+
+    return run_on_dask(client, scenario, controllers, seed, ranges, spectra, design, fused)
+
+
+def _in_memory(
+    scenario: Scenario,
+    seed: int,
+    controllers: tuple[str, ...],
+    parts: list[Chunk],
+    interrupted: bool,
+    sampling: str,
+    arithmetic: str,
+) -> MonteCarloResult:
+    """The result of the chunks ``parts`` kept in memory: their rows in realisation order."""
+    frames = [part.runs for part in parts]
+    if not frames:
+        table = empty_runs(scenario)
+    elif len(frames) == 1:
+        table = frames[0]
+    else:
+        table = pd.concat(frames, ignore_index=True)
+        table = table.sort_values("realisation", kind="stable").reset_index(drop=True)
+    # Summed in realisation order, not arrival order (Dask): the same run gives the same bits.
+    ordered = sorted(parts, key=lambda part: part.first)
+    sums = [part.spectra for part in ordered if part.spectra is not None]
+    return _result(scenario, seed, controllers, table, sums, interrupted, sampling, arithmetic)
 
 
 def _result(
