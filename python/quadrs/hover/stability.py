@@ -114,6 +114,26 @@ def warn_before_running(
     for message in (step_size_warning(scenario, reports), contact_step_warning(scenario)):
         if message:
             warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
+    untrimmed = start_warning(scenario)
+    if untrimmed:
+        warnings.warn(untrimmed, StabilityWarning, stacklevel=stacklevel + 1)
+
+
+def start_warning(scenario: Scenario) -> str:
+    """Why the flights do not start trimmed in their wind ("" if they do): with
+    ``initial.trim = "wind"``, a vehicle that cannot hover in the start's steady wind (no tilt
+    within its thrust balances the drag) starts level at rest instead, and the wind carries
+    it off (docs/model.md, "The start"): its flights measure that, not the route."""
+    engine = scenario.engine
+    if engine.start_balanced:
+        return ""
+    speed = math.hypot(*engine.start_wind)
+    z = float(scenario["initial.position"][2])
+    return (
+        f"the vehicle cannot hover in the start's wind ({speed:.3g} m/s at initial.position[2] "
+        f"= {z:g} m): no tilt within its thrust balances the drag, so it starts level at rest "
+        "and the wind carries it off; its flights measure that, not the route"
+    )
 
 
 #: m/s, the engine's friction regularisation speed (rust/src/model/payload/cable.rs

@@ -37,6 +37,27 @@ impl CompiledEngine {
         self.engine.steps
     }
 
+    /// Whether the start balances its steady wind (`initial.trim = "wind"`): false where the
+    /// vehicle cannot hover in that wind and starts level at rest instead (docs/model.md,
+    /// "The start").
+    #[getter]
+    fn start_balanced(&self) -> bool {
+        self.engine.realisation.balanced
+    }
+
+    /// m/s, the steady wind at the start (world axes) that the start is trimmed in: zeros
+    /// with `initial.trim = "rest"`.
+    #[getter]
+    fn start_wind(&self) -> [f64; 3] {
+        let e = &self.engine;
+        match e.cfg.initial.trim {
+            crate::scenario::Trim::Wind => {
+                crate::integrate::start_wind(e.realisation.wind(), e.cfg.initial.position[2])
+            }
+            crate::scenario::Trim::Rest => [0.0; 3],
+        }
+    }
+
     /// Integration steps between the updates of `controller`'s position, attitude and inner
     /// loops (1: every step; docs/model.md, "Loop rates").
     fn loop_steps(&self, controller: &str) -> PyResult<[usize; 3]> {

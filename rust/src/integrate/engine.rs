@@ -9,7 +9,7 @@ use crate::gust::{Kinematics, WindField};
 use crate::lane::isa::Isa;
 use crate::metrics::{LawLimits, N_METRICS};
 use crate::model::{
-    dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, State, StateVar, VehicleVisitor,
+    dispatch, state_vars, Actuator, AnyVehicle, BodyKind, Payload, StateVar, VehicleVisitor,
 };
 use crate::navigation::{NavigationParams, NAVIGATION_COLUMNS};
 use crate::scenario::{Config, ConfigError, Trim};
@@ -31,6 +31,9 @@ pub struct Realisation {
     /// The initial state (the layout's order): the plant's trim (or rest), the cross-track
     /// line's start and where a retired lane is parked.
     pub x0: Vec<f64>,
+    /// Whether `x0` balances the start's steady wind: false where `initial.trim = "wind"`
+    /// finds no trim (the vehicle cannot hover in that wind) and it starts at rest instead.
+    pub balanced: bool,
     /// Each law's start (`ControllerKind::ALL`'s order): its closed-loop equilibrium in the
     /// start's steady wind (`crate::start`), solved when the realisation is built for the laws
     /// it flies (`Realisation::for_laws`), or for the engine's own on first use
@@ -75,7 +78,7 @@ impl Realisation {
             Some(c) => c.wind.clone(),
             None => WindField::new(&cfg.wind_context())?,
         };
-        let x0 = initial_state(&vehicle, cfg, &wind)?;
+        let (x0, balanced) = initial_state(&vehicle, cfg, &wind)?;
         let d = &cfg.divergence;
         let realisation = Self {
             vehicle,
@@ -86,6 +89,7 @@ impl Realisation {
             laws: Laws::new(&cfg.control_context()),
             wind,
             x0,
+            balanced,
             limits: [d.max_distance, d.max_tilt, d.max_speed, d.max_rate],
             floor: cfg.ground.floor(),
             law_limits: LawLimits::of(&cfg.controller),
@@ -129,23 +133,25 @@ impl Realisation {
 /// trimmed in the steady wind `wind` blows at the start (`start_wind`), with `"rest"` (or in
 /// still air) at rest, payload and actuators at hover. A vehicle that cannot hover in the
 /// start's wind (no trim exists: too much drag, too little thrust) starts at rest too, and its
-/// flight shows what the wind does to it (it is flown and flagged, as any other).
+/// flight shows what the wind does to it (it is flown and flagged, as any other). Returns the
+/// state and whether it balances the start's wind (false only for that vehicle:
+/// `Realisation::balanced`).
 pub fn initial_state(
     parts: &AnyVehicle,
     cfg: &Config,
     wind: &WindField,
-) -> Result<Vec<f64>, ConfigError> {
+) -> Result<(Vec<f64>, bool), ConfigError> {
     struct Start<'a>(&'a AnyVehicle, &'a Config, [f64; 3]);
     impl VehicleVisitor for Start<'_> {
-        type Output = Vec<f64>;
+        type Output = (Vec<f64>, bool);
         fn visit<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize>(self) -> Self::Output {
             let Start(parts, cfg, w) = self;
             let i = &cfg.initial;
             let v = parts.vehicle_on::<B, Pay, Act>();
-            let s: State<f64, N> = v
-                .trim_state(i.position, i.attitude, w)
-                .unwrap_or_else(|_| v.rest_state(i.position, i.attitude));
-            s.to_vec()
+            match v.trim_state::<N>(i.position, i.attitude, w) {
+                Ok(s) => (s.to_vec(), true),
+                Err(_) => (v.rest_state::<N>(i.position, i.attitude).to_vec(), false),
+            }
         }
     }
     let w = match cfg.initial.trim {

@@ -214,14 +214,16 @@ mod tests {
         let rest: State<f64, NX> = parts
             .vehicle::<Cable, Rotors>()
             .rest_state(i.position, i.attitude);
-        let trimmed =
+        let (trimmed, balanced) =
             initial_state(&parts, &cfg, &WindField::new(&cfg.wind_context()).unwrap()).unwrap();
         assert_ne!(trimmed, rest.to_vec()); // the preset's 5 m/s breeze tilts it
+        assert!(balanced);
         cfg.vehicle.lateral_drag_area = 1e155;
         let parts = AnyVehicle::new(&cfg.model_context());
-        let start =
+        let (start, balanced) =
             initial_state(&parts, &cfg, &WindField::new(&cfg.wind_context()).unwrap()).unwrap();
         assert_eq!(start, rest.to_vec());
+        assert!(!balanced);
     }
 
     #[test]
