@@ -30,6 +30,7 @@ if TYPE_CHECKING:  # what mypy and editors see: the same names, imported eagerly
         StabilityNote,
         StabilityReport,
         StabilityWarning,
+        StartWarning,
         StepSizeWarning,
         stability,
     )
@@ -56,6 +57,7 @@ _WHERE = {
     "StabilityNote": "quadrs.hover.stability",
     "StabilityReport": "quadrs.hover.stability",
     "StabilityWarning": "quadrs.hover.stability",
+    "StartWarning": "quadrs.hover.stability",
     "StepSizeWarning": "quadrs.hover.stability",
     "stability": "quadrs.hover.stability",
     "RareEventComparison": "quadrs.rare",
@@ -98,6 +100,7 @@ __all__ = [
     "StabilityNote",
     "StabilityReport",
     "StabilityWarning",
+    "StartWarning",
     "StepSizeWarning",
     "SweepResult",
     "__version__",

@@ -113,12 +113,12 @@ def test_each_law_starts_still_in_a_steady_wind_or_is_refused(speed: float) -> N
     sc = quadrs.Scenario.preset("delivery").override(
         {**HOVER, "wind.speed": speed, "dispersions": {}}
     )
-    # No hover in the wind is said before the flight, loudly (a StabilityWarning).
+    # No hover in the wind is said before the flight (a StartWarning).
     assert sc.engine.start_balanced == (speed <= 16.0), speed
     said = "cannot hover in the start's wind"
 
     def warned() -> contextlib.AbstractContextManager[object]:
-        return pytest.warns(quadrs.StabilityWarning, match=said) if speed > 16.0 else (
+        return pytest.warns(quadrs.StartWarning, match=said) if speed > 16.0 else (
             contextlib.nullcontext())  # fmt: skip
 
     for law in ("pd", "smc", "px4", "se3"):

@@ -32,6 +32,12 @@ class StabilityNote(StabilityWarning):
     states stay exactly zero, so the flight is unaffected (a note, not an alarm)."""
 
 
+class StartWarning(UserWarning):
+    """The flights cannot start trimmed in their wind: the vehicle cannot hover in the start's
+    steady wind, so it starts level at rest and the wind carries it off (issued before
+    running)."""
+
+
 class StepSizeWarning(UserWarning):
     """``integrator.dt`` is too large for the fastest closed-loop mode (issued before running)."""
 
@@ -116,7 +122,7 @@ def warn_before_running(
             warnings.warn(message, StepSizeWarning, stacklevel=stacklevel + 1)
     untrimmed = start_warning(scenario)
     if untrimmed:
-        warnings.warn(untrimmed, StabilityWarning, stacklevel=stacklevel + 1)
+        warnings.warn(untrimmed, StartWarning, stacklevel=stacklevel + 1)
 
 
 def start_warning(scenario: Scenario) -> str:
@@ -130,9 +136,8 @@ def start_warning(scenario: Scenario) -> str:
     speed = math.hypot(*engine.start_wind)
     z = float(scenario["initial.position"][2])
     return (
-        f"the vehicle cannot hover in the start's wind ({speed:.3g} m/s at initial.position[2] "
-        f"= {z:g} m): no tilt within its thrust balances the drag, so it starts level at rest "
-        "and the wind carries it off; its flights measure that, not the route"
+        f"the vehicle cannot hover in the start's wind ({speed:.3g} m/s at {z:g} m): it starts "
+        "level at rest and the wind carries it off; the flights measure that, not the route"
     )
 
 
