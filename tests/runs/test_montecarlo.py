@@ -5,7 +5,6 @@ import os
 import signal
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -279,39 +278,6 @@ def test_a_signal_between_a_chunks_flights_and_its_landing_keeps_it(
     assert result.interrupted
     assert sorted(result.runs["realisation"].unique()) == [0, 1, 2, 3]
     pd.testing.assert_frame_equal(result.runs, whole.runs)
-
-
-@pytest.mark.parametrize("saved", [False, True])
-def test_a_signal_before_a_chunks_engine_call_cancels_it(
-    short: Scenario, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, saved: bool
-) -> None:
-    """A Ctrl-C held by the batch between its engine calls (here while the second chunk is
-    set up, before its call starts) cancels that call at its start: the batch keeps the first
-    chunk and stops, rather than flying one more chunk before it looks (the batch held the
-    signal, so the call's own handler never saw it)."""
-    import quadrs.runs.chunk as chunk
-
-    whole = quadrs.monte_carlo(short, runs=4, workers=1, progress=False)
-    identity = chunk.batch_identity
-    calls = []
-
-    def identity_then_signal(*args: object, **kwargs: object) -> str:
-        calls.append(1)
-        if len(calls) == 2:  # the second chunk, before its flights
-            signal.raise_signal(signal.SIGINT)
-        return identity(*args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(chunk, "batch_identity", identity_then_signal)
-    out = tmp_path / "run" if saved else None
-    with pytest.warns(RuntimeWarning, match="interrupted"):
-        result = quadrs.monte_carlo(short, runs=12, chunk=4, workers=1, progress=False, out=out)
-    assert result.interrupted and len(calls) == 2
-    pd.testing.assert_frame_equal(result.runs, whole.runs)
-    if saved:  # the checkpoint holds the first chunk, and resuming flies the rest
-        resumed = quadrs.monte_carlo(short, runs=12, workers=1, progress=False, out=out,
-                                     resume=True)  # fmt: skip
-        fresh = quadrs.monte_carlo(short, runs=12, workers=1, progress=False)
-        pd.testing.assert_frame_equal(resumed.runs, fresh.runs)
 
 
 @pytest.mark.parametrize(

@@ -32,17 +32,11 @@ CONTROLLERS: tuple[str, ...] = tuple(_core.CONTROLLER_NAMES)
 PAPER_CONTROLLERS: tuple[str, ...] = ("pd", "smc")
 #: Signals held back while finished work is kept (Ctrl-C and what the CLI treats like it).
 _DEFERRED = (signal.SIGINT, signal.SIGTERM)
-#: The signals held so far by each enclosing `deferred_signals(cancels_calls=True)` block (a
-#: batch between its engine calls), outermost first: a call started inside one that has held
-#: a signal is cancelled at once.
-_STOPPING: list[list[int]] = []
 
 
 @contextlib.contextmanager
 def deferred_signals(
-    deliver: bool = True,
-    on_signal: Callable[[int], None] | None = None,
-    cancels_calls: bool = False,
+    deliver: bool = True, on_signal: Callable[[int], None] | None = None
 ) -> Iterator[list[int]]:
     """Hold Ctrl-C and SIGTERM back for the duration of the block (only on the main thread,
     where Python runs signal handlers; elsewhere a no-op), calling ``on_signal(signum)`` as
@@ -51,9 +45,7 @@ def deferred_signals(
     caller acts on the list instead (marks the work interrupted): the handler still runs, so
     it can note the signal (the command line's exit status for SIGTERM), but the
     KeyboardInterrupt it raises is dropped. No KeyboardInterrupt is ever raised inside the
-    block: one raised inside a lock or an Event's wait can leave it broken. With
-    ``cancels_calls``, an engine call (:func:`run_cancellable`) started in the block after it
-    has held a signal is cancelled at once (a batch stops between its calls)."""
+    block: one raised inside a lock or an Event's wait can leave it broken."""
     caught: list[int] = []
     if threading.current_thread() is not threading.main_thread():
         yield caught
@@ -72,13 +64,9 @@ def deferred_signals(
             previous[sig] = signal.signal(sig, hold)
         except (ValueError, OSError):  # not installable here
             pass
-    if cancels_calls:
-        _STOPPING.append(caught)
     try:
         yield caught
     finally:
-        if cancels_calls:  # (by identity: the lists compare by their contents)
-            del _STOPPING[next(i for i, c in enumerate(_STOPPING) if c is caught)]
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         for signum, frame in zip(caught[:1], frames[:1], strict=True):
@@ -212,11 +200,8 @@ def run_cancellable(
     thread = threading.Thread(target=run, name="quadrs-engine", daemon=True)
     # Ctrl-C (and SIGTERM) cancel the engine from the handler itself: no KeyboardInterrupt is
     # raised into this wait, where a second one could break the Event's lock.
-    held_before = any(_STOPPING)  # by an enclosing batch, between its calls
     try:
         with deferred_signals(deliver=False, on_signal=lambda _: progress.cancel()) as caught:
-            if held_before:
-                progress.cancel()  # the work returns at once, with nothing done
             thread.start()
             while not finished.wait(POLL_SECONDS):
                 if on_poll is not None:
@@ -227,7 +212,7 @@ def run_cancellable(
     except BaseException:
         cancel_and_wait()
         raise
-    interrupted = bool(caught) or held_before
+    interrupted = bool(caught)
     if "error" in box:
         raise box["error"]
     if "out" not in box:  # interrupted before the work began

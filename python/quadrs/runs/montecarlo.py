@@ -266,13 +266,11 @@ def _fly(
     interrupted = False
     # Flown here, the batch holds Ctrl-C and SIGTERM from its first chunk to its last flush: a
     # signal cancels the engine call under way (run_cancellable's own handler) or, between
-    # calls, the next call at its start, and the batch stops after the chunk in hand; it is
-    # never raised between a chunk's flights and its landing in `pending`, where it would drop
-    # them. On Dask the wait for a chunk is the client's, and a signal raises into it.
+    # calls, stops the batch after the chunk in hand; it is never raised between a chunk's
+    # flights and its landing in `pending`, where it would drop them. On Dask the wait for a
+    # chunk is the client's, and a signal raises into it.
     holding: contextlib.AbstractContextManager[list[int]] = (
-        deferred_signals(deliver=False, cancels_calls=True)
-        if client is None
-        else contextlib.nullcontext([])
+        deferred_signals(deliver=False) if client is None else contextlib.nullcontext([])
     )
     with holding as signalled:
         try:
