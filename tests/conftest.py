@@ -4,8 +4,10 @@ scripts/test.sh runs one per core)."""
 
 import fcntl
 import os
+import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -75,6 +77,28 @@ FOURTH_ROUND_DELIVERY_VEHICLE = {
 # of the "delivery-drop" case (tests/data/rare_brute_force.json) was computed for, which
 # benches/rare_cases.py flies and tests/rare/test_against_brute_force.py checks against.
 FOURTH_ROUND_DELIVERY_DROP = {**FOURTH_ROUND_DELIVERY_VEHICLE, **DELIVERY_DROP}
+
+
+#: Where each test starts: Ctrl-C and SIGTERM as a terminal's process has them (a suite run
+#: from a script's background job, or under nohup, starts with them ignored, and the tests of
+#: a Ctrl-C would then test an ignored signal).
+_SIGNALS_AT_START = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+
+
+@pytest.fixture(autouse=True)
+def signals_as_from_a_terminal(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Each test starts with Ctrl-C and SIGTERM at their defaults and must leave them so: a
+    handler left installed (a signal hold not undone) fails the test that left it, not a later
+    test of Ctrl-C in the same worker."""
+    before = {sig: signal.signal(sig, handler) for sig, handler in _SIGNALS_AT_START.items()}
+    yield
+    left = {sig: signal.getsignal(sig) for sig in _SIGNALS_AT_START}
+    for sig, handler in before.items():
+        signal.signal(sig, handler)
+    changed = {
+        signal.Signals(sig).name: h for sig, h in left.items() if h != _SIGNALS_AT_START[sig]
+    }
+    assert not changed, f"{request.node.nodeid} left signal handlers installed: {changed}"
 
 
 @pytest.fixture(scope="session")

@@ -270,6 +270,42 @@ def test_sigterm_saves_what_finished(tmp_path: Path) -> None:
     assert not [p for p in tmp_path.rglob(".*") if p.is_file()], "no temporary file left"
 
 
+def test_signals_the_process_ignores_stay_ignored(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """Started with Ctrl-C and SIGTERM ignored (``nohup``, a script's background job), a batch
+    neither holds nor obeys them: both arriving while it flies leave it to finish, whole, with
+    status 0, and the two still ignored after it."""
+    import quadrs.runs.montecarlo as mc
+
+    fly = mc.fly_chunk
+
+    def fly_then_signal(*args: object, **kwargs: object) -> object:
+        chunk = fly(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGTERM)
+        return chunk
+
+    monkeypatch.setattr(mc, "fly_chunk", fly_then_signal)
+    out = tmp_path / "runs.parquet"
+    ignored = (signal.SIGINT, signal.SIGTERM)
+    before = {sig: signal.signal(sig, signal.SIG_IGN) for sig in ignored}
+    try:
+        code, _, err = run_cli("mc", "--runs", "6", "--chunk", "2", "--workers", "1",
+                               "--controllers", "pd", "--no-progress", "--set",
+                               "integrator.duration=2", "--set", "integrator.dt=0.01", "--set",
+                               'phases=[{name="a", start=0.0, end=2.0}]', "--out", str(out),
+                               capsys=capsys)  # fmt: skip
+        still = [signal.getsignal(sig) for sig in ignored]
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+    assert code == 0 and "interrupted" not in err, err
+    assert still == [signal.SIG_IGN, signal.SIG_IGN]
+    saved = MonteCarloResult.read_parquet(out)
+    assert not saved.interrupted and len(saved.realisations) == 6
+
+
 def test_ctrl_c_during_a_write_is_delivered_after_it(tmp_path: Path) -> None:
     from quadrs.io.files import atomic_write
 

@@ -229,11 +229,15 @@ def _run(args: argparse.Namespace, prog: str, terminated: list[int]) -> int:
 @contextlib.contextmanager
 def _sigterm_as_interrupt(terminated: list[int]) -> Iterator[None]:
     """SIGTERM handled like Ctrl-C (cancel, save what finished), noted in ``terminated`` so
-    that the exit status is 143. Only on the main thread; the old handler is restored."""
+    that the exit status is 143. Only on the main thread, and not where SIGTERM is ignored; the
+    old handler is restored."""
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread():
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+    ):
         yield
         return
 

@@ -45,7 +45,9 @@ def deferred_signals(
     caller acts on the list instead (marks the work interrupted): the handler still runs, so
     it can note the signal (the command line's exit status for SIGTERM), but the
     KeyboardInterrupt it raises is dropped. No KeyboardInterrupt is ever raised inside the
-    block: one raised inside a lock or an Event's wait can leave it broken."""
+    block: one raised inside a lock or an Event's wait can leave it broken. A signal the
+    process ignores (``nohup``, a shell's background job) stays ignored: it is not held, so
+    it neither cancels nor interrupts anything."""
     caught: list[int] = []
     if threading.current_thread() is not threading.main_thread():
         yield caught
@@ -60,6 +62,8 @@ def deferred_signals(
             on_signal(signum)
 
     for sig in _DEFERRED:
+        if signal.getsignal(sig) == signal.SIG_IGN:
+            continue
         try:
             previous[sig] = signal.signal(sig, hold)
         except (ValueError, OSError):  # not installable here
