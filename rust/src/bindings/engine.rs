@@ -50,12 +50,7 @@ impl CompiledEngine {
     #[getter]
     fn start_wind(&self) -> [f64; 3] {
         let e = &self.engine;
-        match e.cfg.initial.trim {
-            crate::scenario::Trim::Wind => {
-                crate::integrate::start_wind(e.realisation.wind(), e.cfg.initial.position[2])
-            }
-            crate::scenario::Trim::Rest => [0.0; 3],
-        }
+        crate::integrate::trim_wind(&e.cfg, e.realisation.wind(), e.cfg.initial.position[2])
     }
 
     /// Integration steps between the updates of `controller`'s position, attitude and inner

@@ -105,13 +105,8 @@ impl Realisation {
     /// Law `kind`'s start in this realisation of `cfg` (the config it was built from), solved
     /// on first use.
     fn start_of(&self, cfg: &Config, kind: ControllerKind) -> &LawStart {
-        self.starts[kind as usize].get_or_init(|| {
-            let wind_at = |z| match cfg.initial.trim {
-                Trim::Wind => start_wind(&self.wind, z),
-                Trim::Rest => [0.0; 3],
-            };
-            law_start(cfg, kind, &self.x0, &wind_at)
-        })
+        self.starts[kind as usize]
+            .get_or_init(|| law_start(cfg, kind, &self.x0, &|z| trim_wind(cfg, &self.wind, z)))
     }
 }
 
@@ -154,16 +149,23 @@ pub fn initial_state(
             }
         }
     }
-    let w = match cfg.initial.trim {
-        Trim::Wind => start_wind(wind, cfg.initial.position[2]),
-        Trim::Rest => [0.0; 3],
-    };
+    let w = trim_wind(cfg, wind, cfg.initial.position[2]);
     Ok(dispatch(
         cfg.vehicle.body,
         cfg.payload.model,
         cfg.actuator.model,
         Start(parts, cfg, w),
     ))
+}
+
+/// m/s, the wind a start of `cfg` at altitude `z` is trimmed in: `start_wind` with
+/// `initial.trim = "wind"`, none with `"rest"`. The one rule for the state at the start, each
+/// law's closed-loop start and what the engine reports.
+pub fn trim_wind(cfg: &Config, wind: &WindField, z: f64) -> [f64; 3] {
+    match cfg.initial.trim {
+        Trim::Wind => start_wind(wind, z),
+        Trim::Rest => [0.0; 3],
+    }
 }
 
 /// m/s, the steady wind at the start, at altitude `z0`: every deterministic source at step 0

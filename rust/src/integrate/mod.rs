@@ -25,7 +25,7 @@ mod trace;
 
 pub use crate::rk4::{rk4_advance, rk4_step};
 pub use engine::{
-    initial_state, start_wind, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES,
+    initial_state, start_wind, trim_wind, Engine, FlightRequest, LaneResult, Realisation, MAX_LANES,
 };
 pub use entry::LoopEntry;
 pub use status::ExitStatus;
