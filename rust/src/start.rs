@@ -503,6 +503,26 @@ mod tests {
         }
     }
 
+    /// Where the vehicle cannot hover in the start's wind (24 m/s at 20 ft: no plant trim; a
+    /// parcel of a picogram on a line whose stiffness its mass sets, 10 Hz, blown out on a
+    /// line of no stiffness) every law starts at the plant's rest start, the SMC too (before: refused,
+    /// its message blaming its integral's limit for what is no hover at all).
+    #[test]
+    fn with_no_hover_in_the_wind_every_law_starts_at_rest() {
+        let (gale, _) = windy_at(24.0);
+        let mut v = delivery_value();
+        v["gust"]["enabled"] = false.into();
+        v["payload"]["mass"] = 1e-12.into();
+        let feather = Config::from_json(&v.to_string()).expect("valid");
+        for cfg in [gale, feather] {
+            let r = crate::integrate::Realisation::new(&cfg).unwrap();
+            assert!(!r.balanced);
+            for &kind in ControllerKind::ALL {
+                assert_eq!(r.start(kind), &LawStart::plant(&r.x0), "{}", kind.name());
+            }
+        }
+    }
+
     /// In still air every law starts at the plant's start, bit for bit (the paper's presets).
     #[test]
     fn still_air_starts_at_the_plant_start() {

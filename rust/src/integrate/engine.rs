@@ -103,10 +103,16 @@ impl Realisation {
     }
 
     /// Law `kind`'s start in this realisation of `cfg` (the config it was built from), solved
-    /// on first use.
+    /// on first use. Where the vehicle cannot hover in the start's wind (no plant trim: it
+    /// starts level at rest) there is no balance for any law to start near: each starts there,
+    /// flown and flagged as the plant's start is, none refused for its own want of one.
     fn start_of(&self, cfg: &Config, kind: ControllerKind) -> &LawStart {
-        self.starts[kind as usize]
-            .get_or_init(|| law_start(cfg, kind, &self.x0, &|z| trim_wind(cfg, &self.wind, z)))
+        self.starts[kind as usize].get_or_init(|| {
+            if !self.balanced {
+                return LawStart::plant(&self.x0);
+            }
+            law_start(cfg, kind, &self.x0, &|z| trim_wind(cfg, &self.wind, z))
+        })
     }
 }
 
