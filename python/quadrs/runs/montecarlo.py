@@ -331,13 +331,19 @@ def _chunks(
     fused: bool,
     client: Client | None,
 ) -> Generator[Chunk, None, None]:
-    """The batch's chunks as they finish: flown here (:func:`_local_chunks`), or on Dask."""
-    if client is None:
-        return _local_chunks(scenario, controllers, seed, ranges, workers, spectra, design, bar,
-                             fused)  # fmt: skip
-    from quadrs.runs.distributed import run_on_dask
+    """The batch's chunks as they finish: on Dask, or flown here one after the other, moving
+    ``bar`` as realisations finish."""
+    if client is not None:
+        from quadrs.runs.distributed import run_on_dask
 
-    return run_on_dask(client, scenario, controllers, seed, ranges, spectra, design, fused)
+        return run_on_dask(client, scenario, controllers, seed, ranges, spectra, design, fused)
+
+    def advance(base: int) -> Callable[[int], None]:
+        return lambda done: bar.update(base + done - bar.n)
+
+    return (fly_chunk(scenario, controllers, seed, first, count, workers, spectra, design,
+                      on_progress=advance(bar.n), fused=fused)
+            for first, count in ranges)  # fmt: skip
 
 
 def _in_memory(
@@ -384,34 +390,3 @@ def _result(
         sampling=sampling,
         arithmetic=arithmetic,
     )
-
-
-def _local_chunks(
-    scenario: Scenario,
-    controllers: Sequence[str],
-    seed: int,
-    ranges: Sequence[tuple[int, int]],
-    workers: int,
-    spectra: bool,
-    design: Design,
-    bar: Any,
-    fused: bool = False,
-) -> Generator[Chunk, None, None]:
-    """The chunks flown here, one after the other, moving ``bar`` as realisations finish."""
-
-    def advance(base: int) -> Callable[[int], None]:
-        return lambda done: bar.update(base + done - bar.n)
-
-    for first, count in ranges:
-        yield fly_chunk(
-            scenario,
-            controllers,
-            seed,
-            first,
-            count,
-            workers,
-            spectra,
-            design,
-            on_progress=advance(bar.n),
-            fused=fused,
-        )
