@@ -141,7 +141,8 @@ fn integral_channels(cfg: &Config, kind: ControllerKind) -> Vec<crate::control::
 /// limit, where it no longer moves, and settle metres off the reference (issue 72: the SMC
 /// 3.5 m upwind at 8 m/s). If the pinned balance has no solution with the integrals within
 /// their limits, the law's equilibrium at the limit is the start, refused by name. A law whose
-/// offset equilibrium is not found is solved from the plant's trim.
+/// offset equilibrium is not found is solved from the plant's trim; where that finds no
+/// balance either, with no integral at its limit, `None` (the plant's start, unrefused).
 fn settle(
     b: &Balance,
     x0: Vec<f64>,
@@ -154,6 +155,7 @@ fn settle(
     if k == 0 {
         return states.map(|z| (z, None));
     }
+    let offset_found = states.is_some();
     let mut z = states.unwrap_or(x0);
     z.extend(std::iter::repeat_n(0.0, k));
     if !channels.is_empty() {
@@ -188,6 +190,12 @@ fn settle(
                     .filter(|(i, c)| last[b.n + i].abs() >= c.limit * AT_LIMIT)
                     .map(|(_, c)| c.axis)
                     .collect();
+                // No integral at its limit and not even the offset equilibrium found: nothing
+                // says the integral is what fails (a line damped at 1e155 N s/m defeats the
+                // solve for every law), so the law starts from the plant's, as the others do.
+                if beyond.is_empty() && !offset_found {
+                    return None;
+                }
                 (z, Some(beyond_limit(cfg, &beyond, wind)))
             }
         });
@@ -521,6 +529,25 @@ mod tests {
                 assert_eq!(r.start(kind), &LawStart::plant(&r.x0), "{}", kind.name());
             }
         }
+    }
+
+    /// A line damped at 1e155 N s/m (hostile input; the vehicle hovers) defeats Newton's
+    /// method for every law: no integral is at its limit and not even the SMC's offset
+    /// equilibrium is found, so nothing says its integral cannot hold the drag, and the SMC
+    /// starts from the plant's start unrefused, as the others do (before: refused, its message
+    /// blaming its integral and naming no payload key).
+    #[test]
+    fn a_balance_no_law_can_solve_refuses_none() {
+        let mut v = delivery_value();
+        v["gust"]["enabled"] = false.into();
+        v["payload"]["damping"] = 1e155.into();
+        let cfg = Config::from_json(&v.to_string()).expect("valid");
+        let r = crate::integrate::Realisation::new(&cfg).unwrap();
+        assert!(r.balanced);
+        for &kind in ControllerKind::ALL {
+            assert_eq!(r.start(kind).refused, None, "{}", kind.name());
+        }
+        assert_eq!(r.start(ControllerKind::Smc), &LawStart::plant(&r.x0));
     }
 
     /// In still air every law starts at the plant's start, bit for bit (the paper's presets).
