@@ -30,6 +30,9 @@ CONTROLLER_NAMES: list[str]
 #: Hz, each law's own loop rates (position, attitude, inner; 0: every step) where the
 #: scenario sets none.
 CONTROLLER_RATES: dict[str, list[float]]
+#: Steps of the longest period `stability` models a sampled law over (past it: the
+#: continuous law's model, and the report says so).
+MAX_PERIOD_STEPS: int
 #: Each law's name as a person reads it ("PD", "SE(3)"), in the order of CONTROLLER_NAMES.
 CONTROLLER_LABELS: list[str]
 #: The payload and actuator models a scenario may name (`payload.model`, `actuator.model`).
@@ -79,6 +82,7 @@ class StabilityResult(TypedDict):
     jacobian: _Floats
     tolerance: float
     period: float | None
+    unmodelled_period: float | None
 
 class LinearizeResult(TypedDict):
     """:func:`linearize`: the closed loop at hover as a state-space model."""

@@ -113,7 +113,18 @@ pub struct Analysis {
     /// s, where the law's loops run at rates: the period of the discrete-time model the poles
     /// are of (`ClosedLoop::sampled`); None: the continuous model's.
     pub period: Option<f64>,
+    /// s, the loops' common period where it is longer than `MAX_PERIOD_STEPS` steps: too long
+    /// to fly for the discrete-time model, so the poles are the continuous model's (the loops
+    /// taken as updating every instant). None where the poles model the loops as flown.
+    pub unmodelled_period: Option<f64>,
 }
+
+/// Steps of the longest period the discrete-time model of a sampled law is made over: its
+/// matrix flies that many steps twice per state (60 times for the delivery vehicle), about a
+/// second at this bound. Past it (a position loop at a fraction of a hertz; rates whose steps
+/// share no factor, whose common period is their product) the analysis would take minutes to
+/// forever, and the continuous model is analysed instead, saying so.
+pub const MAX_PERIOD_STEPS: usize = 20_000;
 
 /// Inputs of the linear model: the wind components (m/s, inertial, z up).
 pub const NU: usize = 3;
@@ -154,9 +165,14 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
     // (the monodromy matrix's eigenvalues z, as s = ln(z) / T); else the continuous model's.
     let sampled = cl.sampled();
     let (matrix, period) = match sampled {
-        Some((steps, dt)) => (period_map(&*cl, &equilibrium), Some(steps as f64 * dt)),
-        None => (jacobian.clone(), None),
+        Some((steps, dt)) if steps <= MAX_PERIOD_STEPS => {
+            (period_map(&*cl, &equilibrium), Some(steps as f64 * dt))
+        }
+        _ => (jacobian.clone(), None),
     };
+    let unmodelled_period = sampled
+        .filter(|&(steps, _)| steps > MAX_PERIOD_STEPS)
+        .map(|(steps, dt)| steps as f64 * dt);
     let mut poles = Vec::with_capacity(vars.len());
     for block in blocks(&matrix) {
         let has_actuator = block.iter().any(|&i| vars[i].part == Part::Actuator);
@@ -194,6 +210,7 @@ pub fn analyse(cfg: &Config, kind: ControllerKind) -> Analysis {
         verdict,
         lateral_sources: sources,
         period,
+        unmodelled_period,
     }
 }
 
@@ -644,6 +661,42 @@ mod tests {
                 "{mode}: coefficient {k}: {g} vs {want} (poles {roots:?})"
             );
         }
+    }
+
+    /// A sampled law whose loops' common period is past `MAX_PERIOD_STEPS` (a position loop
+    /// at 1e-300 Hz, its steps past usize; two loops whose 9973 and 9967 steps share no factor,
+    /// a common period of 99.4 M steps) is analysed by the continuous model, saying so, where
+    /// flying the period for the discrete-time model never ended; the longest it flies gives
+    /// the discrete-time model.
+    #[test]
+    fn a_period_too_long_to_fly_is_the_continuous_models() {
+        let dt = paper().integrator.dt;
+        let continuous = analyse(&paper(), ControllerKind::Pd);
+        let cases = [
+            (1e-300, 0.0, f64::MAX),
+            (
+                1.0 / (9973.0 * dt),
+                1.0 / (9967.0 * dt),
+                9973.0 * 9967.0 * dt,
+            ),
+        ];
+        for (position, attitude, period) in cases {
+            let mut cfg = paper();
+            cfg.controller.position_rate = Some(position);
+            cfg.controller.attitude_rate = Some(attitude);
+            let a = analyse(&cfg, ControllerKind::Pd);
+            assert_eq!(a.period, None);
+            let unmodelled = a.unmodelled_period.expect("said");
+            assert!(unmodelled >= period.min(usize::MAX as f64 * dt) * (1.0 - 1e-12));
+            assert_eq!(a.jacobian, continuous.jacobian);
+            assert_eq!(a.verdict, continuous.verdict);
+        }
+        let mut cfg = paper();
+        cfg.controller.position_rate = Some(1.0 / (MAX_PERIOD_STEPS as f64 * dt));
+        let a = analyse(&cfg, ControllerKind::Pd);
+        let longest = MAX_PERIOD_STEPS as f64 * dt;
+        assert!((a.period.expect("sampled") - longest).abs() < 1e-9 * longest);
+        assert_eq!(a.unmodelled_period, None);
     }
 
     #[test]

@@ -163,6 +163,23 @@ def test_a_position_loop_too_slow_for_the_hover_is_unstable_in_the_model_and_in_
     assert quadrs.stability(hover_offset(0.0), "pd").period is None
 
 
+def test_a_period_too_long_to_model_is_the_continuous_laws_and_says_so() -> None:
+    """A position loop at 1e-300 Hz (its period past any flight): the report is the continuous
+    law's and says why, where the analysis flew the period for ever (and `simulate`, which
+    analyses first, with it); the flight itself flies, its position loop updating once."""
+    s = hover_offset(1e-300)
+    report = quadrs.stability(s, "pd")
+    assert report.period is None and report.unmodelled_period is not None
+    assert report.unmodelled_period > quadrs._core.MAX_PERIOD_STEPS * 1e-3
+    assert "too long to model sampled" in str(report)
+    continuous = quadrs.stability(hover_offset(0.0), "pd")
+    np.testing.assert_array_equal(report.jacobian, continuous.jacobian)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        quadrs.simulate(s.override({"integrator.duration": 1.0, "phases": [
+            {"name": "P1", "start": 0.0, "end": 1.0}]}), "pd", record_every=100)  # fmt: skip
+
+
 def test_the_linear_model_says_it_is_the_continuous_laws() -> None:
     s = hover_offset(50.0)
     said = r"continuous law's; its loops run at 50, 1000, 1000 Hz"  # the 1 ms step's rate

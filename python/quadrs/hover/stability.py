@@ -212,6 +212,9 @@ class StabilityReport:
     equilibrium). ``period`` (s): where the law's loops run at rates (``controller.*_rate``),
     the poles are the discrete-time model's over one period of its schedule (each multiplier
     z as s = ln(z) / period), the holds and the sampling in them; None: the continuous law's.
+    ``unmodelled_period`` (s): the loops' common period where it is too long to fly for that
+    model (past ``quadrs._core.MAX_PERIOD_STEPS`` steps: a loop at a fraction of a hertz, or
+    rates whose steps share no factor); the poles are then the continuous law's, and say so.
     """
 
     controller: str
@@ -223,6 +226,7 @@ class StabilityReport:
     jacobian: np.ndarray = field(repr=False)
     residual: float = field(default=0.0, repr=False)
     period: float | None = field(default=None, repr=False)
+    unmodelled_period: float | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         """One line: the verdict and the least stable pole (``print`` gives the modes)."""
@@ -257,6 +261,9 @@ class StabilityReport:
             name += " (no hover equilibrium: linearised at the reference point)"
         if self.period is not None:
             name += f" (sampled: the discrete-time model over {self.period * 1e3:g} ms)"
+        if self.unmodelled_period is not None:
+            name += (f" (the continuous law's model: its loops' common period, "
+                     f"{self.unmodelled_period:.4g} s, is too long to model sampled)")  # fmt: skip
         if self.stable:
             slow = self.poles.iloc[0]
             mode = f"{slow['mode']} {_pole(slow['real'], slow['imag'])}"
@@ -351,5 +358,11 @@ def stability(scenario: Scenario, controller: str = "smc") -> StabilityReport:
         tolerance=float(raw["tolerance"]),
         jacobian=np.asarray(raw["jacobian"]),
         residual=float(raw["residual"]),
-        period=None if raw["period"] is None else float(raw["period"]),
+        period=_seconds(raw["period"]),
+        unmodelled_period=_seconds(raw["unmodelled_period"]),
     )
+
+
+def _seconds(value: float | None) -> float | None:
+    """A period the engine gives (s), or None where it gives none."""
+    return None if value is None else float(value)

@@ -48,6 +48,7 @@ pub(super) fn add(m: &Bound<'_, PyModule>) -> PyResult<()> {
         rates.set_item(kind.name(), kind.rates().to_vec())?;
     }
     m.add("CONTROLLER_RATES", rates)?;
+    m.add("MAX_PERIOD_STEPS", crate::stability::MAX_PERIOD_STEPS)?;
     add_names(
         m,
         "CONTROLLER_LABELS",

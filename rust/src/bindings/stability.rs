@@ -41,6 +41,8 @@ pub(super) fn stability<'py>(
     d.set_item("tolerance", TOLERANCE)?;
     // s: the period of the discrete-time model of a law at rates; None: continuous.
     d.set_item("period", a.period)?;
+    // s: the loops' common period where too long to model sampled (the poles continuous).
+    d.set_item("unmodelled_period", a.unmodelled_period)?;
     Ok(d)
 }
 

@@ -247,7 +247,8 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize> ClosedLoop for Lo
         Self::reduce(&s)
     }
     fn sampled(&self) -> Option<(usize, f64)> {
-        let period = self.steps.iter().fold(1, |p, &n| lcm(p, n));
+        // (a period past usize, of rates whose steps share no factor, is as good as endless)
+        let period = (self.steps.iter()).fold(1, |p, &n| lcm(p, n).unwrap_or(usize::MAX));
         (period > 1).then_some((period, self.dt))
     }
     fn fly_period(&self, s: &[f64]) -> Vec<f64> {
@@ -306,8 +307,8 @@ impl<B: BodyKind, Pay: Payload, Act: Actuator, const N: usize> ClosedLoop for Lo
     }
 }
 
-/// The least common multiple of two step counts.
-fn lcm(a: usize, b: usize) -> usize {
+/// The least common multiple of two step counts, None past `usize`.
+fn lcm(a: usize, b: usize) -> Option<usize> {
     fn gcd(a: usize, b: usize) -> usize {
         if b == 0 {
             a
@@ -315,7 +316,7 @@ fn lcm(a: usize, b: usize) -> usize {
             gcd(b, a % b)
         }
     }
-    a / gcd(a, b) * b
+    (a / gcd(a, b)).checked_mul(b)
 }
 
 /// The closed loop of `kind` for the scenario `cfg`, about the reference `r`.
