@@ -23,6 +23,7 @@ pub mod rk4;
 pub mod scenario;
 pub mod stability;
 pub mod start;
+pub mod svd;
 #[cfg(test)]
 mod testing;
 pub mod trajectory;

@@ -31,7 +31,7 @@ use crate::lane::dual::Dual;
 use crate::model::{ix, Axis, Part, StateVar};
 use crate::scenario::{Config, GustComponent};
 use crate::trajectory::Reference;
-use nalgebra::{Complex, DMatrix, DVector, Schur, SVD};
+use nalgebra::{Complex, DMatrix, DVector, Schur};
 
 /// Real parts within this (1/s) of zero are "marginal", e.g. a position with no feedback. Not
 /// smaller: a position with neither gain is a double integrator, a defective zero eigenvalue
@@ -323,7 +323,7 @@ fn equilibrium(cl: &dyn ClosedLoop, w: &[f64; 3]) -> (Vec<f64>, f64) {
         let f = DVector::from_vec(f_at(&s));
         let jac = closed_loop_jacobian(cl, &s, w);
         // Bounded SVD: the plain one never returns on a non-finite Jacobian.
-        let svd = SVD::try_new(jac, true, true, f64::EPSILON, MAX_ITERATIONS);
+        let svd = crate::svd::bounded(jac, true, true, f64::EPSILON, MAX_ITERATIONS);
         let Some(Ok(step)) = svd.map(|svd| svd.solve(&f, 1e-12)) else {
             break;
         };
@@ -411,7 +411,7 @@ fn null_vector(a: &DMatrix<Complex<f64>>, lambda: Complex<f64>) -> Vec<Complex<f
     let shifted = a - DMatrix::from_diagonal_element(n, n, lambda);
     let svd = lambda
         .is_finite()
-        .then(|| SVD::try_new(shifted, false, true, f64::EPSILON, MAX_ITERATIONS))
+        .then(|| crate::svd::bounded(shifted, false, true, f64::EPSILON, MAX_ITERATIONS))
         .flatten();
     match svd {
         Some(svd) => {

@@ -25,7 +25,7 @@ use crate::control::{Controller, ControllerKind, Smc};
 use crate::scenario::Config;
 use crate::stability::{closed_loop, ClosedLoop};
 use crate::trajectory::{Reference, Trajectory};
-use nalgebra::{DMatrix, DVector, SVD};
+use nalgebra::{DMatrix, DVector};
 
 /// Newton steps at most.
 const MAX_ITERATIONS: usize = 60;
@@ -251,12 +251,12 @@ fn beyond_limit(cfg: &Config, axes: &[usize], wind: [f64; 3]) -> ConfigError {
         key: "controller.smc.integral".into(),
         message: format!(
             "controller.smc.integral = {:?}: the SMC has no equilibrium at its reference in the \
-             start's steady wind (wind.speed; {speed:.2} m/s at the start): {why} (the drag is \
-             held per kilogram of vehicle.mass = {} kg); raise controller.smc.eta or \
-             controller.smc.epsilon (the reaching law eta s + epsilon sat(s) gives the \
-             acceleration that holds the drag), lower wind.speed, or start at rest \
-             (initial.trim = \"rest\")",
-            cfg.controller.smc.integral, cfg.vehicle.mass,
+             start's steady wind (wind.speed; {speed:.2} m/s at the start): {why} (the drag, \
+             the vehicle's and the parcel's, payload.drag_area = {} m^2, is held per kilogram \
+             of vehicle.mass = {} kg); raise controller.smc.eta or controller.smc.epsilon (the \
+             reaching law eta s + epsilon sat(s) gives the acceleration that holds the drag), \
+             lower wind.speed, or start at rest (initial.trim = \"rest\")",
+            cfg.controller.smc.integral, cfg.payload.drag_area, cfg.vehicle.mass,
         ),
     }
 }
@@ -339,7 +339,8 @@ fn newton(b: &Balance, mut z: Vec<f64>) -> Result<Vec<f64>, Vec<f64>> {
         if r.amax() < TOLERANCE {
             return Ok(z);
         }
-        let Some(svd) = SVD::try_new(b.jacobian(&z), true, true, f64::EPSILON, SVD_ITERATIONS)
+        let Some(svd) =
+            crate::svd::bounded(b.jacobian(&z), true, true, f64::EPSILON, SVD_ITERATIONS)
         else {
             return Err(z);
         };
@@ -487,7 +488,12 @@ mod tests {
         let smc = engine_start.start(ControllerKind::Smc);
         let refused = smc.refused.as_ref().expect("refused");
         assert_eq!(refused.key, "controller.smc.integral");
-        for part in ["on y past its limit", "controller.smc.eta", "wind.speed"] {
+        for part in [
+            "on y past its limit",
+            "controller.smc.eta",
+            "wind.speed",
+            "payload.drag_area",
+        ] {
             assert!(refused.message.contains(part), "{}", refused.message);
         }
         for kind in [ControllerKind::Pd, ControllerKind::Px4, ControllerKind::Se3] {

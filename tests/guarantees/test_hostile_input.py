@@ -321,6 +321,29 @@ def test_delivery_overrides_with_extreme_values_run_or_name_their_key(
     check_flight(s, data.draw(st.sampled_from(["pd", "smc"]), label="controller"), key)
 
 
+#: Values the properties above found breaking their contract, kept as fixed cases: a NaN
+#: singular value nalgebra panicked on (an EngineError); the SMC refused blaming its integral
+#: where the vehicle has no hover (a picogram parcel), no solve finds any law's balance (a line
+#: damped at 1e155 N s/m) or the parcel's drag is what the integral cannot hold (a 1 m^2
+#: parcel, named now); a position loop at 1e-300 Hz whose stability analysis never ended.
+FOUND = [
+    ("short", "environment.gravity", 2.0708953205856933e111),
+    ("short_delivery", "payload.mass", 1e-300),
+    ("short_delivery", "payload.damping", 1e155),
+    ("short_delivery", "payload.drag_area", 1.0),
+    ("short_delivery", "controller.position_rate", 1e-300),
+]
+
+
+@pytest.mark.parametrize(("base", "key", "value"), FOUND)
+def test_values_the_properties_found_run_or_name_their_key(
+    base: str, key: str, value: float, request: pytest.FixtureRequest
+) -> None:
+    s = request.getfixturevalue(base).override({key: value})
+    for controller in ("pd", "smc"):
+        check_flight(s, controller, key)
+
+
 @pytest.mark.parametrize(("key", "value"), [("environment.gravity", 3751.0),
                                           ("payload.attachment_offset", 1.0),
                                           ("payload.length_min", 1.99),

@@ -11,7 +11,7 @@
 
 use crate::lane::{each3, each4, Lane};
 use crate::model::actuator::rotors::{allocation, RotorLayout};
-use nalgebra::{Matrix4, SVD};
+use nalgebra::DMatrix;
 
 /// Axes of the allocation's control vector (PX4's `ControlAxis` without `THRUST_X/Y`, whose
 /// rotor effectiveness is zero).
@@ -109,8 +109,8 @@ fn column<L: Copy>(m: &[[L; 4]; 4], axis: usize) -> [L; 4] {
 }
 
 fn pseudo_inverse(e: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
-    let m = Matrix4::from_fn(|i, j| e[i][j]);
-    let inv = SVD::try_new(m, true, true, f64::EPSILON, 1000)
+    let m = DMatrix::from_fn(4, 4, |i, j| e[i][j]);
+    let inv = crate::svd::bounded(m, true, true, f64::EPSILON, 1000)
         .and_then(|svd| svd.pseudo_inverse(1e-12).ok());
     match inv {
         Some(p) => std::array::from_fn(|i| std::array::from_fn(|j| p[(i, j)])),
