@@ -517,10 +517,10 @@ mod tests {
         }
     }
 
-    /// Where the vehicle cannot hover in the start's wind (24 m/s at 20 ft: no plant trim; a
-    /// parcel of a picogram on a line whose stiffness its mass sets, 10 Hz, blown out on a
-    /// line of no stiffness) every law starts at the plant's rest start, the SMC too (before: refused,
-    /// its message blaming its integral's limit for what is no hover at all).
+    /// Where the vehicle cannot hover in the start's wind (24 m/s at 20 ft; a parcel of a
+    /// picogram, whose line, stiffened by its mass at 10 Hz, cannot hold it against its drag)
+    /// every law starts at the plant's rest start, the SMC too (before: refused, its message
+    /// blaming its integral's limit for what is no hover at all).
     #[test]
     fn with_no_hover_in_the_wind_every_law_starts_at_rest() {
         let (gale, _) = windy_at(24.0);
